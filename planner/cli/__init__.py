@@ -1,0 +1,35 @@
+"""The ``planner`` command: one typer app, a sub-command per job step.
+
+Each sub-command lives in its own module here and registers itself on ``app``;
+this module only wires them together and turns domain errors into one line.
+"""
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from ..errors import PlannerError
+
+app = typer.Typer(
+    name="planner",
+    help="Plan train running for a whole line: tables, stopping patterns, margins, bundles.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+# Sub-command modules; each does `from . import app` and decorates its commands.
+from . import validate  # noqa: E402,F401
+
+
+def main() -> None:
+    """Console entry point: domain errors become one line on stderr, never a traceback."""
+    try:
+        app()
+    except PlannerError as e:
+        typer.echo(f"error: {e}", err=True)
+        sys.exit(e.exit_code)
+    except KeyboardInterrupt:
+        typer.echo("interrupted", err=True)
+        sys.exit(130)

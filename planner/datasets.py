@@ -1,0 +1,157 @@
+"""Parquet datasets: declared schemas and deterministic, atomic, hive-partitioned writes.
+
+Every dataset the planner writes is laid out as
+
+    ROOT/<dataset>/line=L/direction=D/train_type=T/part-0.parquet
+
+so analysts can filter by partition without reading everything
+(``pyarrow.dataset.dataset(ROOT/<dataset>, partitioning="hive")``, DuckDB's
+``read_parquet('.../**/*.parquet', hive_partitioning=true)``). Partition
+columns are not stored inside the files (hive style); each file carries the
+schema's field descriptions and the dataset's schema version as metadata.
+
+Writes are deterministic (same table, same bytes: no timestamps, fixed
+writer settings) and atomic per file (temp file in the same folder, then
+``os.replace``).
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
+PARTITION_COLS = ("line", "direction", "train_type")
+
+
+def declare(
+    fields: Sequence[tuple[str, pa.DataType, str]],
+    *,
+    name: str = "",
+    version: int = 1,
+    description: str = "",
+) -> pa.Schema:
+    """Declare a dataset schema once: ``(column, type, description)`` triples.
+
+    Units belong in the column name (``running_time_s``); the description says
+    what the column means. The schema metadata records the dataset name, its
+    version and description, so ``outputs/README.md`` can be generated from it.
+    """
+    pa_fields = [
+        pa.field(col, typ, metadata={"description": desc}) for col, typ, desc in fields
+    ]
+    meta = {"dataset": name, "schema_version": str(version), "description": description}
+    return pa.schema(pa_fields, metadata=meta)
+
+
+def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
+    """Select and cast ``table``'s columns to ``schema`` (order, types, metadata)."""
+    cols = [table.column(f.name).cast(f.type) for f in schema]
+    return pa.Table.from_arrays(cols, schema=schema)
+
+
+def write_parquet_atomic(table: pa.Table, path: Path) -> None:
+    """Write ``table`` to ``path`` deterministically; the final name appears only when complete."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        pq.write_table(
+            table,
+            tmp,
+            compression="zstd",
+            use_dictionary=True,
+            write_statistics=True,
+            store_schema=True,
+        )
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def write_partitioned(
+    table: pa.Table,
+    root: Path,
+    dataset: str,
+    partition_cols: Iterable[str] = PARTITION_COLS,
+    *,
+    schema: pa.Schema | None = None,
+    sort_by: Sequence[str] = (),
+) -> list[Path]:
+    """Write ``table`` as a hive-partitioned dataset under ``root/dataset``.
+
+    Parameters
+    ----------
+    table : pyarrow.Table
+        Rows including the partition columns.
+    root : Path
+        Output root (e.g. a run folder).
+    dataset : str
+        Dataset name, the first folder level.
+    partition_cols : iterable of str
+        Columns that become ``col=value`` folders, in that order.
+    schema : pyarrow.Schema, optional
+        Declared schema of the *stored* columns (without partition columns);
+        the stored table is conformed to it.
+    sort_by : sequence of str
+        Columns to sort rows by inside each file, for determinism.
+
+    Returns
+    -------
+    list of Path
+        Files written, in sorted partition order.
+    """
+    root = Path(root)
+    parts = list(partition_cols)
+    written: list[Path] = []
+    if table.num_rows == 0:
+        return written
+    keys = table.select(parts).to_pylist()
+    groups: dict[tuple, list[int]] = {}
+    for i, k in enumerate(keys):
+        groups.setdefault(tuple(str(k[c]) for c in parts), []).append(i)
+    for key in sorted(groups):
+        sub = table.take(pa.array(groups[key], type=pa.int64())).drop_columns(parts)
+        if sort_by:
+            sub = sub.sort_by([(c, "ascending") for c in sort_by])
+        if schema is not None:
+            sub = conform(sub, schema)
+        folder = root / dataset
+        for c, v in zip(parts, key):
+            folder = folder / f"{c}={v}"
+        path = folder / "part-0.parquet"
+        write_parquet_atomic(sub, path)
+        written.append(path)
+    return written
+
+
+def read_dataset(root: Path, dataset: str, **filters) -> pa.Table:
+    """Read a hive-partitioned dataset, optionally filtered by partition values.
+
+    ``read_dataset(out, "table_a", direction="down", train_type="E10")``.
+    Partition columns come back as strings.
+    """
+    import pyarrow.dataset as ds
+
+    path = Path(root) / dataset
+    d = ds.dataset(path, format="parquet", partitioning="hive")
+    expr = None
+    for k, v in filters.items():
+        e = pc.field(k) == v
+        expr = e if expr is None else expr & e
+    t = d.to_table(filter=expr)
+    # Partition columns inferred as dictionary/int by pyarrow; make them plain strings.
+    for name in PARTITION_COLS:
+        if name in t.column_names:
+            idx = t.column_names.index(name)
+            t = t.set_column(idx, name, pc.cast(t.column(name), pa.string()))
+    return t
