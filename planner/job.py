@@ -1,0 +1,281 @@
+"""Job files (TOML): what the nightly job computes and where it publishes.
+
+A job file is strict: an unknown key or a bad value is a :class:`JobError`
+that names the file and the key (``jobs/nightly.toml: [tables] ratios: ...``).
+Every section is optional and has documented defaults, so the smallest job is
+
+.. code-block:: toml
+
+    [job]
+    lines = ["lines/sample"]
+
+Paths in a job file are relative to the job file's folder's parent project
+root: the folder that contains ``jobs/`` (i.e. relative to the job file's
+grand-parent when it lives in a ``jobs`` folder, else to the job file's own
+folder), so ``make run`` works from a fresh clone.
+"""
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import JobError
+
+
+@dataclass(frozen=True)
+class JobSection:
+    name: str = "nightly"
+    """Job name, shown in the summary and the run manifest."""
+    lines: tuple[str, ...] = ("lines/sample",)
+    """Line-database folders to plan."""
+    train_types: tuple[str, ...] = ()
+    """Train types to plan; empty = every train type of each line."""
+    output_root: str = "outputs"
+    """Where runs are published: OUTPUT_ROOT/<run_id>/ and OUTPUT_ROOT/latest."""
+    keep_runs: int = 5
+    """How many complete runs to keep (older ones are deleted after a publish)."""
+
+
+@dataclass(frozen=True)
+class TablesSection:
+    ratios: str = "1.0:0.7:0.1,0.7:floor:0.05"
+    """Ratio grid SPEC: comma-separated START:STOP:STEP ranges or plain ratios; `floor` is the ratio where ratio × line maximum = min_target_kmh."""
+    min_target_kmh: float = 20.0
+    """The grid stops where ratio × line maximum reaches this speed."""
+    eval_offset_m: float = 200.0
+    """Evaluation point this far after departure."""
+    ds_m: float = 1.0
+    """Integration step in running distance [m]."""
+
+
+@dataclass(frozen=True)
+class StopsSection:
+    adhesion_kmh_s: str = "2.5:3.5:0.1"
+    """Adhesion sweep START:STOP:STEP in km/h/s."""
+    approach_m: float = 550.0
+    """Pattern start distance before the stop marker where no TASC beacon exists."""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    load: float = 0.0
+    traction: float = 1.0
+
+
+@dataclass(frozen=True)
+class ClosedLoopSection:
+    modes: tuple[str, ...] = ("nearest", "interpolate")
+    """On-board ratio-choice modes to prove."""
+    horizon_s: float = 60.0
+    """Designated times from the minimum to minimum + horizon_s."""
+    step_s: float = 1.0
+    scenarios: tuple[Scenario, ...] = (
+        Scenario("nominal", 0.0, 1.0),
+        Scenario("perturbed", 1.0, 0.9),
+    )
+
+
+@dataclass(frozen=True)
+class MarginsSection:
+    supplement_percent: float = 3.0
+    """Rule: supplement = percent of the minimum running time ..."""
+    supplement_min_per_100km: float = 1.0
+    """... plus this many minutes per 100 km."""
+    tight_threshold_s: float = 5.0
+    """Remaining margin (scheduled − degraded minimum) below this is flagged `tight`."""
+    degraded_load: float = 1.0
+    degraded_traction: float = 0.9
+
+
+@dataclass(frozen=True)
+class BundlesSection:
+    signing_key: str = ""
+    """Path of the Ed25519 private key (PEM). Empty: env PLANNER_SIGNING_KEY, else a development key under outputs/."""
+
+
+@dataclass(frozen=True)
+class ConflictsSection:
+    enabled: bool = True
+    setting_s: float = 10.0
+    approach_s: float = 20.0
+    release_s: float = 5.0
+
+
+@dataclass(frozen=True)
+class ParallelSection:
+    backend: str = "local"
+    """`local` (joblib processes) or `dask` (joblib's dask backend on a dask.distributed cluster)."""
+    n_jobs: int = -1
+    """Worker processes for the local backend; -1 = all cores."""
+    scheduler: str = ""
+    """Dask scheduler address (tcp://host:8786) for backend = "dask"."""
+
+
+@dataclass(frozen=True)
+class Job:
+    path: str
+    root: str
+    job: JobSection = field(default_factory=JobSection)
+    tables: TablesSection = field(default_factory=TablesSection)
+    stops: StopsSection = field(default_factory=StopsSection)
+    closed_loop: ClosedLoopSection = field(default_factory=ClosedLoopSection)
+    margins: MarginsSection = field(default_factory=MarginsSection)
+    bundles: BundlesSection = field(default_factory=BundlesSection)
+    conflicts: ConflictsSection = field(default_factory=ConflictsSection)
+    parallel: ParallelSection = field(default_factory=ParallelSection)
+
+    def resolve(self, p: str) -> Path:
+        """A path from the job file, resolved against the project root."""
+        q = Path(p)
+        return q if q.is_absolute() else Path(self.root) / q
+
+    def parameters(self) -> dict[str, Any]:
+        """Every parameter as plain data (for digests and the run manifest)."""
+        d = dataclasses.asdict(self)
+        d.pop("path")
+        d.pop("root")
+        return d
+
+
+SECTIONS = {
+    "job": JobSection,
+    "tables": TablesSection,
+    "stops": StopsSection,
+    "closed_loop": ClosedLoopSection,
+    "margins": MarginsSection,
+    "bundles": BundlesSection,
+    "conflicts": ConflictsSection,
+    "parallel": ParallelSection,
+}
+
+
+def _check_type(where: str, value: Any, default: Any) -> Any:
+    """Coerce ``value`` to the type of ``default`` or raise with ``where``."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise JobError(f"{where}: expected true or false, found {value!r}")
+        return value
+    if isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise JobError(f"{where}: expected an integer, found {value!r}")
+        return value
+    if isinstance(default, float):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise JobError(f"{where}: expected a number, found {value!r}")
+        return float(value)
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise JobError(f"{where}: expected a string, found {value!r}")
+        return value
+    if isinstance(default, tuple):
+        if not isinstance(value, list):
+            raise JobError(f"{where}: expected a list, found {value!r}")
+        return tuple(value)
+    return value
+
+
+def _section(file: str, name: str, cls, data: Any):
+    if not isinstance(data, dict):
+        raise JobError(f"{file}: [{name}] must be a table, found {data!r}")
+    known = {f.name: f for f in dataclasses.fields(cls)}
+    defaults = cls()
+    kwargs = {}
+    for key, value in data.items():
+        where = f"{file}: [{name}] {key}"
+        if key not in known:
+            raise JobError(f"{where}: unknown key; known keys: {', '.join(known)}")
+        if cls is ClosedLoopSection and key == "scenarios":
+            kwargs[key] = _scenarios(where, value)
+            continue
+        kwargs[key] = _check_type(where, value, getattr(defaults, key))
+        if isinstance(kwargs[key], tuple) and not all(isinstance(x, str) for x in kwargs[key]):
+            raise JobError(f"{where}: expected a list of strings, found {value!r}")
+    return cls(**kwargs)
+
+
+def _scenarios(where: str, value: Any) -> tuple[Scenario, ...]:
+    if not isinstance(value, list) or not value:
+        raise JobError(f"{where}: expected a non-empty list of {{name, load, traction}} tables")
+    out = []
+    for i, item in enumerate(value):
+        w = f"{where}[{i}]"
+        if not isinstance(item, dict):
+            raise JobError(f"{w}: expected a table {{name, load, traction}}, found {item!r}")
+        extra = set(item) - {"name", "load", "traction"}
+        if extra:
+            raise JobError(f"{w}: unknown key {sorted(extra)[0]!r}; known keys: name, load, traction")
+        if "name" not in item or not isinstance(item["name"], str):
+            raise JobError(f"{w}: needs a string `name`")
+        out.append(Scenario(
+            item["name"],
+            _check_type(f"{w} load", item.get("load", 0.0), 0.0),
+            _check_type(f"{w} traction", item.get("traction", 1.0), 1.0),
+        ))
+    return tuple(out)
+
+
+def _validate(file: str, job: Job) -> None:
+    """Value rules that types alone do not catch; each names the key."""
+    def bad(section: str, key: str, msg: str):
+        raise JobError(f"{file}: [{section}] {key}: {msg}")
+
+    if not job.job.lines:
+        bad("job", "lines", "name at least one line-database folder")
+    if job.job.keep_runs < 1:
+        bad("job", "keep_runs", f"must be at least 1, found {job.job.keep_runs}")
+    if not 0 < job.tables.ds_m <= 10:
+        bad("tables", "ds_m", f"must be in (0, 10] m, found {job.tables.ds_m}")
+    if job.tables.min_target_kmh <= 0:
+        bad("tables", "min_target_kmh", "must be positive")
+    if job.tables.eval_offset_m < 0:
+        bad("tables", "eval_offset_m", "must be ≥ 0")
+    if job.stops.approach_m <= 0:
+        bad("stops", "approach_m", "must be positive")
+    if job.closed_loop.horizon_s < 0 or job.closed_loop.step_s <= 0:
+        bad("closed_loop", "horizon_s/step_s", "horizon must be ≥ 0 and step > 0")
+    for s in job.closed_loop.scenarios:
+        if s.load < 0 or not 0 < s.traction <= 2:
+            bad("closed_loop", "scenarios", f"scenario {s.name!r}: load ≥ 0 and 0 < traction ≤ 2")
+    if job.margins.tight_threshold_s < 0:
+        bad("margins", "tight_threshold_s", "must be ≥ 0")
+    if job.parallel.backend not in ("local", "dask"):
+        bad("parallel", "backend", f"must be \"local\" or \"dask\", found {job.parallel.backend!r}")
+    if job.parallel.backend == "dask" and not job.parallel.scheduler:
+        bad("parallel", "scheduler", "backend = \"dask\" needs a scheduler address, e.g. tcp://127.0.0.1:8786")
+    if job.parallel.n_jobs == 0 or job.parallel.n_jobs < -1:
+        bad("parallel", "n_jobs", f"must be -1 (all cores) or ≥ 1, found {job.parallel.n_jobs}")
+    for p in job.job.lines:
+        if not job.resolve(p).is_dir():
+            bad("job", "lines", f"line folder {p!r} does not exist (resolved to {job.resolve(p)})")
+
+
+def project_root_for(job_path: Path) -> Path:
+    """The folder job paths are relative to: the parent of ``jobs/``, else the job file's folder."""
+    folder = job_path.resolve().parent
+    return folder.parent if folder.name == "jobs" else folder
+
+
+def load_job(path: str | Path) -> Job:
+    """Read and check a job file; raise :class:`JobError` naming the key on any problem."""
+    p = Path(path)
+    file = str(path)
+    if not p.is_file():
+        raise JobError(f"{file}: job file not found")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as e:
+        raise JobError(f"{file}: not valid TOML: {e}") from None
+    except UnicodeDecodeError:
+        raise JobError(f"{file}: not a UTF-8 text file") from None
+    kwargs: dict[str, Any] = {}
+    for name, value in data.items():
+        if name not in SECTIONS:
+            raise JobError(f"{file}: unknown section [{name}]; known sections: {', '.join(SECTIONS)}")
+        kwargs[name] = _section(file, name, SECTIONS[name], value)
+    job = Job(path=file, root=str(project_root_for(p)), **kwargs)
+    _validate(file, job)
+    return job

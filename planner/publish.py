@@ -1,0 +1,203 @@
+"""Run folders, atomic publication and the work cache of the nightly job.
+
+Layout under the output root::
+
+    outputs/
+      latest -> r0007-3f9a2c01d4        (symlink, swapped atomically)
+      r0006-.../  r0007-.../            (complete runs; the last N are kept)
+      .staging-r0008-.../               (a run being written; never read by users)
+      .cache/<kind>/<ab>/<key>.parquet  (results keyed by the digest of their inputs)
+      .lock                             (one job at a time per output root)
+
+A run is written entirely under ``.staging-<run_id>`` and renamed to
+``<run_id>`` only when every step succeeded; then ``latest`` is re-pointed
+with ``os.replace`` of a fresh symlink, which is atomic on POSIX. A failing or
+killed run therefore never changes ``latest`` nor touches a published run;
+its staging folder is removed by the next run.
+"""
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import json
+import os
+import re
+import shutil
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .datasets import write_parquet_atomic
+from .errors import JobError
+
+RUN_RE = re.compile(r"^r(\d{4,})-([0-9a-f]{10})$")
+
+
+def canonical_json(obj: Any) -> bytes:
+    """Stable JSON bytes: sorted keys, no spaces, floats as Python repr (exact round trip)."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=_default).encode()
+
+
+def _default(o: Any):
+    import dataclasses
+
+    import numpy as np
+
+    if dataclasses.is_dataclass(o):
+        return {f.name: getattr(o, f.name) for f in dataclasses.fields(o)}
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer, np.bool_)):
+        return o.item()
+    if isinstance(o, Path):
+        return o.as_posix()
+    raise TypeError(f"cannot digest {type(o).__name__}")
+
+
+def digest(obj: Any) -> str:
+    """SHA-256 hex digest of ``obj``'s canonical JSON."""
+    return hashlib.sha256(canonical_json(obj)).hexdigest()
+
+
+# --- the work cache -----------------------------------------------------------
+class Cache:
+    """Results keyed by the digest of exactly the inputs they depend on.
+
+    Each entry is one Parquet file, written atomically, so a killed run leaves
+    either a complete entry or none. ``hits`` and ``misses`` count look-ups,
+    which is how tests prove that an unchanged re-run recomputes nothing.
+    """
+
+    def __init__(self, root: Path):
+        self.root = Path(root)
+        self.hits = 0
+        self.misses = 0
+
+    def path(self, kind: str, key: str) -> Path:
+        return self.root / kind / key[:2] / f"{key}.parquet"
+
+    def get(self, kind: str, key: str) -> pa.Table | None:
+        p = self.path(kind, key)
+        if p.is_file():
+            try:
+                t = pq.read_table(p)
+            except Exception:  # a corrupt entry is a miss, recomputed and overwritten
+                self.misses += 1
+                return None
+            self.hits += 1
+            return t
+        self.misses += 1
+        return None
+
+    def put(self, kind: str, key: str, table: pa.Table) -> None:
+        write_parquet_atomic(table, self.path(kind, key))
+
+
+# --- runs and publication -----------------------------------------------------
+def list_runs(root: Path) -> list[str]:
+    """Published run ids under ``root``, oldest first."""
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    runs = [p.name for p in root.iterdir() if p.is_dir() and not p.is_symlink() and RUN_RE.match(p.name)]
+    return sorted(runs, key=lambda r: int(RUN_RE.match(r).group(1)))
+
+
+def latest_run(root: Path) -> str | None:
+    """The run ``latest`` points at, or None."""
+    link = Path(root) / "latest"
+    if link.is_symlink():
+        target = os.readlink(link)
+        if (Path(root) / target).is_dir():
+            return Path(target).name
+    return None
+
+
+def next_run_id(root: Path, inputs_digest: str) -> str:
+    """``r<seq>-<digest10>``: a sequence number after every run seen, and the inputs digest."""
+    root = Path(root)
+    seqs = [int(RUN_RE.match(r).group(1)) for r in list_runs(root)]
+    if root.is_dir():
+        for p in root.iterdir():
+            m = re.match(r"^\.staging-r(\d{4,})-", p.name)
+            if m:
+                seqs.append(int(m.group(1)))
+    return f"r{(max(seqs) + 1) if seqs else 1:04d}-{inputs_digest[:10]}"
+
+
+@contextmanager
+def job_lock(root: Path) -> Iterator[None]:
+    """One job per output root at a time (an advisory lock the kernel drops if we die)."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    fd = os.open(root / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise JobError(f"{root}: another planner job is running on this output root; wait for it") from None
+        yield
+    finally:
+        os.close(fd)
+
+
+def clean_stale_staging(root: Path) -> list[str]:
+    """Remove staging folders left by failed or killed runs (call under the job lock)."""
+    removed = []
+    root = Path(root)
+    if root.is_dir():
+        for p in root.iterdir():
+            if p.name.startswith(".staging-") and p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+                removed.append(p.name)
+    return sorted(removed)
+
+
+def staging_dir(root: Path, run_id: str) -> Path:
+    p = Path(root) / f".staging-{run_id}"
+    p.mkdir(parents=True, exist_ok=False)
+    return p
+
+
+def _fsync_tree(folder: Path) -> None:
+    for dirpath, _dirs, files in os.walk(folder):
+        for f in files:
+            fd = os.open(os.path.join(dirpath, f), os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        fd = os.open(dirpath, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def publish(root: Path, staging: Path, run_id: str, keep: int) -> Path:
+    """Make a complete staged run visible: rename it, swap ``latest``, prune old runs.
+
+    Returns the published run folder.
+    """
+    root = Path(root)
+    _fsync_tree(staging)
+    final = root / run_id
+    os.rename(staging, final)
+    tmp_link = root / f".latest-{run_id}.tmp"
+    if tmp_link.is_symlink() or tmp_link.exists():
+        tmp_link.unlink()
+    os.symlink(run_id, tmp_link)
+    os.replace(tmp_link, root / "latest")
+    dfd = os.open(root, os.O_RDONLY)
+    try:
+        os.fsync(dfd)
+    finally:
+        os.close(dfd)
+    runs = list_runs(root)
+    for old in runs[: max(0, len(runs) - keep)]:
+        if old != run_id:
+            shutil.rmtree(root / old, ignore_errors=True)
+    return final

@@ -1,0 +1,52 @@
+"""Job files: defaults, strictness (unknown keys and bad values name the key), path resolution."""
+import pytest
+
+from planner.errors import JobError
+from planner.job import load_job
+
+
+def _write(tmp_path, text):
+    (tmp_path / "lines" / "x").mkdir(parents=True)
+    (tmp_path / "jobs").mkdir()
+    p = tmp_path / "jobs" / "j.toml"
+    p.write_text(text)
+    return p
+
+
+def test_minimal_job_gets_defaults_and_resolves_against_project_root(tmp_path):
+    job = load_job(_write(tmp_path, '[job]\nlines = ["lines/x"]\n'))
+    assert job.job.lines == ("lines/x",)
+    assert job.resolve("lines/x") == tmp_path.resolve() / "lines" / "x"
+    assert job.tables.eval_offset_m == 200.0
+    assert [s.name for s in job.closed_loop.scenarios] == ["nominal", "perturbed"]
+    assert job.closed_loop.scenarios[1].load == 1.0 and job.closed_loop.scenarios[1].traction == 0.9
+    assert job.parallel.backend == "local"
+
+
+@pytest.mark.parametrize(
+    "text, needle",
+    [
+        ('[job]\nlines = ["lines/x"]\nkeep = 3\n', "[job] keep: unknown key"),
+        ('[job]\nlines = ["lines/x"]\n[tabels]\n', "unknown section [tabels]"),
+        ('[job]\nlines = ["lines/x"]\nkeep_runs = "five"\n', "[job] keep_runs: expected an integer"),
+        ('[job]\nlines = ["lines/x"]\nkeep_runs = 0\n', "[job] keep_runs: must be at least 1"),
+        ('[job]\nlines = ["lines/nope"]\n', "[job] lines: line folder 'lines/nope' does not exist"),
+        ('[job]\nlines = ["lines/x"]\n[tables]\nds_m = -1\n', "[tables] ds_m"),
+        ('[job]\nlines = ["lines/x"]\n[parallel]\nbackend = "mpi"\n', "[parallel] backend"),
+        ('[job]\nlines = ["lines/x"]\n[parallel]\nbackend = "dask"\n', "[parallel] scheduler"),
+        ('[job]\nlines = ["lines/x"]\n[closed_loop]\nscenarios = [{name = "a", lod = 1}]\n',
+         "[closed_loop] scenarios[0]: unknown key 'lod'"),
+        ('[job]\nlines = "lines/x"\n', "[job] lines: expected a list"),
+        ('[job\n', "not valid TOML"),
+    ],
+)
+def test_bad_job_names_the_key(tmp_path, text, needle):
+    with pytest.raises(JobError) as e:
+        load_job(_write(tmp_path, text))
+    msg = str(e.value)
+    assert needle in msg and "j.toml" in msg and "\n" not in msg
+
+
+def test_missing_job_file(tmp_path):
+    with pytest.raises(JobError, match="job file not found"):
+        load_job(tmp_path / "none.toml")

@@ -1,0 +1,59 @@
+"""Run publication: staging, atomic latest, pruning, stale staging, lock, cache."""
+import os
+
+import pyarrow as pa
+import pytest
+
+from planner.errors import JobError
+from planner.publish import (
+    Cache, clean_stale_staging, digest, job_lock, latest_run, list_runs, next_run_id, publish, staging_dir,
+)
+
+
+def _stage(root, n):
+    rid = next_run_id(root, f"{n:040x}")
+    st = staging_dir(root, rid)
+    (st / "file.txt").write_text(f"run {n}")
+    return rid, st
+
+
+def test_publish_swaps_latest_and_keeps_last_n(tmp_path):
+    ids = []
+    for n in range(4):
+        rid, st = _stage(tmp_path, n)
+        publish(tmp_path, st, rid, keep=2)
+        ids.append(rid)
+        assert latest_run(tmp_path) == rid
+        assert (tmp_path / "latest" / "file.txt").read_text() == f"run {n}"
+    assert ids[0].startswith("r0001-") and ids[3].startswith("r0004-")
+    assert list_runs(tmp_path) == ids[2:]
+    assert os.readlink(tmp_path / "latest") == ids[3]  # relative: the output root can move
+
+
+def test_failed_run_leaves_latest_and_is_cleaned(tmp_path):
+    rid, st = _stage(tmp_path, 1)
+    publish(tmp_path, st, rid, keep=3)
+    rid2, st2 = _stage(tmp_path, 2)  # never published: a failure or SIGKILL
+    assert latest_run(tmp_path) == rid
+    assert next_run_id(tmp_path, "f" * 40).startswith("r0003-")  # staged ids are not reused
+    assert clean_stale_staging(tmp_path) == [f".staging-{rid2}"]
+    assert latest_run(tmp_path) == rid and (tmp_path / rid / "file.txt").is_file()
+
+
+def test_lock_refuses_a_second_job(tmp_path):
+    with job_lock(tmp_path):
+        # flock locks belong to the open file description: a second open conflicts
+        with pytest.raises(JobError, match="another planner job"):
+            with job_lock(tmp_path):
+                pass
+
+
+def test_cache_counts_hits_and_misses(tmp_path):
+    c = Cache(tmp_path)
+    key = digest({"a": 1.5, "b": [1, 2]})
+    assert key == digest({"b": [1, 2], "a": 1.5})  # key order does not matter
+    assert key != digest({"a": 1.5000000001, "b": [1, 2]})
+    assert c.get("t", key) is None
+    c.put("t", key, pa.table({"x": [1.0]}))
+    assert c.get("t", key).to_pydict() == {"x": [1.0]}
+    assert (c.hits, c.misses) == (1, 1)
