@@ -186,6 +186,8 @@ class Node:
     kind: str  # switch, stop, boundary, end
     position_m: float
     interlocking: str
+    station_id: str | None = None  # optional nodes.parquet column: the station a stop node serves
+    track: str | None = None  # optional nodes.parquet column
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,13 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
+
+@app.callback()
+def _root() -> None:
+    """Plan train running for a whole line: tables, stopping patterns, margins, bundles."""
+    # A callback keeps `planner validate ...` a sub-command even while it is the only one
+    # (typer otherwise collapses a one-command app into that command).
+
 # Sub-command modules; each does `from . import app` and decorates its commands.
 from . import validate  # noqa: E402,F401
 
