@@ -1,0 +1,77 @@
+"""Benchmark: solve time of one minimum-time stopping pattern (DESIGN §5, issue 5).
+
+Prints the median (and 90th percentile) wall time per ``solve_stop`` call over a few
+thousand seeded random station approaches with up to six event points (positions
+where a deceleration or speed limit changes), split by the number of event points,
+against the 0.5 ms target. Run: ``.venv/bin/python benchmarks/bench_stopping.py``.
+"""
+from __future__ import annotations
+
+import random
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from planner.stopping import decel_limit_profile, solve_stop  # noqa: E402
+
+TARGET_MS = 0.5
+N_CASES = 4000
+
+
+def random_approach(rng: random.Random):
+    """A station approach: 300-900 m from the TASC beacon, 40-110 km/h, gradients and restrictions."""
+    X = rng.uniform(300.0, 900.0)
+    v0 = rng.uniform(40.0, 110.0) / 3.6
+    J = rng.uniform(0.4, 1.0)
+    n_grad = rng.randint(0, 3)
+    n_speed = rng.randint(0, 6 - n_grad)
+    grads = [(0.0, rng.uniform(-10.0, 10.0))] + sorted(
+        (rng.uniform(10.0, X - 10.0), rng.uniform(-15.0, 15.0)) for _ in range(n_grad)
+    )
+    adhesion = rng.uniform(2.5, 3.5) / 3.6
+    dl = decel_limit_profile(3.6 / 3.6, adhesion, grads)
+    sl = [(0.0, v0 * rng.uniform(1.0, 1.2))] + sorted(
+        (rng.uniform(10.0, X - 10.0), rng.uniform(25.0, 100.0) / 3.6) for _ in range(n_speed)
+    )
+    return v0, X, J, dl, sl
+
+
+def main() -> None:
+    rng = random.Random(12345)
+    cases = [random_approach(rng) for _ in range(N_CASES)]
+    by_events: dict[int, list[float]] = {}
+    all_t: list[float] = []
+    n_feasible = 0
+    # warm-up (imports, caches)
+    for c in cases[:50]:
+        solve_stop(c[0], c[1], jerk_max=c[2], decel_limits=c[3], speed_limits=c[4])
+    for v0, X, J, dl, sl in cases:
+        t0 = time.perf_counter()
+        p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+        dt = time.perf_counter() - t0
+        n_ev = len({x for x, _ in dl[1:] + sl[1:] if x < X})
+        by_events.setdefault(n_ev, []).append(dt)
+        all_t.append(dt)
+        n_feasible += p.feasible
+    med = statistics.median(all_t) * 1e3
+    p90 = statistics.quantiles(all_t, n=10)[-1] * 1e3
+    print(f"bench_stopping: {N_CASES} random approaches ({n_feasible} feasible), up to 6 event points")
+    print(f"  solve_stop median {med:.3f} ms, p90 {p90:.3f} ms per pattern (target <= {TARGET_MS} ms)")
+    for k in sorted(by_events):
+        ts = by_events[k]
+        print(f"    {k} event points: n={len(ts):4d}  median {statistics.median(ts) * 1e3:.3f} ms")
+    try:
+        from planner import stops  # the line-level sweep (issue 5 item 3), when it exists
+    except ImportError:
+        print("  line-level sweep: planner.stops not available")
+    else:
+        sweep = getattr(stops, "benchmark_sample_line", None)
+        if sweep is not None:
+            sweep()
+
+
+if __name__ == "__main__":
+    main()
