@@ -14,3 +14,30 @@ def load_line(path):
     from .loader import load_line as _load
 
     return _load(path)
+
+
+def running_time(line_or_path, train_type, origin, destination, *, ratio=1.0, load=0.0,
+                 traction_factor=1.0, ratio_changes=(), settings=None):
+    """Running time between two stations at a target-speed ratio; see :func:`planner.run_curve.running_time`."""
+    from .run_curve import running_time as _rt
+
+    return _rt(line_or_path, train_type, origin, destination, ratio=ratio, load=load,
+               traction_factor=traction_factor, ratio_changes=ratio_changes, settings=settings)
+
+
+def timekeeping_run(line_or_path, train_type, origin, destination, *, arrival_s, changes=(), load=0.0,
+                    traction_factor=1.0, settings=None):
+    """One interstation in time-keeping mode (DESIGN §4); see :func:`planner.timekeeping.timekeeping_run`."""
+    from .timekeeping import timekeeping_run as _tk
+
+    return _tk(line_or_path, train_type, origin, destination, arrival_s=arrival_s, changes=changes,
+               load=load, traction_factor=traction_factor, settings=settings)
+
+
+def __getattr__(name):
+    # lazy public classes (importing numpy/pandas only when used)
+    if name == "RunResult":
+        from .run_curve import RunResult
+
+        return RunResult
+    raise AttributeError(f"module 'planner' has no attribute {name!r}")

@@ -1,0 +1,766 @@
+"""Run curves: the distance-domain, lock-step batch integrator (DESIGN §2, §3).
+
+A *run* is one train running from a departure stop marker to the next stop
+marker at a target-speed ratio. A *batch* advances many runs (different ratios,
+loads, traction factors, start states, ratio changes) together over the same
+grid of running distance ``s`` [m], so every per-position look-up (on-board
+maximum, gradient, curve, ceiling) is an index, and evaluation points are exact
+grid nodes.
+
+The method
+----------
+Work in ``w = v²`` against distance, where constant acceleration is linear:
+
+* **free running** (power below the target, or coast for sawtooth vehicles):
+  Heun's second-order step ``w₁ = w₀ + (a(v₀, s₀) + a(ṽ₁, s₁)) Δs`` with the
+  predictor ``ṽ₁² = w₀ + 2 a(v₀, s₀) Δs``;
+* **ceiling** ``c²(s) = min(target², service-brake curves to every lower
+  target ahead, stopping-brake curve onto the marker)`` (see
+  :mod:`planner.speed_profile`): linear in ``w`` between nodes, so holding the
+  target and braking along a curve are exact;
+* a step that meets the ceiling inside it is **split** at the crossing (the
+  root of the linear gap ``w − c²``): free running up to it, the ceiling after;
+  a lowered ratio leaves the train above the new ceiling, and it brakes at the
+  service brake (``w`` falls by ``2 b Δs``) until it meets it, split alike;
+  (where the ceiling rises inside that step, as a restriction's tail clears,
+  the train runs free from the crossing, capped by the ceiling, rather than
+  riding up the ceiling faster than it can accelerate);
+* a sawtooth vehicle coasts from the point where it meets a level or falling
+  ceiling, and the band's lower edge splits a coasting step the same way, so
+  the coasting cycles do not snap to grid nodes (that would be first order);
+* time over a piece of constant acceleration is ``Δt = 2 Δs / (v₀ + v₁)``,
+  exact, with no singularity when starting from standstill.
+
+Errors are second order in the step; the tests show running times within
+0.05 s of closed-form answers at the default 1 m and converged under step
+halving. The final node is the arrival marker, where the ceiling is zero, so
+every run ends standing exactly at ``length_m``.
+
+A run's *phase* at a node (``PHASE_*``) is what it did on the step that
+arrived there; a start state with any phase but power puts a sawtooth vehicle
+in its coasting band, so a run continued from a snapshot repeats the original.
+
+Energy is the mechanical traction work at the wheel ``∫ F ds`` while F > 0
+(regenerative braking not credited), in kWh.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from . import dynamics, speed_profile
+from .errors import InfeasibleError, InputError
+from .model import Line, TrainType, sign
+from .units import KWH
+
+try:  # the compiled kernel behind np.interp, without its per-call Python checks (~2 µs)
+    from numpy._core.multiarray import interp as _interp
+except ImportError:  # pragma: no cover - other numpy layouts
+    _interp = np.interp
+
+PHASE_POWER, PHASE_HOLD, PHASE_COAST, PHASE_BRAKE, PHASE_STOP = 0, 1, 2, 3, 4
+PHASE_NAMES = ("power", "hold", "coast", "brake", "stop")
+
+NODE_TOL_M = 1e-6
+"""Two running distances closer than this are the same grid node [m]."""
+SAWTOOTH_MIN_FRACTION = 0.5
+"""A sawtooth vehicle coasts down to ``max(target − band, 0.5 × target)``: at low
+targets a full band would coast to a crawl (or a standstill on a rise)."""
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Integrator settings.
+
+    Attributes
+    ----------
+    ds_m : float
+        Largest distance step [m]; breakpoints are always grid nodes, and the
+        gaps between them are divided evenly into steps of at most ``ds_m``.
+    """
+
+    ds_m: float = 1.0
+
+    def __post_init__(self):
+        if not (self.ds_m > 0 and math.isfinite(self.ds_m)):
+            raise InputError(f"distance step ds_m must be a positive number of metres, got {self.ds_m}")
+
+
+@dataclass(frozen=True, eq=False)
+class Track:
+    """One interstation, direction and train type: everything the integrator needs.
+
+    Node arrays have shape (m,), interval arrays (m − 1,).
+
+    Attributes
+    ----------
+    length_m : float
+        Departure stop marker → arrival stop marker [m].
+    s_m : ndarray
+        Grid nodes, running distance 0 … length_m [m].
+    chainage_m : ndarray
+        Chainage of each node [m] (``x0_m + direction_sign · s_m``).
+    vmax_ms : ndarray
+        On-board maximum speed at each node [m/s] (lower of the two intervals around it).
+    vmax_interval_ms : ndarray
+        On-board maximum speed inside each grid interval [m/s].
+    gradient : ndarray
+        Gradient averaged over the train at each node [rise/m], positive rising
+        in the running direction.
+    curve_specific : ndarray
+        Curve resistance per weight averaged over the train at each node [N/N].
+    x0_m : float
+        Chainage of the departure stop marker [m].
+    direction_sign : int
+        +1 running ``down`` (chainage grows with s), −1 ``up``.
+    train_length_m : float
+        Length of the train the averages and tail clearing were built for [m].
+    settings : SimSettings
+        The settings the grid was built with.
+    """
+
+    line_id: str
+    origin: str
+    destination: str
+    direction: str
+    train_type: str
+    length_m: float
+    s_m: np.ndarray
+    chainage_m: np.ndarray
+    vmax_ms: np.ndarray
+    vmax_interval_ms: np.ndarray
+    gradient: np.ndarray
+    curve_specific: np.ndarray
+    x0_m: float
+    direction_sign: int
+    train_length_m: float
+    settings: SimSettings = SimSettings()
+
+    def node_index(self, s_m: float) -> int:
+        """Index of the grid node at running distance ``s_m``.
+
+        Raises
+        ------
+        InputError
+            If ``s_m`` is not a grid node (pass it to ``make_track(nodes_m=...)``).
+        """
+        i = int(np.searchsorted(self.s_m, s_m))
+        for j in (i - 1, i):
+            if 0 <= j < len(self.s_m) and abs(self.s_m[j] - s_m) <= NODE_TOL_M:
+                return j
+        raise InputError(
+            f"running distance {s_m} m is not a grid node of {self.origin}->{self.destination} "
+            f"(0 … {self.length_m} m); pass it to make_track(nodes_m=...)")
+
+    def position_m(self, s_m):
+        """Chainage [m] of running distance ``s_m``."""
+        return self.x0_m + self.direction_sign * np.asarray(s_m, dtype=float)
+
+    def ceiling_sq(self, ratio, train: TrainType) -> np.ndarray:
+        """Ceiling squared at every node for each ratio, shape (n, m) [m²/s²] (for checks and plots)."""
+        target = np.multiply.outer(np.atleast_1d(np.asarray(ratio, dtype=float)), self.vmax_ms)
+        return speed_profile.ceiling_sq(self.s_m, target, train.service_brake_ms2,
+                                        self.length_m, train.stop_brake_ms2)
+
+
+def _grid(breaks: np.ndarray, ds_m: float) -> np.ndarray:
+    """Breakpoints (sorted, unique, 0 … L) with every gap divided evenly into steps ≤ ds_m."""
+    gaps = np.diff(breaks)
+    nsub = np.maximum(np.ceil(gaps / ds_m - 1e-9).astype(int), 1)
+    pieces = [np.linspace(a, b, k, endpoint=False) for a, b, k in zip(breaks[:-1], breaks[1:], nsub)]
+    return np.concatenate(pieces + [breaks[-1:]])
+
+
+def make_track(line: Line, train_type: str, origin: str, destination: str, *,
+               settings: SimSettings = SimSettings(), nodes_m: Sequence[float] = ()) -> Track:
+    """Build the :class:`Track` of one interstation for one train type.
+
+    The direction follows from the two stations. Grid breakpoints: restriction
+    entry, exit and exit + train length (tail clears); every gradient and curve
+    change and the same + train length (where the train-averaged force has a
+    kink); ``nodes_m``; the arrival marker.
+
+    Parameters
+    ----------
+    line : Line
+    train_type, origin, destination : str
+    settings : SimSettings
+    nodes_m : sequence of float
+        Extra running distances [m] from the departure marker that must be exact
+        grid nodes (evaluation points, ratio changes, snapshots).
+
+    Raises
+    ------
+    UnknownNameError, InputError, InfeasibleError
+    """
+    train = line.train_type(train_type)
+    direction = line.direction_between(origin, destination)
+    sg = sign(direction)
+    x0 = line.station(origin).stop_m(direction)
+    x1 = line.station(destination).stop_m(direction)
+    length = sg * (x1 - x0)
+    if not length > 0:
+        raise InputError(f"stop markers of {origin} ({x0} m) and {destination} ({x1} m) leave no "
+                         f"distance to run {direction}; check stop_{direction}_m in stations.parquet")
+    lt = train.length_m
+    spans = speed_profile.restriction_spans(line, train, direction, x0)
+    brk = [0.0, length]
+    for sp in spans:
+        brk += [sp.s_from_m, sp.s_exit_m, sp.s_to_m]
+    for seg in (line.gradients, line.curves):
+        edges = sg * (np.concatenate([seg.start_m, seg.end_m]) - x0)
+        brk += list(edges) + list(edges + lt)
+    for s in nodes_m:
+        if not (-NODE_TOL_M <= s <= length + NODE_TOL_M):
+            raise InputError(f"node {s} m lies outside the interstation {origin}->{destination} "
+                             f"(0 … {length} m)")
+        brk.append(float(s))
+    b = np.unique(np.clip(np.asarray(brk, dtype=float), 0.0, length))
+    b = b[np.concatenate([[True], np.diff(b) > NODE_TOL_M])]
+    b[-1] = length
+    s = _grid(b, settings.ds_m)
+    vint = speed_profile.onboard_max_ms(0.5 * (s[:-1] + s[1:]), spans, line.max_speed_ms,
+                                        train.max_speed_ms, train.speed_margin_ms)
+    chain = x0 + sg * s
+    return Track(
+        line_id=line.line_id, origin=origin, destination=destination, direction=direction,
+        train_type=train_type, length_m=float(length), s_m=s, chainage_m=chain,
+        vmax_ms=speed_profile.node_values(vint), vmax_interval_ms=vint,
+        gradient=dynamics.running_gradient(line.gradients, chain, lt, sg),
+        curve_specific=dynamics.curve_specific_resistance(line.curves, chain, lt, sg),
+        x0_m=float(x0), direction_sign=sg, train_length_m=lt, settings=settings,
+    )
+
+
+@dataclass(frozen=True)
+class RunState:
+    """State of n runs at one grid node; every array has shape (n,).
+
+    Attributes
+    ----------
+    s_m : running distance [m]; t_s : time since departure [s]; v_ms : speed [m/s];
+    phase : int8 phase code of the step that arrived here (``PHASE_*``);
+    ratio : target-speed ratio in force on that step.
+    """
+
+    s_m: np.ndarray
+    t_s: np.ndarray
+    v_ms: np.ndarray
+    phase: np.ndarray
+    ratio: np.ndarray
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """Result of :func:`simulate` for n runs.
+
+    ``time_s`` (n,) time at the stop marker [s] (same clock as the start state);
+    ``energy_kwh`` (n,) traction work from the start [kWh]; ``snapshots`` the
+    RunState at each requested position (taken before any change there).
+    With ``record=True``: ``s_m`` (m,) the grid from the start node on, and
+    ``t_s``, ``v_ms``, ``a_ms2`` (mean acceleration of the step arriving at the
+    node; the first column repeats the first step's), ``phase``, ``ratio``, all (n, m).
+    """
+
+    time_s: np.ndarray
+    energy_kwh: np.ndarray
+    snapshots: dict
+    s_m: np.ndarray | None = None
+    t_s: np.ndarray | None = None
+    v_ms: np.ndarray | None = None
+    a_ms2: np.ndarray | None = None
+    phase: np.ndarray | None = None
+    ratio: np.ndarray | None = None
+
+
+class _Ceilings:
+    """Per-run ceiling at any node without an (n, m) table.
+
+    Between two changes of the on-board maximum the target is constant, so the
+    backward recursion only matters at those change nodes ``K_e``: with
+    ``E_e`` = service-brake ceiling at the end node of segment e,
+    ``c²_k = min(r² V_k², E_e + 2 b (s_end(e) − s_k), 2 b_stop (L − s_k))`` for k in
+    segment e. ``E`` (segments, n) costs a few operations per segment whenever
+    the ratios change; a node's ceiling then costs five array operations.
+    """
+
+    def __init__(self, track: Track, train: TrainType):
+        s, vi = track.s_m, track.vmax_interval_ms
+        self.b2 = 2.0 * train.service_brake_ms2
+        bounds = np.concatenate([[0], np.flatnonzero(np.diff(vi) != 0.0) + 1, [len(s) - 1]])
+        self.bounds = bounds
+        self.vn2 = track.vmax_ms ** 2
+        seg = np.searchsorted(bounds, np.arange(len(s)), side="right") - 1  # segment starting at/containing k
+        seg[-1] = len(bounds) - 1  # the arrival node: nothing ahead (column of +inf)
+        self.seg = seg
+        # 2b (s_end(e) − s_k) for each node, with s_end of the node's segment
+        send = s[bounds[np.minimum(seg + 1, len(bounds) - 1)]]
+        self.ahead = self.b2 * (send - s)
+        self.stop2 = speed_profile.stop_curve_sq(s, track.length_m, train.stop_brake_ms2)
+
+    def set(self, ratio: np.ndarray) -> None:
+        self.r2 = ratio * ratio
+        nb = len(self.bounds)
+        e = np.empty((nb, len(ratio)))
+        e[-1] = np.inf
+        e[-2] = self.r2 * self.vn2[self.bounds[-1]]
+        for j in range(nb - 3, -1, -1):
+            kb = self.bounds[j + 1]
+            e[j] = np.minimum(self.r2 * self.vn2[kb], e[j + 1] + self.ahead[kb])
+        self.e = e
+
+    def at(self, k: int) -> np.ndarray:
+        return np.minimum(np.minimum(self.r2 * self.vn2[k], self.e[self.seg[k]] + self.ahead[k]), self.stop2[k])
+
+
+def _check_stall(t, track, train, load, tf, s_list, k_ok: int, k: int) -> None:
+    """A run that stalled has a NaN or infinite time (v = sqrt(w ≤ 0)): say where, within the checked stretch."""
+    bad = ~np.isfinite(t)
+    if not np.count_nonzero(bad):
+        return
+    j = int(np.flatnonzero(bad)[0])
+    a, b = sorted((float(track.position_m(s_list[k_ok])), float(track.position_m(s_list[k]))))
+    raise InfeasibleError(
+        f"train type {train.train_type} stalls on {track.origin}->{track.destination} between chainage "
+        f"{a:.0f} and {b:.0f} m (run {j}: load {load[j]:g}, traction factor {tf[j]:g}): tractive effort "
+        "cannot overcome resistance and gradient; check traction.parquet or the gradients")
+
+
+def _as_batch(x, n: int, name: str) -> np.ndarray:
+    a = np.asarray(x, dtype=float)
+    if a.ndim == 0:
+        return np.full(n, float(a))
+    if a.shape != (n,):
+        raise InputError(f"{name} must be a scalar or an array of shape ({n},), got shape {a.shape}")
+    return a.copy()
+
+
+def _check_ratio(r: np.ndarray, what: str) -> None:
+    if not np.all((r > 0) & (r <= 1.0 + 1e-12)):
+        bad = r[~((r > 0) & (r <= 1.0 + 1e-12))][0]
+        raise InputError(f"{what} must lie in (0, 1], got {bad}")
+
+
+def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor=1.0,
+             start: RunState | None = None,
+             changes: Sequence[tuple[float, np.ndarray]] = (),
+             controller: Callable[[float, RunState], np.ndarray] | None = None,
+             decision_m: Sequence[float] = (),
+             snapshots_m: Sequence[float] = (),
+             record: bool = False) -> BatchResult:
+    """Simulate a batch of runs to the arrival marker (module doc for the method).
+
+    Parameters
+    ----------
+    track : Track
+        From :func:`make_track` for ``train``'s type.
+    train : TrainType
+    ratio : float or ndarray (n,)
+        Target-speed ratio from the start on, in (0, 1].
+    load : float or ndarray (n,)
+        Load factor (0 empty … 1 full).
+    traction_factor : float or ndarray (n,)
+        Multiplies the tractive-effort curve.
+    start : RunState, optional
+        Start state (all runs at the same grid node); default standing at s = 0,
+        t = 0, powering. ``start.phase == PHASE_COAST`` lets a sawtooth vehicle
+        carry on coasting. The ``ratio`` argument, not ``start.ratio``, is driven
+        from the start; if the train is above its new ceiling it brakes.
+    changes : sequence of (s_m, ratio (n,))
+        Ratio changes at grid nodes; a lowered ratio brakes at the service brake
+        until below the new target.
+    controller : callable ``(s_m, state) -> ratio (n,)``, optional
+        Called at each ``decision_m`` node (after ``changes`` there).
+    decision_m, snapshots_m : sequence of float
+        Grid nodes [m] for the controller and for returned states.
+    record : bool
+        Also return the whole curve of every run on the grid.
+
+    Returns
+    -------
+    BatchResult
+
+    Raises
+    ------
+    InfeasibleError
+        If a run stalls (tractive effort cannot overcome resistance and gradient).
+    """
+    if train.train_type != track.train_type:
+        raise InputError(f"track is for train type {track.train_type!r}, not {train.train_type!r}")
+    s = track.s_m
+    m = len(s)
+    sizes = [np.size(x) for x in (ratio, load, traction_factor) if np.ndim(x) > 0]
+    if start is not None:
+        sizes.append(np.size(start.v_ms))
+    n = max(sizes) if sizes else 1
+    ratio = _as_batch(ratio, n, "ratio")
+    _check_ratio(ratio, "ratio")
+    load = _as_batch(load, n, "load")
+    tf = _as_batch(traction_factor, n, "traction_factor")
+    if np.any(load < 0) or np.any(tf <= 0):
+        raise InputError("load must be ≥ 0 and traction_factor > 0")
+
+    inv_me = 1.0 / dynamics.effective_mass_kg(
+        dynamics.mass_kg(train.empty_mass_kg, train.full_load_mass_kg, load), train.rotating_mass_factor)
+    me = 1.0 / inv_me
+    ag = dynamics.track_accel_ms2(track.gradient, track.curve_specific, train.rotating_mass_factor)
+    stop2 = speed_profile.stop_curve_sq(s, track.length_m, train.stop_brake_ms2)
+    b = train.service_brake_ms2
+    amax = train.max_accel_ms2
+    ra, rb, rc = train.davis_a_N, train.davis_b_N_per_ms, train.davis_c_N_per_ms2
+    tsp, tef = train.traction_speed_ms, train.traction_effort_N
+    sawtooth = train.cruise == "sawtooth"
+    band = train.coast_band_ms
+
+    if start is None:
+        k0 = 0
+        t = np.zeros(n)
+        v = np.zeros(n)
+        phase = np.full(n, PHASE_POWER, dtype=np.int8)
+    else:
+        s0 = np.asarray(start.s_m, dtype=float).reshape(-1)
+        if s0.size and np.ptp(s0) > NODE_TOL_M:
+            raise InputError("all runs of a batch must start at the same running distance")
+        k0 = track.node_index(float(s0[0]) if s0.size else 0.0)
+        t = _as_batch(start.t_s, n, "start.t_s")
+        v = _as_batch(start.v_ms, n, "start.v_ms")
+        phase = np.asarray(start.phase, dtype=np.int8).reshape(-1).copy()
+        if phase.shape != (n,):
+            phase = np.full(n, phase.reshape(-1)[0] if phase.size else PHASE_POWER, dtype=np.int8)
+    w = v * v
+    # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
+    coasting = (phase != PHASE_POWER) & sawtooth
+
+    # events at nodes: snapshots first (state before any change), then changes, then controller
+    events: dict[int, list] = {}
+    for sm in snapshots_m:
+        events.setdefault(track.node_index(sm), []).append(("snap", sm))
+    for sm, r in changes:
+        events.setdefault(track.node_index(sm), []).append(("change", _as_batch(r, n, "change ratio")))
+    if controller is not None:
+        for sm in decision_m:
+            events.setdefault(track.node_index(sm), []).append(("decide", sm))
+    for k in events:
+        events[k].sort(key=lambda e: ("snap", "change", "decide").index(e[0]))
+    snapshots: dict[float, RunState] = {}
+
+    ceil = _Ceilings(track, train)
+    ceil.set(ratio)
+    if record:
+        mr = m - k0
+        rec_t, rec_v = np.empty((n, mr)), np.empty((n, mr))
+        rec_a, rec_p = np.zeros((n, mr)), np.empty((n, mr), dtype=np.int8)
+        rec_r = np.empty((n, mr))
+        rec_t[:, 0], rec_v[:, 0], rec_p[:, 0], rec_r[:, 0] = t, v, phase, ratio
+
+    def state(k: int) -> RunState:
+        return RunState(np.full(n, s[k]), t.copy(), v.copy(), phase.copy(), ratio.copy())
+
+    # per-run constants divided by M_e: the loop works in accelerations, and the
+    # traction work per unit M_e follows from the energy balance of each piece
+    ram, rbm, rcm = ra * inv_me, rb * inv_me, rc * inv_me
+    tfi = tf * inv_me
+    vint = track.vmax_interval_ms
+
+    # the acceleration cap can only bind below the coasting acceleration where the fall
+    # alone is steeper than a_max (R ≥ 0, so a_coast ≤ a_track): test once per node
+    steep = (ag >= amax).tolist()
+
+    def accel(vv, k):
+        """Free acceleration [m/s²] at speed vv, node k (full notch, capped; or coasting) and
+        the coasting acceleration ``a_track − R/M_e``."""
+        coast = ag[k] - (ram + vv * (rbm + rcm * vv))
+        a = np.minimum(coast + _interp(vv, tsp, tef) * tfi, np.maximum(amax, coast) if steep[k] else amax)
+        if sawtooth:
+            a = np.where(coasting, coast, a)
+        return a, coast
+
+    need_phase = np.full(m, record)
+    need_phase[list(events)] = True
+    need_phase[m - 1] = True
+    need_phase = need_phase.tolist()
+    s_list = s.tolist()
+    stop2_list = stop2.tolist()
+    work = np.zeros(n)  # traction work / M_e [J/kg]
+    maybe_over = True
+    k_last_ok = k0
+    vint_list = vint.tolist()
+    lb_for = None
+    c0 = ceil.at(k0)
+    err = np.errstate(divide="ignore", invalid="ignore")
+    err.__enter__()
+    try:
+        for k in range(k0, m - 1):
+            ev = events.get(k)
+            if ev:
+                changed = False
+                for kind, arg in ev:
+                    if kind == "snap":
+                        snapshots[arg] = state(k)
+                        continue
+                    if kind == "change":
+                        new = arg
+                        what = f"ratio change at {s[k]} m"
+                    else:
+                        new = _as_batch(controller(float(s[k]), state(k)), n, "controller ratio")
+                        what = f"controller ratio at {s[k]} m"
+                    _check_ratio(new, what)
+                    ratio = new.copy()
+                    changed = True
+                if changed:
+                    lb_for = None
+                    ceil.set(ratio)
+                    c0 = ceil.at(k)
+                    maybe_over = True
+            ds = s_list[k + 1] - s_list[k]
+            c1 = ceil.at(k + 1)
+            st1 = stop2_list[k + 1]
+            if sawtooth:
+                if vint_list[k] != lb_for:  # the band's lower edge changes with the target only
+                    lb_for = vint_list[k]
+                    tgt = ratio * lb_for
+                    lb = np.maximum(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
+                    lb2 = lb * lb
+                coasting &= w > lb2
+                coasting_step = coasting.copy()
+
+            # free running: Heun's step in w = v²
+            a0, cs0 = accel(v, k)
+            vp = np.sqrt(np.maximum(w + (2.0 * ds) * a0, 0.0))
+            a1, cs1 = accel(vp, k + 1)
+            over = None
+            if maybe_over:  # above the ceiling only after a lowered ratio (or a start state)
+                over = w > c0 * (1.0 + 1e-12) + 1e-9
+                if not np.count_nonzero(over):
+                    over, maybe_over = None, False
+            if over is None:
+                slope = a0 + a1
+                wend = w + slope * ds
+                cross = wend > c1
+                w1 = np.minimum(wend, c1)
+            else:  # over: service brake, w falls by 2 b per metre, until it meets the ceiling
+                slope = np.where(over, -2.0 * b, a0 + a1)
+                wend = w + slope * ds
+                cross = np.where(over, wend < c1, wend > c1)
+                # braked down onto a ceiling that rises inside the step (a restriction's tail
+                # clears): from the crossing the train runs free, capped by the ceiling; it must
+                # not ride up the ceiling faster than it can accelerate
+                fc = np.clip((w - c0) / np.where(cross, w - c0 - (wend - c1), 1.0), 0.0, 1.0)
+                free = w + slope * fc * ds + (a0 + a1) * (1.0 - fc) * ds
+                w1 = np.minimum(np.where(cross, np.where(over, np.minimum(c1, free), c1), wend), st1)
+                maybe_over = bool(np.count_nonzero(over & ~cross))
+            # a stalled run (w ≤ 0 before the marker) turns its time into NaN; checked below
+
+            # split at the crossing: root of the gap w − c², linear in s on both pieces
+            gap0 = w - c0
+            if over is None:  # gap0 ≤ 0 < gap1 on crossing lanes: the root lies in [0, ds)
+                frac = np.where(cross, gap0 / (gap0 - (wend - c1)), 1.0)
+            else:
+                frac = np.where(cross, np.minimum(np.maximum(gap0 / (gap0 - (wend - c1)), 0.0), 1.0), 1.0)
+            xc = frac * ds
+            wc = w + slope * xc
+            vc = np.sqrt(wc)
+            v1 = np.sqrt(w1)
+            rest = ds - xc
+            dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
+            # traction work / M_e on each piece: F·Δs = M_e (Δw/2 − a_coast Δs), when positive
+            # (the free piece is (a − a_coast) Δs ≥ 0 under power, 0 when coasting)
+            cb = 0.5 * (cs0 + cs1)
+            if over is None:
+                dwork = xc * (0.5 * slope - cb) + np.maximum(0.5 * (w1 - wc) - rest * cb, 0.0)
+            else:
+                dwork = (np.maximum(0.5 * (wc - w) - xc * cb, 0.0)
+                         + np.maximum(0.5 * (w1 - wc) - rest * cb, 0.0))
+
+            band_i = None
+            if sawtooth:
+                # a sawtooth vehicle that meets a level (or falling) ceiling coasts from the crossing on;
+                # the ceiling still caps it (downhill, braking curves)
+                hit = cross & (c1 <= c0 * (1 + 1e-12))
+                if np.count_nonzero(hit):
+                    wco = np.minimum(wc + 2.0 * cs1 * rest, c1)
+                    wco = np.where(hit, wco, w1)
+                    vco = np.sqrt(wco)
+                    dt = 2.0 * (xc / (v + vc) + rest / (vc + vco))
+                    dwork = np.where(hit, np.maximum(0.5 * (wc - w) - xc * cb, 0.0)
+                                     + np.maximum(0.5 * (wco - wc) - rest * cb, 0.0), dwork)
+                    w1, v1 = wco, vco
+                # coasting below the band's lower edge: split there and power the rest of the step
+                band_x = coasting & ~cross & (wend < lb2)
+                if np.count_nonzero(band_x):
+                    band_i = i = np.flatnonzero(band_x)
+                    xb = ds * np.clip((w[i] - lb2[i]) / (w[i] - wend[i]), 0.0, 1.0)
+                    coasting[i] = False
+                    sub = ds - xb
+                    vb, tfb = lb[i], tfi[i]
+                    cb_i = ag[k + 1] - (ram[i] + vb * (rbm[i] + rcm[i] * vb))
+                    aa = np.minimum(cb_i + np.interp(vb, tsp, tef) * tfb, np.maximum(amax, cb_i))
+                    vq = np.sqrt(np.maximum(lb2[i] + 2.0 * aa * sub, 0.0))
+                    cq = ag[k + 1] - (ram[i] + vq * (rbm[i] + rcm[i] * vq))
+                    ab = np.minimum(cq + np.interp(vq, tsp, tef) * tfb, np.maximum(amax, cq))
+                    wq = np.minimum(lb2[i] + (aa + ab) * sub, c1[i])
+                    vq = np.sqrt(wq)
+                    w1[i], v1[i] = wq, vq
+                    dt[i] = 2.0 * (xb / (v[i] + vb) + sub / (vb + vq))
+                    dwork[i] = np.maximum(0.5 * (wq - lb2[i]) - sub * 0.5 * (cb_i + cq), 0.0)
+                # at the ceiling a sawtooth vehicle coasts (not where the ceiling ramps up: it powers)
+                coasting |= cross & (c1 <= c0 * (1 + 1e-12))
+
+            if need_phase[k + 1]:
+                if sawtooth:
+                    ph = np.where(coasting_step, PHASE_COAST, PHASE_POWER)
+                else:
+                    ph = np.full(n, PHASE_POWER)
+                if over is not None:
+                    ph = np.where(over, PHASE_BRAKE, ph)
+                cph = np.where(c1 < c0 * (1 - 1e-12), PHASE_BRAKE,
+                               np.where(c1 > c0 * (1 + 1e-12), PHASE_POWER, PHASE_HOLD))
+                ph = np.where(cross, cph, ph).astype(np.int8)
+                if sawtooth:
+                    ph[cross & (w1 < c1 * (1 - 1e-12))] = PHASE_COAST
+                if band_i is not None:
+                    ph[band_i] = PHASE_POWER
+                ph[w1 >= st1] = PHASE_STOP
+                phase = ph
+            if record:
+                jr = k + 1 - k0
+                rec_t[:, jr], rec_v[:, jr], rec_p[:, jr], rec_r[:, jr] = t + dt, v1, phase, ratio
+                rec_a[:, jr] = (w1 - w) / (2.0 * ds)
+            w, v = w1, v1
+            t = t + dt
+            work += dwork
+            c0 = c1
+            if (k & 63) == 0 or k + 2 >= m - 1:
+                _check_stall(t, track, train, load, tf, s_list, k_last_ok, k + 1)
+                k_last_ok = k + 1
+    finally:
+        err.__exit__(None, None, None)
+    energy = work * me
+
+    for kind, arg in events.get(m - 1, []):
+        if kind == "snap":
+            snapshots[arg] = state(m - 1)
+    energy_kwh = energy / KWH
+    if not record:
+        return BatchResult(time_s=t, energy_kwh=energy_kwh, snapshots=snapshots)
+    if rec_a.shape[1] > 1:
+        rec_a[:, 0] = rec_a[:, 1]
+    return BatchResult(time_s=t, energy_kwh=energy_kwh, snapshots=snapshots, s_m=s[k0:].copy(),
+                       t_s=rec_t, v_ms=rec_v, a_ms2=rec_a, phase=rec_p, ratio=rec_r)
+
+
+# --- the high-level call ------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """One run from a station stop to the next (:func:`running_time`).
+
+    Attributes
+    ----------
+    time_s : float
+        Running time, departure to standing at the arrival marker [s].
+    energy_kwh : float
+        Mechanical traction work at the wheel [kWh].
+    curve : pandas.DataFrame
+        One row per grid node: ``position_m`` (chainage), ``distance_m`` (from
+        the departure marker), ``time_s``, ``speed_kmh``, ``accel_ms2`` (mean
+        over the step arriving at the node), ``phase`` (name), ``vmax_kmh``
+        (on-board maximum), ``target_kmh`` (ratio in force × on-board maximum),
+        ``ratio``.
+    """
+
+    line_id: str
+    train_type: str
+    origin: str
+    destination: str
+    direction: str
+    length_m: float
+    ratio: float
+    load: float
+    traction_factor: float
+    time_s: float
+    energy_kwh: float
+    curve: "object"
+
+
+def running_time(line_or_path, train_type: str, origin: str, destination: str, *, ratio: float = 1.0,
+                 load: float = 0.0, traction_factor: float = 1.0,
+                 ratio_changes: Sequence[tuple[float, float]] = (),
+                 settings: SimSettings | None = None) -> RunResult:
+    """Running time of one train type between two stations at a target-speed ratio.
+
+    Parameters
+    ----------
+    line_or_path : Line or path
+        A line, or a line database folder (loaded with :func:`planner.load_line`).
+    train_type, origin, destination : str
+        The direction follows from the two stations.
+    ratio : float
+        Target-speed ratio from departure, in (0, 1].
+    load : float
+        Load factor (0 empty … 1 full).
+    traction_factor : float
+        Multiplies the tractive-effort curve (0.9 = weak catenary).
+    ratio_changes : sequence of (position_m, ratio)
+        Ratio changes at chainages between the two stop markers.
+    settings : SimSettings, optional
+        Distance step (default 1 m).
+
+    Returns
+    -------
+    RunResult
+
+    Examples
+    --------
+    >>> from planner import testing
+    >>> res = running_time(testing.line(), "T", "S0", "S1")
+    >>> round(res.time_s, 1)
+    135.8
+    """
+    import pandas as pd
+
+    if isinstance(line_or_path, Line):
+        line = line_or_path
+    else:
+        import planner
+
+        line = planner.load_line(line_or_path)
+    settings = settings or SimSettings()
+    train = line.train_type(train_type)
+    direction = line.direction_between(origin, destination)
+    sg = sign(direction)
+    x0 = line.station(origin).stop_m(direction)
+    x1 = line.station(destination).stop_m(direction)
+    changes_s = []
+    for pos, r in ratio_changes:
+        d = sg * (float(pos) - x0)
+        if not (0.0 <= d < sg * (x1 - x0)):
+            raise InputError(f"ratio change at position_m={pos} lies outside {origin}->{destination} "
+                             f"({x0} … {x1} m)")
+        changes_s.append((d, float(r)))
+    _check_ratio(np.array([ratio] + [r for _, r in changes_s], dtype=float), "ratio")
+    track = make_track(line, train_type, origin, destination, settings=settings,
+                       nodes_m=[d for d, _ in changes_s])
+    res = simulate(track, train, float(ratio), load=float(load), traction_factor=float(traction_factor),
+                   changes=[(d, np.array([r])) for d, r in changes_s], record=True)
+    rat = res.ratio[0]
+    curve = pd.DataFrame({
+        "position_m": track.position_m(res.s_m),
+        "distance_m": res.s_m,
+        "time_s": res.t_s[0],
+        "speed_kmh": res.v_ms[0] * 3.6,
+        "accel_ms2": res.a_ms2[0],
+        "phase": pd.Categorical.from_codes(res.phase[0].astype(int), categories=list(PHASE_NAMES)),
+        "vmax_kmh": track.vmax_ms * 3.6,
+        "target_kmh": rat * track.vmax_ms * 3.6,
+        "ratio": rat,
+    })
+    return RunResult(
+        line_id=line.line_id, train_type=train_type, origin=origin, destination=destination,
+        direction=direction, length_m=track.length_m, ratio=float(ratio), load=float(load),
+        traction_factor=float(traction_factor), time_s=float(res.time_s[0]),
+        energy_kwh=float(res.energy_kwh[0]), curve=curve,
+    )
