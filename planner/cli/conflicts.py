@@ -1,0 +1,65 @@
+"""``planner conflicts LINE --out DIR``: check the day's timetable for route conflicts on the track network."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from . import app
+
+
+@app.command()
+def conflicts(
+    line_dir: Path = typer.Argument(..., help="Line database folder with nodes.parquet and edges.parquet."),
+    out: Path = typer.Option(..., "--out", help="Output folder; writes conflicts/ and occupation/ datasets."),
+    job: Optional[Path] = typer.Option(None, "--job", help="Job file whose \\[conflicts] table gives the parameters."),
+    setting_s: Optional[float] = typer.Option(None, "--setting-s", help="Route setting time in s (default 10)."),
+    approach_s: Optional[float] = typer.Option(None, "--approach-s", help="Sight/reaction + approach time in s (default 20)."),
+    release_s: Optional[float] = typer.Option(None, "--release-s", help="Route release time in s (default 5)."),
+    terminal_s: Optional[float] = typer.Option(None, "--terminal-s", help="Time a train stays at its destination, in s (default 0)."),
+    curve_mode: str = typer.Option("match", "--curve-mode", help="`match`: ratio meeting the schedule; `stretch`: ratio 1.0 stretched."),
+    n_jobs: int = typer.Option(1, "--n-jobs", help="Processes for the run-curve simulations."),
+) -> None:
+    """Route every train, predict its occupation windows and report conflicts with priority decisions."""
+    from rich.progress import Progress
+
+    from .. import load_line
+    from ..errors import InputError
+    from ..network import BlockingParams, SimulatorCurves, check_conflicts, write_conflicts
+
+    table: dict = {}
+    if job is not None:
+        from ..job import load_job
+
+        j = load_job(job)
+        if not j.conflicts.enabled:
+            typer.echo(f"{job}: [conflicts] enabled = false; nothing to do")
+            return
+        table = {"setting_s": j.conflicts.setting_s, "approach_s": j.conflicts.approach_s,
+                 "release_s": j.conflicts.release_s}
+    for key, value in (("setting_s", setting_s), ("approach_s", approach_s), ("release_s", release_s),
+                       ("terminal_s", terminal_s)):
+        if value is not None:
+            if not value >= 0:
+                raise InputError(f"--{key.replace('_', '-')} must be ≥ 0 s, found {value}")
+            table[key] = value
+    params = BlockingParams.from_dict(table, where="--")
+    line = load_line(line_dir)
+    if line.network is None:
+        raise InputError(f"{line_dir}: no track network; add nodes.parquet and edges.parquet to check conflicts")
+    if n_jobs == 0 or n_jobs < -1:
+        raise InputError(f"--n-jobs must be -1 (all cores) or ≥ 1, found {n_jobs}")
+    curves = SimulatorCurves(line, mode=curve_mode, n_jobs=n_jobs)
+    with Progress(transient=True) as bar:
+        sim = bar.add_task("run curves", total=None)
+        pred = bar.add_task("trains", total=len(line.trains))
+        report = check_conflicts(
+            line, params, curves=curves,
+            curve_progress=lambda d, n: bar.update(sim, completed=d, total=n),
+            progress=lambda d, n: bar.update(pred, completed=d, total=n),
+        )
+    files = write_conflicts(report, out)
+    for msg in report.summary_lines():
+        typer.echo(msg)
+    typer.echo(f"  wrote {len(files)} files under {out} (conflicts/, occupation/)")
