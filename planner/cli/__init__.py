@@ -28,6 +28,7 @@ def _root() -> None:
 
 # Sub-command modules; each does `from . import app` and decorates its commands.
 from . import validate  # noqa: E402,F401
+from . import bundle  # noqa: E402,F401
 from . import conflicts  # noqa: E402,F401
 from . import runtime  # noqa: E402,F401
 
