@@ -78,7 +78,15 @@ on, the method reaches the lower speed with ``a = 0`` at the restriction start
 easing off the brake and cruises slightly below the limit; it is faster by up
 to about 0.1 s in the tests. Removing this needs a one-dimensional minimisation
 over the deceleration at the restriction start (the time before and after it
-trade off), which the construction can host as an outer loop.
+trade off), which the construction can host as an outer loop. The same
+limitation makes the distance conservative: entering the restriction still
+braking also needs less room before it, so near such a restriction the
+reported ``braking_distance_m`` can exceed the true minimum by up to an
+easing-off distance (1.3 m in the case of
+``test_restriction_too_close_is_infeasible_and_needed_distance_is_consistent``),
+and a case declared infeasible by less than that may have a pattern. An outer
+loop must therefore refine the infeasible verdicts too, not only the feasible
+patterns.
 
 References: DESIGN §5 (event-point constant-jerk stopping pattern method).
 """
@@ -532,7 +540,9 @@ class _Builder:
             y0, v0, b0, u, r = self.y[i], self.v[i], self.b[i], self.u[i], self.reg[i]
             y_hi = Yb[r + 1]
             if u == 0.0 and b0 <= 0.0:  # motion 3: cruise at the cap
-                if r == last:
+                if r == last or C[r] >= C[last]:
+                    # cruising at the start speed (the last, highest cap): every region further back
+                    # has the same cap and a = 0 meets any deceleration limit, so braking starts here
                     return y0
                 s = (y_hi - y0) / v0
                 r2 = r + 1

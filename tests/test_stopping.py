@@ -317,3 +317,25 @@ def test_lower_adhesion_brakes_earlier_and_takes_longer():
             assert p.duration_s >= prev.duration_s - ROUNDOFF_S
             assert p.brake_start_m <= prev.brake_start_m + ROUNDOFF_M
         prev = p
+
+
+@pytest.mark.parametrize(
+    "dl, sl",
+    [
+        ([(0.0, 0.8), (50.0, 1.0)], [(0.0, 20.0)]),  # a deceleration step the cruise passes
+        ([(0.0, 1.0)], [(0.0, 20.0), (60.0, 25.0), (100.0, 22.0)]),  # speed steps above v_start
+    ],
+)
+def test_brake_start_is_where_deceleration_begins_after_non_binding_steps(dl, sl):
+    """Limit changes that the cruise at v_start passes without braking (a deceleration step
+    before the brake start, speed limits above v_start) do not move the brake start: it is
+    the closed-form one of the last region, 212.5 m before the stop (v (v/A + A/J) / 2)."""
+    v0, X, J, A = 20.0, 400.0, 0.8, 1.0
+    p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+    d = stop_distance(v0, A, J)
+    assert p.feasible
+    assert p.brake_start_m == pytest.approx(X - d, abs=ROUNDOFF_M)
+    assert p.braking_distance_m == pytest.approx(d, abs=ROUNDOFF_M)
+    assert p.duration_s == pytest.approx((X - d) / v0 + stop_time(v0, A, J), abs=ROUNDOFF_S)
+    s = p.sample(0.01)
+    assert np.all(s.a_ms2[s.x_m < p.brake_start_m - 1e-6] == 0.0)
