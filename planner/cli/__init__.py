@@ -31,6 +31,7 @@ from . import validate  # noqa: E402,F401
 from . import bundle  # noqa: E402,F401
 from . import conflicts  # noqa: E402,F401
 from . import runtime  # noqa: E402,F401
+from . import stops  # noqa: E402,F401
 
 
 def main() -> None:
