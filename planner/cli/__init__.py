@@ -32,6 +32,7 @@ from . import bundle  # noqa: E402,F401
 from . import conflicts  # noqa: E402,F401
 from . import runtime  # noqa: E402,F401
 from . import stops  # noqa: E402,F401
+from . import timekeeping  # noqa: E402,F401
 
 
 def main() -> None:
