@@ -17,6 +17,8 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # help texts name job-file sections like [margins]; rich markup would swallow them
+    rich_markup_mode=None,
 )
 
 
@@ -31,6 +33,7 @@ from . import validate  # noqa: E402,F401
 from . import bundle  # noqa: E402,F401
 from . import conflicts  # noqa: E402,F401
 from . import runtime  # noqa: E402,F401
+from . import tables  # noqa: E402,F401
 from . import stops  # noqa: E402,F401
 from . import timekeeping  # noqa: E402,F401
 

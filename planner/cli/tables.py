@@ -1,0 +1,106 @@
+"""``planner tables`` and ``planner simulate``: running-time tables and their closed-loop proof."""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator, Optional
+
+import typer
+
+from ..errors import PlannerError
+from . import app
+
+
+def _fail(e: PlannerError) -> typer.Exit:
+    """One line on stderr, no traceback, the error's exit code."""
+    typer.echo(f"error: {e}", err=True)
+    return typer.Exit(e.exit_code)
+
+
+@contextmanager
+def _progress(label: str) -> Iterator:
+    """A rich progress bar; yields a ``(done, total)`` callback for the library functions."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    with Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  transient=True) as bar:
+        task = bar.add_task(label, total=None)
+
+        def update(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield update
+
+
+@app.command()
+def tables(
+    line_dir: Path = typer.Argument(..., help="Line database folder."),
+    out: Path = typer.Option(..., "--out", help="Output folder; datasets eval_points/, table_a/, table_b/ go here."),
+    train_type: Optional[list[str]] = typer.Option(
+        None, "--train-type", help="Train type (repeatable); default every type of the line."),
+    ratios: Optional[str] = typer.Option(
+        None, "--ratios", help="Ratio grid: 'start:stop:step' pieces and/or values, e.g. "
+        "'1.0:0.7:0.1,0.7:floor:0.05' (the default) or '1,0.9,0.8'."),
+    after_departure_m: float = typer.Option(
+        200.0, "--after-departure", help="Distance of the evaluation point after departure [m]; 0 = none."),
+    jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
+) -> None:
+    """Compute running-time tables (a) and (b) for every interstation, direction and train type."""
+    from ..loader import load_line
+    from ..tables import build_tables, write_tables
+
+    try:
+        line = load_line(line_dir)
+        with _progress("tables") as update:
+            results = build_tables(line, train_types=train_type or None, ratios=ratios,
+                                   after_departure_m=after_departure_m or None, n_jobs=jobs, progress=update)
+        files = write_tables(results, out)
+    except PlannerError as e:
+        raise _fail(e) from None
+    n_b = sum(r.remaining_s.size for r in results)
+    grid = results[0].ratios if results else []
+    typer.echo(f"{line.line_id}: tables for {len(results)} interstation x direction x train type, "
+               f"{len(grid)} ratios ({', '.join(f'{r:g}' for r in grid)})")
+    typer.echo(f"  evaluation points: {sum(len(r.points) for r in results)}, table (b) rows: {n_b}")
+    for r in results[: min(3, len(results))]:
+        typer.echo(f"  {r.train_type} {r.direction} {r.origin}->{r.destination}: minimum "
+                   f"{r.time_a_s[0]:.1f} s, slowest {r.time_a_s[-1]:.1f} s")
+    typer.echo(f"  wrote {len(files)} files under {out}")
+
+
+@app.command()
+def simulate(
+    line_dir: Path = typer.Argument(..., help="Line database folder."),
+    tables_dir: Path = typer.Option(..., "--tables", help="Folder written by `planner tables`."),
+    out: Path = typer.Option(..., "--out", help="Output folder for closed_loop/ and closed_loop_summary/."),
+    scenario: str = typer.Option("nominal", "--scenario", help="nominal (as the tables) or perturbed "
+                                 "(load 1.0, traction x 0.9)."),
+    mode: str = typer.Option("nearest", "--mode", help="On-board mode: nearest (published rule), "
+                             "interpolate (fractional ratios), adaptive (interpolate + learns the "
+                             "train's deviation from the tables), or any registered mode."),
+    train_type: Optional[list[str]] = typer.Option(None, "--train-type", help="Train type (repeatable)."),
+    extra_s: float = typer.Option(60.0, "--extra", help="Sweep designated times up to minimum + this [s]."),
+    jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
+) -> None:
+    """Closed loop: run the on-board ratio choice against designated running times; report arrival errors."""
+    from ..closed_loop import overall, run_closed_loop, write_closed_loop
+    from ..loader import load_line
+
+    try:
+        line = load_line(line_dir)
+        with _progress(f"simulate {scenario}/{mode}") as update:
+            results = run_closed_loop(line, tables_dir, train_types=train_type or None, scenario=scenario,
+                                      mode=mode, extra_s=extra_s, n_jobs=jobs, progress=update)
+        files = write_closed_loop(results, out)
+    except PlannerError as e:
+        raise _fail(e) from None
+    o = overall(results)
+    typer.echo(f"{line.line_id}: closed loop {scenario}/{mode}, {o['n_runs']} runs over "
+               f"{len(results)} interstation x direction x train type")
+    typer.echo(f"  |arrival error| over {o['n_feasible']} feasible runs: median {o['median_abs_error_s']:.2f} s, "
+               f"p95 {o['p95_abs_error_s']:.2f} s, max {o['max_abs_error_s']:.2f} s")
+    n_inf = o["n_runs"] - o["n_feasible"]
+    if n_inf:
+        typer.echo(f"  {n_inf} runs infeasible by physics (designated below the {scenario} minimum); "
+                   f"worst arrival after that minimum {o['infeasible_excess_max_s']:.2f} s")
+    typer.echo(f"  wrote {len(files)} files under {out}")

@@ -1,0 +1,472 @@
+"""The on-board ratio choice: pick the target-speed ratio from the running-time tables (DESIGN §3).
+
+This is the logic the vehicle runs. It sees **only the tables** (table (a),
+table (b) and the evaluation points, as read from the Parquet datasets by
+:func:`load_tables`) and, while running, the designated or remaining running
+time. It never calls the simulator.
+
+Modes
+-----
+``nearest`` — the published rule. At departure pick the grid ratio whose
+table-(a) time is nearest the designated running time; at each evaluation
+point X, in the row of the current ratio in X's table (b), pick the grid ratio
+whose remaining time is nearest the remaining time (scheduled arrival − now).
+Ties go to the higher ratio (arriving early is cheaper than late).
+
+``interpolate`` — a continuous version of the same rule. Running time is
+monotone in the ratio, and close to affine in its reciprocal ``u = 1/r`` (the
+cruise part of a run takes distance / (r · v_max)). So the table is treated as
+samples of a function T(u) and the ratio is the fractional one whose
+interpolated time *equals* the wanted time:
+
+* at departure: solve T_a(u) = designated for u by piecewise-linear
+  interpolation of table (a) in u, r = 1/u;
+* at evaluation point X with the current (fractional) ratio r_b: the row of
+  table (b) for r_b is interpolated linearly in u between the rows of the two
+  neighbouring grid ratios (the state at X, reached at r_b, lies between the
+  states reached at its neighbours), then T_b(u_after) = remaining is solved
+  the same way.
+
+The result is clamped to [lowest grid ratio, 1]. Any ratio between grid values
+is valid for the simulator and the vehicle (the target speed is just
+``r × maximum speed``). The residual error is then the interpolation error at
+the last evaluation points instead of the grid step, and because every point
+re-solves with fresh remaining time the errors do not add up.
+
+``adaptive`` — ``interpolate`` that also learns how far the real train is
+from the table train. Tables (a)/(b) are built for one train (load 0, nominal
+traction); a heavier or weaker train is slower at every ratio, and a rule that
+trusts the tables keeps choosing slightly too low a ratio and arrives late.
+Table (c) holds, for every evaluation point X and ratio r, the remaining time
+at constant r for the table train T(X, r) and for a reference train (full
+load) T_ref(X, r); their difference Δ(X, r) is the table's estimate of how much
+a slower train loses from X on. The vehicle models its own remaining time as
+
+    T(X, r_b, r_a; θ) = T_b(X, r_b, r_a) + θ · Δ(X, r_a)        (θ = 0: table train, 1: reference)
+
+and learns θ from what it has already run: on each leg between evaluation
+points, observed leg time − table leg time = θ · (reference − table leg time),
+summed over the legs so far (least squares through the origin):
+θ = Σ(observed − table) / Σ(reference − table). At X it then solves
+T(X, r_b, r_a; θ) = remaining for r_a (bisection in 1/r on the interpolated
+row). The leg times come from the vehicle's clock between beacons, which it has
+anyway; nothing but the tables and the clock is used. θ is clipped to
+``AdaptiveRule.THETA_RANGE`` (never below 0: the table train is the fastest).
+
+A new mode is a :class:`RatioChooser` factory registered in :data:`CHOOSERS`
+(``register_mode``); modes that do not use the tables (e.g. time-keeping) are
+dispatched by :mod:`planner.closed_loop` instead.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Protocol
+
+import numpy as np
+
+from .errors import InputError
+
+SAME_POINT_M = 1e-3
+"""A decision within this distance [m] of an evaluation point is that point (grid round-off)."""
+
+
+@dataclass(frozen=True, eq=False)
+class RunningTimeTables:
+    """The tables of one interstation, direction and train type, as the vehicle holds them.
+
+    Attributes
+    ----------
+    origin, destination : str
+        Station ids.
+    ratios : ndarray, shape (n_r,)
+        Grid ratios, descending (1.0 first).
+    time_a_s : ndarray, shape (n_r,)
+        Table (a): running time departure → arrival at constant ratio [s].
+    eval_point_ids : tuple of str, length n_x
+        Evaluation points in running order (``dep`` first).
+    eval_distance_m : ndarray, shape (n_x,)
+        Running distance of each point from the departure stop marker [m].
+    eval_position_m : ndarray, shape (n_x,)
+        Chainage of each point [m].
+    remaining_s : ndarray, shape (n_x, n_r, n_r)
+        Table (b): ``remaining_s[x, i, j]`` is the running time from point x
+        to arrival after running at ``ratios[i]`` up to x and ``ratios[j]``
+        from x on [s].
+    ref_remaining_s : ndarray, shape (n_x, n_r), optional
+        Table (c): remaining time from point x at constant ``ratios[i]`` for
+        the reference (full-load) train [s]; needed by the ``adaptive`` mode.
+    speed_ms : ndarray, shape (n_x, n_r), optional
+        Table (c): speed of the table train at point x at constant ``ratios[i]`` [m/s].
+    """
+
+    origin: str
+    destination: str
+    ratios: np.ndarray
+    time_a_s: np.ndarray
+    eval_point_ids: tuple[str, ...]
+    eval_distance_m: np.ndarray
+    eval_position_m: np.ndarray
+    remaining_s: np.ndarray
+    ref_remaining_s: np.ndarray | None = None
+    speed_ms: np.ndarray | None = None
+
+    @property
+    def min_time_s(self) -> float:
+        """Minimum running time: table (a) at the highest ratio [s]."""
+        return float(self.time_a_s[0])
+
+    @property
+    def max_time_s(self) -> float:
+        """Longest running time the table can stretch to (lowest ratio) [s]."""
+        return float(self.time_a_s[-1])
+
+
+class RatioChooser(Protocol):
+    """A ratio-choice rule, vectorised over n runs that share one interstation's tables."""
+
+    def depart(self, tables: RunningTimeTables, designated_s: np.ndarray) -> np.ndarray:
+        """Ratio per run at departure, from the designated running time [s]."""
+
+    def at_point(
+        self, tables: RunningTimeTables, k: int, ratio: np.ndarray, remaining_s: np.ndarray,
+        speed_ms: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """New ratio per run at evaluation point ``k`` from the current ratio, remaining time [s]
+        and, for modes that use it, the measured speed [m/s]."""
+
+
+def _nearest_index(values: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Index of the value nearest each target; the first (highest ratio) wins ties."""
+    return np.argmin(np.abs(values[None, :] - np.asarray(target, float)[:, None]), axis=1)
+
+
+def grid_index(ratios: np.ndarray, ratio: np.ndarray) -> np.ndarray:
+    """Index of the grid ratio nearest each of ``ratio``."""
+    return _nearest_index(ratios, ratio)
+
+
+class NearestRule:
+    """The published nearest-time rule (DESIGN §3); chooses grid ratios only."""
+
+    name = "nearest"
+
+    def depart(self, tables: RunningTimeTables, designated_s: np.ndarray) -> np.ndarray:
+        return tables.ratios[_nearest_index(tables.time_a_s, designated_s)]
+
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None):
+        rows = tables.remaining_s[k, grid_index(tables.ratios, ratio)]  # (n, n_r)
+        j = np.argmin(np.abs(rows - np.asarray(remaining_s, float)[:, None]), axis=1)
+        return tables.ratios[j]
+
+
+def solve_ratio(ratios: np.ndarray, times_s: np.ndarray, want_s: float) -> float:
+    """Fractional ratio whose time, interpolated linearly in ``u = 1/r``, equals ``want_s``.
+
+    Parameters
+    ----------
+    ratios : ndarray
+        Grid ratios, descending.
+    times_s : ndarray
+        Running time at each grid ratio [s]; expected to grow as the ratio
+        falls. Where it does not (a higher ratio that is no faster, e.g. a
+        target that the train never reaches anyway), the running maximum is
+        used, which picks the highest ratio among equally fast ones.
+    want_s : float
+        Wanted time [s].
+
+    Returns
+    -------
+    float
+        Ratio in [ratios[-1], ratios[0]]; the end ratio when ``want_s`` lies
+        outside the table's range.
+
+    Examples
+    --------
+    >>> round(solve_ratio(np.array([1.0, 0.5]), np.array([100.0, 200.0]), 150.0), 4)
+    0.6667
+    """
+    u = 1.0 / ratios
+    t = np.maximum.accumulate(times_s)
+    if want_s <= t[0]:
+        return float(ratios[0])
+    if want_s >= t[-1]:
+        return float(ratios[-1])
+    # first node with t >= want: the segment (j-1, j) brackets it, t[j] > t[j-1]
+    j = int(np.searchsorted(t, want_s, side="left"))
+    f = (want_s - t[j - 1]) / (t[j] - t[j - 1])
+    return float(1.0 / (u[j - 1] + f * (u[j] - u[j - 1])))
+
+
+def row_at(tables: RunningTimeTables, k: int, ratio: float) -> np.ndarray:
+    """Table (b) row at point ``k`` for a fractional ratio before, linear in ``1/r`` [s]."""
+    r = tables.ratios
+    rb = float(np.clip(ratio, r[-1], r[0]))
+    # ratios descend: i is the last grid ratio >= rb
+    i = int(np.searchsorted(-r, -rb, side="right")) - 1
+    i = min(max(i, 0), len(r) - 1)
+    if i == len(r) - 1 or r[i] == rb:
+        return tables.remaining_s[k, i]
+    f = (1.0 / rb - 1.0 / r[i]) / (1.0 / r[i + 1] - 1.0 / r[i])
+    return (1.0 - f) * tables.remaining_s[k, i] + f * tables.remaining_s[k, i + 1]
+
+
+class InterpolateRule:
+    """Fractional ratios from tables interpolated in ``1/r`` (module doc)."""
+
+    name = "interpolate"
+
+    def depart(self, tables, designated_s):
+        d = np.atleast_1d(np.asarray(designated_s, float))
+        return np.array([solve_ratio(tables.ratios, tables.time_a_s, x) for x in d])
+
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None):
+        ratio = np.atleast_1d(np.asarray(ratio, float))
+        rem = np.broadcast_to(np.asarray(remaining_s, float), ratio.shape)
+        return np.array(
+            [solve_ratio(tables.ratios, row_at(tables, k, rb), x) for rb, x in zip(ratio, rem)]
+        )
+
+
+def _interp_u(ratios: np.ndarray, values: np.ndarray, r: float) -> float:
+    """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``."""
+    u = 1.0 / ratios
+    return float(np.interp(1.0 / np.clip(r, ratios[-1], ratios[0]), u, values))
+
+
+def solve_ratio_fn(ratios: np.ndarray, f, want_s: float, *, iterations: int = 60) -> float:
+    """Highest ratio in the grid range with ``f(r) >= want_s`` for a time function growing as r falls.
+
+    Bisection in ``u = 1/r`` (``f`` may be any continuous interpolant, not only the grid values);
+    the end ratio when ``want_s`` lies outside ``[f(ratios[0]), f(ratios[-1])]``.
+    """
+    lo, hi = 1.0 / ratios[0], 1.0 / ratios[-1]
+    if want_s <= f(1.0 / lo):
+        return float(ratios[0])
+    if want_s >= f(1.0 / hi):
+        return float(ratios[-1])
+    for _ in range(iterations):  # 60 halvings: far below any effect on running time
+        mid = 0.5 * (lo + hi)
+        if f(1.0 / mid) < want_s:
+            lo = mid
+        else:
+            hi = mid
+    return float(1.0 / (0.5 * (lo + hi)))
+
+
+class AdaptiveRule:
+    """``interpolate`` plus a learned performance offset (module doc, mode ``adaptive``).
+
+    Stateful per batch of runs: create one per closed-loop batch (:func:`chooser` does).
+    """
+
+    name = "adaptive"
+    THETA_RANGE = (0.0, 4.0)
+    """Bounds of the learned performance parameter (0 = table train, 1 = reference train). The
+    table train is the empty train at nominal traction, so a real train is never systematically
+    faster: a negative estimate is noise (sawtooth cycles, legs of a few metres) and is not
+    acted on. Above 4 the train is broken, not slow; extrapolating further would amplify noise."""
+
+    def __init__(self):
+        self._s: dict | None = None
+
+    @staticmethod
+    def _delta(tables: RunningTimeTables, k: int, r: float) -> float:
+        """Reference − table remaining time from point k at constant ratio r [s]."""
+        ref = tables.ref_remaining_s
+        if ref is None:
+            raise InputError("mode adaptive needs table (c) (table_c dataset); rebuild the tables with "
+                             "`planner tables`")
+        diag = np.diagonal(tables.remaining_s[k])
+        return _interp_u(tables.ratios, ref[k] - diag, r)
+
+    def depart(self, tables, designated_s):
+        d = np.atleast_1d(np.asarray(designated_s, float))
+        r0 = np.array([solve_ratio(tables.ratios, tables.time_a_s, x) for x in d])
+        self._s = {
+            "k": np.zeros(d.size, int),
+            "rem": d.copy(),  # actual remaining time at the last point
+            "pred": np.array([_interp_u(tables.ratios, tables.time_a_s, r) for r in r0]),
+            "delta": np.array([self._delta(tables, 0, r) for r in r0]),
+            "num": np.zeros(d.size),
+            "den": np.zeros(d.size),
+        }
+        return r0
+
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None):
+        ratio = np.atleast_1d(np.asarray(ratio, float))
+        rem = np.broadcast_to(np.asarray(remaining_s, float), ratio.shape)
+        st = self._s
+        if st is None:
+            raise RuntimeError("AdaptiveRule.at_point before depart")
+        out = np.empty_like(ratio)
+        for i, (rb, x) in enumerate(zip(ratio, rem)):
+            # the leg just run, at ratio rb: observed vs. table time, and the reference's extra
+            pred_here = float(_interp_u(tables.ratios, row_at(tables, k, rb), rb))
+            st["num"][i] += (st["rem"][i] - x) - (st["pred"][i] - pred_here)
+            st["den"][i] += st["delta"][i] - self._delta(tables, k, rb)
+            theta = st["num"][i] / st["den"][i] if st["den"][i] > 1e-3 else 0.0
+            theta = float(np.clip(theta, *self.THETA_RANGE))
+            row = row_at(tables, k, rb)
+            diff = np.diagonal(tables.remaining_s[k])
+            refk = tables.ref_remaining_s[k] - diff
+
+            def f(r, row=row, refk=refk, theta=theta):
+                return _interp_u(tables.ratios, row, r) + theta * _interp_u(tables.ratios, refk, r)
+
+            ra = solve_ratio_fn(tables.ratios, f, x)
+            out[i] = ra
+            st["rem"][i] = x
+            st["pred"][i] = _interp_u(tables.ratios, row, ra)
+            st["delta"][i] = self._delta(tables, k, ra)
+        return out
+
+
+CHOOSERS: dict[str, Callable[[], RatioChooser]] = {
+    "nearest": NearestRule, "interpolate": InterpolateRule, "adaptive": AdaptiveRule,
+}
+"""Table-based on-board modes by name: a factory giving a fresh chooser per batch of runs."""
+
+
+def register_mode(name: str, factory: Callable[[], RatioChooser]) -> None:
+    """Add a table-based on-board mode (selectable by ``--mode name``)."""
+    CHOOSERS[name] = factory
+
+
+def chooser(mode: str) -> RatioChooser:
+    """A fresh chooser for ``mode``; InputError naming the known modes otherwise."""
+    try:
+        return CHOOSERS[mode]()
+    except KeyError:
+        raise InputError(f"--mode {mode!r} is not a table mode; known: {', '.join(CHOOSERS)}") from None
+
+
+def make_controller(
+    tables: RunningTimeTables, mode: str | RatioChooser, arrival_s: np.ndarray
+) -> tuple[Callable, list[float], list[list[float]]]:
+    """A simulator controller that runs the on-board choice at each evaluation point after departure.
+
+    Parameters
+    ----------
+    tables : RunningTimeTables
+    mode : str or RatioChooser
+        A key of :data:`CHOOSERS`, or the chooser that also made the departure choice
+        (stateful modes need the same instance).
+    arrival_s : ndarray, shape (n,)
+        Scheduled arrival per run, in the run's clock (departure at t = 0) [s].
+
+    Returns
+    -------
+    controller : callable ``(s_m, state) -> ratio``
+        For ``planner.run_curve.simulate(controller=..., decision_m=...)``.
+    decision_m : list of float
+        Running distances of the evaluation points after departure [m].
+    chosen : list of list of float
+        Filled while running: the ratios returned at each decision, per point.
+    """
+    ch = chooser(mode) if isinstance(mode, str) else mode
+    ks = [k for k, s in enumerate(tables.eval_distance_m) if s > 0]
+    pts = np.asarray(tables.eval_distance_m, float)
+    chosen: list[np.ndarray] = []
+    arrival = np.asarray(arrival_s, float)
+
+    def controller(s_m, state):
+        k = int(np.argmin(np.abs(pts - float(s_m))))
+        if k not in ks or abs(pts[k] - float(s_m)) > SAME_POINT_M:
+            return state.ratio  # a decision we did not ask for: keep the ratio
+        new = ch.at_point(tables, k, state.ratio, arrival - state.t_s, state.v_ms)
+        chosen.append(np.asarray(new, float))
+        return new
+
+    return controller, [float(pts[k]) for k in ks], chosen
+
+
+# --- reading the tables back (the vehicle's side) -------------------------------
+
+def load_tables(
+    tables_dir: str | Path, line_id: str, direction: str, train_type: str
+) -> dict[tuple[str, str], RunningTimeTables]:
+    """Read the ``eval_points``, ``table_a`` and ``table_b`` datasets of one line, direction, type.
+
+    Parameters
+    ----------
+    tables_dir : path
+        The ``--out`` folder of ``planner tables`` (holding ``table_a/`` etc.).
+    line_id, direction, train_type : str
+        Partition to read.
+
+    Returns
+    -------
+    dict
+        ``(origin, destination) -> RunningTimeTables`` in running order.
+
+    Raises
+    ------
+    InputError
+        Missing datasets or partitions, or tables that do not fit together.
+    """
+    from .datasets import read_dataset
+
+    root = Path(tables_dir)
+    out = {}
+    try:
+        ep = read_dataset(root, "eval_points", line=line_id, direction=direction, train_type=train_type).to_pandas()
+        ta = read_dataset(root, "table_a", line=line_id, direction=direction, train_type=train_type).to_pandas()
+        tb = read_dataset(root, "table_b", line=line_id, direction=direction, train_type=train_type).to_pandas()
+    except (FileNotFoundError, OSError) as e:
+        raise InputError(f"--tables {root}: cannot read the tables ({e}); run `planner tables` first") from None
+    try:
+        tc = read_dataset(root, "table_c", line=line_id, direction=direction, train_type=train_type).to_pandas()
+    except (FileNotFoundError, OSError):
+        tc = None  # optional: only the adaptive mode needs it
+    if ta.empty:
+        raise InputError(
+            f"--tables {root}: no table_a rows for line={line_id} direction={direction} "
+            f"train_type={train_type}; run `planner tables` for it"
+        )
+    for (o, d), a in ta.groupby(["origin", "destination"], sort=False):
+        a = a.sort_values("ratio", ascending=False)
+        ratios = a["ratio"].to_numpy(float)
+        p = ep[(ep.origin == o) & (ep.destination == d)].sort_values("eval_distance_m")
+        b = tb[(tb.origin == o) & (tb.destination == d)]
+        n_r, n_x = len(ratios), len(p)
+        if len(b) != n_x * n_r * n_r:
+            raise InputError(
+                f"--tables {root}: table_b for {o}->{d} has {len(b)} rows, expected "
+                f"{n_x} points x {n_r}^2 ratios; rebuild the tables"
+            )
+        k = {pid: i for i, pid in enumerate(p["eval_point_id"])}
+        ri = {float(r): i for i, r in enumerate(ratios)}
+        rem = np.full((n_x, n_r, n_r), np.nan)
+        rem[b["eval_point_id"].map(k).to_numpy(), b["ratio_before"].map(ri).to_numpy(),
+            b["ratio_after"].map(ri).to_numpy()] = b["remaining_time_s"].to_numpy(float)
+        if np.isnan(rem).any():
+            raise InputError(f"--tables {root}: table_b for {o}->{d} is incomplete; rebuild the tables")
+        ref = spd = None
+        if tc is not None and not tc.empty:
+            c = tc[(tc.origin == o) & (tc.destination == d)]
+            if len(c) == n_x * n_r:
+                ref = np.full((n_x, n_r), np.nan)
+                ref[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
+                    c["remaining_time_ref_s"].to_numpy(float)
+                if np.isnan(ref).any():
+                    ref = None
+                if "speed_kmh" in c:
+                    spd = np.full((n_x, n_r), np.nan)
+                    spd[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
+                        c["speed_kmh"].to_numpy(float) / 3.6
+                    if np.isnan(spd).any():
+                        spd = None
+        out[(o, d)] = RunningTimeTables(
+            origin=o,
+            destination=d,
+            ratios=ratios,
+            time_a_s=a["running_time_s"].to_numpy(float),
+            eval_point_ids=tuple(p["eval_point_id"]),
+            eval_distance_m=p["eval_distance_m"].to_numpy(float),
+            eval_position_m=p["eval_position_m"].to_numpy(float),
+            remaining_s=rem,
+            ref_remaining_s=ref,
+            speed_ms=spd,
+        )
+    return out

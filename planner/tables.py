@@ -1,0 +1,455 @@
+"""Running-time tables (a) and (b) for every interstation, direction and train type (DESIGN §3).
+
+Table (a): for every grid ratio r, the running time departure → arrival at
+constant r (and the traction energy). Table (b): for every evaluation point X
+and pair (r_before, r_after), the running time from X to arrival when the train
+ran at r_before up to X and at r_after from X on.
+
+How it is computed (per interstation, direction and train type)
+---------------------------------------------------------------
+1. One batch of n_r runs at constant ratio from departure to arrival, with a
+   snapshot of the state at every evaluation point: the totals are table (a),
+   the snapshots are the states at X after running at each r_before (speed,
+   time, and whether powering, holding or braking).
+2. For each evaluation point X after departure, one batch of n_r² runs that
+   start from those snapshots — each r_before state repeated once per
+   r_after — with ratio r_after from X: table (b) at X is their arrival time
+   minus the time at X. At the departure itself the state does not depend on
+   r_before (standing at s = 0), so every row of table (b) there is table (a).
+
+Work: n_r full runs plus n_x · n_r² suffix runs, each batch lock-stepped on
+the same distance grid (evaluation points are grid nodes, so snapshots are
+exact). Interstations × directions × train types are spread over processes
+with joblib; each task gets the (small, picklable) Line and names, and the
+results are assembled in the fixed task order, so the output does not depend
+on ``n_jobs`` or scheduling.
+
+3. Table (c), for the ``adaptive`` on-board mode: the same n_r constant-ratio
+   runs for a reference train at full load (one more batch of n_r runs), giving
+   at every point the remaining time at constant ratio of both trains and the
+   table train's speed there.
+
+Datasets (hive-partitioned line / direction / train_type, see schemas below):
+``eval_points``, ``table_a``, ``table_b``, ``table_c``. The vehicle reads them
+back with :func:`planner.onboard.load_tables`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import pyarrow as pa
+
+from .datasets import declare, write_partitioned
+from .errors import InfeasibleError
+from .eval_points import DEFAULT_AFTER_DEPARTURE_M, EvalPoint, evaluation_points, interstation_length_m
+from .model import DIRECTIONS, Line
+from .onboard import RunningTimeTables
+from .ratios import ratio_grid
+
+EVAL_POINTS_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id of the interstation"),
+        ("destination", pa.string(), "arrival station id of the interstation"),
+        ("eval_point_id", pa.string(), "'dep', 'dep+<m>' (point after departure) or the beacon_id"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("eval_distance_m", pa.float64(), "running distance from the departure stop marker [m]"),
+    ],
+    name="eval_points",
+    description="Evaluation points per interstation, in running order (DESIGN §3).",
+)
+TABLE_A_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("ratio", pa.float64(), "target-speed ratio (target = ratio x on-board maximum speed), 0..1"),
+        ("running_time_s", pa.float64(), "running time stop marker to stop marker at constant ratio [s]"),
+        ("energy_kwh", pa.float64(), "traction energy at the wheel over the run [kWh]"),
+    ],
+    name="table_a",
+    description="Table (a): running time per ratio, tables at load 0 and nominal traction (DESIGN §3).",
+)
+TABLE_B_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "evaluation point id (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("ratio_before", pa.float64(), "ratio run from departure up to the evaluation point"),
+        ("ratio_after", pa.float64(), "ratio run from the evaluation point to arrival"),
+        ("remaining_time_s", pa.float64(), "running time from the evaluation point to arrival [s]"),
+        ("elapsed_time_s", pa.float64(), "running time from departure to the evaluation point at ratio_before [s]"),
+    ],
+    name="table_b",
+    description="Table (b): remaining running time per evaluation point and ratio pair (DESIGN §3).",
+)
+
+TABLE_C_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "evaluation point id (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("ratio", pa.float64(), "ratio run from departure to arrival"),
+        ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
+        ("remaining_time_ref_s", pa.float64(),
+         "the same for the reference train (load ref_load, same traction) [s]"),
+        ("ref_load", pa.float64(), "load factor of the reference train"),
+        ("speed_kmh", pa.float64(), "speed of the table train at the point at constant ratio [km/h]"),
+    ],
+    name="table_c",
+    description="Table (c): remaining time at constant ratio for the table train and a reference "
+                "(full-load) train; lets the on-board 'adaptive' mode learn how far the real train "
+                "is from the tables.",
+)
+REF_LOAD = 1.0
+"""Load factor of the reference train of table (c): the full-load train of timetable practice."""
+
+
+@dataclass(frozen=True, eq=False)
+class InterstationTables:
+    """Tables (a) and (b) of one interstation, direction and train type.
+
+    Attributes
+    ----------
+    line_id, direction, train_type, origin, destination : str
+    ratios : ndarray, shape (n_r,)
+        Grid ratios, descending.
+    points : tuple of EvalPoint, length n_x
+        Evaluation points (``dep`` first).
+    time_a_s, energy_a_kwh : ndarray, shape (n_r,)
+        Table (a): running time [s] and traction energy [kWh] per ratio.
+    elapsed_s : ndarray, shape (n_r, n_x)
+        Time from departure to each point at constant ratio [s].
+    speed_ms : ndarray, shape (n_r, n_x)
+        Speed at each point at constant ratio [m/s].
+    ref_remaining_s : ndarray, shape (n_x, n_r)
+        Table (c): remaining time from each point at constant ratio, reference train [s].
+    remaining_s : ndarray, shape (n_x, n_r, n_r)
+        Table (b) ``[x, i_before, j_after]`` [s].
+    """
+
+    line_id: str
+    direction: str
+    train_type: str
+    origin: str
+    destination: str
+    ratios: np.ndarray
+    points: tuple[EvalPoint, ...]
+    time_a_s: np.ndarray
+    energy_a_kwh: np.ndarray
+    elapsed_s: np.ndarray
+    remaining_s: np.ndarray
+    ref_remaining_s: np.ndarray | None = None
+    ref_load: float = float("nan")
+    speed_ms: np.ndarray | None = None
+
+    def onboard(self) -> RunningTimeTables:
+        """The vehicle's view of these tables (same numbers as the datasets hold)."""
+        return RunningTimeTables(
+            origin=self.origin,
+            destination=self.destination,
+            ratios=self.ratios,
+            time_a_s=self.time_a_s,
+            eval_point_ids=tuple(p.eval_point_id for p in self.points),
+            eval_distance_m=np.array([p.s_m for p in self.points]),
+            eval_position_m=np.array([p.position_m for p in self.points]),
+            remaining_s=self.remaining_s,
+            ref_remaining_s=self.ref_remaining_s,
+            speed_ms=None if self.speed_ms is None else self.speed_ms.T.copy(),
+        )
+
+
+class _Half:
+    """The runs ``sl`` of a BatchResult: times, energies and snapshot states."""
+
+    def __init__(self, res, sl: slice):
+        from .run_curve import RunState
+
+        self.time_s = np.asarray(res.time_s, float)[sl]
+        self.energy_kwh = np.asarray(res.energy_kwh, float)[sl]
+        self.snapshots = {
+            key: RunState(*(np.asarray(getattr(st, f))[sl] for f in ("s_m", "t_s", "v_ms", "phase", "ratio")))
+            for key, st in res.snapshots.items()
+        }
+
+
+def _snapshot(snapshots: dict, s_m: float):
+    """The snapshot taken at ``s_m`` (keys may carry grid round-off)."""
+    if s_m in snapshots:
+        return snapshots[s_m]
+    keys = np.array(list(snapshots), dtype=float)
+    return snapshots[list(snapshots)[int(np.argmin(np.abs(keys - s_m)))]]
+
+
+def interstation_tables(
+    line: Line,
+    train_type: str,
+    origin: str,
+    destination: str,
+    ratios: Sequence[float],
+    *,
+    after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
+    settings=None,
+    load: float = 0.0,
+    traction_factor: float = 1.0,
+    ref_load: float = REF_LOAD,
+) -> InterstationTables:
+    """Compute tables (a) and (b) of one interstation (module doc, steps 1–2).
+
+    Parameters
+    ----------
+    line : Line
+    train_type, origin, destination : str
+    ratios : sequence of float
+        Grid ratios, descending (see :func:`planner.ratios.ratio_grid`).
+    after_departure_m : float or None
+        Distance of the evaluation point after departure [m].
+    settings : planner.run_curve.SimSettings, optional
+        Integrator settings (distance step).
+    load, traction_factor : float
+        Conditions the tables assume (DESIGN: load 0, traction 1.0).
+    ref_load : float
+        Load of the reference train of table (c).
+
+    Returns
+    -------
+    InterstationTables
+    """
+    from .run_curve import RunState, SimSettings, make_track, simulate
+
+    settings = settings or SimSettings()
+    direction = line.direction_between(origin, destination)
+    points = evaluation_points(line, origin, destination, after_departure_m=after_departure_m)
+    s_pts = [p.s_m for p in points]
+    track = make_track(line, train_type, origin, destination, settings=settings, nodes_m=s_pts)
+    train = line.train_type(train_type)
+    r = np.asarray(ratios, dtype=float)
+    n_r, n_x = len(r), len(points)
+    kw = dict(load=load, traction_factor=traction_factor)
+
+    # the constant-ratio runs of the table train and of the reference train (table (c)) in one
+    # batch: the integrator's cost is per step, nearly independent of the batch size
+    try:
+        both = simulate(track, train, np.concatenate([r, r]), snapshots_m=s_pts[1:],
+                        load=np.concatenate([np.full(n_r, load), np.full(n_r, ref_load)]),
+                        traction_factor=traction_factor)
+        full = _Half(both, slice(0, n_r))
+        ref = _Half(both, slice(n_r, 2 * n_r))
+        ref_rem = np.empty((n_x, n_r))
+        ref_rem[0] = ref.time_s
+        for k in range(1, n_x):
+            ref_rem[k] = ref.time_s - _snapshot(ref.snapshots, s_pts[k]).t_s
+    except InfeasibleError:
+        # the full-load reference stalls on this interstation: no table (c) here (the adaptive
+        # mode then says so); the table train itself must run, so let its own error surface
+        full = _Half(simulate(track, train, r, snapshots_m=s_pts[1:], **kw), slice(None))
+        ref_rem = None
+    time_a = full.time_s
+    elapsed = np.zeros((n_r, n_x))
+    speed = np.zeros((n_r, n_x))
+    remaining = np.empty((n_x, n_r, n_r))
+    remaining[0] = time_a[None, :]  # at departure every row is table (a)
+    # One lock-step batch for every point after departure: group k holds, for each distinct
+    # state at X_k, the runs (r_before -> every r_after). Every run starts from the prefix's
+    # snapshot at the first point X_1 at its r_before and switches to r_after at X_k, so the
+    # batch advances over L - s(X_1) once instead of once per point; the integrator is
+    # per-run arithmetic, so a run's state at X_k equals the prefix's snapshot there.
+    groups = []  # (k, representative r_before index per distinct state, inverse map)
+    for k in range(1, n_x):
+        snap = _snapshot(full.snapshots, s_pts[k])
+        t_x = np.asarray(snap.t_s, float)
+        elapsed[:, k] = t_x
+        speed[:, k] = snap.v_ms
+        # ratios whose runs are still identical at X (e.g. all still powering below their
+        # targets just after departure) reach X in the same state: their rows are equal,
+        # so one start state per distinct (t, v, phase) is enough
+        key = np.column_stack([t_x, np.asarray(snap.v_ms, float), np.asarray(snap.phase, float)])
+        _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        groups.append((k, first, inv.reshape(-1)))
+    if groups:
+        b_idx = np.concatenate([np.repeat(first, n_r) for _, first, _ in groups])
+        a_idx = np.concatenate([np.tile(np.arange(n_r), len(first)) for _, first, _ in groups])
+        g_of = np.concatenate([np.full(len(first) * n_r, k) for k, first, _ in groups])
+        snap1 = _snapshot(full.snapshots, s_pts[1])
+        start = RunState(
+            s_m=np.asarray(snap1.s_m, float)[b_idx],
+            t_s=np.asarray(snap1.t_s, float)[b_idx],
+            v_ms=np.asarray(snap1.v_ms, float)[b_idx],
+            phase=np.asarray(snap1.phase)[b_idx],
+            ratio=np.asarray(snap1.ratio, float)[b_idx],
+        )
+        ratio0 = np.where(g_of == 1, r[a_idx], r[b_idx])
+        changes = [(s_pts[k], np.where(g_of <= k, r[a_idx], r[b_idx])) for k in range(2, n_x)]
+        res = simulate(track, train, ratio0, start=start, changes=changes, snapshots_m=s_pts[1:], **kw)
+        total = np.asarray(res.time_s, float)
+        for k, first, inv in groups:
+            sel = g_of == k
+            t_k = np.asarray(_snapshot(res.snapshots, s_pts[k]).t_s, float)[sel]
+            remaining[k] = (total[sel] - t_k).reshape(len(first), n_r)[inv]
+    return InterstationTables(
+        line_id=line.line_id,
+        direction=direction,
+        train_type=train_type,
+        origin=origin,
+        destination=destination,
+        ratios=r,
+        points=points,
+        time_a_s=time_a,
+        energy_a_kwh=np.asarray(full.energy_kwh, float),
+        elapsed_s=elapsed,
+        remaining_s=remaining,
+        ref_remaining_s=ref_rem,
+        ref_load=float(ref_load) if ref_rem is not None else float("nan"),
+        speed_ms=speed,
+    )
+
+
+def table_tasks(line: Line, train_types: Sequence[str] | None = None) -> list[tuple[str, str, str, str]]:
+    """The fixed task order: (train_type, direction, origin, destination)."""
+    types = list(train_types) if train_types else [t.train_type for t in line.train_types]
+    for t in types:
+        line.train_type(t)  # UnknownNameError early, naming the known types
+    return [
+        (t, d, a.station_id, b.station_id)
+        for t in types
+        for d in DIRECTIONS
+        for a, b in line.interstations(d)
+    ]
+
+
+def _task(line: Line, train_type: str, origin: str, destination: str, ratios, after_departure_m, settings):
+    """joblib worker: one interstation, direction, train type (module-level, picklable inputs)."""
+    return interstation_tables(
+        line, train_type, origin, destination, ratios,
+        after_departure_m=after_departure_m, settings=settings,
+    )
+
+
+def build_tables(
+    line: Line,
+    *,
+    train_types: Sequence[str] | None = None,
+    ratios: str | Sequence[float] | None = None,
+    after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
+    n_jobs: int = -1,
+    settings=None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[InterstationTables]:
+    """Tables for every interstation × direction × train type of a line, in parallel.
+
+    Parameters
+    ----------
+    line : Line
+    train_types : sequence of str, optional
+        Default every train type of the line.
+    ratios : str, sequence of float or None
+        Ratio grid spec or list (:func:`planner.ratios.ratio_grid`); default grid if None.
+    after_departure_m : float or None
+        Distance of the evaluation point after departure [m].
+    n_jobs : int
+        joblib processes; -1 = all cores, 1 = in this process.
+    settings : planner.run_curve.SimSettings, optional
+    progress : callable ``(done, total)``, optional
+        Called after each finished task (in task order).
+
+    Returns
+    -------
+    list of InterstationTables
+        In :func:`table_tasks` order, independent of ``n_jobs``.
+    """
+    from joblib import Parallel, delayed
+
+    grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
+    tasks = table_tasks(line, train_types)
+    total = len(tasks)
+    if progress:
+        progress(0, total)
+    # longest interstations first, so no core idles on one long task at the end; the results
+    # are put back in task order, so the output does not depend on this or on n_jobs
+    order = sorted(range(total), key=lambda i: -interstation_length_m(line, tasks[i][2], tasks[i][3]))
+    jobs = (delayed(_task)(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, after_departure_m, settings)
+            for i in order)
+    out: list[InterstationTables | None] = [None] * total
+    if n_jobs == 1:
+        results = (f(*a, **kw) for f, a, kw in jobs)
+    else:
+        results = Parallel(n_jobs=n_jobs, return_as="generator")(jobs)
+    for done, (i, res) in enumerate(zip(order, results), start=1):
+        out[i] = res
+        if progress:
+            progress(done, total)
+    return out
+
+
+# --- datasets -------------------------------------------------------------------
+
+def _keys(t: InterstationTables, n: int) -> dict[str, list]:
+    return {
+        "line": [t.line_id] * n,
+        "direction": [t.direction] * n,
+        "train_type": [t.train_type] * n,
+        "origin": [t.origin] * n,
+        "destination": [t.destination] * n,
+    }
+
+
+def _concat(cols: list[dict[str, list]]) -> dict[str, list]:
+    out: dict[str, list] = {}
+    for c in cols:
+        for k, v in c.items():
+            out.setdefault(k, []).extend(list(v))
+    return out
+
+
+def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
+    """The ``eval_points``, ``table_a`` and ``table_b`` rows, with partition columns, in task order."""
+    ep, ta, tb, tc = [], [], [], []
+    for t in results:
+        n_r, n_x = len(t.ratios), len(t.points)
+        ep.append(_keys(t, n_x) | {
+            "eval_point_id": [p.eval_point_id for p in t.points],
+            "eval_position_m": [p.position_m for p in t.points],
+            "eval_distance_m": [p.s_m for p in t.points],
+        })
+        ta.append(_keys(t, n_r) | {
+            "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
+        })
+        k, i, j = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), np.arange(n_r), indexing="ij"))
+        tb.append(_keys(t, len(k)) | {
+            "eval_point_id": [t.points[x].eval_point_id for x in k],
+            "eval_position_m": np.array([p.position_m for p in t.points])[k],
+            "ratio_before": t.ratios[i],
+            "ratio_after": t.ratios[j],
+            "remaining_time_s": t.remaining_s[k, i, j],
+            "elapsed_time_s": t.elapsed_s[i, k],
+        })
+        if t.ref_remaining_s is not None:
+            k, i = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), indexing="ij"))
+            tc.append(_keys(t, len(k)) | {
+                "eval_point_id": [t.points[x].eval_point_id for x in k],
+                "eval_position_m": np.array([p.position_m for p in t.points])[k],
+                "ratio": t.ratios[i],
+                "remaining_time_s": t.remaining_s[k, i, i],
+                "remaining_time_ref_s": t.ref_remaining_s[k, i],
+                "ref_load": [t.ref_load] * len(k),
+                "speed_kmh": t.speed_ms[i, k] * 3.6 if t.speed_ms is not None else np.full(len(k), np.nan),
+            })
+    out = {"eval_points": pa.table(_concat(ep)), "table_a": pa.table(_concat(ta)), "table_b": pa.table(_concat(tb))}
+    if tc:
+        out["table_c"] = pa.table(_concat(tc))
+    return out
+
+
+SCHEMAS = {"eval_points": EVAL_POINTS_SCHEMA, "table_a": TABLE_A_SCHEMA, "table_b": TABLE_B_SCHEMA,
+           "table_c": TABLE_C_SCHEMA}
+
+
+def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> list[Path]:
+    """Write the three datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
+    written: list[Path] = []
+    for name, table in datasets(results).items():
+        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
+    return written

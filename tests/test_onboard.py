@@ -1,0 +1,167 @@
+"""On-board ratio choice on synthetic tables with closed-form times, and the Parquet round trip.
+
+The synthetic tables are T(r) = a + b / r (a cruise-dominated run: time affine
+in 1/r), for which interpolation in u = 1/r is exact, so the interpolating mode
+must hit the wanted time to round-off and the nearest rule must pick the grid
+ratio that is provably nearest.
+"""
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from planner.eval_points import EvalPoint
+from planner.onboard import (
+    CHOOSERS, InterpolateRule, NearestRule, RunningTimeTables, chooser, load_tables,
+    make_controller, row_at, solve_ratio,
+)
+from planner.errors import InputError
+from planner.ratios import ratio_grid
+from planner.tables import InterstationTables, write_tables
+
+RATIOS = ratio_grid(line_max_speed_ms=100 / 3.6)
+ROUNDOFF_S = 1e-9  # exact arithmetic up to float round-off on ~100 s values
+
+
+def synthetic(a=20.0, b=100.0, s_pts=(0.0, 200.0, 900.0)):
+    """Remaining time after X: a_x + b_x(before) / r_after, with a before-dependent offset."""
+    n_r, n_x = len(RATIOS), len(s_pts)
+    frac = [1.0 - s / 1000.0 for s in s_pts]  # share of the run left at X
+    time_a = a + b / RATIOS
+    rem = np.empty((n_x, n_r, n_r))
+    for k, f in enumerate(frac):
+        # arriving at X at a lower speed (lower r_before) costs 0..2 s extra, affine in 1/r_before
+        extra = (k > 0) * 2.0 * (1 / RATIOS - 1)
+        rem[k] = f * a + extra[:, None] + f * b / RATIOS[None, :]
+    return RunningTimeTables("S0", "S1", RATIOS, time_a, tuple(f"p{k}" for k in range(n_x)),
+                             np.array(s_pts), np.array(s_pts) + 50.0, rem)
+
+
+def test_nearest_departure_picks_nearest_grid_time():
+    t = synthetic()
+    want = np.array([t.time_a_s[0] - 5, t.time_a_s[3] + 0.1, 0.5 * (t.time_a_s[5] + t.time_a_s[6]) - 0.01, 1e6])
+    got = NearestRule().depart(t, want)
+    assert got.tolist() == [RATIOS[0], RATIOS[3], RATIOS[5], RATIOS[-1]]
+
+
+def test_nearest_tie_goes_to_higher_ratio():
+    t = synthetic()
+    mid = 0.5 * (t.time_a_s[1] + t.time_a_s[2])
+    assert NearestRule().depart(t, np.array([mid]))[0] == RATIOS[1]
+
+
+def test_nearest_at_point_uses_row_of_current_ratio():
+    t = synthetic()
+    k, i = 2, 5
+    row = t.remaining_s[k, i]
+    want = row[7] + 0.2
+    got = NearestRule().at_point(t, k, np.array([RATIOS[i]]), np.array([want]))
+    assert got[0] == RATIOS[7]
+    # a different current ratio shifts the row: the same remaining time picks another column
+    other = NearestRule().at_point(t, k, np.array([RATIOS[-1]]), np.array([want]))
+    assert other[0] != got[0]
+
+
+@given(frac=st.floats(0.0, 1.0))
+def test_interpolate_departure_exact_for_affine_in_inverse_ratio(frac):
+    t = synthetic()
+    want = t.time_a_s[0] + frac * (t.time_a_s[-1] - t.time_a_s[0])
+    r = InterpolateRule().depart(t, np.array([want]))[0]
+    assert 20.0 + 100.0 / r == pytest.approx(want, abs=ROUNDOFF_S)
+
+
+@given(rb=st.floats(float(RATIOS[-1]), 1.0), frac=st.floats(0.0, 1.0))
+def test_interpolate_at_point_exact(rb, frac):
+    t = synthetic()
+    k, f = 2, 1 - 0.9
+    # closed form of the synthetic row for a fractional ratio before
+    row = lambda ra: f * 20.0 + 2.0 * (1 / rb - 1) + f * 100.0 / ra
+    lo, hi = row(1.0), row(RATIOS[-1])
+    want = lo + frac * (hi - lo)
+    np.testing.assert_allclose(row_at(t, k, rb), row(RATIOS), atol=1e-9)
+    ra = InterpolateRule().at_point(t, k, np.array([rb]), np.array([want]))[0]
+    assert row(ra) == pytest.approx(want, abs=1e-9)
+
+
+def test_solve_ratio_clamps_and_handles_flat_top():
+    r = np.array([1.0, 0.9, 0.8, 0.7])
+    # the top two ratios are equally fast (target never reached): the higher one is kept
+    t = np.array([100.0, 100.0, 110.0, 125.0])
+    assert solve_ratio(r, t, 90.0) == 1.0
+    assert solve_ratio(r, t, 100.0) == 1.0
+    assert solve_ratio(r, t, 200.0) == 0.7
+    x = solve_ratio(r, t, 105.0)
+    assert 0.8 < x < 0.9
+
+
+def test_unknown_mode():
+    with pytest.raises(InputError, match="known: nearest, interpolate"):
+        chooser("psychic")
+    assert set(CHOOSERS) >= {"nearest", "interpolate"}
+
+
+def test_controller_ignores_other_decisions_and_records_choices():
+    t = synthetic()
+
+    class S:  # minimal RunState stand-in
+        ratio = np.array([1.0, 0.5])
+        t_s = np.array([10.0, 10.0])
+        v_ms = np.array([20.0, 10.0])
+
+    ctl, decision_m, chosen = make_controller(t, "nearest", np.array([200.0, 200.0]))
+    assert decision_m == [200.0, 900.0]
+    np.testing.assert_array_equal(ctl(555.0, S), S.ratio)
+    out = ctl(200.0, S)
+    assert len(chosen) == 1 and np.array_equal(chosen[0], out)
+
+
+def test_tables_round_trip_through_parquet(tmp_path):
+    t = synthetic()
+    n_r = len(t.ratios)
+    it = InterstationTables(
+        line_id="L", direction="down", train_type="EMU", origin="S0", destination="S1", ratios=t.ratios,
+        points=tuple(EvalPoint(i, s, p) for i, s, p in zip(t.eval_point_ids, t.eval_distance_m, t.eval_position_m)),
+        time_a_s=t.time_a_s, energy_a_kwh=np.linspace(50, 20, n_r),
+        elapsed_s=np.zeros((n_r, len(t.eval_point_ids))), remaining_s=t.remaining_s,
+    )
+    files = write_tables([it], tmp_path)
+    assert {f.parent.parent.parent.parent.name for f in files} == {"eval_points", "table_a", "table_b"}
+    back = load_tables(tmp_path, "L", "down", "EMU")[("S0", "S1")]
+    np.testing.assert_array_equal(back.ratios, t.ratios)
+    np.testing.assert_array_equal(back.time_a_s, t.time_a_s)
+    np.testing.assert_array_equal(back.remaining_s, t.remaining_s)
+    np.testing.assert_array_equal(back.eval_distance_m, t.eval_distance_m)
+    assert back.eval_point_ids == t.eval_point_ids
+    with pytest.raises(InputError):
+        load_tables(tmp_path, "L", "up", "EMU")
+    with pytest.raises(InputError):
+        load_tables(tmp_path / "nowhere", "L", "down", "EMU")
+
+
+@given(theta=st.floats(0.0, 2.0), frac=st.floats(0.05, 0.6))
+def test_adaptive_learns_the_train_and_arrives_exactly(theta, frac):
+    """A train slower than the tables by exactly theta x (reference - table), everything affine in
+    1/r: after one leg the rule knows theta and its choice at the next point arrives on time."""
+    from planner.onboard import AdaptiveRule
+
+    c = 30.0
+    t = synthetic()
+    f = np.array([1.0 - s / 1000.0 for s in t.eval_distance_m])
+    delta = f[:, None] * c / RATIOS[None, :]  # reference - table, at constant ratio
+    diag = np.stack([np.diagonal(t.remaining_s[k]) for k in range(3)])
+    t = RunningTimeTables(t.origin, t.destination, t.ratios, t.time_a_s, t.eval_point_ids, t.eval_distance_m,
+                          t.eval_position_m, t.remaining_s, ref_remaining_s=diag + delta)
+    lo, hi = t.time_a_s[0] + theta * delta[0, 0], t.time_a_s[-1]
+    designated = lo + frac * (hi - lo)
+
+    def true_remaining(k, rb, ra):  # the real train: table row + theta * Δ(ra)
+        # the synthetic table (b) entry in closed form, plus the train's own extra time
+        return f[k] * 20.0 + (k > 0) * 2.0 * (1 / rb - 1) + f[k] * 100.0 / ra + theta * f[k] * c / ra
+
+    rule = AdaptiveRule()
+    r0 = rule.depart(t, np.array([designated]))[0]
+    leg = true_remaining(0, r0, r0) - true_remaining(1, r0, r0)
+    rem1 = designated - leg
+    r1 = rule.at_point(t, 1, np.array([r0]), np.array([rem1]))[0]
+    if r1 in (RATIOS[0], RATIOS[-1]):
+        return  # clamped: the designated time is outside what the real train can do
+    assert true_remaining(1, r0, r1) == pytest.approx(rem1, abs=1e-6)

@@ -1,0 +1,191 @@
+"""Running-time tables (a) and (b): closed forms, consistency, monotonicity, determinism, datasets."""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+import planner
+from planner import testing
+from planner.datasets import read_dataset
+from planner.model import Beacon
+from planner.ratios import ratio_grid
+from planner.run_curve import make_track, simulate
+from planner.tables import TABLE_B_SCHEMA, build_tables, interstation_tables, write_tables
+
+from linedb import write_line_db
+
+CLOSED_FORM_TOL_S = 0.05
+"""DESIGN §2: running times within 0.05 s of closed-form answers at the default 1 m step."""
+CONSISTENCY_TOL_S = 0.1
+"""Issue 4: table (b) at (r, r) + time to reach X at r equals table (a) at r within 0.1 s."""
+SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
+
+
+def flat_line():
+    """Flat, no resistance, 300 kN on 300 t: 1 m/s² up, 1 m/s² service and stopping brake, 100 km/h."""
+    ln = testing.line(length_m=3000.0)
+    beacons = (
+        Beacon("B1", 1000.0, "down", "signal", "a", True),
+        Beacon("B2", 2200.0, "down", "signal", "b", True),
+    )
+    return dataclasses.replace(ln, beacons=beacons)
+
+
+VMAX = 100 / 3.6
+L = 3000.0
+
+
+def t_a(v):
+    """Accelerate at 1 m/s² to v, cruise, stop at 1 m/s²: T = v + L/v (v² ≤ L)."""
+    return v + L / v
+
+
+def t_b(x, vb, va):
+    """Remaining time from X after running at target vb up to X, then target va (1 m/s² everywhere)."""
+    vx = min(vb, math.sqrt(2 * x))  # still accelerating at X if vb was not reached
+    d = L - x
+    if va <= vx:  # service brake vx -> va, cruise, stop
+        return (vx - va) + (d - vx**2 / 2) / va + va
+    return (va - vx) + (d - va**2 + vx**2 / 2) / va + va  # accelerate, cruise, stop
+
+
+@pytest.fixture(scope="module")
+def flat():
+    ln = flat_line()
+    return ln, interstation_tables(ln, "T", "S0", "S1", ratio_grid(line_max_speed_ms=ln.max_speed_ms))
+
+
+def test_table_a_closed_form(flat):
+    _, t = flat
+    expected = [t_a(r * VMAX) for r in t.ratios]
+    np.testing.assert_allclose(t.time_a_s, expected, atol=CLOSED_FORM_TOL_S)
+
+
+def test_table_b_closed_form(flat):
+    _, t = flat
+    assert [p.eval_point_id for p in t.points] == ["dep", "dep+200", "B1", "B2"]
+    for k, p in enumerate(t.points):
+        expected = np.array([[t_b(p.s_m, rb * VMAX, ra * VMAX) if p.s_m > 0 else t_a(ra * VMAX)
+                              for ra in t.ratios] for rb in t.ratios])
+        np.testing.assert_allclose(t.remaining_s[k], expected, atol=CLOSED_FORM_TOL_S, err_msg=p.eval_point_id)
+
+
+def _hilly():
+    tt = [
+        testing.train_type("C", davis_a_kN=4, davis_b_kN_per_kmh=0.05, davis_c_kN_per_kmh2=0.0008,
+                           traction=((0, 250), (40, 250), (100, 110), (130, 80)), rotating_mass_factor=0.08,
+                           max_accel_kmh_s=3.0, service_brake_kmh_s=3.0, stop_brake_kmh_s=2.8),
+        testing.train_type("S", cruise="sawtooth", coast_band_kmh=5.0, davis_a_kN=4, davis_c_kN_per_kmh2=0.001,
+                           traction=((0, 220), (35, 220), (100, 90), (130, 60)), max_accel_kmh_s=2.5),
+    ]
+    ln = testing.line(length_m=4200.0, stations=[100.0, 2100.0, 4100.0], max_speed_kmh=110.0,
+                      gradients=[(500, 1100, 8.0), (1100, 1900, -6.0), (2600, 3600, 10.0)],
+                      curves=[(1500, 1700, 400.0)], limits=[(900, 1200, 60.0), (3000, 3300, 75.0)],
+                      train_types=tt)
+    # D1 sits where the 60 km/h restriction's tail clears (1200 + 100 m train): a ratio lowered
+    # there must not let the train jump up to the new, higher ceiling
+    b = [Beacon(f"D{i}", x, "down", "signal", "t", True) for i, x in enumerate([700, 1300, 1650, 2900, 3500])]
+    b += [Beacon(f"U{i}", x, "up", "signal", "t", True) for i, x in enumerate([3700, 3150, 2500, 1500, 800])]
+    return dataclasses.replace(ln, beacons=tuple(b))
+
+
+@pytest.fixture(scope="module")
+def hilly():
+    ln = _hilly()
+    return ln, build_tables(ln, n_jobs=1)
+
+
+def test_consistency_prefix_plus_remaining_equals_table_a(hilly):
+    """Table (b) at (r, r) + time to reach X at r = table (a) at r, the time to X read off an
+    independent recorded run (not the table's own prefix snapshots)."""
+    ln, results = hilly
+    assert len(results) == 2 * 2 * 2
+    for t in results:
+        track = make_track(ln, t.train_type, t.origin, t.destination, nodes_m=[p.s_m for p in t.points])
+        rec = simulate(track, ln.train_type(t.train_type), t.ratios, record=True)
+        for k, p in enumerate(t.points):
+            j = int(np.argmin(np.abs(rec.s_m - p.s_m)))
+            assert abs(rec.s_m[j] - p.s_m) < 1e-6
+            total = np.diagonal(t.remaining_s[k]) + rec.t_s[:, j]
+            np.testing.assert_allclose(total, t.time_a_s, atol=CONSISTENCY_TOL_S,
+                                       err_msg=f"{t.train_type} {t.origin}->{t.destination} {p.eval_point_id}")
+
+
+def test_running_time_grows_as_ratio_falls(hilly):
+    _, results = hilly
+    for t in results:
+        assert np.all(np.diff(t.time_a_s) > 0), (t.train_type, t.origin, t.destination)
+        for k in range(len(t.points)):
+            # a lower ratio after X is never faster; equal where neither target is reached
+            assert np.all(np.diff(t.remaining_s[k], axis=1) > -1e-9)
+
+
+@pytest.mark.skipif(not (SAMPLE / "line.parquet").exists(), reason="sample line not built")
+def test_exception_sawtooth_higher_ratio_can_be_slower():
+    """The known exception to monotonicity: a sawtooth vehicle (E6) on the sample line, AOB->KTA.
+
+    At r = 0.596 the train's coast crosses the band's lower edge just before a long -5 ‰ fall, so
+    it powers back to its target and holds it down the hill; at r = 0.598 the same coast starts a
+    moment later, the fall keeps the speed inside the band, and the train coasts the whole hill
+    a few km/h below the target: the *higher* ratio is ~4 s slower. The driving rule is
+    discontinuous there; the default grid happens not to straddle such a point (checked above
+    for the tiny line and, in the report, for the sample), and the closed loop compensates at
+    later evaluation points.
+    """
+    ln = planner.load_line(SAMPLE)
+    track = make_track(ln, "E6", "AOB", "KTA")
+    t = simulate(track, ln.train_type("E6"), np.array([0.596, 0.598])).time_s
+    assert t[1] - t[0] > 2.0
+
+
+def test_parallel_equals_serial_and_files_are_deterministic(hilly, tmp_path):
+    ln, results = hilly
+    serial = [r for r in results if r.train_type == "S"]
+    par = build_tables(ln, train_types=["S"], n_jobs=2)
+    assert len(par) == len(serial) == 4
+    for a, b in zip(serial, par):
+        assert (a.train_type, a.direction, a.origin) == (b.train_type, b.direction, b.origin)
+        np.testing.assert_array_equal(a.remaining_s, b.remaining_s)
+        np.testing.assert_array_equal(a.time_a_s, b.time_a_s)
+    f1 = write_tables(serial, tmp_path / "one")
+    f2 = write_tables(par, tmp_path / "two")
+    assert [p.relative_to(tmp_path / "one") for p in f1] == [p.relative_to(tmp_path / "two") for p in f2]
+    for a, b in zip(f1, f2):
+        assert a.read_bytes() == b.read_bytes()
+
+
+def test_datasets_layout_and_schema(hilly, tmp_path):
+    _, results = hilly
+    write_tables(results, tmp_path)
+    f = tmp_path / "table_b" / "line=test" / "direction=down" / "train_type=C" / "part-0.parquet"
+    schema = pq.read_schema(f)
+    assert schema.names == TABLE_B_SCHEMA.names
+    assert all(schema.field(n).metadata[b"description"] for n in schema.names)
+    tb = read_dataset(tmp_path, "table_b", direction="up", train_type="S").to_pandas()
+    t = next(r for r in results if r.direction == "up" and r.train_type == "S")
+    n_r = len(t.ratios)
+    first = tb[(tb.origin == t.origin) & (tb.destination == t.destination)]
+    assert len(first) == len(t.points) * n_r * n_r
+    ta = read_dataset(tmp_path, "table_a").to_pandas()
+    assert set(ta.columns) >= {"line", "direction", "train_type", "origin", "destination", "ratio",
+                               "running_time_s", "energy_kwh"}
+    assert (ta.energy_kwh > 0).all()
+    ep = read_dataset(tmp_path, "eval_points", direction="up", train_type="C").to_pandas()
+    # up: chainage falls as running distance grows
+    g = ep[ep.origin == "S2"]
+    assert np.all(np.diff(g.eval_distance_m) > 0) and np.all(np.diff(g.eval_position_m) < 0)
+
+
+def test_tiny_line_db_from_disk(tmp_path):
+    """The loader's tiny database end to end (both cruise kinds), grid from a spec string."""
+    ln = planner.load_line(write_line_db(tmp_path / "tiny"))
+    res = build_tables(ln, ratios="1.0:0.6:0.2", n_jobs=1)
+    assert {r.train_type for r in res} == {t.train_type for t in ln.train_types}
+    for r in res:
+        assert r.ratios.tolist() == [1.0, 0.8, 0.6]
+        assert np.all(np.diff(r.time_a_s) > 0)
