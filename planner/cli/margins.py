@@ -1,0 +1,100 @@
+"""``planner margins LINE --out DIR``: the margin-time report (datasets and one HTML page)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from ..errors import InputError, PlannerError
+from . import app
+
+
+def _curves_leg(text: str | None) -> tuple[str, str, str] | None:
+    """``TYPE:ORIGIN-DESTINATION`` → (type, origin, destination)."""
+    if not text:
+        return None
+    try:
+        tt, leg = text.split(":", 1)
+        o, d = leg.split("-", 1)
+    except ValueError:
+        raise InputError(f"--curves {text!r}: give TYPE:ORIGIN-DESTINATION, e.g. E10:TKD-OHS") from None
+    return tt.strip(), o.strip(), d.strip()
+
+
+@app.command()
+def margins(
+    line_dir: Path = typer.Argument(..., help="Line database folder."),
+    out: Path = typer.Option(..., "--out", help="Output folder: margins/, margin_totals/ and margins.html go here."),
+    tables_dir: Optional[Path] = typer.Option(
+        None, "--tables", help="Folder written by `planner tables` (reused; legs it lacks are computed)."),
+    stops_dir: Optional[Path] = typer.Option(
+        None, "--stops", help="Folder written by `planner stops`: its adhesion levels are the sweep."),
+    closed_loop_dir: Optional[Path] = typer.Option(
+        None, "--closed-loop", help="Folder written by `planner simulate` (nominal and perturbed, mode nearest)."),
+    job: Optional[Path] = typer.Option(
+        None, "--job", help="Job file: [margins], [stops] and [tables] give the rule, sweep and ratio grid."),
+    train_type: Optional[list[str]] = typer.Option(None, "--train-type", help="Train type (repeatable); default all."),
+    adhesion: Optional[str] = typer.Option(None, "--adhesion", help="Adhesion sweep START:STOP:STEP in km/h/s "
+                                           "(default 2.5:3.5:0.1); the lowest level is the bad day's."),
+    curves: Optional[str] = typer.Option(None, "--curves", help="Leg whose run curves the page draws, "
+                                         "TYPE:ORIGIN-DESTINATION; default the least remaining margin."),
+    no_conflicts: bool = typer.Option(False, "--no-conflicts", help="Skip the route-conflict section."),
+    jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
+) -> None:
+    """Margin-time report: minimum, scheduled and bad-day running time of every leg, flags, totals, HTML page."""
+    from ..loader import load_line
+    from ..margins import DEFAULT_ADHESION_KMH_S, DEFAULT_APPROACH_M, MarginRule, compute_margins, write_margins
+    from ..report import write_html
+    from .tables import _fail, _progress
+
+    try:
+        if jobs == 0 or jobs < -1:
+            raise InputError(f"--jobs must be -1 (all cores) or ≥ 1, found {jobs}")
+        rule, sweep, approach, ratios, after, conflict_params = MarginRule(), DEFAULT_ADHESION_KMH_S, \
+            DEFAULT_APPROACH_M, None, 200.0, None
+        if job is not None:
+            from ..job import load_job
+
+            j = load_job(job)
+            rule = MarginRule.from_section(j.margins)
+            sweep, approach = j.stops.adhesion_kmh_s, j.stops.approach_m
+            ratios, after = j.tables.ratios, j.tables.eval_offset_m
+            conflict_params = {"setting_s": j.conflicts.setting_s, "approach_s": j.conflicts.approach_s,
+                               "release_s": j.conflicts.release_s}
+            no_conflicts = no_conflicts or not j.conflicts.enabled
+        if adhesion is not None:
+            sweep = adhesion
+        for name, p in (("--tables", tables_dir), ("--stops", stops_dir), ("--closed-loop", closed_loop_dir)):
+            if p is not None and not p.is_dir():
+                raise InputError(f"{name} {p}: no such folder")
+        line = load_line(line_dir)
+        with _progress("margins") as update:
+            report = compute_margins(
+                line, rule=rule, train_types=train_type or None, tables_dir=tables_dir, stops_dir=stops_dir,
+                closed_loop_dir=closed_loop_dir, ratios=ratios, adhesion_kmh_s=sweep, approach_m=approach,
+                after_departure_m=after or None, chosen=_curves_leg(curves), conflicts=not no_conflicts,
+                conflict_params=conflict_params, n_jobs=jobs, progress=update)
+        files = write_margins(report, out)
+        page = write_html(report, line, out / "margins.html")
+    except PlannerError as e:
+        raise _fail(e) from None
+    rows = report.rows
+    s = rows[rows.scheduled_running_time_s.notna()]
+    typer.echo(f"{line.line_id}: {len(rows)} legs x train type ({len(s)} timetabled, "
+               f"{int((s.passes.map(len) > 0).sum())} passing stations); tables "
+               f"{report.sources['tables_dataset']} read, {report.sources['tables_computed']} computed")
+    typer.echo(f"  flags: {int(s.infeasible.sum())} infeasible, {int(s.tight.sum())} tight, "
+               f"{int(s.unreachable.sum())} unreachable; {int((~s.supplement_met).sum())} below the supplement rule")
+    if len(s):
+        w = s.sort_values("remaining_margin_s", kind="stable").iloc[0]
+        typer.echo(f"  least remaining margin: {w.train_type} {w.direction} {w.origin}->{w.destination} "
+                   f"{w.remaining_margin_s:+.1f} s (scheduled {w.scheduled_running_time_s:.0f} s, minimum "
+                   f"{w.min_running_time_s:.1f} s, bad day {w.degraded_min_running_time_s:.1f} s)")
+    for r in report.totals[report.totals.scope == "line"].itertuples(index=False):
+        typer.echo(f"  {r.direction}: {r.n_trains} trains, margin {r.margin_s:.0f} s ({r.margin_percent:.1f} %), "
+                   f"remaining on a bad day {r.remaining_margin_s:+.0f} s")
+    if report.conflicts is not None:
+        n = report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0
+        typer.echo(f"  route conflicts: {n}")
+    typer.echo(f"  wrote {len(files)} dataset files and {page}")

@@ -1,0 +1,82 @@
+"""``planner margins``: from scratch, reusing tables and closed-loop datasets, and bad input."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from linedb import write_line_db
+from planner import load_line
+from planner.cli import app
+from planner.datasets import read_dataset
+from planner.margins import compute_margins
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def linedir(tmp_path_factory):
+    return write_line_db(tmp_path_factory.mktemp("lines") / "tiny")
+
+
+def _rows(out):
+    return read_dataset(out, "margins").to_pandas().sort_values(
+        ["direction", "train_type", "origin", "destination"]).reset_index(drop=True)
+
+
+def test_from_scratch(linedir, tmp_path):
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["margins", str(linedir), "--out", str(out), "--jobs", "1", "--no-conflicts"])
+    assert res.exit_code == 0, res.output
+    assert "tiny: 9 legs x train type (3 timetabled, 1 passing stations); tables 0 read, 9 computed" in res.output
+    assert "flags:" in res.output and "wrote" in res.output
+    rows = _rows(out)
+    assert len(rows) == 9  # 2 types x 2 directions x 2 interstations + the EMU6 run passing B
+    pas = rows[rows.passes.map(len) > 0]
+    assert len(pas) == 1 and list(pas.iloc[0].passes) == ["B"] and pas.iloc[0].train_type == "EMU6"
+    assert list(pas.iloc[0].train_ids) == ["202"]
+    page = (out / "margins.html").read_text(encoding="utf-8")
+    assert "<svg" in page and "Every leg" in page
+    tot = read_dataset(out, "margin_totals").to_pandas()
+    assert set(tot[tot.scope == "train"].train_id) == {"101", "202"}
+
+
+def test_reuses_tables_and_closed_loop(linedir, tmp_path):
+    from planner.closed_loop import run_closed_loop, write_closed_loop
+    from planner.tables import build_tables, write_tables
+
+    line = load_line(linedir)
+    tdir, cdir = tmp_path / "tables", tmp_path / "cl"
+    write_tables(build_tables(line, train_types=["EMU6"], n_jobs=1), tdir)
+    for sc in ("nominal", "perturbed"):
+        write_closed_loop(run_closed_loop(line, tdir, train_types=["EMU6"], scenario_name=sc, n_jobs=1), cdir)
+    scratch = compute_margins(line, train_types=["EMU6"], conflicts=False).rows
+    reused = compute_margins(line, train_types=["EMU6"], tables_dir=tdir, closed_loop_dir=cdir,
+                             conflicts=False).rows
+    key = ["direction", "origin", "destination"]
+    a = scratch.sort_values(key).reset_index(drop=True)
+    b = reused.sort_values(key).reset_index(drop=True)
+    assert list(b.tables_source) == ["dataset" if not len(p) else "computed" for p in b.passes]
+    # the same tables, read back from Parquet: same minimum, slowest time, ratio, energy
+    for c in ("min_running_time_s", "slowest_running_time_s", "ratio_on_time", "energy_at_ratio_kwh",
+              "degraded_min_running_time_s"):
+        np.testing.assert_allclose(b[c], a[c], rtol=0, atol=1e-9, err_msg=c)
+    # closed-loop errors from the dataset: the same logic on a grid without the pattern-start nodes
+    ok = b.scheduled_running_time_s.notna()
+    np.testing.assert_allclose(b.arrival_error_s[ok], a.arrival_error_s[ok], atol=0.01)
+    np.testing.assert_allclose(b.arrival_error_degraded_s[ok], a.arrival_error_degraded_s[ok], atol=0.01)
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["--tables", "nowhere"], "--tables nowhere: no such folder"),
+    (["--curves", "EMU10"], "--curves 'EMU10': give TYPE:ORIGIN-DESTINATION"),
+    (["--adhesion", "3.5:2.5:0.1"], "--adhesion"),
+    (["--jobs", "0"], "--jobs must be"),
+])
+def test_bad_input_is_one_line(linedir, tmp_path, args, msg):
+    res = runner.invoke(app, ["margins", str(linedir), "--out", str(tmp_path / "o"), "--no-conflicts",
+                              "--train-type", "EMU10", *args])
+    assert res.exit_code == 1
+    assert msg in res.output
+    assert "Traceback" not in res.output
+    assert not (tmp_path / "o" / "margins.html").exists()
