@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/planner validate lines/sample
+	$(BIN)/planner run jobs/nightly.toml
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2

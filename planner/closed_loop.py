@@ -76,8 +76,10 @@ SCENARIOS: dict[str, Scenario] = {
 }
 
 
-def get_scenario(name: str) -> Scenario:
-    """The :class:`Scenario` called ``name``; InputError naming the known ones otherwise."""
+def get_scenario(name: "str | Scenario") -> Scenario:
+    """The :class:`Scenario` called ``name`` (or ``name`` itself when it is one); InputError otherwise."""
+    if isinstance(name, Scenario):
+        return name
     try:
         return SCENARIOS[name]
     except KeyError:

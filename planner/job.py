@@ -68,7 +68,7 @@ class Scenario:
 
 @dataclass(frozen=True)
 class ClosedLoopSection:
-    modes: tuple[str, ...] = ("nearest", "interpolate")
+    modes: tuple[str, ...] = ("nearest", "adaptive")
     """On-board ratio-choice modes to prove."""
     horizon_s: float = 60.0
     """Designated times from the minimum to minimum + horizon_s."""
@@ -100,9 +100,17 @@ class BundlesSection:
 @dataclass(frozen=True)
 class ConflictsSection:
     enabled: bool = True
+    """Check the timetable for route conflicts where the line has a track network."""
     setting_s: float = 10.0
+    """Route setting time before the approach starts [s]."""
     approach_s: float = 20.0
+    """Sight/reaction and approach time before the train reaches a resource [s]."""
     release_s: float = 5.0
+    """Route release time after the tail clears [s]."""
+    terminal_s: float = 0.0
+    """How long a train keeps its destination platform after arriving [s]."""
+    node_kinds: tuple[str, ...] = ("switch",)
+    """Node kinds occupied as resources of their own (sections are always checked)."""
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,36 @@
+"""`planner run JOB.toml`: the nightly job, end to end."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from . import app
+
+
+@app.command("run")
+def run(
+    job_file: Path = typer.Argument(..., help="Job file (TOML), e.g. jobs/nightly.toml."),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar per step."),
+) -> None:
+    """Validate, build tables, stopping patterns, closed loop, margins, bundles and conflicts; publish atomically."""
+    from ..job import load_job
+    from ..pipeline import run_job
+
+    job = load_job(job_file)
+    s = run_job(job, show_progress=progress)
+    for note in s.notes:
+        typer.echo(f"note: {note}", err=True)
+    if s.up_to_date:
+        typer.echo(f"up to date: {s.run_dir} (nothing recomputed)")
+        return
+    typer.echo(f"published run {s.run_id}: {s.run_dir}")
+    typer.echo("  step          time [s]  computed  reused")
+    for step, secs in s.timings.items():
+        typer.echo(f"  {step:<12} {secs:9.1f} {s.computed.get(step, ''):>9} {s.reused.get(step, ''):>7}")
+    typer.echo(f"  total        {sum(s.timings.values()):9.1f}")
+    typer.echo("  rows: " + ", ".join(f"{k} {v}" for k, v in sorted(s.rows.items())))
+    typer.echo("  flags: " + ", ".join(f"{k} {v}" for k, v in sorted(s.flags.items())))
+    typer.echo(f"  bundles: {len(s.bundles)} in {s.run_dir / 'bundles'}")
+    for html in sorted((s.run_dir / "report").glob("*.html")):
+        typer.echo(f"  report: {html}")

@@ -1,0 +1,199 @@
+"""The nightly job end to end on a tiny line: incremental, atomic, killable, same on Dask.
+
+The tiny line (tests/linedb.py) has 2 interstations × 2 directions × 2 train
+types = 8 units per step, and a short closed-loop sweep keeps it fast.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pyarrow.dataset as ds
+import pytest
+
+from linedb import default_tables, write_line_db
+from planner.errors import PlannerError
+from planner.job import load_job
+from planner.publish import latest_run, list_runs
+
+UNIT_STEPS = ("tables", "stops", "closed_loop")
+N_UNITS = 2 * 2 * 2  # interstations × directions × train types
+
+
+def _job(tmp_path: Path, parallel: str = "n_jobs = 2") -> Path:
+    (tmp_path / "jobs").mkdir(exist_ok=True)
+    p = tmp_path / "jobs" / "job.toml"
+    p.write_text(textwrap.dedent(f"""
+        [job]
+        lines = ["lines/tiny"]
+        output_root = "out"
+        keep_runs = 3
+        [stops]
+        adhesion_kmh_s = "2.5:3.5:0.5"
+        [closed_loop]
+        modes = ["nearest", "adaptive"]
+        horizon_s = 6.0
+        step_s = 3.0
+        [parallel]
+    """) + parallel + "\n")
+    return p
+
+
+def _write_tiny(folder: Path, **overrides) -> None:
+    # the tiny network lacks a stop node at B; conflicts have their own tests (test_network*.py)
+    write_line_db(folder, **({"nodes": None, "edges": None} | overrides))
+
+
+@pytest.fixture
+def project(tmp_path):
+    _write_tiny(tmp_path / "lines" / "tiny")
+    return tmp_path
+
+
+def _run(job_path: Path):
+    from planner.pipeline import run_job
+
+    return run_job(load_job(job_path), show_progress=False)
+
+
+def _tree_digest(folder: Path) -> dict[str, str]:
+    return {
+        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*")) if p.is_file()
+    }
+
+
+def test_cold_run_publishes_everything_and_reads_back(project):
+    s = _run(_job(project))
+    out = project / "out"
+    assert latest_run(out) == s.run_id and (out / "latest" / "manifest.json").is_file()
+    for step in UNIT_STEPS:
+        assert s.computed[step] == N_UNITS * (4 if step == "closed_loop" else 1)  # 2 scenarios × 2 modes
+    assert sorted(s.bundles) == [f"tiny_{d}_{t}.pdb" for d in ("down", "up") for t in ("EMU10", "EMU6")]
+    for name in ("table_a", "table_b", "eval_points", "stop_summary", "closed_loop", "margins"):
+        t = ds.dataset(out / "latest" / name, format="parquet", partitioning="hive").to_table()
+        assert t.num_rows > 0 and {"line", "direction", "train_type"} <= set(t.column_names), name
+        assert t.num_rows == s.rows[name]
+    duckdb = pytest.importorskip("duckdb")
+    n = duckdb.sql(
+        f"select count(*) from read_parquet('{out}/latest/table_a/**/*.parquet', hive_partitioning=true) "
+        "where direction = 'down' and train_type = 'EMU10'").fetchall()[0][0]
+    assert n == s.rows["table_a"] // 4
+    assert list((out / "latest" / "report").glob("*.html"))
+    from planner.bundle import verify_bundle
+    from planner.signing import load_public_key
+
+    pub = load_public_key(out / "latest" / "bundles" / "signing_key.pub.pem")
+    for b in s.bundles:
+        assert verify_bundle(out / "latest" / "bundles" / b, pub).train_type in ("EMU10", "EMU6")
+
+
+def test_unchanged_rerun_computes_nothing(project):
+    job = _job(project)
+    first = _run(job)
+    again = _run(job)
+    assert again.up_to_date and again.run_id == first.run_id and again.computed == {}
+    # Without the whole-run shortcut (latest removed), every unit still comes from the cache.
+    os.unlink(project / "out" / "latest")
+    third = _run(job)
+    assert not third.up_to_date
+    assert all(third.computed.get(step, 0) == 0 for step in UNIT_STEPS + ("margins", "conflicts"))
+    assert third.reused["tables"] == N_UNITS
+    a = _tree_digest(project / "out" / first.run_id)
+    b = _tree_digest(project / "out" / third.run_id)
+    a.pop("manifest.json"), b.pop("manifest.json")
+    assert a == b  # byte-identical datasets, report and bundles from cache
+
+
+def test_one_edited_restriction_recomputes_only_its_interstation(project):
+    job = _job(project)
+    _run(job)
+    # The 70 km/h "up" restriction at 4000-4200 m lies between C (up stop 4740) and B (up stop 2440):
+    # only the up run C->B of each of the 2 train types can see it.
+    _edit_restriction(project, 65.0)
+    s = _run(job)
+    assert s.computed["tables"] == 2 and s.reused["tables"] == N_UNITS - 2
+    assert s.computed["stops"] == 2
+    assert s.computed["closed_loop"] == 2 * 4
+
+
+def _edit_restriction(project: Path, limit_kmh: float) -> None:
+    """Change the 70 km/h "up" restriction at 4000-4200 m (seen only by the up runs C->B)."""
+    t = default_tables()
+    sl = t["speed_limits"]
+    sl.loc[sl["start_m"] == 4000.0, "limit_kmh"] = limit_kmh
+    _write_tiny(project / "lines" / "tiny", speed_limits=sl)
+
+
+def test_failing_step_leaves_latest_untouched(project, monkeypatch):
+    job = _job(project)
+    first = _run(job)
+    before = _tree_digest(project / "out" / first.run_id)
+    import planner.pipeline as pl
+
+    def boom(*a, **k):
+        raise PlannerError("bundle step failed on purpose")
+
+    monkeypatch.setattr(pl, "_bundles_step", boom)
+    _edit_restriction(project, 65.0)
+    with pytest.raises(PlannerError, match="on purpose"):
+        _run(job)
+    out = project / "out"
+    assert latest_run(out) == first.run_id and list_runs(out) == [first.run_id]
+    assert _tree_digest(out / first.run_id) == before
+    monkeypatch.undo()
+    s = _run(job)  # cleans the failed staging folder and reuses what the failed run computed
+    assert latest_run(out) == s.run_id and not [p for p in out.iterdir() if p.name.startswith(".staging")]
+    assert s.computed["tables"] == 0 and s.computed["stops"] == 0 and s.computed["closed_loop"] == 0
+
+
+def test_sigkill_at_random_moments_leaves_the_previous_run(project):
+    job = _job(project)
+    first = _run(job)
+    before = _tree_digest(project / "out" / first.run_id)
+    t = default_tables()
+    t["line"].loc[0, "max_speed_kmh"] = 90.0  # every unit's inputs change: a long cold run to kill
+    _write_tiny(project / "lines" / "tiny", line=t["line"])
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent))
+    code = ("import sys; from planner.job import load_job; from planner.pipeline import run_job; "
+            f"run_job(load_job({str(job)!r}), show_progress=False)")
+    import random
+
+    rnd = random.Random(7)
+    for _ in range(3):
+        p = subprocess.Popen([sys.executable, "-c", code], env=env, start_new_session=True)
+        time.sleep(rnd.uniform(1.0, 6.0))
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+        out = project / "out"
+        if latest_run(out) != first.run_id:  # the run finished before the kill: fine, it is complete
+            assert (out / "latest" / "manifest.json").is_file()
+            return
+        assert _tree_digest(out / first.run_id) == before
+    s = _run(job)
+    assert latest_run(project / "out") == s.run_id
+    assert sum(s.reused.get(k, 0) for k in UNIT_STEPS) > 0  # picked up what the killed runs cached
+
+
+def test_dask_backend_gives_the_same_datasets(project, tmp_path_factory):
+    distributed = pytest.importorskip("dask.distributed")
+    local = _run(_job(project))
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        other = tmp_path_factory.mktemp("dask")
+        _write_tiny(other / "lines" / "tiny")
+        job = _job(other, f'backend = "dask"\nscheduler = "{cluster.scheduler_address}"')
+        s = _run(job)
+    a = _tree_digest(project / "out" / local.run_id)
+    b = _tree_digest(other / "out" / s.run_id)
+    for d in (a, b):
+        d.pop("manifest.json")
+        for k in [k for k in d if k.startswith("bundles/")]:
+            d.pop(k)  # signed with each project's own development key
+    assert a == b
