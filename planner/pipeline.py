@@ -531,6 +531,9 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "bundles": sorted(summary.bundles),
     }
     write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
+    from .catalog import readme
+
+    write_bytes_atomic(stage / "README.md", readme().encode())
 
 
 __all__ = ["STEPS", "RunSummary", "code_digest", "interstation_inputs", "run_job"]

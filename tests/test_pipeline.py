@@ -86,6 +86,14 @@ def test_cold_run_publishes_everything_and_reads_back(project):
         "where direction = 'down' and train_type = 'EMU10'").fetchall()[0][0]
     assert n == s.rows["table_a"] // 4
     assert list((out / "latest" / "report").glob("*.html"))
+    # the README's examples for analysts run as written against this run
+    import re
+
+    text = (out / "latest" / "README.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert len(blocks) == 3
+    for code in blocks:
+        exec(code.replace("outputs/latest", str(out / "latest")), {})
     from planner.bundle import verify_bundle
     from planner.signing import load_public_key
 

@@ -37,6 +37,7 @@ from . import tables  # noqa: E402,F401
 from . import stops  # noqa: E402,F401
 from . import margins  # noqa: E402,F401
 from . import run  # noqa: E402,F401
+from . import datasets  # noqa: E402,F401
 from . import timekeeping  # noqa: E402,F401
 
 

@@ -1,0 +1,25 @@
+"""`planner datasets`: the documented schema of every published dataset (outputs/README.md)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from . import app
+
+
+@app.command("datasets")
+def datasets_cmd(
+    write: Path = typer.Option(None, "--write", help="Write the Markdown here (e.g. outputs/README.md) "
+                                                     "instead of printing it."),
+) -> None:
+    """Print the catalogue of published datasets with their columns, units and partitioning."""
+    from ..catalog import readme
+    from ..datasets import write_bytes_atomic
+
+    text = readme()
+    if write is None:
+        typer.echo(text, nl=False)
+    else:
+        write_bytes_atomic(write, text.encode())
+        typer.echo(f"wrote {write}")
