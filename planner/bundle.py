@@ -52,7 +52,6 @@ import math
 import os
 import re
 import stat
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
@@ -63,6 +62,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from . import __version__, atsp, signing
+from .atomic import write_bytes_atomic
 from .datasets import declare
 from .errors import BundleError
 from .model import DIRECTIONS, Line, sign
@@ -96,7 +96,6 @@ _MEMBER_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}\.parquet")
 _ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 _PARTITION_COLS = ("line", "direction", "train_type")
-_WRITE_CHUNK = 1 << 20
 _PARQUET_OPTIONS = dict(compression="zstd", use_dictionary=True, write_statistics=True, store_schema=False)
 """Fixed Parquet writer settings. ``store_schema=False`` leaves out the serialised Arrow
 schema (with the column descriptions, about 2-3 KB per file, two thirds of a small
@@ -632,38 +631,11 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` so that the name only ever holds a complete file.
 
     A temporary file ``.<name>.*.tmp`` in the same folder is written, fsynced
-    and renamed over ``path`` (``os.replace`` is atomic on POSIX); the folder
-    is fsynced so the rename survives a crash. On an error the temporary file
-    is removed; after a kill it stays behind under its hidden name.
+    and renamed over ``path`` (:func:`planner.atomic.atomic_path`); bundles are
+    signed, public data (0644). After a kill the temporary file stays behind
+    under its hidden name, never under the final one.
     """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        try:
-            os.fchmod(fd, 0o644)  # bundles are signed, public data
-            view = memoryview(data)
-            while view:
-                view = view[os.write(fd, view[:_WRITE_CHUNK]):]
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    try:
-        dfd = os.open(path.parent, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(dfd)
-    except OSError:
-        pass  # some filesystems cannot fsync a folder; the rename is still atomic
-    finally:
-        os.close(dfd)
+    write_bytes_atomic(path, data)
 
 
 def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,

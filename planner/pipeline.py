@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from . import __version__
+from .atomic import write_bytes_atomic
 from .errors import JobError
 from .job import Job
 from .model import DIRECTIONS, Line
@@ -162,14 +163,8 @@ class Runner:
         return None
 
     def _store(self, key: str, obj) -> None:
-        p = self.cache.root / "objects" / key[:2] / f"{key}.pkl"
-        p.parent.mkdir(parents=True, exist_ok=True)
-        tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
-        with open(tmp, "wb") as f:
-            pickle.dump(obj, f, protocol=pickle.HIGHEST_PROTOCOL)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
+        write_bytes_atomic(self.cache.root / "objects" / key[:2] / f"{key}.pkl",
+                           pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
 
     def run(self, step: str, units: Sequence[Unit]) -> list:
         """Results of ``units`` in order; cached ones loaded, the rest computed in parallel."""
@@ -510,8 +505,6 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
 
     import numpy
     import pyarrow
-
-    from .datasets import write_bytes_atomic
 
     manifest = {
         "run_id": run_id,

@@ -28,8 +28,6 @@ from __future__ import annotations
 import html
 import io
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -610,17 +608,7 @@ def stop_markers(line) -> dict[str, dict[str, float]]:
 
 def write_html(report, line, path: str | Path) -> Path:
     """Write the page to ``path`` atomically (temp file in the same folder, then rename)."""
-    text = render_html(report, stop_markers(line))
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, 0o644)  # a report to share, not a secret (mkstemp makes it 0600)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    from .atomic import write_bytes_atomic
+
+    write_bytes_atomic(path, render_html(report, stop_markers(line)).encode("utf-8"))
+    return Path(path)

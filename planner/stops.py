@@ -39,8 +39,6 @@ Outputs are two hive-partitioned Parquet datasets (``stop_summary`` and
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -728,19 +726,12 @@ def plot_approach(result: ApproachResult, path: str | Path) -> Path:
     fig.suptitle(title, fontsize=10)
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     fig.colorbar(sm, ax=[ax_v, ax_a, ax_j], label="adhesion limit [km/h/s]", shrink=0.6, pad=0.02)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-    os.close(fd)
+    from .atomic import atomic_path
+
     try:
-        # no timestamps in the file: the same figure gives the same bytes
-        fig.savefig(tmp, dpi=110, metadata={"Software": None})
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+        with atomic_path(path) as tmp:
+            # no timestamps in the file: the same figure gives the same bytes
+            fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
     finally:
         plt.close(fig)
     return path

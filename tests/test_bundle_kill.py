@@ -26,13 +26,13 @@ CHILD = r"""
 import os, sys, time
 sys.path.insert(0, sys.argv[3])
 from test_bundle_support import make_line, all_tables
-from planner import bundle
+from planner import atomic, bundle
 tables = all_tables(make_line(), pad_rows=40000 + int(sys.argv[4]))  # variant -> different bytes
 real_write = os.write
 def slow_write(fd, data):
     time.sleep(0.002)
     return real_write(fd, data)
-bundle._WRITE_CHUNK = 4096
+atomic._CHUNK = 4096
 os.write = slow_write
 print("ready", flush=True)
 bundle.build_bundle(tables, line_id="tl", direction="down", train_type="E10", out_dir=sys.argv[1],

@@ -15,7 +15,7 @@ def datasets_cmd(
 ) -> None:
     """Print the catalogue of published datasets with their columns, units and partitioning."""
     from ..catalog import readme
-    from ..datasets import write_bytes_atomic
+    from ..atomic import write_bytes_atomic
 
     text = readme()
     if write is None:

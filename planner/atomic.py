@@ -1,0 +1,80 @@
+"""Atomic file writes: a final name appears only when its content is complete.
+
+Everything the planner publishes (datasets, reports, charts, bundles, cache
+entries) is written through :func:`atomic_path`: the content goes to a hidden
+temporary file in the same folder, is flushed to disk, made readable (0644:
+outputs are for every analyst, not secrets) and renamed over the final name
+with ``os.replace``, which is atomic on POSIX. A failure or interruption
+leaves the previous file (or none), never a half-written one.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+
+def _fsync_file(path: str) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass  # some filesystems cannot fsync a folder; the rename is still atomic
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike, *, mode: int = 0o644, fsync: bool = True) -> Iterator[Path]:
+    """Yield a temporary path to write; on success it replaces ``path``, on error it is removed.
+
+    The temporary name ends in ``.tmp`` (so ``*.png`` or ``*.pdb`` globs never see
+    it): writers that infer a format from the name must be told it (``savefig(format="png")``).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        if fsync:
+            _fsync_file(tmp)
+        os.chmod(tmp, mode)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    if fsync:
+        _fsync_dir(path.parent)
+
+
+_CHUNK = 1 << 20
+"""Bytes per ``os.write`` call (tests shrink it to widen the window a kill can hit)."""
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, mode: int = 0o644) -> None:
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_path`)."""
+    with atomic_path(path, mode=mode) as tmp:
+        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view[:_CHUNK]):]
+        finally:
+            os.close(fd)
