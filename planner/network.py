@@ -1025,7 +1025,7 @@ def would_deadlock(start_a, end_a, start_b, end_b) -> bool:
     k = len(start_a)
     ev = sorted([(float(start_a[i]), 0, i, i) for i in range(k)]
                 + [(float(start_b[i]), 1, k - 1 - i, i) for i in range(k)])
-    S, E = (start_a, start_b), (end_a, end_b)
+    E = (end_a, end_b)
     granted: tuple[set, set] = (set(), set())
     stopped: list[float | None] = [None, None]
     for tau, t, _, r in ev:

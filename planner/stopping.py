@@ -533,7 +533,7 @@ class _Builder:
 
     def run(self) -> float:
         """Build backwards until cruising at the last cap; return that position (braking distance)."""
-        J, A, C, Yb = self.J, self.A, self.C, self.Yb
+        A, C, Yb = self.A, self.C, self.Yb
         last = len(A) - 1
         for _ in range(_MAX_STEPS):
             i = len(self.tau) - 1

@@ -29,7 +29,7 @@ N_UNITS = 2 * 2 * 2  # interstations × directions × train types
 def _job(tmp_path: Path, parallel: str = "n_jobs = 2") -> Path:
     (tmp_path / "jobs").mkdir(exist_ok=True)
     p = tmp_path / "jobs" / "job.toml"
-    p.write_text(textwrap.dedent(f"""
+    p.write_text(textwrap.dedent("""
         [job]
         lines = ["lines/tiny"]
         output_root = "out"

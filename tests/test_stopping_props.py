@@ -11,7 +11,6 @@ exists.
 """
 from __future__ import annotations
 
-import math
 from bisect import bisect_right
 
 import numpy as np
