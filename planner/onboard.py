@@ -48,10 +48,24 @@ and learns θ from what it has already run: on each leg between evaluation
 points, observed leg time − table leg time = θ · (reference − table leg time),
 summed over the legs so far (least squares through the origin):
 θ = Σ(observed − table) / Σ(reference − table). At X it then solves
-T(X, r_b, r_a; θ) = remaining for r_a (bisection in 1/r on the interpolated
-row). The leg times come from the vehicle's clock between beacons, which it has
-anyway; nothing but the tables and the clock is used. θ is clipped to
-``AdaptiveRule.THETA_RANGE`` (never below 0: the table train is the fastest).
+T(X, r_b, r_a; θ) = remaining for r_a. The leg times come from the vehicle's
+clock between beacons, which it has anyway; nothing but the tables and the
+clock is used. θ is clipped to ``AdaptiveRule.THETA_RANGE`` (never below 0:
+the table train is the fastest).
+
+Two details make it robust for sawtooth vehicles, whose running time is not a
+smooth (not even a monotone) function of the ratio:
+
+* Δ(X, ·) is smoothed across the ratio grid (median of each ratio and its two
+  neighbours, clipped at 0). Table (c) compares two constant-ratio runs from
+  departure, so Δ also holds the difference of the two trains' coasting-band
+  phases at X, which flips sign from one ratio to the next (±5 s at low ratios
+  on the sample line); multiplied by θ it once sent a train that was on time
+  to the lowest ratio 325 m before the stop (5 s late).
+* T(X, r_b, ·; θ) is piecewise linear in 1/r between grid ratios and need not
+  be monotone, so every crossing with the remaining time is found exactly
+  (:func:`solve_piecewise`) and the one nearest the current ratio wins: the
+  smallest change of driving that the tables say arrives on time.
 
 A new mode is a :class:`RatioChooser` factory registered in :data:`CHOOSERS`
 (``register_mode``); modes that do not use the tables (e.g. time-keeping) are
@@ -254,6 +268,56 @@ def solve_ratio_fn(ratios: np.ndarray, f, want_s: float, *, iterations: int = 60
     return float(1.0 / (0.5 * (lo + hi)))
 
 
+def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, prefer: float) -> float:
+    """Ratio where the piecewise-linear-in-``1/r`` function through ``values_s`` equals ``want_s``.
+
+    Unlike :func:`solve_ratio` the function need not be monotone (a sawtooth train's times are
+    not, and a learned correction can add noise): every crossing is found exactly, segment by
+    segment, and the one nearest the ratio ``prefer`` (the current ratio) in ``u = 1/r`` wins —
+    the smallest change of driving that the tables say arrives on time. Without a crossing, the
+    grid ratio whose value is nearest ``want_s`` (ties: nearest ``prefer``).
+
+    Parameters
+    ----------
+    ratios : ndarray
+        Grid ratios, descending.
+    values_s : ndarray
+        Predicted time at each grid ratio [s].
+    want_s : float
+        Wanted time [s].
+    prefer : float
+        Current ratio.
+
+    Returns
+    -------
+    float
+        Ratio in [ratios[-1], ratios[0]].
+
+    Examples
+    --------
+    >>> r = np.array([1.0, 0.5, 0.25])
+    >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 1.0), 4)   # two crossings
+    0.5714
+    >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 0.25), 4)
+    0.3333
+    """
+    u = 1.0 / np.asarray(ratios, float)
+    f = np.asarray(values_s, float)
+    up = 1.0 / float(np.clip(prefer, ratios[-1], ratios[0]))
+    d0, d1 = f[:-1] - want_s, f[1:] - want_s
+    cross = (d0 * d1 <= 0.0) & (f[:-1] != f[1:])
+    w = np.where(cross, d0 / np.where(cross, d0 - d1, 1.0), 0.0)
+    cand = list(u[:-1][cross] + w[cross] * np.diff(u)[cross])
+    flat = (d0 == 0.0) & (d1 == 0.0)  # a whole segment on the wanted time: its point nearest prefer
+    cand += list(np.clip(up, u[:-1][flat], u[1:][flat]))
+    if cand:
+        c = np.asarray(cand)
+        return float(1.0 / c[np.argmin(np.abs(c - up))])
+    err = np.abs(f - want_s)
+    best = np.flatnonzero(err <= err.min() + 1e-12)
+    return float(1.0 / u[best[np.argmin(np.abs(u[best] - up))]])
+
+
 class AdaptiveRule:
     """``interpolate`` plus a learned performance offset (module doc, mode ``adaptive``).
 
@@ -269,16 +333,34 @@ class AdaptiveRule:
 
     def __init__(self):
         self._s: dict | None = None
+        self._dcache: dict = {}
 
-    @staticmethod
-    def _delta(tables: RunningTimeTables, k: int, r: float) -> float:
-        """Reference − table remaining time from point k at constant ratio r [s]."""
-        ref = tables.ref_remaining_s
-        if ref is None:
-            raise InputError("mode adaptive needs table (c) (table_c dataset); rebuild the tables with "
-                             "`planner tables`")
-        diag = np.diagonal(tables.remaining_s[k])
-        return _interp_u(tables.ratios, ref[k] - diag, r)
+    def _delta_row(self, tables: RunningTimeTables, k: int) -> np.ndarray:
+        """Reference − table remaining time from point k at constant ratio, per grid ratio [s].
+
+        Table (c) compares two constant-ratio runs from departure, so besides the reference
+        train's own loss after X it holds the difference of the two trains' states at X. For a
+        sawtooth train that part is the phase of the coast band and flips sign from one ratio to
+        the next (±5 s on the sample line at low ratios). The vehicle wants the smooth part:
+        a median over each ratio and its two grid neighbours (which leaves any monotone
+        sequence unchanged and removes one-ratio spikes), clipped at 0 because a heavier,
+        weaker train is never faster than the table train from the same state.
+        """
+        key = (id(tables), k)
+        if key not in self._dcache:
+            ref = tables.ref_remaining_s
+            if ref is None:
+                raise InputError("mode adaptive needs table (c) (table_c dataset); rebuild the tables with "
+                                 "`planner tables`")
+            d = ref[k] - np.diagonal(tables.remaining_s[k])
+            pad = np.concatenate([d[:1], d, d[-1:]])
+            med = np.median(np.stack([pad[:-2], pad[1:-1], pad[2:]]), axis=0)
+            self._dcache[key] = (tables, np.maximum(med, 0.0))  # keep tables alive: id stays unique
+        return self._dcache[key][1]
+
+    def _delta(self, tables: RunningTimeTables, k: int, r: float) -> float:
+        """Smoothed reference − table remaining time from point k at ratio r [s]."""
+        return _interp_u(tables.ratios, self._delta_row(tables, k), r)
 
     def depart(self, tables, designated_s):
         d = np.atleast_1d(np.asarray(designated_s, float))
@@ -300,21 +382,17 @@ class AdaptiveRule:
         if st is None:
             raise RuntimeError("AdaptiveRule.at_point before depart")
         out = np.empty_like(ratio)
+        dk = self._delta_row(tables, k)
         for i, (rb, x) in enumerate(zip(ratio, rem)):
+            row = row_at(tables, k, rb)
             # the leg just run, at ratio rb: observed vs. table time, and the reference's extra
-            pred_here = float(_interp_u(tables.ratios, row_at(tables, k, rb), rb))
+            pred_here = float(_interp_u(tables.ratios, row, rb))
             st["num"][i] += (st["rem"][i] - x) - (st["pred"][i] - pred_here)
             st["den"][i] += st["delta"][i] - self._delta(tables, k, rb)
             theta = st["num"][i] / st["den"][i] if st["den"][i] > 1e-3 else 0.0
             theta = float(np.clip(theta, *self.THETA_RANGE))
-            row = row_at(tables, k, rb)
-            diff = np.diagonal(tables.remaining_s[k])
-            refk = tables.ref_remaining_s[k] - diff
-
-            def f(r, row=row, refk=refk, theta=theta):
-                return _interp_u(tables.ratios, row, r) + theta * _interp_u(tables.ratios, refk, r)
-
-            ra = solve_ratio_fn(tables.ratios, f, x)
+            # predicted remaining time per grid ratio after X; piecewise linear in 1/r between them
+            ra = solve_piecewise(tables.ratios, row + theta * dk, x, rb)
             out[i] = ra
             st["rem"][i] = x
             st["pred"][i] = _interp_u(tables.ratios, row, ra)

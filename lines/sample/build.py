@@ -138,11 +138,23 @@ CIVIL_LIMITS = [
 TURNOUT_LIMIT_KMH = 45.0
 TURNOUT_EXTRA_M = 10.0             # restriction reaches this far beyond the crossover switches
 
-# Block signals: per direction a starting signal 30 m beyond each stop marker
-# (not at the line-end terminus), and the stretch between two consecutive
-# starting signals split into equal blocks of at most BLOCK_MAX_M.
+# Signals, per direction (Japanese practice: station signals at every station, automatic
+# block signals between stations):
+# * home signal (場内信号機) at the entrance of every station a train of this direction
+#   arrives at: HOME_BEFORE_PLATFORM_M before the end of the platform the train enters, or
+#   HOME_BEFORE_SWITCH_M before the first switch on its main track in the station throat
+#   (loop switches, terminus scissors, the Ohashi crossover), whichever the train meets first;
+# * starting signal (出発信号機) STARTING_SIGNAL_OFFSET_M beyond the stop marker of every
+#   station a train departs from (short of the exit switches);
+# * automatic block signals (閉塞信号機) between the starting signal of one station and the
+#   home signal of the next, splitting that stretch into equal blocks of at most
+#   BLOCK_MAX_M; the build asserts every such block is BLOCK_RANGE_M long.
 STARTING_SIGNAL_OFFSET_M = 30.0
+HOME_BEFORE_PLATFORM_M = 100.0
+HOME_BEFORE_SWITCH_M = 50.0
+HOME_SWITCH_SEARCH_M = 600.0       # throat switches: on the main within this far before the marker
 BLOCK_MAX_M = 950.0
+BLOCK_RANGE_M = (550.0, 1_000.0)   # automatic block lengths (starting/block -> block/home)
 SIGNAL_BEACON_OFFSET_M = 20.0      # ATS-P signal beacon this far before its signal
 PU_DISTANCE_M = 450.0              # pattern-update beacon before a restriction
 PU_DISTANCE_RANGE_M = (300.0, 600.0)
@@ -673,6 +685,52 @@ def _ahead(direction: str, x: float, d: float) -> float:
     return x + d if direction == "down" else x - d
 
 
+def home_signal_m(direction: str, station: dict, main_switches: list[float]) -> float:
+    """Chainage of the home signal of ``station`` for trains arriving in ``direction``.
+
+    HOME_BEFORE_PLATFORM_M before the platform end the train enters, or
+    HOME_BEFORE_SWITCH_M before the first switch of the station throat on the
+    direction's main track (within HOME_SWITCH_SEARCH_M before the stop marker),
+    whichever comes first in the running direction.
+    """
+    sg = 1.0 if direction == "down" else -1.0
+    stop = station["stop_down_m" if direction == "down" else "stop_up_m"]
+    entry = station["position_m"] - sg * station["platform_length_m"] / 2.0
+    cands = [_ahead(direction, entry, -HOME_BEFORE_PLATFORM_M)]
+    cands += [_ahead(direction, x, -HOME_BEFORE_SWITCH_M) for x in main_switches
+              if 0.0 < sg * (stop - x) <= HOME_SWITCH_SEARCH_M]
+    return min(cands, key=lambda x: sg * x)
+
+
+def signal_layout(direction: str) -> list[tuple[float, str]]:
+    """Signals of one direction in running order: (chainage [m], kind).
+
+    ``kind`` is ``starting`` (departure end of a station), ``block`` (automatic
+    block signal) or ``home`` (station entrance). Between a starting signal and
+    the next station's home signal, the automatic block signals split the
+    stretch into the fewest equal blocks of at most BLOCK_MAX_M; every such
+    block must be BLOCK_RANGE_M long (asserted).
+    """
+    st = stations()
+    order = st if direction == "down" else st[::-1]
+    col = "stop_down_m" if direction == "down" else "stop_up_m"
+    main = "D1" if direction == "down" else "U1"
+    switches = [n["position_m"] for n in network()[0] if n["kind"] == "switch" and n["track"] == main]
+    out: list[tuple[float, str]] = []
+    for k in range(len(order) - 1):
+        a = _ahead(direction, order[k][col], STARTING_SIGNAL_OFFSET_M)
+        b = home_signal_m(direction, order[k + 1], switches)
+        n = int(math.ceil(abs(b - a) / BLOCK_MAX_M))
+        pts = [a] + [float(round(a + (b - a) * i / n)) for i in range(1, n)] + [b]
+        blocks = np.abs(np.diff(pts))
+        lo, hi = BLOCK_RANGE_M
+        assert blocks.min() >= lo and blocks.max() <= hi, (direction, order[k]["station_id"], blocks)
+        out.append((a, "starting"))
+        out += [(x, "block") for x in pts[1:-1]]
+        out.append((b, "home"))
+    return out
+
+
 def signals_and_beacons(limits: list[dict]) -> tuple[list[dict], list[dict]]:
     """Block signals and ATS-P / TASC beacons of both directions.
 
@@ -690,22 +748,13 @@ def signals_and_beacons(limits: list[dict]) -> tuple[list[dict], list[dict]]:
         col = "stop_down_m" if direction == "down" else "stop_up_m"
         sg = +1.0 if direction == "down" else -1.0
         tag = "D" if direction == "down" else "U"
-        # --- block signals: starting signals, equal blocks between them
-        starting = [_ahead(direction, s[col], STARTING_SIGNAL_OFFSET_M) for s in order]
-        pos, is_start = [], []
-        for k in range(len(order) - 1):
-            a, b = starting[k], starting[k + 1]
-            n = int(math.ceil(abs(b - a) / BLOCK_MAX_M))
-            pos.append(a)
-            is_start.append(True)
-            for i in range(1, n):
-                pos.append(float(round(a + (b - a) * i / n)))
-                is_start.append(False)
+        # --- station signals (home, starting) and automatic block signals between them
+        layout = signal_layout(direction)
         mine_sig = []
-        for i, (x, start) in enumerate(zip(pos, is_start)):
+        for i, (x, kind) in enumerate(layout):
             sid = f"S{tag}{i + 1:02d}"
-            mine_sig.append(dict(signal_id=sid, position_m=x, direction=direction))
-            generic = (not start) and GENERIC_TELEGRAM_SECTION_M[0] <= x <= GENERIC_TELEGRAM_SECTION_M[1]
+            mine_sig.append(dict(signal_id=sid, position_m=x, direction=direction, kind=kind))
+            generic = kind == "block" and GENERIC_TELEGRAM_SECTION_M[0] <= x <= GENERIC_TELEGRAM_SECTION_M[1]
             beacons.append(dict(beacon_id=f"{tag}-SIG-{i + 1:03d}",
                                 position_m=_ahead(direction, x, -SIGNAL_BEACON_OFFSET_M),
                                 direction=direction, kind="signal",
@@ -865,7 +914,8 @@ SCHEMAS = {
                                ("has_beacon", _B)]),
     "beacons": pa.schema([("beacon_id", _S), ("position_m", _D), ("direction", _S),
                           ("kind", _S), ("telegram", _S), ("evaluation_point", _B)]),
-    "signals": pa.schema([("signal_id", _S), ("position_m", _D), ("direction", _S)]),
+    # `kind` is an optional extra column: home, starting or (automatic) block signal
+    "signals": pa.schema([("signal_id", _S), ("position_m", _D), ("direction", _S), ("kind", _S)]),
     "rolling_stock": pa.schema([
         ("train_type", _S), ("length_m", _D), ("empty_mass_t", _D), ("full_load_mass_t", _D),
         ("rotating_mass_factor", _D), ("max_speed_kmh", _D), ("max_accel_kmh_s", _D),

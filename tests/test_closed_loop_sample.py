@@ -1,0 +1,118 @@
+"""Acceptance (issue 4) on the sample line: closed-loop arrival errors of the on-board modes.
+
+The whole line is measured by ``benchmarks/bench_closed_loop.py`` (66 interstation tasks, a few
+minutes); this test runs a representative subset in well under a minute: for every train type,
+two interstations per direction —
+
+* TKD→OHS and OHS→TKD, the 7.0 km runs (longest, most evaluation points, TKD→OHS has the
+  tightest margin of the timetable);
+* HGO→MDR down, where the sawtooth E6 has its largest error in the adaptive mode (the coasting
+  band's phase at the home-signal beacon 325 m before the stop);
+* KWB→SKM up, where the E6 adaptive mode once chose the lowest ratio 325 m before the stop
+  (5 s late, perturbed) before table (c) was smoothed: a regression case.
+
+Tables are built as the nightly job builds them (load 0, nominal traction, default ratio grid);
+the perturbed scenario runs a heavier, weaker train against those same tables. Bounds are the
+issue's, over feasible runs (designated time the scenario's train can meet at all):
+nearest rule max ≤ 2 s nominal, ≤ 3 s perturbed; better mode (``adaptive``) median ≤ 0.3 s and
+max ≤ 1 s in both. Cases the method does not meet are strict xfails with the reason, so an
+improvement that meets them turns into a failure asking to remove the mark.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import planner
+from planner.closed_loop import closed_loop_interstation
+from planner.ratios import ratio_grid
+from planner.tables import interstation_tables
+
+SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
+SUBSET = (("TKD", "OHS"), ("HGO", "MDR"), ("OHS", "TKD"), ("KWB", "SKM"))
+TYPES = ("E10", "E8", "E6")
+SCENARIOS = ("nominal", "perturbed")
+NEAREST_MAX_S = {"nominal": 2.0, "perturbed": 3.0}     # issue 4
+BETTER_MEDIAN_S, BETTER_MAX_S = 0.3, 1.0                # issue 4, both scenarios
+
+NEAREST_REASON = (
+    "published nearest rule, default grid: the 10 % steps above 70 % leave gaps of 5-8 s between "
+    "neighbouring table-(b) entries at the last evaluation point with authority (the block signal "
+    "~1 km before the stop); the home-signal beacon 325-450 m before the stop can barely change "
+    "the arrival any more (the train is about to brake, its row spans < 1 s at ratios >= 0.7), so "
+    "half that gap, 2.5-4 s, remains (measured max 3.7 s nominal, 5.3 s perturbed on the line)"
+)
+SAWTOOTH_REASON = (
+    "E6 sawtooth, adaptive: its remaining time depends on where in the 5 km/h coasting band it "
+    "passes the last beacon; table-(b) rows at neighbouring grid ratios are at other phases, so "
+    "interpolating them for a fractional ratio is off by up to ~1.5 s (HGO->MDR: 1.06 s nominal, "
+    "1.47 s perturbed); the median bound is met"
+)
+
+
+@pytest.fixture(scope="module")
+def results():
+    if not (SAMPLE / "line.parquet").exists():
+        pytest.skip("lines/sample is not built yet (python lines/sample/build.py)")
+    line = planner.load_line(SAMPLE)
+    grid = ratio_grid(None, line_max_speed_ms=line.max_speed_ms)
+    out = {}
+    for tt in TYPES:
+        for o, d in SUBSET:
+            tabs = interstation_tables(line, tt, o, d, grid).onboard()
+            for mode in ("nearest", "adaptive"):
+                for sc in SCENARIOS:
+                    out.setdefault((tt, mode, sc), []).append(
+                        closed_loop_interstation(line, tt, tabs, scenario=sc, mode=mode))
+    return out
+
+
+def _errors(res) -> np.ndarray:
+    """|arrival error| of the feasible runs [s]."""
+    return np.abs(np.concatenate([r.error_s[r.feasible] for r in res]))
+
+
+def test_subset_is_representative(results):
+    """Every type, both directions, both 7 km runs; enough feasible runs in each case."""
+    for (tt, mode, sc), res in results.items():
+        assert {(r.origin, r.destination) for r in res} == set(SUBSET)
+        assert {r.direction for r in res} == {"down", "up"}
+        n = sum(int(r.feasible.sum()) for r in res)
+        assert n >= 0.8 * sum(r.designated_s.size for r in res), (tt, mode, sc, n)
+
+
+@pytest.mark.parametrize("sc", SCENARIOS)
+@pytest.mark.parametrize("tt", ["E10", "E8"])
+def test_adaptive_meets_the_issue_bounds(results, tt, sc):
+    e = _errors(results[(tt, "adaptive", sc)])
+    assert np.median(e) <= BETTER_MEDIAN_S and e.max() <= BETTER_MAX_S, (np.median(e), e.max())
+
+
+@pytest.mark.parametrize("sc", SCENARIOS)
+def test_adaptive_sawtooth_median(results, sc):
+    e = _errors(results[("E6", "adaptive", sc)])
+    assert np.median(e) <= BETTER_MEDIAN_S, np.median(e)
+
+
+@pytest.mark.xfail(strict=True, reason=SAWTOOTH_REASON)
+@pytest.mark.parametrize("sc", SCENARIOS)
+def test_adaptive_sawtooth_max(results, sc):
+    e = _errors(results[("E6", "adaptive", sc)])
+    assert e.max() <= BETTER_MAX_S, e.max()
+
+
+@pytest.mark.parametrize("sc", SCENARIOS)
+def test_adaptive_beats_the_nearest_rule(results, sc):
+    """The better mode is better on every type: smaller median and maximum error."""
+    for tt in TYPES:
+        a, n = _errors(results[(tt, "adaptive", sc)]), _errors(results[(tt, "nearest", sc)])
+        assert np.median(a) < np.median(n) and a.max() < n.max(), (tt, sc)
+
+
+@pytest.mark.xfail(strict=True, reason=NEAREST_REASON)
+@pytest.mark.parametrize("sc", SCENARIOS)
+def test_nearest_rule_meets_the_issue_bounds(results, sc):
+    e = np.concatenate([_errors(results[(tt, "nearest", sc)]) for tt in TYPES])
+    assert e.max() <= NEAREST_MAX_S[sc], e.max()
