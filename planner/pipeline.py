@@ -123,13 +123,12 @@ def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):
     return approach_patterns(line, tt, o, d, adhesions_ms2, approach_m, settings=SimSettings(ds_m=ds_m))
 
 
-def _closed_loop_unit(line, tt, tables, scenario, mode, horizon_s, step_s, ds_m):
-    from .closed_loop import Scenario, closed_loop_interstation
+def _closed_loop_unit(line, tt, tables, scenarios, modes, horizon_s, step_s, ds_m):
+    from .closed_loop import Scenario, closed_loop_batch
     from .run_curve import SimSettings
 
-    sc = Scenario(scenario.name, scenario.load, scenario.traction)
-    return closed_loop_interstation(line, tt, tables, scenario=sc, mode=mode, extra_s=horizon_s,
-                                    step_s=step_s, settings=SimSettings(ds_m=ds_m))
+    return closed_loop_batch(line, tt, tables, scenarios=[Scenario(s.name, s.load, s.traction) for s in scenarios],
+                             modes=modes, extra_s=horizon_s, step_s=step_s, settings=SimSettings(ds_m=ds_m))
 
 
 def _call(fn, args):
@@ -388,24 +387,21 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
 
-    # closed loop, every scenario and mode
+    # closed loop: every scenario and mode of an interstation in one batch
     cp = job.closed_loop
-    c_units = []
-    for sc in cp.scenarios:
-        for mode in cp.modes:
-            for u, tab in zip(t_units, tables):
-                c_units.append(Unit(
-                    "closed_loop",
-                    digest(["closed_loop", code, u.key, dataclasses.asdict(sc), mode, cp.horizon_s, cp.step_s]),
-                    f"{sc.name} {mode} {u.label}", _closed_loop_unit,
-                    (line, tab.train_type, tab.onboard(), sc, mode, cp.horizon_s, cp.step_s, tp.ds_m),
-                ))
-    loops = runner.run("closed_loop", c_units)
+    c_units = [
+        Unit("closed_loop",
+             digest(["closed_loop", code, u.key, [dataclasses.asdict(sc) for sc in cp.scenarios], list(cp.modes),
+                     cp.horizon_s, cp.step_s]),
+             u.label, _closed_loop_unit,
+             (line, tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s, tp.ds_m))
+        for u, tab in zip(t_units, tables)
+    ]
+    loops = [r for batch in runner.run("closed_loop", c_units) for r in batch]
     from .closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
 
-    # margins (line level), bundles, conflicts
     conflicts = None
     if job.conflicts.enabled and line.network is not None:
         conflicts = _conflicts_step(job, line, stage, runner, summary)

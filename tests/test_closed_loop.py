@@ -149,3 +149,19 @@ def test_cli_tables_and_simulate(tmp_path):
     assert r.exit_code != 0 and "error: --ratios" in r.output and "Traceback" not in r.output
     r = runner.invoke(app, ["simulate", str(line_dir), "--tables", str(tmp_path / "none"), "--out", str(sim)])
     assert r.exit_code != 0 and "error:" in r.output
+
+
+def test_one_batch_of_every_scenario_and_mode_equals_separate_batches(flat):
+    """Runs in a batch do not interact, so stacking scenarios × modes (how the nightly job runs them,
+    several times cheaper) must give exactly the separate results: same times, same ratio choices."""
+    from planner.closed_loop import closed_loop_batch
+
+    ln, _, tabs = flat
+    modes = ("nearest", "interpolate", "adaptive")
+    stacked = closed_loop_batch(ln, "T", tabs, scenarios=("nominal", "perturbed"), modes=modes)
+    assert [(r.scenario, r.mode) for r in stacked] == [(s, m) for s in ("nominal", "perturbed") for m in modes]
+    for r in stacked:
+        alone = closed_loop_interstation(ln, "T", tabs, scenario=r.scenario, mode=r.mode)
+        np.testing.assert_array_equal(r.actual_s, alone.actual_s)
+        np.testing.assert_array_equal(r.ratios, alone.ratios)
+        assert (r.min_time_s, r.max_time_s) == (alone.min_time_s, alone.max_time_s)

@@ -74,7 +74,7 @@ def test_cold_run_publishes_everything_and_reads_back(project):
     out = project / "out"
     assert latest_run(out) == s.run_id and (out / "latest" / "manifest.json").is_file()
     for step in UNIT_STEPS:
-        assert s.computed[step] == N_UNITS * (4 if step == "closed_loop" else 1)  # 2 scenarios × 2 modes
+        assert s.computed[step] == N_UNITS  # closed loop: all scenarios × modes of a unit in one batch
     assert sorted(s.bundles) == [f"tiny_{d}_{t}.pdb" for d in ("down", "up") for t in ("EMU10", "EMU6")]
     for name in ("table_a", "table_b", "eval_points", "stop_summary", "closed_loop", "margins"):
         t = ds.dataset(out / "latest" / name, format="parquet", partitioning="hive").to_table()
@@ -128,7 +128,7 @@ def test_one_edited_restriction_recomputes_only_its_interstation(project):
     s = _run(job)
     assert s.computed["tables"] == 2 and s.reused["tables"] == N_UNITS - 2
     assert s.computed["stops"] == 2
-    assert s.computed["closed_loop"] == 2 * 4
+    assert s.computed["closed_loop"] == 2
 
 
 def _edit_restriction(project: Path, limit_kmh: float) -> None:
