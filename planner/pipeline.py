@@ -386,6 +386,14 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     _count(summary, write_stops(stops, stage))
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
+    for r in stops:  # one line per approach, not per adhesion level
+        bad = [a for a, p in zip(r.adhesion_kmh_s, r.patterns) if not p.feasible]
+        if bad:
+            first = next(p for p in r.patterns if not p.feasible)
+            levels = f"{bad[0]:g}" if len(bad) == 1 else f"{bad[0]:g}…{bad[-1]:g}"
+            summary.notes.append(
+                f"{line.line_id}: no stopping pattern at {r.station_id} ({r.direction}, {r.train_type}, from "
+                f"{r.origin}) for adhesion {levels} km/h/s ({len(bad)} of {len(r.patterns)} levels): {first.reason}")
 
     # closed loop: every scenario and mode of an interstation in one batch
     cp = job.closed_loop
