@@ -297,17 +297,15 @@ def signing_key_path(job: Job, notes: list[str]) -> Path:
     return key
 
 
-def _inputs_digest(job: Job, lines: Sequence[Line]) -> str:
-    return digest({
-        "code": code_digest(),
-        "params": job.parameters() | {"job": {k: v for k, v in job.parameters()["job"].items()
-                                              if k not in ("keep_runs", "output_root")}},
-        "lines": [ln.source_digest for ln in lines],
-        "key": os.environ.get("PLANNER_SIGNING_KEY", "") if not job.bundles.signing_key else job.bundles.signing_key,
-    })
+def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
+    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id)."""
+    params = job.parameters()
+    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root")}
+    return digest({"code": code_digest(), "params": params, "lines": [ln.source_digest for ln in lines],
+                   "key": key_id})
 
 
-def run_job(job: Job, *, show_progress: bool = True, echo: Callable[[str], None] = print) -> RunSummary:
+def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
     """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure."""
     from .loader import load_line
 
@@ -321,7 +319,11 @@ def run_job(job: Job, *, show_progress: bool = True, echo: Callable[[str], None]
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)
-            inputs = _inputs_digest(job, lines)
+            from .signing import load_private_key, public_key_id
+
+            notes: list[str] = []
+            key = load_private_key(signing_key_path(job, notes))
+            inputs = _inputs_digest(job, lines, public_key_id(key.public_key()))
             last = latest_run(root)
             if last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
@@ -329,13 +331,13 @@ def run_job(job: Job, *, show_progress: bool = True, echo: Callable[[str], None]
                 m = json.loads((root / last / "manifest.json").read_text())
                 if m.get("inputs_digest") == inputs:
                     return RunSummary(last, root / last, True, timings=prog.timings,
-                                      notes=[f"nothing changed since run {last}: it stays the latest"])
+                                      notes=notes + [f"nothing changed since run {last}: it stays the latest"])
             run_id = next_run_id(root, inputs)
             stage = staging_dir(root, run_id)
-            summary = RunSummary(run_id, None, False)
+            summary = RunSummary(run_id, None, False, notes=notes)
             runner = Runner(job, cache, prog)
             for line in lines:
-                _run_line(job, line, stage, runner, summary)
+                _run_line(job, line, stage, runner, summary, key)
             summary.computed, summary.reused = runner.computed, runner.reused
             _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary)
             with prog.step("publish"):
@@ -348,7 +350,7 @@ def _types(job: Job, line: Line) -> list[str]:
     return list(job.job.train_types) or [t.train_type for t in line.train_types]
 
 
-def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary) -> None:
+def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key) -> None:
     from .ratios import ratio_grid
     from .stops import adhesion_levels
     from .units import KMH, KMH_S
@@ -415,7 +417,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         conflicts = _conflicts_step(job, line, stage, runner, summary)
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], grid, conflicts)
-    _bundles_step(job, line, stage, runner, summary)
+    _bundles_step(job, line, stage, runner, summary, key)
 
 
 def _count(summary: RunSummary, files: Iterable[Path]) -> None:
@@ -469,19 +471,18 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
                 summary.flags[flag] = summary.flags.get(flag, 0) + int(rows[flag].sum())
 
 
-def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary) -> None:
-    from .bundle import build_line
-    from .signing import load_private_key
+def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key) -> None:
+    """Signed bundles for every direction × train type, and the public key that verifies them."""
+    from cryptography.hazmat.primitives import serialization
 
-    key_path = signing_key_path(job, summary.notes)
-    key = load_private_key(key_path)
+    from .bundle import build_line
+
     out = stage / "bundles"
     with runner.progress.step("bundles", 2 * len(_types(job, line))):
         infos = build_line(line, out, key, tables_dir=stage, stops_dir=stage, train_types=_types(job, line),
                            on_built=lambda info: runner.progress.advance("bundles"))
-    pub = key_path.with_name(key_path.name.replace(".pem", ".pub.pem"))
-    if pub.is_file():
-        (out / "signing_key.pub.pem").write_bytes(pub.read_bytes())
+    pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
+    write_bytes_atomic(out / "signing_key.pub.pem", pem)
     summary.bundles += [Path(i.path).name for i in infos]
 
 

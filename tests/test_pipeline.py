@@ -205,3 +205,23 @@ def test_dask_backend_gives_the_same_datasets(project, tmp_path_factory):
         for k in [k for k in d if k.startswith("bundles/")]:
             d.pop(k)  # signed with each project's own development key
     assert a == b
+
+
+def test_a_new_signing_key_at_the_same_path_is_a_change(project):
+    from planner.bundle import verify_bundle
+    from planner.signing import generate_keypair, load_public_key
+
+    keys = project / "keys"
+    generate_keypair(keys)
+    job = _job(project)
+    job.write_text(job.read_text() + '\n[bundles]\nsigning_key = "keys/signing_key.pem"\n')
+    first = _run(job)
+    for f in keys.iterdir():
+        f.unlink()
+    _, pub = generate_keypair(keys)  # rotated: same path, other key
+    s = _run(job)
+    assert not s.up_to_date and s.run_id != first.run_id
+    assert s.computed["tables"] == 0  # the key only changes the bundles
+    b = project / "out" / "latest" / "bundles"
+    assert (b / "signing_key.pub.pem").read_bytes() == pub.read_bytes()
+    verify_bundle(b / s.bundles[0], load_public_key(pub))
