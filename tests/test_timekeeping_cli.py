@@ -76,3 +76,18 @@ def test_cli_bad_input_is_one_line():
     r = runner.invoke(app, ["timekeeping", str(SAMPLE), "--train-type", "NOPE", "--from", "MNT", "--to", "SKM",
                             "--arrival", "140"])
     assert r.exit_code != 0 and "unknown train type" in r.stderr
+
+
+def test_planner_simulate_mode_timekeeping():
+    """`planner simulate --mode timekeeping` drives one run with en-route arrival changes (issue 10)."""
+    _need_sample()
+    r = runner.invoke(app, ["simulate", str(SAMPLE), "--mode", "timekeeping", "--train-type", "E10",
+                            "--from", "TKD", "--to", "OHS", "--arrival", "340", "--change", "40:380", "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert d["scheduled_arrival_s"] == 380.0 and abs(d["arrival_s"] - 380.0) <= 0.2
+    assert abs(d["arrival_error_s"]) <= 0.2 and abs(d["stop_error_m"]) <= 0.2
+    bad = runner.invoke(app, ["simulate", str(SAMPLE), "--mode", "timekeeping", "--train-type", "E10"])
+    assert bad.exit_code == 1 and "--from" in bad.output and "Traceback" not in bad.output
+    no_tables = runner.invoke(app, ["simulate", str(SAMPLE), "--mode", "nearest"])
+    assert no_tables.exit_code == 1 and "--tables" in no_tables.output
