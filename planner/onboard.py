@@ -248,26 +248,6 @@ def _interp_u(ratios: np.ndarray, values: np.ndarray, r: float) -> float:
     return float(np.interp(1.0 / np.clip(r, ratios[-1], ratios[0]), u, values))
 
 
-def solve_ratio_fn(ratios: np.ndarray, f, want_s: float, *, iterations: int = 60) -> float:
-    """Highest ratio in the grid range with ``f(r) >= want_s`` for a time function growing as r falls.
-
-    Bisection in ``u = 1/r`` (``f`` may be any continuous interpolant, not only the grid values);
-    the end ratio when ``want_s`` lies outside ``[f(ratios[0]), f(ratios[-1])]``.
-    """
-    lo, hi = 1.0 / ratios[0], 1.0 / ratios[-1]
-    if want_s <= f(1.0 / lo):
-        return float(ratios[0])
-    if want_s >= f(1.0 / hi):
-        return float(ratios[-1])
-    for _ in range(iterations):  # 60 halvings: far below any effect on running time
-        mid = 0.5 * (lo + hi)
-        if f(1.0 / mid) < want_s:
-            lo = mid
-        else:
-            hi = mid
-    return float(1.0 / (0.5 * (lo + hi)))
-
-
 def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, prefer: float) -> float:
     """Ratio where the piecewise-linear-in-``1/r`` function through ``values_s`` equals ``want_s``.
 
