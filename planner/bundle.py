@@ -85,9 +85,10 @@ MAX_MANIFEST_BYTES = 1024**2
 
 CORE_TABLES = ("restrictions", "max_profile", "atsp", "beacons", "timetable")
 """Tables every bundle holds: built from the line DB itself."""
-EXPECTED_TABLES = ("eval_points", "table_a", "table_b", "stop_summary", "stop_samples")
+EXPECTED_TABLES = ("eval_points", "table_a", "table_b", "table_c", "stop_summary", "stop_samples")
 """Tables a complete bundle holds, built by the tables and stopping steps; absent ones are listed in the manifest."""
-TABLE_SOURCES = {"tables": ("eval_points", "table_a", "table_b"), "stops": ("stop_summary", "stop_samples")}
+TABLE_SOURCES = {"tables": ("eval_points", "table_a", "table_b", "table_c"),
+                 "stops": ("stop_summary", "stop_samples")}
 """Which output folder (``--tables`` / ``--stops``) each expected table is read from."""
 
 _BLOCK = 512
@@ -926,6 +927,7 @@ _REQUIRED_COLUMNS = {
     "eval_points": ("origin", "destination", "eval_point_id"),
     "table_a": ("origin", "destination", "ratio", "running_time_s"),
     "table_b": ("origin", "destination", "eval_point_id", "ratio_before", "ratio_after", "remaining_time_s"),
+    "table_c": ("origin", "destination", "eval_point_id", "ratio", "remaining_time_s", "remaining_time_ref_s"),
 }
 """Columns the cross-checks (and the vehicle) rely on in the tables step's datasets."""
 
@@ -981,6 +983,12 @@ def _check_tables(tables: Mapping[str, pa.Table], m: dict, where: str) -> None:
             lost = sorted(need - have, key=str)
             if lost:
                 raise _fail(where, f"table_b {c} {lost[0][2]} for {lost[0][0]}->{lost[0][1]} is not in table_a")
+    tc = tables.get("table_c")
+    if ta is not None and tc is not None:  # the adaptive on-board mode reads table (c) beside (a) and (b)
+        have = set(zip(_col(ta, "origin"), _col(ta, "destination"), _col(ta, "ratio")))
+        lost = sorted(set(zip(_col(tc, "origin"), _col(tc, "destination"), _col(tc, "ratio"))) - have, key=str)
+        if lost:
+            raise _fail(where, f"table_c ratio {lost[0][2]} for {lost[0][0]}->{lost[0][1]} is not in table_a")
     if ep is not None:
         pts = set(zip(_col(ep, "origin"), _col(ep, "destination"), _col(ep, "eval_point_id")))
         if tb is not None:

@@ -307,6 +307,15 @@ def test_table_b_ratio_missing_from_table_a_fails(keys, tmp_path, line):
         bundle.verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
 
 
+def test_table_c_ratio_missing_from_table_a_fails(keys, tmp_path, line):
+    def edit(t):  # table (c) for a ratio the vehicle has no column (a) for
+        t["table_c"] = t["table_c"].set_column(
+            t["table_c"].column_names.index("ratio"), "ratio",
+            pa.compute.multiply(t["table_c"]["ratio"], 0.5))
+    with pytest.raises(BundleError, match="table_c ratio .* not in table_a"):
+        bundle.verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
+
+
 def test_foreign_train_type_rows_fail(keys, tmp_path, line):
     def edit(t):
         t["table_a"] = synthetic_tables(line, "down", "E6")["table_a"]
