@@ -52,9 +52,7 @@ class EvalPoint:
 
 def interstation_length_m(line: Line, origin: str, destination: str) -> float:
     """Running distance from the origin's stop marker to the destination's [m]."""
-    d = line.direction_between(origin, destination)
-    a, b = line.station(origin), line.station(destination)
-    return sign(d) * (b.stop_m(d) - a.stop_m(d))
+    return line.run_between(origin, destination).length_m
 
 
 def evaluation_points(

@@ -569,10 +569,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
 
     settings = settings or SimSettings()
     train = line.train_type(train_type)
-    direction = line.direction_between(origin, destination)
-    sg = sign(direction)
-    x0 = line.station(origin).stop_m(direction)
-    length = sg * (line.station(destination).stop_m(direction) - x0)
+    ext = line.run_between(origin, destination)
+    direction, sg, x0, length = ext.direction, ext.sign, ext.start_m, ext.length_m
     if tables is None:
         grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
         it = interstation_tables(line, train_type, origin, destination, grid,

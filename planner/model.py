@@ -207,6 +207,22 @@ class Network:
     edges: tuple[Edge, ...]
 
 
+@dataclass(frozen=True)
+class RunExtent:
+    """Where a run between two stations lies: from the origin's stop marker to the destination's.
+
+    ``start_m``/``end_m`` are chainages [m]; ``length_m`` the running distance
+    (positive when the markers leave room to run); running distance s maps to
+    chainage ``start_m + sign * s``.
+    """
+
+    direction: Direction
+    sign: int
+    start_m: float
+    end_m: float
+    length_m: float
+
+
 @dataclass(frozen=True, eq=False)
 class Line:
     """A validated line database, in SI.
@@ -254,6 +270,12 @@ class Line:
         if a.station_id == b.station_id:
             raise UnknownNameError(f"origin and destination are the same station {origin!r}")
         return "down" if b.position_m > a.position_m else "up"
+
+    def run_between(self, origin: str, destination: str) -> RunExtent:
+        """Direction, stop markers and running distance of a run ``origin`` → ``destination``."""
+        d = self.direction_between(origin, destination)
+        a, b = self.station(origin).stop_m(d), self.station(destination).stop_m(d)
+        return RunExtent(d, sign(d), a, b, sign(d) * (b - a))
 
     def interstations(self, direction: str) -> list[tuple[Station, Station]]:
         """Consecutive station pairs in running order for ``direction``."""

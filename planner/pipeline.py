@@ -75,9 +75,9 @@ def interstation_inputs(line: Line, train_type: str, origin: str, destination: s
     them and gradients/curves are averaged over the train's length, so
     anything within a train length behind the departure can matter.
     """
-    direction = line.direction_between(origin, destination)
+    ext = line.run_between(origin, destination)
+    direction, a, b = ext.direction, ext.start_m, ext.end_m
     tt = line.train_type(train_type)
-    a, b = line.station(origin).stop_m(direction), line.station(destination).stop_m(direction)
     lo, hi = min(a, b) - tt.length_m - 1.0, max(a, b) + tt.length_m + 1.0
     return {
         "direction": direction,

@@ -53,7 +53,7 @@ import numpy as np
 
 from . import dynamics, speed_profile
 from .errors import InfeasibleError, InputError
-from .model import Line, TrainType, sign
+from .model import Line, TrainType
 from .units import KWH
 
 try:  # the compiled kernel behind np.interp, without its per-call Python checks (~2 µs)
@@ -197,11 +197,8 @@ def make_track(line: Line, train_type: str, origin: str, destination: str, *,
     UnknownNameError, InputError, InfeasibleError
     """
     train = line.train_type(train_type)
-    direction = line.direction_between(origin, destination)
-    sg = sign(direction)
-    x0 = line.station(origin).stop_m(direction)
-    x1 = line.station(destination).stop_m(direction)
-    length = sg * (x1 - x0)
+    ext = line.run_between(origin, destination)
+    direction, sg, x0, x1, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m
     if not length > 0:
         raise InputError(f"stop markers of {origin} ({x0} m) and {destination} ({x1} m) leave no "
                          f"distance to run {direction}; check stop_{direction}_m in stations.parquet")
@@ -730,10 +727,8 @@ def running_time(line_or_path, train_type: str, origin: str, destination: str, *
         line = planner.load_line(line_or_path)
     settings = settings or SimSettings()
     train = line.train_type(train_type)
-    direction = line.direction_between(origin, destination)
-    sg = sign(direction)
-    x0 = line.station(origin).stop_m(direction)
-    x1 = line.station(destination).stop_m(direction)
+    ext = line.run_between(origin, destination)
+    direction, sg, x0, x1 = ext.direction, ext.sign, ext.start_m, ext.end_m
     changes_s = []
     for pos, r in ratio_changes:
         d = sg * (float(pos) - x0)

@@ -344,11 +344,8 @@ def approach_patterns(
         raise InputError(f"adhesion levels must be positive decelerations [m/s²], got {list(adhesions_ms2)!r}")
     levels_kmh_s = tuple(round(a / KMH_S, 9) for a in levels_ms2)
     train = line.train_type(train_type)
-    direction = line.direction_between(origin, destination)
-    sg = sign(direction)
-    x0 = line.station(origin).stop_m(direction)
-    stop = line.station(destination).stop_m(direction)
-    length = sg * (stop - x0)
+    ext = line.run_between(origin, destination)
+    direction, sg, x0, stop, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m
     beacon = _tasc_beacon(line, direction, x0, length) if length > 0 else None
     s_a = sg * (beacon.position_m - x0) if beacon is not None else length - float(approach_m)
     X = length - s_a
@@ -726,14 +723,9 @@ def plot_approach(result: ApproachResult, path: str | Path) -> Path:
     fig.suptitle(title, fontsize=10)
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     fig.colorbar(sm, ax=[ax_v, ax_a, ax_j], label="adhesion limit [km/h/s]", shrink=0.6, pad=0.02)
-    from .atomic import atomic_path
+    from .atomic import save_png
 
-    try:
-        with atomic_path(path) as tmp:
-            # no timestamps in the file: the same figure gives the same bytes
-            fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
-    finally:
-        plt.close(fig)
+    save_png(fig, path, dpi=110)
     return path
 
 

@@ -51,13 +51,9 @@ def plot_run_curve(result, path: Path) -> None:
         f"ratio {result.ratio:.0%}, load {result.load:.0%}, traction ×{result.traction_factor:g}\n"
         f"running time {result.time_s:.1f} s, traction energy {result.energy_kwh:.1f} kWh", fontsize=10)
     fig.tight_layout()
-    from ..atomic import atomic_path
+    from ..atomic import save_png
 
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", metadata={"Software": None})
-    finally:
-        plt.close(fig)
+    save_png(fig, path)
 
 
 @app.command()

@@ -105,14 +105,9 @@ def write_plot(result, path: Path, title: str) -> Path:
     ax.legend(loc="upper right", fontsize=8, ncol=3)
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    from ..atomic import atomic_path
+    from ..atomic import save_png
 
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", metadata={"Software": None})
-    finally:
-        plt.close(fig)
-    return path
+    return save_png(fig, path)
 
 
 def simulate_timekeeping_cli(line, train_type: str, origin: str, destination: str, arrival_s: float,
