@@ -252,8 +252,12 @@ def _check_number(name: str, value, *, positive: bool = False) -> float:
     return f
 
 
-def _check_steps(name: str, steps, *, what: str, positive: bool) -> list[tuple[float, float]]:
-    """Validate a step function given as ``[(x_from_m, value), ...]`` sorted, first at 0."""
+def _check_steps(name: str, steps, *, what: str, positive: bool | None,
+                 noun: str = "step") -> list[tuple[float, float]]:
+    """Validate a step function given as ``[(x_from_m, value), ...]`` sorted, first at 0.
+
+    ``positive``: True = values > 0, False = values >= 0, None = any finite value.
+    """
     try:
         pairs = [(float(p[0]), float(p[1])) for p in steps]
     except (TypeError, ValueError, IndexError):
@@ -261,18 +265,18 @@ def _check_steps(name: str, steps, *, what: str, positive: bool) -> list[tuple[f
     if not pairs:
         raise InputError(f"{name} is empty; give at least one (0.0, {what}) pair")
     if pairs[0][0] != 0.0:
-        raise InputError(f"{name}[0] starts at x_from={pairs[0][0]!r} m; the first step must start at 0.0")
+        raise InputError(f"{name}[0] starts at x_from={pairs[0][0]!r} m; the first {noun} must start at 0.0")
     for i, (x, val) in enumerate(pairs):
         if not (math.isfinite(x) and math.isfinite(val)):
             raise InputError(f"{name}[{i}] = ({x!r}, {val!r}) is not finite")
         if i and not x > pairs[i - 1][0]:
             raise InputError(
                 f"{name}[{i}] x_from={x!r} m is not after {name}[{i - 1}] x_from={pairs[i - 1][0]!r} m; "
-                "sort the steps by strictly increasing x_from"
+                f"sort the {noun}s by strictly increasing x_from"
             )
         if positive and not val > 0.0:
             raise InputError(f"{name}[{i}] at x_from={x!r} m: {what} must be > 0, got {val!r}")
-        if not positive and val < 0.0:
+        if positive is False and val < 0.0:
             raise InputError(f"{name}[{i}] at x_from={x!r} m: {what} must be >= 0, got {val!r}")
     return pairs
 
@@ -326,24 +330,13 @@ def decel_limit_profile(
     adhesion = _check_number("adhesion_ms2", adhesion_ms2, positive=True)
     base = min(comfort, adhesion)
     try:
-        segs = [(float(p[0]), float(p[1])) for p in gradient_segments]
-    except (TypeError, ValueError, IndexError):
+        segs = list(gradient_segments)
+    except TypeError:
         raise InputError("gradient_segments must be a sequence of (x_from_m, gradient_permil) pairs") from None
-    if not segs:
-        segs = [(0.0, 0.0)]
-    if segs[0][0] != 0.0:
-        raise InputError(
-            f"gradient_segments[0] starts at x_from={segs[0][0]!r} m; the first segment must start at 0.0"
-        )
+    segs = (_check_steps("gradient_segments", segs, what="gradient_permil", positive=None, noun="segment")
+            if segs else [(0.0, 0.0)])
     out: list[tuple[float, float]] = []
     for i, (x, s) in enumerate(segs):
-        if not (math.isfinite(x) and math.isfinite(s)):
-            raise InputError(f"gradient_segments[{i}] = ({x!r}, {s!r}) is not finite")
-        if i and not x > segs[i - 1][0]:
-            raise InputError(
-                f"gradient_segments[{i}] x_from={x!r} m is not after x_from={segs[i - 1][0]!r} m; "
-                "sort the segments by strictly increasing x_from"
-            )
         value = round(base + GRADIENT_DECEL_MS2_PER_PERMIL * s, 12)  # round: stable merging/printing
         if not value > 0.0:
             raise InputError(
