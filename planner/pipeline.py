@@ -22,7 +22,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
-import pickle
 import time
 import warnings
 from contextlib import contextmanager
@@ -148,23 +147,6 @@ class Runner:
         self.computed: dict[str, int] = {}
         self.reused: dict[str, int] = {}
 
-    def _load(self, key: str):
-        p = self.cache.root / "objects" / key[:2] / f"{key}.pkl"
-        if p.is_file():
-            try:
-                with open(p, "rb") as f:
-                    obj = pickle.load(f)
-                self.cache.hits += 1
-                return obj
-            except Exception:  # noqa: BLE001 - a corrupt entry is a miss
-                pass
-        self.cache.misses += 1
-        return None
-
-    def _store(self, key: str, obj) -> None:
-        write_bytes_atomic(self.cache.root / "objects" / key[:2] / f"{key}.pkl",
-                           pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
-
     def run(self, step: str, units: Sequence[Unit]) -> list:
         """Results of ``units`` in order; cached ones loaded, the rest computed in parallel."""
         from joblib import Parallel, delayed
@@ -174,7 +156,7 @@ class Runner:
         results: list = [None] * len(units)
         todo = []
         for i, u in enumerate(units):
-            obj = self._load(u.key)
+            obj = self.cache.get("objects", u.key)
             if obj is None:
                 todo.append(i)
             else:
@@ -192,7 +174,7 @@ class Runner:
                         delayed(_call)(units[i].fn, units[i].args) for i in todo
                     )
                 for i, res in zip(todo, gen):
-                    self._store(units[i].key, res)  # each finished unit survives a later failure
+                    self.cache.put("objects", units[i].key, res)  # survives a later failure
                     results[i] = res
                     self.progress.advance(step)
         self.progress.finish(step)

@@ -21,16 +21,15 @@ import fcntl
 import hashlib
 import json
 import os
+import pickle
 import re
 import shutil
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
-import pyarrow as pa
-import pyarrow.parquet as pq
 
-from .datasets import write_parquet_atomic
+from .atomic import write_bytes_atomic
 from .errors import JobError
 
 RUN_RE = re.compile(r"^r(\d{4,})-([0-9a-f]{10})$")
@@ -66,9 +65,10 @@ def digest(obj: Any) -> str:
 class Cache:
     """Results keyed by the digest of exactly the inputs they depend on.
 
-    Each entry is one Parquet file, written atomically, so a killed run leaves
-    either a complete entry or none. ``hits`` and ``misses`` count look-ups,
-    which is how tests prove that an unchanged re-run recomputes nothing.
+    Each entry is one pickle file (the cache is local and written only by the
+    planner), written atomically, so a killed run leaves either a complete
+    entry or none. ``hits`` and ``misses`` count look-ups, which is how tests
+    prove that an unchanged re-run recomputes nothing.
     """
 
     def __init__(self, root: Path):
@@ -77,23 +77,24 @@ class Cache:
         self.misses = 0
 
     def path(self, kind: str, key: str) -> Path:
-        return self.root / kind / key[:2] / f"{key}.parquet"
+        return self.root / kind / key[:2] / f"{key}.pkl"
 
-    def get(self, kind: str, key: str) -> pa.Table | None:
+    def get(self, kind: str, key: str) -> Any | None:
+        """The stored result, or None (a missing or corrupt entry is a miss, recomputed and overwritten)."""
         p = self.path(kind, key)
         if p.is_file():
             try:
-                t = pq.read_table(p)
-            except Exception:  # a corrupt entry is a miss, recomputed and overwritten
-                self.misses += 1
-                return None
-            self.hits += 1
-            return t
+                obj = pickle.loads(p.read_bytes())
+            except Exception:  # noqa: BLE001
+                obj = None
+            if obj is not None:
+                self.hits += 1
+                return obj
         self.misses += 1
         return None
 
-    def put(self, kind: str, key: str, table: pa.Table) -> None:
-        write_parquet_atomic(table, self.path(kind, key))
+    def put(self, kind: str, key: str, obj: Any) -> None:
+        write_bytes_atomic(self.path(kind, key), pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
 
 
 # --- runs and publication -----------------------------------------------------
