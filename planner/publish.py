@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 
-from .atomic import write_bytes_atomic
+from .atomic import _fsync_dir, _fsync_file, write_bytes_atomic
 from .errors import JobError
 
 RUN_RE = re.compile(r"^r(\d{4,})-([0-9a-f]{10})$")
@@ -166,16 +166,8 @@ def staging_dir(root: Path, run_id: str) -> Path:
 def _fsync_tree(folder: Path) -> None:
     for dirpath, _dirs, files in os.walk(folder):
         for f in files:
-            fd = os.open(os.path.join(dirpath, f), os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-        fd = os.open(dirpath, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+            _fsync_file(os.path.join(dirpath, f))
+        _fsync_dir(Path(dirpath))
 
 
 def publish(root: Path, staging: Path, run_id: str, keep: int) -> Path:
@@ -192,11 +184,7 @@ def publish(root: Path, staging: Path, run_id: str, keep: int) -> Path:
         tmp_link.unlink()
     os.symlink(run_id, tmp_link)
     os.replace(tmp_link, root / "latest")
-    dfd = os.open(root, os.O_RDONLY)
-    try:
-        os.fsync(dfd)
-    finally:
-        os.close(dfd)
+    _fsync_dir(root)
     runs = list_runs(root)
     for old in runs[: max(0, len(runs) - keep)]:
         if old != run_id:
