@@ -85,9 +85,9 @@ MAX_MANIFEST_BYTES = 1024**2
 
 CORE_TABLES = ("restrictions", "max_profile", "atsp", "beacons", "timetable")
 """Tables every bundle holds: built from the line DB itself."""
-EXPECTED_TABLES = ("eval_points", "table_a", "table_b", "table_c", "stop_summary", "stop_samples")
+EXPECTED_TABLES = ("eval_points", "table_a", "table_b", "table_c", "table_d", "stop_summary", "stop_samples")
 """Tables a complete bundle holds, built by the tables and stopping steps; absent ones are listed in the manifest."""
-TABLE_SOURCES = {"tables": ("eval_points", "table_a", "table_b", "table_c"),
+TABLE_SOURCES = {"tables": ("eval_points", "table_a", "table_b", "table_c", "table_d"),
                  "stops": ("stop_summary", "stop_samples")}
 """Which output folder (``--tables`` / ``--stops``) each expected table is read from."""
 
@@ -928,6 +928,8 @@ _REQUIRED_COLUMNS = {
     "table_a": ("origin", "destination", "ratio", "running_time_s"),
     "table_b": ("origin", "destination", "eval_point_id", "ratio_before", "ratio_after", "remaining_time_s"),
     "table_c": ("origin", "destination", "eval_point_id", "ratio", "remaining_time_s", "remaining_time_ref_s"),
+    "table_d": ("origin", "destination", "eval_point_id", "speed_kmh", "powering", "ratio_after",
+                "remaining_time_s", "remaining_time_ref_s"),
 }
 """Columns the cross-checks (and the vehicle) rely on in the tables step's datasets."""
 
@@ -991,11 +993,14 @@ def _check_tables(tables: Mapping[str, pa.Table], m: dict, where: str) -> None:
             raise _fail(where, f"table_c ratio {lost[0][2]} for {lost[0][0]}->{lost[0][1]} is not in table_a")
     if ep is not None:
         pts = set(zip(_col(ep, "origin"), _col(ep, "destination"), _col(ep, "eval_point_id")))
-        if tb is not None:
-            lost = set(zip(_col(tb, "origin"), _col(tb, "destination"), _col(tb, "eval_point_id"))) - pts
+        for name in ("table_b", "table_d"):
+            t = tables.get(name)
+            if t is None:
+                continue
+            lost = set(zip(_col(t, "origin"), _col(t, "destination"), _col(t, "eval_point_id"))) - pts
             if lost:
                 o, d, x = sorted(lost)[0]
-                raise _fail(where, f"table_b evaluation point {x!r} for {o}->{d} is not in eval_points")
+                raise _fail(where, f"{name} evaluation point {x!r} for {o}->{d} is not in eval_points")
         strays = sorted({x for _, _, x in pts if not x.startswith("dep") and x not in beacon_ids})
         if strays:
             raise _fail(where, f"eval_points name beacon(s) {strays} that are not in beacons")

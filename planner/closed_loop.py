@@ -274,11 +274,12 @@ class _Stacked:
     def depart(self, tables, designated_s):
         return np.concatenate([np.asarray(ch.depart(tables, designated_s[sl]), float) for ch, sl in self.parts])
 
-    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None):
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
         out = np.array(ratio, dtype=float, copy=True)
         for ch, sl in self.parts:
             v = None if speed_ms is None else speed_ms[sl]
-            out[sl] = ch.at_point(tables, k, ratio[sl], remaining_s[sl], v)
+            p = None if powering is None else powering[sl]
+            out[sl] = ch.at_point(tables, k, ratio[sl], remaining_s[sl], v, p)
         return out
 
 

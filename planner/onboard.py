@@ -39,7 +39,8 @@ traction); a heavier or weaker train is slower at every ratio, and a rule that
 trusts the tables keeps choosing slightly too low a ratio and arrives late.
 Table (c) holds, for every evaluation point X and ratio r, the remaining time
 at constant r for the table train T(X, r) and for a reference train (full
-load) T_ref(X, r); their difference Δ(X, r) is the table's estimate of how much
+load, traction × 0.9: the degraded train the margin report plans for)
+T_ref(X, r); their difference Δ(X, r) is the table's estimate of how much
 a slower train loses from X on. The vehicle models its own remaining time as
 
     T(X, r_b, r_a; θ) = T_b(X, r_b, r_a) + θ · Δ(X, r_a)        (θ = 0: table train, 1: reference)
@@ -66,6 +67,17 @@ smooth (not even a monotone) function of the ratio:
   be monotone, so every crossing with the remaining time is found exactly
   (:func:`solve_piecewise`) and the one nearest the current ratio wins: the
   smallest change of driving that the tables say arrives on time.
+* At the **last** evaluation point of a sawtooth vehicle, where nothing later
+  can correct the choice, the row of table (b) is replaced by table (d)
+  (:class:`ApproachTable`, built for sawtooth vehicles only): the
+  remaining time from the train's *own* state there — its measured speed,
+  interpolated on a 2 km/h grid, and whether it is powering — at every ratio
+  of a 1 % grid, for the table and the reference train, so
+  T = T_d(v, phase, r_a) + θ · (T_d,ref − T_d). A sawtooth train's place in
+  its coasting band is part of that state, which a row indexed by the ratio
+  run before cannot know (it cost up to 1.5 s on the sample line). Here the
+  reference difference is not clipped: from the same state a heavier train
+  really does coast further.
 
 A new mode is a :class:`RatioChooser` factory registered in :data:`CHOOSERS`
 (``register_mode``); modes that do not use the tables (e.g. time-keeping) are
@@ -81,8 +93,77 @@ import numpy as np
 
 from .errors import InputError
 
+SAWTOOTH_MIN_FRACTION = 0.5
+"""A sawtooth vehicle coasts no lower than this fraction of its target
+(``planner.run_curve.SAWTOOTH_MIN_FRACTION``; a test keeps the two equal)."""
+PHASE_POWER = 0
+"""Phase code of a powering step in the simulator's run state (``planner.run_curve.PHASE_POWER``)."""
 SAME_POINT_M = 1e-3
 """A decision within this distance [m] of an evaluation point is that point (grid round-off)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ApproachTable:
+    """Table (d): remaining time from the last evaluation point, indexed by the train's own state.
+
+    Tables (b) and (c) index the state at a point by the ratio the train ran before it. At the
+    last point nothing later can correct the choice, and a sawtooth train's state there (where
+    in its coasting band it is) is not a function of that ratio. Table (d) instead holds, for
+    a grid of speeds at the point and both phases (powering, or coasting / holding / braking),
+    the remaining time at each ratio of a fine grid, for the table train and the reference
+    train; the vehicle interpolates at its measured speed in its actual phase.
+
+    Attributes
+    ----------
+    speeds_ms : ndarray, shape (n_v,)
+        Start speeds, ascending [m/s].
+    powering : tuple of bool, length n_p
+        Phase of each slice: True = powering (notch on), False = not powering.
+    ratios : ndarray, shape (n_ra,)
+        Ratios after the point, descending.
+    time_s, ref_time_s : ndarray, shape (n_p, n_v, n_ra)
+        Remaining time to arrival of the table train and of the reference train [s].
+    vmax_ms : float
+        On-board maximum speed just after the point [m/s]: ratio r's target there is
+        ``r × vmax_ms``.
+    coast_band_ms : float
+        The vehicle's coasting band [m/s].
+
+    Notes
+    -----
+    Each column is smooth in speed except at its kinks: the target (above it the train brakes
+    at once) and, not powering, the coasting band's lower edge ``max(target − band,
+    SAWTOOTH_MIN_FRACTION × target)`` (below it the train powers at once). :meth:`rows`
+    interpolates linearly across them, which is off by up to ~0.8 s within one speed step of
+    a kink. Taking both nodes on the train's side of the kink instead was tried and measured
+    worse in closed loop on the sample line (extrapolating a steep column), so it is not done.
+    """
+
+    speeds_ms: np.ndarray
+    powering: tuple[bool, ...]
+    ratios: np.ndarray
+    time_s: np.ndarray
+    ref_time_s: np.ndarray
+    vmax_ms: float = float("inf")
+    coast_band_ms: float = 0.0
+
+    def rows(self, speed_ms: float, powering: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Table and reference remaining time per ratio at a speed and phase, linear in speed [s].
+
+        Speeds outside the grid are clamped to its ends; a phase the table does not hold (e.g.
+        coasting for a constant-speed vehicle, whose phase does not change its future) uses
+        the one it does.
+        """
+        p = self.powering.index(bool(powering)) if bool(powering) in self.powering else 0
+        v = float(np.clip(speed_ms, self.speeds_ms[0], self.speeds_ms[-1]))
+        j = int(np.clip(np.searchsorted(self.speeds_ms, v, side="right") - 1, 0, len(self.speeds_ms) - 2)) \
+            if len(self.speeds_ms) > 1 else 0
+        if len(self.speeds_ms) == 1:
+            return self.time_s[p, 0], self.ref_time_s[p, 0]
+        f = (v - self.speeds_ms[j]) / (self.speeds_ms[j + 1] - self.speeds_ms[j])
+        t = (1.0 - f) * self.time_s[p, j] + f * self.time_s[p, j + 1]
+        ref = (1.0 - f) * self.ref_time_s[p, j] + f * self.ref_time_s[p, j + 1]
+        return t, ref
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,6 +193,8 @@ class RunningTimeTables:
         the reference (full-load) train [s]; needed by the ``adaptive`` mode.
     speed_ms : ndarray, shape (n_x, n_r), optional
         Table (c): speed of the table train at point x at constant ``ratios[i]`` [m/s].
+    approach : ApproachTable, optional
+        Table (d) at the last evaluation point; used by the ``adaptive`` mode there.
     """
 
     origin: str
@@ -124,6 +207,7 @@ class RunningTimeTables:
     remaining_s: np.ndarray
     ref_remaining_s: np.ndarray | None = None
     speed_ms: np.ndarray | None = None
+    approach: ApproachTable | None = None
 
     @property
     def min_time_s(self) -> float:
@@ -144,10 +228,11 @@ class RatioChooser(Protocol):
 
     def at_point(
         self, tables: RunningTimeTables, k: int, ratio: np.ndarray, remaining_s: np.ndarray,
-        speed_ms: np.ndarray | None = None,
+        speed_ms: np.ndarray | None = None, powering: np.ndarray | None = None,
     ) -> np.ndarray:
         """New ratio per run at evaluation point ``k`` from the current ratio, remaining time [s]
-        and, for modes that use it, the measured speed [m/s]."""
+        and, for modes that use them, the measured speed [m/s] and whether the train is
+        powering (notch on) as it passes the point."""
 
 
 def _nearest_index(values: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -168,7 +253,7 @@ class NearestRule:
     def depart(self, tables: RunningTimeTables, designated_s: np.ndarray) -> np.ndarray:
         return tables.ratios[_nearest_index(tables.time_a_s, designated_s)]
 
-    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None):
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
         rows = tables.remaining_s[k, grid_index(tables.ratios, ratio)]  # (n, n_r)
         j = np.argmin(np.abs(rows - np.asarray(remaining_s, float)[:, None]), axis=1)
         return tables.ratios[j]
@@ -234,7 +319,7 @@ class InterpolateRule:
         d = np.atleast_1d(np.asarray(designated_s, float))
         return np.array([solve_ratio(tables.ratios, tables.time_a_s, x) for x in d])
 
-    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None):
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
         ratio = np.atleast_1d(np.asarray(ratio, float))
         rem = np.broadcast_to(np.asarray(remaining_s, float), ratio.shape)
         return np.array(
@@ -355,7 +440,7 @@ class AdaptiveRule:
         }
         return r0
 
-    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None):
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
         ratio = np.atleast_1d(np.asarray(ratio, float))
         rem = np.broadcast_to(np.asarray(remaining_s, float), ratio.shape)
         st = self._s
@@ -371,8 +456,15 @@ class AdaptiveRule:
             st["den"][i] += st["delta"][i] - self._delta(tables, k, rb)
             theta = st["num"][i] / st["den"][i] if st["den"][i] > 1e-3 else 0.0
             theta = float(np.clip(theta, *self.THETA_RANGE))
-            # predicted remaining time per grid ratio after X; piecewise linear in 1/r between them
-            ra = solve_piecewise(tables.ratios, row + theta * dk, x, rb)
+            ap = tables.approach if k == len(tables.eval_distance_m) - 1 else None
+            if ap is not None and speed_ms is not None:
+                # the last point: predict from the train's own state (table (d), fine ratio grid)
+                on = True if powering is None else bool(np.broadcast_to(powering, ratio.shape)[i])
+                t_d, ref_d = ap.rows(float(np.broadcast_to(speed_ms, ratio.shape)[i]), on)
+                ra = solve_piecewise(ap.ratios, t_d + theta * (ref_d - t_d), x, rb)
+            else:
+                # predicted remaining time per grid ratio after X; piecewise linear in 1/r between them
+                ra = solve_piecewise(tables.ratios, row + theta * dk, x, rb)
             out[i] = ra
             st["rem"][i] = x
             st["pred"][i] = _interp_u(tables.ratios, row, ra)
@@ -432,7 +524,8 @@ def make_controller(
         k = int(np.argmin(np.abs(pts - float(s_m))))
         if k not in ks or abs(pts[k] - float(s_m)) > SAME_POINT_M:
             return state.ratio  # a decision we did not ask for: keep the ratio
-        new = ch.at_point(tables, k, state.ratio, arrival - state.t_s, state.v_ms)
+        new = ch.at_point(tables, k, state.ratio, arrival - state.t_s, state.v_ms,
+                          np.asarray(state.phase) == PHASE_POWER)
         chosen.append(np.asarray(new, float))
         return new
 
@@ -473,10 +566,8 @@ def load_tables(
         tb = read_dataset(root, "table_b", line=line_id, direction=direction, train_type=train_type).to_pandas()
     except (FileNotFoundError, OSError) as e:
         raise InputError(f"--tables {root}: cannot read the tables ({e}); run `planner tables` first") from None
-    try:
-        tc = read_dataset(root, "table_c", line=line_id, direction=direction, train_type=train_type).to_pandas()
-    except (FileNotFoundError, OSError):
-        tc = None  # optional: only the adaptive mode needs it
+    tc = _optional(root, "table_c", line_id, direction, train_type)  # only the adaptive mode needs
+    td = _optional(root, "table_d", line_id, direction, train_type)  # tables (c) and (d)
     if ta.empty:
         raise InputError(
             f"--tables {root}: no table_a rows for line={line_id} direction={direction} "
@@ -516,6 +607,7 @@ def load_tables(
                     if np.isnan(spd).any():
                         spd = None
         out[(o, d)] = RunningTimeTables(
+            approach=_approach(td, o, d, p["eval_point_id"].iloc[-1], root) if td is not None and n_x > 1 else None,
             origin=o,
             destination=d,
             ratios=ratios,
@@ -528,3 +620,46 @@ def load_tables(
             speed_ms=spd,
         )
     return out
+
+
+def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str):
+    """One partition of an optional dataset as a DataFrame, or None when the dataset is absent."""
+    from .datasets import read_dataset
+
+    try:
+        df = read_dataset(root, name, line=line_id, direction=direction, train_type=train_type).to_pandas()
+    except (FileNotFoundError, OSError):
+        return None
+    return None if df.empty else df
+
+
+def _approach(td, origin: str, destination: str, last_point: str, root: Path) -> ApproachTable | None:
+    """Table (d) of one interstation from its dataset rows (None when it has none)."""
+    g = td[(td.origin == origin) & (td.destination == destination)]
+    if g.empty:
+        return None
+    if set(g["eval_point_id"]) != {last_point}:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} is not at the last "
+                         f"evaluation point {last_point!r}; rebuild the tables")
+    speeds = np.sort(g["speed_kmh"].unique()) / 3.6
+    ratios = np.sort(g["ratio_after"].unique())[::-1]
+    powering = tuple(sorted({bool(x) for x in g["powering"]}, reverse=True))
+    n_p, n_v, n_a = len(powering), len(speeds), len(ratios)
+    if len(g) != n_p * n_v * n_a:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} has {len(g)} rows, expected "
+                         f"{n_p} phases x {n_v} speeds x {n_a} ratios; rebuild the tables")
+    t = np.full((2, n_p, n_v, n_a), np.nan)
+    ip = g["powering"].map({p: i for i, p in enumerate(powering)}).to_numpy()
+    iv = np.searchsorted(speeds, g["speed_kmh"].to_numpy(float) / 3.6)
+    ia = g["ratio_after"].map({r: i for i, r in enumerate(ratios)}).to_numpy()
+    t[0, ip, iv, ia] = g["remaining_time_s"].to_numpy(float)
+    t[1, ip, iv, ia] = g["remaining_time_ref_s"].to_numpy(float)
+    if np.isnan(t).any():
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} is incomplete; rebuild the tables")
+    vmax = g["vmax_kmh"].unique() / 3.6 if "vmax_kmh" in g else np.array([np.inf])
+    if len(vmax) != 1:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} has several vmax_kmh; "
+                         "rebuild the tables")
+    band = g["coast_band_kmh"].unique() / 3.6 if "coast_band_kmh" in g else np.array([0.0])
+    return ApproachTable(speeds_ms=speeds, powering=powering, ratios=ratios, time_s=t[0], ref_time_s=t[1],
+                         vmax_ms=float(vmax[0]), coast_band_ms=float(band[0]))

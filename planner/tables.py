@@ -25,13 +25,23 @@ results are assembled in the fixed task order, so the output does not depend
 on ``n_jobs`` or scheduling.
 
 3. Table (c), for the ``adaptive`` on-board mode: the same n_r constant-ratio
-   runs for a reference train at full load (one more batch of n_r runs), giving
-   at every point the remaining time at constant ratio of both trains and the
-   table train's speed there.
+   runs for a reference train (full load, traction × 0.9: the degraded train of
+   the margin report), in the same batch, giving at every point the remaining
+   time at constant ratio of both trains and the table train's speed there.
+4. Table (d), also for ``adaptive``, for sawtooth vehicles at the last evaluation point only: the
+   remaining time from a grid of states there (speed every 2 km/h, powering or
+   not) at every ratio of a 1 % grid, for the table and the reference train
+   (:func:`approach_table`, one batch of short runs). Tables (b) and (c) index
+   the state at a point by the ratio run before it; at the last point, where no
+   later decision can correct anything, the vehicle looks its own state up
+   instead (a sawtooth train's place in its coasting band is not a function of
+   that ratio, and cost up to 1.5 s there). A constant-speed vehicle's state at
+   the point is (r_b × maximum speed, or a braking curve), which the rows of
+   table (b) already index, so it gets no table (d).
 
 Datasets (hive-partitioned line / direction / train_type, see schemas below):
-``eval_points``, ``table_a``, ``table_b``, ``table_c``. The vehicle reads them
-back with :func:`planner.onboard.load_tables`.
+``eval_points``, ``table_a``, ``table_b``, ``table_c``, ``table_d``. The vehicle
+reads them back with :func:`planner.onboard.load_tables`.
 """
 from __future__ import annotations
 
@@ -46,7 +56,7 @@ from .datasets import declare, write_partitioned
 from .errors import InfeasibleError
 from .eval_points import DEFAULT_AFTER_DEPARTURE_M, EvalPoint, evaluation_points, interstation_length_m
 from .model import DIRECTIONS, Line
-from .onboard import RunningTimeTables
+from .onboard import ApproachTable, RunningTimeTables
 from .ratios import ratio_grid
 
 EVAL_POINTS_SCHEMA = declare(
@@ -95,17 +105,48 @@ TABLE_C_SCHEMA = declare(
         ("ratio", pa.float64(), "ratio run from departure to arrival"),
         ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
         ("remaining_time_ref_s", pa.float64(),
-         "the same for the reference train (load ref_load, same traction) [s]"),
+         "the same for the reference train (load ref_load, traction x ref_traction_factor) [s]"),
         ("ref_load", pa.float64(), "load factor of the reference train"),
+        ("ref_traction_factor", pa.float64(), "traction factor of the reference train"),
         ("speed_kmh", pa.float64(), "speed of the table train at the point at constant ratio [km/h]"),
     ],
     name="table_c",
     description="Table (c): remaining time at constant ratio for the table train and a reference "
-                "(full-load) train; lets the on-board 'adaptive' mode learn how far the real train "
-                "is from the tables.",
+                "(full-load, weak-traction) train; lets the on-board 'adaptive' mode learn how far the "
+                "real train is from the tables.",
+)
+TABLE_D_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "the last evaluation point of the interstation (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("speed_kmh", pa.float64(), "speed of the train as it passes the point [km/h] (2 km/h grid)"),
+        ("powering", pa.bool_(), "the train passes the point powering (notch on); false: coasting, "
+                                 "holding or braking (only sawtooth vehicles have both)"),
+        ("ratio_after", pa.float64(), "ratio run from the point to arrival (1 % grid plus table_a's ratios)"),
+        ("vmax_kmh", pa.float64(), "on-board maximum speed just after the point [km/h]; the target "
+                                   "there is ratio_after x vmax_kmh"),
+        ("coast_band_kmh", pa.float64(), "the vehicle's coasting band [km/h] (sawtooth cruise)"),
+        ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
+        ("remaining_time_ref_s", pa.float64(), "the same for the reference train of table_c [s]"),
+    ],
+    name="table_d",
+    description="Table (d): remaining time from the last evaluation point by the train's own state "
+                "(speed, powering) and a fine grid of ratios; the 'adaptive' mode's last decision.",
 )
 REF_LOAD = 1.0
-"""Load factor of the reference train of table (c): the full-load train of timetable practice."""
+"""Load factor of the reference train of tables (c) and (d): the full-load train."""
+REF_TRACTION = 0.9
+"""Traction factor of the reference train of tables (c) and (d) (0.9 = weak catenary). With
+``REF_LOAD`` it is the degraded train the margin report plans for (``MarginRule.degraded_*``):
+the adaptive mode places the real train between the table train and this one."""
+APPROACH_SPEED_STEP_MS = 2.0 / 3.6
+"""Speed step of table (d) [m/s] (2 km/h)."""
+APPROACH_RATIO_STEP = 0.01
+"""Ratio step of table (d)'s ratios after the last point (the grid ratios are kept as well)."""
+APPROACH_SPEED_MARGIN_MS = 3 * APPROACH_SPEED_STEP_MS
+"""Table (d) covers speeds up to the fastest table-train speed at the point plus this [m/s]."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,6 +168,9 @@ class InterstationTables:
         Speed at each point at constant ratio [m/s].
     ref_remaining_s : ndarray, shape (n_x, n_r)
         Table (c): remaining time from each point at constant ratio, reference train [s].
+    approach : ApproachTable or None
+        Table (d) at the last evaluation point (sawtooth vehicles; None for the others and where
+        a run of it stalls).
     remaining_s : ndarray, shape (n_x, n_r, n_r)
         Table (b) ``[x, i_before, j_after]`` [s].
     """
@@ -145,6 +189,8 @@ class InterstationTables:
     ref_remaining_s: np.ndarray | None = None
     ref_load: float = float("nan")
     speed_ms: np.ndarray | None = None
+    ref_traction_factor: float = float("nan")
+    approach: ApproachTable | None = None
 
     def onboard(self) -> RunningTimeTables:
         """The vehicle's view of these tables (same numbers as the datasets hold)."""
@@ -159,6 +205,7 @@ class InterstationTables:
             remaining_s=self.remaining_s,
             ref_remaining_s=self.ref_remaining_s,
             speed_ms=None if self.speed_ms is None else self.speed_ms.T.copy(),
+            approach=self.approach,
         )
 
 
@@ -196,6 +243,7 @@ def interstation_tables(
     load: float = 0.0,
     traction_factor: float = 1.0,
     ref_load: float = REF_LOAD,
+    ref_traction_factor: float = REF_TRACTION,
 ) -> InterstationTables:
     """Compute tables (a) and (b) of one interstation (module doc, steps 1–2).
 
@@ -211,8 +259,8 @@ def interstation_tables(
         Integrator settings (distance step).
     load, traction_factor : float
         Conditions the tables assume (DESIGN: load 0, traction 1.0).
-    ref_load : float
-        Load of the reference train of table (c).
+    ref_load, ref_traction_factor : float
+        Load and traction factor of the reference train of tables (c) and (d).
 
     Returns
     -------
@@ -235,7 +283,8 @@ def interstation_tables(
     try:
         both = simulate(track, train, np.concatenate([r, r]), snapshots_m=s_pts[1:],
                         load=np.concatenate([np.full(n_r, load), np.full(n_r, ref_load)]),
-                        traction_factor=traction_factor)
+                        traction_factor=np.concatenate([np.full(n_r, traction_factor),
+                                                        np.full(n_r, ref_traction_factor)]))
         full = _Half(both, slice(0, n_r))
         ref = _Half(both, slice(n_r, 2 * n_r))
         ref_rem = np.empty((n_x, n_r))
@@ -289,6 +338,17 @@ def interstation_tables(
             sel = g_of == k
             t_k = np.asarray(_snapshot(res.snapshots, s_pts[k]).t_s, float)[sel]
             remaining[k] = (total[sel] - t_k).reshape(len(first), n_r)[inv]
+    approach = None
+    # table (d) only where the state at the last point is not a function of the ratio run before
+    # it: a constant-speed vehicle there is at r_b x maximum (or on a braking curve), a sawtooth
+    # vehicle anywhere in its coasting band, powering or not (module doc, step 4)
+    if n_x > 1 and ref_rem is not None and train.cruise == "sawtooth":
+        try:
+            approach = approach_table(track, train, s_pts[-1], float(speed[:, -1].max()), r, load=load,
+                                      traction_factor=traction_factor, ref_load=ref_load,
+                                      ref_traction_factor=ref_traction_factor)
+        except InfeasibleError:
+            approach = None  # a start from (nearly) standstill stalls: the adaptive mode uses table (c)
     return InterstationTables(
         line_id=line.line_id,
         direction=direction,
@@ -304,7 +364,60 @@ def interstation_tables(
         ref_remaining_s=ref_rem,
         ref_load=float(ref_load) if ref_rem is not None else float("nan"),
         speed_ms=speed,
+        ref_traction_factor=float(ref_traction_factor) if ref_rem is not None else float("nan"),
+        approach=approach,
     )
+
+
+def approach_ratios(ratios: Sequence[float], step: float = APPROACH_RATIO_STEP) -> np.ndarray:
+    """Ratios after the last point in table (d): the grid plus a ``step`` grid down to its lowest, descending.
+
+    Examples
+    --------
+    >>> approach_ratios([1.0, 0.9], step=0.05).tolist()
+    [1.0, 0.95, 0.9]
+    """
+    r = np.asarray(ratios, float)
+    fine = np.arange(r[0], r[-1] - 1e-9, -step)
+    return np.unique(np.round(np.concatenate([r, fine]), 6))[::-1]
+
+
+def approach_table(track, train, s_x: float, top_speed_ms: float, ratios: Sequence[float], *,
+                   load: float, traction_factor: float, ref_load: float,
+                   ref_traction_factor: float) -> ApproachTable:
+    """Table (d) at the evaluation point ``s_x``: remaining time from a grid of states there.
+
+    One batch: every start speed 0, 2, 4 … km/h up to ``top_speed_ms`` plus a margin, in each
+    phase the vehicle can be in (powering or not; only a sawtooth vehicle's future depends on
+    it), times every ratio of :func:`approach_ratios`, for the table train and the reference
+    train. Each run starts at ``s_x`` at t = 0, so its running time is the remaining time.
+
+    Raises
+    ------
+    InfeasibleError
+        If a run stalls (e.g. the reference train from standstill on a steep rise).
+    """
+    from .run_curve import PHASE_COAST, PHASE_POWER, RunState, simulate
+
+    ra = approach_ratios(ratios)
+    v = np.arange(0.0, top_speed_ms + APPROACH_SPEED_MARGIN_MS + 1e-9, APPROACH_SPEED_STEP_MS)
+    powering = (True, False) if train.cruise == "sawtooth" else (True,)
+    n_p, n_v, n_a = len(powering), len(v), len(ra)
+    phase = np.repeat([PHASE_POWER if p else PHASE_COAST for p in powering], n_v * n_a).astype(np.int8)
+    speed = np.tile(np.repeat(v, n_a), n_p)
+    ratio = np.tile(ra, n_p * n_v)
+    n = speed.size
+    both = lambda x: np.concatenate([x, x])  # noqa: E731  (table train, then reference train)
+    start = RunState(s_m=np.full(2 * n, float(s_x)), t_s=np.zeros(2 * n), v_ms=both(speed),
+                     phase=both(phase), ratio=both(ratio))
+    res = simulate(track, train, both(ratio), start=start,
+                   load=np.r_[np.full(n, load), np.full(n, ref_load)],
+                   traction_factor=np.r_[np.full(n, traction_factor), np.full(n, ref_traction_factor)])
+    t = np.asarray(res.time_s, float).reshape(2, n_p, n_v, n_a)
+    k = track.node_index(float(s_x))
+    vmax = float(track.vmax_interval_ms[min(k, len(track.vmax_interval_ms) - 1)])
+    return ApproachTable(speeds_ms=v, powering=powering, ratios=ra, time_s=t[0], ref_time_s=t[1], vmax_ms=vmax,
+                         coast_band_ms=float(train.coast_band_ms) if train.cruise == "sawtooth" else 0.0)
 
 
 def table_tasks(line: Line, train_types: Sequence[str] | None = None) -> list[tuple[str, str, str, str]]:
@@ -405,8 +518,8 @@ def _concat(cols: list[dict[str, list]]) -> dict[str, list]:
 
 
 def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
-    """The ``eval_points``, ``table_a`` and ``table_b`` rows, with partition columns, in task order."""
-    ep, ta, tb, tc = [], [], [], []
+    """The ``eval_points`` and ``table_a`` … ``table_d`` rows, with partition columns, in task order."""
+    ep, ta, tb, tc, td = [], [], [], [], []
     for t in results:
         n_r, n_x = len(t.ratios), len(t.points)
         ep.append(_keys(t, n_x) | {
@@ -435,20 +548,38 @@ def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
                 "remaining_time_s": t.remaining_s[k, i, i],
                 "remaining_time_ref_s": t.ref_remaining_s[k, i],
                 "ref_load": [t.ref_load] * len(k),
+                "ref_traction_factor": [t.ref_traction_factor] * len(k),
                 "speed_kmh": t.speed_ms[i, k] * 3.6 if t.speed_ms is not None else np.full(len(k), np.nan),
+            })
+        if t.approach is not None:
+            ap, last = t.approach, t.points[-1]
+            p, v, a = (x.ravel() for x in np.meshgrid(np.arange(len(ap.powering)), np.arange(len(ap.speeds_ms)),
+                                                      np.arange(len(ap.ratios)), indexing="ij"))
+            td.append(_keys(t, len(p)) | {
+                "eval_point_id": [last.eval_point_id] * len(p),
+                "eval_position_m": np.full(len(p), last.position_m),
+                "speed_kmh": ap.speeds_ms[v] * 3.6,
+                "powering": np.asarray(ap.powering, bool)[p],
+                "ratio_after": ap.ratios[a],
+                "vmax_kmh": np.full(len(p), ap.vmax_ms * 3.6),
+                "coast_band_kmh": np.full(len(p), ap.coast_band_ms * 3.6),
+                "remaining_time_s": ap.time_s[p, v, a],
+                "remaining_time_ref_s": ap.ref_time_s[p, v, a],
             })
     out = {"eval_points": pa.table(_concat(ep)), "table_a": pa.table(_concat(ta)), "table_b": pa.table(_concat(tb))}
     if tc:
         out["table_c"] = pa.table(_concat(tc))
+    if td:
+        out["table_d"] = pa.table(_concat(td))
     return out
 
 
 SCHEMAS = {"eval_points": EVAL_POINTS_SCHEMA, "table_a": TABLE_A_SCHEMA, "table_b": TABLE_B_SCHEMA,
-           "table_c": TABLE_C_SCHEMA}
+           "table_c": TABLE_C_SCHEMA, "table_d": TABLE_D_SCHEMA}
 
 
 def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> list[Path]:
-    """Write the three datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
+    """Write the datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
     written: list[Path] = []
     for name, table in datasets(results).items():
         written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])

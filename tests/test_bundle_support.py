@@ -56,7 +56,7 @@ def make_line():
 
 def synthetic_tables(line, direction: str, train_type: str, ratios=(1.0, 0.8, 0.6),
                      pad_rows: int = 0) -> dict[str, pa.Table]:
-    """eval_points / table_a / table_b / table_c / stop_summary / stop_samples with made-up values.
+    """eval_points / table_a / table_b / table_c / table_d / stop_summary / stop_samples with made-up values.
 
     Columns as the tables step writes them (planner.tables), plus the partition
     columns as :func:`planner.bundle.read_partition` adds them. ``pad_rows``
@@ -64,7 +64,7 @@ def synthetic_tables(line, direction: str, train_type: str, ratios=(1.0, 0.8, 0.
     """
     pairs = line.interstations(direction)
     beacon_pts = {b.beacon_id: b.position_m for b in line.beacons_for(direction) if b.evaluation_point}
-    ep, ta, tb, tc = [], [], [], []
+    ep, ta, tb, tc, td = [], [], [], [], []
     for a, b in pairs:
         lo, hi = sorted((a.position_m, b.position_m))
         pts = [("dep", a.position_m, 0.0), ("dep+200", a.position_m + (200 if direction == "down" else -200), 200.0)]
@@ -84,14 +84,22 @@ def synthetic_tables(line, direction: str, train_type: str, ratios=(1.0, 0.8, 0.
             for r in ratios:
                 tc.append(dict(origin=a.station_id, destination=b.station_id, eval_point_id=pid,
                                eval_position_m=pos, ratio=r, remaining_time_s=120.0 / r,
-                               remaining_time_ref_s=125.0 / r, ref_load=1.0, speed_kmh=60.0 * r))
+                               remaining_time_ref_s=125.0 / r, ref_load=1.0, ref_traction_factor=0.9,
+                               speed_kmh=60.0 * r))
+        pid, pos, _ = pts[-1]
+        for v in (0.0, 2.0, 4.0):
+            for r in ratios:
+                td.append(dict(origin=a.station_id, destination=b.station_id, eval_point_id=pid,
+                               eval_position_m=pos, speed_kmh=v, powering=True, ratio_after=r,
+                               remaining_time_s=30.0 / r, remaining_time_ref_s=31.0 / r))
     ss = [dict(station_id=b.station_id, adhesion_kmh_s=x, stop_time_s=20.0 + x, start_distance_m=300.0 - x)
           for _, b in pairs for x in (2.5, 3.0, 3.5)]
     sm = [dict(station_id=b.station_id, adhesion_kmh_s=x, t_s=float(k), v_kmh=60.0 - k)
           for _, b in pairs for x in (2.5, 3.5) for k in range(4)]
     sm += [dict(station_id="S1", adhesion_kmh_s=9.0, t_s=float(k), v_kmh=float(k % 97)) for k in range(pad_rows)]
     out = {}
-    for name, rows in (("eval_points", ep), ("table_a", ta), ("table_b", tb), ("table_c", tc), ("stop_summary", ss),
+    for name, rows in (("eval_points", ep), ("table_a", ta), ("table_b", tb), ("table_c", tc), ("table_d", td),
+                       ("stop_summary", ss),
                        ("stop_samples", sm)):
         t = pa.Table.from_pylist(rows)
         for col, val in (("line", line.line_id), ("direction", direction), ("train_type", train_type)):

@@ -6,8 +6,8 @@ two interstations per direction —
 
 * TKD→OHS and OHS→TKD, the 7.0 km runs (longest, most evaluation points, TKD→OHS has the
   tightest margin of the timetable);
-* HGO→MDR down, where the sawtooth E6 has its largest error in the adaptive mode (the coasting
-  band's phase at the home-signal beacon 325 m before the stop);
+* HGO→MDR down, where the sawtooth E6 had its largest error in the adaptive mode (the coasting
+  band's phase at the home-signal beacon 325 m before the stop, until table (d));
 * KWB→SKM up, where the E6 adaptive mode once chose the lowest ratio 325 m before the stop
   (5 s late, perturbed) before table (c) was smoothed: a regression case.
 
@@ -44,12 +44,6 @@ NEAREST_REASON = (
     "the arrival any more (the train is about to brake, its row spans < 1 s at ratios >= 0.7), so "
     "half that gap, 2.5-4 s, remains (measured max 3.7 s nominal, 5.3 s perturbed on the line)"
 )
-SAWTOOTH_REASON = (
-    "E6 sawtooth, adaptive: its remaining time depends on where in the 5 km/h coasting band it "
-    "passes the last beacon; table-(b) rows at neighbouring grid ratios are at other phases, so "
-    "interpolating them for a fractional ratio is off by up to ~1.5 s (HGO->MDR: 1.06 s nominal, "
-    "1.47 s perturbed); the median bound is met"
-)
 
 
 @pytest.fixture(scope="module")
@@ -84,23 +78,28 @@ def test_subset_is_representative(results):
 
 
 @pytest.mark.parametrize("sc", SCENARIOS)
-@pytest.mark.parametrize("tt", ["E10", "E8"])
+@pytest.mark.parametrize("tt", TYPES)
 def test_adaptive_meets_the_issue_bounds(results, tt, sc):
     e = _errors(results[(tt, "adaptive", sc)])
     assert np.median(e) <= BETTER_MEDIAN_S and e.max() <= BETTER_MAX_S, (np.median(e), e.max())
 
 
-@pytest.mark.parametrize("sc", SCENARIOS)
-def test_adaptive_sawtooth_median(results, sc):
-    e = _errors(results[("E6", "adaptive", sc)])
-    assert np.median(e) <= BETTER_MEDIAN_S, np.median(e)
+def test_adaptive_is_not_tuned_to_the_perturbed_train():
+    """The reference train of tables (c)/(d) is the perturbed scenario's train (full load,
+    traction x 0.9), so the perturbed figures could flatter the mode: a train between the two
+    (load 0.5, traction x 0.95) on the sawtooth E6's worst interstation of the plain adaptive
+    mode still arrives within the median bound, and within 1.5 s at worst (the whole line:
+    `make bench`, scenario 'half')."""
+    from planner.closed_loop import Scenario
 
-
-@pytest.mark.xfail(strict=True, reason=SAWTOOTH_REASON)
-@pytest.mark.parametrize("sc", SCENARIOS)
-def test_adaptive_sawtooth_max(results, sc):
-    e = _errors(results[("E6", "adaptive", sc)])
-    assert e.max() <= BETTER_MAX_S, e.max()
+    line = planner.load_line(SAMPLE)
+    grid = ratio_grid(None, line_max_speed_ms=line.max_speed_ms)
+    half = Scenario("half", 0.5, 0.95)
+    for tt, (o, d) in (("E6", ("HGO", "MDR")), ("E10", ("TKD", "OHS"))):
+        tabs = interstation_tables(line, tt, o, d, grid).onboard()
+        r = closed_loop_interstation(line, tt, tabs, scenario=half, mode="adaptive")
+        e = np.abs(r.error_s[r.feasible])
+        assert np.median(e) <= BETTER_MEDIAN_S and e.max() <= 1.5, (tt, np.median(e), e.max())
 
 
 @pytest.mark.parametrize("sc", SCENARIOS)

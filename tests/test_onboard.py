@@ -106,6 +106,7 @@ def test_controller_ignores_other_decisions_and_records_choices():
         ratio = np.array([1.0, 0.5])
         t_s = np.array([10.0, 10.0])
         v_ms = np.array([20.0, 10.0])
+        phase = np.array([0, 2], dtype=np.int8)
 
     ctl, decision_m, chosen = make_controller(t, "nearest", np.array([200.0, 200.0]))
     assert decision_m == [200.0, 900.0]
