@@ -190,7 +190,7 @@ class RunningTimeTables:
         from x on [s].
     ref_remaining_s : ndarray, shape (n_x, n_r), optional
         Table (c): remaining time from point x at constant ``ratios[i]`` for
-        the reference (full-load) train [s]; needed by the ``adaptive`` mode.
+        the reference (full-load, traction × 0.9) train [s]; needed by the ``adaptive`` mode.
     speed_ms : ndarray, shape (n_x, n_r), optional
         Table (c): speed of the table train at point x at constant ``ratios[i]`` [m/s].
     approach : ApproachTable, optional
