@@ -92,12 +92,8 @@ from typing import Callable, Protocol
 import numpy as np
 
 from .errors import InputError
+from .run_curve import PHASE_POWER  # the run state's phase code (a constant; no simulation here)
 
-SAWTOOTH_MIN_FRACTION = 0.5
-"""A sawtooth vehicle coasts no lower than this fraction of its target
-(``planner.run_curve.SAWTOOTH_MIN_FRACTION``; a test keeps the two equal)."""
-PHASE_POWER = 0
-"""Phase code of a powering step in the simulator's run state (``planner.run_curve.PHASE_POWER``)."""
 SAME_POINT_M = 1e-3
 """A decision within this distance [m] of an evaluation point is that point (grid round-off)."""
 
@@ -133,7 +129,7 @@ class ApproachTable:
     -----
     Each column is smooth in speed except at its kinks: the target (above it the train brakes
     at once) and, not powering, the coasting band's lower edge ``max(target − band,
-    SAWTOOTH_MIN_FRACTION × target)`` (below it the train powers at once). :meth:`rows`
+    run_curve.SAWTOOTH_MIN_FRACTION × target)`` (below it the train powers at once). :meth:`rows`
     interpolates linearly across them, which is off by up to ~0.8 s within one speed step of
     a kink. Taking both nodes on the train's side of the kink instead was tried and measured
     worse in closed loop on the sample line (extrapolating a steep column), so it is not done.
@@ -155,11 +151,10 @@ class ApproachTable:
         the one it does.
         """
         p = self.powering.index(bool(powering)) if bool(powering) in self.powering else 0
-        v = float(np.clip(speed_ms, self.speeds_ms[0], self.speeds_ms[-1]))
-        j = int(np.clip(np.searchsorted(self.speeds_ms, v, side="right") - 1, 0, len(self.speeds_ms) - 2)) \
-            if len(self.speeds_ms) > 1 else 0
         if len(self.speeds_ms) == 1:
             return self.time_s[p, 0], self.ref_time_s[p, 0]
+        v = float(np.clip(speed_ms, self.speeds_ms[0], self.speeds_ms[-1]))
+        j = int(np.clip(np.searchsorted(self.speeds_ms, v, side="right") - 1, 0, len(self.speeds_ms) - 2))
         f = (v - self.speeds_ms[j]) / (self.speeds_ms[j + 1] - self.speeds_ms[j])
         t = (1.0 - f) * self.time_s[p, j] + f * self.time_s[p, j + 1]
         ref = (1.0 - f) * self.ref_time_s[p, j] + f * self.ref_time_s[p, j + 1]
@@ -448,6 +443,10 @@ class AdaptiveRule:
             raise RuntimeError("AdaptiveRule.at_point before depart")
         out = np.empty_like(ratio)
         dk = self._delta_row(tables, k)
+        ap = tables.approach if k == len(tables.eval_distance_m) - 1 and speed_ms is not None else None
+        if ap is not None:
+            v = np.broadcast_to(np.asarray(speed_ms, float), ratio.shape)
+            on = np.broadcast_to(True if powering is None else np.asarray(powering, bool), ratio.shape)
         for i, (rb, x) in enumerate(zip(ratio, rem)):
             row = row_at(tables, k, rb)
             # the leg just run, at ratio rb: observed vs. table time, and the reference's extra
@@ -456,11 +455,9 @@ class AdaptiveRule:
             st["den"][i] += st["delta"][i] - self._delta(tables, k, rb)
             theta = st["num"][i] / st["den"][i] if st["den"][i] > 1e-3 else 0.0
             theta = float(np.clip(theta, *self.THETA_RANGE))
-            ap = tables.approach if k == len(tables.eval_distance_m) - 1 else None
-            if ap is not None and speed_ms is not None:
+            if ap is not None:
                 # the last point: predict from the train's own state (table (d), fine ratio grid)
-                on = True if powering is None else bool(np.broadcast_to(powering, ratio.shape)[i])
-                t_d, ref_d = ap.rows(float(np.broadcast_to(speed_ms, ratio.shape)[i]), on)
+                t_d, ref_d = ap.rows(float(v[i]), bool(on[i]))
                 ra = solve_piecewise(ap.ratios, t_d + theta * (ref_d - t_d), x, rb)
             else:
                 # predicted remaining time per grid ratio after X; piecewise linear in 1/r between them

@@ -222,21 +222,15 @@ def test_table_d_at_the_table_trains_own_state_reproduces_table_b(hilly):
     limitation of table (d), see ApproachTable). Elsewhere the two agree within 0.5 s: most
     columns within 0.01 s, up to ~0.3 s where a high state brakes down to a low ratio's target
     (braking time is far from linear in the start speed)."""
-    from planner.onboard import SAWTOOTH_MIN_FRACTION
-
     ln, results = hilly
     compared, worst = 0, 0.0
     for t in (r for r in results if r.approach is not None):
         ap = t.approach
         cols = np.array([int(np.flatnonzero(np.isclose(ap.ratios, r))[0]) for r in t.ratios])
-        target = t.ratios * ap.vmax_ms
-        bottom = np.maximum(target - ap.coast_band_ms, SAWTOOTH_MIN_FRACTION * target)
         v, powering = _last_states(ln, t)
         for i in range(len(t.ratios)):
             time_d, ref_d = ap.rows(v[i], powering[i])
-            far = np.abs(target - v[i]) > 1.01 * tables_step()
-            if not powering[i]:
-                far &= np.abs(bottom - v[i]) > 1.01 * tables_step()
+            far = _off_kinks(ap, v[i], powering[i])[cols]
             err = np.abs(time_d[cols] - t.remaining_s[-1, i])[far]
             compared += int(far.sum())
             worst = max(worst, float(err.max(initial=0.0)))
@@ -246,17 +240,18 @@ def test_table_d_at_the_table_trains_own_state_reproduces_table_b(hilly):
     assert worst > 0.0  # the check compared something
 
 
-def tables_step() -> float:
+def _off_kinks(ap, v: float, powering: bool) -> np.ndarray:
+    """Columns of table (d) with no kink within one speed step of ``v``: the ratio's target,
+    and, not powering, the coasting band's lower edge (where the time jumps)."""
+    from planner.run_curve import SAWTOOTH_MIN_FRACTION
     from planner.tables import APPROACH_SPEED_STEP_MS
 
-    return APPROACH_SPEED_STEP_MS
-
-
-def test_onboard_sawtooth_floor_matches_the_simulator():
-    from planner import onboard, run_curve
-
-    assert onboard.SAWTOOTH_MIN_FRACTION == run_curve.SAWTOOTH_MIN_FRACTION
-    assert onboard.PHASE_POWER == run_curve.PHASE_POWER
+    target = ap.ratios * ap.vmax_ms
+    far = np.abs(target - v) > 1.01 * APPROACH_SPEED_STEP_MS
+    if not powering:
+        bottom = np.maximum(target - ap.coast_band_ms, SAWTOOTH_MIN_FRACTION * target)
+        far &= np.abs(bottom - v) > 1.01 * APPROACH_SPEED_STEP_MS
+    return far
 
 
 def test_table_d_speed_interpolation_converges(hilly):
@@ -279,16 +274,10 @@ def test_table_d_speed_interpolation_converges(hilly):
     assert len(fine.speeds_ms) > 1.9 * len(coarse.speeds_ms)
     mids = fine.speeds_ms[1:-1:2]  # the nodes the coarse grid lacks
     mids = mids[mids < coarse.speeds_ms[-1]]
-    from planner.onboard import SAWTOOTH_MIN_FRACTION
-
-    target = coarse.ratios * coarse.vmax_ms
-    bottom = np.maximum(target - coarse.coast_band_ms, SAWTOOTH_MIN_FRACTION * target)
     diffs = []
     for v in mids:
         for p in (True, False):
-            far = np.abs(target - v) > 1.01 * step  # kinks: see the test above
-            if not p:
-                far &= np.abs(bottom - v) > 1.01 * step
+            far = _off_kinks(coarse, v, p)  # kinks: see the test above
             diffs.append(np.abs(coarse.rows(v, p)[0] - fine.rows(v, p)[0])[far])
     d = np.concatenate(diffs)
     assert d.size > 0.8 * len(mids) * 2 * len(coarse.ratios)
