@@ -34,21 +34,25 @@ What each row holds, and how
   1. the degraded run at ratio 1.0 from departure to the **pattern start**,
      where the on-board stopping control takes over: the TASC beacon of the
      arrival stop in that direction, or ``approach_m`` (550 m) before the
-     stop marker where there is none (clipped to the second half of a short
-     leg), simulated with the run-curve integrator;
+     stop marker where there is none (:func:`planner.approach.approach_start`,
+     the one definition the stopping-pattern sweep uses too), simulated with
+     the run-curve integrator;
   2. plus the duration of the minimum-time jerk-limited stopping pattern
      (:func:`planner.stopping.solve_stop`) from the degraded speed there, at
      the lowest adhesion: deceleration limit ``min(comfort, adhesion)`` plus
-     the gradient's part under the train front
-     (:func:`planner.stopping.decel_limit_profile`), speed limit the on-board
+     the gradient's part, the gradient averaged over the train as in the run
+     curves and bounded per piece from the safe side
+     (:func:`planner.approach.decel_limits`), speed limit the on-board
      maximum over the approach, jerk limit the vehicle's — the approach as
      :mod:`planner.stops` (the line-level sweep, and the vehicle) builds it.
 
   If the lowest adhesion cannot stop the train from that start within the
   remaining distance, the start moves back (in 25 m steps) until it can; the
-  row's ``note`` says so. ``stop_time_nominal_s`` is the nominal run's time
-  over the same approach (constant stopping brake, as in the tables), so the
-  adhesion effect can be read off; ``adhesion_loss_s`` is the growth of the
+  row's ``note`` says so. ``stop_time_nominal_s`` is the nominal run's stop
+  over the same approach with the same stop model: the pattern from the
+  nominal run's speed there at the *highest* adhesion of the sweep, so
+  ``degraded_loss_stop_s`` is the effect of the adhesion and the approach speed
+  alone (no change of stop model hides in it); ``adhesion_loss_s`` is the growth of the
   pattern duration from the highest to the lowest adhesion of the sweep at
   the nominal approach speed (DESIGN §5: "the margin report uses the growth
   in stopping time").
@@ -98,7 +102,8 @@ import pyarrow as pa
 from .datasets import declare, write_partitioned
 from .errors import InputError
 from .model import DIRECTIONS, Line, sign
-from .stops import DEFAULT_ADHESION_KMH_S, DEFAULT_APPROACH_M, adhesion_levels
+from .approach import DEFAULT_APPROACH_M, approach_start
+from .stops import DEFAULT_ADHESION_KMH_S, adhesion_levels
 from .units import KMH_S
 
 ROUND_UNIT_S = 10.0
@@ -376,77 +381,35 @@ def passed_stations(line: Line, origin: str, destination: str) -> tuple[str, ...
 # Gathering the inputs: simulator, tables, stopping patterns, closed loop
 # =====================================================================================
 
-def pattern_start_m(line: Line, origin: str, destination: str, length_m: float,
-                    approach_m: float = DEFAULT_APPROACH_M) -> tuple[float, str]:
-    """Running distance [m] where the stopping pattern of the arrival starts, and its source.
+def approach_limits(line: Line, train, track, s_start_m: float):
+    """Speed limits [m/s] and safe-side gradient steps [‰] over the approach from ``s_start_m``.
 
-    The last TASC beacon of the direction strictly inside the leg (``tasc``),
-    else ``approach_m`` before the arrival stop marker (``approach``); never
-    before the middle of the leg (``mid-leg``): on a short leg the train is
-    still accelerating that far back, and the stopping control would not take
-    over there.
+    The approach as :func:`planner.stops.approach_patterns` (and the vehicle)
+    builds it, from :mod:`planner.approach`: speed limit = the on-board maximum
+    of each grid interval; gradient = averaged over the train, each linear
+    piece at its least favourable value.
     """
-    d = line.direction_between(origin, destination)
-    sg = sign(d)
-    x0 = line.station(origin).stop_m(d)
-    tasc = [sg * (b.position_m - x0) for b in line.beacons_for(d) if b.kind == "tasc"]
-    tasc = [s for s in tasc if 0.0 < s < length_m]
-    if tasc:
-        s, src = max(tasc), "tasc"
-    else:
-        s, src = length_m - approach_m, "approach"
-    if s < 0.5 * length_m:
-        s, src = 0.5 * length_m, "mid-leg"
-    return float(s), src
+    from . import approach
 
-
-def approach_limits(line: Line, track, s_start_m: float) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
-    """Speed limits [m/s] and gradients [‰] over an approach, as step functions from its start.
-
-    The same construction as :func:`planner.stops.approach_patterns`, so the
-    patterns here are the ones the stopping-pattern sweep (and the vehicle)
-    uses: speed limit = the on-board maximum of each grid interval
-    (restriction held to the tail, minus the speed margin); gradient = the
-    gradient under the train front in the running direction (gaps level).
-    """
-    k0 = track.node_index(s_start_m)
-    s = track.s_m[k0:] - track.s_m[k0]
-    vi = track.vmax_interval_ms[k0:]
-    speed: list[tuple[float, float]] = []
-    for x, v in zip(s[:-1], vi):
-        if not speed or v != speed[-1][1]:
-            speed.append((float(x), float(v)))
-    sg = track.direction_sign
-    c0 = float(track.position_m(s_start_m))
-    length = float(track.length_m - s_start_m)
-    g = line.gradients
-    starts, ends, vals = np.asarray(g.start_m), np.asarray(g.end_m), np.asarray(g.value)
-    edges = sg * (np.concatenate([starts, ends]) - c0)
-    xs = [0.0] + sorted({float(e) for e in edges if 0.0 < e < length})
-    grads: list[tuple[float, float]] = []
-    for k, x in enumerate(xs):
-        x_end = xs[k + 1] if k + 1 < len(xs) else length
-        c = c0 + sg * 0.5 * (x + x_end)  # the middle of the step decides its value
-        i = int(np.searchsorted(starts, c, side="right")) - 1
-        rise = float(vals[i]) if i >= 0 and c < ends[i] else 0.0
-        permil = round(sg * rise * 1000.0, 9) + 0.0
-        if not grads or grads[-1][1] != permil:
-            grads.append((x, permil))
+    speed = approach.speed_limits(track, s_start_m)
+    grads = approach.gradient_steps(line, train.length_m, track.direction, float(track.position_m(s_start_m)),
+                                    float(track.length_m - s_start_m))
     return speed, grads
 
 
-def stop_pattern(train, v_start_ms: float, x_stop_m: float, adhesion_ms2: float, speed, grads):
-    """Solve the stopping pattern of an approach at one adhesion level (a StopPattern)."""
-    from .stopping import decel_limit_profile, solve_stop
+def stop_pattern(line: Line, train, track, s_start_m: float, v_start_ms: float, adhesion_ms2: float, speed, grads):
+    """Solve the stopping pattern of the approach from ``s_start_m`` at one adhesion level (a StopPattern)."""
+    from . import approach
+    from .stopping import StopPattern, solve_stop
 
-    from .stopping import StopPattern
-
+    x_stop = float(track.length_m - s_start_m)
     v0 = min(float(v_start_ms), speed[0][1])  # the simulator's speed at a node may exceed its interval by round-off
     try:
-        dl = decel_limit_profile(train.comfort_accel_ms2, adhesion_ms2, grads)
+        dl = approach.decel_limits(line, train, track.direction, float(track.position_m(s_start_m)), x_stop,
+                                   adhesion_ms2, grads)
     except InputError as e:  # a fall so steep that no deceleration is left: no pattern
-        return StopPattern(False, str(e), v_start_ms=v0, x_stop_m=x_stop_m, jerk_max_ms3=train.jerk_limit_ms3)
-    return solve_stop(v0, x_stop_m, jerk_max=train.jerk_limit_ms3, decel_limits=dl, speed_limits=speed)
+        return StopPattern(False, str(e), v_start_ms=v0, x_stop_m=x_stop, jerk_max_ms3=train.jerk_limit_ms3)
+    return solve_stop(v0, x_stop, jerk_max=train.jerk_limit_ms3, decel_limits=dl, speed_limits=speed)
 
 
 @dataclass
@@ -504,7 +467,7 @@ def _closed_loop(track, train, tables, designated: np.ndarray, rule: MarginRule,
     return r0[:n], res
 
 
-def _first_pattern(line, train, track, res, run: int, cands, length_m: float, adhesion_ms2: float):
+def _first_pattern(line, train, track, res, run: int, cands, adhesion_ms2: float):
     """First pattern start (moving back from the nominal one) from which ``run`` can stop at this adhesion.
 
     Returns ``(start_m, t_s, v_ms, pattern, speed_limits, gradients)``; ``pattern`` is
@@ -514,8 +477,8 @@ def _first_pattern(line, train, track, res, run: int, cands, length_m: float, ad
     for c in cands:
         sn = res.snapshots[c]
         v, t = float(sn.v_ms[run]), float(sn.t_s[run])
-        speed, grads = approach_limits(line, track, c)
-        pat = stop_pattern(train, v, length_m - c, adhesion_ms2, speed, grads)
+        speed, grads = approach_limits(line, train, track, c)
+        pat = stop_pattern(line, train, track, c, v, adhesion_ms2, speed, grads)
         if first is None:
             first = (c, t, v, None, speed, grads)
         if pat.feasible:
@@ -582,7 +545,10 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
             energy_a_kwh = np.full(len(tables.ratios), np.nan)
     energy_a = np.asarray(energy_a_kwh, float)
     pts_s = [float(x) for x in tables.eval_distance_m]
-    s_p, src = pattern_start_m(line, origin, destination, length, approach_m)
+    start = approach_start(line, origin, destination, approach_m)
+    # at or before the departure marker (approach not shorter than the leg): from the marker, where
+    # the train stands and no pattern exists; the note then says the degraded minimum is unknown
+    s_p, src = max(start.s_m, 0.0), start.source
     # candidate pattern starts, moving back from s_p, for when the lowest adhesion needs longer
     n_c = int(max(s_p - 0.25 * length, 0.0) // PATTERN_BACKOFF_M) + 1
     cands = [c for c in (s_p - PATTERN_BACKOFF_M * j for j in range(n_c)) if c > 0.0] or [s_p]
@@ -601,7 +567,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     adh = np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float)
     a_min = float(adh[0])
     # degraded minimum: degraded run to the pattern start + pattern at the lowest adhesion
-    c, t_deg, v_deg, pat, speed, grads = _first_pattern(line, train, track, res, 1, cands, length, a_min * KMH_S)
+    c, t_deg, v_deg, pat, speed, grads = _first_pattern(line, train, track, res, 1, cands, a_min * KMH_S)
     note = ""
     if pat is None:
         note = (f"no stopping pattern at adhesion {a_min:g} km/h/s from any start up to "
@@ -612,14 +578,22 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
         src += "+moved"
     t_nom_c = float(res.snapshots[c].t_s[0])
     stop_deg = pat.duration_s if pat is not None else math.nan
-    stop_nom = float(t_end[0]) - t_nom_c
+    # the nominal stop over the same approach with the same stop model (the pattern), at the best
+    # adhesion of the sweep: the stop part of the bad-day loss is then the adhesion effect alone
+    p_nom = stop_pattern(line, train, track, c, float(res.snapshots[c].v_ms[0]), float(adh[-1]) * KMH_S,
+                         speed, grads)
+    stop_nom = p_nom.duration_s if p_nom.feasible else math.nan
+    if not p_nom.feasible and pat is not None:
+        note = (note + "; " if note else "") + (
+            f"no nominal stopping pattern at adhesion {float(adh[-1]):g} km/h/s from {length - c:.0f} m "
+            "before the marker: the stop part of the loss is unknown")
     degraded = t_deg + stop_deg
     # the adhesion effect at the nominal approach speed, every level from one start
-    cn, _, v_nom, pn, sp_n, gr_n = _first_pattern(line, train, track, res, 0, cands, length, a_min * KMH_S)
+    cn, _, v_nom, pn, sp_n, gr_n = _first_pattern(line, train, track, res, 0, cands, a_min * KMH_S)
     sweep = np.full(adh.size, math.nan)
     if pn is not None:
         for i, a in enumerate(adh):
-            p = stop_pattern(train, v_nom, length - cn, a * KMH_S, sp_n, gr_n)
+            p = stop_pattern(line, train, track, cn, v_nom, a * KMH_S, sp_n, gr_n)
             sweep[i] = p.duration_s if p.feasible else math.nan
     loss = float(sweep[0] - sweep[-1])
 
@@ -1058,7 +1032,7 @@ MARGINS_SCHEMA = declare(
          "where that is: 'tasc' beacon, 'approach' distance, 'mid-leg'; '+moved' when the lowest adhesion needed an earlier start"),
         ("pattern_start_speed_degraded_kmh", pa.float64(), "degraded run's speed at the pattern start [km/h]"),
         ("stop_time_degraded_s", pa.float64(), "stopping-pattern duration at the lowest adhesion from that speed [s]"),
-        ("stop_time_nominal_s", pa.float64(), "nominal minimum run's time over the same approach (stopping brake) [s]"),
+        ("stop_time_nominal_s", pa.float64(), "stopping pattern over the same approach from the nominal minimum run's speed, at the highest adhesion of the sweep [s]"),
         ("adhesion_min_kmh_s", pa.float64(), "lowest adhesion level of the sweep [km/h/s]"),
         ("adhesion_loss_s", pa.float64(),
          "stopping-pattern duration at the lowest minus at the highest adhesion, nominal approach speed [s]"),

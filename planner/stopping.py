@@ -99,20 +99,15 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from .dynamics import track_accel_ms2
 from .errors import InfeasibleError, InputError
 
 __all__ = [
-    "GRADIENT_DECEL_MS2_PER_PERMIL",
     "PatternSamples",
     "StopPattern",
     "decel_limit_profile",
     "solve_stop",
 ]
-
-GRADIENT_DECEL_MS2_PER_PERMIL = 0.0098
-"""Deceleration a gradient of 1 ‰ adds (rising) or takes away (falling) [m/s² per ‰].
-
-g/1000 rounded as in DESIGN §5 (0.0098·s m/s² for s ‰)."""
 
 _INF = math.inf
 _MAX_STEPS = 10_000  # guard against a construction that fails to make progress (never hit in tests)
@@ -290,14 +285,19 @@ def decel_limit_profile(
     comfort_ms2: float,
     adhesion_ms2: float,
     gradient_segments: Sequence[tuple[float, float]] = ((0.0, 0.0),),
+    rotating_mass_factor: float = 0.0,
 ) -> list[tuple[float, float]]:
     """Largest deceleration available along a station approach, as a step function.
 
-    ``A(x) = min(comfort, adhesion) + 0.0098 · s(x)``  [m/s²], with ``s`` the
-    gradient in ‰ *in the running direction* (DESIGN §5): comfort and adhesion
-    both bound the braking effort (what passengers feel, what the wheel–rail
-    contact transmits); a rising gradient adds its share of gravity to the
-    deceleration achieved, a falling one (``s < 0``) takes it away.
+    ``A(x) = min(comfort, adhesion) + g s(x) / 1000 / (1 + ρ)``  [m/s²], with
+    ``s`` the gradient in ‰ *in the running direction* (DESIGN §5): comfort
+    and adhesion both bound the braking effort (what passengers feel, what the
+    wheel–rail contact transmits); a rising gradient adds its share of gravity
+    to the deceleration achieved, a falling one (``s < 0``) takes it away. The
+    gravity part is the run curves' (:func:`planner.dynamics.track_accel_ms2`:
+    the weight M g s acts on the inertial mass M (1 + ρ)). For a line, ``s``
+    is the gradient averaged over the train, bounded per piece from the safe
+    side: :func:`planner.approach.decel_limits` builds it.
 
     Parameters
     ----------
@@ -308,6 +308,8 @@ def decel_limit_profile(
     gradient_segments : sequence of (x_from_m, gradient_permil)
         Gradient from ``x_from_m`` on (positions from the pattern start, sorted,
         the first at 0), in ‰, positive when rising in the running direction.
+    rotating_mass_factor : float
+        The train's rotating-mass allowance ρ (>= 0; 0 gives g/1000 per ‰).
 
     Returns
     -------
@@ -324,10 +326,11 @@ def decel_limit_profile(
     Examples
     --------
     >>> decel_limit_profile(1.0, 0.8, [(0.0, 0.0), (100.0, -10.0), (250.0, 5.0)])
-    [(0.0, 0.8), (100.0, 0.702), (250.0, 0.849)]
+    [(0.0, 0.8), (100.0, 0.7019335), (250.0, 0.84903325)]
     """
     comfort = _check_number("comfort_ms2", comfort_ms2, positive=True)
     adhesion = _check_number("adhesion_ms2", adhesion_ms2, positive=True)
+    rho = _check_number("rotating_mass_factor", rotating_mass_factor)
     base = min(comfort, adhesion)
     try:
         segs = list(gradient_segments)
@@ -337,7 +340,7 @@ def decel_limit_profile(
             if segs else [(0.0, 0.0)])
     out: list[tuple[float, float]] = []
     for i, (x, s) in enumerate(segs):
-        value = round(base + GRADIENT_DECEL_MS2_PER_PERMIL * s, 12)  # round: stable merging/printing
+        value = round(base - float(track_accel_ms2(s / 1000.0, 0.0, rho)), 12)  # round: stable merging/printing
         if not value > 0.0:
             raise InputError(
                 f"gradient_segments[{i}]: at x_from={x!r} m the falling gradient {s!r} ‰ leaves "

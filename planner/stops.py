@@ -6,13 +6,14 @@ train type, the minimum-time jerk-limited stopping pattern of
 decelerations, so the vehicle can pick the pattern for today's rail condition
 and the margin report can size the margin from the growth in stopping time.
 
-One *approach* is set up from the line as the vehicle meets it:
+One *approach* is set up from the line as the vehicle meets it, by
+:mod:`planner.approach` (the one definition the margin report uses too):
 
 * **start**: the TASC beacon before the stop marker (the last ``tasc`` beacon
   read in that direction inside the interstation), where the on-board unit
   learns its exact distance to go; without one, a fixed distance
   ``approach_m`` (550 m by default, the usual TASC beacon spacing) before
-  the marker;
+  the marker (:func:`planner.approach.approach_start`);
 * **start speed**: the speed of the minimum-time run there (ratio 1.0, load 0,
   nominal traction, :func:`planner.run_curve.simulate`; the point is an exact
   grid node, read from a snapshot). The pattern takes it with acceleration 0;
@@ -20,10 +21,11 @@ One *approach* is set up from the line as the vehicle meets it:
   restriction held until the tail clears, minus the vehicle's speed margin),
   which is piecewise constant on the run-curve grid, as a step function of the
   distance from the approach start;
-* **deceleration limits**: ``min(comfort, adhesion) + 0.0098 · s`` for the
-  gradient ``s`` [‰] under the train front in the running direction (sign
-  flipped for ``up``), by :func:`planner.stopping.decel_limit_profile`, one
-  profile per adhesion level;
+* **deceleration limits**: ``min(comfort, adhesion) + g s / 1000 / (1 + ρ)``
+  for the gradient ``s`` [‰] averaged over the whole train in the running
+  direction (sign flipped for ``up``), exactly as the run curves take it, each
+  linear piece bounded by its least favourable value
+  (:func:`planner.approach.decel_limits`), one profile per adhesion level;
 * **jerk**: the vehicle's ``jerk_limit_ms3``.
 
 An approach with no admissible pattern at some adhesion level is kept as a row
@@ -48,9 +50,11 @@ import numpy as np
 import pyarrow as pa
 
 from .datasets import declare, write_partitioned
+from . import approach as _approach
+from .approach import DEFAULT_APPROACH_M
 from .errors import InputError, UnknownNameError
 from .model import DIRECTIONS, Line, sign
-from .stopping import StopPattern, decel_limit_profile, solve_stop
+from .stopping import StopPattern, solve_stop
 from .units import KMH_S
 
 __all__ = [
@@ -71,8 +75,6 @@ __all__ = [
     "write_stops",
 ]
 
-DEFAULT_APPROACH_M = 550.0
-"""Approach length where an interstation has no TASC beacon [m] (the usual beacon spacing)."""
 DEFAULT_SAMPLE_DT_S = 0.1
 """Time step of the sampled patterns in ``stop_samples`` [s]."""
 V_START_ROUNDOFF_MS = 1e-6
@@ -188,7 +190,9 @@ class ApproachResult:
     speed_limits : tuple of (x_from_m, speed_ms)
         On-board maximum over the approach.
     gradients_permil : tuple of (x_from_m, gradient_permil)
-        Gradient under the front, positive rising in the running direction.
+        Gradient averaged over the train, positive rising in the running
+        direction, each linear piece at its least favourable value
+        (:func:`planner.approach.gradient_steps`).
     adhesion_kmh_s : tuple of float
         The adhesion levels [km/h/s], ascending.
     decel_limits : tuple
@@ -242,48 +246,6 @@ class ApproachResult:
         return self.approach_start_m + sign(self.direction) * np.asarray(x_m, dtype=float)
 
 
-def _tasc_beacon(line: Line, direction: str, x0_m: float, length_m: float):
-    """The last ``tasc`` beacon read in ``direction`` strictly inside the interstation, or None."""
-    sg = sign(direction)
-    best = None
-    for b in line.beacons_for(direction):  # running order: the last one wins
-        if b.kind == "tasc" and 0.0 < sg * (b.position_m - x0_m) < length_m:
-            best = b
-    return best
-
-
-def _gradient_steps(line: Line, direction: str, start_chainage_m: float, length_m: float) -> list[tuple[float, float]]:
-    """Gradient [‰] under the front in the running direction, as steps from the approach start.
-
-    Gaps in the gradient table are level. Equal neighbours are merged.
-    """
-    sg = sign(direction)
-    g = line.gradients
-    starts, ends, vals = np.asarray(g.start_m), np.asarray(g.end_m), np.asarray(g.value)
-    edges = sg * (np.concatenate([starts, ends]) - start_chainage_m)
-    xs = [0.0] + sorted({float(e) for e in edges if 0.0 < e < length_m})
-    out: list[tuple[float, float]] = []
-    for k, x in enumerate(xs):
-        x_end = xs[k + 1] if k + 1 < len(xs) else length_m
-        c = start_chainage_m + sg * 0.5 * (x + x_end)  # the middle of the step decides its value
-        i = int(np.searchsorted(starts, c, side="right")) - 1
-        rise = float(vals[i]) if i >= 0 and c < ends[i] else 0.0
-        permil = round(sg * rise * 1000.0, 9) + 0.0  # round: ‰ -> rise/m -> ‰ loses the last bit; +0.0: no -0.0
-        if out and out[-1][1] == permil:
-            continue
-        out.append((x, permil))
-    return out
-
-
-def _speed_steps(s_m: np.ndarray, vint_ms: np.ndarray, k0: int) -> list[tuple[float, float]]:
-    """On-board maximum from grid node ``k0`` on as steps ``(x_from_m, speed_ms)`` from that node."""
-    s0 = float(s_m[k0])
-    v = vint_ms[k0:]
-    change = np.flatnonzero(v[1:] != v[:-1]) + 1
-    idx = np.concatenate([[0], change])
-    return [(float(s_m[k0 + i]) - s0, float(v[i])) for i in idx]
-
-
 def _warning(train_type: str, direction: str, origin: str, station_id: str, adhesion_kmh_s: float,
              reason: str) -> str:
     return (f"no stopping pattern at {station_id} ({direction}, train type {train_type}, from {origin}) "
@@ -330,8 +292,9 @@ def approach_patterns(
 
     Notes
     -----
-    ``A(x) = min(comfort, adhesion) + 0.0098 s(x)`` (DESIGN §5) with ``s`` the
-    gradient under the front; ``v_lim(x)`` the on-board maximum (restriction
+    ``A(x) = min(comfort, adhesion) + g s(x) / 1000 / (1 + ρ)`` (DESIGN §5) with
+    ``s`` the gradient averaged over the train, bounded per piece from the safe
+    side (:mod:`planner.approach`); ``v_lim(x)`` the on-board maximum (restriction
     held to the tail, minus the speed margin); the start speed is the
     minimum-time run's (ratio 1.0, load 0, traction 1.0) at the approach start.
     """
@@ -346,14 +309,14 @@ def approach_patterns(
     train = line.train_type(train_type)
     ext = line.run_between(origin, destination)
     direction, sg, x0, stop, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m
-    beacon = _tasc_beacon(line, direction, x0, length) if length > 0 else None
-    s_a = sg * (beacon.position_m - x0) if beacon is not None else length - float(approach_m)
+    start = _approach.approach_start(line, origin, destination, float(approach_m))
+    s_a = start.s_m
     X = length - s_a
     J = train.jerk_limit_ms3
     comfort = train.comfort_accel_ms2
     common = dict(line_id=line.line_id, train_type=train_type, direction=direction, origin=origin,
                   station_id=destination, stop_m=float(stop), approach_start_m=float(x0 + sg * s_a),
-                  approach_length_m=float(X), tasc_beacon_id=beacon.beacon_id if beacon else "",
+                  approach_length_m=float(X), tasc_beacon_id=start.beacon_id,
                   jerk_max_ms3=J, comfort_ms2=comfort, adhesion_kmh_s=levels_kmh_s)
 
     def all_infeasible(reason: str, v0: float, phase: str, sl=(), grads=()) -> ApproachResult:
@@ -371,22 +334,21 @@ def approach_patterns(
 
     track = make_track(line, train_type, origin, destination, settings=settings or SimSettings(),
                        nodes_m=[s_a])
-    k0 = track.node_index(s_a)
     res = simulate(track, train, 1.0, load=0.0, traction_factor=1.0, snapshots_m=[s_a])
     snap = res.snapshots[s_a]
     v0 = float(snap.v_ms[0])
     phase = PHASE_NAMES[int(snap.phase[0])]
-    sl = _speed_steps(track.s_m, track.vmax_interval_ms, k0)
+    sl = _approach.speed_limits(track, s_a)
     if sl[0][1] < v0 <= sl[0][1] + V_START_ROUNDOFF_MS:
         v0 = sl[0][1]  # the run holds the maximum; its last bit of round-off is not a violation
-    grads = _gradient_steps(line, direction, common["approach_start_m"], X)
+    grads = _approach.gradient_steps(line, train.length_m, direction, common["approach_start_m"], X)
 
     decels: list[tuple[tuple[float, float], ...]] = []
     pats: list[StopPattern] = []
     msgs: list[str] = []
     for a_ms2, a_kmh_s in zip(levels_ms2, levels_kmh_s):
         try:
-            dl = decel_limit_profile(comfort, a_ms2, grads)
+            dl = _approach.decel_limits(line, train, direction, common["approach_start_m"], X, a_ms2, grads)
         except InputError as e:  # a fall so steep that nothing is left: no pattern at this level
             decels.append(())
             p = StopPattern(False, str(e), v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J)
@@ -705,7 +667,7 @@ def plot_approach(result: ApproachResult, path: str | Path) -> Path:
     ax_j.set_ylim(-1.6 * J, 1.6 * J)
     lo, _ = ax_a.get_ylim()
     ax_a.set_ylim(lo, -0.18 * lo)  # headroom above a = 0 for the gradient labels
-    # the gradient under the front explains the steps of the deceleration limits: label each stretch
+    # the gradient (over the train, safe-side steps) explains the steps of the deceleration limits
     gx = [g[0] for g in result.gradients_permil] + [X]
     for k, (x, g) in enumerate(result.gradients_permil):
         mid = X - 0.5 * (x + gx[k + 1])

@@ -153,9 +153,16 @@ def test_degraded_minimum_and_flags(report, key):
     t_deg_sp = V / A_DEG + (s_p - V * V / (2 * A_DEG)) / V
     tb = V / ADH + ADH / J
     assert r.degraded_loss_running_s == pytest.approx(t_deg_sp - t_nom_sp, abs=TOL_S)
-    stop_nom = (APPROACH - V * V / (2 * B)) / V + V / B
-    assert r.stop_time_nominal_s == pytest.approx(stop_nom, abs=TOL_S)
+    # one stop model (issue 14, defect 5): the nominal stop is the jerk-limited pattern too, at the
+    # best adhesion of the sweep (3.5 km/h/s, below comfort) from the nominal run's speed V there
+    a_hi = 3.5 / 3.6
+    tb_hi = V / a_hi + a_hi / J
+    stop_nom = (APPROACH - V * tb_hi / 2) / V + tb_hi
+    assert r.stop_time_nominal_s == pytest.approx(stop_nom, abs=1e-6)
     assert r.stop_time_degraded_s == pytest.approx((APPROACH - V * tb / 2) / V + tb, abs=1e-6)  # exact pattern
+    # both at speed V over the same approach: only the adhesion effect is left, (T_b(lo) - T_b(hi)) / 2
+    assert r.degraded_loss_stop_s == pytest.approx((tb - tb_hi) / 2, abs=1e-6)
+    assert r.degraded_loss_stop_s == pytest.approx(r.adhesion_loss_s, abs=1e-6)
     got = {f for f in ("infeasible", "tight", "unreachable") if bool(getattr(r, f))}
     assert got == flags
 

@@ -9,7 +9,6 @@ import pytest
 
 from planner.errors import InfeasibleError, InputError
 from planner.stopping import (
-    GRADIENT_DECEL_MS2_PER_PERMIL,
     StopPattern,
     decel_limit_profile,
     solve_stop,
@@ -279,9 +278,12 @@ def test_pattern_is_frozen_and_breakpoints_are_consistent():
 
 def test_decel_profile_rule_and_merging():
     prof = decel_limit_profile(1.0, 0.8, [(0.0, 0.0), (100.0, -10.0), (180.0, -10.0), (250.0, 5.0), (300.0, 5.0)])
-    # min(comfort, adhesion) = 0.8; -10 ‰ takes 0.098 away, +5 ‰ adds 0.049; equal neighbours merged
-    assert prof == [(0.0, 0.8), (100.0, pytest.approx(0.702)), (250.0, pytest.approx(0.849))]
-    assert GRADIENT_DECEL_MS2_PER_PERMIL == 0.0098
+    # min(comfort, adhesion) = 0.8; -10 ‰ takes g/100 away, +5 ‰ adds g/200 (g = 9.80665 m/s², no
+    # rotating mass); equal neighbours merged
+    assert prof == [(0.0, 0.8), (100.0, pytest.approx(0.8 - 0.0980665)), (250.0, pytest.approx(0.8 + 0.04903325))]
+    # the weight M g s acts on the inertial mass M (1 + ρ), as in the run curves
+    prof = decel_limit_profile(1.0, 0.8, [(0.0, 0.0), (100.0, -10.0)], rotating_mass_factor=0.1)
+    assert prof == [(0.0, 0.8), (100.0, pytest.approx(0.8 - 0.0980665 / 1.1))]
     assert decel_limit_profile(0.7, 0.9, []) == [(0.0, 0.7)]
     assert decel_limit_profile(0.9, 0.7) == [(0.0, 0.7)]
 

@@ -139,11 +139,17 @@ def test_speed_limits_and_gradients_over_the_approach_both_directions():
     line = line_b()
     down = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2)
     # the 60 km/h restriction holds the front from 700 m until the tail clears 760 m (front at 860 m):
-    # 350 and 510 m from the approach start at 350 m; gradients under the front, running direction
+    # 350 and 510 m from the approach start at 350 m
     assert down.speed_limits == ((0.0, 100 * KMH), (350.0, 60 * KMH), (510.0, 100 * KMH))
-    assert down.gradients_permil == ((0.0, 0.0), (250.0, -15.0), (400.0, 0.0), (450.0, 5.0))
+    # gradient averaged over the 100 m train (by hand: the share of the body on each slope), kinks
+    # where the front or the tail passes a gradient change: front at 600 (x = 250: 0 ‰), tail at 600
+    # (x = 350: -15), front at 750 (x = 400: -15), front at 800 (x = 450: half on -15 = -7.5), tail
+    # at 750 (x = 500: half on +5 = +2.5), marker (x = 550: +5). Each linear piece at its smaller end
+    # value: 0 | -15 over 250-450 | -7.5 | +2.5
+    assert down.gradients_permil == ((0.0, 0.0), (250.0, -15.0), (450.0, -7.5), (500.0, 2.5))
     # up from S2 (2900) to S1 (900): start at 1450 m chainage, running towards lower chainage; the
-    # +5 ‰ (rising towards higher chainage) is a fall of 5 ‰ for up trains from chainage 1200 on;
+    # +5 ‰ (rising towards higher chainage) is a fall of 5 ‰ for up trains from chainage 1200 on:
+    # ḡ falls from 0 (front at 1200, x = 250) to -5 ‰ (tail at 1200, x = 350) and stays there;
     # the restriction lies beyond the marker for up trains
     up = approach_patterns(line, "T", "S2", "S1", LEVELS_MS2)
     assert up.direction == "up" and up.approach_start_m == 1450.0 and up.stop_m == 900.0
@@ -151,12 +157,12 @@ def test_speed_limits_and_gradients_over_the_approach_both_directions():
     assert up.gradients_permil == ((0.0, 0.0), (250.0, -5.0))
     assert up.v_start_ms == pytest.approx(100 * KMH, abs=V_RUN_TOL)  # holding the line maximum
     assert up.run_phase == "hold"
-    # the deceleration limit follows min(comfort, adhesion) + 0.0098 s
+    # the deceleration limit follows min(comfort, adhesion) + g s / 1000 / (1 + ρ), ρ = 0 here
     for a_ms2, dl in zip(LEVELS_MS2, up.decel_limits):
         assert [x for x, _ in dl] == [0.0, 250.0]
         assert dl[0][1] == pytest.approx(min(1.0, a_ms2))
-        assert dl[1][1] == pytest.approx(min(1.0, a_ms2) - 0.0098 * 5.0)
-    assert down.n_feasible == len(LEVELS_MS2)
+        assert dl[1][1] == pytest.approx(min(1.0, a_ms2) - G_STD * 0.005)
+    assert down.n_feasible >= len(LEVELS_MS2) - 1  # the -15 ‰ under the whole train: 2.5 needs 559.5 m
     assert 0 < up.n_feasible < len(LEVELS_MS2)  # 100 km/h onto a fall: the lowest levels need > 550 m
     for r in (down, up):
         for k, p in enumerate(r.patterns):
@@ -245,7 +251,7 @@ def test_sweep_order_is_deterministic_and_independent_of_n_jobs():
 
 @pytest.mark.filterwarnings("ignore::planner.stops.InfeasibleStopWarning")
 def test_datasets_read_back_with_hive_partitioning(tmp_path):
-    results = stop_sweep(line_b(), adhesion_kmh_s="2.5:3.5:0.5", n_jobs=1)
+    results = stop_sweep(line_b(), adhesion_kmh_s="2.75:3.25:0.25", n_jobs=1)
     files = write_stops(results, tmp_path)
     rel = sorted(f.relative_to(tmp_path).as_posix() for f in files)
     assert rel == [f"{d}/line=test/direction={di}/train_type=T/part-0.parquet"
@@ -257,7 +263,7 @@ def test_datasets_read_back_with_hive_partitioning(tmp_path):
     f = pads.dataset(next(p for p in files if "stop_summary" in p.parts), format="parquet").schema
     assert f.field("duration_s").metadata[b"description"]
     rows = [r for r in summ.to_pylist() if r["station_id"] == "S1" and r["direction"] == "down"]
-    assert [r["adhesion_kmh_s"] for r in rows] == [2.5, 3.0, 3.5]
+    assert [r["adhesion_kmh_s"] for r in rows] == [2.75, 3.0, 3.25]
     ref = next(r for r in results if r.station_id == "S1" and r.direction == "down")
     for row, p, lost in zip(rows, ref.patterns, ref.time_lost_s):
         assert row["feasible"] and row["reason"] == ""
@@ -328,13 +334,22 @@ def test_sample_line_takadai_down(sample_sweep, tmp_path):
     curve restriction (held until the tail clears, front at S − 150 m), so v_start is the on-board
     maximum 70 − 3 = 67 km/h for E10/E8 (constant-speed hold); the sawtooth E6 coasts in its
     5 km/h band below 70 − 5 = 65 km/h. The pattern must be at 40 − margin km/h 100 m out."""
-    _, results, _ = sample_sweep
+    results = sample_sweep[1]
     tkd = {r.train_type: r for r in results if r.station_id == "TKD" and r.direction == "down"}
     assert tkd["E10"].tasc_beacon_id == "D-TASC-005" and tkd["E10"].approach_start_m == 10750.0
     for t in ("E10", "E8"):
         assert tkd[t].v_start_ms * 3.6 == pytest.approx(67.0, abs=1e-9)
     assert 60.0 - 1e-6 <= tkd["E6"].v_start_ms * 3.6 <= 65.0 + 1e-6
-    assert tkd["E10"].gradients_permil == ((0.0, -4.0), (200.0, -20.0), (350.0, 0.0))
+    # the gradient steps bound the train-averaged gradient from below, and touch it on every piece
+    from planner import dynamics
+
+    line = sample_sweep[0]
+    r = tkd["E10"]
+    x = np.linspace(0.0, r.approach_length_m, 5501)
+    gbar = 1000.0 * dynamics.running_gradient(line.gradients, r.chainage_m(x), line.train_type("E10").length_m, 1)
+    steps = step_value(r.gradients_permil, x)
+    assert np.all(steps <= gbar + 1e-9)
+    assert steps.min() == pytest.approx(gbar.min(), abs=1e-9) and gbar.min() < -10.0
     assert tkd["E10"].speed_limits[-1] == (450.0, pytest.approx(37.0 * KMH))
     r = tkd["E10"]
     assert r.n_feasible == len(r.patterns)
@@ -379,3 +394,73 @@ def test_cli_bad_options_are_one_line_errors(tmp_path, args, match):
     assert r.exit_code == 1
     assert match in r.output and "Traceback" not in r.output
     assert not (tmp_path / "out").exists()
+
+
+# --------------------------------------------------------------------------------------
+# issue 14: one gradient model (the train-averaged one of the run curves), one approach start
+# --------------------------------------------------------------------------------------
+
+G_STD = 9.80665  # m/s², standard gravity (the run curves' g)
+
+
+def test_pattern_never_asks_the_brake_for_more_than_adhesion_under_the_whole_train():
+    """Issue 14, defect 1: a 200 m train, level track with +25 ‰ over the last 150 m before the
+    marker, adhesion 2.5 km/h/s. The rising gradient helps only as much of the train as stands on
+    it: with the front 60 m onto the slope, ḡ = 25 ‰ × 60/200. Re-simulated with that gradient
+    (by hand here: the overlap of the train body with the slope), the brake may give at most the
+    adhesion limit anywhere; the front-only pattern asked for 3.35 km/h/s."""
+    tt = testing.train_type(length_m=200.0)  # no rotating mass: gravity gives g ḡ
+    line = line_a(gradients=[(750.0, 900.0, 25.0)], train_types=[tt])
+    adh = 2.5 * KMH_S
+    r = approach_patterns(line, "T", "S0", "S1", [adh])
+    p = r.patterns[0]
+    assert p.feasible
+    s = p.sample(0.002)
+    front = r.approach_start_m + s.x_m  # down: chainage grows with x
+    on_slope = np.clip(np.minimum(front, 900.0) - np.maximum(front - 200.0, 750.0), 0.0, None)
+    gbar = 0.025 * on_slope / 200.0
+    brake = -s.a_ms2 - G_STD * gbar
+    assert brake.max() <= adh + 1e-6, f"asks the brake for {brake.max() / KMH_S:.3f} km/h/s"
+    # and the bound is not wasted: on the level the pattern brakes at the adhesion limit itself
+    assert brake.max() >= adh - 1e-9
+
+
+def test_one_approach_start_for_stops_and_margins():
+    """Issue 14, defect 6: the stopping sweep and the margin report start the approach at the
+    same place, also where the fixed approach reaches back beyond the middle of the leg
+    (900 m leg, 550 m approach: 350 m after the departure marker)."""
+    from planner.margins import leg_result
+
+    line = line_a()
+    r = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2[:1])
+    m = leg_result(line, "T", "S0", "S1", [], ratios=[1.0, 0.6], adhesion_kmh_s="3.5")
+    assert r.approach_start_m == 350.0
+    assert m.pattern_start_m == r.approach_start_m
+
+
+@pytest.fixture(scope="module")
+def sample_brake_demand(sample_sweep):
+    """Per feasible pattern of the sample-line sweep: the largest brake demand over the limit [m/s²],
+    re-simulated with the run-curve force model (gradient averaged over the train, g/(1 + ρ))."""
+    from planner import dynamics
+    from planner.model import sign
+
+    line, results, _ = sample_sweep
+    over = []
+    for r in results:
+        tt = line.train_type(r.train_type)
+        sg = sign(r.direction)
+        for a, p in zip(r.adhesion_kmh_s, r.patterns):
+            if not p.feasible:
+                continue
+            s = p.sample(min(0.01, p.duration_s / 4000.0))
+            gbar = dynamics.running_gradient(line.gradients, r.chainage_m(s.x_m), tt.length_m, sg)
+            brake = -s.a_ms2 + dynamics.track_accel_ms2(gbar, 0.0, tt.rotating_mass_factor)
+            over.append(float(brake.max()) - min(r.comfort_ms2, a * KMH_S))
+    return np.array(over)
+
+
+def test_sample_line_patterns_never_ask_the_brake_for_more_than_comfort_and_adhesion(sample_brake_demand):
+    over = sample_brake_demand
+    assert over.size >= 500
+    assert np.all(over <= 1e-6), f"{np.sum(over > 1e-6)} of {over.size} patterns, worst +{over.max():.4f} m/s²"
