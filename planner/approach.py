@@ -27,6 +27,7 @@ carry the sweep's ``stop_summary``):
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,8 @@ __all__ = [
 
 DEFAULT_APPROACH_M = 550.0
 """Approach length where a run has no TASC beacon [m] (the usual beacon spacing)."""
+SLICE_M = 25.0
+"""Longest step of the safe-side gradient bound where the train-averaged gradient changes [m]."""
 
 
 @dataclass(frozen=True)
@@ -117,7 +120,7 @@ def _mean_gradient_knots(line: Line, train_length_m: float, direction: str, star
 
 
 def gradient_steps(line: Line, train_length_m: float, direction: str, start_chainage_m: float,
-                   length_m: float) -> list[tuple[float, float]]:
+                   length_m: float, slice_m: float = SLICE_M) -> list[tuple[float, float]]:
     """Safe-side step bound of the train-averaged gradient over an approach, in ‰ (running direction).
 
     Each linear piece of ḡ (between kinks) takes its smaller end value, the
@@ -140,6 +143,15 @@ def gradient_steps(line: Line, train_length_m: float, direction: str, start_chai
         From the approach start, the first at 0.
     """
     xs, gbar = _mean_gradient_knots(line, train_length_m, direction, start_chainage_m, length_m)
+    if xs.size >= 2 and slice_m < math.inf:
+        # cut the sloping pieces into slices of at most slice_m (ḡ is linear there: interpolate exactly)
+        cuts = [xs[:1]]
+        for x0, x1, g0, g1 in zip(xs[:-1], xs[1:], gbar[:-1], gbar[1:]):
+            n = int(math.ceil((x1 - x0) / slice_m)) if g0 != g1 else 1
+            cuts.append(x0 + (x1 - x0) * np.arange(1, n + 1) / n)
+        fine = np.concatenate(cuts)
+        gbar = np.interp(fine, xs, gbar)
+        xs = fine
     out: list[tuple[float, float]] = []
     if xs.size < 2:
         return [(0.0, round(float(gbar[0]) * 1000.0, 9) + 0.0)] if xs.size else [(0.0, 0.0)]

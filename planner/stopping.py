@@ -441,13 +441,66 @@ def _illinois(f, lo: float, hi: float, flo: float, fhi: float, ftol: float) -> f
     return s
 
 
+def _brent_min(f, a: float, b: float, xtol: float, maxiter: int = 60) -> tuple[float, float]:
+    """Minimum of ``f`` on ``[a, b]`` (Brent: golden section with parabolic steps); ``(x, f(x))``."""
+    g = 0.5 * (3.0 - math.sqrt(5.0))
+    x = w = v = a + g * (b - a)
+    fx = fw = fv = f(x)
+    d = e = 0.0
+    for _ in range(maxiter):
+        m = 0.5 * (a + b)
+        tol = xtol + 1e-10 * abs(x)
+        if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):
+            break
+        para = False
+        if abs(e) > tol and fx < _INF and fw < _INF and fv < _INF:
+            r = (x - w) * (fx - fv)
+            q = (x - v) * (fx - fw)
+            p = (x - v) * q - (x - w) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            q = abs(q)
+            if abs(p) < abs(0.5 * q * e) and a * q < p + q * x - 0.0 and p < q * (b - x):
+                e, d = d, p / q
+                u = x + d
+                if u - a < 2.0 * tol or b - u < 2.0 * tol:
+                    d = tol if m >= x else -tol
+                para = True
+        if not para:
+            e = (a - x) if x >= m else (b - x)
+            d = g * e
+        u = x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
+        fu = f(u)
+        if fu <= fx:
+            if u >= x:
+                a = x
+            else:
+                b = x
+            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
+        else:
+            if u < x:
+                a = u
+            else:
+                b = u
+            if fu <= fw or w == x:
+                v, fv, w, fw = w, fw, u, fu
+            elif fu <= fv or v == x or v == w:
+                v, fv = u, fu
+    return x, fx
+
+
 class _Builder:
     """The backward event-point construction over one approach (all floats, backward frame)."""
 
-    __slots__ = ("J", "Yb", "A", "C", "capnext", "tau", "y", "v", "b", "u", "reg")
+    __slots__ = ("J", "Yb", "A", "C", "capnext", "tau", "y", "v", "b", "u", "reg", "X", "optimize", "entry")
 
-    def __init__(self, J: float, Yb: list[float], A: list[float], C: list[float]):
+    def __init__(self, J: float, Yb: list[float], A: list[float], C: list[float], X: float = _INF,
+                 optimize: bool = False, entry: dict | None = None):
         self.J = J
+        self.X = X  # approach length: the objective of the entry choice at a speed step-down
+        self.optimize = optimize  # True: choose the entry at speed step-downs; False: take self.entry
+        self.entry = dict(entry or {})  # region of a step-down -> deceleration on entry (0: the paper's rule)
         self.Yb = Yb  # region r spans y in [Yb[r], Yb[r+1]]; Yb[0] = 0, Yb[-1] = inf
         self.A = A
         self.C = C
@@ -628,10 +681,124 @@ class _Builder:
                 return
         b_end = bq - J * rr if touch else 0.0
         v_end = C
+        step_down = not touch and self.optimize and y_cap < _INF and C < self.C[-1]
+        if step_down or (not touch and self.entry.get(r, 0.0) > 0.0):
+            before = before_entry = self._save()
         self._cut(iq, sq)
         r_next = self._region_of(y_end)
         b_end = max(b_end, 0.0)
         self._push(self.tau[-1] + rr, y_end, v_end, b_end, self._motion(v_end, b_end, r_next), r_next)
+        if step_down:
+            self._best_entry(before, i_v, s_v, r)
+        elif not touch and self.entry.get(r, 0.0) > 0.0 and y_cap < _INF:
+            paper = self._save()
+            self._load(before_entry)
+            if not self._enter_braking(i_v, s_v, r, self.entry[r]):
+                self._load(paper)
+
+    # -- the true minimum at a speed step-down ----------------------------------------
+
+    def _save(self):
+        return (self.tau[:], self.y[:], self.v[:], self.b[:], self.u[:], self.reg[:])
+
+    def _load(self, st) -> None:
+        self.tau, self.y, self.v, self.b, self.u, self.reg = (x[:] for x in st)
+
+    def _objective(self) -> float:
+        """Finish the construction with the entries chosen so far; the pattern duration minus X/v0.
+
+        ``tau_end - y_r / v0``: the duration up to a constant when the braking fits
+        (``y_r <= X``); past that, the needed distance counts first.
+        """
+        opt = self.optimize
+        self.optimize = False
+        try:
+            y_r = self.run()
+        except RuntimeError:
+            return _INF
+        finally:
+            self.optimize = opt
+        v0 = self.C[-1]
+        t = self.tau[-1] - y_r / v0
+        return t if y_r <= self.X else 1e9 + (y_r - self.X)
+
+    def _enter_braking(self, i_v: int, s_v: float, r: int, b_s: float) -> bool:
+        """Replace the part after the step-down: ease off to the lower cruise ``C - b_s²/(2J)``, cruise,
+        then brake on with full jerk so that ``v = C`` exactly at the restriction start, still braking
+        with ``b_s`` there. False when that needs more room than there is or breaks a limit."""
+        J, C, A, Yb = self.J, self.C[r], self.A, self.Yb
+        y_cap = self.capnext[r]
+        Cp = C - b_s * b_s / (2.0 * J)
+        if not Cp > 0.0:
+            return False
+
+        def energy(y, v, b):
+            return v + b * b / (2.0 * J) - Cp
+
+        iq, sq = self._search(energy, i_v, s_v, ftol=1e-13 * max(1.0, C))
+        yq, vq, bq = self._state(iq, sq)
+        rr = bq / J
+        y_end = yq + rr * (vq + rr * (bq / 2.0 - J * rr / 6.0))
+        s_r = b_s / J
+        y0 = y_cap - (Cp * s_r + J * s_r ** 3 / 6.0)
+        if y0 < y_end:
+            return False
+        # easing off (b falls from bq): the deceleration limit at every event point it passes
+        k = self._region_of(yq) + 1
+        while k < len(A) and Yb[k] < y_end:
+            if A[k] < bq:
+                s_e = _time_to_y(yq, vq, bq, -J, Yb[k], rr)
+                if bq - J * s_e > A[k] * (1.0 + 1e-13):
+                    return False
+            k += 1
+        # braking on from y0 (b grows to b_s at y_cap): the limit of every region it runs in
+        r_c = self._region_of(y_cap)
+        if b_s > A[r_c]:
+            return False
+        k = self._region_of(y0)
+        while k < r_c:
+            y_hi = min(Yb[k + 1], y_cap)
+            if J * _time_to_y(y0, Cp, 0.0, J, y_hi) > A[k] * (1.0 + 1e-13):
+                return False
+            k += 1
+        self._cut(iq, sq)
+        t = self.tau[-1] + rr
+        if y0 > y_end:
+            self._push(t, y_end, Cp, 0.0, 0.0, self._region_of(y_end))
+            t += (y0 - y_end) / Cp
+        self._push(t, y0, Cp, 0.0, J, self._region_of(y0))
+        self._push(t + s_r, y_cap, C, b_s, self._motion(C, b_s, r_c), r_c)
+        return True
+
+    def _best_entry(self, before, i_v: int, s_v: float, r: int) -> None:
+        """Choose the deceleration ``b_s`` at the restriction start that minimises the duration.
+
+        The paper's rule is ``b_s = 0`` (the state on entry to this call). The
+        optimum enters still braking: one-dimensional minimisation of the
+        duration over ``b_s`` (Brent's method, to 1e-6 m/s²; the duration is flat
+        at the optimum, so its error is far below that), each trial finishing
+        the construction with the entries already chosen (``self.entry``, else
+        the paper's rule) at the step-downs further back; :func:`solve_stop`
+        repeats the whole construction once when there are several step-downs,
+        so each choice sees the others' (coordinate descent).
+        """
+        paper = self._save()
+        f0 = self._objective()
+
+        def f(b_s: float) -> float:
+            self._load(before)
+            if not self._enter_braking(i_v, s_v, r, b_s):
+                return _INF
+            return self._objective()
+
+        hi = min(self.A[self._region_of(self.capnext[r])], math.sqrt(2.0 * self.J * self.C[r]) * 0.999)
+        best, fb = _brent_min(f, 0.0, hi, xtol=1e-6)
+        self._load(before)
+        if fb < f0 and self._enter_braking(i_v, s_v, r, best):
+            self.entry[r] = best
+            return
+        self.entry[r] = 0.0
+        self._load(paper)
 
 
 # --------------------------------------------------------------------------------------
@@ -646,6 +813,7 @@ def solve_stop(
     jerk_max: float,
     decel_limits: Sequence[tuple[float, float]],
     speed_limits: Sequence[tuple[float, float]],
+    rule: str = "min-time",
 ) -> StopPattern:
     """Minimum-time jerk-limited stopping pattern under position-dependent limits.
 
@@ -664,6 +832,11 @@ def solve_stop(
     speed_limits : sequence of (x_from_m, speed_ms)
         Speed limit of the train front from ``x_from_m`` on [m/s], >= 0; same
         ordering rules.
+    rule : {"min-time", "paper"}
+        At a speed step-down followed by a cruise: ``"min-time"`` (default) the
+        true minimum, entering the restriction still easing off the brake;
+        ``"paper"`` the paper's rule, the lower speed reached with a = 0 at the
+        restriction start (slower, kept for comparison).
 
     Returns
     -------
@@ -692,6 +865,8 @@ def solve_stop(
     >>> round(p.duration_s, 3), round(p.brake_start_m, 2)
     (30.625, 187.5)
     """
+    if rule not in ("min-time", "paper"):
+        raise InputError(f"rule must be 'min-time' or 'paper', got {rule!r}")
     v0 = _check_number("v_start", v_start)
     X = _check_number("x_stop", x_stop)
     J = _check_number("jerk_max", jerk_max, positive=True)
@@ -751,8 +926,11 @@ def solve_stop(
     A = mA[::-1]
     C = mC[::-1]
 
-    builder = _Builder(J, Yb, A, C)
+    builder = _Builder(J, Yb, A, C, X, optimize=(rule == "min-time"))
     y_r = builder.run()
+    if len(builder.entry) > 1:  # several step-downs: choose each again, knowing the others' choice
+        builder = _Builder(J, Yb, A, C, X, optimize=True, entry=builder.entry)
+        y_r = builder.run()
     if y_r > X * (1.0 + 1e-12) + 1e-9:
         return StopPattern(
             False,
