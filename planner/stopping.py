@@ -71,22 +71,22 @@ tests). Where the deceleration limit falls, meeting it with equality at the
 event point is best for the parts on both sides; an independent time-discretised
 MILP agrees within its discretisation error on such cases.
 
-Known limitation (measured in ``tests/test_stopping_lp.py``): where a *speed*
-limit steps down and the pattern then cruises at the lower speed before braking
-on, the method reaches the lower speed with ``a = 0`` at the restriction start
-(also railway practice). The mathematical optimum enters the restriction still
-easing off the brake and cruises slightly below the limit; it is faster by up
-to about 0.1 s in the tests. Removing this needs a one-dimensional minimisation
-over the deceleration at the restriction start (the time before and after it
-trade off), which the construction can host as an outer loop. The same
-limitation makes the distance conservative: entering the restriction still
-braking also needs less room before it, so near such a restriction the
-reported ``braking_distance_m`` can exceed the true minimum by up to an
-easing-off distance (1.3 m in the case of
-``test_restriction_too_close_is_infeasible_and_needed_distance_is_consistent``),
-and a case declared infeasible by less than that may have a pattern. An outer
-loop must therefore refine the infeasible verdicts too, not only the feasible
-patterns.
+Speed step-downs (the true minimum, DESIGN §5). Where a speed limit steps
+down and the pattern cruises at the lower speed before braking on, the paper's
+rule reaches the lower speed with ``a = 0`` at the restriction start. That is
+not the minimum: the optimum enters the restriction still braking with some
+``b_s``, eases off inside it and cruises slightly below the limit
+(``C - b_s²/2J``); the time lost inside is paid back by braking later before
+it. The construction takes ``b_s`` by a one-dimensional minimisation of the
+duration (:meth:`_Builder._best_entry`, Brent's method; each trial finishes the
+construction), and with several step-downs runs once more so that each choice
+sees the others'. The choice also shortens the braking distance, so approaches
+that the paper's rule declares infeasible by less than an easing-off distance
+can get a pattern. ``rule="paper"`` keeps the paper's rule for comparison.
+``tests/test_stopping_lp.py`` checks the result against an independent
+time-discretised MILP: no slower, and within 0.01 s. Not covered: a step-down
+met without a cruise (the ease-off would end past the restriction start) is
+still entered at exactly the limit speed with the deceleration that gives.
 
 References: DESIGN §5 (event-point constant-jerk stopping pattern method).
 """
