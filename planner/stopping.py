@@ -743,6 +743,13 @@ class _Builder:
         y0 = y_cap - (Cp * s_r + J * s_r ** 3 / 6.0)
         if y0 < y_end:
             return False
+        # speed: at most Cp while easing off and cruising, at most C on the arc; the caps nearer the
+        # stop are lower, so every region the new part runs in is checked (conservatively)
+        k = self._region_of(yq)
+        while k < len(A) and Yb[k] < y_cap:
+            if self.C[k] < (C if Yb[k + 1] > y0 else Cp):
+                return False
+            k += 1
         # easing off (b falls from bq): the deceleration limit at every event point it passes
         k = self._region_of(yq) + 1
         while k < len(A) and Yb[k] < y_end:
@@ -775,8 +782,8 @@ class _Builder:
 
         The paper's rule is ``b_s = 0`` (the state on entry to this call). The
         optimum enters still braking: one-dimensional minimisation of the
-        duration over ``b_s`` (Brent's method, to 1e-6 m/s²; the duration is flat
-        at the optimum, so its error is far below that), each trial finishing
+        duration over ``b_s`` (Brent's method, to 0.5 % of its range, a few 1e-3 m/s²;
+        the duration is flat at the optimum, so its error is some 1e-4 s), each trial finishing
         the construction with the entries already chosen (``self.entry``, else
         the paper's rule) at the step-downs further back; :func:`solve_stop`
         repeats the whole construction once when there are several step-downs,
@@ -792,7 +799,7 @@ class _Builder:
             return self._objective()
 
         hi = min(self.A[self._region_of(self.capnext[r])], math.sqrt(2.0 * self.J * self.C[r]) * 0.999)
-        best, fb = _brent_min(f, 0.0, hi, xtol=1e-6)
+        best, fb = _brent_min(f, 0.0, hi, xtol=5e-3 * hi, maxiter=12)
         self._load(before)
         if fb < f0 and self._enter_braking(i_v, s_v, r, best):
             self.entry[r] = best
@@ -928,7 +935,9 @@ def solve_stop(
 
     builder = _Builder(J, Yb, A, C, X, optimize=(rule == "min-time"))
     y_r = builder.run()
-    if len(builder.entry) > 1:  # several step-downs: choose each again, knowing the others' choice
+    if len(builder.entry) > 1 and 0.0 in builder.entry.values():
+        # several step-downs and one kept the paper's rule, maybe because the others were still at it:
+        # choose each again, knowing the others' choice
         builder = _Builder(J, Yb, A, C, X, optimize=True, entry=builder.entry)
         y_r = builder.run()
     if y_r > X * (1.0 + 1e-12) + 1e-9:
