@@ -146,7 +146,13 @@ def test_speed_limits_and_gradients_over_the_approach_both_directions():
     # (x = 350: -15), front at 750 (x = 400: -15), front at 800 (x = 450: half on -15 = -7.5), tail
     # at 750 (x = 500: half on +5 = +2.5), marker (x = 550: +5). Each linear piece at its smaller end
     # value: 0 | -15 over 250-450 | -7.5 | +2.5
-    assert down.gradients_permil == ((0.0, 0.0), (250.0, -15.0), (450.0, -7.5), (500.0, 2.5))
+    from planner.approach import gradient_steps
+
+    assert gradient_steps(line, 100.0, "down", 350.0, 550.0, slice_m=math.inf) == [
+        (0.0, 0.0), (250.0, -15.0), (450.0, -7.5), (500.0, 2.5)]
+    # the sweep slices the sloping pieces to 25 m (each slice at its smaller end value)
+    assert down.gradients_permil == ((0.0, 0.0), (250.0, -3.75), (275.0, -7.5), (300.0, -11.25), (325.0, -15.0),
+                                     (425.0, -11.25), (450.0, -7.5), (475.0, -2.5), (500.0, 2.5), (525.0, 3.75))
     # up from S2 (2900) to S1 (900): start at 1450 m chainage, running towards lower chainage; the
     # +5 ‰ (rising towards higher chainage) is a fall of 5 ‰ for up trains from chainage 1200 on:
     # ḡ falls from 0 (front at 1200, x = 250) to -5 ‰ (tail at 1200, x = 350) and stays there;
@@ -154,14 +160,14 @@ def test_speed_limits_and_gradients_over_the_approach_both_directions():
     up = approach_patterns(line, "T", "S2", "S1", LEVELS_MS2)
     assert up.direction == "up" and up.approach_start_m == 1450.0 and up.stop_m == 900.0
     assert up.speed_limits == ((0.0, 100 * KMH),)
-    assert up.gradients_permil == ((0.0, 0.0), (250.0, -5.0))
+    assert up.gradients_permil == ((0.0, 0.0), (250.0, -1.25), (275.0, -2.5), (300.0, -3.75), (325.0, -5.0))
     assert up.v_start_ms == pytest.approx(100 * KMH, abs=V_RUN_TOL)  # holding the line maximum
     assert up.run_phase == "hold"
     # the deceleration limit follows min(comfort, adhesion) + g s / 1000 / (1 + ρ), ρ = 0 here
     for a_ms2, dl in zip(LEVELS_MS2, up.decel_limits):
-        assert [x for x, _ in dl] == [0.0, 250.0]
+        assert [x for x, _ in dl] == [0.0, 250.0, 275.0, 300.0, 325.0]
         assert dl[0][1] == pytest.approx(min(1.0, a_ms2))
-        assert dl[1][1] == pytest.approx(min(1.0, a_ms2) - G_STD * 0.005)
+        assert dl[-1][1] == pytest.approx(min(1.0, a_ms2) - G_STD * 0.005)
     assert down.n_feasible >= len(LEVELS_MS2) - 1  # the -15 ‰ under the whole train: 2.5 needs 559.5 m
     assert 0 < up.n_feasible < len(LEVELS_MS2)  # 100 km/h onto a fall: the lowest levels need > 550 m
     for r in (down, up):
