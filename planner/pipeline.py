@@ -34,8 +34,10 @@ from .atomic import write_bytes_atomic
 from .errors import JobError
 from .job import Job
 from .model import DIRECTIONS, Line
+from .cache import Cache
 from .publish import (
-    Cache, canonical_json, clean_stale_staging, digest, job_lock, latest_run, next_run_id, publish, staging_dir,
+    canonical_json, clean_stale_staging, digest, job_lock, latest_run, next_run_id, output_root_errors, publish,
+    staging_dir,
 )
 
 STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "publish")
@@ -156,7 +158,7 @@ class Runner:
         results: list = [None] * len(units)
         todo = []
         for i, u in enumerate(units):
-            obj = self.cache.get("objects", u.key)
+            obj = self.cache.get(step, u.key)
             if obj is None:
                 todo.append(i)
             else:
@@ -174,7 +176,7 @@ class Runner:
                         delayed(_call)(units[i].fn, units[i].args) for i in todo
                     )
                 for i, res in zip(todo, gen):
-                    self.cache.put("objects", units[i].key, res)  # survives a later failure
+                    self.cache.put(step, units[i].key, res)  # survives a later failure
                     results[i] = res
                     self.progress.advance(step)
         self.progress.finish(step)
@@ -250,6 +252,7 @@ class RunSummary:
     flags: dict[str, int] = field(default_factory=dict)
     bundles: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
 
 def signing_key_path(job: Job, notes: list[str]) -> Path:
@@ -287,14 +290,23 @@ def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
                    "key": key_id})
 
 
-def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
-    """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure."""
+def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> RunSummary:
+    """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure.
+
+    ``use_cache=False`` (``planner run --no-cache``) trusts no cache entry: every
+    unit is recomputed, and the fresh results replace the entries.
+    """
+    root = job.resolve(job.job.output_root)
+    with output_root_errors(root):
+        return _run_job(job, root, show_progress, use_cache)
+
+
+def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunSummary:
     from .loader import load_line
 
-    root = job.resolve(job.job.output_root)
     with job_lock(root):
         clean_stale_staging(root)
-        cache = Cache(root / ".cache")
+        cache = Cache(root / ".cache", enabled=use_cache)
         with Progress(show_progress) as prog:
             with prog.step("validate", len(job.job.lines)):
                 lines = [load_line(job.resolve(p)) for p in job.job.lines]
@@ -307,7 +319,7 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
             key = load_private_key(signing_key_path(job, notes))
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()))
             last = latest_run(root)
-            if last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
+            if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
 
                 m = json.loads((root / last / "manifest.json").read_text())
@@ -321,6 +333,8 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
             for line in lines:
                 _run_line(job, line, stage, runner, summary, key)
             summary.computed, summary.reused = runner.computed, runner.reused
+            if cache.rejected:  # once per run, with the count
+                summary.warnings.append(cache.rejected_note())
             _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary)
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)

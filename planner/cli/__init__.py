@@ -39,6 +39,7 @@ from . import margins  # noqa: E402,F401
 from . import run  # noqa: E402,F401
 from . import datasets  # noqa: E402,F401
 from . import timekeeping  # noqa: E402,F401
+from . import cache  # noqa: E402,F401
 
 
 def main() -> None:
