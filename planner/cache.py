@@ -97,7 +97,7 @@ class _Encoder:
         if a.dtype.hasobject or a.dtype.kind not in "biufcSUMm" or a.dtype.fields is not None:
             raise TypeError(f"cannot cache an array of dtype {a.dtype}")
         name = f"a{len(self.arrays)}"
-        self.arrays[name] = np.ascontiguousarray(a)
+        self.arrays[name] = a if a.flags.c_contiguous else a.copy(order="C")
         return {"$a": name}
 
     def __call__(self, o: Any) -> Any:

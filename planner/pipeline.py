@@ -282,11 +282,16 @@ def signing_key_path(job: Job, notes: list[str]) -> Path:
     return key
 
 
-def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
-    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id)."""
+def _result_params(job: Job) -> dict[str, Any]:
+    """The job parameters that can change a result: all but where runs go and how many are kept."""
     params = job.parameters()
     params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root")}
-    return digest({"code": code_digest(), "params": params, "lines": [ln.source_digest for ln in lines],
+    return params
+
+
+def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
+    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id)."""
+    return digest({"code": code_digest(), "params": _result_params(job), "lines": [ln.source_digest for ln in lines],
                    "key": key_id})
 
 
@@ -447,7 +452,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     from .margins import write_margins
     from .report import write_html
 
-    key = digest(["margins", code_digest(), line.source_digest, unit_keys, job.parameters()])
+    key = digest(["margins", code_digest(), line.source_digest, unit_keys, _result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     report = _line_unit(runner, "margins", key, _margins_unit, line, job.margins, _types(job, line), stage,
                         job.stops.adhesion_kmh_s, job.stops.approach_m, list(map(float, grid)),
