@@ -66,6 +66,7 @@ from .atomic import write_bytes_atomic
 from .datasets import declare
 from .errors import BundleError
 from .model import DIRECTIONS, Line, sign
+from .schema import PATH_ID_RE, PATH_ID_RULE, is_path_id
 from .speed_profile import onboard_max_ms, restriction_spans
 from .units import kmh
 
@@ -94,7 +95,7 @@ TABLE_SOURCES = {"tables": ("eval_points", "table_a", "table_b", "table_c", "tab
 _BLOCK = 512
 _TABLE_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}")
 _MEMBER_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}\.parquet")
-_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+_ID = PATH_ID_RE  # the one rule for ids that name files (planner.schema)
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 _PARTITION_COLS = ("line", "direction", "train_type")
 _PARQUET_OPTIONS = dict(compression="zstd", use_dictionary=True, write_statistics=True, store_schema=False)
@@ -283,10 +284,8 @@ class Bundle:
 # --- tables built from the line DB ---------------------------------------------
 def check_id(value: str, what: str) -> str:
     """A line id / train type safe to put in a file name and a manifest."""
-    if not isinstance(value, str) or not _ID.fullmatch(value):
-        raise BundleError(
-            f"{what} {value!r} cannot name a bundle: use 1-64 letters, digits, '.', '_' or '-', not starting with '.'"
-        )
+    if not is_path_id(value):
+        raise BundleError(f"{what} {value!r} cannot name a bundle: {PATH_ID_RULE}")
     return value
 
 

@@ -9,6 +9,8 @@ so analysts can filter by partition without reading everything
 ``read_parquet('.../**/*.parquet', hive_partitioning=true)``). Partition
 columns are not stored inside the files (hive style); each file carries the
 schema's field descriptions and the dataset's schema version as metadata.
+Partition values must be path ids (:data:`planner.schema.PATH_ID_RE`); any
+other value is refused here, before a folder is made.
 
 Writes are deterministic (same table, same bytes: no timestamps, fixed
 writer settings) and atomic per file (temp file in the same folder, then
@@ -24,6 +26,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from .atomic import atomic_path
+from .schema import check_path_id
 
 PARTITION_COLS = ("line", "direction", "train_type")
 
@@ -115,8 +118,8 @@ def write_partitioned(
         if schema is not None:
             sub = conform(sub, schema)
         folder = root / dataset
-        for c, v in zip(parts, key):
-            folder = folder / f"{c}={v}"
+        for c, v in zip(parts, key):  # validated already; checked again where the path is built
+            folder = folder / f"{c}={check_path_id(v, f'partition value {c}=')}"
         path = folder / "part-0.parquet"
         write_parquet_atomic(sub, path)
         written.append(path)

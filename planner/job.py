@@ -218,6 +218,10 @@ def _scenarios(where: str, value: Any) -> tuple[Scenario, ...]:
             raise JobError(f"{w}: unknown key {sorted(extra)[0]!r}; known keys: name, load, traction")
         if "name" not in item or not isinstance(item["name"], str):
             raise JobError(f"{w}: needs a string `name`")
+        from .schema import PATH_ID_RULE, is_path_id
+
+        if not is_path_id(item["name"]):  # a partition value of the closed-loop datasets
+            raise JobError(f"{w}: name {item['name']!r} cannot name a partition; {PATH_ID_RULE}")
         out.append(Scenario(
             item["name"],
             _check_type(f"{w} load", item.get("load", 0.0), 0.0),

@@ -34,6 +34,7 @@ from .atomic import write_bytes_atomic
 from .errors import JobError
 from .job import Job
 from .model import DIRECTIONS, Line
+from .schema import check_path_id
 from .cache import Cache
 from .publish import (
     canonical_json, clean_stale_staging, digest, job_lock, latest_run, next_run_id, output_root_errors, publish,
@@ -464,7 +465,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
-    write_html(report, line, stage / "report" / f"{line.line_id}_margins.html")
+    write_html(report, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html")
     for flag in ("infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
