@@ -62,11 +62,8 @@ def code_digest() -> str:
 
 
 def _segments_in(seg, lo: float, hi: float) -> list:
-    return [
-        (float(a), float(b), float(v))
-        for a, b, v in zip(seg.start_m, seg.end_m, seg.value)
-        if b > lo and a < hi
-    ]
+    m = (seg.end_m > lo) & (seg.start_m < hi)  # vectorised: gradient tables may have millions of rows
+    return [(float(a), float(b), float(v)) for a, b, v in zip(seg.start_m[m], seg.end_m[m], seg.value[m])]
 
 
 def interstation_inputs(line: Line, train_type: str, origin: str, destination: str) -> dict[str, Any]:

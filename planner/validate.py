@@ -325,7 +325,9 @@ def sorted_disjoint(t: TableView) -> Iterator[Violation]:
     g = np.flatnonzero(t.good)
     if len(g) < 2:
         return
-    start, end = _num(t, "start_m")[g], _num(t, "end_m")[g]
+    start, end = _num(t, "start_m"), _num(t, "end_m")
+    if len(g) < t.n:  # skip the rows with bad cells (all usable: no copies)
+        start, end = start[g], end[g]
     running = np.maximum.accumulate(end)
     pos = np.where(end == running, np.arange(len(g)), 0)  # rows that become prev (end >= every earlier end)
     prev = np.maximum.accumulate(pos)[:-1]  # prev of rows 1..n-1, as positions in g
