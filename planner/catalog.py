@@ -62,7 +62,7 @@ def readme() -> str:
         "    <dataset>/line=L/direction=D/train_type=T/part-0.parquet",
         "    report/<line>_margins.html      the margin-time report (self-contained)",
         "    bundles/<line>_<dir>_<type>.pdb signed on-board DB bundles + signing_key.pub.pem",
-        "  .cache/                           work cache keyed by input digests (safe to delete)",
+        "  .cache/                           work cache keyed by input digests, verified on read (safe to delete)",
         "```",
         "",
         "Partition columns (`line`, `direction`, `train_type`, ...) are folder names, not stored in",
