@@ -116,6 +116,10 @@ class _Encoder:
         if dataclasses.is_dataclass(o) and not isinstance(o, type):
             cls = type(o)
             _resolve(_class_name(cls), "dc")  # fail now, not when reading back
+            names = {f.name for f in dataclasses.fields(o)}
+            if hasattr(o, "__dict__") and set(vars(o)) - names:  # would be lost: refuse rather than differ
+                raise TypeError(f"cannot cache {_class_name(cls)}: attributes beyond its fields "
+                                f"{sorted(set(vars(o)) - names)}")
             return {"$dc": _class_name(cls), "f": {f.name: self(getattr(o, f.name)) for f in dataclasses.fields(o)}}
         if _is_namedtuple(o):
             _resolve(_class_name(type(o)), "nt")
@@ -356,21 +360,25 @@ def encode(obj: Any) -> bytes:
 def decode(payload: bytes) -> Any:
     """The object an :func:`encode` payload holds; :class:`CacheEntryError` if it does not decode."""
     try:
-        with np.load(io.BytesIO(payload), allow_pickle=False) as z:
+        with np.load(io.BytesIO(payload), allow_pickle=False) as z:  # never unpickles: object arrays fail
             arrays = {name: z[name] for name in z.files}
     except (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:
         raise CacheEntryError(f"payload is not a readable NPZ archive ({type(e).__name__})") from None
+    if not all(isinstance(a, np.ndarray) for a in arrays.values()):
+        raise CacheEntryError("payload has members that are not arrays")
     tree = arrays.pop("tree", None)
     if tree is None or tree.dtype != np.uint8 or tree.ndim != 1:
         raise CacheEntryError("payload has no tree")
     try:
         node = json.loads(tree.tobytes().decode("utf-8"))
-    except (UnicodeDecodeError, ValueError):
+    except (UnicodeDecodeError, ValueError, RecursionError):
         raise CacheEntryError("tree is not JSON") from None
     try:
         return _Decoder(arrays)(node)
-    except RecursionError:
-        raise CacheEntryError("tree too deep") from None
+    except CacheEntryError:
+        raise
+    except Exception as e:  # noqa: BLE001 - a verified payload that still does not decode is a miss
+        raise CacheEntryError(f"payload does not decode ({type(e).__name__})") from None
 
 
 # --- entries --------------------------------------------------------------------------------

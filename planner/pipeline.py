@@ -325,8 +325,11 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
 
-                m = json.loads((root / last / "manifest.json").read_text())
-                if m.get("inputs_digest") == inputs:
+                try:
+                    m = json.loads((root / last / "manifest.json").read_text())
+                except ValueError:  # a damaged manifest proves nothing: run again
+                    m = {}
+                if isinstance(m, dict) and m.get("inputs_digest") == inputs:
                     return RunSummary(last, root / last, True, timings=prog.timings,
                                       notes=notes + [f"nothing changed since run {last}: it stays the latest"])
             run_id = next_run_id(root, inputs)

@@ -251,3 +251,30 @@ def test_verify_and_clear(tmp_path):
     assert rep.removed == 2 and not p.exists()
     assert c.verify().good == 2 and not c.verify().bad
     assert c.clear() == 2 and not c.root.exists()
+
+
+def test_forged_payloads_that_do_not_decode_are_misses(tmp_path):
+    c = Cache(tmp_path)
+    p = c.path("tables", KEY)
+    p.parent.mkdir(parents=True)
+    buf = io.BytesIO()
+    import zipfile
+
+    with zipfile.ZipFile(buf, "w") as z:
+        z.writestr("tree.npy", b"not an npy")
+        z.writestr("notes.txt", b"raw bytes")
+    deep = "[" * 100_000 + "]" * 100_000
+    payloads = [
+        buf.getvalue(),
+        _npz(tree=np.frombuffer(deep.encode(), dtype=np.uint8)),
+        _npz(tree=_tree({"$d": [[[1], 2]]})),  # unhashable key
+        _npz(tree=_tree({"$df": {"columns": ["a"], "data": [{"dtype": "<f8", "v": {"$a": "a0"}}],
+                                 "index": {"range": [0, 5, 1]}}}), a0=np.zeros(3)),  # length mismatch
+        _npz(tree=_tree({"$a": "missing"})),
+        _npz(tree=_tree({"$np": "<f8", "v": {"$a": "a0"}}), a0=np.zeros(2)),
+        _npz(tree=_tree({"$dc": "planner.model:Station"})),
+    ]
+    for payload in payloads:
+        p.write_bytes(_forge("tables", KEY, payload))
+        assert c.get("tables", KEY) is None
+    assert c.rejected == len(payloads)
