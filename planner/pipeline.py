@@ -297,7 +297,8 @@ def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> 
     """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure.
 
     ``use_cache=False`` (``planner run --no-cache``) trusts no cache entry: every
-    unit is recomputed, and the fresh results replace the entries.
+    unit is recomputed, the fresh results replace the entries, and a new run is
+    published even when nothing changed since ``latest``.
     """
     root = job.resolve(job.job.output_root)
     with output_root_errors(root):

@@ -13,8 +13,8 @@ def run(
     job_file: Path = typer.Argument(..., help="Job file (TOML), e.g. jobs/nightly.toml."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar per step."),
     no_cache: bool = typer.Option(False, "--no-cache",
-                                  help="Trust no cache entry: recompute every unit (fresh entries replace "
-                                       "the old ones)."),
+                                  help="Trust no cache entry: recompute every unit and publish a new run even "
+                                       "if nothing changed (fresh entries replace the old ones)."),
 ) -> None:
     """Validate, build tables, stopping patterns, closed loop, margins, bundles and conflicts; publish atomically."""
     from ..job import load_job
