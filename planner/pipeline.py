@@ -31,7 +31,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from . import __version__
 from .atomic import write_bytes_atomic
-from .errors import JobError
+from .errors import JobError, PlannerError
 from .job import Job
 from .model import DIRECTIONS, Line
 from .publish import (
@@ -250,33 +250,62 @@ class RunSummary:
     flags: dict[str, int] = field(default_factory=dict)
     bundles: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    release: Any = None
+    """The :class:`planner.bundle.Release` the run's bundles were issued with."""
 
 
-def signing_key_path(job: Job, notes: list[str]) -> Path:
-    """The private key to sign bundles with: job file, else $PLANNER_SIGNING_KEY, else a development key."""
+def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
+    """The private key to sign bundles with, and whether it is a development key.
+
+    The job file's ``[bundles] signing_key``, else ``$PLANNER_SIGNING_KEY``; with
+    neither, a development key under ``OUTPUT_ROOT/.dev-key`` only when the job
+    says ``allow_development_key = true`` (else a :class:`JobError`). A
+    configured key that lies in that folder is a development key too.
+    """
     from .signing import generate_keypair
 
+    dev = job.resolve(job.job.output_root) / ".dev-key"
+    p = None
     if job.bundles.signing_key:
         p = job.resolve(job.bundles.signing_key)
         if not p.is_file():
             raise JobError(f"{job.path}: [bundles] signing_key: {p} not found; "
                            "create one with `planner keys generate DIR`")
-        return p
-    env = os.environ.get("PLANNER_SIGNING_KEY")
-    if env:
-        p = Path(env)
+    elif os.environ.get("PLANNER_SIGNING_KEY"):
+        p = Path(os.environ["PLANNER_SIGNING_KEY"])
         if not p.is_file():
             raise JobError(f"PLANNER_SIGNING_KEY: {p} not found")
-        return p
-    dev = job.resolve(job.job.output_root) / ".dev-key"
+    if p is not None:
+        is_dev = p.resolve().parent == dev.resolve()
+        if is_dev and not job.bundles.allow_development_key:
+            raise JobError(f"{job.path}: [bundles] signing_key: {p} is the development key; use a production key "
+                           "(`planner keys generate DIR`) or set allow_development_key = true for test runs")
+        if is_dev:
+            notes.append(f"bundles signed with the DEVELOPMENT key {p}: marked development, refused by vehicles")
+        return p, is_dev
+    if not job.bundles.allow_development_key:
+        raise JobError(f"{job.path}: [bundles] no signing key: set signing_key to a production key "
+                       "(`planner keys generate DIR`) or PLANNER_SIGNING_KEY, or allow_development_key = true "
+                       "for test runs")
     key = dev / "signing_key.pem"
-    if not key.is_file():
+    made = not key.is_file()
+    if made:
         generate_keypair(dev)
-        notes.append(f"no signing key configured: created a DEVELOPMENT key {key} "
-                     "(bundles signed with it are for testing only; set [bundles] signing_key)")
-    else:
-        notes.append(f"bundles signed with the development key {key} (set [bundles] signing_key for production)")
-    return key
+    notes.append(f"no signing key configured: bundles signed with the {'new ' if made else ''}DEVELOPMENT key {key} "
+                 "(allow_development_key = true); they are marked development and vehicles refuse them")
+    return key, True
+
+
+def _renewal_due(last_manifest: dict, now_s: int) -> bool:
+    """The published bundles have used half of their validity (or the run has no release record)."""
+    from .bundle import parse_time
+
+    rel = last_manifest.get("bundles_release")
+    try:
+        built, expires = parse_time(rel["built_at"]), parse_time(rel["expires"])
+    except (TypeError, KeyError, PlannerError):
+        return True
+    return now_s >= built + (expires - built) // 2
 
 
 def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
@@ -303,21 +332,30 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
                         line.train_type(t)
             from .signing import load_private_key, public_key_id
 
+            from .bundle import Release, build_time_s
+
             notes: list[str] = []
-            key = load_private_key(signing_key_path(job, notes))
+            key_path, development = signing_key_path(job, notes)
+            key = load_private_key(key_path)
+            # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or the clock now
+            release = Release.issue(build_time_s(), valid_days=job.bundles.valid_days, development=development)
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()))
             last = latest_run(root)
             if last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
 
                 m = json.loads((root / last / "manifest.json").read_text())
-                if m.get("inputs_digest") == inputs:
+                if m.get("inputs_digest") == inputs and not _renewal_due(m, release.built_at_s):
                     return RunSummary(last, root / last, True, timings=prog.timings,
                                       notes=notes + [f"nothing changed since run {last}: it stays the latest"])
+                if m.get("inputs_digest") == inputs:
+                    notes.append(f"nothing changed since run {last}, but its bundles are past half their validity: "
+                                 "re-issued")
             run_id = next_run_id(root, inputs)
             stage = staging_dir(root, run_id)
             summary = RunSummary(run_id, None, False, notes=notes)
             runner = Runner(job, cache, prog)
+            summary.release = release
             for line in lines:
                 _run_line(job, line, stage, runner, summary, key)
             summary.computed, summary.reused = runner.computed, runner.reused
@@ -458,7 +496,8 @@ def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
 
     out = stage / "bundles"
     with runner.progress.step("bundles", 2 * len(_types(job, line))):
-        infos = build_line(line, out, key, tables_dir=stage, stops_dir=stage, train_types=_types(job, line),
+        infos = build_line(line, out, key, release=summary.release, tables_dir=stage, stops_dir=stage,
+                           train_types=_types(job, line),
                            on_built=lambda info: runner.progress.advance("bundles"))
     pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
     write_bytes_atomic(out / "signing_key.pub.pem", pem)
@@ -484,6 +523,16 @@ def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: 
     return report.conflicts
 
 
+def _release_record(release) -> dict | None:
+    from .bundle import format_time
+
+    if release is None:
+        return None
+    return {"version": release.version, "built_at": format_time(release.built_at_s),
+            "expires": format_time(release.expires_s),
+            "key_kind": "development" if release.development else "production"}
+
+
 def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary) -> None:
     import platform
 
@@ -506,6 +555,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "rows": dict(sorted(summary.rows.items())),
         "flags": dict(sorted(summary.flags.items())),
         "bundles": sorted(summary.bundles),
+        "bundles_release": _release_record(summary.release),
     }
     write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
     from .catalog import readme
