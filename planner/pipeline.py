@@ -148,9 +148,12 @@ class Runner:
         self.reused: dict[str, int] = {}
 
     def run(self, step: str, units: Sequence[Unit]) -> list:
-        """Results of ``units`` in order; cached ones loaded, the rest computed in parallel."""
-        from joblib import Parallel, delayed
+        """Results of ``units`` in order; cached ones loaded, the rest computed in parallel.
 
+        Each result is cached as soon as it arrives, so a run that fails part
+        way (e.g. :class:`planner.parallel.ClusterLostError`) leaves the
+        finished units for the next run.
+        """
         from .parallel import backend
 
         results: list = [None] * len(units)
@@ -166,13 +169,12 @@ class Runner:
         self.progress.start(step, len(units), done=len(units) - len(todo))
         if todo:
             p = self.job.parallel
-            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler) as n_jobs:
-                if n_jobs == 1 or len(todo) == 1:
+            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
+                         lost_timeout_s=p.dask_lost_timeout_s) as pool:
+                if pool.n_jobs == 1 or len(todo) == 1:
                     gen = (_call(units[i].fn, units[i].args) for i in todo)
                 else:
-                    gen = Parallel(n_jobs=n_jobs, return_as="generator")(
-                        delayed(_call)(units[i].fn, units[i].args) for i in todo
-                    )
+                    gen = pool.imap(_call, [(units[i].fn, units[i].args) for i in todo])
                 for i, res in zip(todo, gen):
                     self.cache.put("objects", units[i].key, res)  # survives a later failure
                     results[i] = res
