@@ -83,7 +83,7 @@ def cluster():
             kill_group(worker)
 
 
-def in_thread(fn):
+def in_thread(fn, guard_s: float = HANG_GUARD_S):
     """Run ``fn`` in a thread; return (result or exception, seconds); a hang fails the test."""
     out = {}
 
@@ -96,8 +96,8 @@ def in_thread(fn):
     t = threading.Thread(target=target, daemon=True)
     t0 = time.monotonic()
     t.start()
-    t.join(HANG_GUARD_S)
-    assert not t.is_alive(), f"still waiting after {HANG_GUARD_S} s: the bound did not hold"
+    t.join(guard_s)
+    assert not t.is_alive(), f"still waiting after {guard_s} s"
     return out["value"], time.monotonic() - t0
 
 
@@ -205,6 +205,7 @@ def test_nightly_job_with_every_worker_killed_fails_fast_frees_the_lock_and_the_
     job = load_job(_project(tmp_path, lc.scheduler_address))
     err, _ = in_thread(lambda: run_job(job, show_progress=False))
     took = time.monotonic() - plugin.killed_at
+    print(f"\nnightly job: error {took:.2f} s after the kill (bound {LOST_S} s): {err}")
     assert isinstance(err, ClusterLostError) and "\n" not in str(err), err
     assert "of this step done" in str(err)
     out = tmp_path / "out"
@@ -221,13 +222,13 @@ def test_nightly_job_with_every_worker_killed_fails_fast_frees_the_lock_and_the_
     try:
         with distributed.Client(lc) as c:
             c.wait_for_workers(1, timeout=HANG_GUARD_S)
-        s, _ = in_thread(lambda: run_job(job, show_progress=False))
+        s, secs = in_thread(lambda: run_job(job, show_progress=False), guard_s=900.0)  # a whole run
         assert not isinstance(s, BaseException), s
         assert latest_run(out) == s.run_id
     finally:
         kill_group(worker)
     print(f"\nnightly job: error {took:.2f} s after the kill (bound {LOST_S} s): {err}; lock free; "
-          f"next run {s.run_id} published, computed {s.computed}, reused {s.reused}")
+          f"next run {s.run_id} published in {secs:.0f} s, computed {s.computed}, reused {s.reused}")
 
 
 # --- local backend: loky workers end with the main process ----------------------------------------

@@ -84,7 +84,8 @@ def margins(
     typer.echo(f"{line.line_id}: {len(rows)} legs x train type ({len(s)} timetabled, "
                f"{int((s.passes.map(len) > 0).sum())} passing stations); tables "
                f"{report.sources['tables_dataset']} read, {report.sources['tables_computed']} computed")
-    typer.echo(f"  flags: {int(s.infeasible.sum())} infeasible, {int(s.tight.sum())} tight, "
+    typer.echo(f"  flags: {int(s.unassessed.sum())} unassessed, {int(s.infeasible.sum())} infeasible, "
+               f"{int(s.tight.sum())} tight, "
                f"{int(s.unreachable.sum())} unreachable; {int((~s.supplement_met).sum())} below the supplement rule")
     if len(s):
         w = s.sort_values("remaining_margin_s", kind="stable").iloc[0]
