@@ -121,7 +121,7 @@ class ConflictsSection:
 @dataclass(frozen=True)
 class ParallelSection:
     backend: str = "local"
-    """`local` (joblib processes) or `dask` (joblib's dask backend on a dask.distributed cluster)."""
+    """`local` (joblib loky processes) or `dask` (futures on a dask.distributed cluster, see planner.parallel)."""
     n_jobs: int = -1
     """Worker processes for the local backend; -1 = all cores."""
     scheduler: str = ""
