@@ -90,11 +90,12 @@ class DaskPool(Pool):
         self.scheduler = scheduler
         self.lost_timeout_s = float(lost_timeout_s)
         self.poll_s = min(1.0, self.lost_timeout_s / 4.0)
+        self.ask_s = min(5.0, self.lost_timeout_s / 4.0)  # a busy scheduler may take a moment to answer
 
     def _workers(self) -> int | None:
-        """Workers the scheduler has now, or None when it does not answer within the poll interval."""
+        """Workers the scheduler has now, or None when it does not answer within ``ask_s``."""
         try:
-            info = self.client.sync(self.client.scheduler.identity, n_workers=-1, callback_timeout=self.poll_s)
+            info = self.client.sync(self.client.scheduler.identity, n_workers=-1, callback_timeout=self.ask_s)
         except Exception:  # noqa: BLE001 - any failure to get an answer means: no scheduler right now
             return None
         return len(info.get("workers", {}))
@@ -107,6 +108,8 @@ class DaskPool(Pool):
 
     def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
         from concurrent.futures import CancelledError
+
+        from distributed import KilledWorker
 
         total = len(arglist)
         try:
@@ -126,6 +129,9 @@ class DaskPool(Pool):
                     except CancelledError:  # includes distributed's FutureCancelledError
                         raise self._lost(done, total, "the scheduler cancelled the work (scheduler gone or "
                                                       "restarted)") from None
+                    except KilledWorker as e:
+                        raise self._lost(done, total, f"workers died running one unit ({e}); the unit may "
+                                                      "need more memory than a worker has") from None
                     n = self._workers()
                     if n:
                         lost_since = None
