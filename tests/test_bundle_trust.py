@@ -262,3 +262,21 @@ def test_an_unchanged_run_reissues_bundles_after_half_their_validity(now, due):
     m = {"bundles_release": {"built_at": "2026-01-01T00:00:00Z", "expires": "2026-01-31T00:00:00Z"}}
     assert _renewal_due(m, bundle.parse_time(now)) is due
     assert _renewal_due({}, bundle.parse_time(now))  # a run from before releases: re-issue
+
+
+def test_cli_build_stamps_version_expiry_and_key_kind(tmp_path):
+    from linedb import write_line_db
+
+    line_dir = write_line_db(tmp_path / "tiny", nodes=None, edges=None)
+    priv, pub = signing.generate_keypair(tmp_path / "k")
+    r = run_cli("bundle", "build", line_dir, "--out", tmp_path / "out", "--key", priv, "--train-type", "EMU6",
+                "--direction", "up", "--built-at", "2026-11-23T04:00:00Z", "--valid-days", "2",
+                "--bundle-version", "7", "--development-key")
+    assert r.exit_code == 0, r.output
+    assert "version 7, built 2026-11-23T04:00:00Z, expires 2026-11-25T04:00:00Z, development key" in r.output
+    p = tmp_path / "out" / "tiny_up_EMU6.pdb"
+    info = bundle.verify_bundle(p, pub, expect="tiny/up/EMU6", min_version=7, at="2026-11-24T00:00:00Z",
+                                allow_dev=True)
+    assert (info.bundle_version, info.key_kind) == (7, "development")
+    r = run_cli("bundle", "build", line_dir, "--out", tmp_path / "out", "--key", priv, "--built-at", "yesterday")
+    assert r.exit_code != 0 and "not an ISO 8601 time" in r.output
