@@ -332,9 +332,8 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)
-            from .signing import load_private_key, public_key_id
-
             from .bundle import Release, build_time_s
+            from .signing import load_private_key, public_key_id
 
             notes: list[str] = []
             key_path, development = signing_key_path(job, notes)

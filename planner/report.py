@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-FLAG_COLOURS = {"unassessed": "#37474f", "infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a", "ok": "#2e7d32"}
+FLAG_COLOURS = {"unassessed": "#37474f", "infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a",
+                "ok": "#2e7d32"}
 """Colour of a leg by its worst flag (also used in the table)."""
 MARGIN_COLOUR = "#b0c4de"
 """Bar colour of the nominal margin."""
@@ -58,10 +59,12 @@ table{border-collapse:collapse;background:#fff;font-size:12px;width:100%}
 th,td{border:1px solid #dde1e5;padding:3px 5px;text-align:right;white-space:nowrap}
 th{background:#eef1f4;position:sticky;top:0;font-weight:600;white-space:normal;vertical-align:bottom}
 td.l,th.l{text-align:left}
-tr.unassessed td{background:#e3e7ea}tr.infeasible td{background:#fdecea}tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}
+tr.unassessed td{background:#e3e7ea}
+tr.infeasible td{background:#fdecea}tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}
 tr.sep td{background:#d5d9de;text-align:left;font-weight:600}
 .badge{display:inline-block;border-radius:4px;padding:0 5px;margin-right:3px;color:#fff;font-size:11px;font-weight:600}
-.b-unassessed{background:#37474f}.b-infeasible{background:#c62828}.b-tight{background:#ef8f00}.b-unreachable{background:#6a1b9a}
+.b-unassessed{background:#37474f}
+.b-infeasible{background:#c62828}.b-tight{background:#ef8f00}.b-unreachable{background:#6a1b9a}
 .b-short{background:#fff;color:#8a5a00;border:1px solid #c89b3c}
 .neg{color:#c62828;font-weight:600}
 details{margin:10px 0}summary{cursor:pointer;font-weight:600;font-size:14px}
@@ -506,9 +509,9 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
     parts.append("<div class='cards'>" + "".join(
         f"<div class='card {c}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></div>" for c, n, l in cards)
         + "</div>")
-    # what stands out
+    # what stands out (among the legs that could be assessed)
     find = []
-    if len(sched):
+    if (~sched.unassessed.astype(bool)).any():
         w = sched.sort_values("remaining_margin_s", kind="stable").iloc[0]
         find.append(f"Least margin on a bad day: <b>{_e(w.train_type)} {_e(w.direction)} {_e(w.origin)} → "
                     f"{_e(w.destination)}</b>, scheduled {w.scheduled_running_time_s:.0f} s against a minimum of "
