@@ -89,7 +89,8 @@ def bundle_build(
 def bundle_verify(
     bundle: Path = typer.Argument(..., help="Bundle file (.pdb)."),
     public_key: Path = typer.Option(..., "--public-key", help="Signer's public key (PEM): the one the vehicle trusts."),
-    expect: str = typer.Option(..., "--expect", help="LINE/DIRECTION/TYPE the bundle must be for, e.g. sample/down/E10."),
+    expect: str = typer.Option(..., "--expect",
+                               help="LINE/DIRECTION/TYPE the bundle must be for, e.g. sample/down/E10."),
     min_version: int = typer.Option(0, "--min-version", min=0,
                                     help="Refuse a bundle version below this (the installed version: rollback)."),
     at: Optional[str] = typer.Option(None, "--at", help="Time of the expiry check, ISO 8601 (default now)."),
