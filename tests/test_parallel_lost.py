@@ -175,6 +175,7 @@ def _project(tmp_path: Path, address: str) -> Path:
     job.write_text(textwrap.dedent(f"""
         [job]
         lines = ["lines/tiny"]
+        train_types = ["EMU6"]
         output_root = "out"
         [stops]
         adhesion_kmh_s = "2.5:3.5:0.5"
@@ -194,7 +195,7 @@ def _project(tmp_path: Path, address: str) -> Path:
 
 @pytest.mark.slow
 def test_nightly_job_with_every_worker_killed_fails_fast_frees_the_lock_and_the_next_run_succeeds(cluster, tmp_path):
-    """Slow (two full runs of the tiny line, ~1 min on a busy 2-core machine): kept for the issue's proof."""
+    """Slow (a whole run of the tiny line for one train type after the failed one; minutes on a loaded machine)."""
     import fcntl
 
     from planner.job import load_job
