@@ -252,6 +252,8 @@ TOTAL_SUM_COLS = (
     "energy_at_ratio_kwh", "energy_at_full_ratio_kwh", "energy_saved_kwh",
 )
 """Row columns summed into the totals."""
+UNKNOWN_WHEN_UNASSESSED = ("degraded_min_running_time_s", "remaining_margin_s")
+"""Totals that are NaN (unknown) when any leg summed is unassessed, as are the worst margin and the shortfall."""
 
 
 def margin_totals(rows, train_legs):
@@ -278,8 +280,9 @@ def margin_totals(rows, train_legs):
         minimum), ``min_remaining_margin_s`` (worst leg), ``bad_day_shortfall_s``
         (sum of max(0, −remaining margin) over the legs), ``n_supplement_short``,
         ``n_infeasible``, ``n_tight``, ``n_unreachable``, ``n_unassessed``
-        (legs, counted per train run; sums and the worst margin leave the
-        unassessed legs' unknown values out).
+        (legs, counted per train run). With an unassessed leg among those
+        summed, the degraded-minimum and remaining-margin sums, the worst
+        remaining margin and the shortfall are NaN: unknown, not partial.
     """
     import pandas as pd
 
@@ -298,8 +301,10 @@ def margin_totals(rows, train_legs):
 
     def agg(g: pd.DataFrame) -> dict:
         out = {c: float(g[c].sum()) for c in TOTAL_SUM_COLS}
+        for c in UNKNOWN_WHEN_UNASSESSED:  # a partial sum would pass for the whole: unknown instead
+            out[c] = float(g[c].sum(skipna=False))
         out["margin_percent"] = 100.0 * out["margin_s"] / out["min_running_time_s"]
-        out["min_remaining_margin_s"] = float(g["remaining_margin_s"].min())
+        out["min_remaining_margin_s"] = float(g["remaining_margin_s"].min(skipna=False))
         out["bad_day_shortfall_s"] = float(np.maximum(-g["remaining_margin_s"].to_numpy(float), 0.0).sum())
         out["n_legs"] = int(len(g))
         out["n_supplement_short"] = int(g["short"].sum())
@@ -1122,7 +1127,8 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("n_infeasible", pa.int32(), "legs flagged infeasible"),
         ("n_tight", pa.int32(), "legs flagged tight"),
         ("n_unreachable", pa.int32(), "legs flagged unreachable"),
-        ("n_unassessed", pa.int32(), "legs flagged unassessed (left out of the sums and the worst margin)"),
+        ("n_unassessed", pa.int32(),
+         "legs flagged unassessed; when > 0 the degraded and remaining sums, worst margin and shortfall are null"),
     ],
     name="margin_totals",
     description="Margin totals per train, per direction x train type and per direction (DESIGN §6).",

@@ -77,6 +77,9 @@ def test_every_leg_without_a_pattern_is_unassessed_with_its_reason(hopeless):
     assert all(r.startswith("no stopping pattern at adhesion 3 km/h/s") for r in rows.unassessed_reason)
     tot = hopeless.totals.set_index(["scope", "train_id"])
     assert tot.loc[("train", "L1")].n_unassessed == 2 and tot.loc[("train", "R1")].n_unassessed == 1
+    for c in ("remaining_margin_s", "degraded_min_running_time_s", "min_remaining_margin_s", "bad_day_shortfall_s"):
+        assert hopeless.totals[c].isna().all(), c  # unknown, not a partial sum that looks like a whole
+    assert (hopeless.totals.margin_s.notna()).all()  # what is known stays known
 
 
 def test_unassessed_legs_are_null_not_false_in_the_dataset(hopeless, tmp_path):
@@ -99,6 +102,7 @@ def test_assessed_legs_are_not_unassessed():
     rep = compute_margins(line(), adhesion_kmh_s="3.0:3.5:0.5", approach_m=APPROACH, conflicts=False,
                           ratios=SMALL_GRID)
     assert not rep.rows.unassessed.any() and (rep.rows.unassessed_reason == "").all()
+    assert rep.totals.remaining_margin_s.notna().all() and (rep.totals.n_unassessed == 0).all()
     assert rep.rows.infeasible.any()  # the same line has flagged legs: they are not mistaken for unassessed
 
 
