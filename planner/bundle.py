@@ -19,8 +19,9 @@ An uncompressed POSIX ustar archive written by this module, byte for byte:
 * ``manifest.json``: canonical JSON (sorted keys, no whitespace, ASCII, only
   strings/integers/lists) with the bundle schema version, line, direction,
   train type, software version, the digest of the input line DB, the signing
-  key's id, the tables expected but missing, and for every other member its
-  name, size, SHA-256 and row count;
+  key's id and kind (``production`` or ``development``), the bundle version,
+  build time and expiry (:class:`Release`), the tables expected but missing,
+  and for every other member its name, size, SHA-256 and row count;
 * ``manifest.sig``: the 64-byte Ed25519 signature of the exact manifest bytes.
 
 Any standard ``tar`` can list and extract a bundle; this module reads it with
@@ -33,11 +34,24 @@ Reading checks, in this order, and parses nothing else before the signature is
 proven: archive structure (member names ``[a-z0-9_]+.parquet`` or the two
 manifest files, regular files only, no duplicates, sizes within bounds, every
 header and padding byte canonical, nothing after the end); the signature of
-``manifest.json``; the manifest's schema; that the members are exactly the
-files it lists, each with its size and SHA-256; then the tables themselves:
-declared columns and types, the line/direction/train type in every row, and
-cross-table consistency (ATS-P rows ↔ restrictions, beacon order and flags,
-table (b) ratios and points present in table (a) and the evaluation points).
+``manifest.json``; the manifest's schema; that its ``key_id`` is the id of the
+verifying key; then what the vehicle asked for (:func:`verify_bundle`: the
+expected line/direction/train type, a production key unless development keys
+are allowed, a version not below the installed one, not expired); that the
+members are exactly the files it lists, each with its size and SHA-256; then
+the tables themselves: declared columns and types, the line/direction/train
+type in every row, and cross-table consistency (ATS-P rows ↔ restrictions,
+beacon order and flags, table (b) ratios and points present in table (a) and
+the evaluation points). ``docs/bundles.md`` explains each check and the attack
+it stops.
+
+Freshness and reproducibility
+-----------------------------
+The version, build time and validity are *inputs* of a build (:class:`Release`),
+like ``SOURCE_DATE_EPOCH`` for reproducible builds: the same tables, key and
+release give the same bytes. :func:`Release.issue` derives the version from the
+build time (UTC ``YYYYMMDDHHMMSS`` as an integer), so versions increase with
+build time for every target, on any build host, without state to keep.
 
 Writes are atomic: the bundle is written to a temporary file in the output
 folder, fsynced and renamed over the final name, so an interrupted build
@@ -52,7 +66,9 @@ import math
 import os
 import re
 import stat
+import time
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -72,8 +88,16 @@ from .units import kmh
 
 # --- format constants ----------------------------------------------------------
 FORMAT = "planner-onboard-db"
-SCHEMA_VERSION = 1
-SUPPORTED_SCHEMA_VERSIONS = frozenset({1})
+SCHEMA_VERSION = 2
+SUPPORTED_SCHEMA_VERSIONS = frozenset({2})
+"""Version 1 had no target binding, version, expiry or key kind: refused, as it cannot be kept fresh."""
+KEY_KINDS = ("production", "development")
+DEFAULT_VALID_DAYS = 30
+"""Default validity of a bundle [days]: a vehicle refuses it this long after its build time."""
+ENV_BUILD_TIME = "SOURCE_DATE_EPOCH"
+"""Environment variable fixing the build time [Unix seconds] (reproducible-builds.org convention)."""
+_TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
+_TIME_RE = re.compile(r"\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}Z")
 SUFFIX = ".pdb"
 MANIFEST = "manifest.json"
 SIGNATURE = "manifest.sig"
@@ -199,6 +223,91 @@ CORE_SCHEMAS = {
 }
 
 
+# --- release: version, build time, expiry ---------------------------------------
+def format_time(t_s: int) -> str:
+    """``YYYY-MM-DDTHH:MM:SSZ`` (UTC) of Unix seconds ``t_s``: the manifest's time form."""
+    return time.strftime(_TIME_FORMAT, time.gmtime(int(t_s)))
+
+
+def parse_time(text: str, what: str = "time") -> int:
+    """Unix seconds of an ISO 8601 time; a time without a zone is UTC. Raises BundleError."""
+    s = str(text).strip()
+    try:
+        t = datetime.fromisoformat(s[:-1] + "+00:00" if s.endswith(("Z", "z")) else s)
+    except ValueError:
+        raise BundleError(f"{what} {text!r} is not an ISO 8601 time such as 2026-11-23T04:00:00Z") from None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=timezone.utc)
+    return int(t.timestamp())
+
+
+def build_time_s(env: Mapping[str, str] | None = None) -> int:
+    """The build time [Unix seconds]: ``$SOURCE_DATE_EPOCH`` when set, else the clock now (whole seconds)."""
+    env = os.environ if env is None else env
+    raw = env.get(ENV_BUILD_TIME, "")
+    if raw == "":
+        return int(time.time())
+    if not raw.isdigit():
+        raise BundleError(f"{ENV_BUILD_TIME}={raw!r} must be a whole number of seconds since 1970-01-01 UTC")
+    return int(raw)
+
+
+@dataclass(frozen=True)
+class Release:
+    """How a bundle is issued: version, build time, validity, and whether the key is a development key.
+
+    All four are signed in the manifest. They are build *inputs*, so a build is
+    a pure function of tables, key and release (byte-reproducible).
+
+    Attributes
+    ----------
+    version : int
+        Bundle version, ≥ 1; a vehicle refuses one below the version it has installed.
+    built_at_s : int
+        Build time [Unix seconds, UTC].
+    valid_s : int
+        Validity [s]; the bundle expires at ``built_at_s + valid_s``.
+    development : bool
+        Signed with a development key: vehicles in service refuse it.
+    """
+
+    version: int
+    built_at_s: int
+    valid_s: int = DEFAULT_VALID_DAYS * 86400
+    development: bool = False
+
+    def __post_init__(self):
+        for name in ("version", "built_at_s", "valid_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise BundleError(f"bundle {name} must be an integer, found {v!r}")
+        if self.version < 1:
+            raise BundleError(f"bundle version must be at least 1, found {self.version}")
+        if not 0 <= self.built_at_s < 253402300800:  # year 10000: the manifest's time form has 4 digits
+            raise BundleError(f"bundle build time {self.built_at_s} is outside 1970..9999")
+        if self.valid_s < 1:
+            raise BundleError(f"bundle validity must be at least 1 s, found {self.valid_s}")
+
+    @classmethod
+    def issue(cls, built_at_s: int | None = None, *, valid_days: float = DEFAULT_VALID_DAYS,
+              development: bool = False, version: int | None = None) -> "Release":
+        """A release built at ``built_at_s`` (default :func:`build_time_s`), version from the build time.
+
+        The version is the build time in UTC as the integer ``YYYYMMDDHHMMSS``
+        (e.g. 20261123040000): it grows with the build time for every target,
+        on every build host, without a counter to keep, and reads as a date.
+        """
+        t = build_time_s() if built_at_s is None else int(built_at_s)
+        if not (isinstance(valid_days, (int, float)) and math.isfinite(valid_days) and valid_days > 0):
+            raise BundleError(f"bundle validity must be a positive number of days, found {valid_days!r}")
+        v = int(time.strftime("%Y%m%d%H%M%S", time.gmtime(t))) if version is None else version
+        return cls(v, t, int(round(valid_days * 86400)), development)
+
+    @property
+    def expires_s(self) -> int:
+        return self.built_at_s + self.valid_s
+
+
 # --- public results ------------------------------------------------------------
 @dataclass(frozen=True)
 class FileEntry:
@@ -227,6 +336,12 @@ class BundleInfo:
         SHA-256 of the input line DB (``Line.source_digest``; "" for an in-memory line).
     key_id : str
         SHA-256 of the signing public key (raw bytes).
+    key_kind : str
+        ``production`` or ``development``.
+    bundle_version : int
+        Release version (monotonic per target).
+    built_at, expires : str
+        Build time and expiry, ``YYYY-MM-DDTHH:MM:SSZ``.
     files : tuple of FileEntry
         Table members, sorted by name.
     missing : tuple of str
@@ -249,6 +364,15 @@ class BundleInfo:
     missing: tuple[str, ...]
     size_bytes: int
     sha256: str
+    key_kind: str = "production"
+    bundle_version: int = 0
+    built_at: str = ""
+    expires: str = ""
+
+    @property
+    def target(self) -> str:
+        """``LINE/DIRECTION/TYPE``: what the bundle is for."""
+        return f"{self.line_id}/{self.direction}/{self.train_type}"
 
     @property
     def complete(self) -> bool:
@@ -264,7 +388,9 @@ class BundleInfo:
         out = [
             f"{Path(self.path).name}: line {self.line_id}, {self.direction}, train type {self.train_type}; "
             f"bundle schema v{self.schema_version}, planner {self.software_version}",
-            f"line DB sha256 {self.line_digest or '(in-memory line)'}; signed by key {self.key_id[:16]}",
+            f"version {self.bundle_version}, built {self.built_at}, expires {self.expires}",
+            f"line DB sha256 {self.line_digest or '(in-memory line)'}; signed by {self.key_kind} key {self.key_id[:16]}"
+            + ("  (DEVELOPMENT KEY: not for service)" if self.key_kind != "production" else ""),
             f"{self.size_bytes} bytes, sha256 {self.sha256}",
         ]
         for f in self.files:
@@ -559,7 +685,7 @@ def _private_key(key) -> "signing.Ed25519PrivateKey":
 
 
 def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
-                 private_key, line_digest: str = "", line_schema_version: int = 1) -> bytes:
+                 private_key, release: Release, line_digest: str = "", line_schema_version: int = 1) -> bytes:
     """The bytes of a signed bundle holding ``tables`` (no file is written).
 
     Parameters
@@ -573,12 +699,16 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
         ``direction`` or ``train_type`` column must carry these values.
     private_key : Ed25519PrivateKey or path
         Signing key (a path is loaded with :func:`planner.signing.load_private_key`).
+    release : Release
+        Version, build time, validity and key kind, signed in the manifest.
     line_digest : str
         SHA-256 hex of the input line DB (``Line.source_digest``), or "".
     line_schema_version : int
         Schema version of the input line DB.
     """
     key = _private_key(private_key)
+    if not isinstance(release, Release):
+        raise BundleError("a bundle needs a Release (version, build time, validity); see Release.issue")
     bundle_name(line_id, direction, train_type)  # validates the ids
     if line_digest and not _SHA256.fullmatch(line_digest):
         raise BundleError(f"line digest {line_digest!r} is not a SHA-256 hex digest")
@@ -616,6 +746,10 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
         "line_digest": line_digest,
         "line_schema_version": int(line_schema_version),
         "key_id": signing.public_key_id(key.public_key()),
+        "key_kind": "development" if release.development else "production",
+        "bundle_version": release.version,
+        "built_at": format_time(release.built_at_s),
+        "expires": format_time(release.expires_s),
         "files": files,
         "missing": sorted(t for t in EXPECTED_TABLES if t not in tables),
     }
@@ -639,7 +773,7 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
 
 
 def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
-                 out_dir: str | os.PathLike, private_key, line_digest: str = "",
+                 out_dir: str | os.PathLike, private_key, release: Release, line_digest: str = "",
                  line_schema_version: int = 1) -> BundleInfo:
     """Build, sign and atomically write one bundle into ``out_dir``; see :func:`bundle_bytes`.
 
@@ -650,7 +784,7 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     """
     out = Path(out_dir)
     data = bundle_bytes(tables, line_id=line_id, direction=direction, train_type=train_type,
-                        private_key=private_key, line_digest=line_digest,
+                        private_key=private_key, release=release, line_digest=line_digest,
                         line_schema_version=line_schema_version)
     path = out / bundle_name(line_id, direction, train_type)
     try:
@@ -662,13 +796,14 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     return _info(str(path), json.loads(members[MANIFEST]), data)
 
 
-def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, tables_dir=None, stops_dir=None,
-               directions: Sequence[str] | None = None, train_types: Sequence[str] | None = None,
+def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: Release, tables_dir=None,
+               stops_dir=None, directions: Sequence[str] | None = None, train_types: Sequence[str] | None = None,
                on_built: Callable[[BundleInfo], None] | None = None) -> list[BundleInfo]:
     """Build every bundle of a line (each direction × train type, or the ones asked for).
 
-    The key is loaded once; each bundle is written atomically as soon as it is
-    complete. ``on_built`` is called after each (for progress display).
+    The key is loaded once; every bundle gets the same ``release``; each is
+    written atomically as soon as it is complete. ``on_built`` is called after
+    each (for progress display).
     """
     key = _private_key(private_key)
     dirs = list(directions) if directions else list(DIRECTIONS)
@@ -683,7 +818,7 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, tables_di
         for t in types:
             tables = assemble(line, d, t, tables_dir=tables_dir, stops_dir=stops_dir)
             info = build_bundle(tables, line_id=line.line_id, direction=d, train_type=t, out_dir=out_dir,
-                                private_key=key, line_digest=line.source_digest,
+                                private_key=key, release=release, line_digest=line.source_digest,
                                 line_schema_version=line.schema_version)
             done.append(info)
             if on_built is not None:
@@ -838,7 +973,8 @@ def _strict_json(data: bytes, where: str):
 _MANIFEST_KEYS = {
     "format": str, "schema_version": int, "line_id": str, "direction": str, "train_type": str,
     "software_version": str, "writer": str, "line_digest": str, "line_schema_version": int,
-    "key_id": str, "files": list, "missing": list,
+    "key_id": str, "files": list, "missing": list, "key_kind": str, "bundle_version": int, "built_at": str,
+    "expires": str,
 }
 _FILE_KEYS = {"name": str, "size": int, "sha256": str, "rows": int}
 
@@ -872,6 +1008,19 @@ def _check_manifest(m, where: str) -> None:
         raise _fail(where, "manifest line_digest is not a SHA-256 hex digest")
     if not _SHA256.fullmatch(m["key_id"]):
         raise _fail(where, "manifest key_id is not a SHA-256 hex digest")
+    if m["key_kind"] not in KEY_KINDS:
+        raise _fail(where, f"manifest key_kind {m['key_kind']!r} is not one of {list(KEY_KINDS)}")
+    if m["bundle_version"] < 1:
+        raise _fail(where, f"manifest bundle_version {m['bundle_version']} is not a positive integer")
+    for k in ("built_at", "expires"):
+        try:
+            ok = bool(_TIME_RE.fullmatch(m[k])) and bool(datetime.strptime(m[k], _TIME_FORMAT))
+        except ValueError:
+            ok = False
+        if not ok:
+            raise _fail(where, f"manifest {k} {m[k]!r} is not a time of the form YYYY-MM-DDTHH:MM:SSZ")
+    if not m["expires"] > m["built_at"]:  # same fixed-width form: text order is time order
+        raise _fail(where, f"manifest expires {m['expires']} is not after built_at {m['built_at']}")
     names = []
     for e in m["files"]:
         if not isinstance(e, dict) or set(e) != set(_FILE_KEYS):
@@ -1015,11 +1164,66 @@ def _info(path: str, m: dict, data_or_digest) -> BundleInfo:
         schema_version=m["schema_version"], software_version=m["software_version"],
         line_digest=m["line_digest"], key_id=m["key_id"],
         files=tuple(FileEntry(e["name"], e["size"], e["sha256"], e["rows"]) for e in m["files"]),
-        missing=tuple(m["missing"]), size_bytes=size, sha256=digest,
+        missing=tuple(m["missing"]), size_bytes=size, sha256=digest, key_kind=m["key_kind"],
+        bundle_version=m["bundle_version"], built_at=m["built_at"], expires=m["expires"],
     )
 
 
-def _verified(path, public_key) -> tuple[BundleInfo, dict[str, bytes], dict[str, pa.Table]]:
+@dataclass(frozen=True)
+class Expect:
+    """What the vehicle asks of a bundle beyond a good signature (see ``docs/bundles.md``).
+
+    Attributes
+    ----------
+    target : str or None
+        ``LINE/DIRECTION/TYPE`` the vehicle wants; None: any (no identity check).
+    min_version : int
+        Lowest acceptable bundle version (the version installed on the vehicle;
+        an equal version is the same release and is accepted).
+    at_s : int or None
+        The vehicle's time [Unix seconds] for the expiry check; None: the clock now.
+    allow_dev : bool
+        Accept a bundle signed with a development key (test benches only).
+    """
+
+    target: str | None = None
+    min_version: int = 0
+    at_s: int | None = None
+    allow_dev: bool = False
+
+    @staticmethod
+    def parse_target(text: str) -> str:
+        """Check ``LINE/DIRECTION/TYPE`` and return it; raise BundleError naming the fix."""
+        parts = str(text).split("/")
+        if len(parts) != 3 or parts[1] not in DIRECTIONS or not all(_ID.fullmatch(p) for p in parts[::2]):
+            raise BundleError(f"--expect {text!r}: give LINE/DIRECTION/TYPE, e.g. sample/down/E10 "
+                              "(direction 'down' or 'up')")
+        return "/".join(parts)
+
+
+def _check_expect(m: dict, expect: Expect, pub_id: str, where: str) -> None:
+    """Provenance and freshness of a proven manifest; one reason per refusal."""
+    if m["key_id"] != pub_id:
+        raise _fail(where, f"manifest names signing key {m['key_id'][:16]}, but it was verified with key "
+                           f"{pub_id[:16]}: the manifest lies about its signer (refused)")
+    target = f"{m['line_id']}/{m['direction']}/{m['train_type']}"
+    if expect.target is not None and target != Expect.parse_target(expect.target):
+        raise _fail(where, f"bundle is for {target}, not the expected {expect.target} (renamed or mixed up; refused)")
+    if m["key_kind"] != "production" and not expect.allow_dev:
+        raise _fail(where, f"signed with a {m['key_kind']} key: not for service (refused; --allow-dev on a test "
+                           "bench only)")
+    if m["bundle_version"] < expect.min_version:
+        raise _fail(where, f"bundle version {m['bundle_version']} is older than the installed version "
+                           f"{expect.min_version} (rollback refused)")
+    now = int(time.time()) if expect.at_s is None else int(expect.at_s)
+    if now >= parse_time(m["expires"]):
+        raise _fail(where, f"bundle expired at {m['expires']} (checked at {format_time(now)}; built "
+                           f"{m['built_at']}): a fresh bundle is needed (refused)")
+
+
+def _verified(path, public_key, expect: Expect | None = None
+              ) -> tuple[BundleInfo, dict[str, bytes], dict[str, pa.Table]]:
+    expect = Expect() if expect is None else expect
     where = "<bytes>" if isinstance(path, (bytes, bytearray, memoryview)) else str(path)
     pub = signing.load_public_key(public_key)
     members, size_digest = _read_members(path)
@@ -1034,6 +1238,7 @@ def _verified(path, public_key) -> tuple[BundleInfo, dict[str, bytes], dict[str,
         raise _fail(where, str(e)) from None
     m = _strict_json(mbytes, where)
     _check_manifest(m, where)
+    _check_expect(m, expect, signing.public_key_id(pub), where)
     listed = {e["name"]: e for e in m["files"]}
     present = set(members) - {MANIFEST, SIGNATURE}
     if present - set(listed):
@@ -1059,15 +1264,33 @@ def _verified(path, public_key) -> tuple[BundleInfo, dict[str, bytes], dict[str,
     return _info(where, m, size_digest), members, tables
 
 
-def verify_bundle(path: str | os.PathLike | bytes, public_key) -> BundleInfo:
-    """Prove a bundle complete, untampered and signed by ``public_key``; return what it holds.
+def _expect(expect, min_version, at, allow_dev) -> Expect:
+    if isinstance(expect, Expect):
+        return expect
+    at_s = parse_time(at, "--at") if isinstance(at, str) else at
+    if isinstance(min_version, bool) or not isinstance(min_version, int) or min_version < 0:
+        raise BundleError(f"--min-version must be a whole number >= 0, found {min_version!r}")
+    return Expect(None if expect is None else Expect.parse_target(expect), min_version, at_s, bool(allow_dev))
+
+
+def verify_bundle(path: str | os.PathLike | bytes, public_key, *, expect: str | Expect | None = None,
+                  min_version: int = 0, at: int | str | None = None, allow_dev: bool = False) -> BundleInfo:
+    """Prove a bundle complete, untampered, signed by ``public_key``, fresh and meant for service.
 
     Parameters
     ----------
     path : path or bytes
         The bundle file (only read, never extracted), or its bytes already in memory.
     public_key : path, PEM bytes, 32 raw bytes or Ed25519PublicKey
-        The signer's public key.
+        The signer's public key; the manifest's ``key_id`` must be its id.
+    expect : str ``LINE/DIRECTION/TYPE`` or Expect, optional
+        The target the vehicle wants; None accepts any target (a vehicle must give it).
+    min_version : int
+        Refuse a bundle version below this (the installed version: rollback).
+    at : Unix seconds or ISO 8601 str, optional
+        Time of the expiry check; default the clock now.
+    allow_dev : bool
+        Accept a bundle signed with a development key.
 
     Returns
     -------
@@ -1077,20 +1300,24 @@ def verify_bundle(path: str | os.PathLike | bytes, public_key) -> BundleInfo:
     ------
     BundleError
         With one line naming the first failed check: structure (names, links,
-        sizes, canonical headers), signature, manifest schema and version,
-        extra or missing members, size and SHA-256 of each, row counts, table
-        schemas, line/direction/train type in every row, cross-table consistency.
+        sizes, canonical headers), signature, manifest schema and version, key
+        id, target, key kind, rollback, expiry, extra or missing members, size
+        and SHA-256 of each, row counts, table schemas, line/direction/train
+        type in every row, cross-table consistency.
     """
-    return _verified(path, public_key)[0]
+    return _verified(path, public_key, _expect(expect, min_version, at, allow_dev))[0]
 
 
-def read_bundle(path: str | os.PathLike | bytes, public_key) -> Bundle:
-    """Verify a bundle and return its tables in memory (nothing is written to disk)."""
-    info, _, tables = _verified(path, public_key)
+def read_bundle(path: str | os.PathLike | bytes, public_key, *, expect: str | Expect | None = None,
+                min_version: int = 0, at: int | str | None = None, allow_dev: bool = False) -> Bundle:
+    """Verify a bundle (as :func:`verify_bundle`) and return its tables in memory (nothing written to disk)."""
+    info, _, tables = _verified(path, public_key, _expect(expect, min_version, at, allow_dev))
     return Bundle(info, tables)
 
 
-def open_bundle(path: str | os.PathLike, dest_dir: str | os.PathLike, public_key) -> BundleInfo:
+def open_bundle(path: str | os.PathLike, dest_dir: str | os.PathLike, public_key, *,
+                expect: str | Expect | None = None, min_version: int = 0, at: int | str | None = None,
+                allow_dev: bool = False) -> BundleInfo:
     """Verify a bundle, then write its members into ``dest_dir`` (created if missing).
 
     Nothing is written unless the whole bundle verifies. Members are plain file
@@ -1098,7 +1325,7 @@ def open_bundle(path: str | os.PathLike, dest_dir: str | os.PathLike, public_key
     ``dest_dir`` with ``O_EXCL | O_NOFOLLOW``, so a file or symlink already in
     ``dest_dir`` is never followed or overwritten.
     """
-    info, members, _ = _verified(path, public_key)
+    info, members, _ = _verified(path, public_key, _expect(expect, min_version, at, allow_dev))
     dest = Path(dest_dir)
     dest.mkdir(parents=True, exist_ok=True)
     dfd = os.open(dest, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))

@@ -94,7 +94,12 @@ class MarginsSection:
 @dataclass(frozen=True)
 class BundlesSection:
     signing_key: str = ""
-    """Path of the Ed25519 private key (PEM). Empty: env PLANNER_SIGNING_KEY, else a development key under outputs/."""
+    """Path of the Ed25519 private key (PEM). Empty: env PLANNER_SIGNING_KEY, else a development key if allowed."""
+    allow_development_key: bool = False
+    """With no key configured, sign with a generated development key under OUTPUT_ROOT/.dev-key (bundles marked
+    `development`, refused by vehicles) instead of failing. For test runs only."""
+    valid_days: float = 30.0
+    """Bundles expire this many days after the run's build time; a run re-issues them when half of it has passed."""
 
 
 @dataclass(frozen=True)
@@ -116,11 +121,14 @@ class ConflictsSection:
 @dataclass(frozen=True)
 class ParallelSection:
     backend: str = "local"
-    """`local` (joblib processes) or `dask` (joblib's dask backend on a dask.distributed cluster)."""
+    """`local` (joblib loky processes) or `dask` (futures on a dask.distributed cluster, see planner.parallel)."""
     n_jobs: int = -1
     """Worker processes for the local backend; -1 = all cores."""
     scheduler: str = ""
     """Dask scheduler address (tcp://host:8786) for backend = "dask"."""
+    dask_lost_timeout_s: float = 60.0
+    """With backend = "dask": end the run with an error when the cluster has had no workers, or the scheduler has
+    been unreachable, for this long [s]."""
 
 
 @dataclass(frozen=True)
@@ -258,6 +266,10 @@ def _validate(file: str, job: Job) -> None:
         bad("parallel", "backend", f"must be \"local\" or \"dask\", found {job.parallel.backend!r}")
     if job.parallel.backend == "dask" and not job.parallel.scheduler:
         bad("parallel", "scheduler", "backend = \"dask\" needs a scheduler address, e.g. tcp://127.0.0.1:8786")
+    if not 0 < job.bundles.valid_days <= 3660:
+        bad("bundles", "valid_days", f"must be in (0, 3660] days, found {job.bundles.valid_days}")
+    if not 0 < job.parallel.dask_lost_timeout_s <= 86400:
+        bad("parallel", "dask_lost_timeout_s", f"must be in (0, 86400] s, found {job.parallel.dask_lost_timeout_s}")
     if job.parallel.n_jobs == 0 or job.parallel.n_jobs < -1:
         bad("parallel", "n_jobs", f"must be -1 (all cores) or ≥ 1, found {job.parallel.n_jobs}")
     for p in job.job.lines:

@@ -70,7 +70,11 @@ What each row holds, and how
 * **flags**: ``infeasible`` — scheduled below the degraded minimum;
   ``tight`` — not infeasible, but the remaining margin is below
   ``tight_threshold_s``; ``unreachable`` — scheduled above the slowest table
-  time (lowest ratio), so the vehicle cannot stretch the run that long.
+  time (lowest ratio), so the vehicle cannot stretch the run that long;
+  ``unassessed`` — the minimum or the degraded minimum could not be computed
+  (e.g. no stopping pattern at the lowest adhesion from any start), with
+  ``unassessed_reason``: then ``infeasible`` and ``tight`` are unknown, written
+  as null in the dataset, and the report lists the leg first.
 
 Totals (dataset ``margin_totals``, :func:`margin_totals`): per train (sum
 over its legs), per direction × train type, and per direction over all train
@@ -211,9 +215,11 @@ def margin_columns(min_time_s, scheduled_s, degraded_min_s, slowest_time_s, leng
         ``supplement_met`` (margin ≥ required), ``supplement_shortfall_s``
         (required − margin, ≥ 0), and the flags ``infeasible`` (scheduled <
         degraded minimum), ``tight`` (not infeasible and remaining margin <
-        threshold), ``unreachable`` (scheduled > slowest). Times within
-        :data:`TIME_TOL_S` count as equal; flags are False where there is no
-        schedule.
+        threshold), ``unreachable`` (scheduled > slowest), ``unassessed``
+        (minimum or degraded minimum not finite: infeasible and tight cannot
+        be decided and are False here; :func:`datasets` writes them as null).
+        Times within :data:`TIME_TOL_S` count as equal; infeasible, tight and
+        unreachable are False where there is no schedule.
     """
     tmin = np.asarray(min_time_s, dtype=float)
     sched = np.broadcast_to(np.asarray(scheduled_s, dtype=float), tmin.shape)
@@ -236,6 +242,7 @@ def margin_columns(min_time_s, scheduled_s, degraded_min_s, slowest_time_s, leng
             "infeasible": infeasible,
             "tight": has & ~infeasible & (remaining < rule.tight_threshold_s - TIME_TOL_S),
             "unreachable": has & (sched > slow + TIME_TOL_S),
+            "unassessed": ~(np.isfinite(tmin) & np.isfinite(deg)),
         }
 
 
@@ -245,6 +252,8 @@ TOTAL_SUM_COLS = (
     "energy_at_ratio_kwh", "energy_at_full_ratio_kwh", "energy_saved_kwh",
 )
 """Row columns summed into the totals."""
+UNKNOWN_WHEN_UNASSESSED = ("degraded_min_running_time_s", "remaining_margin_s")
+"""Totals that are NaN (unknown) when any leg summed is unassessed, as are the worst margin and the shortfall."""
 
 
 def margin_totals(rows, train_legs):
@@ -270,13 +279,16 @@ def margin_totals(rows, train_legs):
         of :data:`TOTAL_SUM_COLS`, ``margin_percent`` (total margin / total
         minimum), ``min_remaining_margin_s`` (worst leg), ``bad_day_shortfall_s``
         (sum of max(0, −remaining margin) over the legs), ``n_supplement_short``,
-        ``n_infeasible``, ``n_tight``, ``n_unreachable`` (legs, counted per
-        train run).
+        ``n_infeasible``, ``n_tight``, ``n_unreachable``, ``n_unassessed``
+        (legs, counted per train run). With an unassessed leg among those
+        summed, the degraded-minimum and remaining-margin sums, the worst
+        remaining margin and the shortfall are NaN: unknown, not partial.
     """
     import pandas as pd
 
     key = ["direction", "train_type", "origin", "destination", "scheduled_running_time_s"]
-    cols = key + [c for c in TOTAL_SUM_COLS if c not in key] + ["supplement_met", "infeasible", "tight", "unreachable"]
+    cols = key + [c for c in TOTAL_SUM_COLS if c not in key] + ["supplement_met", "infeasible", "tight", "unreachable",
+                                                                "unassessed"]
     r = rows[rows["scheduled_running_time_s"].notna()][cols]
     legs = train_legs.merge(r, on=key, how="left", validate="many_to_one")
     if legs["min_running_time_s"].isna().any():
@@ -284,19 +296,22 @@ def margin_totals(rows, train_legs):
         raise ValueError(f"train {bad.train_id}: leg {bad.origin}->{bad.destination} has no margin row")
     legs = legs.assign(short=~legs["supplement_met"].astype(bool),
                        n_inf=legs["infeasible"].astype(int), n_tight=legs["tight"].astype(int),
-                       n_unr=legs["unreachable"].astype(int))
+                       n_unr=legs["unreachable"].astype(int), n_una=legs["unassessed"].astype(int))
     legs = legs.sort_values(["train_id", "leg_seq"], kind="stable")
 
     def agg(g: pd.DataFrame) -> dict:
         out = {c: float(g[c].sum()) for c in TOTAL_SUM_COLS}
+        for c in UNKNOWN_WHEN_UNASSESSED:  # a partial sum would pass for the whole: unknown instead
+            out[c] = float(g[c].sum(skipna=False))
         out["margin_percent"] = 100.0 * out["margin_s"] / out["min_running_time_s"]
-        out["min_remaining_margin_s"] = float(g["remaining_margin_s"].min())
+        out["min_remaining_margin_s"] = float(g["remaining_margin_s"].min(skipna=False))
         out["bad_day_shortfall_s"] = float(np.maximum(-g["remaining_margin_s"].to_numpy(float), 0.0).sum())
         out["n_legs"] = int(len(g))
         out["n_supplement_short"] = int(g["short"].sum())
         out["n_infeasible"] = int(g["n_inf"].sum())
         out["n_tight"] = int(g["n_tight"].sum())
         out["n_unreachable"] = int(g["n_unr"].sum())
+        out["n_unassessed"] = int(g["n_una"].sum())
         out["first_departure_s"] = float(g["departure_s"].min())
         return out
 
@@ -953,6 +968,9 @@ def compute_margins(
                           rows["slowest_running_time_s"].to_numpy(float), rows["length_m"].to_numpy(float), rule)
     for k, v in cols.items():
         rows[k] = v
+    why = np.where(~np.isfinite(rows["min_running_time_s"].to_numpy(float)), "minimum running time unknown",
+                   np.where(rows["note"].astype(str) != "", rows["note"].astype(str), "degraded minimum unknown"))
+    rows["unassessed_reason"] = np.where(rows["unassessed"].to_numpy(bool), why, "")
     rows["energy_saved_kwh"] = rows["energy_at_full_ratio_kwh"] - rows["energy_at_ratio_kwh"]
     rows["energy_saved_percent"] = 100.0 * rows["energy_saved_kwh"] / rows["energy_at_full_ratio_kwh"]
     rows = rows[["line", "direction", "train_type"] + [f.name for f in MARGINS_SCHEMA]]
@@ -1065,6 +1083,10 @@ MARGINS_SCHEMA = declare(
         ("infeasible", pa.bool_(), "flag: scheduled < degraded minimum"),
         ("tight", pa.bool_(), "flag: not infeasible, but remaining margin < tight_threshold_s"),
         ("unreachable", pa.bool_(), "flag: scheduled > slowest table time: the vehicle cannot stretch the run that long"),
+        ("unassessed", pa.bool_(),
+         "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; infeasible and "
+         "tight are then null (unknown), remaining_margin_s null"),
+        ("unassessed_reason", pa.string(), "why the leg could not be assessed; empty when assessed"),
         ("tables_source", pa.string(), "'dataset' (--tables) or 'computed'"),
         ("note", pa.string(), "anything unusual about the row, else empty"),
     ],
@@ -1076,7 +1098,7 @@ TOTALS_COLUMNS = [
     "scope", "train_id", "direction", "train_type", "origin", "destination", "first_departure_s", "n_trains",
     "n_legs", *TOTAL_SUM_COLS, "margin_percent", "min_remaining_margin_s", "bad_day_shortfall_s",
     "n_supplement_short",
-    "n_infeasible", "n_tight", "n_unreachable",
+    "n_infeasible", "n_tight", "n_unreachable", "n_unassessed",
 ]
 MARGIN_TOTALS_SCHEMA = declare(
     [
@@ -1105,6 +1127,8 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("n_infeasible", pa.int32(), "legs flagged infeasible"),
         ("n_tight", pa.int32(), "legs flagged tight"),
         ("n_unreachable", pa.int32(), "legs flagged unreachable"),
+        ("n_unassessed", pa.int32(),
+         "legs flagged unassessed; when > 0 the degraded and remaining sums, worst margin and shortfall are null"),
     ],
     name="margin_totals",
     description="Margin totals per train, per direction x train type and per direction (DESIGN §6).",
@@ -1114,10 +1138,16 @@ SCHEMAS = {"margins": MARGINS_SCHEMA, "margin_totals": MARGIN_TOTALS_SCHEMA}
 
 def datasets(report: MarginReport) -> dict[str, pa.Table]:
     """The ``margins`` and ``margin_totals`` rows with partition columns."""
+    import pandas as pd
+
     rows = report.rows.copy()
     rows["n_trains"] = rows["n_trains"].astype("int32")
+    unknown = rows["unassessed"].to_numpy(bool)
+    for c in ("infeasible", "tight"):  # undecidable on an unassessed leg: null, never a false "all clear"
+        rows[c] = rows[c].astype("boolean")
+        rows.loc[unknown, c] = pd.NA
     t = report.totals.copy()
-    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable"):
+    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed"):
         t[c] = t[c].astype("int32")
     return {
         "margins": pa.Table.from_pandas(rows, preserve_index=False),

@@ -32,7 +32,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from . import __version__
 from .atomic import write_bytes_atomic
-from .errors import JobError
+from .errors import JobError, PlannerError
 from .job import Job
 from .model import DIRECTIONS, Line
 from .schema import check_path_id
@@ -149,9 +149,12 @@ class Runner:
         self.reused: dict[str, int] = {}
 
     def run(self, step: str, units: Sequence[Unit]) -> list:
-        """Results of ``units`` in order; cached ones loaded, the rest computed in parallel."""
-        from joblib import Parallel, delayed
+        """Results of ``units`` in order; cached ones loaded, the rest computed in parallel.
 
+        Each result is cached as soon as it arrives, so a run that fails part
+        way (e.g. :class:`planner.parallel.ClusterLostError`) leaves the
+        finished units for the next run.
+        """
         from .parallel import backend
 
         results: list = [None] * len(units)
@@ -167,13 +170,12 @@ class Runner:
         self.progress.start(step, len(units), done=len(units) - len(todo))
         if todo:
             p = self.job.parallel
-            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler) as n_jobs:
-                if n_jobs == 1 or len(todo) == 1:
+            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
+                         lost_timeout_s=p.dask_lost_timeout_s) as pool:
+                if pool.n_jobs == 1 or len(todo) == 1:
                     gen = (_call(units[i].fn, units[i].args) for i in todo)
                 else:
-                    gen = Parallel(n_jobs=n_jobs, return_as="generator")(
-                        delayed(_call)(units[i].fn, units[i].args) for i in todo
-                    )
+                    gen = pool.imap(_call, [(units[i].fn, units[i].args) for i in todo])
                 for i, res in zip(todo, gen):
                     self.cache.put(step, units[i].key, res)  # survives a later failure
                     _kill_point()
@@ -268,33 +270,62 @@ class RunSummary:
     bundles: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    release: Any = None
+    """The :class:`planner.bundle.Release` the run's bundles were issued with."""
 
 
-def signing_key_path(job: Job, notes: list[str]) -> Path:
-    """The private key to sign bundles with: job file, else $PLANNER_SIGNING_KEY, else a development key."""
+def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
+    """The private key to sign bundles with, and whether it is a development key.
+
+    The job file's ``[bundles] signing_key``, else ``$PLANNER_SIGNING_KEY``; with
+    neither, a development key under ``OUTPUT_ROOT/.dev-key`` only when the job
+    says ``allow_development_key = true`` (else a :class:`JobError`). A
+    configured key that lies in that folder is a development key too.
+    """
     from .signing import generate_keypair
 
+    dev = job.resolve(job.job.output_root) / ".dev-key"
+    p = None
     if job.bundles.signing_key:
         p = job.resolve(job.bundles.signing_key)
         if not p.is_file():
             raise JobError(f"{job.path}: [bundles] signing_key: {p} not found; "
                            "create one with `planner keys generate DIR`")
-        return p
-    env = os.environ.get("PLANNER_SIGNING_KEY")
-    if env:
-        p = Path(env)
+    elif os.environ.get("PLANNER_SIGNING_KEY"):
+        p = Path(os.environ["PLANNER_SIGNING_KEY"])
         if not p.is_file():
             raise JobError(f"PLANNER_SIGNING_KEY: {p} not found")
-        return p
-    dev = job.resolve(job.job.output_root) / ".dev-key"
+    if p is not None:
+        is_dev = p.resolve().parent == dev.resolve()
+        if is_dev and not job.bundles.allow_development_key:
+            raise JobError(f"{job.path}: [bundles] signing_key: {p} is the development key; use a production key "
+                           "(`planner keys generate DIR`) or set allow_development_key = true for test runs")
+        if is_dev:
+            notes.append(f"bundles signed with the DEVELOPMENT key {p}: marked development, refused by vehicles")
+        return p, is_dev
+    if not job.bundles.allow_development_key:
+        raise JobError(f"{job.path}: [bundles] no signing key: set signing_key to a production key "
+                       "(`planner keys generate DIR`) or PLANNER_SIGNING_KEY, or allow_development_key = true "
+                       "for test runs")
     key = dev / "signing_key.pem"
-    if not key.is_file():
+    made = not key.is_file()
+    if made:
         generate_keypair(dev)
-        notes.append(f"no signing key configured: created a DEVELOPMENT key {key} "
-                     "(bundles signed with it are for testing only; set [bundles] signing_key)")
-    else:
-        notes.append(f"bundles signed with the development key {key} (set [bundles] signing_key for production)")
-    return key
+    notes.append(f"no signing key configured: bundles signed with the {'new ' if made else ''}DEVELOPMENT key {key} "
+                 "(allow_development_key = true); they are marked development and vehicles refuse them")
+    return key, True
+
+
+def _renewal_due(last_manifest: dict, now_s: int) -> bool:
+    """The published bundles have used half of their validity (or the run has no release record)."""
+    from .bundle import parse_time
+
+    rel = last_manifest.get("bundles_release")
+    try:
+        built, expires = parse_time(rel["built_at"]), parse_time(rel["expires"])
+    except (TypeError, KeyError, PlannerError):
+        return True
+    return now_s >= built + (expires - built) // 2
 
 
 def _result_params(job: Job) -> dict[str, Any]:
@@ -334,10 +365,14 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)
+            from .bundle import Release, build_time_s
             from .signing import load_private_key, public_key_id
 
             notes: list[str] = []
-            key = load_private_key(signing_key_path(job, notes))
+            key_path, development = signing_key_path(job, notes)
+            key = load_private_key(key_path)
+            # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or the clock now
+            release = Release.issue(build_time_s(), valid_days=job.bundles.valid_days, development=development)
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()))
             last = latest_run(root)
             if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
@@ -347,13 +382,18 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                     m = json.loads((root / last / "manifest.json").read_text())
                 except ValueError:  # a damaged manifest proves nothing: run again
                     m = {}
-                if isinstance(m, dict) and m.get("inputs_digest") == inputs:
+                if isinstance(m, dict) and m.get("inputs_digest") == inputs \
+                        and not _renewal_due(m, release.built_at_s):
                     return RunSummary(last, root / last, True, timings=prog.timings,
                                       notes=notes + [f"nothing changed since run {last}: it stays the latest"])
+                if m.get("inputs_digest") == inputs:
+                    notes.append(f"nothing changed since run {last}, but its bundles are past half their validity: "
+                                 "re-issued")
             run_id = next_run_id(root, inputs)
             stage = staging_dir(root, run_id)
             summary = RunSummary(run_id, None, False, notes=notes)
             runner = Runner(job, cache, prog)
+            summary.release = release
             for line in lines:
                 _run_line(job, line, stage, runner, summary, key)
             summary.computed, summary.reused = runner.computed, runner.reused
@@ -485,7 +525,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
     write_html(report, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html")
-    for flag in ("infeasible", "tight", "unreachable"):  # legs flagged by the margin report
+    for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
 
@@ -497,7 +537,8 @@ def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
 
     out = stage / "bundles"
     with runner.progress.step("bundles", 2 * len(_types(job, line))):
-        infos = build_line(line, out, key, tables_dir=stage, stops_dir=stage, train_types=_types(job, line),
+        infos = build_line(line, out, key, release=summary.release, tables_dir=stage, stops_dir=stage,
+                           train_types=_types(job, line),
                            on_built=lambda info: runner.progress.advance("bundles"))
     pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
     write_bytes_atomic(out / "signing_key.pub.pem", pem)
@@ -523,6 +564,16 @@ def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: 
     return report.conflicts
 
 
+def _release_record(release) -> dict | None:
+    from .bundle import format_time
+
+    if release is None:
+        return None
+    return {"version": release.version, "built_at": format_time(release.built_at_s),
+            "expires": format_time(release.expires_s),
+            "key_kind": "development" if release.development else "production"}
+
+
 def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary) -> None:
     import platform
 
@@ -545,6 +596,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "rows": dict(sorted(summary.rows.items())),
         "flags": dict(sorted(summary.flags.items())),
         "bundles": sorted(summary.bundles),
+        "bundles_release": _release_record(summary.release),
     }
     write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
     from .catalog import readme

@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-FLAG_COLOURS = {"infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a", "ok": "#2e7d32"}
+FLAG_COLOURS = {"unassessed": "#37474f", "infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a",
+                "ok": "#2e7d32"}
 """Colour of a leg by its worst flag (also used in the table)."""
 MARGIN_COLOUR = "#b0c4de"
 """Bar colour of the nominal margin."""
@@ -58,9 +59,11 @@ table{border-collapse:collapse;background:#fff;font-size:12px;width:100%}
 th,td{border:1px solid #dde1e5;padding:3px 5px;text-align:right;white-space:nowrap}
 th{background:#eef1f4;position:sticky;top:0;font-weight:600;white-space:normal;vertical-align:bottom}
 td.l,th.l{text-align:left}
+tr.unassessed td{background:#e3e7ea}
 tr.infeasible td{background:#fdecea}tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}
 tr.sep td{background:#d5d9de;text-align:left;font-weight:600}
 .badge{display:inline-block;border-radius:4px;padding:0 5px;margin-right:3px;color:#fff;font-size:11px;font-weight:600}
+.b-unassessed{background:#37474f}
 .b-infeasible{background:#c62828}.b-tight{background:#ef8f00}.b-unreachable{background:#6a1b9a}
 .b-short{background:#fff;color:#8a5a00;border:1px solid #c89b3c}
 .neg{color:#c62828;font-weight:600}
@@ -96,7 +99,7 @@ def _leg(r) -> str:
 
 
 def _flag_of(r) -> str:
-    for f in ("infeasible", "unreachable", "tight"):
+    for f in ("unassessed", "infeasible", "unreachable", "tight"):
         if bool(getattr(r, f)):
             return f
     return "ok"
@@ -334,15 +337,16 @@ ROW_HEAD = ("<tr><th class='l'>flags</th><th class='l'>dir</th><th class='l'>typ
 
 def _row_html(r) -> str:
     flag = _flag_of(r)
-    badges = "".join(f"<span class='badge b-{f}'>{f}</span>" for f in ("infeasible", "tight", "unreachable")
-                     if bool(getattr(r, f)))
+    badges = "".join(f"<span class='badge b-{f}'>{f}</span>"
+                     for f in ("unassessed", "infeasible", "tight", "unreachable") if bool(getattr(r, f)))
     if np.isfinite(r.scheduled_running_time_s) and not bool(r.supplement_met):
         badges += "<span class='badge b-short'>supplement short</span>"
     rem = r.remaining_margin_s
     rem_s = _f(rem, 1, sign=True)
     if math.isfinite(rem) and rem < 0:
         rem_s = f"<span class='neg'>{rem_s}</span>"
-    note = f" title='{_e(r.note)}'" if r.note else ""
+    tip = r.unassessed_reason if r.unassessed else r.note
+    note = f" title='{_e(tip)}'" if tip else ""
     cls = f" class='{flag}'" if flag != "ok" else ""
     return (
         f"<tr{cls}{note}><td class='l'>{badges}</td><td class='l'>{_e(r.direction)}</td>"
@@ -359,11 +363,20 @@ def _row_html(r) -> str:
 
 
 def rows_table(rows) -> str:
-    """All legs, flagged ones first (least remaining margin first), then the rest in running order."""
-    flagged = rows[rows.infeasible | rows.tight | rows.unreachable].sort_values(
+    """All legs: unassessed ones first (with their reason), then flagged ones (least remaining margin first),
+    then the rest in running order."""
+    una = rows[rows.unassessed.astype(bool)]
+    assessed = rows.drop(una.index)
+    flagged = assessed[assessed.infeasible | assessed.tight | assessed.unreachable].sort_values(
         ["remaining_margin_s", "direction", "train_type"], kind="stable")
-    rest = rows.drop(flagged.index)
+    rest = assessed.drop(flagged.index)
     out = ["<div class='tw'><table>", ROW_HEAD]
+    if len(una):
+        out.append(f"<tr class='sep'><td colspan='17'>Unassessed legs ({len(una)}): no bad-day minimum could be "
+                   "computed, so infeasible and tight are unknown</td></tr>")
+        for r in una.itertuples(index=False):
+            out.append(_row_html(r))
+            out.append(f"<tr class='unassessed'><td colspan='17' class='l'>↳ {_e(r.unassessed_reason)}</td></tr>")
     out.append(f"<tr class='sep'><td colspan='17'>Flagged legs ({len(flagged)}), least remaining margin first</td></tr>")
     out += [_row_html(r) for r in flagged.itertuples(index=False)]
     out.append(f"<tr class='sep'><td colspan='17'>Other legs ({len(rest)}), in running order</td></tr>")
@@ -467,6 +480,7 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
     sched = rows[rows.scheduled_running_time_s.notna()]
     n_inf, n_tight, n_unr = int(sched.infeasible.sum()), int(sched.tight.sum()), int(sched.unreachable.sum())
     n_short = int((~sched.supplement_met).sum())
+    n_una = int(rows.unassessed.sum())
     trains = report.totals[report.totals.scope == "train"]
     rule = report.rule
     adh = report.adhesion_kmh_s
@@ -485,6 +499,7 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
         f"{adh[0]:g}–{adh[-1]:g}) · supplement rule {rule.supplement_percent:g} % + "
         f"{rule.supplement_min_per_100km:g} min/100 km · tight below {rule.tight_threshold_s:g} s remaining</p>")
     cards = [
+        ("bad" if n_una else "ok", n_una, "unassessed: no bad-day minimum could be computed (listed first)"),
         ("bad" if n_inf else "ok", n_inf, "infeasible: scheduled below the bad-day minimum"),
         ("warn" if n_tight else "ok", n_tight, f"tight: less than {rule.tight_threshold_s:g} s left on a bad day"),
         ("purple" if n_unr else "ok", n_unr, "unreachable: longer than the slowest ratio"),
@@ -494,9 +509,9 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
     parts.append("<div class='cards'>" + "".join(
         f"<div class='card {c}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></div>" for c, n, l in cards)
         + "</div>")
-    # what stands out
+    # what stands out (among the legs that could be assessed)
     find = []
-    if len(sched):
+    if (~sched.unassessed.astype(bool)).any():
         w = sched.sort_values("remaining_margin_s", kind="stable").iloc[0]
         find.append(f"Least margin on a bad day: <b>{_e(w.train_type)} {_e(w.direction)} {_e(w.origin)} → "
                     f"{_e(w.destination)}</b>, scheduled {w.scheduled_running_time_s:.0f} s against a minimum of "
@@ -589,7 +604,9 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
         f"marker; moved back where the lowest adhesion needs more room), then the minimum-time jerk-limited "
         f"stopping pattern at {adh[0]:g} km/h/s adhesion (deceleration limit min(comfort, adhesion) plus the "
         "gradient's part, the on-board maximum as speed limit, the vehicle's jerk limit).</li>"
-        "<li><b>Flags</b>: <i>infeasible</i> — scheduled below the bad-day minimum; <i>tight</i> — not infeasible "
+        "<li><b>Flags</b>: <i>unassessed</i> — the bad-day minimum could not be computed (the row says why, e.g. "
+        "no stopping pattern at the lowest adhesion); its infeasible and tight are unknown (null in the dataset); "
+        "<i>infeasible</i> — scheduled below the bad-day minimum; <i>tight</i> — not infeasible "
         f"but less than {rule.tight_threshold_s:g} s left; <i>unreachable</i> — scheduled above the slowest table "
         "time (lowest ratio), so the vehicle would arrive early. <i>supplement short</i> — the margin is below the "
         "rule (not a flag).</li>"

@@ -484,6 +484,51 @@ def rolling_stock_rules(db: Db) -> Iterator[Violation]:
             yield t.err(i, "coast_band_kmh", "must be > 0 for cruise 'sawtooth'")
 
 
+CRAWL_KMH = 5.0
+"""Slowest approach speed the jerk rule assumes [km/h]: a stopping pattern starts at running speed, never below."""
+
+
+def min_stop_distance_m(v_ms: float, jerk_ms3: float) -> float:
+    """Shortest stop from ``v_ms`` (deceleration 0 at both ends) with jerk at most ``jerk_ms3`` [m].
+
+    With no deceleration limit the fastest stop ramps the deceleration up and
+    straight back down at ±j: v = j T²/4, so T = 2 sqrt(v/j), and the speed
+    falls symmetrically about T/2, so the distance is v T/2 = v sqrt(v/j). Any
+    deceleration limit only lengthens it, so this is a lower bound.
+    """
+    return v_ms * math.sqrt(v_ms / jerk_ms3)
+
+
+@rule("rolling_stock", "line")
+def jerk_allows_a_stop(db: Db) -> Iterator[Violation]:
+    """Refuse a jerk limit with which no stopping pattern can exist on this line (issue 21).
+
+    Rule: the shortest jerk-limited stop from CRAWL_KMH (5 km/h),
+    v·sqrt(v/j), must fit in the whole line (end_m − start_m). Every stop
+    approach is shorter than the line and starts faster than 5 km/h, and the
+    shortest stop grows with the speed, so when the rule fails every stopping
+    pattern of the train type is impossible (e.g. 1e-9 km/h/s² needs ~98 km).
+    """
+    rng = db.line_range()
+    if rng is None:
+        return
+    length = rng[1] - rng[0]
+    t = db.tables["rolling_stock"]
+    v = CRAWL_KMH / 3.6
+    for i in t.rows():
+        j_kmh = float(t["jerk_limit_kmh_s2"][i])
+        if not j_kmh > 0:
+            continue  # refused by the positive() rule
+        need = min_stop_distance_m(v, j_kmh / 3.6)
+        if need > length:
+            j_min = 3.6 * v ** 3 / length ** 2  # solves v sqrt(v/j) = length for j, in km/h/s²
+            yield t.err(i, "jerk_limit_kmh_s2",
+                        f"{fmt(j_kmh)} km/h/s² makes every stopping pattern impossible: even from "
+                        f"{fmt(CRAWL_KMH)} km/h a stop needs {need / 1000:.3g} km, more than the whole line "
+                        f"({length / 1000:.3g} km); use at least {j_min:.2g} km/h/s² (ride comfort is "
+                        f"typically 1-5 km/h/s²)")
+
+
 def _traction_curves(t: TableView) -> dict[str, list[int]]:
     """Rows of each train type's traction curve, in file order."""
     curves: dict[str, list[int]] = {}

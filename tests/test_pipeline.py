@@ -39,6 +39,8 @@ def _job(tmp_path: Path, parallel: str = "n_jobs = 2") -> Path:
         modes = ["nearest", "adaptive"]
         horizon_s = 6.0
         step_s = 3.0
+        [bundles]
+        allow_development_key = true
         [parallel]
     """) + parallel + "\n")
     return p
@@ -98,10 +100,23 @@ def test_cold_run_publishes_everything_and_reads_back(project):
 
     pub = load_public_key(out / "latest" / "bundles" / "signing_key.pub.pem")
     for b in s.bundles:
-        assert verify_bundle(out / "latest" / "bundles" / b, pub).train_type in ("EMU10", "EMU6")
+        assert verify_bundle(out / "latest" / "bundles" / b, pub, allow_dev=True).train_type in ("EMU10", "EMU6")
+    # no key configured: a development key, said so in every signed manifest and in the run manifest
+    import json
+
+    from planner.errors import BundleError
+
+    with pytest.raises(BundleError, match="development key"):
+        verify_bundle(out / "latest" / "bundles" / s.bundles[0], pub)
+    rel = json.loads((out / "latest" / "manifest.json").read_text())["bundles_release"]
+    info = verify_bundle(out / "latest" / "bundles" / s.bundles[0], pub, allow_dev=True)
+    assert rel == {"version": info.bundle_version, "built_at": info.built_at, "expires": info.expires,
+                   "key_kind": "development"}
 
 
-def test_unchanged_rerun_computes_nothing(project):
+def test_unchanged_rerun_computes_nothing(project, monkeypatch):
+    # bundles carry their build time (issue 21): runs with the same SOURCE_DATE_EPOCH give the same bytes
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")  # 2026-01-01T00:00:00Z
     job = _job(project)
     first = _run(job)
     again = _run(job)
@@ -239,7 +254,7 @@ def test_a_new_signing_key_at_the_same_path_is_a_change(project):
     keys = project / "keys"
     generate_keypair(keys)
     job = _job(project)
-    job.write_text(job.read_text() + '\n[bundles]\nsigning_key = "keys/signing_key.pem"\n')
+    job.write_text(job.read_text().replace("[bundles]\n", '[bundles]\nsigning_key = "keys/signing_key.pem"\n'))
     first = _run(job)
     for f in keys.iterdir():
         f.unlink()

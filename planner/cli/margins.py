@@ -84,16 +84,23 @@ def margins(
     typer.echo(f"{line.line_id}: {len(rows)} legs x train type ({len(s)} timetabled, "
                f"{int((s.passes.map(len) > 0).sum())} passing stations); tables "
                f"{report.sources['tables_dataset']} read, {report.sources['tables_computed']} computed")
-    typer.echo(f"  flags: {int(s.infeasible.sum())} infeasible, {int(s.tight.sum())} tight, "
+    typer.echo(f"  flags: {int(s.unassessed.sum())} unassessed, {int(s.infeasible.sum())} infeasible, "
+               f"{int(s.tight.sum())} tight, "
                f"{int(s.unreachable.sum())} unreachable; {int((~s.supplement_met).sum())} below the supplement rule")
-    if len(s):
-        w = s.sort_values("remaining_margin_s", kind="stable").iloc[0]
+    if s.unassessed.any():
+        u = s[s.unassessed].iloc[0]
+        typer.echo(f"  UNASSESSED: {int(s.unassessed.sum())} leg(s) have no bad-day minimum, e.g. {u.train_type} "
+                   f"{u.direction} {u.origin}->{u.destination}: {u.unassessed_reason}")
+    a = s[~s.unassessed]
+    if len(a):
+        w = a.sort_values("remaining_margin_s", kind="stable").iloc[0]
         typer.echo(f"  least remaining margin: {w.train_type} {w.direction} {w.origin}->{w.destination} "
                    f"{w.remaining_margin_s:+.1f} s (scheduled {w.scheduled_running_time_s:.0f} s, minimum "
                    f"{w.min_running_time_s:.1f} s, bad day {w.degraded_min_running_time_s:.1f} s)")
     for r in report.totals[report.totals.scope == "line"].itertuples(index=False):
         typer.echo(f"  {r.direction}: {r.n_trains} trains, margin {r.margin_s:.0f} s ({r.margin_percent:.1f} %), "
-                   f"remaining on a bad day {r.remaining_margin_s:+.0f} s")
+                   f"remaining on a bad day {r.remaining_margin_s:+.0f} s"
+                   + (f" (unknown: {r.n_unassessed} legs unassessed)" if r.n_unassessed else ""))
     if report.conflicts is not None:
         n = report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0
         typer.echo(f"  route conflicts: {n}")
