@@ -55,6 +55,8 @@ def _job(project: Path, output_root: str) -> Path:
         scenarios = [{{name = "nominal"}}]
         [parallel]
         n_jobs = 1
+        [bundles]
+        allow_development_key = true
     """))
     return p
 
@@ -89,6 +91,14 @@ def _published(root: Path) -> dict[str, str]:
             else:
                 out[rel] = hashlib.sha256(p.read_bytes()).hexdigest()
     return out
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _fixed_build_time():
+    # bundles carry their build time: runs with the same SOURCE_DATE_EPOCH give the same bytes
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("SOURCE_DATE_EPOCH", "1767225600")  # 2026-01-01T00:00:00Z
+        yield
 
 
 @pytest.fixture(scope="module")
