@@ -287,6 +287,16 @@ def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
                    "key": key_id})
 
 
+def _distinct_line_ids(job: Job, lines) -> None:
+    """Folders may have any name, but line ids name the outputs: two lines may not share one."""
+    seen: dict[str, str] = {}
+    for p, line in zip(job.job.lines, lines):
+        if line.line_id in seen:
+            raise JobError(f"job lines {seen[line.line_id]!r} and {p!r} both hold line_id {line.line_id!r}; "
+                           f"outputs are named by line_id, so give each line its own id (line.parquet)")
+        seen[line.line_id] = p
+
+
 def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
     """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure."""
     from .loader import load_line
@@ -298,6 +308,7 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
         with Progress(show_progress) as prog:
             with prog.step("validate", len(job.job.lines)):
                 lines = [load_line(job.resolve(p)) for p in job.job.lines]
+                _distinct_line_ids(job, lines)
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)
