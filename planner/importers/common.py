@@ -120,7 +120,7 @@ class ImportSummary:
             value = DEFAULTS[key][0]
         label = f"{key} = {value!r} ({src}: {DEFAULTS[key][1]})"
         self.defaults.setdefault(label, [])
-        if where is not None:
+        if where is not None and where not in self.defaults[label]:
             self.defaults[label].append(where)
         return value
 
@@ -210,7 +210,7 @@ def number(value, where: str, fix: str = "", *, positive: bool = False) -> float
 def line_table(line_id: str, start_m: float, end_m: float, limits: pd.DataFrame, s: ImportSummary) -> pd.DataFrame:
     """line.parquet from the TOML's [line] and the defaults."""
     ex = s.extra or Extras()
-    lid = str(ex.line.get("line_id", line_id))
+    lid = str(line_id)
     name = ex.line.get("name")
     if name is None:
         s.default("line_name")
