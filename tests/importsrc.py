@@ -217,3 +217,128 @@ def edited(make, edit) -> dict:
     d = copy.deepcopy(make())
     edit(d)
     return d
+
+
+RAILML_NS = "http://www.railml.org/schemas/2016"
+
+
+def railml_text(tracks: str | None = None, lines: str | None = None, ocps: str | None = None) -> str:
+    """A railML 2.3 file of the same line (tracks tr1, tr2, tr3 in track orientation west → east)."""
+    tr1 = """
+    <track id="tr1" name="T1">
+      <trackTopology>
+        <trackBegin id="tb1" pos="0.0"><openEnd id="oe1"/></trackBegin>
+        <trackEnd id="te1" pos="3000.0"><connection id="c12" ref="c21"/></trackEnd>
+        <crossSections><crossSection id="cs1" pos="500.0" ocpRef="W"/></crossSections>
+      </trackTopology>
+      <trackElements>
+        <speedChanges>
+          <speedChange id="v1" pos="0.0" dir="up" vMax="100"/>
+          <speedChange id="v2" pos="1200.0" dir="up" vMax="80"/>
+          <speedChange id="v3" pos="1600.0" dir="up" vMax="100"/>
+          <speedChange id="v4" pos="1600.0" dir="down" vMax="80"/>
+          <speedChange id="v5" pos="1200.0" dir="down" vMax="100"/>
+        </speedChanges>
+        <gradientChanges>
+          <gradientChange id="g1" pos="0.0" slope="5.0"/>
+          <gradientChange id="g2" pos="1000.0" slope="0.0"/>
+          <gradientChange id="g3" pos="1500.0" slope="-8.0"/>
+          <gradientChange id="g4" pos="2500.0" slope="0.0"/>
+        </gradientChanges>
+        <radiusChanges>
+          <radiusChange id="r1" pos="1200.0" radius="-600.0"/>
+          <radiusChange id="r2" pos="1600.0" radius="0"/>
+        </radiusChanges>
+        <platformEdges><platformEdge id="pe1" pos="400.0" length="200.0" ocpRef="W"/></platformEdges>
+      </trackElements>
+      <ocsElements>
+        <signals>
+          <signal id="SIG1" pos="2800.0" dir="up" type="main"/>
+          <signal id="DS1" pos="2000.0" dir="up" type="distant"/>
+        </signals>
+      </ocsElements>
+    </track>"""
+    tr2 = """
+    <track id="tr2" name="T2">
+      <trackTopology>
+        <trackBegin id="tb2" pos="0.0"><connection id="c21" ref="c12"/></trackBegin>
+        <trackEnd id="te2" pos="2000.0"><connection id="c23" ref="c32"/></trackEnd>
+        <crossSections><crossSection id="cs2" pos="1000.0" ocpRef="M"/></crossSections>
+      </trackTopology>
+      <trackElements>
+        <speedChanges>
+          <speedChange id="v6" pos="500.0" dir="down" vMax="60"/>
+          <speedChange id="v7" pos="100.0" dir="down" vMax="100"/>
+        </speedChanges>
+        <gradientChanges>
+          <gradientChange id="g5" pos="0.0" slope="0"/>
+          <gradientChange id="g6" pos="200.0" slope="-6.0"/>
+          <gradientChange id="g7" pos="1800.0" slope="0"/>
+        </gradientChanges>
+      </trackElements>
+      <ocsElements>
+        <signals><signal id="SIG2" pos="1700.0" dir="up" type="main"/></signals>
+        <stopPosts>
+          <stopPost id="sp1" pos="1100.0" dir="up" ocpStationRef="M"/>
+          <stopPost id="sp2" pos="900.0" dir="down" ocpStationRef="M"/>
+        </stopPosts>
+      </ocsElements>
+    </track>"""
+    tr3 = """
+    <track id="tr3" name="T3">
+      <trackTopology>
+        <trackBegin id="tb3" pos="0.0"><connection id="c32" ref="c23"/></trackBegin>
+        <trackEnd id="te3" pos="1500.0"><openEnd id="oe3"/></trackEnd>
+        <crossSections><crossSection id="cs3" pos="1200.0" ocpRef="E"/></crossSections>
+      </trackTopology>
+      <trackElements>
+        <speedChanges><speedChange id="v8" pos="1500.0" dir="down" vMax="100"/></speedChanges>
+        <gradientChanges>
+          <gradientChange id="g8" pos="0.0" slope="3.0"/>
+          <gradientChange id="g9" pos="700.0" slope="0.0"/>
+        </gradientChanges>
+        <radiusChanges>
+          <radiusChange id="r3" pos="300.0" radius="800.0"/>
+          <radiusChange id="r4" pos="800.0" radius="0"/>
+        </radiusChanges>
+      </trackElements>
+      <ocsElements>
+        <signals><signal id="SIG3" pos="100.0" dir="down" type="main"/></signals>
+        <balises><balise id="BC1" pos="1000.0" dir="down"/></balises>
+        <trainDetectionElements><trainDetector id="D1" pos="1000.0"/></trainDetectionElements>
+      </ocsElements>
+    </track>"""
+    if tracks is None:
+        tracks = tr1 + tr2 + tr3
+    if lines is None:
+        lines = """
+    <line id="L1" name="Test line">
+      <trackRef ref="tr1" sequence="1"/><trackRef ref="tr2" sequence="2"/><trackRef ref="tr3" sequence="3"/>
+    </line>"""
+    if ocps is None:
+        ocps = """
+    <ocp id="W" name="West"><propOperational operationalType="station"/></ocp>
+    <ocp id="M" name="Middle"><propOperational operationalType="station"/></ocp>
+    <ocp id="E" name="East"><propOperational operationalType="station"/></ocp>"""
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<railml xmlns="{RAILML_NS}" version="2.3">
+ <infrastructure id="is1">
+  <tracks>{tracks}
+  </tracks>
+  <trackGroups>{lines}
+  </trackGroups>
+  <operationControlPoints>{ocps}
+  </operationControlPoints>
+ </infrastructure>
+</railml>
+"""
+
+
+def write_railml(folder: Path, text: str | None = None) -> tuple[Path, Path, Path]:
+    """Write line.railml, emu.json and extra.toml into ``folder``; return their paths."""
+    folder.mkdir(parents=True, exist_ok=True)
+    f, r, x = folder / "line.railml", folder / "emu.json", folder / "extra.toml"
+    f.write_text(railml_text() if text is None else text)
+    r.write_text(json.dumps(rolling_stock(), indent=1))
+    x.write_text(EXTRA_TOML.replace('at = "D1"\n', ""))
+    return f, r, x

@@ -73,9 +73,10 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "line_name": ("line id", "display name = the line id"),
     "beacons": ("none", "no ATS-P beacons (add [[beacons]] to the TOML)"),
     "timetable": ("empty", "no trains (add [[timetable]] rows to the TOML)"),
-    "beacon_kind": ("other", "kind of an imported balise"),
-    "beacon_telegram": ("", "telegram of an imported balise (empty)"),
-    "evaluation_point": (False, "an imported balise is not an evaluation point"),
+    "missing_gradient": (0.0, "gradient of a railML track with no gradientChange [‰] (level)"),
+    "beacon_kind": ("other", "kind of a beacon (railML balise, or [[beacons]] without kind)"),
+    "beacon_telegram": ("", "telegram of a beacon the TOML gives none for (empty)"),
+    "evaluation_point": (False, "a beacon is not an evaluation point unless the TOML says so"),
     "full_load_mass_t": (0.0, "passenger mass at 100 % load [t]"),
     "max_accel_kmh_s": ("comfort_acceleration", "acceleration cap = the source's comfort acceleration"),
     "comfort_accel_kmh_s": ("comfort_acceleration", "ride-comfort acceleration = the source's comfort "
@@ -260,24 +261,31 @@ def beacon_table(located: dict[str, float], s: ImportSummary, native: list[dict]
     """beacons.parquet: ``native`` rows from the source, then the TOML's [[beacons]] (``at`` = an element id)."""
     ex = s.extra or Extras()
     rows = list(native or [])
+    by_id = {r["beacon_id"]: r for r in rows}
     for i, b in enumerate(ex.beacons):
         where = f"[[beacons]] #{i + 1}"
         b = dict(b)
+        if b.get("beacon_id") in by_id:  # completes a beacon of the source (a railML balise)
+            by_id[b["beacon_id"]].update(b)
+            continue
         if "at" in b:
             at = b.pop("at")
             if at not in located:
                 raise ex.err(f"{where}.at", f"no element {at!r} on the imported path; give an id of a signal, "
                                             f"detector, balise or station on it, or position_m")
             b.setdefault("position_m", located[at])
-        for k in ("beacon_id", "position_m", "direction", "kind"):
+        for k in ("beacon_id", "position_m", "direction"):
             if k not in b:
-                raise ex.err(where, f"missing key {k!r}")
+                raise ex.err(where, f"missing key {k!r}" + (" (or at)" if k == "position_m" else ""))
         b["position_m"] = number(b["position_m"], f"{ex.path}: {where}.position_m")
-        b.setdefault("telegram", "")
-        b.setdefault("evaluation_point", False)
         rows.append(b)
     if not rows:
         s.default("beacons")
+    for r in rows:
+        for col, key in (("kind", "beacon_kind"), ("telegram", "beacon_telegram"),
+                         ("evaluation_point", "evaluation_point")):
+            if r.get(col) is None:
+                r[col] = s.default(key, str(r["beacon_id"]))
     return pd.DataFrame(rows, columns=[f.name for f in TABLES["beacons"].schema])
 
 
