@@ -8,6 +8,7 @@ line from a spreadsheet, railjson or railML. ``planner schema`` prints it;
 """
 from __future__ import annotations
 
+from .importers.common import DEFAULTS, EXTRA_EXAMPLE
 from .schema import (
     BEACON_KINDS,
     CRUISE_MODES,
@@ -19,6 +20,7 @@ from .schema import (
     describe,
 )
 
+_EXTRA_EXAMPLE = EXTRA_EXAMPLE.strip("\n").splitlines()
 DOC_PATH = "docs/line-database.md"
 """Where the generated document lives in the repository (validation messages point here)."""
 
@@ -102,6 +104,19 @@ def line_database_doc() -> str:
         "comes from a small TOML file (`--extra`) or a documented default; every default used is listed",
         "in the import's summary. Imports write to a temporary folder, validate it, and only then",
         "rename it to `--out`.",
+        "",
+        "The `--extra` TOML (every section optional):",
+        "",
+        "```toml",
+        *_EXTRA_EXAMPLE,
+        "```",
+        "",
+        "Defaults an import may use (each one used is listed in the summary with the elements it",
+        "was used for; `[defaults]` in the TOML replaces the value):",
+        "",
+        "| default | value | meaning |",
+        "|---|---|---|",
+        *[f"| `{k}` | `{v!r}` | {m} |" for k, (v, m) in DEFAULTS.items()],
         "",
         "## Tables",
         "",

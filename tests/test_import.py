@@ -150,6 +150,17 @@ def test_summary_lists_every_default_used(imported):
     assert all(k in DEFAULTS for k in (label.split(" = ")[0] for label in rj.defaults))
 
 
+def test_toml_defaults_replace_documented_and_derived_values(tmp_path):
+    i, r, x = src.write_railjson(tmp_path)
+    x.write_text("[defaults]\nplatform_length_m = 150.0\nstop_brake_kmh_s = 3.0\n")
+    s = import_railjson(i, ["W", "M", "E"], [r], tmp_path / "out", extra=x)
+    st = pq.read_table(tmp_path / "out" / "stations.parquet").column("platform_length_m").to_pylist()
+    rs = pq.read_table(tmp_path / "out" / "rolling_stock.parquet")
+    assert st == [150.0] * 3 and rs.column("stop_brake_kmh_s").to_pylist() == [3.0]
+    assert rs.column("service_brake_kmh_s").to_pylist() == [3.6]  # still derived from const_gamma
+    assert any(k.startswith("stop_brake_kmh_s = 3.0 (TOML [defaults]") for k in s.defaults)
+
+
 def test_cli_import_and_any_folder_name(tmp_path):
     i, r, x = src.write_railjson(tmp_path / "s")
     out = tmp_path / "Some Folder"

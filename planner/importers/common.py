@@ -7,43 +7,7 @@ the ride-comfort limits. Those come from a small TOML file beside the source
 recorded in the :class:`ImportSummary` with the elements it was used for, so
 nothing is silently invented.
 
-The ``--extra`` TOML (every section optional)::
-
-    [line]
-    line_id = "coast"            # default: the source's line/path name
-    name = "Coast Line"          # default: the line id
-    max_speed_kmh = 120.0        # default: the highest speed limit on the path
-
-    [defaults]                   # replace any documented default, e.g.
-    platform_length_m = 180.0
-
-    [stations.OP_ID]             # by the source's id of the station / operational point
-    station_id = "CST"           # default: the source id
-    name = "Coast"
-    platform_length_m = 210.0
-    stop_down_m = 1300.0         # chainage of the stop marker (train front), direction down
-    stop_up_m = 1100.0
-
-    [rolling_stock.NAME]         # any rolling_stock column, e.g.
-    jerk_limit_kmh_s2 = 2.5
-    full_load_mass_t = 90.0
-
-    [[beacons]]                  # ATS-P ground beacons; `at` = a source element id (signal, detector,
-    beacon_id = "B1"             #  balise, operational point) or give position_m
-    at = "S12"
-    direction = "down"
-    kind = "signal"
-    telegram = "S12:G"
-    evaluation_point = true
-
-    [[timetable]]                # rows of timetable.parquet
-    train_id = "101"
-    train_type = "EMU"
-    direction = "down"
-    seq = 0
-    station_id = "CST"
-    departure_s = 21600.0
-    stops = true
+The ``--extra`` TOML is :data:`EXTRA_EXAMPLE` (every section optional).
 """
 from __future__ import annotations
 
@@ -62,6 +26,45 @@ import pyarrow as pa
 from ..datasets import write_parquet_atomic
 from ..errors import SourceError, Violation
 from ..schema import TABLES
+
+EXTRA_EXAMPLE = """
+[line]
+line_id = "coast"            # default: the source's line/path name
+name = "Coast Line"          # default: the line id
+max_speed_kmh = 120.0        # default: the highest speed limit on the path
+
+[defaults]                   # replace any documented default, e.g.
+platform_length_m = 180.0
+
+[stations.OP_ID]             # by the source's id of the station / operational point
+station_id = "CST"           # default: the source id
+name = "Coast"
+platform_length_m = 210.0
+stop_down_m = 1300.0         # chainage of the stop marker (train front), direction down
+stop_up_m = 1100.0
+
+[rolling_stock.NAME]         # any rolling_stock column, e.g.
+jerk_limit_kmh_s2 = 2.5
+full_load_mass_t = 90.0
+
+[[beacons]]                  # ATS-P ground beacons; `at` = a source element id (signal, detector,
+beacon_id = "B1"             #  balise, operational point) or give position_m
+at = "S12"
+direction = "down"
+kind = "signal"
+telegram = "S12:G"
+evaluation_point = true
+
+[[timetable]]                # rows of timetable.parquet
+train_id = "101"
+train_type = "EMU"
+direction = "down"
+seq = 0
+station_id = "CST"
+departure_s = 21600.0
+stops = true
+"""
+"""An ``--extra`` TOML with every section (also shown in docs/line-database.md)."""
 
 DEFAULTS: dict[str, tuple[object, str]] = {
     "platform_length_m": (200.0, "platform length where the source gives none [m]"),
@@ -90,6 +93,9 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "coast_band_kmh": (0.0, "sawtooth band [km/h] (unused with constant cruise)"),
 }
 """Every default an importer may use: key → (value, what it means). ``[defaults]`` in the TOML overrides."""
+
+OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_name", "beacons", "timetable"}
+"""Defaults with one value that ``[defaults]`` may replace (the others describe a rule or an absence)."""
 
 _ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema) - {"train_type"}
 _SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable"}
@@ -178,7 +184,7 @@ def load_extras(path: str | Path | None) -> Extras:
     ex.line = data.get("line", {})
     _check_keys(ex, "[line]", ex.line, _LINE_KEYS)
     ex.defaults = data.get("defaults", {})
-    _check_keys(ex, "[defaults]", ex.defaults, set(DEFAULTS))
+    _check_keys(ex, "[defaults]", ex.defaults, set(OVERRIDABLE))
     ex.stations = data.get("stations", {})
     for k, v in ex.stations.items():
         _check_keys(ex, f"[stations.{k}]", v, _STATION_KEYS)

@@ -195,7 +195,9 @@ def _profile(doc: _Doc, tracks: list[_Track], kind: str, s: ImportSummary) -> li
         end = round(t.offset + t.length, 9)
         if not changes:
             if kind == "gradient":
-                s.default("missing_gradient", t.id)
+                g = number(s.default("missing_gradient", t.id), "[defaults] missing_gradient")
+                if g != 0:
+                    rows.append((round(t.offset, 9), end, g))
             continue
         if kind == "gradient" and changes[0][0] != round(t.offset, 9):
             raise SourceError(f"{doc.where(changes[0][2], 'pos')}: the first gradientChange of track {t.id!r} must "
