@@ -341,8 +341,10 @@ def write_line(tables: dict[str, pd.DataFrame | pa.Table], out: str | Path, summ
     out = Path(out)
     if out.exists() and not force:
         raise SourceError(f"{out}: already exists; choose another --out or pass --force to replace it")
+    made = [p for p in reversed(out.parents) if not p.exists()]  # removed again if the import fails
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.import-", dir=out.parent))
+    done = False
     try:
         for name, t in tables.items():
             table = t if isinstance(t, pa.Table) else to_arrow(name, t)
@@ -361,8 +363,15 @@ def write_line(tables: dict[str, pd.DataFrame | pa.Table], out: str | Path, summ
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(tmp, out)
+        done = True
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+        if not done:
+            for p in reversed(made):
+                try:
+                    p.rmdir()
+                except OSError:
+                    break
     summary.out = out
     return summary

@@ -151,6 +151,9 @@ def read_table_csv(path: Path, name: str) -> tuple[pa.Table, list[int]]:
                           f"the columns")
     reader = csv.reader(io.StringIO("".join(lines[skip:])))
     header = [h.strip() for h in next(reader)]
+    if len(header) == 1 and ";" in header[0]:
+        raise SourceError(f"{path.name} line {skip + 1}: the header has no commas but semicolons; save the "
+                          f"sheet as CSV with comma separators (and . as the decimal mark)")
     declared = {f.name: f for f in spec.schema}
     dup = {h for h in header if header.count(h) > 1}
     if dup:

@@ -126,7 +126,11 @@ class _Network:
         types = {k: list(v) for k, v in SWITCH_LINKS.items()}
         for i, st in enumerate(src.items("extended_switch_types")):
             groups = st.get("groups") or {}
-            types[str(st.get("id"))] = [(c["src"], c["dst"]) for g in groups.values() for c in g]
+            try:
+                types[str(st.get("id"))] = [(c["src"], c["dst"]) for g in groups.values() for c in g]
+            except (AttributeError, KeyError, TypeError):
+                raise SourceError(f"{src.where('extended_switch_types', i, st, 'groups')}: must map group names "
+                                  f"to lists of {{\"src\": port, \"dst\": port}}") from None
         for i, sw in enumerate(src.items("switches")):
             kind = src.get("switches", i, sw, "switch_type")
             if kind not in types:
@@ -250,6 +254,10 @@ def _ops(src: _Src, net: _Network, names: list[str]):
         if not isinstance(parts, list) or not parts:
             raise SourceError(f"{src.where('operational_points', i, op, 'parts')}: needs at least one part "
                               f"(track, position)")
+        for k, p in enumerate(parts):
+            if not isinstance(p, dict):
+                raise SourceError(f"{src.fname}: operational_points[{i}].parts[{k}]: must be an object "
+                                  f"{{\"track\", \"position\"}}")
         locs = [net.locate(f"operational_points[{i}].parts", k, p) for k, p in enumerate(parts)]
         name = ((op.get("extensions") or {}).get("identifier") or {}).get("name") or n
         out.append((n, str(name), locs))
@@ -309,6 +317,8 @@ def _segments(src: _Src, net: _Network, path: _Path, key: str, value: str, s: Im
         spans = []
         for k, it in enumerate(items):
             w = f"{src.where('track_sections', i, t, f'{key}[{k}]')}"
+            if not isinstance(it, dict):
+                raise SourceError(f"{w}: must be an object {{\"begin\", \"end\", \"{value}\"}}")
             b = number(it.get("begin"), f"{w}.begin", "an offset in metres")
             e = number(it.get("end"), f"{w}.end", "an offset in metres")
             v = number(it.get(value), f"{w}.{value}")
@@ -343,9 +353,13 @@ def _speed_limits(src: _Src, path: _Path, s: ImportSummary) -> pd.DataFrame:
         tags |= set((sec.get("speed_limit_by_tag") or {}).keys())
         v = sec.get("speed_limit")
         ranges = src.get("speed_sections", i, sec, "track_ranges")
+        if not isinstance(ranges, list):
+            raise SourceError(f"{src.where('speed_sections', i, sec, 'track_ranges')}: must be a list")
         on_path = []
         for k, r in enumerate(ranges):
             w = src.where("speed_sections", i, sec, f"track_ranges[{k}]")
+            if not isinstance(r, dict):
+                raise SourceError(f"{w}: must be an object {{\"track\", \"begin\", \"end\", ...}}")
             b, e = number(r.get("begin"), f"{w}.begin"), number(r.get("end"), f"{w}.end")
             ad = r.get("applicable_directions", "BOTH")
             if ad not in ("BOTH", INC, DEC):
