@@ -79,6 +79,7 @@ def interstation_inputs(line: Line, train_type: str, origin: str, destination: s
     tt = line.train_type(train_type)
     lo, hi = min(a, b) - tt.length_m - 1.0, max(a, b) + tt.length_m + 1.0
     return {
+        "line_id": line.line_id,  # results carry it (partition line=): a copy under another id is not a hit
         "direction": direction,
         "origin": [origin, a],
         "destination": [destination, b],

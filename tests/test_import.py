@@ -150,6 +150,18 @@ def test_summary_lists_every_default_used(imported):
     assert all(k in DEFAULTS for k in (label.split(" = ")[0] for label in rj.defaults))
 
 
+def test_a_copy_of_a_line_under_another_id_is_not_a_cache_hit(imported):
+    """Found running the hand-written line and its railjson twin in one job: the stops cache (keyed by
+    interstation inputs) handed line 'rj' rows to line 'hand', and margins found no rows for 'hand'."""
+    from planner.pipeline import digest, interstation_inputs
+
+    a = interstation_inputs(load_line(imported["hand"]), "EMU", "W", "M")
+    b = interstation_inputs(load_line(imported["railjson"][1]), "EMU", "W", "M")
+    assert digest(a) != digest(b)
+    a.pop("line_id"), b.pop("line_id")
+    assert digest(a) == digest(b)  # the twins differ in nothing else
+
+
 def test_toml_defaults_replace_documented_and_derived_values(tmp_path):
     i, r, x = src.write_railjson(tmp_path)
     x.write_text("[defaults]\nplatform_length_m = 150.0\nstop_brake_kmh_s = 3.0\n")
