@@ -164,11 +164,13 @@ def test_a_copy_of_a_line_under_another_id_is_not_a_cache_hit(imported):
 
 def test_toml_defaults_replace_documented_and_derived_values(tmp_path):
     i, r, x = src.write_railjson(tmp_path)
-    x.write_text("[defaults]\nplatform_length_m = 150.0\nstop_brake_kmh_s = 3.0\n")
+    x.write_text("[defaults]\nplatform_length_m = 150.0\nstop_brake_kmh_s = 3.0\n"
+                 "[rolling_stock.EMU]\ntrain_type = \"E6\"\n")
     s = import_railjson(i, ["W", "M", "E"], [r], tmp_path / "out", extra=x)
     st = pq.read_table(tmp_path / "out" / "stations.parquet").column("platform_length_m").to_pylist()
     rs = pq.read_table(tmp_path / "out" / "rolling_stock.parquet")
     assert st == [150.0] * 3 and rs.column("stop_brake_kmh_s").to_pylist() == [3.0]
+    assert load_line(tmp_path / "out").train_type("E6").traction_effort_N[0] == 200_000.0  # renamed with its curve
     assert rs.column("service_brake_kmh_s").to_pylist() == [3.6]  # still derived from const_gamma
     assert any(k.startswith("stop_brake_kmh_s = 3.0 (TOML [defaults]") for k in s.defaults)
 

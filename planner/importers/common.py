@@ -43,7 +43,8 @@ platform_length_m = 210.0
 stop_down_m = 1300.0         # chainage of the stop marker (train front), direction down
 stop_up_m = 1100.0
 
-[rolling_stock.NAME]         # any rolling_stock column, e.g.
+[rolling_stock.NAME]         # by the source's name; any rolling_stock column, e.g.
+train_type = "EMU10"         # default: the source's name (ids become file and partition names)
 jerk_limit_kmh_s2 = 2.5
 full_load_mass_t = 90.0
 
@@ -97,7 +98,7 @@ DEFAULTS: dict[str, tuple[object, str]] = {
 OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_name", "beacons", "timetable"}
 """Defaults with one value that ``[defaults]`` may replace (the others describe a rule or an absence)."""
 
-_ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema) - {"train_type"}
+_ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema)  # train_type renames
 _SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable"}
 _LINE_KEYS = {"line_id", "name", "max_speed_kmh"}
 _STATION_KEYS = {"station_id", "name", "platform_length_m", "stop_down_m", "stop_up_m"}

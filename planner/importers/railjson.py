@@ -487,7 +487,7 @@ def read_rolling_stock(path: str | Path, s: ImportSummary) -> tuple[dict, list[d
         given = s.extra is not None and col in s.extra.defaults  # [defaults] beats the derived value
         row[col] = value if given else derived.get(col, value)
     row.update(over)
-    traction = [dict(train_type=name, speed_kmh=kmh(v), effort_kN=_r(f / 1000)) for v, f in zip(speeds, efforts)]
+    traction = [dict(train_type=row["train_type"], speed_kmh=kmh(v), effort_kN=_r(f / 1000)) for v, f in zip(speeds, efforts)]
     return row, traction
 
 
