@@ -408,8 +408,8 @@ def _points(src: _Src, net: _Network, path: _Path, key: str, located: dict[str, 
 
 
 # --------------------------------------------------------------------------- rolling stock
-def read_rolling_stock(path: str | Path, s: ImportSummary) -> tuple[dict, list[dict]]:
-    """One OSRD rolling-stock JSON as a rolling_stock row (railway units) and its traction rows."""
+def read_rolling_stock(path: str | Path, s: ImportSummary) -> tuple[str, dict, list[dict]]:
+    """One OSRD rolling-stock JSON: its name, its rolling_stock row (railway units) and traction rows."""
     fname, rs = load_json(path)
     if not isinstance(rs, dict):
         raise SourceError(f"{fname}: the top level must be a JSON object (OSRD rolling stock)")
@@ -488,21 +488,21 @@ def read_rolling_stock(path: str | Path, s: ImportSummary) -> tuple[dict, list[d
         row[col] = value if given else derived.get(col, value)
     row.update(over)
     traction = [dict(train_type=row["train_type"], speed_kmh=kmh(v), effort_kN=_r(f / 1000)) for v, f in zip(speeds, efforts)]
-    return row, traction
+    return name, row, traction
 
 
 def rolling_stock_tables(paths: list, s: ImportSummary) -> tuple[pd.DataFrame, pd.DataFrame]:
     if not paths:
         raise SourceError(f"{s.source}: --rolling-stock: give at least one OSRD rolling-stock JSON (the "
                           f"line database needs a train type)")
-    rows, traction = [], []
+    rows, traction, known = [], [], set()
     for p in paths:
-        row, tr = read_rolling_stock(p, s)
+        name, row, tr = read_rolling_stock(p, s)
         if any(r["train_type"] == row["train_type"] for r in rows):
             raise SourceError(f"{Path(p).name}: name: train type {row['train_type']!r} is given twice")
         rows.append(row)
         traction += tr
-    known = {r["train_type"] for r in rows}
+        known.add(name)
     for k in (s.extra.rolling_stock if s.extra else {}):
         if k not in known:
             raise s.extra.err(f"[rolling_stock.{k}]", f"no train type {k!r}; they are {', '.join(sorted(known))}")
