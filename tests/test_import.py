@@ -162,6 +162,19 @@ def test_a_copy_of_a_line_under_another_id_is_not_a_cache_hit(imported):
     assert digest(a) == digest(b)  # the twins differ in nothing else
 
 
+def test_force_replaces_only_with_a_valid_line(tmp_path):
+    i, r, x = src.write_railjson(tmp_path / "s")
+    out = tmp_path / "lines" / "coast"
+    import_railjson(i, ["W", "M", "E"], [r], out, extra=x, line_id="coast")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    with pytest.raises(SourceError, match="no connected route"):
+        import_railjson(i, ["M", "B"], [r], out, force=True)  # B is on the branch: only by reversing
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # the old line is untouched
+    import_railjson(i, ["W", "M"], [r], out, line_id="coast2", force=True)
+    assert load_line(out).line_id == "coast2" and len(load_line(out).stations) == 2
+    assert sorted(p.name for p in out.parent.iterdir()) == ["coast"]  # no temp or old folder left
+
+
 def test_toml_defaults_replace_documented_and_derived_values(tmp_path):
     i, r, x = src.write_railjson(tmp_path)
     x.write_text("[defaults]\nplatform_length_m = 150.0\nstop_brake_kmh_s = 3.0\n"
