@@ -80,6 +80,7 @@ def interstation_inputs(line: Line, train_type: str, origin: str, destination: s
     tt = line.train_type(train_type)
     lo, hi = min(a, b) - tt.length_m - 1.0, max(a, b) + tt.length_m + 1.0
     return {
+        "line_id": line.line_id,  # results carry it (partition line=): a copy under another id is not a hit
         "direction": direction,
         "origin": [origin, a],
         "destination": [destination, b],
@@ -341,6 +342,16 @@ def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
                    "key": key_id})
 
 
+def _distinct_line_ids(job: Job, lines) -> None:
+    """Folders may have any name, but line ids name the outputs: two lines may not share one."""
+    seen: dict[str, str] = {}
+    for p, line in zip(job.job.lines, lines):
+        if line.line_id in seen:
+            raise JobError(f"job lines {seen[line.line_id]!r} and {p!r} both hold line_id {line.line_id!r}; "
+                           f"outputs are named by line_id, so give each line its own id (line.parquet)")
+        seen[line.line_id] = p
+
+
 def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> RunSummary:
     """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure.
 
@@ -362,6 +373,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
         with Progress(show_progress) as prog:
             with prog.step("validate", len(job.job.lines)):
                 lines = [load_line(job.resolve(p)) for p in job.job.lines]
+                _distinct_line_ids(job, lines)
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)

@@ -125,7 +125,7 @@ NULLABLE = True
 
 _SPECS = [
     TableSpec("line", _schema("line", [
-        ("line_id", S, "line identifier; equals the folder name; names files (PATH_ID_RE)"),
+        ("line_id", S, "line identifier, used in every output; the folder may have any name; names files (PATH_ID_RE)"),
         ("name", S, "display name"),
         ("start_m", D, "first chainage covered by the database [m]"),
         ("end_m", D, "last chainage covered by the database [m]"),

@@ -347,9 +347,7 @@ def sorted_disjoint(t: TableView) -> Iterator[Violation]:
 def line_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["line"]
     for i in t.rows():
-        if t["line_id"][i] != db.folder_name:
-            yield t.err(i, "line_id", f"{t['line_id'][i]!r} must equal the folder name "
-                                      f"{db.folder_name!r}")
+        # the line id comes from the data, not the folder name: job files name folders
         if t["schema_version"][i] != SCHEMA_VERSION:
             yield t.err(i, "schema_version", f"is {t['schema_version'][i]}; this planner reads "
                                              f"schema version {SCHEMA_VERSION}")
@@ -771,8 +769,8 @@ def check_tables(
         if got is None:
             if spec.required:
                 out.append(Violation(spec.file, None, None,
-                                     "file is missing; every line database needs it (see SCHEMA.md), "
-                                     "even if it has no rows"))
+                                     "file is missing; every line database needs it, even if it has no rows "
+                                     "(see docs/line-database.md or `planner schema`)"))
         elif isinstance(got, Violation):
             out.append(got)
         else:

@@ -40,6 +40,8 @@ from . import run  # noqa: E402,F401
 from . import datasets  # noqa: E402,F401
 from . import timekeeping  # noqa: E402,F401
 from . import cache  # noqa: E402,F401
+from . import schema  # noqa: E402,F401
+from . import importer  # noqa: E402,F401
 
 
 def main() -> None:
