@@ -5,6 +5,11 @@ constant r (and the traction energy). Table (b): for every evaluation point X
 and pair (r_before, r_after), the running time from X to arrival when the train
 ran at r_before up to X and at r_after from X on.
 
+The evaluation points are those of :func:`planner.eval_points.evaluation_points`:
+the departure, the point after departure, the odometer points at the regular
+interval (``eval_interval_m``, none by default) and the flagged beacons. Each
+point after departure costs n_r² runs and n_r² rows of table (b).
+
 How it is computed (per interstation, direction and train type)
 ---------------------------------------------------------------
 1. One batch of n_r runs at constant ratio from departure to arrival, with a
