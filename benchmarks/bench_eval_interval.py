@@ -70,18 +70,33 @@ def main() -> int:
     ap.add_argument("--stops", type=Path, default=None, help="reuse a `planner stops --out` folder")
     ap.add_argument("--order", choices=("grid", "cost"), default="grid",
                     help="grid: grids outer, intervals inner; cost: cheapest settings first")
+    ap.add_argument("--settings", default="", help="explicit GRID:INTERVAL list instead of --grids x "
+                    "--intervals, e.g. 'default:0,5%%:200' (today's setting is always run first)")
+    ap.add_argument("--base-bundle-bytes", type=int, default=0,
+                    help="today's largest bundle [bytes], measured before: today's setting is then not run")
+    ap.add_argument("--interstations", default="", help="only these, e.g. 'TKD-OHS,OHS-TKD' (both "
+                    "directions must be named; no bundle bytes then)")
     args = ap.parse_args()
     line = planner.load_line(ROOT / "lines" / "sample")
     types = [t for t in args.types.split(",") if t] or None
     grids, intervals = _grids(args.grids), _intervals(args.intervals)
     settings = [Setting("default", None)] + [Setting(g, i) for g in grids for i in intervals
                                              if (g, i) != ("default", None)]
+    if args.settings:
+        pairs = [x.rsplit(":", 1) for x in args.settings.split(",") if x.strip()]
+        settings = [Setting("default", None)] + [
+            Setting(_grids(g)[0], _intervals(i)[0]) for g, i in pairs if (_grids(g)[0], _intervals(i)[0])
+            != ("default", None)]
+    if args.base_bundle_bytes:
+        settings = settings[1:]
+    subset = [tuple(x.split("-", 1)) for x in args.interstations.split(",") if x.strip()] or None
     if args.order == "cost":  # cheap and likely candidates first, so a cut-short run says the most
         def cost(s):
             n_r = {"10 %": 9, "default": 14, "5 %": 17, "2.5 %": 33}[s.grid]
             return n_r ** 2 * (1 if s.interval_m is None else 7000 / s.interval_m)
         settings = settings[:1] + sorted(settings[1:], key=cost)
-    print(f"bench_eval_interval: sample line, {len(settings)} settings "
+    print(f"bench_eval_interval: sample line{' (interstations ' + args.interstations + ')' if subset else ''}, "
+          f"{len(settings)} settings "
           f"({', '.join(s.label for s in settings)}), types {', '.join(types or [t.train_type for t in line.train_types])}",
           flush=True)
     t_all = time.perf_counter()
@@ -99,34 +114,40 @@ def main() -> int:
                 write_stops(stop_sweep(line, train_types=types, n_jobs=args.jobs), stops)
             print(f"  stopping patterns (for the bundle bytes) in {time.perf_counter() - t0:.0f} s", flush=True)
         results = []
+        base_bytes = args.base_bundle_bytes or None
         for s in settings:
             t0 = time.perf_counter()
-            r = run_setting(line, s, stops_dir=stops, train_types=types, n_jobs=args.jobs)
+            r = run_setting(line, s, stops_dir=stops, train_types=types, n_jobs=args.jobs, interstations=subset)
             results.append(r)
+            if base_bytes is None:
+                base_bytes = r.bundle_max_bytes  # today's setting, run first
             st = r.stats
             print(f"  {s.label:24s} {time.perf_counter() - t0:6.0f} s wall, tables {r.tables_cpu_s:6.1f} s CPU; "
                   f"nearest max {st[('nearest', 'nominal')]['max_abs_error_s']:.2f} / "
                   f"{st[('nearest', 'perturbed')]['max_abs_error_s']:.2f} s, adaptive max "
                   f"{st[('adaptive', 'nominal')]['max_abs_error_s']:.2f} / "
                   f"{st[('adaptive', 'perturbed')]['max_abs_error_s']:.2f} s", flush=True)
-            print("    " + format_table([r], results[0]).splitlines()[-1], flush=True)
+            print("    " + format_table([r], base_bytes or r.bundle_max_bytes).splitlines()[-1], flush=True)
             for sc in NEAREST_BOUNDS:
                 if ("nearest", sc) in r.worst:
                     print(f"    nearest {sc} worst: {format_worst(r.worst[('nearest', sc)])}", flush=True)
-    base = results[0]
     print(f"\nstudy ({time.perf_counter() - t_all:.0f} s wall): |arrival error| over feasible runs [s]; bundle = the "
           f"largest signed bundle, x = relative to today's (default grid, beacons only)")
-    print(format_table(results, base))
+    print(format_table(results, base_bytes))
 
-    best = best_nearest(results, base, BUNDLE_FACTOR, NEAREST_BOUNDS)
+    if subset:
+        print("\n(part of the line only: no bundle bytes, so no best setting under the bundle bound)")
+        best = None
+    else:
+        best = best_nearest(results, base_bytes, BUNDLE_FACTOR, NEAREST_BOUNDS)
     print(f"\nnearest rule, best setting with the largest bundle under {BUNDLE_FACTOR:g}x today's "
-          f"({base.bundle_max_bytes / 1024:.0f} kB):")
+          f"({base_bytes / 1024:.0f} kB):")
     if best is None:
         print("  none")
     else:
         ok = all(best.stats[("nearest", sc)]["max_abs_error_s"] <= b for sc, b in NEAREST_BOUNDS.items())
         print(f"  {best.setting.label}: bundle {best.bundle_max_bytes / 1024:.0f} kB "
-              f"({best.bundle_max_bytes / base.bundle_max_bytes:.2f}x); max |error| "
+              f"({best.bundle_max_bytes / base_bytes:.2f}x); max |error| "
               + ", ".join(f"{sc} {best.stats[('nearest', sc)]['max_abs_error_s']:.2f} s (bound {b:g})"
                           for sc, b in NEAREST_BOUNDS.items()) + f" -> {'met' if ok else 'NOT met'}")
         for sc in NEAREST_BOUNDS:
@@ -143,7 +164,7 @@ def main() -> int:
             if r.stats[("adaptive", sc)]["max_abs_error_s"] > ADAPTIVE_MAX_S and ("adaptive", sc) in r.worst:
                 print(f"  {r.setting.label} {sc}: {format_worst(r.worst[('adaptive', sc)])}")
     if args.html:
-        write_html(results, args.html, line_name=f"{line.name} ({line.line_id})", baseline=base)
+        write_html(results, args.html, line_name=f"{line.name} ({line.line_id})", base_bytes=base_bytes)
         print(f"\nwrote {args.html}")
     return 0
 

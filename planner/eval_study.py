@@ -286,12 +286,12 @@ def default_settings(grids: Sequence[str] = tuple(GRIDS),
     return [Setting(g, i) for g in grids for i in intervals]
 
 
-def best_nearest(results: Sequence[SettingResult], baseline: SettingResult, max_factor: float = 2.0,
+def best_nearest(results: Sequence[SettingResult], base_bytes: int, max_factor: float = 2.0,
                  scenario_bounds: dict[str, float] | None = None) -> SettingResult | None:
     """The setting of the nearest rule with the smallest worst error relative to its bounds whose
-    largest bundle stays under ``max_factor`` × the baseline's (None if none)."""
+    largest bundle stays under ``max_factor`` × ``base_bytes`` (today's largest bundle; None if none)."""
     bounds = scenario_bounds or {"nominal": 2.0, "perturbed": 3.0}
-    ok = [r for r in results if r.bundle_max_bytes < max_factor * baseline.bundle_max_bytes]
+    ok = [r for r in results if 0 < r.bundle_max_bytes < max_factor * base_bytes]
 
     def score(r):
         return max(r.stats[("nearest", sc)]["max_abs_error_s"] / b for sc, b in bounds.items()
@@ -302,16 +302,17 @@ def best_nearest(results: Sequence[SettingResult], baseline: SettingResult, max_
 
 # --- the page ---------------------------------------------------------------------
 
-def study_rows(results: Sequence[SettingResult], baseline: SettingResult | None = None) -> list[dict]:
-    """One flat dict per setting: costs and error statistics (for printing and the page)."""
-    base = baseline or (results[0] if results else None)
+def study_rows(results: Sequence[SettingResult], base_bytes: int | None = None) -> list[dict]:
+    """One flat dict per setting: costs and error statistics (for printing and the page); the
+    bundle factor is relative to ``base_bytes`` (default: the first result's largest bundle)."""
+    base = base_bytes if base_bytes is not None else (results[0].bundle_max_bytes if results else 0)
     out = []
     for r in results:
         row = {"grid": r.setting.grid, "interval": "beacons" if r.setting.interval_m is None
                else f"{r.setting.interval_m:g} m", "ratios": r.n_ratios, "points": r.n_points,
                "table_b_rows": r.rows.get("table_b", 0), "table_rows": sum(r.rows.values()),
                "bundle_kb": r.bundle_max_bytes / 1024,
-               "bundle_x": r.bundle_max_bytes / base.bundle_max_bytes if base and base.bundle_max_bytes else float("nan"),
+               "bundle_x": r.bundle_max_bytes / base if base and r.bundle_max_bytes else float("nan"),
                "cpu_s": r.tables_cpu_s}
         for (m, sc), st in r.stats.items():
             for k, short in (("median_abs_error_s", "med"), ("p95_abs_error_s", "p95"), ("max_abs_error_s", "max")):
@@ -320,9 +321,9 @@ def study_rows(results: Sequence[SettingResult], baseline: SettingResult | None 
     return out
 
 
-def format_table(results: Sequence[SettingResult], baseline: SettingResult | None = None) -> str:
+def format_table(results: Sequence[SettingResult], base_bytes: int | None = None) -> str:
     """The study as a plain-text table (what the benchmark prints)."""
-    rows = study_rows(results, baseline)
+    rows = study_rows(results, base_bytes)
     if not rows:
         return ""
     keys = [k for k in rows[0] if "/" in k]
@@ -361,13 +362,12 @@ def format_worst(w: Worst, last: int = 4) -> str:
     return txt + "\n      last points: " + tail
 
 
-def render_html(results: Sequence[SettingResult], *, line_name: str, baseline: SettingResult | None = None,
+def render_html(results: Sequence[SettingResult], *, line_name: str, base_bytes: int | None = None,
                 note: str = "") -> str:
     """The study as one self-contained HTML page (inline CSS and SVG, no scripts), deterministic."""
     from .report import CSS, _e, _mpl, _svg
 
-    base = baseline or (results[0] if results else None)
-    rows = study_rows(results, base)
+    rows = study_rows(results, base_bytes)
     cases = list(dict.fromkeys(k.rsplit("/", 1)[0] for k in rows[0] if "/" in k)) if rows else []
     parts = ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
              "<meta name='viewport' content='width=device-width, initial-scale=1'>"
@@ -379,7 +379,7 @@ def render_html(results: Sequence[SettingResult], *, line_name: str, baseline: S
              "flagged beacons) and the ratio grid. Tables for the empty train at nominal traction; "
              "<b>perturbed</b> = load 100 %, traction × 0.9 against the same tables. The odometer is taken as "
              "exact (no position error modelled). Bundle = the largest signed on-board bundle of the line; "
-             "× = relative to the first row. CPU = table build, summed over tasks.</p>"]
+             "× = relative to today's (default grid, beacons only). CPU = table build, summed over tasks.</p>"]
     if note:
         parts.append(f"<p class='note'>{_e(note)}</p>")
     # chart: max error against interval, one panel per case, a line per grid
