@@ -153,3 +153,22 @@ def test_finer_interval_reduces_the_nearest_rules_error():
             err[(iv, r.scenario)] = np.max(np.abs(r.error_s[r.feasible]))
     for sc in ("nominal", "perturbed"):
         assert err[(400.0, sc)] < 0.5 * err[(None, sc)], err
+
+
+def test_study_replays_its_worst_run():
+    """The study's explanation of a worst run is that run: replayed, it arrives with the error the
+    closed loop measured, it decides at every evaluation point after departure, and the point
+    it names as the last with authority is one whose row spans more than that error."""
+    from planner import testing
+    from planner.eval_study import Setting, run_setting
+    from planner.model import Beacon
+
+    ln = dataclasses.replace(testing.line(length_m=4000.0),
+                             beacons=(Beacon("B1", 1500.0, "down", "signal", "a", True),))
+    r = run_setting(ln, Setting("1.0:0.4:0.1", 400.0), interstations=[("S0", "S1")], n_jobs=1,
+                    modes=("nearest",), scenarios=("perturbed",))
+    assert r.n_points == 12 and r.n_interval_points == 9 and r.rows["table_b"] == 12 * 7 * 7
+    w = r.worst[("nearest", "perturbed")]
+    assert abs(w.error_s) == pytest.approx(r.stats[("nearest", "perturbed")]["max_abs_error_s"], abs=1e-9)
+    assert len(w.points) == 11
+    assert w.authority is not None and w.authority["row_span_s"] > abs(w.error_s)
