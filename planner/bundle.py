@@ -12,8 +12,10 @@ An uncompressed POSIX ustar archive written by this module, byte for byte:
   with zeros to 512-byte blocks; the archive ends with exactly two zero blocks
   (no record padding), so the bytes depend on the contents only;
 * one Parquet file per table (``restrictions``, ``max_profile``, ``atsp``,
-  ``beacons``, ``timetable`` always; ``eval_points``, ``table_a``, ``table_b``,
-  ``stop_summary``, ``stop_samples`` when they were built), written with fixed
+  ``beacons``, ``timetable`` always; ``eval_points`` (beacon points and the
+  odometer points: departure, after departure, regular interval), ``table_a``,
+  ``table_b``, ``table_c``, ``table_d``, ``stop_summary``, ``stop_samples``
+  when they were built), written with fixed
   pyarrow settings and no pandas metadata, so the same table gives the same
   bytes;
 * ``manifest.json``: canonical JSON (sorted keys, no whitespace, ASCII, only
@@ -42,7 +44,7 @@ members are exactly the files it lists, each with its size and SHA-256; then
 the tables themselves: declared columns and types, the line/direction/train
 type in every row, and cross-table consistency (ATS-P rows ↔ restrictions,
 beacon order and flags, table (b) ratios and points present in table (a) and
-the evaluation points). ``docs/bundles.md`` explains each check and the attack
+the evaluation points, beacon evaluation points present in the beacons). ``docs/bundles.md`` explains each check and the attack
 it stops.
 
 Freshness and reproducibility
@@ -80,6 +82,7 @@ import pyarrow.parquet as pq
 from . import __version__, atsp, signing
 from .atomic import write_bytes_atomic
 from .datasets import declare
+from .eval_points import KINDS as EVAL_POINT_KINDS
 from .errors import BundleError
 from .model import DIRECTIONS, Line, sign
 from .schema import PATH_ID_RE, PATH_ID_RULE, is_path_id
@@ -1149,9 +1152,20 @@ def _check_tables(tables: Mapping[str, pa.Table], m: dict, where: str) -> None:
             if lost:
                 o, d, x = sorted(lost)[0]
                 raise _fail(where, f"{name} evaluation point {x!r} for {o}->{d} is not in eval_points")
-        strays = sorted({x for _, _, x in pts if not x.startswith("dep") and x not in beacon_ids})
+        # beacon points must be beacons of this bundle; odometer points (departure, after departure,
+        # regular interval) are named dep / dep+<m> and are found by running distance, not by beacon
+        ids = _col(ep, "eval_point_id")
+        kinds = _col(ep, "eval_point_kind") if "eval_point_kind" in ep.column_names else \
+            ["departure" if x.startswith("dep") else "beacon" for x in ids]
+        bad = sorted({k for k in kinds} - set(EVAL_POINT_KINDS), key=str)
+        if bad:
+            raise _fail(where, f"eval_points eval_point_kind {bad[0]!r} is not one of {', '.join(EVAL_POINT_KINDS)}")
+        strays = sorted({x for x, k in zip(ids, kinds) if k == "beacon" and x not in beacon_ids})
         if strays:
             raise _fail(where, f"eval_points name beacon(s) {strays} that are not in beacons")
+        odo = sorted({x for x, k in zip(ids, kinds) if k != "beacon" and not (x == "dep" or x.startswith("dep+"))})
+        if odo:
+            raise _fail(where, f"eval_points odometer point(s) {odo} are not named 'dep' or 'dep+<m>'")
 
 
 def _info(path: str, m: dict, data_or_digest) -> BundleInfo:

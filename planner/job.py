@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import JobError
+from .eval_points import MIN_INTERVAL_M
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,8 @@ class TablesSection:
     """The grid stops where ratio × line maximum reaches this speed."""
     eval_offset_m: float = 200.0
     """Evaluation point this far after departure."""
+    eval_interval_m: float = 0.0
+    """Odometer evaluation points at this regular interval after the point after departure [m]; 0 = none (beacons only)."""
     ds_m: float = 1.0
     """Integration step in running distance [m]."""
 
@@ -253,6 +256,9 @@ def _validate(file: str, job: Job) -> None:
         bad("tables", "min_target_kmh", "must be positive")
     if job.tables.eval_offset_m < 0:
         bad("tables", "eval_offset_m", "must be ≥ 0")
+    if job.tables.eval_interval_m != 0 and not job.tables.eval_interval_m >= MIN_INTERVAL_M:
+        bad("tables", "eval_interval_m", f"must be 0 (beacons only) or at least {MIN_INTERVAL_M:g} m, "
+                                         f"found {job.tables.eval_interval_m}")
     if job.stops.approach_m <= 0:
         bad("stops", "approach_m", "must be positive")
     if job.closed_loop.horizon_s < 0 or job.closed_loop.step_s <= 0:

@@ -541,7 +541,7 @@ def _first_pattern(line, train, track, res, run: int, cands, length_m: float, ad
 def leg_result(line: Line, train_type: str, origin: str, destination: str, scheduled: Sequence[float], *,
                tables=None, energy_a_kwh=None, ratios=None, rule: MarginRule = MarginRule(),
                adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float = DEFAULT_APPROACH_M,
-               after_departure_m: float | None = 200.0, settings=None,
+               after_departure_m: float | None = 200.0, eval_interval_m: float | None = None, settings=None,
                closed_loop_errors: dict | None = None, record: bool = False) -> LegResult:
     """Compute one leg: minimum, slowest, degraded minimum, pattern sweep, closed loop per scheduled time.
 
@@ -566,6 +566,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
         Pattern start before the marker where there is no TASC beacon [m].
     after_departure_m : float or None
         Evaluation point after departure for computed tables [m].
+    eval_interval_m : float or None
+        Interval of the odometer evaluation points for computed tables [m]; None: beacons only.
     settings : SimSettings, optional
     closed_loop_errors : dict, optional
         ``{("nominal" | "degraded", designated_s rounded to 1e-6): error_s}`` already
@@ -589,7 +591,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     if tables is None:
         grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
         it = interstation_tables(line, train_type, origin, destination, grid,
-                                 after_departure_m=after_departure_m, settings=settings)
+                                 after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
+                                 settings=settings)
         tables, energy_a_kwh, tsource = it.onboard(), it.energy_a_kwh, "computed"
     else:
         tsource = "dataset"
@@ -824,6 +827,7 @@ def compute_margins(
     adhesion_kmh_s=DEFAULT_ADHESION_KMH_S,
     approach_m: float = DEFAULT_APPROACH_M,
     after_departure_m: float | None = 200.0,
+    eval_interval_m: float | None = None,
     chosen: tuple[str, str, str] | None = None,
     conflicts: bool = True,
     conflict_params=None,
@@ -856,6 +860,8 @@ def compute_margins(
         Pattern start before the stop marker where there is no TASC beacon [m].
     after_departure_m : float or None
         Evaluation point after departure for computed tables [m].
+    eval_interval_m : float or None
+        Interval of the odometer evaluation points for computed tables [m]; None: beacons only.
     chosen : (train_type, origin, destination), optional
         Leg whose run curves the report draws; default the row with the least
         remaining margin.
@@ -902,7 +908,7 @@ def compute_margins(
     cl_index = _closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
 
     kw = dict(ratios=ratios, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
-              after_departure_m=after_departure_m, settings=settings)
+              after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings)
 
     def known_errors(key) -> dict:
         return {k[4:]: v for k, v in cl_index.items() if k[:4] == key}

@@ -109,12 +109,12 @@ class Unit:
     args: tuple
 
 
-def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m):
+def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m, eval_interval_m=0.0):
     from .run_curve import SimSettings
     from .tables import interstation_tables
 
     return interstation_tables(line, tt, o, d, grid, after_departure_m=eval_offset_m,
-                               settings=SimSettings(ds_m=ds_m))
+                               eval_interval_m=eval_interval_m or None, settings=SimSettings(ds_m=ds_m))
 
 
 def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):
@@ -438,7 +438,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # tables
     t_units = [
         Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grid))]),
-             f"{k[0]} {k[2]}->{k[3]}", _tables_unit, (line, k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m))
+             f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
+             (line, k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
         for k in tasks
     ]
     tables = runner.run("tables", t_units)
@@ -508,14 +509,16 @@ def _line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
     return runner.run(step, [Unit(step, key, step, fn, args)])[0]
 
 
-def _margins_unit(line, job_margins, types, stage, stops_levels, approach_m, ratios, eval_offset_m, ds_m, n_jobs):
+def _margins_unit(line, job_margins, types, stage, stops_levels, approach_m, ratios, eval_offset_m, ds_m, n_jobs,
+                  eval_interval_m=0.0):
     from .margins import MarginRule, compute_margins
     from .run_curve import SimSettings
 
     return compute_margins(
         line, rule=MarginRule.from_section(job_margins), train_types=types, tables_dir=stage, stops_dir=stage,
         closed_loop_dir=stage, ratios=ratios, adhesion_kmh_s=stops_levels, approach_m=approach_m,
-        after_departure_m=eval_offset_m, conflicts=False, settings=SimSettings(ds_m=ds_m), n_jobs=n_jobs,
+        after_departure_m=eval_offset_m, eval_interval_m=eval_interval_m or None, conflicts=False,
+        settings=SimSettings(ds_m=ds_m), n_jobs=n_jobs,
     )
 
 
@@ -528,7 +531,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     report = _line_unit(runner, "margins", key, _margins_unit, line, job.margins, _types(job, line), stage,
                         job.stops.adhesion_kmh_s, job.stops.approach_m, list(map(float, grid)),
-                        job.tables.eval_offset_m, job.tables.ds_m, n_jobs)
+                        job.tables.eval_offset_m, job.tables.ds_m, n_jobs, job.tables.eval_interval_m)
     if conflicts is not None:
         report.conflicts, report.conflicts_note = conflicts, ""
     elif not job.conflicts.enabled:

@@ -53,13 +53,14 @@ def margins(
             raise InputError(f"--jobs must be -1 (all cores) or ≥ 1, found {jobs}")
         rule, sweep, approach, ratios, after, conflict_params = MarginRule(), DEFAULT_ADHESION_KMH_S, \
             DEFAULT_APPROACH_M, None, 200.0, None
+        interval = 0.0
         if job is not None:
             from ..job import load_job
 
             j = load_job(job)
             rule = MarginRule.from_section(j.margins)
             sweep, approach = j.stops.adhesion_kmh_s, j.stops.approach_m
-            ratios, after = j.tables.ratios, j.tables.eval_offset_m
+            ratios, after, interval = j.tables.ratios, j.tables.eval_offset_m, j.tables.eval_interval_m
             conflict_params = {"setting_s": j.conflicts.setting_s, "approach_s": j.conflicts.approach_s,
                                "release_s": j.conflicts.release_s}
             no_conflicts = no_conflicts or not j.conflicts.enabled
@@ -73,7 +74,7 @@ def margins(
             report = compute_margins(
                 line, rule=rule, train_types=train_type or None, tables_dir=tables_dir, stops_dir=stops_dir,
                 closed_loop_dir=closed_loop_dir, ratios=ratios, adhesion_kmh_s=sweep, approach_m=approach,
-                after_departure_m=after or None, chosen=_curves_leg(curves), conflicts=not no_conflicts,
+                after_departure_m=after or None, eval_interval_m=interval or None, chosen=_curves_leg(curves), conflicts=not no_conflicts,
                 conflict_params=conflict_params, n_jobs=jobs, progress=update)
         files = write_margins(report, out)
         page = write_html(report, line, out / "margins.html")

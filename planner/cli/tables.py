@@ -43,9 +43,16 @@ def tables(
         "'1.0:0.7:0.1,0.7:floor:0.05' (the default) or '1,0.9,0.8'."),
     after_departure_m: float = typer.Option(
         200.0, "--after-departure", help="Distance of the evaluation point after departure [m]; 0 = none."),
+    eval_interval_m: float = typer.Option(
+        0.0, "--eval-interval", help="Odometer evaluation points at this regular interval after the point "
+        "after departure [m], in addition to the beacons; 0 = beacons only (the default)."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
 ) -> None:
-    """Compute running-time tables (a) and (b) for every interstation, direction and train type."""
+    """Compute running-time tables (a)-(d) for every interstation, direction and train type.
+
+    Evaluation points: the departure, the point after departure (--after-departure), the flagged
+    beacons and, with --eval-interval, odometer points at that regular interval.
+    """
     from ..loader import load_line
     from ..tables import build_tables, write_tables
 
@@ -53,7 +60,8 @@ def tables(
         line = load_line(line_dir)
         with _progress("tables") as update:
             results = build_tables(line, train_types=train_type or None, ratios=ratios,
-                                   after_departure_m=after_departure_m or None, n_jobs=jobs, progress=update)
+                                   after_departure_m=after_departure_m or None,
+                                   eval_interval_m=eval_interval_m or None, n_jobs=jobs, progress=update)
         files = write_tables(results, out)
     except PlannerError as e:
         raise _fail(e) from None
@@ -61,7 +69,9 @@ def tables(
     grid = results[0].ratios if results else []
     typer.echo(f"{line.line_id}: tables for {len(results)} interstation x direction x train type, "
                f"{len(grid)} ratios ({', '.join(f'{r:g}' for r in grid)})")
-    typer.echo(f"  evaluation points: {sum(len(r.points) for r in results)}, table (b) rows: {n_b}")
+    n_odo = sum(p.kind == "interval" for r in results for p in r.points)
+    typer.echo(f"  evaluation points: {sum(len(r.points) for r in results)} ({n_odo} at the regular interval), "
+               f"table (b) rows: {n_b}")
     for r in results[: min(3, len(results))]:
         typer.echo(f"  {r.train_type} {r.direction} {r.origin}->{r.destination}: minimum "
                    f"{r.time_a_s[0]:.1f} s, slowest {r.time_a_s[-1]:.1f} s")
