@@ -15,15 +15,26 @@ app = typer.Typer(
     name="planner",
     help="Plan train running for a whole line: tables, stopping patterns, margins, bundles.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     pretty_exceptions_enable=False,
     # help texts name job-file sections like [margins]; rich markup would swallow them
     rich_markup_mode=None,
 )
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"planner {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the planner version and exit."),
+) -> None:
     """Plan train running for a whole line: tables, stopping patterns, margins, bundles."""
     # A callback keeps `planner validate ...` a sub-command even while it is the only one
     # (typer otherwise collapses a one-command app into that command).

@@ -27,8 +27,10 @@ def keys_generate(
 ) -> None:
     """Write a new Ed25519 key pair; never overwrites an existing key."""
     from ..signing import generate_keypair
+    from .checks import check_out_dir
 
     try:
+        check_out_dir(directory, "keys generate", "key pair")
         priv, pub = generate_keypair(directory)
     except PlannerError as e:
         raise _fail(e)
@@ -54,10 +56,14 @@ def bundle_build(
     from ..bundle import build_line
     from ..loader import load_line
 
+    from .checks import check_out_dir, train_type_codes
+
     try:
+        check_out_dir(out, "--out", "bundles")
         if key is None:
             raise PlannerError(f"no signing key: give --key FILE or set {ENV_SIGNING_KEY} to its path")
         line = load_line(line_dir)
+        train_type = train_type_codes(line, train_type)
         n = len(direction or ("down", "up")) * len(train_type or line.train_types)
         with Progress(transient=True) as progress:
             task = progress.add_task("building bundles", total=n)
