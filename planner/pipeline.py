@@ -445,7 +445,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
-    write_html(report, line, stage / "report" / f"{line.line_id}_margins.html")
+    write_html(report, line, stage / "report" / f"{line.line_id}_margins.html", datasets_root=stage)
     for flag in ("infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 

@@ -45,12 +45,14 @@ def plot_run_curve(result, path: Path) -> None:
     ax2.set_ylim(0, result.time_s * 1.15)
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, loc="lower center", fontsize=8, ncol=4)
+    # below the axes, never over the curves
+    ax.legend(h1 + h2, l1 + l2, loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize=8, ncol=4,
+              frameon=False)
     ax.set_title(
         f"{result.line_id} {result.direction}: {result.origin} → {result.destination}, type {result.train_type}, "
         f"ratio {result.ratio:.0%}, load {result.load:.0%}, traction ×{result.traction_factor:g}\n"
         f"running time {result.time_s:.1f} s, traction energy {result.energy_kwh:.1f} kWh", fontsize=10)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.08, right=0.91, top=0.88, bottom=0.22)
     from ..atomic import save_png
 
     save_png(fig, path)

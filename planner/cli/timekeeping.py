@@ -102,9 +102,10 @@ def write_plot(result, path: Path, title: str) -> Path:
     ax.set_xlabel("distance from departure marker [m]")
     ax.set_ylabel("speed [km/h]")
     ax.set_title(title)
-    ax.legend(loc="upper right", fontsize=8, ncol=3)
+    # below the axes, never over the curves
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=8, ncol=6, frameon=False)
     ax.grid(True, alpha=0.3)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.92, bottom=0.24)
     from ..atomic import save_png
 
     return save_png(fig, path)
