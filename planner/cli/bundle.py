@@ -76,6 +76,19 @@ def bundle_build(
         typer.echo(f"{info.path}: {info.size_bytes} bytes, {len(info.files)} tables, {state}")
 
 
+def rebuild_advice(missing) -> str:
+    """What fixes exactly these missing tables: the build option whose folder provides each."""
+    from ..bundle import TABLE_SOURCES
+
+    step = {"tables": "`planner tables LINE --out DIR`", "stops": "`planner stops LINE --out DIR`"}
+    parts = []
+    for opt, names in TABLE_SOURCES.items():
+        mine = [t for t in missing if t in names]
+        if mine:
+            parts.append(f"--{opt} DIR with a folder written by {step[opt]} that holds {', '.join(mine)}")
+    return "rebuild it with `planner bundle build` and " + "; and ".join(parts)
+
+
 @bundle_app.command("verify")
 def bundle_verify(
     bundle: Path = typer.Argument(..., help="Bundle file (.pdb)."),
@@ -91,7 +104,7 @@ def bundle_verify(
         info = verify_bundle(bundle, public_key)
         if require_complete and not info.complete:
             raise BundleError(f"bundle {bundle}: incomplete, missing {', '.join(info.missing)}; "
-                              "rebuild with --tables and --stops")
+                              + rebuild_advice(info.missing))
     except PlannerError as e:
         raise _fail(e)
     typer.echo("OK: signature, hashes, schema and consistency verified")
