@@ -310,8 +310,8 @@ def margin_totals(rows, train_legs):
     Returns
     -------
     pandas.DataFrame
-        ``scope`` (``train``, ``type``, ``line``), ``train_id`` (null unless
-        scope train), ``direction``, ``train_type`` (``all`` for scope line),
+        ``level`` (``train``, ``type``, ``line``), ``train_id`` (null unless
+        level train), ``direction``, ``train_type`` (``all`` for level line),
         ``origin``/``destination`` (the train's first and last stop; null
         otherwise), ``first_departure_s``, ``n_trains``, ``n_legs``, the sums
         of :data:`TOTAL_SUM_COLS`, ``margin_percent`` (total margin / total
@@ -349,14 +349,14 @@ def margin_totals(rows, train_legs):
 
     recs = []
     for tid, g in legs.groupby("train_id", sort=True):
-        recs.append({"scope": "train", "train_id": tid, "direction": g["direction"].iloc[0],
+        recs.append({"level": "train", "train_id": tid, "direction": g["direction"].iloc[0],
                      "train_type": g["train_type"].iloc[0], "origin": g["origin"].iloc[0],
                      "destination": g["destination"].iloc[-1], "n_trains": 1} | agg(g))
     for (d, t), g in legs.groupby(["direction", "train_type"], sort=True):
-        recs.append({"scope": "type", "train_id": None, "direction": d, "train_type": t, "origin": None,
+        recs.append({"level": "type", "train_id": None, "direction": d, "train_type": t, "origin": None,
                      "destination": None, "n_trains": int(g["train_id"].nunique())} | agg(g))
     for d, g in legs.groupby("direction", sort=True):
-        recs.append({"scope": "line", "train_id": None, "direction": d, "train_type": ALL_TYPES,
+        recs.append({"level": "line", "train_id": None, "direction": d, "train_type": ALL_TYPES,
                      "origin": None, "destination": None, "n_trains": int(g["train_id"].nunique())} | agg(g))
     out = pd.DataFrame.from_records(recs, columns=TOTALS_COLUMNS)
     return out
@@ -1144,20 +1144,23 @@ MARGINS_SCHEMA = declare(
 )
 
 TOTALS_COLUMNS = [
-    "scope", "train_id", "direction", "train_type", "origin", "destination", "first_departure_s", "n_trains",
+    "level", "train_id", "direction", "train_type", "origin", "destination", "first_departure_s", "n_trains",
     "n_legs", *TOTAL_SUM_COLS, "margin_percent", "min_remaining_margin_s", "bad_day_shortfall_s",
     "n_supplement_short",
     "n_infeasible", "n_tight", "n_unreachable",
 ]
 MARGIN_TOTALS_SCHEMA = declare(
     [
-        ("scope", pa.string(), "'train' (one train), 'type' (direction x train type), 'line' (direction, every type)"),
-        ("train_id", pa.string(), "the train (scope 'train'), else null"),
-        ("origin", pa.string(), "the train's first stop (scope 'train'), else null"),
-        ("destination", pa.string(), "the train's last stop (scope 'train'), else null"),
+        ("level", pa.string(),
+         "what the row sums: 'train' (one train's legs), 'type' (every train of a direction x train type), "
+         "'line' (every train of a direction; train_type partition 'all'). The levels repeat the same train runs, "
+         "so sum within one level only (e.g. where level = 'train')"),
+        ("train_id", pa.string(), "the train (level 'train'), else null"),
+        ("origin", pa.string(), "the train's first stop (level 'train'), else null"),
+        ("destination", pa.string(), "the train's last stop (level 'train'), else null"),
         ("first_departure_s", pa.float64(), "earliest departure of the legs summed [s after midnight]"),
         ("n_trains", pa.int32(), "trains summed"),
-        ("n_legs", pa.int32(), "train legs summed (stop to next stop)"),
+        ("n_legs", pa.int32(), "train runs of a leg summed (each train x stop to next stop once)"),
         ("min_running_time_s", pa.float64(), "sum of minimum running times [s]"),
         ("min_running_time_rounded_s", pa.float64(), "sum of the minimum running times rounded up to 10 s each [s]"),
         ("scheduled_running_time_s", pa.float64(), "sum of scheduled running times (dwells excluded) [s]"),
@@ -1172,13 +1175,15 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("min_remaining_margin_s", pa.float64(), "smallest remaining margin of any leg summed [s]"),
         ("bad_day_shortfall_s", pa.float64(),
          "sum over the legs of what each lacks on a bad day, max(0, -remaining margin): the time to add [s]"),
-        ("n_supplement_short", pa.int32(), "legs whose margin is below the required supplement"),
-        ("n_infeasible", pa.int32(), "legs flagged infeasible"),
-        ("n_tight", pa.int32(), "legs flagged tight"),
-        ("n_unreachable", pa.int32(), "legs flagged unreachable"),
+        ("n_supplement_short", pa.int32(), "train runs of a leg whose margin is below the required supplement"),
+        ("n_infeasible", pa.int32(), "train runs of a leg flagged infeasible"),
+        ("n_tight", pa.int32(), "train runs of a leg flagged tight"),
+        ("n_unreachable", pa.int32(), "train runs of a leg flagged unreachable"),
     ],
     name="margin_totals",
-    description="Margin totals per train, per direction x train type and per direction (DESIGN §6).",
+    description="Margin totals at three levels, told apart by `level`: per train, per direction x train type "
+                "and per direction (DESIGN §6). Each level counts every train run once; filter on one level "
+                "before summing.",
 )
 SCHEMAS = {"margins": MARGINS_SCHEMA, "margin_totals": MARGIN_TOTALS_SCHEMA}
 
@@ -1199,7 +1204,7 @@ def datasets(report: MarginReport) -> dict[str, pa.Table]:
 def write_margins(report: MarginReport, out_dir: str | Path) -> list[Path]:
     """Write the ``margins`` and ``margin_totals`` datasets under ``out_dir`` (atomic per file, deterministic)."""
     sort = {"margins": ("origin", "destination", "scheduled_running_time_s"),
-            "margin_totals": ("scope", "train_id")}
+            "margin_totals": ("level", "train_id")}
     written: list[Path] = []
     for name, table in datasets(report).items():
         written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=sort[name])

@@ -31,6 +31,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from . import __version__
 from .atomic import write_bytes_atomic
+from .datasets import stamp_run
 from .errors import JobError
 from .job import Job
 from .model import DIRECTIONS, Line
@@ -279,12 +280,22 @@ def signing_key_path(job: Job, notes: list[str]) -> Path:
     return key
 
 
-def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
-    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id)."""
+def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str, run_date: str = "") -> str:
+    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id),
+    and the run's date (stamped on every dataset row, so one run id always has one date)."""
     params = job.parameters()
-    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root")}
+    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root", "run_date")}
     return digest({"code": code_digest(), "params": params, "lines": [ln.source_digest for ln in lines],
-                   "key": key_id})
+                   "key": key_id, "run_date": run_date})
+
+
+def resolve_run_date(job: Job) -> str:
+    """The run's date, YYYY-MM-DD: ``[job] run_date``, else today's UTC date (read once, at the start of the run)."""
+    if job.job.run_date:
+        return job.job.run_date
+    import datetime
+
+    return datetime.datetime.now(datetime.timezone.utc).date().isoformat()
 
 
 def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
@@ -292,6 +303,7 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
     from .loader import load_line
 
     root = job.resolve(job.job.output_root)
+    run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
     with job_lock(root):
         clean_stale_staging(root)
         cache = Cache(root / ".cache")
@@ -305,7 +317,7 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
 
             notes: list[str] = []
             key = load_private_key(signing_key_path(job, notes))
-            inputs = _inputs_digest(job, lines, public_key_id(key.public_key()))
+            inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
             last = latest_run(root)
             if last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
@@ -321,7 +333,10 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
             for line in lines:
                 _run_line(job, line, stage, runner, summary, key)
             summary.computed, summary.reused = runner.computed, runner.reused
-            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary)
+            from .catalog import datasets as catalog
+
+            stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
+            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
             summary.timings = dict(prog.timings)
@@ -484,7 +499,8 @@ def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: 
     return report.conflicts
 
 
-def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary) -> None:
+def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary,
+                    run_date: str = "") -> None:
     import platform
 
     import numpy
@@ -492,6 +508,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
 
     manifest = {
         "run_id": run_id,
+        "run_date": run_date,
         "job": job.job.name,
         "inputs_digest": inputs,
         "code_digest": code_digest(),

@@ -431,8 +431,8 @@ def rows_table(rows) -> str:
 
 
 def totals_table(totals, scopes=("line", "type")) -> str:
-    t = totals[totals.scope.isin(scopes)].copy()
-    t["o"] = t.scope.map({"line": 0, "type": 1})
+    t = totals[totals.level.isin(scopes)].copy()
+    t["o"] = t.level.map({"line": 0, "type": 1})
     t = t.sort_values(["direction", "o", "train_type"], kind="stable")
     out = ["<div class='tw'><table><tr><th class='l'>direction</th><th class='l'>train type</th><th>trains</th>"
            "<th>train runs of a leg</th>"
@@ -441,10 +441,10 @@ def totals_table(totals, scopes=("line", "type")) -> str:
            "<th>train runs on an infeasible leg</th><th>… on a tight leg</th><th>… on an unreachable leg</th>"
            "<th>… on a leg short of the rule</th><th>energy saved [kWh]</th></tr>"]
     for r in t.itertuples(index=False):
-        bold = " style='font-weight:600'" if r.scope == "line" else ""
+        bold = " style='font-weight:600'" if r.level == "line" else ""
         out.append(
             f"<tr{bold}><td class='l'>{_e(r.direction)}</td><td class='l'>"
-            f"{'all types' if r.scope == 'line' else _e(r.train_type)}</td><td>{r.n_trains}</td><td>{r.n_legs}</td>"
+            f"{'all types' if r.level == 'line' else _e(r.train_type)}</td><td>{r.n_trains}</td><td>{r.n_legs}</td>"
             f"<td>{r.min_running_time_s:.0f}</td><td>{r.scheduled_running_time_s:.0f}</td>"
             f"<td>{r.margin_s:.0f}</td><td>{r.margin_percent:.1f}</td><td>{r.remaining_margin_s:+.0f}</td>"
             f"<td>{r.min_remaining_margin_s:+.1f}</td><td>{r.n_infeasible}</td><td>{r.n_tight}</td>"
@@ -454,7 +454,7 @@ def totals_table(totals, scopes=("line", "type")) -> str:
 
 
 def train_table(totals) -> str:
-    t = totals[totals.scope == "train"].copy()
+    t = totals[totals.level == "train"].copy()
     t = t.sort_values(["n_infeasible", "min_remaining_margin_s", "train_id"], ascending=[False, True, True],
                       kind="stable")
     out = ["<div class='tw'><table><tr><th class='l'>train</th><th class='l'>dir</th><th class='l'>type</th>"
@@ -489,8 +489,8 @@ def conflicts_section(report) -> str:
     by_rule = ", ".join(f"{v} {_e(k)}" for k, v in c["rule"].value_counts().sort_index().items())
     head = (f"<p>{len(c)} conflicts between {len(c.groupby(['train_a', 'train_b']))} pairs of trains "
             f"({by_rule}); {int(c.deadlock.sum())} would deadlock. The decisions delay the waiting trains by "
-            f"{c.delay_s.sum():.0f} s in all, at most {c.delay_s.max():.1f} s. Worst first; a conflict spans "
-            f"one or more consecutive sections or switches.</p>")
+            f"{c.delay_s.sum():.0f} s in all, at most {c.delay_s.max():.1f} s. The {min(len(c), 10)} largest delays, in time order; a conflict "
+            f"spans one or more consecutive sections or switches.</p>")
 
     def table(df) -> str:
         out = ["<div class='tw'><table><tr><th>#</th><th>at</th><th class='l'>first</th><th class='l'>waits</th>"
@@ -504,8 +504,9 @@ def conflicts_section(report) -> str:
         out.append("</table></div>")
         return "\n".join(out)
 
-    worst = c.sort_values(["delay_s", "t0"], ascending=[False, True], kind="stable")
-    return ("<h2>Route conflicts</h2>" + head + table(worst.head(10))
+    worst = c.sort_values(["delay_s", "t0"], ascending=[False, True], kind="stable").head(10)
+    worst = worst.sort_values("t0", kind="stable")  # the largest delays, listed in time order
+    return ("<h2>Route conflicts</h2>" + head + table(worst)
             + (f"<details><summary>All {len(c)} conflicts in time order</summary>{table(c.sort_values('t0', kind='stable'))}"
                "</details>" if len(c) > 10 else ""))
 
@@ -554,7 +555,7 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     sched = rows[rows.scheduled_running_time_s.notna()]
     n_inf, n_tight, n_unr = int(sched.infeasible.sum()), int(sched.tight.sum()), int(sched.unreachable.sum())
     n_short = int((~sched.supplement_met).sum())
-    trains = report.totals[report.totals.scope == "train"]
+    trains = report.totals[report.totals.level == "train"]
     rule = report.rule
     adh = report.adhesion_kmh_s
     types = ", ".join(sorted(rows.train_type.unique()))

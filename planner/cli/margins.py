@@ -98,7 +98,7 @@ def margins(
         typer.echo(f"  least remaining margin: {w.train_type} {w.direction} {w.origin}->{w.destination} "
                    f"{w.remaining_margin_s:+.1f} s (scheduled {w.scheduled_running_time_s:.0f} s, minimum "
                    f"{w.min_running_time_s:.1f} s, bad day {w.degraded_min_running_time_s:.1f} s)")
-    for r in report.totals[report.totals.scope == "line"].itertuples(index=False):
+    for r in report.totals[report.totals.level == "line"].itertuples(index=False):
         typer.echo(f"  {r.direction}: {r.n_trains} trains, margin {r.margin_s:.0f} s ({r.margin_percent:.1f} %), "
                    f"remaining on a bad day {r.remaining_margin_s:+.0f} s")
     if report.conflicts is not None:
