@@ -8,11 +8,25 @@ from __future__ import annotations
 import sys
 
 import typer
+import typer.core
 
 from ..errors import PlannerError
 
+class _Group(typer.core.TyperGroup):
+    """The root group: a domain error from any sub-command becomes one line on stderr and its exit code,
+    also when the app is invoked as an object (tests, embedding), not only through :func:`main`."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except PlannerError as e:
+            typer.echo(f"error: {e}", err=True)
+            raise typer.Exit(e.exit_code) from None
+
+
 app = typer.Typer(
     name="planner",
+    cls=_Group,
     help="Plan train running for a whole line: tables, stopping patterns, margins, bundles.",
     no_args_is_help=True,
     add_completion=True,

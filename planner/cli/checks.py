@@ -60,11 +60,11 @@ def check_out_file(path: Optional[Path], option: str, suffix: Optional[str] = No
     if path is None:
         return
     p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{option} {p}: is a folder; give a file name (e.g. {p / ('out' + (suffix or ''))})")
     if suffix is not None and p.suffix.lower() != suffix:
         raise InputError(f"{option} {p}: the {what} is written as {suffix[1:].upper()}; give a file name "
                          f"ending in {suffix}")
-    if p.is_dir():
-        raise InputError(f"{option} {p}: is a folder; give a file name (e.g. {p / ('out' + (suffix or ''))})")
     _writable_folder_at(p.parent, option, what, shown=p)
 
 
