@@ -154,8 +154,6 @@ def test_load_outside_0_1_is_refused(load):
     base = ["--train-type", "E10", "--from", "MNT", "--to", "SKM"]
     one_line_error(run("runtime", SAMPLE, *base, "--load", load), "--load", "between 0 and 1")
     one_line_error(run("timekeeping", SAMPLE, *base, "--arrival", "140", "--load", load), "--load")
-    one_line_error(run("simulate", SAMPLE, "--mode", "timekeeping", *base, "--arrival", "140", "--load", load),
-                   "--load")
 
 
 # --- an impossible time-keeping arrival exits non-zero --------------------------------------------
