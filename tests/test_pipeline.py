@@ -91,9 +91,21 @@ def test_cold_run_publishes_everything_and_reads_back(project):
 
     text = (out / "latest" / "README.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     for code in blocks:
-        exec(code.replace("outputs/latest", str(out / "latest")), {})
+        exec(code.replace("outputs/", f"{out}/"), {})
+    # every row of every dataset carries the run's id and date (issue 17), the date from the run's start
+    import datetime
+    import json
+
+    manifest = json.loads((out / "latest" / "manifest.json").read_text())
+    assert manifest["run_date"] == datetime.datetime.now(datetime.timezone.utc).date().isoformat() or \
+        manifest["run_date"] == (datetime.datetime.now(datetime.timezone.utc).date()
+                                 - datetime.timedelta(days=1)).isoformat()  # a run across midnight
+    for name in s.rows:
+        t = ds.dataset(out / "latest" / name, format="parquet", partitioning="hive").to_table(
+            columns=["run_id", "run_date"]).to_pandas()
+        assert (t.run_id == s.run_id).all() and (t.run_date.astype(str) == manifest["run_date"]).all(), name
     from planner.bundle import verify_bundle
     from planner.signing import load_public_key
 
