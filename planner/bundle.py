@@ -115,6 +115,15 @@ CORE_TABLES = ("restrictions", "max_profile", "atsp", "beacons", "timetable")
 """Tables every bundle holds: built from the line DB itself."""
 EXPECTED_TABLES = ("eval_points", "table_a", "table_b", "table_c", "table_d", "stop_summary", "stop_samples")
 """Tables a complete bundle holds, built by the tables and stopping steps; absent ones are listed in the manifest."""
+VEHICLE_TABLES = {"table_d": "sawtooth"}
+"""Expected tables that exist only for one cruise mode: table (d) for sawtooth vehicles (DESIGN §3)."""
+
+
+def expected_tables(cruise: str | None = None) -> tuple[str, ...]:
+    """The tables a complete bundle for a vehicle with this cruise mode holds (None: every one)."""
+    return tuple(t for t in EXPECTED_TABLES if cruise is None or VEHICLE_TABLES.get(t, cruise) == cruise)
+
+
 TABLE_SOURCES = {"tables": ("eval_points", "table_a", "table_b", "table_c", "table_d"),
                  "stops": ("stop_summary", "stop_samples")}
 """Which output folder (``--tables`` / ``--stops``) each expected table is read from."""
@@ -688,7 +697,8 @@ def _private_key(key) -> "signing.Ed25519PrivateKey":
 
 
 def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
-                 private_key, release: Release, line_digest: str = "", line_schema_version: int = 1) -> bytes:
+                 private_key, release: Release, line_digest: str = "", line_schema_version: int = 1,
+                 expected: Sequence[str] | None = None) -> bytes:
     """The bytes of a signed bundle holding ``tables`` (no file is written).
 
     Parameters
@@ -708,10 +718,16 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
         SHA-256 hex of the input line DB (``Line.source_digest``), or "".
     line_schema_version : int
         Schema version of the input line DB.
+    expected : sequence of str, optional
+        The expected tables for this vehicle (:func:`expected_tables` of its cruise mode);
+        those absent are listed as missing. Default every :data:`EXPECTED_TABLES`.
     """
     key = _private_key(private_key)
     if not isinstance(release, Release):
         raise BundleError("a bundle needs a Release (version, build time, validity); see Release.issue")
+    expected = EXPECTED_TABLES if expected is None else tuple(expected)
+    if not set(expected) <= set(EXPECTED_TABLES) or not set(EXPECTED_TABLES) - set(expected) <= set(VEHICLE_TABLES):
+        raise BundleError(f"expected tables {list(expected)}: only {', '.join(VEHICLE_TABLES)} may be left out")
     bundle_name(line_id, direction, train_type)  # validates the ids
     if line_digest and not _SHA256.fullmatch(line_digest):
         raise BundleError(f"line digest {line_digest!r} is not a SHA-256 hex digest")
@@ -754,7 +770,7 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
         "built_at": format_time(release.built_at_s),
         "expires": format_time(release.expires_s),
         "files": files,
-        "missing": sorted(t for t in EXPECTED_TABLES if t not in tables),
+        "missing": sorted(t for t in expected if t not in tables),
     }
     _check_manifest(manifest, "build")
     _check_tables(tables, manifest, "build")  # never sign what verify would refuse
@@ -777,7 +793,7 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
 
 def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
                  out_dir: str | os.PathLike, private_key, release: Release, line_digest: str = "",
-                 line_schema_version: int = 1) -> BundleInfo:
+                 line_schema_version: int = 1, expected: Sequence[str] | None = None) -> BundleInfo:
     """Build, sign and atomically write one bundle into ``out_dir``; see :func:`bundle_bytes`.
 
     Returns
@@ -788,7 +804,7 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     out = Path(out_dir)
     data = bundle_bytes(tables, line_id=line_id, direction=direction, train_type=train_type,
                         private_key=private_key, release=release, line_digest=line_digest,
-                        line_schema_version=line_schema_version)
+                        line_schema_version=line_schema_version, expected=expected)
     path = out / bundle_name(line_id, direction, train_type)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -822,7 +838,8 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: 
             tables = assemble(line, d, t, tables_dir=tables_dir, stops_dir=stops_dir)
             info = build_bundle(tables, line_id=line.line_id, direction=d, train_type=t, out_dir=out_dir,
                                 private_key=key, release=release, line_digest=line.source_digest,
-                                line_schema_version=line.schema_version)
+                                line_schema_version=line.schema_version,
+                                expected=expected_tables(line.train_type(t).cruise))
             done.append(info)
             if on_built is not None:
                 on_built(info)
@@ -1045,7 +1062,10 @@ def _check_manifest(m, where: str) -> None:
     mis = m["missing"]
     if not all(isinstance(x, str) for x in mis) or mis != sorted(set(mis)):
         raise _fail(where, "manifest 'missing' must be a sorted list of unique table names")
-    if mis != sorted(t for t in EXPECTED_TABLES if t not in tables):
+    # every expected table absent must be listed, except those that exist only for another cruise
+    # mode (VEHICLE_TABLES): the signer, who knew the vehicle, left them out of 'missing'
+    absent = {t for t in EXPECTED_TABLES if t not in tables}
+    if not set(mis) <= absent or not absent - set(VEHICLE_TABLES) <= set(mis):
         raise _fail(where, f"manifest 'missing' {mis} does not match the tables it lists")
 
 

@@ -32,6 +32,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from . import __version__
 from .atomic import write_bytes_atomic
+from .datasets import stamp_run
 from .errors import JobError, PlannerError
 from .job import Job
 from .model import DIRECTIONS, Line
@@ -330,16 +331,27 @@ def _renewal_due(last_manifest: dict, now_s: int) -> bool:
 
 
 def _result_params(job: Job) -> dict[str, Any]:
-    """The job parameters that can change a result: all but where runs go and how many are kept."""
+    """The job parameters that can change a result: all but where runs go, how many are kept, and the
+    run's date (it goes into the inputs digest on its own)."""
     params = job.parameters()
-    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root")}
+    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root", "run_date")}
     return params
 
 
-def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
-    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id)."""
+def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str, run_date: str = "") -> str:
+    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id),
+    and the run's date (stamped on every dataset row, so one run id always has one date)."""
     return digest({"code": code_digest(), "params": _result_params(job), "lines": [ln.source_digest for ln in lines],
-                   "key": key_id})
+                   "key": key_id, "run_date": run_date})
+
+
+def resolve_run_date(job: Job) -> str:
+    """The run's date, YYYY-MM-DD: ``[job] run_date``, else today's UTC date (read once, at the start of the run)."""
+    if job.job.run_date:
+        return job.job.run_date
+    import datetime
+
+    return datetime.datetime.now(datetime.timezone.utc).date().isoformat()
 
 
 def _distinct_line_ids(job: Job, lines) -> None:
@@ -367,6 +379,7 @@ def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> 
 def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunSummary:
     from .loader import load_line
 
+    run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
     with job_lock(root):
         clean_stale_staging(root)
         cache = Cache(root / ".cache", enabled=use_cache)
@@ -385,7 +398,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             key = load_private_key(key_path)
             # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or the clock now
             release = Release.issue(build_time_s(), valid_days=job.bundles.valid_days, development=development)
-            inputs = _inputs_digest(job, lines, public_key_id(key.public_key()))
+            inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
             last = latest_run(root)
             if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
@@ -411,7 +424,10 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             summary.computed, summary.reused = runner.computed, runner.reused
             if cache.rejected:  # once per run, with the count
                 summary.warnings.append(cache.rejected_note())
-            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary)
+            from .catalog import datasets as catalog
+
+            stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
+            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
             _kill_point()
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
@@ -539,7 +555,8 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
-    write_html(report, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html")
+    write_html(report, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
+               datasets_root=stage)
     for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
@@ -589,7 +606,8 @@ def _release_record(release) -> dict | None:
             "key_kind": "development" if release.development else "production"}
 
 
-def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary) -> None:
+def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary,
+                    run_date: str = "") -> None:
     import platform
 
     import numpy
@@ -597,6 +615,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
 
     manifest = {
         "run_id": run_id,
+        "run_date": run_date,
         "job": job.job.name,
         "inputs_digest": inputs,
         "code_digest": code_digest(),

@@ -4,8 +4,8 @@ The whole line is measured by ``benchmarks/bench_closed_loop.py`` (66 interstati
 minutes); this test runs a representative subset in well under a minute: for every train type,
 two interstations per direction —
 
-* TKD→OHS and OHS→TKD, the 7.0 km runs (longest, most evaluation points, TKD→OHS has the
-  tightest margin of the timetable);
+* TKD→OHS and OHS→TKD, the 7.0 km runs (longest, most evaluation points, OHS→TKD has the
+  deliberately tight margin of the timetable);
 * HGO→MDR down, where the sawtooth E6 had its largest error in the adaptive mode (the coasting
   band's phase at the home-signal beacon 325 m before the stop, until table (d));
 * KWB→SKM up, where the E6 adaptive mode once chose the lowest ratio 325 m before the stop

@@ -27,8 +27,10 @@ def keys_generate(
 ) -> None:
     """Write a new Ed25519 key pair; never overwrites an existing key."""
     from ..signing import generate_keypair
+    from .checks import check_out_dir
 
     try:
+        check_out_dir(directory, "keys generate", "key pair")
         priv, pub = generate_keypair(directory)
     except PlannerError as e:
         raise _fail(e)
@@ -63,12 +65,16 @@ def bundle_build(
     from ..bundle import Release, build_line, parse_time
     from ..loader import load_line
 
+    from .checks import check_out_dir, train_type_codes
+
     try:
+        check_out_dir(out, "--out", "bundles")
         if key is None:
             raise PlannerError(f"no signing key: give --key FILE or set {ENV_SIGNING_KEY} to its path")
         release = Release.issue(None if built_at is None else parse_time(built_at, "--built-at"),
                                 valid_days=valid_days, development=development_key, version=bundle_version)
         line = load_line(line_dir)
+        train_type = train_type_codes(line, train_type)
         n = len(direction or ("down", "up")) * len(train_type or line.train_types)
         with Progress(transient=True) as progress:
             task = progress.add_task("building bundles", total=n)
@@ -83,6 +89,19 @@ def bundle_build(
     if infos:
         i = infos[0]
         typer.echo(f"version {i.bundle_version}, built {i.built_at}, expires {i.expires}, {i.key_kind} key")
+
+
+def rebuild_advice(missing) -> str:
+    """What fixes exactly these missing tables: the build option whose folder provides each."""
+    from ..bundle import TABLE_SOURCES
+
+    step = {"tables": "`planner tables LINE --out DIR`", "stops": "`planner stops LINE --out DIR`"}
+    parts = []
+    for opt, names in TABLE_SOURCES.items():
+        mine = [t for t in missing if t in names]
+        if mine:
+            parts.append(f"--{opt} DIR with a folder written by {step[opt]} that holds {', '.join(mine)}")
+    return "rebuild it with `planner bundle build` and " + "; and ".join(parts)
 
 
 @bundle_app.command("verify")
@@ -107,7 +126,7 @@ def bundle_verify(
                              allow_dev=allow_dev)
         if require_complete and not info.complete:
             raise BundleError(f"bundle {bundle}: incomplete, missing {', '.join(info.missing)}; "
-                              "rebuild with --tables and --stops")
+                              + rebuild_advice(info.missing))
     except PlannerError as e:
         raise _fail(e)
     typer.echo(f"OK: {info.target} version {info.bundle_version}: signature, key id, target, freshness, hashes, "

@@ -48,9 +48,11 @@ def margins(
     from ..report import write_html
     from .tables import _fail, _progress
 
+    from .checks import check_jobs, check_out_dir, station_code, train_type_code, train_type_codes
+
     try:
-        if jobs == 0 or jobs < -1:
-            raise InputError(f"--jobs must be -1 (all cores) or ≥ 1, found {jobs}")
+        check_jobs(jobs)
+        check_out_dir(out, "--out", "margin report")
         rule, sweep, approach, ratios, after, conflict_params = MarginRule(), DEFAULT_ADHESION_KMH_S, \
             DEFAULT_APPROACH_M, None, 200.0, None
         interval = 0.0
@@ -70,11 +72,17 @@ def margins(
             if p is not None and not p.is_dir():
                 raise InputError(f"{name} {p}: no such folder")
         line = load_line(line_dir)
+        train_type = train_type_codes(line, train_type)
+        chosen = _curves_leg(curves)
+        if chosen is not None:
+            chosen = (train_type_code(line, chosen[0], "--curves"), station_code(line, chosen[1], "--curves"),
+                      station_code(line, chosen[2], "--curves"))
         with _progress("margins") as update:
             report = compute_margins(
                 line, rule=rule, train_types=train_type or None, tables_dir=tables_dir, stops_dir=stops_dir,
                 closed_loop_dir=closed_loop_dir, ratios=ratios, adhesion_kmh_s=sweep, approach_m=approach,
-                after_departure_m=after or None, eval_interval_m=interval or None, chosen=_curves_leg(curves), conflicts=not no_conflicts,
+                after_departure_m=after or None, eval_interval_m=interval or None, chosen=chosen,
+                conflicts=not no_conflicts,
                 conflict_params=conflict_params, n_jobs=jobs, progress=update)
         files = write_margins(report, out)
         page = write_html(report, line, out / "margins.html")
@@ -98,7 +106,7 @@ def margins(
         typer.echo(f"  least remaining margin: {w.train_type} {w.direction} {w.origin}->{w.destination} "
                    f"{w.remaining_margin_s:+.1f} s (scheduled {w.scheduled_running_time_s:.0f} s, minimum "
                    f"{w.min_running_time_s:.1f} s, bad day {w.degraded_min_running_time_s:.1f} s)")
-    for r in report.totals[report.totals.scope == "line"].itertuples(index=False):
+    for r in report.totals[report.totals.level == "line"].itertuples(index=False):
         typer.echo(f"  {r.direction}: {r.n_trains} trains, margin {r.margin_s:.0f} s ({r.margin_percent:.1f} %), "
                    f"remaining on a bad day {r.remaining_margin_s:+.0f} s"
                    + (f" (unknown: {r.n_unassessed} legs unassessed)" if r.n_unassessed else ""))
