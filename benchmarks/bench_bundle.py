@@ -79,6 +79,7 @@ def main() -> None:
         scratch = Path(d)
         priv, pub = signing.generate_keypair(scratch / "keys")
         key, pubkey = signing.load_private_key(priv), signing.load_public_key(pub)
+        release = bundle.Release.issue()  # built now, valid 30 days: verify below accepts it
         tables_dir = _tables_dir(line, args, scratch)
         stops_dir = _stops_dir(line, args, scratch)
         rows = []
@@ -89,7 +90,7 @@ def main() -> None:
                 t1 = time.perf_counter()
                 info = bundle.build_bundle(tables, line_id=line.line_id, direction=direction, train_type=tt,
                                            out_dir=scratch / "out", private_key=key,
-                                           line_digest=line.source_digest,
+                                           line_digest=line.source_digest, release=release,
                                            line_schema_version=line.schema_version)
                 t2 = time.perf_counter()
                 best = float("inf")

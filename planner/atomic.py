@@ -54,11 +54,13 @@ def atomic_path(path: str | os.PathLike, *, mode: int = 0o644, fsync: bool = Tru
             _fsync_file(tmp)
         os.chmod(tmp, mode)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         try:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
+        if isinstance(e, OSError) and not e.filename:
+            e.filename = str(path)  # os.write and pyarrow name no file: say which one did not fit
         raise
     if fsync:
         _fsync_dir(path.parent)

@@ -12,15 +12,18 @@ An uncompressed POSIX ustar archive written by this module, byte for byte:
   with zeros to 512-byte blocks; the archive ends with exactly two zero blocks
   (no record padding), so the bytes depend on the contents only;
 * one Parquet file per table (``restrictions``, ``max_profile``, ``atsp``,
-  ``beacons``, ``timetable`` always; ``eval_points``, ``table_a``, ``table_b``,
-  ``stop_summary``, ``stop_samples`` when they were built), written with fixed
+  ``beacons``, ``timetable`` always; ``eval_points`` (beacon points and the
+  odometer points: departure, after departure, regular interval), ``table_a``,
+  ``table_b``, ``table_c``, ``table_d``, ``stop_summary``, ``stop_samples``
+  when they were built), written with fixed
   pyarrow settings and no pandas metadata, so the same table gives the same
   bytes;
 * ``manifest.json``: canonical JSON (sorted keys, no whitespace, ASCII, only
   strings/integers/lists) with the bundle schema version, line, direction,
   train type, software version, the digest of the input line DB, the signing
-  key's id, the tables expected but missing, and for every other member its
-  name, size, SHA-256 and row count;
+  key's id and kind (``production`` or ``development``), the bundle version,
+  build time and expiry (:class:`Release`), the tables expected but missing,
+  and for every other member its name, size, SHA-256 and row count;
 * ``manifest.sig``: the 64-byte Ed25519 signature of the exact manifest bytes.
 
 Any standard ``tar`` can list and extract a bundle; this module reads it with
@@ -33,11 +36,24 @@ Reading checks, in this order, and parses nothing else before the signature is
 proven: archive structure (member names ``[a-z0-9_]+.parquet`` or the two
 manifest files, regular files only, no duplicates, sizes within bounds, every
 header and padding byte canonical, nothing after the end); the signature of
-``manifest.json``; the manifest's schema; that the members are exactly the
-files it lists, each with its size and SHA-256; then the tables themselves:
-declared columns and types, the line/direction/train type in every row, and
-cross-table consistency (ATS-P rows ↔ restrictions, beacon order and flags,
-table (b) ratios and points present in table (a) and the evaluation points).
+``manifest.json``; the manifest's schema; that its ``key_id`` is the id of the
+verifying key; then what the vehicle asked for (:func:`verify_bundle`: the
+expected line/direction/train type, a production key unless development keys
+are allowed, a version not below the installed one, not expired); that the
+members are exactly the files it lists, each with its size and SHA-256; then
+the tables themselves: declared columns and types, the line/direction/train
+type in every row, and cross-table consistency (ATS-P rows ↔ restrictions,
+beacon order and flags, table (b) ratios and points present in table (a) and
+the evaluation points, beacon evaluation points present in the beacons). ``docs/bundles.md`` explains each check and the attack
+it stops.
+
+Freshness and reproducibility
+-----------------------------
+The version, build time and validity are *inputs* of a build (:class:`Release`),
+like ``SOURCE_DATE_EPOCH`` for reproducible builds: the same tables, key and
+release give the same bytes. :func:`Release.issue` derives the version from the
+build time (UTC ``YYYYMMDDHHMMSS`` as an integer), so versions increase with
+build time for every target, on any build host, without state to keep.
 
 Writes are atomic: the bundle is written to a temporary file in the output
 folder, fsynced and renamed over the final name, so an interrupted build
@@ -52,7 +68,9 @@ import math
 import os
 import re
 import stat
+import time
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -64,15 +82,25 @@ import pyarrow.parquet as pq
 from . import __version__, atsp, signing
 from .atomic import write_bytes_atomic
 from .datasets import declare
+from .eval_points import KINDS as EVAL_POINT_KINDS
 from .errors import BundleError
 from .model import DIRECTIONS, Line, sign
+from .schema import PATH_ID_RE, PATH_ID_RULE, is_path_id
 from .speed_profile import onboard_max_ms, restriction_spans
 from .units import kmh
 
 # --- format constants ----------------------------------------------------------
 FORMAT = "planner-onboard-db"
-SCHEMA_VERSION = 1
-SUPPORTED_SCHEMA_VERSIONS = frozenset({1})
+SCHEMA_VERSION = 2
+SUPPORTED_SCHEMA_VERSIONS = frozenset({2})
+"""Version 1 had no target binding, version, expiry or key kind: refused, as it cannot be kept fresh."""
+KEY_KINDS = ("production", "development")
+DEFAULT_VALID_DAYS = 30
+"""Default validity of a bundle [days]: a vehicle refuses it this long after its build time."""
+ENV_BUILD_TIME = "SOURCE_DATE_EPOCH"
+"""Environment variable fixing the build time [Unix seconds] (reproducible-builds.org convention)."""
+_TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
+_TIME_RE = re.compile(r"\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}Z")
 SUFFIX = ".pdb"
 MANIFEST = "manifest.json"
 SIGNATURE = "manifest.sig"
@@ -87,6 +115,15 @@ CORE_TABLES = ("restrictions", "max_profile", "atsp", "beacons", "timetable")
 """Tables every bundle holds: built from the line DB itself."""
 EXPECTED_TABLES = ("eval_points", "table_a", "table_b", "table_c", "table_d", "stop_summary", "stop_samples")
 """Tables a complete bundle holds, built by the tables and stopping steps; absent ones are listed in the manifest."""
+VEHICLE_TABLES = {"table_d": "sawtooth"}
+"""Expected tables that exist only for one cruise mode: table (d) for sawtooth vehicles (DESIGN §3)."""
+
+
+def expected_tables(cruise: str | None = None) -> tuple[str, ...]:
+    """The tables a complete bundle for a vehicle with this cruise mode holds (None: every one)."""
+    return tuple(t for t in EXPECTED_TABLES if cruise is None or VEHICLE_TABLES.get(t, cruise) == cruise)
+
+
 TABLE_SOURCES = {"tables": ("eval_points", "table_a", "table_b", "table_c", "table_d"),
                  "stops": ("stop_summary", "stop_samples")}
 """Which output folder (``--tables`` / ``--stops``) each expected table is read from."""
@@ -94,7 +131,7 @@ TABLE_SOURCES = {"tables": ("eval_points", "table_a", "table_b", "table_c", "tab
 _BLOCK = 512
 _TABLE_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}")
 _MEMBER_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}\.parquet")
-_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+_ID = PATH_ID_RE  # the one rule for ids that name files (planner.schema)
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 _PARTITION_COLS = ("line", "direction", "train_type")
 _PARQUET_OPTIONS = dict(compression="zstd", use_dictionary=True, write_statistics=True, store_schema=False)
@@ -198,6 +235,91 @@ CORE_SCHEMAS = {
 }
 
 
+# --- release: version, build time, expiry ---------------------------------------
+def format_time(t_s: int) -> str:
+    """``YYYY-MM-DDTHH:MM:SSZ`` (UTC) of Unix seconds ``t_s``: the manifest's time form."""
+    return time.strftime(_TIME_FORMAT, time.gmtime(int(t_s)))
+
+
+def parse_time(text: str, what: str = "time") -> int:
+    """Unix seconds of an ISO 8601 time; a time without a zone is UTC. Raises BundleError."""
+    s = str(text).strip()
+    try:
+        t = datetime.fromisoformat(s[:-1] + "+00:00" if s.endswith(("Z", "z")) else s)
+    except ValueError:
+        raise BundleError(f"{what} {text!r} is not an ISO 8601 time such as 2026-11-23T04:00:00Z") from None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=timezone.utc)
+    return int(t.timestamp())
+
+
+def build_time_s(env: Mapping[str, str] | None = None) -> int:
+    """The build time [Unix seconds]: ``$SOURCE_DATE_EPOCH`` when set, else the clock now (whole seconds)."""
+    env = os.environ if env is None else env
+    raw = env.get(ENV_BUILD_TIME, "")
+    if raw == "":
+        return int(time.time())
+    if not raw.isdigit():
+        raise BundleError(f"{ENV_BUILD_TIME}={raw!r} must be a whole number of seconds since 1970-01-01 UTC")
+    return int(raw)
+
+
+@dataclass(frozen=True)
+class Release:
+    """How a bundle is issued: version, build time, validity, and whether the key is a development key.
+
+    All four are signed in the manifest. They are build *inputs*, so a build is
+    a pure function of tables, key and release (byte-reproducible).
+
+    Attributes
+    ----------
+    version : int
+        Bundle version, ≥ 1; a vehicle refuses one below the version it has installed.
+    built_at_s : int
+        Build time [Unix seconds, UTC].
+    valid_s : int
+        Validity [s]; the bundle expires at ``built_at_s + valid_s``.
+    development : bool
+        Signed with a development key: vehicles in service refuse it.
+    """
+
+    version: int
+    built_at_s: int
+    valid_s: int = DEFAULT_VALID_DAYS * 86400
+    development: bool = False
+
+    def __post_init__(self):
+        for name in ("version", "built_at_s", "valid_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise BundleError(f"bundle {name} must be an integer, found {v!r}")
+        if self.version < 1:
+            raise BundleError(f"bundle version must be at least 1, found {self.version}")
+        if not 0 <= self.built_at_s < 253402300800:  # year 10000: the manifest's time form has 4 digits
+            raise BundleError(f"bundle build time {self.built_at_s} is outside 1970..9999")
+        if self.valid_s < 1:
+            raise BundleError(f"bundle validity must be at least 1 s, found {self.valid_s}")
+
+    @classmethod
+    def issue(cls, built_at_s: int | None = None, *, valid_days: float = DEFAULT_VALID_DAYS,
+              development: bool = False, version: int | None = None) -> "Release":
+        """A release built at ``built_at_s`` (default :func:`build_time_s`), version from the build time.
+
+        The version is the build time in UTC as the integer ``YYYYMMDDHHMMSS``
+        (e.g. 20261123040000): it grows with the build time for every target,
+        on every build host, without a counter to keep, and reads as a date.
+        """
+        t = build_time_s() if built_at_s is None else int(built_at_s)
+        if not (isinstance(valid_days, (int, float)) and math.isfinite(valid_days) and valid_days > 0):
+            raise BundleError(f"bundle validity must be a positive number of days, found {valid_days!r}")
+        v = int(time.strftime("%Y%m%d%H%M%S", time.gmtime(t))) if version is None else version
+        return cls(v, t, int(round(valid_days * 86400)), development)
+
+    @property
+    def expires_s(self) -> int:
+        return self.built_at_s + self.valid_s
+
+
 # --- public results ------------------------------------------------------------
 @dataclass(frozen=True)
 class FileEntry:
@@ -226,6 +348,12 @@ class BundleInfo:
         SHA-256 of the input line DB (``Line.source_digest``; "" for an in-memory line).
     key_id : str
         SHA-256 of the signing public key (raw bytes).
+    key_kind : str
+        ``production`` or ``development``.
+    bundle_version : int
+        Release version (monotonic per target).
+    built_at, expires : str
+        Build time and expiry, ``YYYY-MM-DDTHH:MM:SSZ``.
     files : tuple of FileEntry
         Table members, sorted by name.
     missing : tuple of str
@@ -248,6 +376,15 @@ class BundleInfo:
     missing: tuple[str, ...]
     size_bytes: int
     sha256: str
+    key_kind: str = "production"
+    bundle_version: int = 0
+    built_at: str = ""
+    expires: str = ""
+
+    @property
+    def target(self) -> str:
+        """``LINE/DIRECTION/TYPE``: what the bundle is for."""
+        return f"{self.line_id}/{self.direction}/{self.train_type}"
 
     @property
     def complete(self) -> bool:
@@ -263,7 +400,9 @@ class BundleInfo:
         out = [
             f"{Path(self.path).name}: line {self.line_id}, {self.direction}, train type {self.train_type}; "
             f"bundle schema v{self.schema_version}, planner {self.software_version}",
-            f"line DB sha256 {self.line_digest or '(in-memory line)'}; signed by key {self.key_id[:16]}",
+            f"version {self.bundle_version}, built {self.built_at}, expires {self.expires}",
+            f"line DB sha256 {self.line_digest or '(in-memory line)'}; signed by {self.key_kind} key {self.key_id[:16]}"
+            + ("  (DEVELOPMENT KEY: not for service)" if self.key_kind != "production" else ""),
             f"{self.size_bytes} bytes, sha256 {self.sha256}",
         ]
         for f in self.files:
@@ -283,10 +422,8 @@ class Bundle:
 # --- tables built from the line DB ---------------------------------------------
 def check_id(value: str, what: str) -> str:
     """A line id / train type safe to put in a file name and a manifest."""
-    if not isinstance(value, str) or not _ID.fullmatch(value):
-        raise BundleError(
-            f"{what} {value!r} cannot name a bundle: use 1-64 letters, digits, '.', '_' or '-', not starting with '.'"
-        )
+    if not is_path_id(value):
+        raise BundleError(f"{what} {value!r} cannot name a bundle: {PATH_ID_RULE}")
     return value
 
 
@@ -560,7 +697,8 @@ def _private_key(key) -> "signing.Ed25519PrivateKey":
 
 
 def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
-                 private_key, line_digest: str = "", line_schema_version: int = 1) -> bytes:
+                 private_key, release: Release, line_digest: str = "", line_schema_version: int = 1,
+                 expected: Sequence[str] | None = None) -> bytes:
     """The bytes of a signed bundle holding ``tables`` (no file is written).
 
     Parameters
@@ -574,12 +712,22 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
         ``direction`` or ``train_type`` column must carry these values.
     private_key : Ed25519PrivateKey or path
         Signing key (a path is loaded with :func:`planner.signing.load_private_key`).
+    release : Release
+        Version, build time, validity and key kind, signed in the manifest.
     line_digest : str
         SHA-256 hex of the input line DB (``Line.source_digest``), or "".
     line_schema_version : int
         Schema version of the input line DB.
+    expected : sequence of str, optional
+        The expected tables for this vehicle (:func:`expected_tables` of its cruise mode);
+        those absent are listed as missing. Default every :data:`EXPECTED_TABLES`.
     """
     key = _private_key(private_key)
+    if not isinstance(release, Release):
+        raise BundleError("a bundle needs a Release (version, build time, validity); see Release.issue")
+    expected = EXPECTED_TABLES if expected is None else tuple(expected)
+    if not set(expected) <= set(EXPECTED_TABLES) or not set(EXPECTED_TABLES) - set(expected) <= set(VEHICLE_TABLES):
+        raise BundleError(f"expected tables {list(expected)}: only {', '.join(VEHICLE_TABLES)} may be left out")
     bundle_name(line_id, direction, train_type)  # validates the ids
     if line_digest and not _SHA256.fullmatch(line_digest):
         raise BundleError(f"line digest {line_digest!r} is not a SHA-256 hex digest")
@@ -617,8 +765,12 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
         "line_digest": line_digest,
         "line_schema_version": int(line_schema_version),
         "key_id": signing.public_key_id(key.public_key()),
+        "key_kind": "development" if release.development else "production",
+        "bundle_version": release.version,
+        "built_at": format_time(release.built_at_s),
+        "expires": format_time(release.expires_s),
         "files": files,
-        "missing": sorted(t for t in EXPECTED_TABLES if t not in tables),
+        "missing": sorted(t for t in expected if t not in tables),
     }
     _check_manifest(manifest, "build")
     _check_tables(tables, manifest, "build")  # never sign what verify would refuse
@@ -640,8 +792,8 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
 
 
 def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
-                 out_dir: str | os.PathLike, private_key, line_digest: str = "",
-                 line_schema_version: int = 1) -> BundleInfo:
+                 out_dir: str | os.PathLike, private_key, release: Release, line_digest: str = "",
+                 line_schema_version: int = 1, expected: Sequence[str] | None = None) -> BundleInfo:
     """Build, sign and atomically write one bundle into ``out_dir``; see :func:`bundle_bytes`.
 
     Returns
@@ -651,8 +803,8 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     """
     out = Path(out_dir)
     data = bundle_bytes(tables, line_id=line_id, direction=direction, train_type=train_type,
-                        private_key=private_key, line_digest=line_digest,
-                        line_schema_version=line_schema_version)
+                        private_key=private_key, release=release, line_digest=line_digest,
+                        line_schema_version=line_schema_version, expected=expected)
     path = out / bundle_name(line_id, direction, train_type)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -663,13 +815,14 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     return _info(str(path), json.loads(members[MANIFEST]), data)
 
 
-def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, tables_dir=None, stops_dir=None,
-               directions: Sequence[str] | None = None, train_types: Sequence[str] | None = None,
+def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: Release, tables_dir=None,
+               stops_dir=None, directions: Sequence[str] | None = None, train_types: Sequence[str] | None = None,
                on_built: Callable[[BundleInfo], None] | None = None) -> list[BundleInfo]:
     """Build every bundle of a line (each direction × train type, or the ones asked for).
 
-    The key is loaded once; each bundle is written atomically as soon as it is
-    complete. ``on_built`` is called after each (for progress display).
+    The key is loaded once; every bundle gets the same ``release``; each is
+    written atomically as soon as it is complete. ``on_built`` is called after
+    each (for progress display).
     """
     key = _private_key(private_key)
     dirs = list(directions) if directions else list(DIRECTIONS)
@@ -684,8 +837,9 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, tables_di
         for t in types:
             tables = assemble(line, d, t, tables_dir=tables_dir, stops_dir=stops_dir)
             info = build_bundle(tables, line_id=line.line_id, direction=d, train_type=t, out_dir=out_dir,
-                                private_key=key, line_digest=line.source_digest,
-                                line_schema_version=line.schema_version)
+                                private_key=key, release=release, line_digest=line.source_digest,
+                                line_schema_version=line.schema_version,
+                                expected=expected_tables(line.train_type(t).cruise))
             done.append(info)
             if on_built is not None:
                 on_built(info)
@@ -839,7 +993,8 @@ def _strict_json(data: bytes, where: str):
 _MANIFEST_KEYS = {
     "format": str, "schema_version": int, "line_id": str, "direction": str, "train_type": str,
     "software_version": str, "writer": str, "line_digest": str, "line_schema_version": int,
-    "key_id": str, "files": list, "missing": list,
+    "key_id": str, "files": list, "missing": list, "key_kind": str, "bundle_version": int, "built_at": str,
+    "expires": str,
 }
 _FILE_KEYS = {"name": str, "size": int, "sha256": str, "rows": int}
 
@@ -873,6 +1028,19 @@ def _check_manifest(m, where: str) -> None:
         raise _fail(where, "manifest line_digest is not a SHA-256 hex digest")
     if not _SHA256.fullmatch(m["key_id"]):
         raise _fail(where, "manifest key_id is not a SHA-256 hex digest")
+    if m["key_kind"] not in KEY_KINDS:
+        raise _fail(where, f"manifest key_kind {m['key_kind']!r} is not one of {list(KEY_KINDS)}")
+    if m["bundle_version"] < 1:
+        raise _fail(where, f"manifest bundle_version {m['bundle_version']} is not a positive integer")
+    for k in ("built_at", "expires"):
+        try:
+            ok = bool(_TIME_RE.fullmatch(m[k])) and bool(datetime.strptime(m[k], _TIME_FORMAT))
+        except ValueError:
+            ok = False
+        if not ok:
+            raise _fail(where, f"manifest {k} {m[k]!r} is not a time of the form YYYY-MM-DDTHH:MM:SSZ")
+    if not m["expires"] > m["built_at"]:  # same fixed-width form: text order is time order
+        raise _fail(where, f"manifest expires {m['expires']} is not after built_at {m['built_at']}")
     names = []
     for e in m["files"]:
         if not isinstance(e, dict) or set(e) != set(_FILE_KEYS):
@@ -894,7 +1062,10 @@ def _check_manifest(m, where: str) -> None:
     mis = m["missing"]
     if not all(isinstance(x, str) for x in mis) or mis != sorted(set(mis)):
         raise _fail(where, "manifest 'missing' must be a sorted list of unique table names")
-    if mis != sorted(t for t in EXPECTED_TABLES if t not in tables):
+    # every expected table absent must be listed, except those that exist only for another cruise
+    # mode (VEHICLE_TABLES): the signer, who knew the vehicle, left them out of 'missing'
+    absent = {t for t in EXPECTED_TABLES if t not in tables}
+    if not set(mis) <= absent or not absent - set(VEHICLE_TABLES) <= set(mis):
         raise _fail(where, f"manifest 'missing' {mis} does not match the tables it lists")
 
 
@@ -1001,9 +1172,20 @@ def _check_tables(tables: Mapping[str, pa.Table], m: dict, where: str) -> None:
             if lost:
                 o, d, x = sorted(lost)[0]
                 raise _fail(where, f"{name} evaluation point {x!r} for {o}->{d} is not in eval_points")
-        strays = sorted({x for _, _, x in pts if not x.startswith("dep") and x not in beacon_ids})
+        # beacon points must be beacons of this bundle; odometer points (departure, after departure,
+        # regular interval) are named dep / dep+<m> and are found by running distance, not by beacon
+        ids = _col(ep, "eval_point_id")
+        kinds = _col(ep, "eval_point_kind") if "eval_point_kind" in ep.column_names else \
+            ["departure" if x.startswith("dep") else "beacon" for x in ids]
+        bad = sorted({k for k in kinds} - set(EVAL_POINT_KINDS), key=str)
+        if bad:
+            raise _fail(where, f"eval_points eval_point_kind {bad[0]!r} is not one of {', '.join(EVAL_POINT_KINDS)}")
+        strays = sorted({x for x, k in zip(ids, kinds) if k == "beacon" and x not in beacon_ids})
         if strays:
             raise _fail(where, f"eval_points name beacon(s) {strays} that are not in beacons")
+        odo = sorted({x for x, k in zip(ids, kinds) if k != "beacon" and not (x == "dep" or x.startswith("dep+"))})
+        if odo:
+            raise _fail(where, f"eval_points odometer point(s) {odo} are not named 'dep' or 'dep+<m>'")
 
 
 def _info(path: str, m: dict, data_or_digest) -> BundleInfo:
@@ -1016,11 +1198,66 @@ def _info(path: str, m: dict, data_or_digest) -> BundleInfo:
         schema_version=m["schema_version"], software_version=m["software_version"],
         line_digest=m["line_digest"], key_id=m["key_id"],
         files=tuple(FileEntry(e["name"], e["size"], e["sha256"], e["rows"]) for e in m["files"]),
-        missing=tuple(m["missing"]), size_bytes=size, sha256=digest,
+        missing=tuple(m["missing"]), size_bytes=size, sha256=digest, key_kind=m["key_kind"],
+        bundle_version=m["bundle_version"], built_at=m["built_at"], expires=m["expires"],
     )
 
 
-def _verified(path, public_key) -> tuple[BundleInfo, dict[str, bytes], dict[str, pa.Table]]:
+@dataclass(frozen=True)
+class Expect:
+    """What the vehicle asks of a bundle beyond a good signature (see ``docs/bundles.md``).
+
+    Attributes
+    ----------
+    target : str or None
+        ``LINE/DIRECTION/TYPE`` the vehicle wants; None: any (no identity check).
+    min_version : int
+        Lowest acceptable bundle version (the version installed on the vehicle;
+        an equal version is the same release and is accepted).
+    at_s : int or None
+        The vehicle's time [Unix seconds] for the expiry check; None: the clock now.
+    allow_dev : bool
+        Accept a bundle signed with a development key (test benches only).
+    """
+
+    target: str | None = None
+    min_version: int = 0
+    at_s: int | None = None
+    allow_dev: bool = False
+
+    @staticmethod
+    def parse_target(text: str) -> str:
+        """Check ``LINE/DIRECTION/TYPE`` and return it; raise BundleError naming the fix."""
+        parts = str(text).split("/")
+        if len(parts) != 3 or parts[1] not in DIRECTIONS or not all(_ID.fullmatch(p) for p in parts[::2]):
+            raise BundleError(f"--expect {text!r}: give LINE/DIRECTION/TYPE, e.g. sample/down/E10 "
+                              "(direction 'down' or 'up')")
+        return "/".join(parts)
+
+
+def _check_expect(m: dict, expect: Expect, pub_id: str, where: str) -> None:
+    """Provenance and freshness of a proven manifest; one reason per refusal."""
+    if m["key_id"] != pub_id:
+        raise _fail(where, f"manifest names signing key {m['key_id'][:16]}, but it was verified with key "
+                           f"{pub_id[:16]}: the manifest lies about its signer (refused)")
+    target = f"{m['line_id']}/{m['direction']}/{m['train_type']}"
+    if expect.target is not None and target != Expect.parse_target(expect.target):
+        raise _fail(where, f"bundle is for {target}, not the expected {expect.target} (renamed or mixed up; refused)")
+    if m["key_kind"] != "production" and not expect.allow_dev:
+        raise _fail(where, f"signed with a {m['key_kind']} key: not for service (refused; --allow-dev on a test "
+                           "bench only)")
+    if m["bundle_version"] < expect.min_version:
+        raise _fail(where, f"bundle version {m['bundle_version']} is older than the installed version "
+                           f"{expect.min_version} (rollback refused)")
+    now = int(time.time()) if expect.at_s is None else int(expect.at_s)
+    if now >= parse_time(m["expires"]):
+        raise _fail(where, f"bundle expired at {m['expires']} (checked at {format_time(now)}; built "
+                           f"{m['built_at']}): a fresh bundle is needed (refused)")
+
+
+def _verified(path, public_key, expect: Expect | None = None
+              ) -> tuple[BundleInfo, dict[str, bytes], dict[str, pa.Table]]:
+    expect = Expect() if expect is None else expect
     where = "<bytes>" if isinstance(path, (bytes, bytearray, memoryview)) else str(path)
     pub = signing.load_public_key(public_key)
     members, size_digest = _read_members(path)
@@ -1035,6 +1272,7 @@ def _verified(path, public_key) -> tuple[BundleInfo, dict[str, bytes], dict[str,
         raise _fail(where, str(e)) from None
     m = _strict_json(mbytes, where)
     _check_manifest(m, where)
+    _check_expect(m, expect, signing.public_key_id(pub), where)
     listed = {e["name"]: e for e in m["files"]}
     present = set(members) - {MANIFEST, SIGNATURE}
     if present - set(listed):
@@ -1060,15 +1298,33 @@ def _verified(path, public_key) -> tuple[BundleInfo, dict[str, bytes], dict[str,
     return _info(where, m, size_digest), members, tables
 
 
-def verify_bundle(path: str | os.PathLike | bytes, public_key) -> BundleInfo:
-    """Prove a bundle complete, untampered and signed by ``public_key``; return what it holds.
+def _expect(expect, min_version, at, allow_dev) -> Expect:
+    if isinstance(expect, Expect):
+        return expect
+    at_s = parse_time(at, "--at") if isinstance(at, str) else at
+    if isinstance(min_version, bool) or not isinstance(min_version, int) or min_version < 0:
+        raise BundleError(f"--min-version must be a whole number >= 0, found {min_version!r}")
+    return Expect(None if expect is None else Expect.parse_target(expect), min_version, at_s, bool(allow_dev))
+
+
+def verify_bundle(path: str | os.PathLike | bytes, public_key, *, expect: str | Expect | None = None,
+                  min_version: int = 0, at: int | str | None = None, allow_dev: bool = False) -> BundleInfo:
+    """Prove a bundle complete, untampered, signed by ``public_key``, fresh and meant for service.
 
     Parameters
     ----------
     path : path or bytes
         The bundle file (only read, never extracted), or its bytes already in memory.
     public_key : path, PEM bytes, 32 raw bytes or Ed25519PublicKey
-        The signer's public key.
+        The signer's public key; the manifest's ``key_id`` must be its id.
+    expect : str ``LINE/DIRECTION/TYPE`` or Expect, optional
+        The target the vehicle wants; None accepts any target (a vehicle must give it).
+    min_version : int
+        Refuse a bundle version below this (the installed version: rollback).
+    at : Unix seconds or ISO 8601 str, optional
+        Time of the expiry check; default the clock now.
+    allow_dev : bool
+        Accept a bundle signed with a development key.
 
     Returns
     -------
@@ -1078,20 +1334,24 @@ def verify_bundle(path: str | os.PathLike | bytes, public_key) -> BundleInfo:
     ------
     BundleError
         With one line naming the first failed check: structure (names, links,
-        sizes, canonical headers), signature, manifest schema and version,
-        extra or missing members, size and SHA-256 of each, row counts, table
-        schemas, line/direction/train type in every row, cross-table consistency.
+        sizes, canonical headers), signature, manifest schema and version, key
+        id, target, key kind, rollback, expiry, extra or missing members, size
+        and SHA-256 of each, row counts, table schemas, line/direction/train
+        type in every row, cross-table consistency.
     """
-    return _verified(path, public_key)[0]
+    return _verified(path, public_key, _expect(expect, min_version, at, allow_dev))[0]
 
 
-def read_bundle(path: str | os.PathLike | bytes, public_key) -> Bundle:
-    """Verify a bundle and return its tables in memory (nothing is written to disk)."""
-    info, _, tables = _verified(path, public_key)
+def read_bundle(path: str | os.PathLike | bytes, public_key, *, expect: str | Expect | None = None,
+                min_version: int = 0, at: int | str | None = None, allow_dev: bool = False) -> Bundle:
+    """Verify a bundle (as :func:`verify_bundle`) and return its tables in memory (nothing written to disk)."""
+    info, _, tables = _verified(path, public_key, _expect(expect, min_version, at, allow_dev))
     return Bundle(info, tables)
 
 
-def open_bundle(path: str | os.PathLike, dest_dir: str | os.PathLike, public_key) -> BundleInfo:
+def open_bundle(path: str | os.PathLike, dest_dir: str | os.PathLike, public_key, *,
+                expect: str | Expect | None = None, min_version: int = 0, at: int | str | None = None,
+                allow_dev: bool = False) -> BundleInfo:
     """Verify a bundle, then write its members into ``dest_dir`` (created if missing).
 
     Nothing is written unless the whole bundle verifies. Members are plain file
@@ -1099,7 +1359,7 @@ def open_bundle(path: str | os.PathLike, dest_dir: str | os.PathLike, public_key
     ``dest_dir`` with ``O_EXCL | O_NOFOLLOW``, so a file or symlink already in
     ``dest_dir`` is never followed or overwritten.
     """
-    info, members, _ = _verified(path, public_key)
+    info, members, _ = _verified(path, public_key, _expect(expect, min_version, at, allow_dev))
     dest = Path(dest_dir)
     dest.mkdir(parents=True, exist_ok=True)
     dfd = os.open(dest, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import pyarrow as pa
 
+from .datasets import with_run_fields
+
 HIVE = ("line", "direction", "train_type")
 
 
@@ -62,13 +64,28 @@ def readme() -> str:
         "    <dataset>/line=L/direction=D/train_type=T/part-0.parquet",
         "    report/<line>_margins.html      the margin-time report (self-contained)",
         "    bundles/<line>_<dir>_<type>.pdb signed on-board DB bundles + signing_key.pub.pem",
-        "  .cache/                           work cache keyed by input digests (safe to delete)",
+        "  .cache/                           work cache keyed by input digests, verified on read (safe to delete)",
         "```",
         "",
         "Partition columns (`line`, `direction`, `train_type`, ...) are folder names, not stored in",
         "the files: read with hive partitioning. Every column carries its unit in its name",
         "(`_s` seconds, `_m` metres, `_kmh` km/h, `_ms2` m/s², `_kwh` kWh). Times in the datasets are",
         "running times or seconds after midnight as the column says.",
+        "",
+        "Every row of every dataset also carries `run_id` and `run_date` (the last two columns), so",
+        "two runs compare in one query, e.g. the margins of the last two runs side by side:",
+        "",
+        "```python",
+        "import duckdb",
+        "duckdb.sql(\"\"\"",
+        "    select run_id, run_date, train_type, origin, destination, remaining_margin_s",
+        "    from read_parquet('outputs/r*/margins/**/*.parquet', hive_partitioning = true)",
+        "    order by origin, destination, run_id\"\"\").show()",
+        "```",
+        "",
+        "`run_date` is the job's `[job] run_date` when set, else the UTC date on which `planner run`",
+        "started; it is part of the run's inputs digest, so a run id always has the same date and a",
+        "re-run on another day publishes a new run (reusing every cached result).",
         "",
         "## Reading the datasets",
         "",
@@ -93,9 +110,10 @@ def readme() -> str:
         "```python",
         "import duckdb",
         "duckdb.sql(\"\"\"",
-        "    select train_type, origin, destination, margin_s, remaining_margin_s",
+        "    select train_type, origin, destination, margin_s, remaining_margin_s, unassessed_reason",
         "    from read_parquet('outputs/latest/margins/**/*.parquet', hive_partitioning = true)",
-        "    where infeasible or tight order by remaining_margin_s\"\"\").show()",
+        "    where unassessed or infeasible or tight  -- unassessed: margin unknown, listed first",
+        "    order by unassessed desc, remaining_margin_s\"\"\").show()",
         "```",
         "",
         "## Datasets",
@@ -113,6 +131,6 @@ def readme() -> str:
             "| column | type | meaning |",
             "|---|---|---|",
         ]
-        lines += [f"| `{f.name}` | {f.type} | {_desc(f)} |" for f in d.schema]
+        lines += [f"| `{f.name}` | {f.type} | {_desc(f)} |" for f in with_run_fields(d.schema)]
         lines.append("")
     return "\n".join(lines).rstrip() + "\n"

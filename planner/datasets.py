@@ -9,6 +9,8 @@ so analysts can filter by partition without reading everything
 ``read_parquet('.../**/*.parquet', hive_partitioning=true)``). Partition
 columns are not stored inside the files (hive style); each file carries the
 schema's field descriptions and the dataset's schema version as metadata.
+Partition values must be path ids (:data:`planner.schema.PATH_ID_RE`); any
+other value is refused here, before a folder is made.
 
 Writes are deterministic (same table, same bytes: no timestamps, fixed
 writer settings) and atomic per file (temp file in the same folder, then
@@ -24,6 +26,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from .atomic import atomic_path
+from .schema import check_path_id
 
 PARTITION_COLS = ("line", "direction", "train_type")
 
@@ -115,8 +118,8 @@ def write_partitioned(
         if schema is not None:
             sub = conform(sub, schema)
         folder = root / dataset
-        for c, v in zip(parts, key):
-            folder = folder / f"{c}={v}"
+        for c, v in zip(parts, key):  # validated already; checked again where the path is built
+            folder = folder / f"{c}={check_path_id(v, f'partition value {c}=')}"
         path = folder / "part-0.parquet"
         write_parquet_atomic(sub, path)
         written.append(path)
@@ -144,3 +147,49 @@ def read_dataset(root: Path, dataset: str, **filters) -> pa.Table:
             idx = t.column_names.index(name)
             t = t.set_column(idx, name, pc.cast(t.column(name), pa.string()))
     return t
+
+
+RUN_FIELDS = (
+    ("run_id", pa.string(), "the published run these rows belong to (outputs/<run_id>/), e.g. r0007-3f9a2c01d4"),
+    ("run_date", pa.date32(), "the run's date: [job] run_date, else the UTC date when `planner run` started "
+                              "(part of the run's inputs digest, so one run id always has one date)"),
+)
+"""Columns `planner run` appends to every row of every published dataset, so runs compare in one query."""
+
+
+def with_run_fields(schema: pa.Schema) -> pa.Schema:
+    """``schema`` plus the :data:`RUN_FIELDS` (what a published file holds)."""
+    out = schema
+    for col, typ, desc in RUN_FIELDS:
+        if col not in out.names:
+            out = out.append(pa.field(col, typ, metadata={"description": desc}))
+    return out
+
+
+def stamp_run(root: Path, datasets: Iterable[str], run_id: str, run_date) -> int:
+    """Append ``run_id`` and ``run_date`` to every row of every Parquet file of ``datasets`` under ``root``.
+
+    Done once, on the staged run, after every step has read what it needs (the bundles are built
+    before, so their bytes do not depend on the run). Each file is rewritten atomically with the
+    same writer settings; the schema metadata (descriptions) is kept. Returns the files stamped.
+    """
+    import datetime
+
+    if not isinstance(run_date, datetime.date):
+        run_date = datetime.date.fromisoformat(str(run_date))
+    n = 0
+    for name in datasets:
+        folder = Path(root) / name
+        if not folder.is_dir():
+            continue
+        for f in sorted(folder.rglob("*.parquet")):
+            t = pq.read_table(f, partitioning=None)
+            for col, typ, desc in RUN_FIELDS:
+                if col in t.column_names:
+                    t = t.drop_columns([col])
+                val = run_id if col == "run_id" else run_date
+                t = t.append_column(pa.field(col, typ, metadata={"description": desc}),
+                                    pa.array([val] * t.num_rows, type=typ))
+            write_parquet_atomic(t, f)
+            n += 1
+    return n

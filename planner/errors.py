@@ -52,7 +52,7 @@ class Violation:
 
 
 class LineValidationError(PlannerError):
-    """A line database broke one or more rules of SCHEMA.md."""
+    """A line database broke one or more rules of docs/line-database.md."""
 
     key = "line.invalid"
 
@@ -92,3 +92,9 @@ class JobError(PlannerError):
     """A job file is wrong, or a step of the nightly job failed."""
 
     key = "job"
+
+
+class SourceError(InputError):
+    """A source file for ``planner import`` is malformed; the message names file, element and field."""
+
+    key = "input.source"

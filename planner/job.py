@@ -1,7 +1,8 @@
 """Job files (TOML): what the nightly job computes and where it publishes.
 
 A job file is strict: an unknown key or a bad value is a :class:`JobError`
-that names the file and the key (``jobs/nightly.toml: [tables] ratios: ...``).
+that names the file and the key (``jobs/nightly.toml: [tables] ratios: ...``);
+every problem of the file is reported at once, one per line.
 Every section is optional and has documented defaults, so the smallest job is
 
 .. code-block:: toml
@@ -23,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import JobError
+from .eval_points import MIN_INTERVAL_M
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,8 @@ class JobSection:
     """Where runs are published: OUTPUT_ROOT/<run_id>/ and OUTPUT_ROOT/latest."""
     keep_runs: int = 5
     """How many complete runs to keep (older ones are deleted after a publish)."""
+    run_date: str = ""
+    """The run's date (YYYY-MM-DD) stamped on every dataset row; "" = the UTC date when `planner run` starts."""
 
 
 @dataclass(frozen=True)
@@ -47,6 +51,8 @@ class TablesSection:
     """The grid stops where ratio × line maximum reaches this speed."""
     eval_offset_m: float = 200.0
     """Evaluation point this far after departure."""
+    eval_interval_m: float = 0.0
+    """Odometer evaluation points at this regular interval after the point after departure [m]; 0 = none (beacons only)."""
     ds_m: float = 1.0
     """Integration step in running distance [m]."""
 
@@ -87,14 +93,29 @@ class MarginsSection:
     """... plus this many minutes per 100 km."""
     tight_threshold_s: float = 5.0
     """Remaining margin (scheduled − degraded minimum) below this is flagged `tight`."""
+    bad_day_load: bool = True
+    """The bad day (degraded scenario) includes a heavier train: on/off ..."""
     degraded_load: float = 1.0
+    """... and its load factor (0 empty … 1 full)."""
+    bad_day_traction: bool = True
+    """The bad day includes weak traction (low catenary voltage): on/off ..."""
     degraded_traction: float = 0.9
+    """... and its traction factor (tractive effort × this)."""
+    bad_day_adhesion: bool = True
+    """The bad day includes low adhesion in the stop (minimum-time stopping pattern): on/off ..."""
+    degraded_adhesion_kmh_s: float = 0.0
+    """... and its adhesion-limited deceleration [km/h/s]; 0 = the lowest level of the [stops] sweep."""
 
 
 @dataclass(frozen=True)
 class BundlesSection:
     signing_key: str = ""
-    """Path of the Ed25519 private key (PEM). Empty: env PLANNER_SIGNING_KEY, else a development key under outputs/."""
+    """Path of the Ed25519 private key (PEM). Empty: env PLANNER_SIGNING_KEY, else a development key if allowed."""
+    allow_development_key: bool = False
+    """With no key configured, sign with a generated development key under OUTPUT_ROOT/.dev-key (bundles marked
+    `development`, refused by vehicles) instead of failing. For test runs only."""
+    valid_days: float = 30.0
+    """Bundles expire this many days after the run's build time; a run re-issues them when half of it has passed."""
 
 
 @dataclass(frozen=True)
@@ -116,11 +137,14 @@ class ConflictsSection:
 @dataclass(frozen=True)
 class ParallelSection:
     backend: str = "local"
-    """`local` (joblib processes) or `dask` (joblib's dask backend on a dask.distributed cluster)."""
+    """`local` (joblib loky processes) or `dask` (futures on a dask.distributed cluster, see planner.parallel)."""
     n_jobs: int = -1
     """Worker processes for the local backend; -1 = all cores."""
     scheduler: str = ""
     """Dask scheduler address (tcp://host:8786) for backend = "dask"."""
+    dask_lost_timeout_s: float = 60.0
+    """With backend = "dask": end the run with an error when the cluster has had no workers, or the scheduler has
+    been unreachable, for this long [s]."""
 
 
 @dataclass(frozen=True)
@@ -186,22 +210,40 @@ def _check_type(where: str, value: Any, default: Any) -> Any:
     return value
 
 
-def _section(file: str, name: str, cls, data: Any):
+class _Problems(list):
+    """Problems found in a job file; all of them are reported together."""
+
+    def __init__(self):
+        super().__init__()
+        self.keys: set[str] = set()  # "section.key" already reported (value fell back to its default)
+
+    def add(self, msg: str, key: str = "") -> None:
+        if key:
+            self.keys.add(key)
+        self.append(msg)
+
+
+def _section(file: str, name: str, cls, data: Any, problems: _Problems):
     if not isinstance(data, dict):
-        raise JobError(f"{file}: [{name}] must be a table, found {data!r}")
+        problems.add(f"{file}: [{name}] must be a table, found {data!r}")
+        return cls()
     known = {f.name: f for f in dataclasses.fields(cls)}
     defaults = cls()
     kwargs = {}
     for key, value in data.items():
         where = f"{file}: [{name}] {key}"
-        if key not in known:
-            raise JobError(f"{where}: unknown key; known keys: {', '.join(known)}")
-        if cls is ClosedLoopSection and key == "scenarios":
-            kwargs[key] = _scenarios(where, value)
-            continue
-        kwargs[key] = _check_type(where, value, getattr(defaults, key))
-        if isinstance(kwargs[key], tuple) and not all(isinstance(x, str) for x in kwargs[key]):
-            raise JobError(f"{where}: expected a list of strings, found {value!r}")
+        try:
+            if key not in known:
+                raise JobError(f"{where}: unknown key; known keys: {', '.join(known)}")
+            if cls is ClosedLoopSection and key == "scenarios":
+                kwargs[key] = _scenarios(where, value)
+                continue
+            v = _check_type(where, value, getattr(defaults, key))
+            if isinstance(v, tuple) and not all(isinstance(x, str) for x in v):
+                raise JobError(f"{where}: expected a list of strings, found {value!r}")
+            kwargs[key] = v
+        except JobError as e:
+            problems.add(str(e), f"{name}.{key}")
     return cls(**kwargs)
 
 
@@ -218,6 +260,10 @@ def _scenarios(where: str, value: Any) -> tuple[Scenario, ...]:
             raise JobError(f"{w}: unknown key {sorted(extra)[0]!r}; known keys: name, load, traction")
         if "name" not in item or not isinstance(item["name"], str):
             raise JobError(f"{w}: needs a string `name`")
+        from .schema import PATH_ID_RULE, is_path_id
+
+        if not is_path_id(item["name"]):  # a partition value of the closed-loop datasets
+            raise JobError(f"{w}: name {item['name']!r} cannot name a partition; {PATH_ID_RULE}")
         out.append(Scenario(
             item["name"],
             _check_type(f"{w} load", item.get("load", 0.0), 0.0),
@@ -226,21 +272,38 @@ def _scenarios(where: str, value: Any) -> tuple[Scenario, ...]:
     return tuple(out)
 
 
-def _validate(file: str, job: Job) -> None:
+def _validate(file: str, job: Job, problems: _Problems) -> None:
     """Value rules that types alone do not catch; each names the key."""
     def bad(section: str, key: str, msg: str):
-        raise JobError(f"{file}: [{section}] {key}: {msg}")
+        if f"{section}.{key}" not in problems.keys:  # a value that failed its type check is not judged again
+            problems.add(f"{file}: [{section}] {key}: {msg}")
 
     if not job.job.lines:
         bad("job", "lines", "name at least one line-database folder")
     if job.job.keep_runs < 1:
         bad("job", "keep_runs", f"must be at least 1, found {job.job.keep_runs}")
+    if job.job.run_date:
+        import datetime
+
+        try:
+            datetime.date.fromisoformat(job.job.run_date)
+        except ValueError:
+            bad("job", "run_date", f"expected a date YYYY-MM-DD (or \"\" for today), found {job.job.run_date!r}")
+    out = job.resolve(job.job.output_root)
+    base = out
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    if not base.is_dir():
+        bad("job", "output_root", f"{out}: {base} is a file, not a folder; name a folder for the published runs")
     if not 0 < job.tables.ds_m <= 10:
         bad("tables", "ds_m", f"must be in (0, 10] m, found {job.tables.ds_m}")
     if job.tables.min_target_kmh <= 0:
         bad("tables", "min_target_kmh", "must be positive")
     if job.tables.eval_offset_m < 0:
         bad("tables", "eval_offset_m", "must be ≥ 0")
+    if job.tables.eval_interval_m != 0 and not job.tables.eval_interval_m >= MIN_INTERVAL_M:
+        bad("tables", "eval_interval_m", f"must be 0 (beacons only) or at least {MIN_INTERVAL_M:g} m, "
+                                         f"found {job.tables.eval_interval_m}")
     if job.stops.approach_m <= 0:
         bad("stops", "approach_m", "must be positive")
     if job.closed_loop.horizon_s < 0 or job.closed_loop.step_s <= 0:
@@ -248,12 +311,23 @@ def _validate(file: str, job: Job) -> None:
     for s in job.closed_loop.scenarios:
         if s.load < 0 or not 0 < s.traction <= 2:
             bad("closed_loop", "scenarios", f"scenario {s.name!r}: load ≥ 0 and 0 < traction ≤ 2")
-    if job.margins.tight_threshold_s < 0:
+    m = job.margins
+    if m.tight_threshold_s < 0:
         bad("margins", "tight_threshold_s", "must be ≥ 0")
+    if not 0 <= m.degraded_load <= 1:
+        bad("margins", "degraded_load", f"must lie between 0 (empty) and 1 (full), found {m.degraded_load:g}")
+    if not 0 < m.degraded_traction <= 2:
+        bad("margins", "degraded_traction", f"must lie in (0, 2], found {m.degraded_traction:g}")
+    if m.degraded_adhesion_kmh_s < 0:
+        bad("margins", "degraded_adhesion_kmh_s", "must be > 0 km/h/s, or 0 for the lowest level of the sweep")
     if job.parallel.backend not in ("local", "dask"):
         bad("parallel", "backend", f"must be \"local\" or \"dask\", found {job.parallel.backend!r}")
     if job.parallel.backend == "dask" and not job.parallel.scheduler:
         bad("parallel", "scheduler", "backend = \"dask\" needs a scheduler address, e.g. tcp://127.0.0.1:8786")
+    if not 0 < job.bundles.valid_days <= 3660:
+        bad("bundles", "valid_days", f"must be in (0, 3660] days, found {job.bundles.valid_days}")
+    if not 0 < job.parallel.dask_lost_timeout_s <= 86400:
+        bad("parallel", "dask_lost_timeout_s", f"must be in (0, 86400] s, found {job.parallel.dask_lost_timeout_s}")
     if job.parallel.n_jobs == 0 or job.parallel.n_jobs < -1:
         bad("parallel", "n_jobs", f"must be -1 (all cores) or ≥ 1, found {job.parallel.n_jobs}")
     for p in job.job.lines:
@@ -280,10 +354,16 @@ def load_job(path: str | Path) -> Job:
     except UnicodeDecodeError:
         raise JobError(f"{file}: not a UTF-8 text file") from None
     kwargs: dict[str, Any] = {}
+    problems = _Problems()
     for name, value in data.items():
         if name not in SECTIONS:
-            raise JobError(f"{file}: unknown section [{name}]; known sections: {', '.join(SECTIONS)}")
-        kwargs[name] = _section(file, name, SECTIONS[name], value)
+            problems.add(f"{file}: unknown section [{name}]; known sections: {', '.join(SECTIONS)}")
+            continue
+        kwargs[name] = _section(file, name, SECTIONS[name], value, problems)
     job = Job(path=file, root=str(project_root_for(p)), **kwargs)
-    _validate(file, job)
+    _validate(file, job, problems)
+    if len(problems) == 1:
+        raise JobError(problems[0])
+    if problems:  # every problem at once, one per line, so one edit fixes them all
+        raise JobError(f"{file}: {len(problems)} problems\n" + "\n".join(f"  {x}" for x in problems))
     return job

@@ -112,7 +112,8 @@ def load_line(path: str | Path) -> Line:
     Parameters
     ----------
     path : str or Path
-        Folder with the Parquet tables of SCHEMA.md; its name is the line id.
+        Folder with the Parquet tables of docs/line-database.md; any name (the line id
+        is ``line.parquet``'s ``line_id``).
 
     Returns
     -------

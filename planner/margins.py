@@ -26,10 +26,16 @@ What each row holds, and how
   conditions of the tables) — table (a) at ratio 1.0; and the same rounded
   *up* to the timetable unit of 10 s (:func:`round_up_s`).
 * **margin** = scheduled − minimum [s], and in percent of the minimum.
-* **degraded minimum**: the fastest run under degraded conditions — full load
+* **degraded minimum**: the fastest run on a *bad day* — full load
   (``degraded_load``, 1.0), traction × ``degraded_traction`` (0.9) and the
-  *lowest adhesion of the stopping-pattern sweep* at the arrival stop. It is
-  built in two parts (:func:`degraded_minimum_s`):
+  *lowest adhesion of the stopping-pattern sweep* (or ``degraded_adhesion_kmh_s``)
+  at the arrival stop. Each effect can be switched off in the job file
+  (``bad_day_load``, ``bad_day_traction``, ``bad_day_adhesion``; an effect that
+  is off takes its nominal value, and without adhesion the stop is the tables'
+  stopping brake), and its share is a column: ``degraded_loss_load_s`` (the
+  load alone), ``degraded_loss_traction_s`` (traction on top of the load),
+  ``degraded_loss_stop_s`` (the stop). The three add up to degraded − the
+  nominal run's time. It is built in two parts:
 
   1. the degraded run at ratio 1.0 from departure to the **pattern start**,
      where the on-board stopping control takes over: the TASC beacon of the
@@ -74,7 +80,11 @@ What each row holds, and how
 * **flags**: ``infeasible`` — scheduled below the degraded minimum;
   ``tight`` — not infeasible, but the remaining margin is below
   ``tight_threshold_s``; ``unreachable`` — scheduled above the slowest table
-  time (lowest ratio), so the vehicle cannot stretch the run that long.
+  time (lowest ratio), so the vehicle cannot stretch the run that long;
+  ``unassessed`` — the minimum or the degraded minimum could not be computed
+  (e.g. no stopping pattern at the lowest adhesion from any start), with
+  ``unassessed_reason``: then ``infeasible`` and ``tight`` are unknown, written
+  as null in the dataset, and the report lists the leg first.
 
 Totals (dataset ``margin_totals``, :func:`margin_totals`): per train (sum
 over its legs), per direction × train type, and per direction over all train
@@ -136,6 +146,14 @@ class MarginRule:
         Load factor of the degraded conditions (1.0 = full).
     degraded_traction : float
         Traction factor of the degraded conditions (0.9 = weak catenary).
+    bad_day_load, bad_day_traction, bad_day_adhesion : bool
+        Which effects the bad day (degraded scenario) includes. An effect that
+        is off takes its nominal value: load 0, traction × 1.0, and the
+        stopping brake of the running-time tables instead of a low-adhesion
+        stopping pattern.
+    degraded_adhesion_kmh_s : float
+        Adhesion-limited deceleration of the bad day's stop [km/h/s]; 0 = the
+        lowest level of the adhesion sweep.
     """
 
     supplement_percent: float = 3.0
@@ -143,14 +161,47 @@ class MarginRule:
     tight_threshold_s: float = 5.0
     degraded_load: float = 1.0
     degraded_traction: float = 0.9
+    bad_day_load: bool = True
+    bad_day_traction: bool = True
+    bad_day_adhesion: bool = True
+    degraded_adhesion_kmh_s: float = 0.0
 
     def __post_init__(self):
-        for name in ("supplement_percent", "supplement_min_per_100km", "tight_threshold_s", "degraded_load"):
+        for name in ("supplement_percent", "supplement_min_per_100km", "tight_threshold_s", "degraded_load",
+                     "degraded_adhesion_kmh_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InputError(f"[margins] {name} must be a number ≥ 0, found {v!r}")
+        if self.degraded_load > 1:
+            raise InputError(f"[margins] degraded_load must lie between 0 (empty) and 1 (full), "
+                             f"found {self.degraded_load!r}")
         if not (math.isfinite(self.degraded_traction) and 0 < self.degraded_traction <= 2):
             raise InputError(f"[margins] degraded_traction must lie in (0, 2], found {self.degraded_traction!r}")
+
+    @property
+    def bad_load(self) -> float:
+        """Load factor of the bad day as configured (0, the tables' load, when the effect is off)."""
+        return self.degraded_load if self.bad_day_load else 0.0
+
+    @property
+    def bad_traction(self) -> float:
+        """Traction factor of the bad day as configured (1.0 when the effect is off)."""
+        return self.degraded_traction if self.bad_day_traction else 1.0
+
+    def bad_adhesion_kmh_s(self, sweep_kmh_s) -> float | None:
+        """Adhesion of the bad day's stop [km/h/s]: the configured value or the sweep's lowest; None when off."""
+        if not self.bad_day_adhesion:
+            return None
+        return float(self.degraded_adhesion_kmh_s) if self.degraded_adhesion_kmh_s > 0 else float(
+            np.min(np.asarray(sweep_kmh_s, dtype=float)))
+
+    def describe(self, sweep_kmh_s) -> str:
+        """The bad day in words, e.g. ``load 100 %, traction × 0.9, adhesion 2.5 km/h/s``."""
+        parts = [f"load {self.degraded_load:.0%}" if self.bad_day_load else "load off (empty)",
+                 f"traction ×{self.degraded_traction:g}" if self.bad_day_traction else "traction off (×1)"]
+        a = self.bad_adhesion_kmh_s(sweep_kmh_s)
+        parts.append(f"adhesion {a:g} km/h/s" if a is not None else "adhesion off (stopping brake)")
+        return ", ".join(parts)
 
     @classmethod
     def from_section(cls, section) -> "MarginRule":
@@ -216,9 +267,11 @@ def margin_columns(min_time_s, scheduled_s, degraded_min_s, slowest_time_s, leng
         ``supplement_met`` (margin ≥ required), ``supplement_shortfall_s``
         (required − margin, ≥ 0), and the flags ``infeasible`` (scheduled <
         degraded minimum), ``tight`` (not infeasible and remaining margin <
-        threshold), ``unreachable`` (scheduled > slowest). Times within
-        :data:`TIME_TOL_S` count as equal; flags are False where there is no
-        schedule.
+        threshold), ``unreachable`` (scheduled > slowest), ``unassessed``
+        (minimum or degraded minimum not finite: infeasible and tight cannot
+        be decided and are False here; :func:`datasets` writes them as null).
+        Times within :data:`TIME_TOL_S` count as equal; infeasible, tight and
+        unreachable are False where there is no schedule.
     """
     tmin = np.asarray(min_time_s, dtype=float)
     sched = np.broadcast_to(np.asarray(scheduled_s, dtype=float), tmin.shape)
@@ -241,6 +294,7 @@ def margin_columns(min_time_s, scheduled_s, degraded_min_s, slowest_time_s, leng
             "infeasible": infeasible,
             "tight": has & ~infeasible & (remaining < rule.tight_threshold_s - TIME_TOL_S),
             "unreachable": has & (sched > slow + TIME_TOL_S),
+            "unassessed": ~(np.isfinite(tmin) & np.isfinite(deg)),
         }
 
 
@@ -250,6 +304,8 @@ TOTAL_SUM_COLS = (
     "energy_at_ratio_kwh", "energy_at_full_ratio_kwh", "energy_saved_kwh",
 )
 """Row columns summed into the totals."""
+UNKNOWN_WHEN_UNASSESSED = ("degraded_min_running_time_s", "remaining_margin_s")
+"""Totals that are NaN (unknown) when any leg summed is unassessed, as are the worst margin and the shortfall."""
 
 
 def margin_totals(rows, train_legs):
@@ -268,20 +324,23 @@ def margin_totals(rows, train_legs):
     Returns
     -------
     pandas.DataFrame
-        ``scope`` (``train``, ``type``, ``line``), ``train_id`` (null unless
-        scope train), ``direction``, ``train_type`` (``all`` for scope line),
+        ``level`` (``train``, ``type``, ``line``), ``train_id`` (null unless
+        level train), ``direction``, ``train_type`` (``all`` for level line),
         ``origin``/``destination`` (the train's first and last stop; null
         otherwise), ``first_departure_s``, ``n_trains``, ``n_legs``, the sums
         of :data:`TOTAL_SUM_COLS`, ``margin_percent`` (total margin / total
         minimum), ``min_remaining_margin_s`` (worst leg), ``bad_day_shortfall_s``
         (sum of max(0, −remaining margin) over the legs), ``n_supplement_short``,
-        ``n_infeasible``, ``n_tight``, ``n_unreachable`` (legs, counted per
-        train run).
+        ``n_infeasible``, ``n_tight``, ``n_unreachable``, ``n_unassessed``
+        (legs, counted per train run). With an unassessed leg among those
+        summed, the degraded-minimum and remaining-margin sums, the worst
+        remaining margin and the shortfall are NaN: unknown, not partial.
     """
     import pandas as pd
 
     key = ["direction", "train_type", "origin", "destination", "scheduled_running_time_s"]
-    cols = key + [c for c in TOTAL_SUM_COLS if c not in key] + ["supplement_met", "infeasible", "tight", "unreachable"]
+    cols = key + [c for c in TOTAL_SUM_COLS if c not in key] + ["supplement_met", "infeasible", "tight", "unreachable",
+                                                                "unassessed"]
     r = rows[rows["scheduled_running_time_s"].notna()][cols]
     legs = train_legs.merge(r, on=key, how="left", validate="many_to_one")
     if legs["min_running_time_s"].isna().any():
@@ -289,32 +348,35 @@ def margin_totals(rows, train_legs):
         raise ValueError(f"train {bad.train_id}: leg {bad.origin}->{bad.destination} has no margin row")
     legs = legs.assign(short=~legs["supplement_met"].astype(bool),
                        n_inf=legs["infeasible"].astype(int), n_tight=legs["tight"].astype(int),
-                       n_unr=legs["unreachable"].astype(int))
+                       n_unr=legs["unreachable"].astype(int), n_una=legs["unassessed"].astype(int))
     legs = legs.sort_values(["train_id", "leg_seq"], kind="stable")
 
     def agg(g: pd.DataFrame) -> dict:
         out = {c: float(g[c].sum()) for c in TOTAL_SUM_COLS}
+        for c in UNKNOWN_WHEN_UNASSESSED:  # a partial sum would pass for the whole: unknown instead
+            out[c] = float(g[c].sum(skipna=False))
         out["margin_percent"] = 100.0 * out["margin_s"] / out["min_running_time_s"]
-        out["min_remaining_margin_s"] = float(g["remaining_margin_s"].min())
+        out["min_remaining_margin_s"] = float(g["remaining_margin_s"].min(skipna=False))
         out["bad_day_shortfall_s"] = float(np.maximum(-g["remaining_margin_s"].to_numpy(float), 0.0).sum())
         out["n_legs"] = int(len(g))
         out["n_supplement_short"] = int(g["short"].sum())
         out["n_infeasible"] = int(g["n_inf"].sum())
         out["n_tight"] = int(g["n_tight"].sum())
         out["n_unreachable"] = int(g["n_unr"].sum())
+        out["n_unassessed"] = int(g["n_una"].sum())
         out["first_departure_s"] = float(g["departure_s"].min())
         return out
 
     recs = []
     for tid, g in legs.groupby("train_id", sort=True):
-        recs.append({"scope": "train", "train_id": tid, "direction": g["direction"].iloc[0],
+        recs.append({"level": "train", "train_id": tid, "direction": g["direction"].iloc[0],
                      "train_type": g["train_type"].iloc[0], "origin": g["origin"].iloc[0],
                      "destination": g["destination"].iloc[-1], "n_trains": 1} | agg(g))
     for (d, t), g in legs.groupby(["direction", "train_type"], sort=True):
-        recs.append({"scope": "type", "train_id": None, "direction": d, "train_type": t, "origin": None,
+        recs.append({"level": "type", "train_id": None, "direction": d, "train_type": t, "origin": None,
                      "destination": None, "n_trains": int(g["train_id"].nunique())} | agg(g))
     for d, g in legs.groupby("direction", sort=True):
-        recs.append({"scope": "line", "train_id": None, "direction": d, "train_type": ALL_TYPES,
+        recs.append({"level": "line", "train_id": None, "direction": d, "train_type": ALL_TYPES,
                      "origin": None, "destination": None, "n_trains": int(g["train_id"].nunique())} | agg(g))
     out = pd.DataFrame.from_records(recs, columns=TOTALS_COLUMNS)
     return out
@@ -428,6 +490,8 @@ class LegResult:
     degraded_min_s: float
     degraded_loss_running_s: float
     degraded_loss_stop_s: float
+    degraded_loss_load_s: float
+    degraded_loss_traction_s: float
     pattern_start_s_m: float
     pattern_start_m: float
     pattern_source: str
@@ -461,8 +525,8 @@ def _closed_loop(track, train, tables, designated: np.ndarray, rule: MarginRule,
     d2 = np.concatenate([designated, designated])
     r0 = NearestRule().depart(tables, d2)
     controller, decision_m, _ = make_controller(tables, "nearest", d2)
-    res = simulate(track, train, r0, load=np.r_[np.zeros(n), np.full(n, rule.degraded_load)],
-                   traction_factor=np.r_[np.ones(n), np.full(n, rule.degraded_traction)],
+    res = simulate(track, train, r0, load=np.r_[np.zeros(n), np.full(n, rule.bad_load)],
+                   traction_factor=np.r_[np.ones(n), np.full(n, rule.bad_traction)],
                    controller=controller, decision_m=decision_m, record=record)
     return r0[:n], res
 
@@ -489,7 +553,7 @@ def _first_pattern(line, train, track, res, run: int, cands, adhesion_ms2: float
 def leg_result(line: Line, train_type: str, origin: str, destination: str, scheduled: Sequence[float], *,
                tables=None, energy_a_kwh=None, ratios=None, rule: MarginRule = MarginRule(),
                adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float = DEFAULT_APPROACH_M,
-               after_departure_m: float | None = 200.0, settings=None,
+               after_departure_m: float | None = 200.0, eval_interval_m: float | None = None, settings=None,
                closed_loop_errors: dict | None = None, record: bool = False) -> LegResult:
     """Compute one leg: minimum, slowest, degraded minimum, pattern sweep, closed loop per scheduled time.
 
@@ -514,6 +578,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
         Pattern start before the marker where there is no TASC beacon [m].
     after_departure_m : float or None
         Evaluation point after departure for computed tables [m].
+    eval_interval_m : float or None
+        Interval of the odometer evaluation points for computed tables [m]; None: beacons only.
     settings : SimSettings, optional
     closed_loop_errors : dict, optional
         ``{("nominal" | "degraded", designated_s rounded to 1e-6): error_s}`` already
@@ -537,7 +603,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     if tables is None:
         grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
         it = interstation_tables(line, train_type, origin, destination, grid,
-                                 after_departure_m=after_departure_m, settings=settings)
+                                 after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
+                                 settings=settings)
         tables, energy_a_kwh, tsource = it.onboard(), it.energy_a_kwh, "computed"
     else:
         tsource = "dataset"
@@ -555,9 +622,10 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     track = make_track(line, train_type, origin, destination, settings=settings, nodes_m=pts_s + cands)
     cands = [float(track.s_m[track.node_index(c)]) for c in cands]
 
-    # ratio 1.0 at the tables' conditions (run 0) and degraded (run 1), states at the pattern starts
-    res = simulate(track, train, np.array([1.0, 1.0]), load=np.array([0.0, rule.degraded_load]),
-                   traction_factor=np.array([1.0, rule.degraded_traction]), snapshots_m=cands, record=record)
+    # ratio 1.0 at the tables' conditions (run 0), the bad day's load and traction (run 1) and its load
+    # alone (run 2, to split the bad day's cost by effect), states at the pattern starts
+    res = simulate(track, train, np.array([1.0, 1.0, 1.0]), load=np.array([0.0, rule.bad_load, rule.bad_load]),
+                   traction_factor=np.array([1.0, rule.bad_traction, 1.0]), snapshots_m=cands, record=record)
     t_end = np.asarray(res.time_s, float)
     if abs(float(tables.ratios[0]) - 1.0) <= 1e-9:
         min_time, e_full = float(tables.time_a_s[0]), float(energy_a[0])
@@ -565,11 +633,16 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
         min_time, e_full = float(t_end[0]), float(np.asarray(res.energy_kwh)[0])
 
     adh = np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float)
-    a_min = float(adh[0])
-    # degraded minimum: degraded run to the pattern start + pattern at the lowest adhesion
+    a_bad = rule.bad_adhesion_kmh_s(adh)
+    a_min = float(adh[0]) if a_bad is None else a_bad
+    # degraded minimum: degraded run to the pattern start + pattern at the bad day's adhesion
     c, t_deg, v_deg, pat, speed, grads = _first_pattern(line, train, track, res, 1, cands, a_min * KMH_S)
     note = ""
-    if pat is None:
+    if a_bad is None:  # adhesion effect off: the degraded run stops with the tables' stopping brake
+        c, pat = cands[0], None
+        sn = res.snapshots[c]
+        t_deg, v_deg = float(sn.t_s[1]), float(sn.v_ms[1])
+    elif pat is None:
         note = (f"no stopping pattern at adhesion {a_min:g} km/h/s from any start up to "
                 f"{length - cands[-1]:.0f} m before the marker: degraded minimum unknown")
     elif c != cands[0]:
@@ -577,16 +650,21 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
                 f"before the marker, not {length - cands[0]:.0f} m")
         src += "+moved"
     t_nom_c = float(res.snapshots[c].t_s[0])
-    stop_deg = pat.duration_s if pat is not None else math.nan
-    # the nominal stop over the same approach with the same stop model (the pattern), at the best
-    # adhesion of the sweep: the stop part of the bad-day loss is then the adhesion effect alone
-    p_nom = stop_pattern(line, train, track, c, float(res.snapshots[c].v_ms[0]), float(adh[-1]) * KMH_S,
-                         speed, grads)
-    stop_nom = p_nom.duration_s if p_nom.feasible else math.nan
-    if not p_nom.feasible and pat is not None:
-        note = (note + "; " if note else "") + (
-            f"no nominal stopping pattern at adhesion {float(adh[-1]):g} km/h/s from {length - c:.0f} m "
-            "before the marker: the stop part of the loss is unknown")
+    t_load_c = float(res.snapshots[c].t_s[2])
+    if a_bad is None:  # no adhesion effect: both stops with the tables' stopping brake (one stop model)
+        stop_deg = float(t_end[1]) - t_deg
+        stop_nom = float(t_end[0]) - t_nom_c
+    else:
+        stop_deg = pat.duration_s if pat is not None else math.nan
+        # the nominal stop over the same approach with the same stop model (the pattern), at the best
+        # adhesion of the sweep: the stop part of the bad-day loss is then the adhesion effect alone
+        p_nom = stop_pattern(line, train, track, c, float(res.snapshots[c].v_ms[0]), float(adh[-1]) * KMH_S,
+                             speed, grads)
+        stop_nom = p_nom.duration_s if p_nom.feasible else math.nan
+        if not p_nom.feasible and pat is not None:
+            note = (note + "; " if note else "") + (
+                f"no nominal stopping pattern at adhesion {float(adh[-1]):g} km/h/s from {length - c:.0f} m "
+                "before the marker: the stop part of the loss is unknown")
     degraded = t_deg + stop_deg
     # the adhesion effect at the nominal approach speed, every level from one start
     cn, _, v_nom, pn, sp_n, gr_n = _first_pattern(line, train, track, res, 0, cands, a_min * KMH_S)
@@ -602,6 +680,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
         passes=passed_stations(line, origin, destination), length_m=float(length), min_time_s=min_time,
         slowest_time_s=float(tables.time_a_s[-1]), energy_full_kwh=e_full, degraded_min_s=degraded,
         degraded_loss_running_s=t_deg - t_nom_c, degraded_loss_stop_s=stop_deg - stop_nom,
+        degraded_loss_load_s=t_load_c - t_nom_c, degraded_loss_traction_s=t_deg - t_load_c,
         pattern_start_s_m=float(c), pattern_start_m=float(x0 + sg * c), pattern_source=src,
         v_pattern_degraded_ms=v_deg, stop_time_degraded_s=stop_deg, stop_time_nominal_s=stop_nom,
         adhesion_min_kmh_s=a_min, adhesion_loss_s=loss, sweep_adhesion_kmh_s=adh, sweep_duration_s=sweep,
@@ -632,13 +711,17 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
                 "energy_at_ratio_kwh": float(energy_a[idx[float(r0[i])]]),
             })
     if record:
-        out.curves = _curves(track, res, c, pat, cl, float(sched[0]) if sched.size else math.nan)
+        out.curves = _curves(track, res, c, pat, cl, float(sched[0]) if sched.size else math.nan,
+                             whole=a_bad is None)
     return out
 
 
-def _curves(track, res, c: float, pat, cl, scheduled_s: float) -> dict:
-    """Run curves of one leg for the report: plain arrays (km/h, s, chainage m)."""
-    kc = track.node_index(c)
+def _curves(track, res, c: float, pat, cl, scheduled_s: float, whole: bool = False) -> dict:
+    """Run curves of one leg for the report: plain arrays (km/h, s, chainage m).
+
+    ``whole``: the degraded run to the marker (adhesion effect off), not only to the pattern start.
+    """
+    kc = len(track.chainage_m) - 1 if whole else track.node_index(c)
     out = {
         "position_m": np.asarray(track.chainage_m, float),
         "vmax_kmh": np.asarray(track.vmax_ms, float) * 3.6,
@@ -745,7 +828,7 @@ def _closed_loop_index(closed_loop_dir: Path, line_id: str, rule: MarginRule) ->
     t = t[t["mode"] == "nearest"]
     p = SCENARIOS["perturbed"]
     names = {"nominal": "nominal"}
-    if (p.load, p.traction_factor) == (rule.degraded_load, rule.degraded_traction):
+    if (p.load, p.traction_factor) == (rule.bad_load, rule.bad_traction):
         names["perturbed"] = "degraded"
     out = {}
     for r in t.itertuples(index=False):
@@ -783,6 +866,7 @@ def compute_margins(
     adhesion_kmh_s=DEFAULT_ADHESION_KMH_S,
     approach_m: float = DEFAULT_APPROACH_M,
     after_departure_m: float | None = 200.0,
+    eval_interval_m: float | None = None,
     chosen: tuple[str, str, str] | None = None,
     conflicts: bool = True,
     conflict_params=None,
@@ -815,6 +899,8 @@ def compute_margins(
         Pattern start before the stop marker where there is no TASC beacon [m].
     after_departure_m : float or None
         Evaluation point after departure for computed tables [m].
+    eval_interval_m : float or None
+        Interval of the odometer evaluation points for computed tables [m]; None: beacons only.
     chosen : (train_type, origin, destination), optional
         Leg whose run curves the report draws; default the row with the least
         remaining margin.
@@ -861,7 +947,7 @@ def compute_margins(
     cl_index = _closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
 
     kw = dict(ratios=ratios, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
-              after_departure_m=after_departure_m, settings=settings)
+              after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings)
 
     def known_errors(key) -> dict:
         return {k[4:]: v for k, v in cl_index.items() if k[:4] == key}
@@ -898,6 +984,7 @@ def compute_margins(
             "length_m": r.length_m, "min_running_time_s": r.min_time_s,
             "degraded_min_running_time_s": r.degraded_min_s, "slowest_running_time_s": r.slowest_time_s,
             "degraded_loss_running_s": r.degraded_loss_running_s, "degraded_loss_stop_s": r.degraded_loss_stop_s,
+            "degraded_loss_load_s": r.degraded_loss_load_s, "degraded_loss_traction_s": r.degraded_loss_traction_s,
             "energy_at_full_ratio_kwh": r.energy_full_kwh, "pattern_start_m": r.pattern_start_m,
             "pattern_start_source": r.pattern_source,
             "pattern_start_speed_degraded_kmh": r.v_pattern_degraded_ms * 3.6,
@@ -927,6 +1014,9 @@ def compute_margins(
                           rows["slowest_running_time_s"].to_numpy(float), rows["length_m"].to_numpy(float), rule)
     for k, v in cols.items():
         rows[k] = v
+    why = np.where(~np.isfinite(rows["min_running_time_s"].to_numpy(float)), "minimum running time unknown",
+                   np.where(rows["note"].astype(str) != "", rows["note"].astype(str), "degraded minimum unknown"))
+    rows["unassessed_reason"] = np.where(rows["unassessed"].to_numpy(bool), why, "")
     rows["energy_saved_kwh"] = rows["energy_at_full_ratio_kwh"] - rows["energy_at_ratio_kwh"]
     rows["energy_saved_percent"] = 100.0 * rows["energy_saved_kwh"] / rows["energy_at_full_ratio_kwh"]
     rows = rows[["line", "direction", "train_type"] + [f.name for f in MARGINS_SCHEMA]]
@@ -1014,7 +1104,12 @@ MARGINS_SCHEMA = declare(
         ("degraded_loss_running_s", pa.float64(),
          "part of degraded - minimum due to load and traction: degraded run's time to the pattern start - nominal run's [s]"),
         ("degraded_loss_stop_s", pa.float64(),
-         "part due to the stop at the lowest adhesion: stop_time_degraded_s - stop_time_nominal_s [s]"),
+         "part due to the stop at the bad day's adhesion: stop_time_degraded_s - stop_time_nominal_s (the "
+         "adhesion effect; with adhesion off, the stopping brake from the degraded approach speed) [s]"),
+        ("degraded_loss_load_s", pa.float64(),
+         "share of degraded_loss_running_s due to the load: the bad day's load alone, nominal traction [s]"),
+        ("degraded_loss_traction_s", pa.float64(),
+         "share of degraded_loss_running_s due to weak traction, on top of the load: running - load share [s]"),
         ("supplement_required_s", pa.float64(), "supplement the rule asks for: percent of the minimum + minutes per 100 km [s]"),
         ("supplement_met", pa.bool_(), "margin >= required supplement"),
         ("supplement_shortfall_s", pa.float64(), "required supplement - margin, at least 0 [s]"),
@@ -1029,16 +1124,24 @@ MARGINS_SCHEMA = declare(
         ("slowest_running_time_s", pa.float64(), "slowest table time (lowest ratio of table (a)) [s]"),
         ("pattern_start_m", pa.float64(), "chainage where the stopping pattern starts in the degraded run [m]"),
         ("pattern_start_source", pa.string(),
-         "where that is: 'tasc' beacon, 'approach' distance, 'mid-leg'; '+moved' when the lowest adhesion needed an earlier start"),
+         "where that is: 'tasc' beacon, 'approach' distance; '+moved' when the lowest adhesion needed an earlier start"),
         ("pattern_start_speed_degraded_kmh", pa.float64(), "degraded run's speed at the pattern start [km/h]"),
         ("stop_time_degraded_s", pa.float64(), "stopping-pattern duration at the lowest adhesion from that speed [s]"),
-        ("stop_time_nominal_s", pa.float64(), "stopping pattern over the same approach from the nominal minimum run's speed, at the highest adhesion of the sweep [s]"),
-        ("adhesion_min_kmh_s", pa.float64(), "lowest adhesion level of the sweep [km/h/s]"),
+        ("stop_time_nominal_s", pa.float64(),
+         "nominal stop over the same approach with the bad day's stop model: the stopping pattern from the nominal "
+         "minimum run's speed at the highest adhesion of the sweep, or the stopping brake when the adhesion effect "
+         "is off [s]"),
+        ("adhesion_min_kmh_s", pa.float64(),
+         "adhesion of the bad day's stop: [margins] degraded_adhesion_kmh_s, else the sweep's lowest level [km/h/s]"),
         ("adhesion_loss_s", pa.float64(),
          "stopping-pattern duration at the lowest minus at the highest adhesion, nominal approach speed [s]"),
         ("infeasible", pa.bool_(), "flag: scheduled < degraded minimum"),
         ("tight", pa.bool_(), "flag: not infeasible, but remaining margin < tight_threshold_s"),
         ("unreachable", pa.bool_(), "flag: scheduled > slowest table time: the vehicle cannot stretch the run that long"),
+        ("unassessed", pa.bool_(),
+         "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; infeasible and "
+         "tight are then null (unknown), remaining_margin_s null"),
+        ("unassessed_reason", pa.string(), "why the leg could not be assessed; empty when assessed"),
         ("tables_source", pa.string(), "'dataset' (--tables) or 'computed'"),
         ("note", pa.string(), "anything unusual about the row, else empty"),
     ],
@@ -1047,20 +1150,23 @@ MARGINS_SCHEMA = declare(
 )
 
 TOTALS_COLUMNS = [
-    "scope", "train_id", "direction", "train_type", "origin", "destination", "first_departure_s", "n_trains",
+    "level", "train_id", "direction", "train_type", "origin", "destination", "first_departure_s", "n_trains",
     "n_legs", *TOTAL_SUM_COLS, "margin_percent", "min_remaining_margin_s", "bad_day_shortfall_s",
     "n_supplement_short",
-    "n_infeasible", "n_tight", "n_unreachable",
+    "n_infeasible", "n_tight", "n_unreachable", "n_unassessed",
 ]
 MARGIN_TOTALS_SCHEMA = declare(
     [
-        ("scope", pa.string(), "'train' (one train), 'type' (direction x train type), 'line' (direction, every type)"),
-        ("train_id", pa.string(), "the train (scope 'train'), else null"),
-        ("origin", pa.string(), "the train's first stop (scope 'train'), else null"),
-        ("destination", pa.string(), "the train's last stop (scope 'train'), else null"),
+        ("level", pa.string(),
+         "what the row sums: 'train' (one train's legs), 'type' (every train of a direction x train type), "
+         "'line' (every train of a direction; train_type partition 'all'). The levels repeat the same train runs, "
+         "so sum within one level only (e.g. where level = 'train')"),
+        ("train_id", pa.string(), "the train (level 'train'), else null"),
+        ("origin", pa.string(), "the train's first stop (level 'train'), else null"),
+        ("destination", pa.string(), "the train's last stop (level 'train'), else null"),
         ("first_departure_s", pa.float64(), "earliest departure of the legs summed [s after midnight]"),
         ("n_trains", pa.int32(), "trains summed"),
-        ("n_legs", pa.int32(), "train legs summed (stop to next stop)"),
+        ("n_legs", pa.int32(), "train runs of a leg summed (each train x stop to next stop once)"),
         ("min_running_time_s", pa.float64(), "sum of minimum running times [s]"),
         ("min_running_time_rounded_s", pa.float64(), "sum of the minimum running times rounded up to 10 s each [s]"),
         ("scheduled_running_time_s", pa.float64(), "sum of scheduled running times (dwells excluded) [s]"),
@@ -1075,23 +1181,34 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("min_remaining_margin_s", pa.float64(), "smallest remaining margin of any leg summed [s]"),
         ("bad_day_shortfall_s", pa.float64(),
          "sum over the legs of what each lacks on a bad day, max(0, -remaining margin): the time to add [s]"),
-        ("n_supplement_short", pa.int32(), "legs whose margin is below the required supplement"),
-        ("n_infeasible", pa.int32(), "legs flagged infeasible"),
-        ("n_tight", pa.int32(), "legs flagged tight"),
-        ("n_unreachable", pa.int32(), "legs flagged unreachable"),
+        ("n_supplement_short", pa.int32(), "train runs of a leg whose margin is below the required supplement"),
+        ("n_infeasible", pa.int32(), "train runs of a leg flagged infeasible"),
+        ("n_tight", pa.int32(), "train runs of a leg flagged tight"),
+        ("n_unreachable", pa.int32(), "train runs of a leg flagged unreachable"),
+        ("n_unassessed", pa.int32(),
+         "train runs of a leg flagged unassessed; when > 0 the degraded and remaining sums, worst margin and "
+         "shortfall are null"),
     ],
     name="margin_totals",
-    description="Margin totals per train, per direction x train type and per direction (DESIGN §6).",
+    description="Margin totals at three levels, told apart by `level`: per train, per direction x train type "
+                "and per direction (DESIGN §6). Each level counts every train run once; filter on one level "
+                "before summing.",
 )
 SCHEMAS = {"margins": MARGINS_SCHEMA, "margin_totals": MARGIN_TOTALS_SCHEMA}
 
 
 def datasets(report: MarginReport) -> dict[str, pa.Table]:
     """The ``margins`` and ``margin_totals`` rows with partition columns."""
+    import pandas as pd
+
     rows = report.rows.copy()
     rows["n_trains"] = rows["n_trains"].astype("int32")
+    unknown = rows["unassessed"].to_numpy(bool)
+    for c in ("infeasible", "tight"):  # undecidable on an unassessed leg: null, never a false "all clear"
+        rows[c] = rows[c].astype("boolean")
+        rows.loc[unknown, c] = pd.NA
     t = report.totals.copy()
-    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable"):
+    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed"):
         t[c] = t[c].astype("int32")
     return {
         "margins": pa.Table.from_pandas(rows, preserve_index=False),
@@ -1102,7 +1219,7 @@ def datasets(report: MarginReport) -> dict[str, pa.Table]:
 def write_margins(report: MarginReport, out_dir: str | Path) -> list[Path]:
     """Write the ``margins`` and ``margin_totals`` datasets under ``out_dir`` (atomic per file, deterministic)."""
     sort = {"margins": ("origin", "destination", "scheduled_running_time_s"),
-            "margin_totals": ("scope", "train_id")}
+            "margin_totals": ("level", "train_id")}
     written: list[Path] = []
     for name, table in datasets(report).items():
         written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=sort[name])

@@ -251,18 +251,12 @@ class Line:
 
     # --- look-ups -----------------------------------------------------------
     def station(self, station_id: str) -> Station:
-        for s in self.stations:
-            if s.station_id == station_id:
-                return s
-        known = ", ".join(s.station_id for s in self.stations)
-        raise UnknownNameError(f"unknown station {station_id!r} on line {self.line_id}; known: {known}")
+        """The station with this id; an exact match first, else the one match ignoring case."""
+        return _lookup(self.stations, "station_id", station_id, "station", self.line_id)
 
     def train_type(self, train_type: str) -> TrainType:
-        for t in self.train_types:
-            if t.train_type == train_type:
-                return t
-        known = ", ".join(t.train_type for t in self.train_types)
-        raise UnknownNameError(f"unknown train type {train_type!r} on line {self.line_id}; known: {known}")
+        """The train type with this id; an exact match first, else the one match ignoring case."""
+        return _lookup(self.train_types, "train_type", train_type, "train type", self.line_id)
 
     def direction_between(self, origin: str, destination: str) -> Direction:
         """``down`` if destination lies at greater chainage than origin, else ``up``."""
@@ -290,3 +284,21 @@ class Line:
     def limits_for(self, direction: str, train_type: str) -> list[SpeedLimit]:
         """Speed restrictions that apply to ``direction`` and ``train_type``."""
         return [s for s in self.speed_limits if s.applies(direction, train_type)]
+
+
+def _lookup(items, attr: str, text: str, what: str, line_id: str):
+    """Exact id, else the unique case-insensitive match; else UnknownNameError with a suggestion."""
+    import difflib
+
+    for x in items:
+        if getattr(x, attr) == text:
+            return x
+    ids = [getattr(x, attr) for x in items]
+    folded = [x for x in items if str(getattr(x, attr)).casefold() == str(text).casefold()]
+    if len(folded) == 1:
+        return folded[0]
+    close = difflib.get_close_matches(str(text).upper(), [i.upper() for i in ids], n=1, cutoff=0.5)
+    hint = ""
+    if close:
+        hint = f"; did you mean {next(i for i in ids if i.upper() == close[0])}?"
+    raise UnknownNameError(f"unknown {what} {text!r} on line {line_id}{hint} (known: {', '.join(ids)})")

@@ -965,7 +965,8 @@ class ConflictReport:
         ]
         for rule, n in sorted(s["by_rule"].items()):
             out.append(f"    {rule}: {n}")
-        out.append(f"  delay imposed: total {s['delay_total_s']:.1f} s, largest {s['delay_max_s']:.1f} s")
+        out.append(f"  delay imposed: total {s['delay_total_s']:.1f} s, largest {s['delay_max_s']:.1f} s"
+                   + ("; the largest, in time order:" if s["worst"] else ""))
         for row in s["worst"]:
             out.append(f"    {row}")
         for note in s["notes"]:
@@ -1351,10 +1352,13 @@ def _summary(trains, routes, w: Windows, conflicts) -> dict[str, Any]:
         s["by_rule"] = {k: int(v) for k, v in c["rule"].value_counts().sort_index().items()}
         s["delay_total_s"] = float(c["delay_s"].sum())
         s["delay_max_s"] = float(c["delay_s"].max())
+        # the five largest delays, listed in time order (as the conflict ids run)
         worst = c.sort_values(["delay_s", "t0"], ascending=[False, True], kind="stable").head(5)
+        worst = worst.sort_values(["t0"], kind="stable")
         s["worst"] = [
-            f"#{cid}: {r.train_a} before {r.train_b} at {r.resource} (+{r.n - 1} more) ~{_hms(r.t0)}, "
-            f"overlap {r.overlap_s:.1f} s, delay {r.delay_s:.1f} s [{r.rule}]"
+            f"#{cid}: {r.train_a} before {r.train_b} at {r.resource}"
+            + (f" and {r.n - 1} more resource{'s' if r.n > 2 else ''}" if r.n > 1 else "")
+            + f" ~{_hms(r.t0)}, overlap {r.overlap_s:.1f} s, delay {r.delay_s:.1f} s [{r.rule}]"
             for cid, r in worst.iterrows()
         ]
     return s

@@ -493,6 +493,9 @@ def make_controller(
 ) -> tuple[Callable, list[float], list[list[float]]]:
     """A simulator controller that runs the on-board choice at each evaluation point after departure.
 
+    The vehicle evaluates at a point when its odometer passes it (beacon points and odometer
+    points alike); the simulator's odometer is exact, so that is the point's running distance.
+
     Parameters
     ----------
     tables : RunningTimeTables

@@ -32,11 +32,15 @@ from typing import Any, Callable, Iterable, Sequence
 
 from . import __version__
 from .atomic import write_bytes_atomic
-from .errors import JobError
+from .datasets import stamp_run
+from .errors import JobError, PlannerError
 from .job import Job
 from .model import DIRECTIONS, Line
+from .schema import check_path_id
+from .cache import Cache
 from .publish import (
-    Cache, canonical_json, clean_stale_staging, digest, job_lock, latest_run, next_run_id, publish, staging_dir,
+    canonical_json, clean_stale_staging, digest, job_lock, latest_run, next_run_id, output_root_errors, publish,
+    staging_dir,
 )
 
 STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "publish")
@@ -60,11 +64,8 @@ def code_digest() -> str:
 
 
 def _segments_in(seg, lo: float, hi: float) -> list:
-    return [
-        (float(a), float(b), float(v))
-        for a, b, v in zip(seg.start_m, seg.end_m, seg.value)
-        if b > lo and a < hi
-    ]
+    m = (seg.end_m > lo) & (seg.start_m < hi)  # vectorised: gradient tables may have millions of rows
+    return [(float(a), float(b), float(v)) for a, b, v in zip(seg.start_m[m], seg.end_m[m], seg.value[m])]
 
 
 def interstation_inputs(line: Line, train_type: str, origin: str, destination: str) -> dict[str, Any]:
@@ -80,6 +81,7 @@ def interstation_inputs(line: Line, train_type: str, origin: str, destination: s
     tt = line.train_type(train_type)
     lo, hi = min(a, b) - tt.length_m - 1.0, max(a, b) + tt.length_m + 1.0
     return {
+        "line_id": line.line_id,  # results carry it (partition line=): a copy under another id is not a hit
         "direction": direction,
         "origin": [origin, a],
         "destination": [destination, b],
@@ -108,12 +110,12 @@ class Unit:
     args: tuple
 
 
-def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m):
+def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m, eval_interval_m=0.0):
     from .run_curve import SimSettings
     from .tables import interstation_tables
 
     return interstation_tables(line, tt, o, d, grid, after_departure_m=eval_offset_m,
-                               settings=SimSettings(ds_m=ds_m))
+                               eval_interval_m=eval_interval_m or None, settings=SimSettings(ds_m=ds_m))
 
 
 def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):
@@ -149,15 +151,18 @@ class Runner:
         self.reused: dict[str, int] = {}
 
     def run(self, step: str, units: Sequence[Unit]) -> list:
-        """Results of ``units`` in order; cached ones loaded, the rest computed in parallel."""
-        from joblib import Parallel, delayed
+        """Results of ``units`` in order; cached ones loaded, the rest computed in parallel.
 
+        Each result is cached as soon as it arrives, so a run that fails part
+        way (e.g. :class:`planner.parallel.ClusterLostError`) leaves the
+        finished units for the next run.
+        """
         from .parallel import backend
 
         results: list = [None] * len(units)
         todo = []
         for i, u in enumerate(units):
-            obj = self.cache.get("objects", u.key)
+            obj = self.cache.get(step, u.key)
             if obj is None:
                 todo.append(i)
             else:
@@ -167,15 +172,14 @@ class Runner:
         self.progress.start(step, len(units), done=len(units) - len(todo))
         if todo:
             p = self.job.parallel
-            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler) as n_jobs:
-                if n_jobs == 1 or len(todo) == 1:
+            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
+                         lost_timeout_s=p.dask_lost_timeout_s) as pool:
+                if pool.n_jobs == 1 or len(todo) == 1:
                     gen = (_call(units[i].fn, units[i].args) for i in todo)
                 else:
-                    gen = Parallel(n_jobs=n_jobs, return_as="generator")(
-                        delayed(_call)(units[i].fn, units[i].args) for i in todo
-                    )
+                    gen = pool.imap(_call, [(units[i].fn, units[i].args) for i in todo])
                 for i, res in zip(todo, gen):
-                    self.cache.put("objects", units[i].key, res)  # survives a later failure
+                    self.cache.put(step, units[i].key, res)  # survives a later failure
                     _kill_point()
                     results[i] = res
                     self.progress.advance(step)
@@ -267,78 +271,163 @@ class RunSummary:
     flags: dict[str, int] = field(default_factory=dict)
     bundles: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    release: Any = None
+    """The :class:`planner.bundle.Release` the run's bundles were issued with."""
 
 
-def signing_key_path(job: Job, notes: list[str]) -> Path:
-    """The private key to sign bundles with: job file, else $PLANNER_SIGNING_KEY, else a development key."""
+def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
+    """The private key to sign bundles with, and whether it is a development key.
+
+    The job file's ``[bundles] signing_key``, else ``$PLANNER_SIGNING_KEY``; with
+    neither, a development key under ``OUTPUT_ROOT/.dev-key`` only when the job
+    says ``allow_development_key = true`` (else a :class:`JobError`). A
+    configured key that lies in that folder is a development key too.
+    """
     from .signing import generate_keypair
 
+    dev = job.resolve(job.job.output_root) / ".dev-key"
+    p = None
     if job.bundles.signing_key:
         p = job.resolve(job.bundles.signing_key)
         if not p.is_file():
             raise JobError(f"{job.path}: [bundles] signing_key: {p} not found; "
                            "create one with `planner keys generate DIR`")
-        return p
-    env = os.environ.get("PLANNER_SIGNING_KEY")
-    if env:
-        p = Path(env)
+    elif os.environ.get("PLANNER_SIGNING_KEY"):
+        p = Path(os.environ["PLANNER_SIGNING_KEY"])
         if not p.is_file():
             raise JobError(f"PLANNER_SIGNING_KEY: {p} not found")
-        return p
-    dev = job.resolve(job.job.output_root) / ".dev-key"
+    if p is not None:
+        is_dev = p.resolve().parent == dev.resolve()
+        if is_dev and not job.bundles.allow_development_key:
+            raise JobError(f"{job.path}: [bundles] signing_key: {p} is the development key; use a production key "
+                           "(`planner keys generate DIR`) or set allow_development_key = true for test runs")
+        if is_dev:
+            notes.append(f"bundles signed with the DEVELOPMENT key {p}: marked development, refused by vehicles")
+        return p, is_dev
+    if not job.bundles.allow_development_key:
+        raise JobError(f"{job.path}: [bundles] no signing key: set signing_key to a production key "
+                       "(`planner keys generate DIR`) or PLANNER_SIGNING_KEY, or allow_development_key = true "
+                       "for test runs")
     key = dev / "signing_key.pem"
-    if not key.is_file():
+    made = not key.is_file()
+    if made:
         generate_keypair(dev)
-        notes.append(f"no signing key configured: created a DEVELOPMENT key {key} "
-                     "(bundles signed with it are for testing only; set [bundles] signing_key)")
-    else:
-        notes.append(f"bundles signed with the development key {key} (set [bundles] signing_key for production)")
-    return key
+    notes.append(f"no signing key configured: bundles signed with the {'new ' if made else ''}DEVELOPMENT key {key} "
+                 "(allow_development_key = true); they are marked development and vehicles refuse them")
+    return key, True
 
 
-def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str) -> str:
-    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id)."""
+def _renewal_due(last_manifest: dict, now_s: int) -> bool:
+    """The published bundles have used half of their validity (or the run has no release record)."""
+    from .bundle import parse_time
+
+    rel = last_manifest.get("bundles_release")
+    try:
+        built, expires = parse_time(rel["built_at"]), parse_time(rel["expires"])
+    except (TypeError, KeyError, PlannerError):
+        return True
+    return now_s >= built + (expires - built) // 2
+
+
+def _result_params(job: Job) -> dict[str, Any]:
+    """The job parameters that can change a result: all but where runs go, how many are kept, and the
+    run's date (it goes into the inputs digest on its own)."""
     params = job.parameters()
-    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root")}
-    return digest({"code": code_digest(), "params": params, "lines": [ln.source_digest for ln in lines],
-                   "key": key_id})
+    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root", "run_date")}
+    return params
 
 
-def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
-    """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure."""
+def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str, run_date: str = "") -> str:
+    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id),
+    and the run's date (stamped on every dataset row, so one run id always has one date)."""
+    return digest({"code": code_digest(), "params": _result_params(job), "lines": [ln.source_digest for ln in lines],
+                   "key": key_id, "run_date": run_date})
+
+
+def resolve_run_date(job: Job) -> str:
+    """The run's date, YYYY-MM-DD: ``[job] run_date``, else today's UTC date (read once, at the start of the run)."""
+    if job.job.run_date:
+        return job.job.run_date
+    import datetime
+
+    return datetime.datetime.now(datetime.timezone.utc).date().isoformat()
+
+
+def _distinct_line_ids(job: Job, lines) -> None:
+    """Folders may have any name, but line ids name the outputs: two lines may not share one."""
+    seen: dict[str, str] = {}
+    for p, line in zip(job.job.lines, lines):
+        if line.line_id in seen:
+            raise JobError(f"job lines {seen[line.line_id]!r} and {p!r} both hold line_id {line.line_id!r}; "
+                           f"outputs are named by line_id, so give each line its own id (line.parquet)")
+        seen[line.line_id] = p
+
+
+def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> RunSummary:
+    """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure.
+
+    ``use_cache=False`` (``planner run --no-cache``) trusts no cache entry: every
+    unit is recomputed, the fresh results replace the entries, and a new run is
+    published even when nothing changed since ``latest``.
+    """
+    root = job.resolve(job.job.output_root)
+    with output_root_errors(root):
+        return _run_job(job, root, show_progress, use_cache)
+
+
+def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunSummary:
     from .loader import load_line
 
-    root = job.resolve(job.job.output_root)
+    run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
     with job_lock(root):
         clean_stale_staging(root)
-        cache = Cache(root / ".cache")
+        cache = Cache(root / ".cache", enabled=use_cache)
         with Progress(show_progress) as prog:
             with prog.step("validate", len(job.job.lines)):
                 lines = [load_line(job.resolve(p)) for p in job.job.lines]
+                _distinct_line_ids(job, lines)
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)
+            from .bundle import Release, build_time_s
             from .signing import load_private_key, public_key_id
 
             notes: list[str] = []
-            key = load_private_key(signing_key_path(job, notes))
-            inputs = _inputs_digest(job, lines, public_key_id(key.public_key()))
+            key_path, development = signing_key_path(job, notes)
+            key = load_private_key(key_path)
+            # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or the clock now
+            release = Release.issue(build_time_s(), valid_days=job.bundles.valid_days, development=development)
+            inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
             last = latest_run(root)
-            if last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
+            if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
 
-                m = json.loads((root / last / "manifest.json").read_text())
-                if m.get("inputs_digest") == inputs:
+                try:
+                    m = json.loads((root / last / "manifest.json").read_text())
+                except ValueError:  # a damaged manifest proves nothing: run again
+                    m = {}
+                if isinstance(m, dict) and m.get("inputs_digest") == inputs \
+                        and not _renewal_due(m, release.built_at_s):
                     return RunSummary(last, root / last, True, timings=prog.timings,
                                       notes=notes + [f"nothing changed since run {last}: it stays the latest"])
+                if m.get("inputs_digest") == inputs:
+                    notes.append(f"nothing changed since run {last}, but its bundles are past half their validity: "
+                                 "re-issued")
             run_id = next_run_id(root, inputs)
             stage = staging_dir(root, run_id)
             summary = RunSummary(run_id, None, False, notes=notes)
             runner = Runner(job, cache, prog)
+            summary.release = release
             for line in lines:
                 _run_line(job, line, stage, runner, summary, key)
             summary.computed, summary.reused = runner.computed, runner.reused
-            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary)
+            if cache.rejected:  # once per run, with the count
+                summary.warnings.append(cache.rejected_note())
+            from .catalog import datasets as catalog
+
+            stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
+            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
             _kill_point()
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
@@ -365,7 +454,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # tables
     t_units = [
         Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grid))]),
-             f"{k[0]} {k[2]}->{k[3]}", _tables_unit, (line, k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m))
+             f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
+             (line, k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
         for k in tasks
     ]
     tables = runner.run("tables", t_units)
@@ -435,14 +525,16 @@ def _line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
     return runner.run(step, [Unit(step, key, step, fn, args)])[0]
 
 
-def _margins_unit(line, job_margins, types, stage, stops_levels, approach_m, ratios, eval_offset_m, ds_m, n_jobs):
+def _margins_unit(line, job_margins, types, stage, stops_levels, approach_m, ratios, eval_offset_m, ds_m, n_jobs,
+                  eval_interval_m=0.0):
     from .margins import MarginRule, compute_margins
     from .run_curve import SimSettings
 
     return compute_margins(
         line, rule=MarginRule.from_section(job_margins), train_types=types, tables_dir=stage, stops_dir=stage,
         closed_loop_dir=stage, ratios=ratios, adhesion_kmh_s=stops_levels, approach_m=approach_m,
-        after_departure_m=eval_offset_m, conflicts=False, settings=SimSettings(ds_m=ds_m), n_jobs=n_jobs,
+        after_departure_m=eval_offset_m, eval_interval_m=eval_interval_m or None, conflicts=False,
+        settings=SimSettings(ds_m=ds_m), n_jobs=n_jobs,
     )
 
 
@@ -451,11 +543,11 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     from .margins import write_margins
     from .report import write_html
 
-    key = digest(["margins", code_digest(), line.source_digest, unit_keys, job.parameters()])
+    key = digest(["margins", code_digest(), line.source_digest, unit_keys, _result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     report = _line_unit(runner, "margins", key, _margins_unit, line, job.margins, _types(job, line), stage,
                         job.stops.adhesion_kmh_s, job.stops.approach_m, list(map(float, grid)),
-                        job.tables.eval_offset_m, job.tables.ds_m, n_jobs)
+                        job.tables.eval_offset_m, job.tables.ds_m, n_jobs, job.tables.eval_interval_m)
     if conflicts is not None:
         report.conflicts, report.conflicts_note = conflicts, ""
     elif not job.conflicts.enabled:
@@ -463,8 +555,9 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
-    write_html(report, line, stage / "report" / f"{line.line_id}_margins.html")
-    for flag in ("infeasible", "tight", "unreachable"):  # legs flagged by the margin report
+    write_html(report, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
+               datasets_root=stage)
+    for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
 
@@ -476,7 +569,8 @@ def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
 
     out = stage / "bundles"
     with runner.progress.step("bundles", 2 * len(_types(job, line))):
-        infos = build_line(line, out, key, tables_dir=stage, stops_dir=stage, train_types=_types(job, line),
+        infos = build_line(line, out, key, release=summary.release, tables_dir=stage, stops_dir=stage,
+                           train_types=_types(job, line),
                            on_built=lambda info: runner.progress.advance("bundles"))
     pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
     write_bytes_atomic(out / "signing_key.pub.pem", pem)
@@ -502,7 +596,18 @@ def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: 
     return report.conflicts
 
 
-def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary) -> None:
+def _release_record(release) -> dict | None:
+    from .bundle import format_time
+
+    if release is None:
+        return None
+    return {"version": release.version, "built_at": format_time(release.built_at_s),
+            "expires": format_time(release.expires_s),
+            "key_kind": "development" if release.development else "production"}
+
+
+def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary,
+                    run_date: str = "") -> None:
     import platform
 
     import numpy
@@ -510,6 +615,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
 
     manifest = {
         "run_id": run_id,
+        "run_date": run_date,
         "job": job.job.name,
         "inputs_digest": inputs,
         "code_digest": code_digest(),
@@ -524,6 +630,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "rows": dict(sorted(summary.rows.items())),
         "flags": dict(sorted(summary.flags.items())),
         "bundles": sorted(summary.bundles),
+        "bundles_release": _release_record(summary.release),
     }
     write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
     from .catalog import readme

@@ -6,7 +6,7 @@ Layout under the output root::
       latest -> r0007-3f9a2c01d4        (symlink, swapped atomically)
       r0006-.../  r0007-.../            (complete runs; the last N are kept)
       .staging-r0008-.../               (a run being written; never read by users)
-      .cache/<kind>/<ab>/<key>.parquet  (results keyed by the digest of their inputs)
+      .cache/<kind>/<ab>/<key>.pce      (results keyed by the digest of their inputs; planner.cache)
       .lock                             (one job at a time per output root)
 
 A run is written entirely under ``.staging-<run_id>`` and renamed to
@@ -14,14 +14,18 @@ A run is written entirely under ``.staging-<run_id>`` and renamed to
 with ``os.replace`` of a fresh symlink, which is atomic on POSIX. A failing or
 killed run therefore never changes ``latest`` nor touches a published run;
 its staging folder is removed by the next run.
+
+A file-system failure (a full disk, a read-only or unwritable output root)
+ends the job with one :class:`JobError` line naming the path and the fix
+(:func:`output_root_errors`); ``latest`` is untouched.
 """
 from __future__ import annotations
 
 import fcntl
 import hashlib
 import json
+import errno
 import os
-import pickle
 import re
 import shutil
 from contextlib import contextmanager
@@ -29,7 +33,8 @@ from pathlib import Path
 from typing import Any, Iterator
 
 
-from .atomic import _fsync_dir, _fsync_file, write_bytes_atomic
+from .atomic import _fsync_dir, _fsync_file
+from .cache import Cache  # noqa: F401  (the cache lived here; planner.cache is its home now)
 from .errors import JobError
 
 RUN_RE = re.compile(r"^r(\d{4,})-([0-9a-f]{10})$")
@@ -59,42 +64,6 @@ def _default(o: Any):
 def digest(obj: Any) -> str:
     """SHA-256 hex digest of ``obj``'s canonical JSON."""
     return hashlib.sha256(canonical_json(obj)).hexdigest()
-
-
-# --- the work cache -----------------------------------------------------------
-class Cache:
-    """Results keyed by the digest of exactly the inputs they depend on.
-
-    Each entry is one pickle file (the cache is local and written only by the
-    planner), written atomically, so a killed run leaves either a complete
-    entry or none. ``hits`` and ``misses`` count look-ups, which is how tests
-    prove that an unchanged re-run recomputes nothing.
-    """
-
-    def __init__(self, root: Path):
-        self.root = Path(root)
-        self.hits = 0
-        self.misses = 0
-
-    def path(self, kind: str, key: str) -> Path:
-        return self.root / kind / key[:2] / f"{key}.pkl"
-
-    def get(self, kind: str, key: str) -> Any | None:
-        """The stored result, or None (a missing or corrupt entry is a miss, recomputed and overwritten)."""
-        p = self.path(kind, key)
-        if p.is_file():
-            try:
-                obj = pickle.loads(p.read_bytes())
-            except Exception:  # noqa: BLE001
-                obj = None
-            if obj is not None:
-                self.hits += 1
-                return obj
-        self.misses += 1
-        return None
-
-    def put(self, kind: str, key: str, obj: Any) -> None:
-        write_bytes_atomic(self.path(kind, key), pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
 
 
 # --- runs and publication -----------------------------------------------------
@@ -129,6 +98,57 @@ def next_run_id(root: Path, inputs_digest: str) -> str:
     return f"r{(max(seqs) + 1) if seqs else 1:04d}-{inputs_digest[:10]}"
 
 
+_FIXES = {
+    errno.ENOSPC: ("no space left on device", "free space there or set [job] output_root to a larger disk"),
+    errno.EDQUOT: ("disk quota exceeded", "free space there or set [job] output_root to a larger disk"),
+    errno.EROFS: ("read-only file system", "mount it read-write or set [job] output_root to a writable folder"),
+    errno.EACCES: ("permission denied", "give the planner write access or set [job] output_root elsewhere"),
+    errno.EPERM: ("operation not permitted", "give the planner write access or set [job] output_root elsewhere"),
+}
+
+
+def _errno_of(e: OSError) -> int | None:
+    if e.errno is not None:
+        return e.errno
+    text = str(e)  # pyarrow's IO errors carry the reason in the message only
+    for code, (why, _) in _FIXES.items():
+        if why.lower() in text.lower() or os.strerror(code).lower() in text.lower():
+            return code
+    return None
+
+
+@contextmanager
+def output_root_errors(root: Path) -> Iterator[None]:
+    """Turn a file-system error under ``root`` into one :class:`JobError` line naming the path and the fix.
+
+    A full disk, a read-only file system or missing permissions end the job
+    here; ``latest`` has not been touched (publication is the last step). The
+    staging folder is removed by :func:`job_lock` at once when the disk is full
+    (to give the space back), else by the next run.
+    """
+    root = Path(root)
+    try:
+        yield
+    except OSError as e:
+        code = _errno_of(e)
+        text = str(e).splitlines()[0] if str(e) else type(e).__name__
+        why, fix = _FIXES.get(code, (e.strerror or text, "check the path and the disk"))
+        where = Path(e.filename) if e.filename else root
+        last = latest_run(root)
+        kept = f"latest still points at {last}" if last else "nothing was published"
+        if not _under(where, root):  # not the output root: an input or a key file
+            raise JobError(f"{where}: {why}; check that path, then run again ({kept})") from None
+        raise JobError(f"{where}: {why} (output root {root}); {fix}, then run again ({kept})") from None
+
+
+def _under(path: Path, root: Path) -> bool:
+    try:
+        Path(os.path.abspath(path)).relative_to(os.path.abspath(root))
+        return True
+    except ValueError:
+        return False
+
+
 @contextmanager
 def job_lock(root: Path) -> Iterator[None]:
     """One job per output root at a time (an advisory lock the kernel drops if we die)."""
@@ -140,7 +160,12 @@ def job_lock(root: Path) -> Iterator[None]:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             raise JobError(f"{root}: another planner job is running on this output root; wait for it") from None
-        yield
+        try:
+            yield
+        except OSError as e:
+            if _errno_of(e) in (errno.ENOSPC, errno.EDQUOT):
+                clean_stale_staging(root)  # give the space back now (still under the lock)
+            raise
     finally:
         os.close(fd)
 

@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-FLAG_COLOURS = {"infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a", "ok": "#2e7d32"}
+FLAG_COLOURS = {"unassessed": "#37474f", "infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a",
+                "ok": "#2e7d32"}
 """Colour of a leg by its worst flag (also used in the table)."""
 MARGIN_COLOUR = "#b0c4de"
 """Bar colour of the nominal margin."""
@@ -58,9 +59,11 @@ table{border-collapse:collapse;background:#fff;font-size:12px;width:100%}
 th,td{border:1px solid #dde1e5;padding:3px 5px;text-align:right;white-space:nowrap}
 th{background:#eef1f4;position:sticky;top:0;font-weight:600;white-space:normal;vertical-align:bottom}
 td.l,th.l{text-align:left}
+tr.unassessed td{background:#e3e7ea}
 tr.infeasible td{background:#fdecea}tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}
 tr.sep td{background:#d5d9de;text-align:left;font-weight:600}
 .badge{display:inline-block;border-radius:4px;padding:0 5px;margin-right:3px;color:#fff;font-size:11px;font-weight:600}
+.b-unassessed{background:#37474f}
 .b-infeasible{background:#c62828}.b-tight{background:#ef8f00}.b-unreachable{background:#6a1b9a}
 .b-short{background:#fff;color:#8a5a00;border:1px solid #c89b3c}
 .neg{color:#c62828;font-weight:600}
@@ -96,7 +99,7 @@ def _leg(r) -> str:
 
 
 def _flag_of(r) -> str:
-    for f in ("infeasible", "unreachable", "tight"):
+    for f in ("unassessed", "infeasible", "unreachable", "tight"):
         if bool(getattr(r, f)):
             return f
     return "ok"
@@ -144,7 +147,7 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
             groups.append((f"{t}: stop to next station", plain))
         if len(passing):
             groups.append((f"{t}: legs passing stations", passing))
-    fig, axes = plt.subplots(len(groups), 1, figsize=(13.5, 2.35 * len(groups) + 1.7), sharex=True,
+    fig, axes = plt.subplots(len(groups), 1, figsize=(13.5, 2.6 * len(groups) + 1.7), sharex=True,
                              squeeze=False)
     lo = min(min(stations.values()), 0.0) / 1000.0
     hi = max(stations.values()) / 1000.0
@@ -170,14 +173,14 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
         ax.axhline(0, color="k", lw=0.8)
         ax.set_ylim(ymin, ymax)
         ax.set_ylabel("seconds")
-        ax.set_title(title, loc="left", fontsize=9.5, fontweight="bold", pad=16 if ax is axes[0, 0] else 6)
+        ax.set_title(title, loc="left", fontsize=9.5, fontweight="bold", pad=16)
         ax.grid(axis="y", alpha=0.3)
         for sid, x in stations.items():
             ax.axvline(x / 1000.0, color="0.85", lw=0.6, zorder=0)
-    ax0 = axes[0, 0]
-    top = ax0.secondary_xaxis("top")
     order = sorted(stations.items(), key=lambda kv: kv[1])
-    top.set_xticks([x / 1000.0 for _, x in order], [s for s, _ in order], fontsize=8)
+    for ax in axes[:, 0]:  # station codes above every panel, not only the first
+        top = ax.secondary_xaxis("top")
+        top.set_xticks([x / 1000.0 for _, x in order], [s for s, _ in order], fontsize=8)
     axes[-1, 0].set_xlabel("chainage [km] (stop markers of this direction)")
     axes[-1, 0].set_xlim(lo - 0.3, hi + 0.3)
     if direction == "up":
@@ -197,7 +200,7 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
     fig.suptitle(f"{direction}: {first} → {last}, running left to right", x=0.01, y=1 - 0.12 / fig.get_figheight(),
                  ha="left", va="top", fontsize=11, fontweight="bold")
     h = fig.get_figheight()  # fixed margins in inches: tight_layout costs seconds per chart
-    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 1.05 / h, bottom=0.95 / h, hspace=0.38)
+    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 1.05 / h, bottom=0.95 / h, hspace=0.62)
     return _svg(fig)
 
 
@@ -210,29 +213,31 @@ def curves_chart(report) -> str:
     row = report.rows[(report.rows.direction == k["direction"]) & (report.rows.train_type == k["train_type"])
                       & (report.rows.origin == k["origin"]) & (report.rows.destination == k["destination"])]
     row = row.iloc[0]
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(13.5, 7.4), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(15.5, 7.4), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
     km = c["position_m"] / 1000.0
     ax.step(km, c["vmax_kmh"], where="mid", color="0.55", lw=1.1, label="on-board maximum (limit − margin)")
     ax.plot(km, c["min_speed_kmh"], color="#1f5fa8", lw=1.8,
             label=f"minimum: ratio 100 %, nominal — {row.min_running_time_s:.1f} s")
     if "sched_speed_kmh" in c:
         ax.plot(km, c["sched_speed_kmh"], color="#2e7d32", lw=1.5,
-                label=f"as scheduled: on-board logic, departs at ratio {row.ratio_on_time:.0%} — "
+                label=f"as scheduled: on-board logic, departs at ratio {row.ratio_on_time:.0%}\n  "
                       f"{row.scheduled_running_time_s:.0f} s scheduled, arrives {row.arrival_error_s:+.1f} s")
     dkm = c["degraded_position_m"] / 1000.0
     ax.plot(dkm, c["degraded_speed_kmh"], color="#c62828", lw=1.5,
-            label=f"degraded: load {report.rule.degraded_load:.0%}, traction ×{report.rule.degraded_traction:g}, "
+            label=f"bad day: load {report.rule.bad_load:.0%}, traction ×{report.rule.bad_traction:g},\n  "
                   f"ratio 100 % — {row.degraded_min_running_time_s:.1f} s")
     if "pattern_position_m" in c:
         ax.plot(c["pattern_position_m"] / 1000.0, c["pattern_speed_kmh"], color="#c62828", lw=1.5, ls="--",
-                label=f"stopping pattern at adhesion {row.adhesion_min_kmh_s:g} km/h/s — {row.stop_time_degraded_s:.1f} s")
+                label=f"stopping pattern at adhesion {row.adhesion_min_kmh_s:g} km/h/s\n  — {row.stop_time_degraded_s:.1f} s")
     ps = c["pattern_start_m"] / 1000.0
     ax.axvline(ps, color="#c62828", lw=0.8, ls=":")
     ax.text(ps, 3, " pattern start", color="#c62828", fontsize=8, ha="left", va="bottom")
     ax.set_ylabel("speed [km/h]")
-    ax.set_ylim(0, float(np.nanmax(c["vmax_kmh"])) * 1.22)
+    ax.set_ylim(0, float(np.nanmax(c["vmax_kmh"])) * 1.12)
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper center", fontsize=8.2, ncol=2, frameon=True)
+    # legends beside the axes, never over the curves
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, ncol=1, frameon=False,
+              borderaxespad=0.0)
     for x, name in ((km[0], row.origin), (km[-1], row.destination)):
         ax.axvline(x, color="k", lw=1.0)
         ax.text(x, ax.get_ylim()[1] * 0.985, f" {name} ", ha="center", va="top", fontsize=9,
@@ -255,14 +260,14 @@ def curves_chart(report) -> str:
     ax2.set_ylabel("time behind the\nminimum run [s]")
     ax2.set_xlabel("chainage [km]")
     ax2.grid(alpha=0.3)
-    ax2.legend(loc="upper left", fontsize=8.2)
+    ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, frameon=False, borderaxespad=0.0)
     if k["direction"] == "up":
         ax.invert_xaxis()
     fig.suptitle(f"{k['train_type']} {k['direction']} {row.origin} → {row.destination} "
                  f"({row.length_m / 1000:.2f} km): scheduled {row.scheduled_running_time_s:.0f} s, "
                  f"remaining margin on a bad day {row.remaining_margin_s:+.1f} s",
                  x=0.01, ha="left", fontsize=11, fontweight="bold")
-    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    fig.subplots_adjust(left=0.055, right=0.71, top=0.93, bottom=0.08, hspace=0.08)
     return _svg(fig)
 
 
@@ -325,24 +330,80 @@ def adhesion_chart(report) -> tuple[str, str]:
 
 # --- tables ------------------------------------------------------------------------
 
+def flagged_summary(sched) -> str:
+    """The flagged legs on the first screen: what each lacks and where the bad day's time goes."""
+    f = sched[sched.infeasible | sched.tight | sched.unreachable]
+    if f.empty:
+        return "<p><b>No leg is flagged</b>: every timetabled leg keeps its time on a bad day.</p>"
+    f = f.sort_values(["remaining_margin_s", "direction", "train_type", "origin"], kind="stable")
+    med = float(sched.margin_percent.median())
+    out = [f"<h3>Flagged legs ({len(f)} of {len(sched)})</h3><div class='tw'><table><tr><th class='l'>flag</th>"
+           "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
+           "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop</th>"
+           "<th>remaining on a bad day [s]</th><th class='l'>why</th></tr>"]
+    for r in f.itertuples(index=False):
+        flag = _flag_of(r)
+        cost = r.degraded_min_running_time_s - r.min_running_time_s
+        if flag == "unreachable":
+            why = "scheduled longer than the slowest table ratio: the vehicle arrives early"
+        else:
+            why = (f"margin {r.margin_percent:.1f} % against a median of {med:.1f} %: the timetable grants "
+                   f"{r.margin_s:.1f} s where a bad day costs {cost:.1f} s")
+        out.append(
+            f"<tr class='{flag}'><td class='l'><span class='badge b-{flag}'>{flag}</span></td>"
+            f"<td class='l'>{_e(r.direction)}</td><td class='l'>{_e(r.train_type)}</td><td class='l'>{_leg(r)}</td>"
+            f"<td>{r.n_trains}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
+            f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
+            f"<td>{_f(cost)} = {_f(r.degraded_loss_load_s)} + {_f(r.degraded_loss_traction_s)} + "
+            f"{_f(r.degraded_loss_stop_s)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td>"
+            f"<td class='l'>{_e(why)}</td></tr>")
+    out.append("</table></div>")
+    return "\n".join(out)
+
+
+def bad_day_shares(sched, rule, adh) -> str:
+    """Each effect's share of the bad day's cost, summed over every train run of the day."""
+    if sched.empty:
+        return ""
+    w = sched.n_trains.to_numpy(float)
+    parts = [("load", "degraded_loss_load_s", rule.bad_day_load,
+              f"load {rule.degraded_load:.0%}"),
+             ("traction", "degraded_loss_traction_s", rule.bad_day_traction,
+              f"traction ×{rule.degraded_traction:g}"),
+             ("adhesion (the stop)", "degraded_loss_stop_s", rule.bad_day_adhesion,
+              f"adhesion {rule.bad_adhesion_kmh_s(adh):g} km/h/s" if rule.bad_day_adhesion else "stopping brake")]
+    vals = [float(np.nansum(sched[c].to_numpy(float) * w)) for _, c, _, _ in parts]
+    tot = sum(vals)
+    cells = []
+    for (name, _c, on, what), v in zip(parts, vals):
+        share = f"{100 * v / tot:.0f} %" if tot > 0 else "–"
+        state = what if on else "off"
+        cells.append(f"<b>{_e(name)}</b> ({_e(state)}): {v / 3600:.2f} h, {share}")
+    return ("<p class='sub'>Where a bad day's time goes, summed over every train run of the day: "
+            + " · ".join(cells) + ". Each effect is switched on or off and valued in the job file "
+            "(<code>[margins]</code> <code>bad_day_*</code>, <code>degraded_*</code>).</p>")
+
+
 ROW_HEAD = ("<tr><th class='l'>flags</th><th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th>"
             "<th>trains</th><th>km</th><th>minimum [s]</th><th>min ↑10 s</th><th>scheduled [s]</th>"
             "<th>margin [s] (%)</th><th>rule asks [s]</th><th>bad-day minimum [s]</th>"
-            "<th>remaining on a bad day [s]</th><th>bad-day loss: run + stop [s]</th><th>ratio at on-time departure</th>"
-            "<th>arrival error nominal / bad day [s]</th><th>energy saved</th></tr>")
+            "<th>remaining on a bad day [s]</th><th>bad-day loss: load + traction + stop [s]</th>"
+            "<th>ratio at on-time departure</th><th>arrival error nominal / bad day [s]</th>"
+            "<th>energy at that ratio vs 100 %</th></tr>")
 
 
 def _row_html(r) -> str:
     flag = _flag_of(r)
-    badges = "".join(f"<span class='badge b-{f}'>{f}</span>" for f in ("infeasible", "tight", "unreachable")
-                     if bool(getattr(r, f)))
+    badges = "".join(f"<span class='badge b-{f}'>{f}</span>"
+                     for f in ("unassessed", "infeasible", "tight", "unreachable") if bool(getattr(r, f)))
     if np.isfinite(r.scheduled_running_time_s) and not bool(r.supplement_met):
         badges += "<span class='badge b-short'>supplement short</span>"
     rem = r.remaining_margin_s
     rem_s = _f(rem, 1, sign=True)
     if math.isfinite(rem) and rem < 0:
         rem_s = f"<span class='neg'>{rem_s}</span>"
-    note = f" title='{_e(r.note)}'" if r.note else ""
+    tip = r.unassessed_reason if r.unassessed else r.note
+    note = f" title='{_e(tip)}'" if tip else ""
     cls = f" class='{flag}'" if flag != "ok" else ""
     return (
         f"<tr{cls}{note}><td class='l'>{badges}</td><td class='l'>{_e(r.direction)}</td>"
@@ -351,19 +412,29 @@ def _row_html(r) -> str:
         f"<td>{_f(r.min_running_time_rounded_s, 0)}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
         f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
         f"<td>{_f(r.supplement_required_s)}</td><td>{_f(r.degraded_min_running_time_s)}</td>"
-        f"<td>{rem_s}</td><td>{_f(r.degraded_loss_running_s)} + {_f(r.degraded_loss_stop_s)}</td>"
+        f"<td>{rem_s}</td><td>{_f(r.degraded_loss_load_s)} + {_f(r.degraded_loss_traction_s)} + "
+        f"{_f(r.degraded_loss_stop_s)}</td>"
         f"<td>{'–' if not math.isfinite(r.ratio_on_time) else f'{r.ratio_on_time:.0%}'}</td>"
         f"<td>{_f(r.arrival_error_s, 1, True)} / {_f(r.arrival_error_degraded_s, 1, True)}</td>"
-        f"<td>{'–' if not math.isfinite(r.energy_saved_percent) else f'{r.energy_saved_percent:.0f} %'}</td></tr>"
+        f"<td>{energy_change(r.energy_saved_percent)}</td></tr>"
     )
 
 
 def rows_table(rows) -> str:
-    """All legs, flagged ones first (least remaining margin first), then the rest in running order."""
-    flagged = rows[rows.infeasible | rows.tight | rows.unreachable].sort_values(
+    """All legs: unassessed ones first (with their reason), then flagged ones (least remaining margin first),
+    then the rest in running order."""
+    una = rows[rows.unassessed.astype(bool)]
+    assessed = rows.drop(una.index)
+    flagged = assessed[assessed.infeasible | assessed.tight | assessed.unreachable].sort_values(
         ["remaining_margin_s", "direction", "train_type"], kind="stable")
-    rest = rows.drop(flagged.index)
+    rest = assessed.drop(flagged.index)
     out = ["<div class='tw'><table>", ROW_HEAD]
+    if len(una):
+        out.append(f"<tr class='sep'><td colspan='17'>Unassessed legs ({len(una)}): no bad-day minimum could be "
+                   "computed, so infeasible and tight are unknown</td></tr>")
+        for r in una.itertuples(index=False):
+            out.append(_row_html(r))
+            out.append(f"<tr class='unassessed'><td colspan='17' class='l'>↳ {_e(r.unassessed_reason)}</td></tr>")
     out.append(f"<tr class='sep'><td colspan='17'>Flagged legs ({len(flagged)}), least remaining margin first</td></tr>")
     out += [_row_html(r) for r in flagged.itertuples(index=False)]
     out.append(f"<tr class='sep'><td colspan='17'>Other legs ({len(rest)}), in running order</td></tr>")
@@ -373,19 +444,20 @@ def rows_table(rows) -> str:
 
 
 def totals_table(totals, scopes=("line", "type")) -> str:
-    t = totals[totals.scope.isin(scopes)].copy()
-    t["o"] = t.scope.map({"line": 0, "type": 1})
+    t = totals[totals.level.isin(scopes)].copy()
+    t["o"] = t.level.map({"line": 0, "type": 1})
     t = t.sort_values(["direction", "o", "train_type"], kind="stable")
-    out = ["<div class='tw'><table><tr><th class='l'>direction</th><th class='l'>train type</th><th>trains</th><th>train legs</th>"
+    out = ["<div class='tw'><table><tr><th class='l'>direction</th><th class='l'>train type</th><th>trains</th>"
+           "<th>train runs of a leg</th>"
            "<th>sum of minimum running times [s]</th><th>sum of scheduled [s]</th><th>sum of margins [s]</th>"
            "<th>margin %</th><th>sum of bad-day remaining margins [s]</th><th>least remaining, one leg [s]</th>"
-           "<th>legs infeasible</th><th>legs tight</th><th>legs unreachable</th><th>legs short of the rule</th>"
-           "<th>energy saved [kWh]</th></tr>"]
+           "<th>train runs on an infeasible leg</th><th>… on a tight leg</th><th>… on an unreachable leg</th>"
+           "<th>… on a leg short of the rule</th><th>energy saved [kWh]</th></tr>"]
     for r in t.itertuples(index=False):
-        bold = " style='font-weight:600'" if r.scope == "line" else ""
+        bold = " style='font-weight:600'" if r.level == "line" else ""
         out.append(
             f"<tr{bold}><td class='l'>{_e(r.direction)}</td><td class='l'>"
-            f"{'all types' if r.scope == 'line' else _e(r.train_type)}</td><td>{r.n_trains}</td><td>{r.n_legs}</td>"
+            f"{'all types' if r.level == 'line' else _e(r.train_type)}</td><td>{r.n_trains}</td><td>{r.n_legs}</td>"
             f"<td>{r.min_running_time_s:.0f}</td><td>{r.scheduled_running_time_s:.0f}</td>"
             f"<td>{r.margin_s:.0f}</td><td>{r.margin_percent:.1f}</td><td>{r.remaining_margin_s:+.0f}</td>"
             f"<td>{r.min_remaining_margin_s:+.1f}</td><td>{r.n_infeasible}</td><td>{r.n_tight}</td>"
@@ -395,7 +467,7 @@ def totals_table(totals, scopes=("line", "type")) -> str:
 
 
 def train_table(totals) -> str:
-    t = totals[totals.scope == "train"].copy()
+    t = totals[totals.level == "train"].copy()
     t = t.sort_values(["n_infeasible", "min_remaining_margin_s", "train_id"], ascending=[False, True, True],
                       kind="stable")
     out = ["<div class='tw'><table><tr><th class='l'>train</th><th class='l'>dir</th><th class='l'>type</th>"
@@ -430,8 +502,8 @@ def conflicts_section(report) -> str:
     by_rule = ", ".join(f"{v} {_e(k)}" for k, v in c["rule"].value_counts().sort_index().items())
     head = (f"<p>{len(c)} conflicts between {len(c.groupby(['train_a', 'train_b']))} pairs of trains "
             f"({by_rule}); {int(c.deadlock.sum())} would deadlock. The decisions delay the waiting trains by "
-            f"{c.delay_s.sum():.0f} s in all, at most {c.delay_s.max():.1f} s. Worst first; a conflict spans "
-            f"one or more consecutive sections or switches.</p>")
+            f"{c.delay_s.sum():.0f} s in all, at most {c.delay_s.max():.1f} s. The {min(len(c), 10)} largest delays, in time order; a conflict "
+            f"spans one or more consecutive sections or switches.</p>")
 
     def table(df) -> str:
         out = ["<div class='tw'><table><tr><th>#</th><th>at</th><th class='l'>first</th><th class='l'>waits</th>"
@@ -445,15 +517,41 @@ def conflicts_section(report) -> str:
         out.append("</table></div>")
         return "\n".join(out)
 
-    worst = c.sort_values(["delay_s", "t0"], ascending=[False, True], kind="stable")
-    return ("<h2>Route conflicts</h2>" + head + table(worst.head(10))
+    worst = c.sort_values(["delay_s", "t0"], ascending=[False, True], kind="stable").head(10)
+    worst = worst.sort_values("t0", kind="stable")  # the largest delays, listed in time order
+    return ("<h2>Route conflicts</h2>" + head + table(worst)
             + (f"<details><summary>All {len(c)} conflicts in time order</summary>{table(c.sort_values('t0', kind='stable'))}"
                "</details>" if len(c) > 10 else ""))
 
 
 # --- the page -------------------------------------------------------------------------
 
-def render_html(report, markers: dict[str, dict[str, float]]) -> str:
+def line_title(name: str, line_id: str) -> str:
+    """``name (line_id)``, without repeating the id when the name already ends with it in brackets."""
+    name, line_id = str(name).strip(), str(line_id).strip()
+    if not name or name == line_id:
+        return line_id
+    if name.endswith(f"({line_id})"):
+        return name
+    return f"{name} ({line_id})"
+
+
+def energy_change(saved_percent: float) -> str:
+    """Energy at the on-time ratio against ratio 100 %, in words: ``12 % saved``, ``3 % more``, ``±0 %``.
+
+    Examples
+    --------
+    >>> energy_change(12.3), energy_change(-4.2), energy_change(-0.2), energy_change(float("nan"))
+    ('12 % saved', '4 % more', '±0 %', '–')
+    """
+    if saved_percent is None or not math.isfinite(saved_percent):
+        return "–"
+    if abs(saved_percent) < 0.5:
+        return "±0 %"
+    return f"{saved_percent:.0f} % saved" if saved_percent > 0 else f"{-saved_percent:.0f} % more"
+
+
+def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str = ".") -> str:
     """The whole report page as one HTML string (module doc for the sections).
 
     Parameters
@@ -462,50 +560,58 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
     markers : dict
         ``{direction: {station_id: stop-marker chainage [m]}}`` for the charts
         (:func:`stop_markers`).
+    datasets_href : str
+        Relative path from the page's folder to the folder holding the ``margins`` and
+        ``margin_totals`` datasets (``..`` in a published run, ``.`` for ``planner margins --out``).
     """
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
     n_inf, n_tight, n_unr = int(sched.infeasible.sum()), int(sched.tight.sum()), int(sched.unreachable.sum())
     n_short = int((~sched.supplement_met).sum())
-    trains = report.totals[report.totals.scope == "train"]
+    n_una = int(rows.unassessed.sum())
+    trains = report.totals[report.totals.level == "train"]
     rule = report.rule
     adh = report.adhesion_kmh_s
     types = ", ".join(sorted(rows.train_type.unique()))
     dirs = ", ".join(d for d in ("down", "up") if d in set(rows.direction))
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
              f"<meta name='viewport' content='width=device-width, initial-scale=1'>"
-             f"<title>Margin report — {_e(report.line_name)}</title><style>{CSS}</style></head><body><main>"]
-    parts.append(f"<h1>Running-time margins — {_e(report.line_name)} <span style='color:#777;font-weight:400'>"
-                 f"({_e(report.line_id)})</span></h1>")
+             f"<title>Margin report — {_e(line_title(report.line_name, report.line_id))}</title>"
+             f"<style>{CSS}</style></head><body><main>"]
+    parts.append(f"<h1>Running-time margins — {_e(line_title(report.line_name, report.line_id))}</h1>")
     parts.append(
         f"<p class='sub'>Directions {dirs} · train types {types} · {len(sched)} timetabled legs "
         f"(stop to next stop) run by {len(trains)} trains · "
-        f"minimum = ratio 100 %, empty, nominal traction · <b>bad day</b> = load {rule.degraded_load:.0%}, "
-        f"traction ×{rule.degraded_traction:g}, adhesion {adh[0]:g} km/h/s (lowest of the sweep "
-        f"{adh[0]:g}–{adh[-1]:g}) · supplement rule {rule.supplement_percent:g} % + "
+        f"minimum = ratio 100 %, empty, nominal traction · <b>bad day</b> = {_e(rule.describe(adh))} "
+        f"(adhesion sweep {adh[0]:g}–{adh[-1]:g} km/h/s) · supplement rule {rule.supplement_percent:g} % + "
         f"{rule.supplement_min_per_100km:g} min/100 km · tight below {rule.tight_threshold_s:g} s remaining</p>")
+    # cards count distinct legs (train type × stop → next stop × scheduled time); the totals table
+    # below counts train runs, and says so
     cards = [
-        ("bad" if n_inf else "ok", n_inf, "infeasible: scheduled below the bad-day minimum"),
-        ("warn" if n_tight else "ok", n_tight, f"tight: less than {rule.tight_threshold_s:g} s left on a bad day"),
-        ("purple" if n_unr else "ok", n_unr, "unreachable: longer than the slowest ratio"),
-        ("warn" if n_short else "ok", n_short, "margin below the supplement rule"),
-        ("info", f"{len(sched)}", "distinct legs checked (train type × stop → next stop × scheduled time)"),
+        ("bad" if n_una else "ok", n_una, "legs unassessed: no bad-day minimum could be computed (listed first)"),
+        ("bad" if n_inf else "ok", n_inf, "legs infeasible: scheduled below the bad-day minimum"),
+        ("warn" if n_tight else "ok", n_tight, f"legs tight: less than {rule.tight_threshold_s:g} s left on a bad day"),
+        ("purple" if n_unr else "ok", n_unr, "legs unreachable: longer than the slowest ratio"),
+        ("warn" if n_short else "ok", n_short, "legs with a margin below the supplement rule"),
+        ("info", f"{len(sched)}", "legs checked (train type × stop → next stop × scheduled time), "
+                                  f"run {int(sched.n_trains.sum())} times a day"),
     ]
     parts.append("<div class='cards'>" + "".join(
         f"<div class='card {c}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></div>" for c, n, l in cards)
         + "</div>")
-    # what stands out
+    # what stands out (among the legs that could be assessed)
     find = []
-    if len(sched):
+    if (~sched.unassessed.astype(bool)).any():
         w = sched.sort_values("remaining_margin_s", kind="stable").iloc[0]
         find.append(f"Least margin on a bad day: <b>{_e(w.train_type)} {_e(w.direction)} {_e(w.origin)} → "
                     f"{_e(w.destination)}</b>, scheduled {w.scheduled_running_time_s:.0f} s against a minimum of "
                     f"{w.min_running_time_s:.1f} s and a bad-day minimum of {w.degraded_min_running_time_s:.1f} s "
                     f"({w.remaining_margin_s:+.1f} s).")
         find.append(f"Median margin {sched.margin_s.median():.1f} s ({sched.margin_percent.median():.1f} %); "
-                    f"a bad day costs a median {sched.degraded_loss_running_s.median():.1f} s on the run "
-                    f"(load and traction) plus {sched.degraded_loss_stop_s.median():.1f} s in the stop "
-                    f"(low adhesion), so the median remaining margin is {sched.remaining_margin_s.median():+.1f} s.")
+                    f"a bad day costs a median {sched.degraded_loss_load_s.median():.1f} s for the load, "
+                    f"{sched.degraded_loss_traction_s.median():.1f} s for the weak traction and "
+                    f"{sched.degraded_loss_stop_s.median():.1f} s in the stop (low adhesion), so the median "
+                    f"remaining margin is {sched.remaining_margin_s.median():+.1f} s.")
         tr = trains[trains.bad_day_shortfall_s > 0]
         if len(tr):
             w = tr.sort_values(["bad_day_shortfall_s", "train_id"], ascending=[False, True], kind="stable").iloc[0]
@@ -522,14 +628,18 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
         if len(e):
             w_tr = e.energy_saved_kwh * e.n_trains
             tot = (e.energy_at_full_ratio_kwh * e.n_trains).sum()
-            find.append(f"Running at the ratio the margin allows instead of 100 % saves "
-                        f"{w_tr.sum():.0f} kWh of traction energy over the day ({100 * w_tr.sum() / tot:.1f} %).")
+            verb = "saves" if w_tr.sum() >= 0 else "costs"
+            find.append(f"Running at the ratio the margin allows instead of 100 % {verb} "
+                        f"{abs(w_tr.sum()):.0f} kWh of traction energy over the day "
+                        f"({abs(100 * w_tr.sum() / tot):.1f} %).")
         cl = sched.arrival_error_s.abs()
         find.append(f"The on-board logic (nearest ratio) arrives within {cl.max():.1f} s of the scheduled time "
                     f"on every leg under nominal conditions (median {cl.median():.1f} s); under the bad-day load "
                     f"and traction (stopping brake as planned) it is up to {sched.arrival_error_degraded_s.max():.1f} s late.")
     parts.append("<ul>" + "".join(f"<li>{x}</li>" for x in find) + "</ul>")
-    parts.append("<h3>Totals per direction and train type (every timetabled train, the whole day)</h3>")
+    parts.append(flagged_summary(sched))
+    parts.append(bad_day_shares(sched, rule, adh))
+    parts.append("<h3>Totals per direction and train type (every timetabled train run, the whole day)</h3>")
     parts.append(totals_table(report.totals))
 
     parts.append("<h2>Margin per interstation along the line</h2>")
@@ -584,19 +694,27 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
         "<li><b>Minimum</b>: table (a) at ratio 100 % — full notch to the on-board maximum, constant-speed "
         "hold, service-brake curves to lower limits and the stopping brake to the marker; empty train, nominal "
         "traction (the conditions of the running-time tables).</li>"
-        f"<li><b>Bad-day minimum</b>: the same run at load {rule.degraded_load:.0%} and traction "
-        f"×{rule.degraded_traction:g} up to the pattern start (TASC beacon, else {report.approach_m:g} m before the "
-        f"marker; moved back where the lowest adhesion needs more room), then the minimum-time jerk-limited "
-        f"stopping pattern at {adh[0]:g} km/h/s adhesion (deceleration limit min(comfort, adhesion) plus the "
-        "gradient's part, the on-board maximum as speed limit, the vehicle's jerk limit).</li>"
-        "<li><b>Flags</b>: <i>infeasible</i> — scheduled below the bad-day minimum; <i>tight</i> — not infeasible "
+        f"<li><b>Bad-day minimum</b>: the same run at load {rule.bad_load:.0%} and traction "
+        f"×{rule.bad_traction:g} up to the pattern start (TASC beacon, else {report.approach_m:g} m before the "
+        f"marker; moved back where the lowest adhesion needs more room), then "
+        + (f"the minimum-time jerk-limited stopping pattern at {rule.bad_adhesion_kmh_s(adh):g} km/h/s adhesion "
+           "(deceleration limit min(comfort, adhesion) plus the gradient's part, the on-board maximum as speed "
+           "limit, the vehicle's jerk limit)." if rule.bad_day_adhesion else
+           "the stopping brake of the running-time tables (the adhesion effect is off in the job file).")
+        + " Each effect (load, traction, adhesion) is switched and valued in the job file's <code>[margins]</code>; "
+        "its share is the load alone against the nominal run, then the traction on top of it, then the stop.</li>"
+        "<li><b>Flags</b>: <i>unassessed</i> — the bad-day minimum could not be computed (the row says why, e.g. "
+        "no stopping pattern at the lowest adhesion); its infeasible and tight are unknown (null in the dataset); "
+        "<i>infeasible</i> — scheduled below the bad-day minimum; <i>tight</i> — not infeasible "
         f"but less than {rule.tight_threshold_s:g} s left; <i>unreachable</i> — scheduled above the slowest table "
         "time (lowest ratio), so the vehicle would arrive early. <i>supplement short</i> — the margin is below the "
         "rule (not a flag).</li>"
         "<li><b>Ratio and arrival error</b>: the on-board nearest rule on table (a) with designated time = "
         "scheduled; the closed loop re-chooses at every evaluation point from table (b).</li>"
-        "<li>Datasets <code>margins</code> and <code>margin_totals</code> next to this page hold every number "
-        "with its unit in the column name.</li></ul></div>")
+        f"<li>The datasets <a href='{_e(datasets_href)}/margins/'><code>margins</code></a> and "
+        f"<a href='{_e(datasets_href)}/margin_totals/'><code>margin_totals</code></a> "
+        f"({'in this folder' if datasets_href == '.' else 'in the run folder, one level up from this page'}) "
+        "hold every number with its unit in the column name.</li></ul></div>")
     parts.append("</main></body></html>\n")
     return "\n".join(parts)
 
@@ -606,9 +724,17 @@ def stop_markers(line) -> dict[str, dict[str, float]]:
     return {d: {s.station_id: s.stop_m(d) for s in line.stations} for d in ("down", "up")}
 
 
-def write_html(report, line, path: str | Path) -> Path:
-    """Write the page to ``path`` atomically (temp file in the same folder, then rename)."""
+def write_html(report, line, path: str | Path, datasets_root: str | Path | None = None) -> Path:
+    """Write the page to ``path`` atomically (temp file in the same folder, then rename).
+
+    ``datasets_root``: the folder holding the ``margins`` datasets (default: the page's folder);
+    the page links to it by a relative path.
+    """
+    import os
+
     from .atomic import write_bytes_atomic
 
-    write_bytes_atomic(path, render_html(report, stop_markers(line)).encode("utf-8"))
-    return Path(path)
+    path = Path(path)
+    href = "." if datasets_root is None else Path(os.path.relpath(Path(datasets_root), path.parent)).as_posix()
+    write_bytes_atomic(path, render_html(report, stop_markers(line), datasets_href=href).encode("utf-8"))
+    return path

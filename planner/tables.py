@@ -5,6 +5,11 @@ constant r (and the traction energy). Table (b): for every evaluation point X
 and pair (r_before, r_after), the running time from X to arrival when the train
 ran at r_before up to X and at r_after from X on.
 
+The evaluation points are those of :func:`planner.eval_points.evaluation_points`:
+the departure, the point after departure, the odometer points at the regular
+interval (``eval_interval_m``, none by default) and the flagged beacons. Each
+point after departure costs n_r² runs and n_r² rows of table (b).
+
 How it is computed (per interstation, direction and train type)
 ---------------------------------------------------------------
 1. One batch of n_r runs at constant ratio from departure to arrival, with a
@@ -54,7 +59,10 @@ import pyarrow as pa
 
 from .datasets import declare, write_partitioned
 from .errors import InfeasibleError
-from .eval_points import DEFAULT_AFTER_DEPARTURE_M, EvalPoint, evaluation_points, interstation_length_m
+from .eval_points import (
+    DEFAULT_AFTER_DEPARTURE_M, DEFAULT_INTERVAL_M, EvalPoint, check_interval, evaluation_points,
+    interstation_length_m,
+)
 from .model import DIRECTIONS, Line
 from .onboard import ApproachTable, RunningTimeTables
 from .ratios import ratio_grid
@@ -63,9 +71,12 @@ EVAL_POINTS_SCHEMA = declare(
     [
         ("origin", pa.string(), "departure station id of the interstation"),
         ("destination", pa.string(), "arrival station id of the interstation"),
-        ("eval_point_id", pa.string(), "'dep', 'dep+<m>' (point after departure) or the beacon_id"),
+        ("eval_point_id", pa.string(), "'dep', 'dep+<m>' (odometer point <m> metres after departure) "
+                                       "or the beacon_id"),
         ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
         ("eval_distance_m", pa.float64(), "running distance from the departure stop marker [m]"),
+        ("eval_point_kind", pa.string(), "'departure', 'after_departure', 'interval' (odometer point at "
+                                         "the regular interval) or 'beacon'"),
     ],
     name="eval_points",
     description="Evaluation points per interstation, in running order (DESIGN §3).",
@@ -239,6 +250,7 @@ def interstation_tables(
     ratios: Sequence[float],
     *,
     after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
+    eval_interval_m: float | None = DEFAULT_INTERVAL_M,
     settings=None,
     load: float = 0.0,
     traction_factor: float = 1.0,
@@ -255,6 +267,9 @@ def interstation_tables(
         Grid ratios, descending (see :func:`planner.ratios.ratio_grid`).
     after_departure_m : float or None
         Distance of the evaluation point after departure [m].
+    eval_interval_m : float or None
+        Interval of the odometer evaluation points after it [m]; None: beacons only
+        (:func:`planner.eval_points.evaluation_points`).
     settings : planner.run_curve.SimSettings, optional
         Integrator settings (distance step).
     load, traction_factor : float
@@ -270,7 +285,8 @@ def interstation_tables(
 
     settings = settings or SimSettings()
     direction = line.direction_between(origin, destination)
-    points = evaluation_points(line, origin, destination, after_departure_m=after_departure_m)
+    points = evaluation_points(line, origin, destination, after_departure_m=after_departure_m,
+                               interval_m=eval_interval_m)
     s_pts = [p.s_m for p in points]
     track = make_track(line, train_type, origin, destination, settings=settings, nodes_m=s_pts)
     train = line.train_type(train_type)
@@ -433,11 +449,12 @@ def table_tasks(line: Line, train_types: Sequence[str] | None = None) -> list[tu
     ]
 
 
-def _task(line: Line, train_type: str, origin: str, destination: str, ratios, after_departure_m, settings):
+def _task(line: Line, train_type: str, origin: str, destination: str, ratios, after_departure_m, settings,
+          eval_interval_m=None):
     """joblib worker: one interstation, direction, train type (module-level, picklable inputs)."""
     return interstation_tables(
         line, train_type, origin, destination, ratios,
-        after_departure_m=after_departure_m, settings=settings,
+        after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings,
     )
 
 
@@ -447,6 +464,7 @@ def build_tables(
     train_types: Sequence[str] | None = None,
     ratios: str | Sequence[float] | None = None,
     after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
+    eval_interval_m: float | None = DEFAULT_INTERVAL_M,
     n_jobs: int = -1,
     settings=None,
     progress: Callable[[int, int], None] | None = None,
@@ -462,6 +480,8 @@ def build_tables(
         Ratio grid spec or list (:func:`planner.ratios.ratio_grid`); default grid if None.
     after_departure_m : float or None
         Distance of the evaluation point after departure [m].
+    eval_interval_m : float or None
+        Interval of the odometer evaluation points [m]; None: beacons only.
     n_jobs : int
         joblib processes; -1 = all cores, 1 = in this process.
     settings : planner.run_curve.SimSettings, optional
@@ -476,6 +496,7 @@ def build_tables(
     from joblib import Parallel, delayed
 
     grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
+    eval_interval_m = check_interval(eval_interval_m)
     tasks = table_tasks(line, train_types)
     total = len(tasks)
     if progress:
@@ -483,7 +504,8 @@ def build_tables(
     # longest interstations first, so no core idles on one long task at the end; the results
     # are put back in task order, so the output does not depend on this or on n_jobs
     order = sorted(range(total), key=lambda i: -interstation_length_m(line, tasks[i][2], tasks[i][3]))
-    jobs = (delayed(_task)(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, after_departure_m, settings)
+    jobs = (delayed(_task)(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, after_departure_m, settings,
+                           eval_interval_m)
             for i in order)
     out: list[InterstationTables | None] = [None] * total
     if n_jobs == 1:
@@ -526,6 +548,7 @@ def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
             "eval_point_id": [p.eval_point_id for p in t.points],
             "eval_position_m": [p.position_m for p in t.points],
             "eval_distance_m": [p.s_m for p in t.points],
+            "eval_point_kind": [p.kind for p in t.points],
         })
         ta.append(_keys(t, n_r) | {
             "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,

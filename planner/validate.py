@@ -48,9 +48,12 @@ from .schema import (
     LIMIT_DIRECTIONS,
     MAX_GRADIENT_PERMIL,
     NODE_KINDS,
+    PATH_ID_COLUMNS,
+    PATH_ID_RULE,
     SCHEMA_VERSION,
     TABLES,
     TableSpec,
+    is_path_id,
 )
 
 MAX_PRINTED = 50
@@ -263,18 +266,31 @@ def one_of(t: TableView, column: str, allowed: tuple[str, ...]) -> Iterator[Viol
             yield t.err(i, column, f"{v!r} is not one of {', '.join(allowed)}")
 
 
+def _where(t: TableView, bad: np.ndarray) -> list[int]:
+    """Usable rows where the boolean array ``bad`` holds, in file order (vectorised: large tables)."""
+    return [int(i) for i in np.flatnonzero(t.good & bad)]
+
+
+def _num(t: TableView, column: str) -> np.ndarray:
+    return np.asarray(t[column], dtype=np.float64)
+
+
 def positive(t: TableView, *columns: str) -> Iterator[Violation]:
     for c in columns:
-        for i in t.rows():
-            if not t[c][i] > 0:
-                yield t.err(i, c, f"must be > 0, found {fmt(t[c][i])}")
+        x = _num(t, c)
+        with np.errstate(invalid="ignore"):
+            bad = ~(x > 0)
+        for i in _where(t, bad):
+            yield t.err(i, c, f"must be > 0, found {fmt(t[c][i])}")
 
 
 def non_negative(t: TableView, *columns: str) -> Iterator[Violation]:
     for c in columns:
-        for i in t.rows():
-            if t[c][i] < 0:
-                yield t.err(i, c, f"must be >= 0, found {fmt(t[c][i])}")
+        x = _num(t, c)
+        with np.errstate(invalid="ignore"):
+            bad = x < 0
+        for i in _where(t, bad):
+            yield t.err(i, c, f"must be >= 0, found {fmt(t[c][i])}")
 
 
 def inside(db: Db, t: TableView, *columns: str) -> Iterator[Violation]:
@@ -283,32 +299,47 @@ def inside(db: Db, t: TableView, *columns: str) -> Iterator[Violation]:
         return
     a, b = rng
     for c in columns:
-        for i in t.rows():
-            x = t[c][i]
-            if not a <= x <= b:
-                yield t.err(i, c, f"{fmt(x)} is outside the line's chainage range "
-                                  f"[{fmt(a)}, {fmt(b)}] (line.parquet start_m/end_m)")
+        x = _num(t, c)
+        with np.errstate(invalid="ignore"):
+            bad = ~((a <= x) & (x <= b))
+        for i in _where(t, bad):
+            yield t.err(i, c, f"{fmt(t[c][i])} is outside the line's chainage range "
+                              f"[{fmt(a)}, {fmt(b)}] (line.parquet start_m/end_m)")
 
 
 def start_before_end(t: TableView) -> Iterator[Violation]:
-    for i in t.rows():
-        if not t["start_m"][i] < t["end_m"][i]:
-            yield t.err(i, "end_m", f"end_m {fmt(t['end_m'][i])} must be greater than "
-                                    f"start_m {fmt(t['start_m'][i])}")
+    start, end = _num(t, "start_m"), _num(t, "end_m")
+    with np.errstate(invalid="ignore"):
+        bad = ~(start < end)
+    for i in _where(t, bad):
+        yield t.err(i, "end_m", f"end_m {fmt(t['end_m'][i])} must be greater than "
+                                f"start_m {fmt(t['start_m'][i])}")
 
 
 def sorted_disjoint(t: TableView) -> Iterator[Violation]:
-    """Segments sorted by start_m and not overlapping (gaps allowed)."""
-    prev = None
-    for i in t.rows():
-        if prev is not None:
-            if t["start_m"][i] < t["start_m"][prev]:
-                yield t.err(i, "start_m", f"not sorted: starts before row {prev}, which starts at "
-                                          f"{fmt(t['start_m'][prev])}; sort rows by start_m")
-            elif t["start_m"][i] < t["end_m"][prev]:
-                yield t.err(i, "start_m", f"overlaps row {prev}, which ends at {fmt(t['end_m'][prev])}")
-        if prev is None or t["end_m"][i] >= t["end_m"][prev]:
-            prev = i
+    """Segments sorted by start_m and not overlapping (gaps allowed).
+
+    Each usable row is compared with *prev*, the earlier usable row that ends
+    last (the latest such row on ties), vectorised for tables of millions of rows.
+    """
+    g = np.flatnonzero(t.good)
+    if len(g) < 2:
+        return
+    start, end = _num(t, "start_m"), _num(t, "end_m")
+    if len(g) < t.n:  # skip the rows with bad cells (all usable: no copies)
+        start, end = start[g], end[g]
+    running = np.maximum.accumulate(end)
+    pos = np.where(end == running, np.arange(len(g)), 0)  # rows that become prev (end >= every earlier end)
+    prev = np.maximum.accumulate(pos)[:-1]  # prev of rows 1..n-1, as positions in g
+    unsorted = start[1:] < start[prev]
+    overlap = ~unsorted & (start[1:] < end[prev])
+    for k in np.flatnonzero(unsorted | overlap):
+        i, j = int(g[k + 1]), int(g[prev[k]])
+        if unsorted[k]:
+            yield t.err(i, "start_m", f"not sorted: starts before row {j}, which starts at "
+                                      f"{fmt(t['start_m'][j])}; sort rows by start_m")
+        else:
+            yield t.err(i, "start_m", f"overlaps row {j}, which ends at {fmt(t['end_m'][j])}")
 
 
 # ---- line.parquet
@@ -316,14 +347,26 @@ def sorted_disjoint(t: TableView) -> Iterator[Violation]:
 def line_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["line"]
     for i in t.rows():
-        if t["line_id"][i] != db.folder_name:
-            yield t.err(i, "line_id", f"{t['line_id'][i]!r} must equal the folder name "
-                                      f"{db.folder_name!r}")
+        # the line id comes from the data, not the folder name: job files name folders
         if t["schema_version"][i] != SCHEMA_VERSION:
             yield t.err(i, "schema_version", f"is {t['schema_version'][i]}; this planner reads "
                                              f"schema version {SCHEMA_VERSION}")
     yield from start_before_end(t)
     yield from positive(t, "max_speed_kmh")
+
+
+# ---- ids that become file names or partition values: one rule (schema.PATH_ID_RE)
+@rule()
+def path_ids(db: Db) -> Iterator[Violation]:
+    for table, columns in PATH_ID_COLUMNS.items():
+        t = db.tables.get(table)
+        if t is None:
+            continue
+        for c in columns:
+            for i in t.rows():
+                v = t[c][i]
+                if v != "" and not is_path_id(v):  # "" is reported by unique()/line_rules
+                    yield t.err(i, c, f"{v!r} cannot name a file or partition; {PATH_ID_RULE}")
 
 
 # ---- stations.parquet
@@ -342,8 +385,9 @@ def station_rules(db: Db) -> Iterator[Violation]:
 
 
 @rule("stations", "line")
-def stop_markers_inside(db: Db) -> Iterator[Violation]:
-    yield from inside(db, db.tables["stations"], "stop_down_m", "stop_up_m")
+def stations_inside(db: Db) -> Iterator[Violation]:
+    """The platform centre and both stop markers lie on the line (a station beyond end_m is refused)."""
+    yield from inside(db, db.tables["stations"], "position_m", "stop_down_m", "stop_up_m")
 
 
 # ---- gradients.parquet, curves.parquet
@@ -352,10 +396,9 @@ def gradient_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["gradients"]
     yield from start_before_end(t)
     yield from sorted_disjoint(t)
-    for i in t.rows():
-        if abs(t["gradient_permil"][i]) > MAX_GRADIENT_PERMIL:
-            yield t.err(i, "gradient_permil", f"|{fmt(t['gradient_permil'][i])}| exceeds "
-                                              f"{fmt(MAX_GRADIENT_PERMIL)} ‰")
+    for i in _where(t, np.abs(_num(t, "gradient_permil")) > MAX_GRADIENT_PERMIL):
+        yield t.err(i, "gradient_permil", f"|{fmt(t['gradient_permil'][i])}| exceeds "
+                                          f"{fmt(MAX_GRADIENT_PERMIL)} ‰")
 
 
 @rule("curves")
@@ -437,6 +480,51 @@ def rolling_stock_rules(db: Db) -> Iterator[Violation]:
     for i in t.rows():
         if t["cruise"][i] == "sawtooth" and not t["coast_band_kmh"][i] > 0:
             yield t.err(i, "coast_band_kmh", "must be > 0 for cruise 'sawtooth'")
+
+
+CRAWL_KMH = 5.0
+"""Slowest approach speed the jerk rule assumes [km/h]: a stopping pattern starts at running speed, never below."""
+
+
+def min_stop_distance_m(v_ms: float, jerk_ms3: float) -> float:
+    """Shortest stop from ``v_ms`` (deceleration 0 at both ends) with jerk at most ``jerk_ms3`` [m].
+
+    With no deceleration limit the fastest stop ramps the deceleration up and
+    straight back down at ±j: v = j T²/4, so T = 2 sqrt(v/j), and the speed
+    falls symmetrically about T/2, so the distance is v T/2 = v sqrt(v/j). Any
+    deceleration limit only lengthens it, so this is a lower bound.
+    """
+    return v_ms * math.sqrt(v_ms / jerk_ms3)
+
+
+@rule("rolling_stock", "line")
+def jerk_allows_a_stop(db: Db) -> Iterator[Violation]:
+    """Refuse a jerk limit with which no stopping pattern can exist on this line (issue 21).
+
+    Rule: the shortest jerk-limited stop from CRAWL_KMH (5 km/h),
+    v·sqrt(v/j), must fit in the whole line (end_m − start_m). Every stop
+    approach is shorter than the line and starts faster than 5 km/h, and the
+    shortest stop grows with the speed, so when the rule fails every stopping
+    pattern of the train type is impossible (e.g. 1e-9 km/h/s² needs ~98 km).
+    """
+    rng = db.line_range()
+    if rng is None:
+        return
+    length = rng[1] - rng[0]
+    t = db.tables["rolling_stock"]
+    v = CRAWL_KMH / 3.6
+    for i in t.rows():
+        j_kmh = float(t["jerk_limit_kmh_s2"][i])
+        if not j_kmh > 0:
+            continue  # refused by the positive() rule
+        need = min_stop_distance_m(v, j_kmh / 3.6)
+        if need > length:
+            j_min = 3.6 * v ** 3 / length ** 2  # solves v sqrt(v/j) = length for j, in km/h/s²
+            yield t.err(i, "jerk_limit_kmh_s2",
+                        f"{fmt(j_kmh)} km/h/s² makes every stopping pattern impossible: even from "
+                        f"{fmt(CRAWL_KMH)} km/h a stop needs {need / 1000:.3g} km, more than the whole line "
+                        f"({length / 1000:.3g} km); use at least {j_min:.2g} km/h/s² (ride comfort is "
+                        f"typically 1-5 km/h/s²)")
 
 
 def _traction_curves(t: TableView) -> dict[str, list[int]]:
@@ -681,8 +769,8 @@ def check_tables(
         if got is None:
             if spec.required:
                 out.append(Violation(spec.file, None, None,
-                                     "file is missing; every line database needs it (see SCHEMA.md), "
-                                     "even if it has no rows"))
+                                     "file is missing; every line database needs it, even if it has no rows "
+                                     "(see docs/line-database.md or `planner schema`)"))
         elif isinstance(got, Violation):
             out.append(got)
         else:

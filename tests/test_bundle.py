@@ -20,7 +20,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from planner import __version__, bundle, signing
 from planner.errors import BundleError
-from test_bundle_support import (LINE_ID, all_tables, canonical, forge, make_line, manifest_for, parquet,
+from test_bundle_support import (LINE_ID, all_tables, release, canonical, forge, make_line, manifest_for, parquet,
                                  synthetic_tables, tar_bytes)
 
 HERE = Path(__file__).parent
@@ -39,7 +39,7 @@ def line():
 
 
 def build(tables, out, priv, **kw):
-    args = dict(line_id=LINE_ID, direction="down", train_type="E10", line_digest="ab" * 32)
+    args = dict(line_id=LINE_ID, direction="down", train_type="E10", line_digest="ab" * 32, release=release())
     args.update(kw)
     return bundle.build_bundle(tables, out_dir=out, private_key=priv, **args)
 
@@ -79,7 +79,7 @@ def test_bundle_is_a_standard_tar_with_fixed_metadata(built):
         table_b = pq.read_table(io.BytesIO(tf.extractfile("table_b.parquet").read()))
     m = json.loads(manifest)
     assert manifest == json.dumps(m, sort_keys=True, separators=(",", ":")).encode()
-    assert m["schema_version"] == 1 and m["line_id"] == LINE_ID and m["direction"] == "down"
+    assert m["schema_version"] == 2 and m["line_id"] == LINE_ID and m["direction"] == "down"
     assert m["train_type"] == "E10" and m["software_version"] == __version__
     by = {e["name"]: e for e in m["files"]}
     with tarfile.open(path) as tf:
@@ -123,9 +123,9 @@ def test_rebuild_in_other_processes_gives_identical_bytes(tmp_path, keys):
     """Different interpreters and hash seeds: nothing process-dependent leaks into the bytes."""
     code = (
         "import sys; sys.path.insert(0, sys.argv[3]);"
-        "from test_bundle_support import make_line, all_tables; from planner import bundle;"
+        "import test_bundle_support; from test_bundle_support import make_line, all_tables; from planner import bundle;"
         "bundle.build_bundle(all_tables(make_line()), line_id='tl', direction='down', train_type='E10',"
-        " out_dir=sys.argv[1], private_key=sys.argv[2], line_digest='ab'*32)"
+        " out_dir=sys.argv[1], private_key=sys.argv[2], line_digest='ab'*32, release=test_bundle_support.release())"
     )
     outs = []
     for seed in ("1", "2"):
@@ -160,7 +160,7 @@ def small(tmp_path_factory, keys):
     out = tmp_path_factory.mktemp("small")
     ln = testing.line(line_id=LINE_ID, train_types=[testing.train_type("E10")])
     info = bundle.build_bundle(bundle.line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
-                               train_type="E10", out_dir=out, private_key=keys[0])
+                               train_type="E10", out_dir=out, private_key=keys[0], release=release())
     return Path(info.path)
 
 
@@ -265,14 +265,19 @@ def test_independent_writer_is_accepted(keys, tmp_path, line):
 
 
 @pytest.mark.parametrize("change, msg", [
-    (dict(schema_version=2), "schema version 2 not supported"),
+    (dict(schema_version=1), "schema version 1 not supported"),
+    (dict(schema_version=3), "schema version 3 not supported"),
     (dict(format="other"), "format"),
     (dict(direction="sideways"), "direction"),
     (dict(train_type="E6"), "column train_type holds"),
     (dict(line_id="other"), "column line holds"),
     (dict(extra_key="x"), "unknown"),
     (dict(line_digest="nothex"), "line_digest"),
-    (dict(schema_version="1"), "schema_version"),
+    (dict(schema_version="2"), "schema_version"),
+    (dict(key_kind="staging"), "key_kind"),
+    (dict(bundle_version=0), "bundle_version"),
+    (dict(built_at="2026-13-01T00:00:00Z"), "built_at"),
+    (dict(expires="2025-01-01T00:00:00Z"), "not after built_at"),
     (dict(missing=["table_a"]), "missing"),
 ])
 def test_bad_manifest_fails_even_when_signed(keys, tmp_path, line, change, msg):
@@ -453,7 +458,7 @@ def test_assemble_reads_the_partitions_that_exist(tmp_path, line):
 
 def test_build_line_builds_every_direction_and_type(tmp_path, keys, line):
     write_datasets(tmp_path / "tables", line, "down", "E10", ["eval_points", "table_a", "table_b"])
-    infos = bundle.build_line(line, tmp_path / "out", keys[0], tables_dir=tmp_path / "tables")
+    infos = bundle.build_line(line, tmp_path / "out", keys[0], release=release(), tables_dir=tmp_path / "tables")
     names = sorted(Path(i.path).name for i in infos)
     assert names == ["tl_down_E10.pdb", "tl_down_E6.pdb", "tl_up_E10.pdb", "tl_up_E6.pdb"]
     for i in infos:
@@ -480,21 +485,24 @@ def test_cli_keys_build_verify(tmp_path):
     r = run_cli("keys", "generate", tmp_path / "k")
     assert r.exit_code != 0 and "refusing to overwrite" in r.output
     r = run_cli("bundle", "build", line_dir, "--out", tmp_path / "out", "--train-type", "EMU10",
-                "--direction", "down", env={"PLANNER_SIGNING_KEY": str(priv)})
+                "--direction", "down", env={"PLANNER_SIGNING_KEY": str(priv), "SOURCE_DATE_EPOCH": "1767225600"})
     assert r.exit_code == 0, r.output
     path = tmp_path / "out" / "tiny_down_EMU10.pdb"
     assert os.listdir(tmp_path / "out") == [path.name]
-    r = run_cli("bundle", "verify", path, "--public-key", pub)
+    r = run_cli("bundle", "verify", path, "--public-key", pub, "--expect", "tiny/down/EMU10",
+                "--at", "2026-01-02T00:00:00Z")
     assert r.exit_code == 0, r.output
     assert "OK" in r.output and "tiny" in r.output and "PARTIAL" in r.output
-    r = run_cli("bundle", "verify", path, "--public-key", pub, "--require-complete")
+    assert "version 20260101000000, built 2026-01-01T00:00:00Z, expires 2026-01-31T00:00:00Z" in r.output
+    r = run_cli("bundle", "verify", path, "--public-key", pub, "--expect", "tiny/down/EMU10",
+                "--at", "2026-01-02T00:00:00Z", "--require-complete")
     assert r.exit_code != 0
-    # Same line, same key: same bytes, also through the CLI with --key.
+    # Same line, same key, same build time: same bytes, also through the CLI with --key and --built-at.
     first = path.read_bytes()
     r = run_cli("bundle", "build", line_dir, "--out", tmp_path / "out2", "--key", priv,
-                "--train-type", "EMU10", "--direction", "down")
+                "--train-type", "EMU10", "--direction", "down", "--built-at", "2026-01-01T00:00:00Z")
     assert r.exit_code == 0 and (tmp_path / "out2" / path.name).read_bytes() == first
-    info = bundle.verify_bundle(path, pub)
+    info = bundle.verify_bundle(path, pub, at="2026-01-02T00:00:00Z")
     from planner.loader import source_digest
 
     assert info.line_digest == source_digest(line_dir)
@@ -508,7 +516,7 @@ def test_cli_failures_are_one_line(tmp_path, built):
     assert r.exit_code != 0 and "signing key" in r.output
     other = tmp_path / "o"
     signing.generate_keypair(other)
-    r = run_cli("bundle", "verify", built[0], "--public-key", other / "signing_key.pub.pem")
+    r = run_cli("bundle", "verify", built[0], "--public-key", other / "signing_key.pub.pem", "--expect", "tl/down/E10")
     assert r.exit_code != 0
     lines = [x for x in r.output.splitlines() if x.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: bundle") and "signature" in lines[0]

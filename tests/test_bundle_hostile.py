@@ -11,7 +11,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from planner import bundle, testing
 from planner.errors import BundleError
-from test_bundle_support import LINE_ID, tar_bytes
+from test_bundle_support import LINE_ID, release, tar_bytes
 
 KEY = Ed25519PrivateKey.generate()
 PUB = KEY.public_key()
@@ -21,7 +21,7 @@ PUB = KEY.public_key()
 def good_members():
     ln = testing.line(line_id=LINE_ID, train_types=[testing.train_type("E10")])
     data = bundle.bundle_bytes(bundle.line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
-                               train_type="E10", private_key=KEY)
+                               train_type="E10", private_key=KEY, release=release())
     with tarfile.open(fileobj=io.BytesIO(data)) as tf:
         return {m.name: tf.extractfile(m).read() for m in tf.getmembers()}
 
@@ -148,7 +148,7 @@ def test_member_above_bound_refused_on_read_and_build(tmp_path, good_members, mo
     ln = testing.line(line_id=LINE_ID, train_types=[testing.train_type("E10")])
     with pytest.raises(BundleError, match="above the 1000-byte member bound"):
         bundle.build_bundle(bundle.line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
-                            train_type="E10", out_dir=tmp_path / "out", private_key=KEY)
+                            train_type="E10", out_dir=tmp_path / "out", private_key=KEY, release=release())
     assert not (tmp_path / "out").exists() or os.listdir(tmp_path / "out") == []
 
 

@@ -25,7 +25,7 @@ NAME = "tl_down_E10.pdb"
 CHILD = r"""
 import os, sys, time
 sys.path.insert(0, sys.argv[3])
-from test_bundle_support import make_line, all_tables
+from test_bundle_support import make_line, all_tables, release
 from planner import atomic, bundle
 tables = all_tables(make_line(), pad_rows=40000 + int(sys.argv[4]))  # variant -> different bytes
 real_write = os.write
@@ -36,7 +36,7 @@ atomic._CHUNK = 4096
 os.write = slow_write
 print("ready", flush=True)
 bundle.build_bundle(tables, line_id="tl", direction="down", train_type="E10", out_dir=sys.argv[1],
-                    private_key=sys.argv[2], line_digest="ab" * 32)
+                    private_key=sys.argv[2], line_digest="ab" * 32, release=release())
 print("done", flush=True)
 """
 

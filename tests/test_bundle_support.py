@@ -20,6 +20,15 @@ from planner import testing
 from planner.model import Beacon, Call, Train
 
 LINE_ID = "tl"
+BUILT_AT_S = 1767225600
+"""2026-01-01T00:00:00Z: a fixed build time, so builds in the tests are reproducible."""
+
+
+def release(version: int = 1, built_at_s: int = BUILT_AT_S, valid_days: float = 3650.0, development: bool = False):
+    """A Release for the tests: fixed build time, ten years valid unless said otherwise."""
+    from planner.bundle import Release
+
+    return Release(version, built_at_s, int(valid_days * 86400), development)
 
 
 def make_line():
@@ -126,9 +135,10 @@ def manifest_for(files: dict[str, bytes], rows: dict[str, int], *, key, missing=
 
     raw = key.public_key().public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
     m = {
-        "format": "planner-onboard-db", "schema_version": 1, "line_id": LINE_ID, "direction": "down",
+        "format": "planner-onboard-db", "schema_version": 2, "line_id": LINE_ID, "direction": "down",
         "train_type": "E10", "software_version": "test", "writer": "test", "line_digest": "",
-        "line_schema_version": 1, "key_id": hashlib.sha256(raw).hexdigest(),
+        "line_schema_version": 1, "key_id": hashlib.sha256(raw).hexdigest(), "key_kind": "production",
+        "bundle_version": 1, "built_at": "2026-01-01T00:00:00Z", "expires": "2099-01-01T00:00:00Z",
         "files": [{"name": n, "size": len(d), "sha256": hashlib.sha256(d).hexdigest(), "rows": rows[n]}
                   for n, d in sorted(files.items())],
         "missing": sorted(missing),

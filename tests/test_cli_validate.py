@@ -60,7 +60,8 @@ def test_violations_one_line_each_on_stderr(tmp_path):
         "curves.parquet row 0 (start_m=1200.0) column radius_m: must be > 0, found -1.0",
         "timetable.parquet row 1 (train_id=101 seq=1) column station_id: unknown station 'Z' "
         "(not in stations.parquet)",
-        f"{tmp_path / 'tiny'}: 2 problem(s); the line database is invalid",
+        f"{tmp_path / 'tiny'}: 2 problem(s); the line database is invalid"
+        " (the rules: docs/line-database.md, or `planner schema`)",
     ]
 
 
@@ -72,7 +73,8 @@ def test_many_violations_are_capped(tmp_path):
     lines = r.stderr.splitlines()
     assert len(lines) == 52  # 50 violations, "… and 20 more", the total
     assert lines[50] == "… and 20 more"
-    assert lines[51].endswith("70 problem(s); the line database is invalid")
+    assert lines[51].endswith("70 problem(s); the line database is invalid"
+                              " (the rules: docs/line-database.md, or `planner schema`)")
 
 
 def test_missing_folder_is_one_line(tmp_path):
@@ -118,9 +120,10 @@ def test_console_script_exit_codes_and_no_traceback(broken_and_valid, tmp_path):
     assert len(lines) == 3
     assert lines[0].startswith("curves.parquet: is not a readable Parquet file (")
     assert str(bad) not in lines[0]  # no absolute paths in the per-file message
-    assert lines[1] == ("beacons.parquet: file is missing; every line database needs it (see SCHEMA.md), "
-                        "even if it has no rows")
-    assert lines[2] == f"{bad}: 2 problem(s); the line database is invalid"
+    assert lines[1] == ("beacons.parquet: file is missing; every line database needs it, even if it has no rows "
+                        "(see docs/line-database.md or `planner schema`)")
+    assert lines[2] == (f"{bad}: 2 problem(s); the line database is invalid"
+                        " (the rules: docs/line-database.md, or `planner schema`)")
     gone = _run(tmp_path / "nowhere")
     assert gone.returncode == 1
     assert "Traceback" not in gone.stderr

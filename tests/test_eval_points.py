@@ -1,6 +1,9 @@
-"""Evaluation points: departure, point after departure, flagged beacons between the stop markers."""
+"""Evaluation points: departure, point after departure, odometer points at a regular interval,
+flagged beacons between the stop markers."""
 import dataclasses
+import math
 
+import numpy as np
 import pytest
 
 from planner import testing
@@ -53,3 +56,78 @@ def test_configurable_after_departure():
     assert [p.eval_point_id for p in evaluation_points(ln, "S1", "S2", after_departure_m=2300)] == ["dep"]
     with pytest.raises(InputError):
         evaluation_points(ln, "S0", "S1", after_departure_m=-5)
+
+
+# --- points at a regular interval (issue 22) --------------------------------------------------
+def _ids_s(pts):
+    return [(p.eval_point_id, p.s_m, p.kind) for p in pts]
+
+
+def test_interval_points_closed_form_down():
+    """S0 -> S1 is 2500 m from the marker at 100 m: with a = 200 m and I = 500 m the odometer points
+    are at a + k I = 700, 1200, 1700, 2200 m (2700 m is past the stop), among the beacons."""
+    pts = evaluation_points(_line(), "S0", "S1", interval_m=500)
+    assert _ids_s(pts) == [
+        ("dep", 0.0, "departure"), ("dep+200", 200.0, "after_departure"), ("dep+700", 700.0, "interval"),
+        ("B1", 800.0, "beacon"), ("dep+1200", 1200.0, "interval"), ("B2", 1600.0, "beacon"),
+        ("dep+1700", 1700.0, "interval"), ("dep+2200", 2200.0, "interval")]
+    assert [p.position_m for p in pts] == [100.0 + p.s_m for p in pts]
+
+
+def test_interval_points_closed_form_up():
+    """Running up, chainage falls: position = stop marker (2600 m) - s."""
+    pts = evaluation_points(_line(), "S1", "S0", interval_m=1000)
+    assert _ids_s(pts) == [("dep", 0.0, "departure"), ("dep+200", 200.0, "after_departure"),
+                           ("B4", 600.0, "beacon"), ("dep+1200", 1200.0, "interval"),
+                           ("dep+2200", 2200.0, "interval")]
+    assert [p.position_m for p in pts] == [2600.0, 2400.0, 2000.0, 1400.0, 400.0]
+
+
+def test_interval_without_point_after_departure_counts_from_departure():
+    pts = evaluation_points(_line(), "S1", "S2", after_departure_m=None, interval_m=1000)  # 2300 m
+    assert _ids_s(pts) == [("dep", 0.0, "departure"), ("dep+1000", 1000.0, "interval"),
+                           ("dep+2000", 2000.0, "interval")]
+
+
+def test_interval_count_and_spacing_on_long_runs():
+    """n = ceil((L - a) / I) - 1 points, every one I after the previous, none on or past the stop."""
+    ln = testing.line(length_m=20000.0, stations=[0.0, 13700.0])
+    for iv in (50.0, 200.0, 333.0, 1000.0, 6850.0):
+        pts = [p for p in evaluation_points(ln, "S0", "S1", interval_m=iv) if p.kind == "interval"]
+        s = [p.s_m for p in pts]
+        assert len(s) == math.ceil((13700.0 - 200.0) / iv) - 1, iv
+        assert s[0] == 200.0 + iv and max(s) < 13700.0
+        assert np.allclose(np.diff(s), iv)
+    # a point that would fall exactly on the arrival marker is not a point (13700 = 200 + 27 x 500)
+    pts = evaluation_points(ln, "S0", "S1", interval_m=500.0)
+    assert pts[-1].s_m == 13200.0
+
+
+def test_interval_point_on_a_beacon_is_one_point():
+    """B1 is 800 m after departure = 200 + 600: one decision there, listed once (the odometer point,
+    which comes first in the precedence departure, after departure, interval, beacon)."""
+    pts = evaluation_points(_line(), "S0", "S1", interval_m=600)
+    assert [p.eval_point_id for p in pts] == ["dep", "dep+200", "dep+800", "dep+1400", "B2", "dep+2000"]
+
+
+def test_no_interval_is_beacons_only():
+    ln = _line()
+    base = evaluation_points(ln, "S0", "S1")
+    assert evaluation_points(ln, "S0", "S1", interval_m=None) == base
+    assert evaluation_points(ln, "S0", "S1", interval_m=0) == base
+    assert all(p.kind != "interval" for p in base)
+    # an interval longer than the rest of the interstation adds nothing
+    assert evaluation_points(ln, "S0", "S1", interval_m=5000) == base
+
+
+@pytest.mark.parametrize("bad", [-500.0, 10.0, 49.9, float("nan"), float("inf")])
+def test_bad_interval_is_refused(bad):
+    with pytest.raises(InputError, match="at least 50 m"):
+        evaluation_points(_line(), "S0", "S1", interval_m=bad)
+
+
+def test_beacon_named_like_an_odometer_point_is_refused():
+    ln = _line()
+    ln = dataclasses.replace(ln, beacons=ln.beacons + (Beacon("dep+700", 1500.0, "down", "signal", "t9", True),))
+    with pytest.raises(InputError, match="beacon_id 'dep\\+700'.*rename the beacon"):
+        evaluation_points(ln, "S0", "S1", interval_m=500)

@@ -38,6 +38,8 @@ def test_minimal_job_gets_defaults_and_resolves_against_project_root(tmp_path):
          "[closed_loop] scenarios[0]: unknown key 'lod'"),
         ('[job]\nlines = "lines/x"\n', "[job] lines: expected a list"),
         ('[job\n', "not valid TOML"),
+        ('[job]\nlines = ["lines/x"]\nrun_date = "23.11.2026"\n', "[job] run_date: expected a date YYYY-MM-DD"),
+        ('[job]\nlines = ["lines/x"]\n[margins]\ndegraded_load = 2.0\n', "[margins] degraded_load: must lie between"),
     ],
 )
 def test_bad_job_names_the_key(tmp_path, text, needle):
@@ -50,3 +52,18 @@ def test_bad_job_names_the_key(tmp_path, text, needle):
 def test_missing_job_file(tmp_path):
     with pytest.raises(JobError, match="job file not found"):
         load_job(tmp_path / "none.toml")
+
+
+def test_run_date_is_part_of_the_inputs_digest(tmp_path):
+    """Same inputs, another date: another run id (the date is stamped on every row, issue 17)."""
+    import dataclasses
+
+    from planner.pipeline import _inputs_digest, resolve_run_date
+
+    job = load_job(_write(tmp_path, '[job]\nlines = ["lines/x"]\nrun_date = "2026-11-23"\n'))
+    assert resolve_run_date(job) == "2026-11-23"
+    a = _inputs_digest(job, [], "k", resolve_run_date(job))
+    assert a == _inputs_digest(job, [], "k", "2026-11-23")
+    assert a != _inputs_digest(job, [], "k", "2026-11-24")
+    today = dataclasses.replace(job, job=dataclasses.replace(job.job, run_date=""))
+    assert len(resolve_run_date(today)) == 10

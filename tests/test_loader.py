@@ -232,6 +232,13 @@ def test_package_entry_point_delegates(line_dir):
     assert planner.load_line(line_dir).line_id == "tiny"
 
 
+def test_any_folder_name_works_the_line_id_comes_from_the_data(tmp_path):
+    """The folder is named by the job file; the line is named by line.parquet (issue 16)."""
+    folder = write_line_db(tmp_path / "My Line (copy) 2026", line=default_tables("tiny")["line"])
+    line = load_line(folder)
+    assert line.line_id == "tiny" and folder.name != line.line_id
+
+
 def test_missing_folder_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="does not exist"):
         load_line(tmp_path / "nowhere")

@@ -208,7 +208,7 @@ def closed_loop_error(L, sched, x_eval=200.0):
 
 def test_totals_per_train_and_line(report):
     t = report.totals
-    tr = t[t.scope == "train"].set_index("train_id")
+    tr = t[t.level == "train"].set_index("train_id")
     assert sorted(tr.index) == ["L1", "L2", "L3", "R1"]
     m15, m30 = t_run(1500, 1), t_run(3000, 1)
     d15, d30 = t_degraded(1500), t_degraded(3000)
@@ -235,11 +235,11 @@ def test_totals_per_train_and_line(report):
     assert tr.loc["R1"].bad_day_shortfall_s == pytest.approx(d30 - 140.0, abs=TOL_S)
     assert tr.loc["L2"].bad_day_shortfall_s == pytest.approx(d15 - 82.0, abs=TOL_S)
     for d, tids in (("down", ["L1", "R1"]), ("up", ["L2", "L3"])):
-        for scope in ("type", "line"):
-            r = t[(t.scope == scope) & (t.direction == d)]
+        for level in ("type", "line"):
+            r = t[(t.level == level) & (t.direction == d)]
             assert len(r) == 1
             r = r.iloc[0]
-            assert r.train_type == ("T" if scope == "type" else "all")
+            assert r.train_type == ("T" if level == "type" else "all")
             assert r.n_trains == len(tids)
             assert r.n_legs == sum(exp[x][0] for x in tids)
             assert r.scheduled_running_time_s == sum(exp[x][3] for x in tids)
@@ -261,7 +261,7 @@ def test_timetable_edited_to_be_infeasible():
     assert r.margin_s > 0  # the nominal run makes it ...
     assert bool(r.infeasible) and not bool(r.tight)  # ... a bad day does not
     assert r.remaining_margin_s == pytest.approx(88.0 - t_degraded(1500), abs=TOL_S)
-    tot = rep.totals.set_index(["scope", "train_id"])
+    tot = rep.totals.set_index(["level", "train_id"])
     assert tot.loc[("train", "L1")].n_infeasible == 1 and tot.loc[("train", "L1")].n_tight == 0
     # the other rows are unchanged
     assert not bool(row(rep, "down", "S0", "S1").infeasible)
@@ -384,4 +384,4 @@ def test_datasets_schema_partitions_and_determinism(report, tmp_path):
     np.testing.assert_allclose(got.remaining_margin_s, exp.remaining_margin_s)
     tot = read_dataset(tmp_path / "a", "margin_totals").to_pandas()
     assert set(tot.columns) >= set(MARGIN_TOTALS_SCHEMA.names)
-    assert sorted(tot.scope.unique()) == ["line", "train", "type"]
+    assert sorted(tot.level.unique()) == ["line", "train", "type"]

@@ -38,7 +38,7 @@ def test_from_scratch(linedir, tmp_path):
     page = (out / "margins.html").read_text(encoding="utf-8")
     assert "<svg" in page and "Every leg" in page
     tot = read_dataset(out, "margin_totals").to_pandas()
-    assert set(tot[tot.scope == "train"].train_id) == {"101", "202"}
+    assert set(tot[tot.level == "train"].train_id) == {"101", "202"}
 
 
 def test_reuses_tables_and_closed_loop(linedir, tmp_path):

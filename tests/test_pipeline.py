@@ -39,6 +39,8 @@ def _job(tmp_path: Path, parallel: str = "n_jobs = 2") -> Path:
         modes = ["nearest", "adaptive"]
         horizon_s = 6.0
         step_s = 3.0
+        [bundles]
+        allow_development_key = true
         [parallel]
     """) + parallel + "\n")
     return p
@@ -68,6 +70,27 @@ def _tree_digest(folder: Path) -> dict[str, str]:
     }
 
 
+def _assert_same_but_run_id(run_a: Path, run_b: Path, skip: str = "") -> None:
+    """Two published runs hold the same files, byte for byte, except the manifest and each dataset
+    row's run_id (issue 17: every row carries its run's id); the rest of every dataset is equal."""
+    import pyarrow.parquet as pq
+
+    a, b = _tree_digest(run_a), _tree_digest(run_b)
+    a.pop("manifest.json"), b.pop("manifest.json")
+    if skip:
+        a = {k: v for k, v in a.items() if not k.startswith(skip)}
+        b = {k: v for k, v in b.items() if not k.startswith(skip)}
+    assert sorted(a) == sorted(b)
+    for k in a:
+        if not k.endswith(".parquet"):
+            assert a[k] == b[k], k
+            continue
+        ta = pq.read_table(run_a / k, partitioning=None).drop_columns(["run_id"])
+        tb = pq.read_table(run_b / k, partitioning=None).drop_columns(["run_id"])
+        assert ta.schema.equals(tb.schema, check_metadata=True), k
+        assert ta.to_pandas().equals(tb.to_pandas()), k  # NaN in the same places counts as equal
+
+
 def test_cold_run_publishes_everything_and_reads_back(project):
     s = _run(_job(project))
     out = project / "out"
@@ -90,18 +113,43 @@ def test_cold_run_publishes_everything_and_reads_back(project):
 
     text = (out / "latest" / "README.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     for code in blocks:
-        exec(code.replace("outputs/latest", str(out / "latest")), {})
+        exec(code.replace("outputs/", f"{out}/"), {})
+    # every row of every dataset carries the run's id and date (issue 17), the date from the run's start
+    import datetime
+    import json
+
+    manifest = json.loads((out / "latest" / "manifest.json").read_text())
+    assert manifest["run_date"] == datetime.datetime.now(datetime.timezone.utc).date().isoformat() or \
+        manifest["run_date"] == (datetime.datetime.now(datetime.timezone.utc).date()
+                                 - datetime.timedelta(days=1)).isoformat()  # a run across midnight
+    for name in s.rows:
+        t = ds.dataset(out / "latest" / name, format="parquet", partitioning="hive").to_table(
+            columns=["run_id", "run_date"]).to_pandas()
+        assert (t.run_id == s.run_id).all() and (t.run_date.astype(str) == manifest["run_date"]).all(), name
     from planner.bundle import verify_bundle
     from planner.signing import load_public_key
 
     pub = load_public_key(out / "latest" / "bundles" / "signing_key.pub.pem")
     for b in s.bundles:
-        assert verify_bundle(out / "latest" / "bundles" / b, pub).train_type in ("EMU10", "EMU6")
+        assert verify_bundle(out / "latest" / "bundles" / b, pub, allow_dev=True).train_type in ("EMU10", "EMU6")
+    # no key configured: a development key, said so in every signed manifest and in the run manifest
+    import json
+
+    from planner.errors import BundleError
+
+    with pytest.raises(BundleError, match="development key"):
+        verify_bundle(out / "latest" / "bundles" / s.bundles[0], pub)
+    rel = json.loads((out / "latest" / "manifest.json").read_text())["bundles_release"]
+    info = verify_bundle(out / "latest" / "bundles" / s.bundles[0], pub, allow_dev=True)
+    assert rel == {"version": info.bundle_version, "built_at": info.built_at, "expires": info.expires,
+                   "key_kind": "development"}
 
 
-def test_unchanged_rerun_computes_nothing(project):
+def test_unchanged_rerun_computes_nothing(project, monkeypatch):
+    # bundles carry their build time (issue 21): runs with the same SOURCE_DATE_EPOCH give the same bytes
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")  # 2026-01-01T00:00:00Z
     job = _job(project)
     first = _run(job)
     again = _run(job)
@@ -115,7 +163,20 @@ def test_unchanged_rerun_computes_nothing(project):
     a = _tree_digest(project / "out" / first.run_id)
     b = _tree_digest(project / "out" / third.run_id)
     a.pop("manifest.json"), b.pop("manifest.json")
-    assert a == b  # byte-identical datasets, report and bundles from cache
+    # byte-identical report and bundles from cache; datasets identical but for their run_id column
+    pq_files = [k for k in a if k.endswith(".parquet")]
+    assert {k: v for k, v in a.items() if k not in pq_files} == {k: v for k, v in b.items() if k not in pq_files}
+    assert sorted(pq_files) == sorted(k for k in b if k.endswith(".parquet"))
+    import pyarrow.parquet as pq
+
+    for k in pq_files:
+        ta = pq.read_table(project / "out" / first.run_id / k, partitioning=None)
+        tb = pq.read_table(project / "out" / third.run_id / k, partitioning=None)
+        assert set(ta.column("run_id").to_pylist()) == {first.run_id}, k
+        assert set(tb.column("run_id").to_pylist()) == {third.run_id}, k
+        ta, tb = ta.drop_columns(["run_id"]), tb.drop_columns(["run_id"])
+        assert ta.schema.equals(tb.schema, check_metadata=True), k
+        assert ta.to_pandas().equals(tb.to_pandas()), k  # NaN in the same places counts as equal
 
 
 def test_one_edited_restriction_recomputes_only_its_interstation(project):
@@ -208,10 +269,7 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     s = _run(job)
     assert latest_run(out) == s.run_id and not [p for p in out.iterdir() if p.name.startswith(".staging")]
     assert not any(s.computed.values())  # every unit came from what the killed runs cached
-    a = _tree_digest(out / s.run_id)
-    b = _tree_digest(ref / "out" / clean.run_id)
-    a.pop("manifest.json"), b.pop("manifest.json")
-    assert a == b
+    _assert_same_but_run_id(out / s.run_id, ref / "out" / clean.run_id)
 
 
 def test_dask_backend_gives_the_same_datasets(project, tmp_path_factory):
@@ -223,13 +281,8 @@ def test_dask_backend_gives_the_same_datasets(project, tmp_path_factory):
         _write_tiny(other / "lines" / "tiny")
         job = _job(other, f'backend = "dask"\nscheduler = "{cluster.scheduler_address}"')
         s = _run(job)
-    a = _tree_digest(project / "out" / local.run_id)
-    b = _tree_digest(other / "out" / s.run_id)
-    for d in (a, b):
-        d.pop("manifest.json")
-        for k in [k for k in d if k.startswith("bundles/")]:
-            d.pop(k)  # signed with each project's own development key
-    assert a == b
+    # bundles are signed with each project's own development key
+    _assert_same_but_run_id(project / "out" / local.run_id, other / "out" / s.run_id, skip="bundles/")
 
 
 def test_a_new_signing_key_at_the_same_path_is_a_change(project):
@@ -239,7 +292,7 @@ def test_a_new_signing_key_at_the_same_path_is_a_change(project):
     keys = project / "keys"
     generate_keypair(keys)
     job = _job(project)
-    job.write_text(job.read_text() + '\n[bundles]\nsigning_key = "keys/signing_key.pem"\n')
+    job.write_text(job.read_text().replace("[bundles]\n", '[bundles]\nsigning_key = "keys/signing_key.pem"\n'))
     first = _run(job)
     for f in keys.iterdir():
         f.unlink()

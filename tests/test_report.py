@@ -56,7 +56,7 @@ def test_headline_counts(report, page):
     # two infeasible legs, one tight, one unreachable in the closed-form timetable
     cards = re.findall(r"<div class='n'>(\d+)</div><div class='l'>([^<]+)</div>", page)
     got = {label.split(":")[0]: int(n) for n, label in cards}
-    assert got["infeasible"] == 2 and got["tight"] == 1 and got["unreachable"] == 1
+    assert got["legs infeasible"] == 2 and got["legs tight"] == 1 and got["legs unreachable"] == 1
 
 
 def test_flagged_rows_first(page):

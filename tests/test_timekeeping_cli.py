@@ -56,12 +56,13 @@ def test_cli_text_json_and_plot(tmp_path):
     assert abs(json.loads(r1.stdout)["arrival_error_s"]) <= 0.2
 
 
-def test_cli_warns_on_shortfall():
+def test_cli_fails_on_shortfall():
+    """An arrival that cannot be met prints the run, then one error line, and exits 1 (issue 17)."""
     _need_sample()
     r = runner.invoke(app, ["timekeeping", str(SAMPLE), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
                             "--arrival", "140", "--change", "40:60", "--json"])
-    assert r.exit_code == 0
-    assert "warning" in r.stderr and "shortfall" in r.stderr
+    assert r.exit_code == 1
+    assert r.stderr.startswith("error: scheduled arrival") and "shortfall" in r.stderr
     out = json.loads(r.stdout)
     assert not out["feasible"] and out["shortfall_s"] > 0
     assert out["arrival_error_s"] == pytest.approx(out["shortfall_s"], abs=0.2)

@@ -112,8 +112,6 @@ CASES = [
     ("empty_traction", empty("traction"), "traction.parquet", N, N, "at least 1 row"),
     # --- line.parquet
     ("line_two_rows", rows("line", keep=[0, 0]), "line.parquet", N, N, "has 2 rows"),
-    ("line_id_not_folder", cell("line", 0, "line_id", "other"), "line.parquet", 0, "line_id",
-     "must equal the folder name 'tiny'"),
     ("schema_version", cell("line", 0, "schema_version", 2), "line.parquet", 0, "schema_version",
      "schema version 1"),
     ("line_start_after_end", cell("line", 0, "end_m", 0.0), "line.parquet", 0, "end_m",

@@ -8,22 +8,47 @@ from __future__ import annotations
 import sys
 
 import typer
+import typer.core
 
 from ..errors import PlannerError
 
+class _Group(typer.core.TyperGroup):
+    """The root group: a domain error from any sub-command becomes one line on stderr and its exit code,
+    also when the app is invoked as an object (tests, embedding), not only through :func:`main`."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except PlannerError as e:
+            typer.echo(f"error: {e}", err=True)
+            raise typer.Exit(e.exit_code) from None
+
+
 app = typer.Typer(
     name="planner",
+    cls=_Group,
     help="Plan train running for a whole line: tables, stopping patterns, margins, bundles.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     pretty_exceptions_enable=False,
     # help texts name job-file sections like [margins]; rich markup would swallow them
     rich_markup_mode=None,
 )
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"planner {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the planner version and exit."),
+) -> None:
     """Plan train running for a whole line: tables, stopping patterns, margins, bundles."""
     # A callback keeps `planner validate ...` a sub-command even while it is the only one
     # (typer otherwise collapses a one-command app into that command).
@@ -39,6 +64,9 @@ from . import margins  # noqa: E402,F401
 from . import run  # noqa: E402,F401
 from . import datasets  # noqa: E402,F401
 from . import timekeeping  # noqa: E402,F401
+from . import cache  # noqa: E402,F401
+from . import schema  # noqa: E402,F401
+from . import importer  # noqa: E402,F401
 
 
 def main() -> None:

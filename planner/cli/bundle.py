@@ -27,8 +27,10 @@ def keys_generate(
 ) -> None:
     """Write a new Ed25519 key pair; never overwrites an existing key."""
     from ..signing import generate_keypair
+    from .checks import check_out_dir
 
     try:
+        check_out_dir(directory, "keys generate", "key pair")
         priv, pub = generate_keypair(directory)
     except PlannerError as e:
         raise _fail(e)
@@ -47,47 +49,87 @@ def bundle_build(
     stops: Optional[Path] = typer.Option(None, "--stops", help="Output folder of the stopping-pattern step."),
     direction: Optional[list[str]] = typer.Option(None, "--direction", help="down or up (repeatable; default both)."),
     train_type: Optional[list[str]] = typer.Option(None, "--train-type", help="Train type (repeatable; default all)."),
+    built_at: Optional[str] = typer.Option(
+        None, "--built-at", help="Build time, ISO 8601 (e.g. 2026-11-23T04:00:00Z). Default: $SOURCE_DATE_EPOCH, "
+                                 "else now. Same inputs + same build time = same bytes."),
+    bundle_version: Optional[int] = typer.Option(
+        None, "--bundle-version", min=1,
+        help="Bundle version (default: the build time as YYYYMMDDHHMMSS, which grows with every build)."),
+    valid_days: float = typer.Option(30.0, "--valid-days", help="Days after the build time the bundle expires."),
+    development_key: bool = typer.Option(
+        False, "--development-key", help="Mark the bundles as signed with a development key (not for service)."),
 ) -> None:
     """Build one signed bundle per direction x train type of a line."""
     from rich.progress import Progress
 
-    from ..bundle import build_line
+    from ..bundle import Release, build_line, parse_time
     from ..loader import load_line
 
+    from .checks import check_out_dir, train_type_codes
+
     try:
+        check_out_dir(out, "--out", "bundles")
         if key is None:
             raise PlannerError(f"no signing key: give --key FILE or set {ENV_SIGNING_KEY} to its path")
+        release = Release.issue(None if built_at is None else parse_time(built_at, "--built-at"),
+                                valid_days=valid_days, development=development_key, version=bundle_version)
         line = load_line(line_dir)
+        train_type = train_type_codes(line, train_type)
         n = len(direction or ("down", "up")) * len(train_type or line.train_types)
         with Progress(transient=True) as progress:
             task = progress.add_task("building bundles", total=n)
-            infos = build_line(line, out, key, tables_dir=tables, stops_dir=stops, directions=direction,
+            infos = build_line(line, out, key, release=release, tables_dir=tables, stops_dir=stops,
+                               directions=direction,
                                train_types=train_type, on_built=lambda _: progress.advance(task))
     except PlannerError as e:
         raise _fail(e)
     for info in infos:
         state = "complete" if info.complete else "PARTIAL, missing " + ", ".join(info.missing)
         typer.echo(f"{info.path}: {info.size_bytes} bytes, {len(info.files)} tables, {state}")
+    if infos:
+        i = infos[0]
+        typer.echo(f"version {i.bundle_version}, built {i.built_at}, expires {i.expires}, {i.key_kind} key")
+
+
+def rebuild_advice(missing) -> str:
+    """What fixes exactly these missing tables: the build option whose folder provides each."""
+    from ..bundle import TABLE_SOURCES
+
+    step = {"tables": "`planner tables LINE --out DIR`", "stops": "`planner stops LINE --out DIR`"}
+    parts = []
+    for opt, names in TABLE_SOURCES.items():
+        mine = [t for t in missing if t in names]
+        if mine:
+            parts.append(f"--{opt} DIR with a folder written by {step[opt]} that holds {', '.join(mine)}")
+    return "rebuild it with `planner bundle build` and " + "; and ".join(parts)
 
 
 @bundle_app.command("verify")
 def bundle_verify(
     bundle: Path = typer.Argument(..., help="Bundle file (.pdb)."),
-    public_key: Path = typer.Option(..., "--public-key", help="Signer's public key (PEM)."),
+    public_key: Path = typer.Option(..., "--public-key", help="Signer's public key (PEM): the one the vehicle trusts."),
+    expect: str = typer.Option(..., "--expect",
+                               help="LINE/DIRECTION/TYPE the bundle must be for, e.g. sample/down/E10."),
+    min_version: int = typer.Option(0, "--min-version", min=0,
+                                    help="Refuse a bundle version below this (the installed version: rollback)."),
+    at: Optional[str] = typer.Option(None, "--at", help="Time of the expiry check, ISO 8601 (default now)."),
+    allow_dev: bool = typer.Option(False, "--allow-dev", help="Accept a bundle signed with a development key."),
     require_complete: bool = typer.Option(False, "--require-complete",
                                           help="Also fail when expected tables are missing."),
 ) -> None:
-    """Check signature, hashes, schema and consistency; print what the bundle holds."""
+    """Check signature, key id, target, key kind, version, expiry, hashes, schema and consistency."""
     from ..bundle import verify_bundle
     from ..errors import BundleError
 
     try:
-        info = verify_bundle(bundle, public_key)
+        info = verify_bundle(bundle, public_key, expect=expect, min_version=min_version, at=at,
+                             allow_dev=allow_dev)
         if require_complete and not info.complete:
             raise BundleError(f"bundle {bundle}: incomplete, missing {', '.join(info.missing)}; "
-                              "rebuild with --tables and --stops")
+                              + rebuild_advice(info.missing))
     except PlannerError as e:
         raise _fail(e)
-    typer.echo("OK: signature, hashes, schema and consistency verified")
+    typer.echo(f"OK: {info.target} version {info.bundle_version}: signature, key id, target, freshness, hashes, "
+               "schema and consistency verified")
     for line in info.summary():
         typer.echo(line)

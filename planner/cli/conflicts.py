@@ -13,13 +13,13 @@ from . import app
 def conflicts(
     line_dir: Path = typer.Argument(..., help="Line database folder with nodes.parquet and edges.parquet."),
     out: Path = typer.Option(..., "--out", help="Output folder; writes conflicts/ and occupation/ datasets."),
-    job: Optional[Path] = typer.Option(None, "--job", help="Job file whose \\[conflicts] table gives the parameters."),
+    job: Optional[Path] = typer.Option(None, "--job", help="Job file whose [conflicts] table gives the parameters."),
     setting_s: Optional[float] = typer.Option(None, "--setting-s", help="Route setting time in s (default 10)."),
     approach_s: Optional[float] = typer.Option(None, "--approach-s", help="Sight/reaction + approach time in s (default 20)."),
     release_s: Optional[float] = typer.Option(None, "--release-s", help="Route release time in s (default 5)."),
     terminal_s: Optional[float] = typer.Option(None, "--terminal-s", help="Time a train stays at its destination, in s (default 0)."),
     curve_mode: str = typer.Option("match", "--curve-mode", help="`match`: ratio meeting the schedule; `stretch`: ratio 1.0 stretched."),
-    n_jobs: int = typer.Option(1, "--n-jobs", help="Processes for the run-curve simulations."),
+    jobs: int = typer.Option(1, "--jobs", help="Worker processes for the run-curve simulations (-1 = all cores)."),
 ) -> None:
     """Route every train, predict its occupation windows and report conflicts with priority decisions."""
     from rich.progress import Progress
@@ -28,6 +28,10 @@ def conflicts(
     from ..errors import InputError
     from ..network import BlockingParams, SimulatorCurves, check_conflicts, write_conflicts
 
+    from .checks import check_jobs, check_out_dir
+
+    check_out_dir(out, "--out", "conflict datasets")
+    check_jobs(jobs)
     table: dict = {}
     if job is not None:
         from ..job import load_job
@@ -48,9 +52,7 @@ def conflicts(
     line = load_line(line_dir)
     if line.network is None:
         raise InputError(f"{line_dir}: no track network; add nodes.parquet and edges.parquet to check conflicts")
-    if n_jobs == 0 or n_jobs < -1:
-        raise InputError(f"--n-jobs must be -1 (all cores) or ≥ 1, found {n_jobs}")
-    curves = SimulatorCurves(line, mode=curve_mode, n_jobs=n_jobs)
+    curves = SimulatorCurves(line, mode=curve_mode, n_jobs=jobs)
     with Progress(transient=True) as bar:
         sim = bar.add_task("run curves", total=None)
         pred = bar.add_task("trains", total=len(line.trains))

@@ -17,6 +17,9 @@ def datasets_cmd(
     from ..catalog import readme
     from ..atomic import write_bytes_atomic
 
+    from .checks import check_out_file
+
+    check_out_file(write, "--write", ".md", "catalogue")
     text = readme()
     if write is None:
         typer.echo(text, nl=False)

@@ -48,18 +48,21 @@ def margins(
     from ..report import write_html
     from .tables import _fail, _progress
 
+    from .checks import check_jobs, check_out_dir, station_code, train_type_code, train_type_codes
+
     try:
-        if jobs == 0 or jobs < -1:
-            raise InputError(f"--jobs must be -1 (all cores) or ≥ 1, found {jobs}")
+        check_jobs(jobs)
+        check_out_dir(out, "--out", "margin report")
         rule, sweep, approach, ratios, after, conflict_params = MarginRule(), DEFAULT_ADHESION_KMH_S, \
             DEFAULT_APPROACH_M, None, 200.0, None
+        interval = 0.0
         if job is not None:
             from ..job import load_job
 
             j = load_job(job)
             rule = MarginRule.from_section(j.margins)
             sweep, approach = j.stops.adhesion_kmh_s, j.stops.approach_m
-            ratios, after = j.tables.ratios, j.tables.eval_offset_m
+            ratios, after, interval = j.tables.ratios, j.tables.eval_offset_m, j.tables.eval_interval_m
             conflict_params = {"setting_s": j.conflicts.setting_s, "approach_s": j.conflicts.approach_s,
                                "release_s": j.conflicts.release_s}
             no_conflicts = no_conflicts or not j.conflicts.enabled
@@ -69,11 +72,17 @@ def margins(
             if p is not None and not p.is_dir():
                 raise InputError(f"{name} {p}: no such folder")
         line = load_line(line_dir)
+        train_type = train_type_codes(line, train_type)
+        chosen = _curves_leg(curves)
+        if chosen is not None:
+            chosen = (train_type_code(line, chosen[0], "--curves"), station_code(line, chosen[1], "--curves"),
+                      station_code(line, chosen[2], "--curves"))
         with _progress("margins") as update:
             report = compute_margins(
                 line, rule=rule, train_types=train_type or None, tables_dir=tables_dir, stops_dir=stops_dir,
                 closed_loop_dir=closed_loop_dir, ratios=ratios, adhesion_kmh_s=sweep, approach_m=approach,
-                after_departure_m=after or None, chosen=_curves_leg(curves), conflicts=not no_conflicts,
+                after_departure_m=after or None, eval_interval_m=interval or None, chosen=chosen,
+                conflicts=not no_conflicts,
                 conflict_params=conflict_params, n_jobs=jobs, progress=update)
         files = write_margins(report, out)
         page = write_html(report, line, out / "margins.html")
@@ -84,16 +93,23 @@ def margins(
     typer.echo(f"{line.line_id}: {len(rows)} legs x train type ({len(s)} timetabled, "
                f"{int((s.passes.map(len) > 0).sum())} passing stations); tables "
                f"{report.sources['tables_dataset']} read, {report.sources['tables_computed']} computed")
-    typer.echo(f"  flags: {int(s.infeasible.sum())} infeasible, {int(s.tight.sum())} tight, "
+    typer.echo(f"  flags: {int(s.unassessed.sum())} unassessed, {int(s.infeasible.sum())} infeasible, "
+               f"{int(s.tight.sum())} tight, "
                f"{int(s.unreachable.sum())} unreachable; {int((~s.supplement_met).sum())} below the supplement rule")
-    if len(s):
-        w = s.sort_values("remaining_margin_s", kind="stable").iloc[0]
+    if s.unassessed.any():
+        u = s[s.unassessed].iloc[0]
+        typer.echo(f"  UNASSESSED: {int(s.unassessed.sum())} leg(s) have no bad-day minimum, e.g. {u.train_type} "
+                   f"{u.direction} {u.origin}->{u.destination}: {u.unassessed_reason}")
+    a = s[~s.unassessed]
+    if len(a):
+        w = a.sort_values("remaining_margin_s", kind="stable").iloc[0]
         typer.echo(f"  least remaining margin: {w.train_type} {w.direction} {w.origin}->{w.destination} "
                    f"{w.remaining_margin_s:+.1f} s (scheduled {w.scheduled_running_time_s:.0f} s, minimum "
                    f"{w.min_running_time_s:.1f} s, bad day {w.degraded_min_running_time_s:.1f} s)")
-    for r in report.totals[report.totals.scope == "line"].itertuples(index=False):
+    for r in report.totals[report.totals.level == "line"].itertuples(index=False):
         typer.echo(f"  {r.direction}: {r.n_trains} trains, margin {r.margin_s:.0f} s ({r.margin_percent:.1f} %), "
-                   f"remaining on a bad day {r.remaining_margin_s:+.0f} s")
+                   f"remaining on a bad day {r.remaining_margin_s:+.0f} s"
+                   + (f" (unknown: {r.n_unassessed} legs unassessed)" if r.n_unassessed else ""))
     if report.conflicts is not None:
         n = report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0
         typer.echo(f"  route conflicts: {n}")

@@ -12,15 +12,20 @@ from . import app
 def run(
     job_file: Path = typer.Argument(..., help="Job file (TOML), e.g. jobs/nightly.toml."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar per step."),
+    no_cache: bool = typer.Option(False, "--no-cache",
+                                  help="Trust no cache entry: recompute every unit and publish a new run even "
+                                       "if nothing changed (fresh entries replace the old ones)."),
 ) -> None:
     """Validate, build tables, stopping patterns, closed loop, margins, bundles and conflicts; publish atomically."""
     from ..job import load_job
     from ..pipeline import run_job
 
     job = load_job(job_file)
-    s = run_job(job, show_progress=progress)
+    s = run_job(job, show_progress=progress, use_cache=not no_cache)
     for note in s.notes:
         typer.echo(f"note: {note}", err=True)
+    for warning in s.warnings:
+        typer.echo(f"warning: {warning}", err=True)
     if s.up_to_date:
         typer.echo(f"up to date: {s.run_dir} (nothing recomputed)")
         return

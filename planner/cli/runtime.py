@@ -45,12 +45,14 @@ def plot_run_curve(result, path: Path) -> None:
     ax2.set_ylim(0, result.time_s * 1.15)
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, loc="lower center", fontsize=8, ncol=4)
+    # below the axes, never over the curves
+    ax.legend(h1 + h2, l1 + l2, loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize=8, ncol=4,
+              frameon=False)
     ax.set_title(
         f"{result.line_id} {result.direction}: {result.origin} → {result.destination}, type {result.train_type}, "
         f"ratio {result.ratio:.0%}, load {result.load:.0%}, traction ×{result.traction_factor:g}\n"
         f"running time {result.time_s:.1f} s, traction energy {result.energy_kwh:.1f} kWh", fontsize=10)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.08, right=0.91, top=0.88, bottom=0.22)
     from ..atomic import save_png
 
     save_png(fig, path)
@@ -70,17 +72,20 @@ def runtime(
     ds: float = typer.Option(1.0, "--ds", help="Integration distance step in metres."),
 ) -> None:
     """Running time (and traction energy) between two stations at a target-speed ratio."""
+    from ..loader import load_line
     from ..run_curve import SimSettings, running_time
+    from .checks import check_fraction, check_out_file, station_code, train_type_code
 
     if not 0.0 < ratio <= 1.0:
         raise InputError(f"--ratio must lie in (0, 1], got {ratio}")
-    if load < 0.0:
-        raise InputError(f"--load must be ≥ 0, got {load}")
+    check_fraction(load, "--load", "0 empty … 1 full")
     if not traction > 0.0:
         raise InputError(f"--traction must be > 0, got {traction}")
-    if plot is not None and plot.suffix.lower() != ".png":
-        raise InputError(f"--plot {plot}: the chart is written as PNG; give a file name ending in .png")
-    res = running_time(line_dir, train_type, origin, destination, ratio=ratio, load=load,
+    check_out_file(plot, "--plot", ".png", "run-curve chart")
+    line = load_line(line_dir)
+    train_type = train_type_code(line, train_type)
+    origin, destination = station_code(line, origin, "--from"), station_code(line, destination, "--to")
+    res = running_time(line, train_type, origin, destination, ratio=ratio, load=load,
                        traction_factor=traction, settings=SimSettings(ds))
     if plot is not None:
         plot_run_curve(res, plot)

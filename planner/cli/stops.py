@@ -39,13 +39,19 @@ def stops(
     from ..loader import load_line
     from ..stops import InfeasibleStopWarning, adhesion_levels, plot_approach, stop_sweep, write_stops
 
+    from .checks import check_jobs, check_out_dir, station_code, train_type_codes
+
     try:
+        check_out_dir(out, "--out", "stopping-pattern datasets")
+        check_jobs(jobs)
         levels = adhesion_levels(adhesion)
         if direction is not None and direction not in ("down", "up"):
             raise InputError(f"--direction {direction!r}: use down or up")
         line = load_line(line_dir)
+        train_type = train_type_codes(line, train_type)
         plot_dir = direction or "down"
         if plot is not None:
+            plot = station_code(line, plot, "--plot")
             st = line.station(plot)
             arrivals = [b.station_id for _, b in line.interstations(plot_dir)]
             if st.station_id not in arrivals:

@@ -17,6 +17,17 @@ def _fail(e: PlannerError) -> typer.Exit:
     return typer.Exit(e.exit_code)
 
 
+BUILTIN_MODES = ("nearest", "interpolate", "adaptive", "timekeeping")
+"""The on-board modes `planner simulate --mode` knows without registration (its help lists them)."""
+
+
+def all_modes() -> list[str]:
+    """Every mode `planner simulate --mode` accepts: the built-in ones, then registered ones."""
+    from ..closed_loop import modes
+
+    return list(BUILTIN_MODES) + [m for m in modes() if m not in BUILTIN_MODES]
+
+
 @contextmanager
 def _progress(label: str) -> Iterator:
     """A rich progress bar; yields a ``(done, total)`` callback for the library functions."""
@@ -35,7 +46,8 @@ def _progress(label: str) -> Iterator:
 @app.command()
 def tables(
     line_dir: Path = typer.Argument(..., help="Line database folder."),
-    out: Path = typer.Option(..., "--out", help="Output folder; datasets eval_points/, table_a/, table_b/ go here."),
+    out: Path = typer.Option(..., "--out", help="Output folder; datasets eval_points/, table_a/, table_b/, table_c/ "
+                             "and table_d/ go here."),
     train_type: Optional[list[str]] = typer.Option(
         None, "--train-type", help="Train type (repeatable); default every type of the line."),
     ratios: Optional[str] = typer.Option(
@@ -43,17 +55,33 @@ def tables(
         "'1.0:0.7:0.1,0.7:floor:0.05' (the default) or '1,0.9,0.8'."),
     after_departure_m: float = typer.Option(
         200.0, "--after-departure", help="Distance of the evaluation point after departure [m]; 0 = none."),
+    eval_interval_m: float = typer.Option(
+        0.0, "--eval-interval", help="Odometer evaluation points at this regular interval after the point "
+        "after departure [m], in addition to the beacons; 0 = beacons only (the default)."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
 ) -> None:
-    """Compute running-time tables (a) and (b) for every interstation, direction and train type."""
+    """Compute running-time tables (a), (b), (c) and (d) for every interstation, direction and train type.
+
+    (a) running time from departure per ratio; (b) remaining time from every evaluation point;
+    (c) the same for the degraded reference train (adaptive mode); (d) remaining time by the
+    train's own state at the last evaluation point (sawtooth vehicles only).
+
+    Evaluation points: the departure, the point after departure (--after-departure), the flagged
+    beacons and, with --eval-interval, odometer points at that regular interval.
+    """
     from ..loader import load_line
     from ..tables import build_tables, write_tables
+    from .checks import check_jobs, check_out_dir, train_type_codes
 
     try:
+        check_out_dir(out, "--out", "tables")
+        check_jobs(jobs)
         line = load_line(line_dir)
+        train_type = train_type_codes(line, train_type)
         with _progress("tables") as update:
             results = build_tables(line, train_types=train_type or None, ratios=ratios,
-                                   after_departure_m=after_departure_m or None, n_jobs=jobs, progress=update)
+                                   after_departure_m=after_departure_m or None,
+                                   eval_interval_m=eval_interval_m or None, n_jobs=jobs, progress=update)
         files = write_tables(results, out)
     except PlannerError as e:
         raise _fail(e) from None
@@ -61,7 +89,9 @@ def tables(
     grid = results[0].ratios if results else []
     typer.echo(f"{line.line_id}: tables for {len(results)} interstation x direction x train type, "
                f"{len(grid)} ratios ({', '.join(f'{r:g}' for r in grid)})")
-    typer.echo(f"  evaluation points: {sum(len(r.points) for r in results)}, table (b) rows: {n_b}")
+    n_odo = sum(p.kind == "interval" for r in results for p in r.points)
+    typer.echo(f"  evaluation points: {sum(len(r.points) for r in results)} ({n_odo} at the regular interval), "
+               f"table (b) rows: {n_b}")
     for r in results[: min(3, len(results))]:
         typer.echo(f"  {r.train_type} {r.direction} {r.origin}->{r.destination}: minimum "
                    f"{r.time_a_s[0]:.1f} s, slowest {r.time_a_s[-1]:.1f} s")
@@ -77,11 +107,12 @@ def simulate(
                                        "closed_loop_summary/ (table modes)."),
     scenario: str = typer.Option("nominal", "--scenario", help="nominal (as the tables) or perturbed "
                                  "(load 1.0, traction x 0.9)."),
-    mode: str = typer.Option("nearest", "--mode", help="On-board mode: nearest (published rule), "
-                             "interpolate (fractional ratios), adaptive (interpolate + learns the "
-                             "train's deviation from the tables), timekeeping (cruise speed from the "
-                             "remaining time and distance, DESIGN §4; one interstation with arrival "
-                             "changes: `planner timekeeping`), or any registered mode."),
+    mode: str = typer.Option("nearest", "--mode", help="On-board mode, one of " + ", ".join(BUILTIN_MODES)
+                             + ": nearest (published rule), interpolate (fractional ratios), adaptive "
+                             "(interpolate + learns the train's deviation from the tables), timekeeping "
+                             "(cruise speed from the remaining time and distance, DESIGN §4; one interstation "
+                             "with arrival changes: `planner timekeeping`); modes registered with "
+                             "planner.closed_loop.register_mode are accepted too."),
     train_type: Optional[list[str]] = typer.Option(None, "--train-type", help="Train type (repeatable)."),
     extra_s: float = typer.Option(60.0, "--extra", help="Sweep designated times up to minimum + this [s]."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
@@ -91,12 +122,22 @@ def simulate(
     and stop errors."""
     from ..closed_loop import overall, run_closed_loop, write_closed_loop
     from ..loader import load_line
+    from .checks import check_jobs, check_out_dir, train_type_codes
 
+    known = all_modes()
+    if mode not in known:
+        raise _fail(PlannerError(f"--mode {mode!r} is unknown; use one of {', '.join(known)}"))
+    try:
+        check_jobs(jobs)
+        check_out_dir(out, "--out", "closed-loop datasets")
+    except PlannerError as e:
+        raise _fail(e) from None
     if tables_dir is None or out is None:
         raise _fail(PlannerError(f"--mode {mode} needs --tables DIR (from `planner tables`: the sweep starts "
                                  "at their minimum) and --out DIR"))
     try:
         line = load_line(line_dir)
+        train_type = train_type_codes(line, train_type)
         with _progress(f"simulate {scenario}/{mode}") as update:
             results = run_closed_loop(line, tables_dir, train_types=train_type or None, scenario=scenario,
                                       mode=mode, extra_s=extra_s, n_jobs=jobs, progress=update)

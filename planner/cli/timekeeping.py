@@ -12,7 +12,7 @@ from typing import Optional, Sequence
 
 import typer
 
-from ..errors import InputError, PlannerError
+from ..errors import InfeasibleError, InputError, PlannerError
 from . import app
 
 
@@ -102,9 +102,10 @@ def write_plot(result, path: Path, title: str) -> Path:
     ax.set_xlabel("distance from departure marker [m]")
     ax.set_ylabel("speed [km/h]")
     ax.set_title(title)
-    ax.legend(loc="upper right", fontsize=8, ncol=3)
+    # below the axes, never over the curves
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=8, ncol=6, frameon=False)
     ax.grid(True, alpha=0.3)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.92, bottom=0.24)
     from ..atomic import save_png
 
     return save_png(fig, path)
@@ -117,7 +118,7 @@ def simulate_timekeeping_cli(line, train_type: str, origin: str, destination: st
 
     Runs :func:`planner.timekeeping.timekeeping_run` and prints a short summary
     (or, with ``json``, the :func:`summary` as JSON on stdout). A scheduled
-    arrival that cannot be met is reported as a warning on stderr with the
+    arrival that cannot be met raises :class:`planner.errors.InfeasibleError` (after the output) with the
     shortfall. Domain errors propagate as :class:`planner.errors.PlannerError`
     (the console entry point prints them as one line).
 
@@ -155,13 +156,19 @@ def simulate_timekeeping_cli(line, train_type: str, origin: str, destination: st
     info = summary(res, line_id=ln.line_id, train_type=train_type, origin=origin, destination=destination)
     if plot is not None:
         write_plot(res, Path(plot), f"{ln.line_id} {train_type} {origin}->{destination} (time-keeping)")
-    if not res.feasible:
-        typer.echo(f"warning: scheduled arrival {res.scheduled_s:.1f} s cannot be met: earliest possible "
-                   f"{res.scheduled_s + res.shortfall_s:.1f} s, shortfall {res.shortfall_s:.2f} s "
-                   "(ran at the limit)", err=True)
+
+    def verdict():
+        # the run is printed either way (what the train did at the limit); an arrival that cannot be
+        # kept is still a failure of the request, so it ends the command non-zero
+        if not res.feasible:
+            raise InfeasibleError(
+                f"scheduled arrival {res.scheduled_s:.1f} s cannot be met: earliest possible "
+                f"{res.scheduled_s + res.shortfall_s:.1f} s, shortfall {res.shortfall_s:.2f} s (ran at the limit)")
+        return res
+
     if json:
         typer.echo(_json.dumps(info, indent=2))
-        return res
+        return verdict()
     typer.echo(f"{ln.line_id} {train_type} {origin}->{destination}: time-keeping, scheduled arrival "
                f"{res.scheduled_s:.1f} s after departure")
     for c in info["changes"][1:]:
@@ -175,7 +182,7 @@ def simulate_timekeeping_cli(line, train_type: str, origin: str, destination: st
     typer.echo(f"  advice: {shown}{more}")
     if plot is not None:
         typer.echo(f"  wrote {plot}")
-    return res
+    return verdict()
 
 
 @app.command()
@@ -193,9 +200,19 @@ def timekeeping(
     json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write speed/target/advice to this PNG."),
 ) -> None:
-    """Drive one interstation by the time-keeping target speed; report arrival and stop errors and advice."""
+    """Drive one interstation by the time-keeping target speed; report arrival and stop errors and advice.
+
+    Exits 1 (after printing the run) when the scheduled arrival cannot be met.
+    """
+    from ..loader import load_line
+    from .checks import check_fraction, check_out_file, station_code, train_type_code
+
     try:
-        simulate_timekeeping_cli(line_dir, train_type, origin, destination, arrival, change or (), load,
+        check_fraction(load, "--load", "0 empty … 1 full")
+        check_out_file(plot, "--plot", ".png", "plot")
+        ln = load_line(line_dir)
+        simulate_timekeeping_cli(ln, train_type_code(ln, train_type), station_code(ln, origin, "--from"),
+                                 station_code(ln, destination, "--to"), arrival, change or (), load,
                                  traction, json, plot)
     except PlannerError as e:
         typer.echo(f"error: {e}", err=True)

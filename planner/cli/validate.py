@@ -40,7 +40,7 @@ def summary(line: Line) -> list[str]:
 def validate(
     line_dir: Path = typer.Argument(..., help="Line database folder (holds line.parquet, stations.parquet, ...)."),
 ) -> None:
-    """Check a line database against SCHEMA.md; print a summary (exit 0) or every problem (exit 1)."""
+    """Check a line database against docs/line-database.md (`planner schema`); print a summary (exit 0) or every problem (exit 1)."""
     from ..loader import load_line
 
     try:
@@ -48,7 +48,8 @@ def validate(
     except LineValidationError as e:
         for msg in format_violations(e.violations):
             typer.echo(msg, err=True)
-        typer.echo(f"{line_dir}: {e.total} problem(s); the line database is invalid", err=True)
+        typer.echo(f"{line_dir}: {e.total} problem(s); the line database is invalid "
+                   f"(the rules: docs/line-database.md, or `planner schema`)", err=True)
         raise typer.Exit(1)
     except PlannerError as e:
         typer.echo(f"error: {e}", err=True)

@@ -1,0 +1,25 @@
+"""`planner schema`: the line-database contract (docs/line-database.md), generated from planner/schema.py."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from . import app
+
+
+@app.command("schema")
+def schema_cmd(
+    write: Path = typer.Option(None, "--write", help="Write the Markdown here (e.g. docs/line-database.md) "
+                                                     "instead of printing it."),
+) -> None:
+    """Print the line-database schema: every table, column, unit and validation rule."""
+    from ..atomic import write_bytes_atomic
+    from ..schema_doc import line_database_doc
+
+    text = line_database_doc()
+    if write is None:
+        typer.echo(text, nl=False)
+    else:
+        write_bytes_atomic(write, text.encode())
+        typer.echo(f"wrote {write}")

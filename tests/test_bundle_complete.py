@@ -1,0 +1,104 @@
+"""Bundle completeness follows the vehicle's cruise mode: table (d) exists only for sawtooth vehicles.
+
+Before: every constant-speed bundle verified "PARTIAL: missing table_d" and `--require-complete`
+failed for 4 of the 6 nightly bundles, with advice ("rebuild with --tables and --stops") that could
+not fix it.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from planner import bundle, signing
+from planner.cli import app
+from planner.errors import BundleError
+from test_bundle_support import LINE_ID, all_tables, forge, make_line
+
+
+@pytest.fixture(scope="module")
+def keys(tmp_path_factory):
+    d = tmp_path_factory.mktemp("keys")
+    priv, pub = signing.generate_keypair(d)
+    return priv, pub, signing.load_private_key(priv)
+
+
+@pytest.fixture(scope="module")
+def line():
+    return make_line()
+
+
+def _build(tables, out, priv, cruise):
+    return bundle.build_bundle(tables, out_dir=out, private_key=priv, line_id=LINE_ID, direction="down",
+                               train_type="E10", line_digest="ab" * 32,
+                               expected=bundle.expected_tables(cruise))
+
+
+def test_expected_tables_by_cruise_mode():
+    assert "table_d" in bundle.expected_tables("sawtooth")
+    assert "table_d" not in bundle.expected_tables("constant")
+    assert set(bundle.expected_tables("constant")) == set(bundle.EXPECTED_TABLES) - {"table_d"}
+
+
+def test_constant_speed_bundle_without_table_d_is_complete(keys, line, tmp_path):
+    tables = {k: v for k, v in all_tables(line).items() if k != "table_d"}
+    info = _build(tables, tmp_path, keys[0], "constant")
+    v = bundle.verify_bundle(info.path, keys[1])
+    assert v.complete and v.missing == ()
+    assert "complete" in v.summary()[-1] and "PARTIAL" not in v.summary()[-1]
+    r = CliRunner().invoke(app, ["bundle", "verify", str(info.path), "--public-key", str(keys[1]),
+                                 "--require-complete"])
+    assert r.exit_code == 0, r.output
+
+
+def test_sawtooth_bundle_without_table_d_is_partial_and_the_advice_names_the_fix(keys, line, tmp_path):
+    tables = {k: v for k, v in all_tables(line).items() if k not in ("table_d", "stop_summary", "stop_samples")}
+    info = _build(tables, tmp_path, keys[0], "sawtooth")
+    v = bundle.verify_bundle(info.path, keys[1])
+    assert not v.complete and v.missing == ("stop_samples", "stop_summary", "table_d")
+    r = CliRunner().invoke(app, ["bundle", "verify", str(info.path), "--public-key", str(keys[1]),
+                                 "--require-complete"])
+    assert r.exit_code == 1
+    msg = r.stderr.strip()
+    assert "\n" not in msg and "Traceback" not in r.output
+    # each missing table is tied to the option whose folder provides it, nothing else is named
+    assert "--tables DIR" in msg and "planner tables" in msg and "holds table_d" in msg
+    assert "--stops DIR" in msg and "planner stops" in msg and "stop_samples, stop_summary" in msg
+
+
+def test_advice_names_only_the_step_that_is_missing(keys, line, tmp_path):
+    tables = {k: v for k, v in all_tables(line).items() if k not in ("stop_summary", "stop_samples")}
+    info = _build(tables, tmp_path, keys[0], "sawtooth")
+    r = CliRunner().invoke(app, ["bundle", "verify", str(info.path), "--public-key", str(keys[1]),
+                                 "--require-complete"])
+    assert r.exit_code == 1 and "--stops DIR" in r.stderr and "--tables" not in r.stderr
+
+
+def test_only_vehicle_tables_may_go_unlisted(keys, line, tmp_path):
+    """A signer may leave table_d out of 'missing' (it knew the vehicle); never any other table."""
+    tables = {k: v for k, v in all_tables(line).items() if k not in ("table_d", "table_c")}
+    ok = tmp_path / "ok.pdb"
+    ok.write_bytes(forge(tables, keys[2], missing=["table_c"]))
+    assert bundle.verify_bundle(ok, keys[1]).missing == ("table_c",)
+    bad = tmp_path / "bad.pdb"
+    bad.write_bytes(forge(tables, keys[2], missing=["table_d"]))
+    with pytest.raises(BundleError, match="'missing'"):
+        bundle.verify_bundle(bad, keys[1])
+    with pytest.raises(BundleError, match="only table_d may be left out"):
+        bundle.bundle_bytes(all_tables(line), line_id=LINE_ID, direction="down", train_type="E10",
+                            private_key=keys[2], expected=["table_a"])
+
+
+def test_build_line_uses_each_vehicles_cruise_mode(keys, tmp_path):
+    """build_line on the tiny line: a constant-speed type built from a tables folder without table_d verifies complete."""
+    from linedb import write_line_db
+    from planner.loader import load_line
+
+    ln = load_line(write_line_db(tmp_path / "tiny"))
+    types = {t.train_type: t.cruise for t in ln.train_types}
+    infos = bundle.build_line(ln, tmp_path / "out", keys[0], directions=["down"])
+    for info in infos:
+        v = bundle.verify_bundle(info.path, keys[1])
+        tt = Path(info.path).stem.split("_")[-1]
+        assert ("table_d" in v.missing) == (types[tt] == "sawtooth")

@@ -1,0 +1,62 @@
+"""The bad day by effect (issue 17): load, traction and adhesion each on/off and valued, each with its share.
+
+Closed form on the test line of test_margins.py (constant force 300 kN, 300 t empty, 400 t full, brakes
+3.6 km/h/s, no resistance): accelerating to V at a takes V/(2a) longer than running at V, so the
+load alone costs V/(2·0.75) − V/2 and the weak traction on top of it V/(2·0.675) − V/(2·0.75).
+"""
+from __future__ import annotations
+
+import pytest
+
+from planner.errors import InputError
+from planner.margins import MarginRule, leg_result
+from test_margins import A_DEG, APPROACH, SMALL_GRID, TOL_S, V, closed_form_line, t_degraded
+
+A_LOAD = 300e3 / 400e3  # full load, nominal traction
+L = 1500.0
+
+
+def _leg(**rule):
+    return leg_result(closed_form_line(), "T", "S0", "S1", [100.0], rule=MarginRule(**rule),
+                      adhesion_kmh_s="3.0:3.5:0.5", approach_m=APPROACH, ratios=SMALL_GRID)
+
+
+@pytest.fixture(scope="module")
+def full():
+    return _leg()
+
+
+def test_each_effect_has_its_share_and_they_add_up(full):
+    assert full.degraded_loss_load_s == pytest.approx(V / (2 * A_LOAD) - V / 2, abs=TOL_S)
+    assert full.degraded_loss_traction_s == pytest.approx(V / (2 * A_DEG) - V / (2 * A_LOAD), abs=TOL_S)
+    total = full.degraded_loss_load_s + full.degraded_loss_traction_s + full.degraded_loss_stop_s
+    assert total == pytest.approx(full.degraded_min_s - full.min_time_s, abs=TOL_S)
+    assert full.degraded_min_s == pytest.approx(t_degraded(L), abs=TOL_S)
+
+
+def test_effects_switch_off():
+    # adhesion off: the degraded run stops with the tables' stopping brake (1 m/s²)
+    r = _leg(bad_day_adhesion=False)
+    assert r.degraded_min_s == pytest.approx(V / (2 * A_DEG) + L / V + V / 2, abs=TOL_S)
+    assert r.degraded_loss_stop_s == pytest.approx(0.0, abs=TOL_S)
+    # load and traction off: only the low-adhesion stop remains
+    r = _leg(bad_day_load=False, bad_day_traction=False)
+    assert r.degraded_loss_load_s == pytest.approx(0.0, abs=1e-9)
+    assert r.degraded_loss_traction_s == pytest.approx(0.0, abs=1e-9)
+    assert r.degraded_min_s == pytest.approx(V / 2 + t_degraded(L) - V / (2 * A_DEG), abs=TOL_S)
+
+
+def test_values_are_used():
+    # a lighter bad day (half the passengers: 350 t) and a chosen adhesion (2.5 km/h/s instead of the sweep's 3.0)
+    r = _leg(degraded_load=0.5, bad_day_traction=False, degraded_adhesion_kmh_s=2.5)
+    assert r.degraded_loss_load_s == pytest.approx(V / (2 * 300 / 350) - V / 2, abs=TOL_S)
+    assert r.adhesion_min_kmh_s == 2.5
+    assert r.stop_time_degraded_s > _leg(degraded_load=0.5, bad_day_traction=False).stop_time_degraded_s
+
+
+def test_rule_describes_and_checks_itself():
+    assert MarginRule().describe([2.5, 3.5]) == "load 100%, traction ×0.9, adhesion 2.5 km/h/s"
+    assert MarginRule(bad_day_load=False, bad_day_adhesion=False).describe([2.5]) == (
+        "load off (empty), traction ×0.9, adhesion off (stopping brake)")
+    with pytest.raises(InputError, match="degraded_load"):
+        MarginRule(degraded_load=1.5)
