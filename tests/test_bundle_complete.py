@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from planner import bundle, signing
 from planner.cli import app
 from planner.errors import BundleError
-from test_bundle_support import LINE_ID, all_tables, forge, make_line
+from test_bundle_support import LINE_ID, all_tables, forge, make_line, release
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +32,7 @@ def line():
 def _build(tables, out, priv, cruise):
     return bundle.build_bundle(tables, out_dir=out, private_key=priv, line_id=LINE_ID, direction="down",
                                train_type="E10", line_digest="ab" * 32,
-                               expected=bundle.expected_tables(cruise))
+                               expected=bundle.expected_tables(cruise), release=release())
 
 
 def test_expected_tables_by_cruise_mode():
@@ -48,7 +48,7 @@ def test_constant_speed_bundle_without_table_d_is_complete(keys, line, tmp_path)
     assert v.complete and v.missing == ()
     assert "complete" in v.summary()[-1] and "PARTIAL" not in v.summary()[-1]
     r = CliRunner().invoke(app, ["bundle", "verify", str(info.path), "--public-key", str(keys[1]),
-                                 "--require-complete"])
+                                 "--expect", f"{LINE_ID}/down/E10", "--require-complete"])
     assert r.exit_code == 0, r.output
 
 
@@ -58,7 +58,7 @@ def test_sawtooth_bundle_without_table_d_is_partial_and_the_advice_names_the_fix
     v = bundle.verify_bundle(info.path, keys[1])
     assert not v.complete and v.missing == ("stop_samples", "stop_summary", "table_d")
     r = CliRunner().invoke(app, ["bundle", "verify", str(info.path), "--public-key", str(keys[1]),
-                                 "--require-complete"])
+                                 "--expect", f"{LINE_ID}/down/E10", "--require-complete"])
     assert r.exit_code == 1
     msg = r.stderr.strip()
     assert "\n" not in msg and "Traceback" not in r.output
@@ -71,7 +71,7 @@ def test_advice_names_only_the_step_that_is_missing(keys, line, tmp_path):
     tables = {k: v for k, v in all_tables(line).items() if k not in ("stop_summary", "stop_samples")}
     info = _build(tables, tmp_path, keys[0], "sawtooth")
     r = CliRunner().invoke(app, ["bundle", "verify", str(info.path), "--public-key", str(keys[1]),
-                                 "--require-complete"])
+                                 "--expect", f"{LINE_ID}/down/E10", "--require-complete"])
     assert r.exit_code == 1 and "--stops DIR" in r.stderr and "--tables" not in r.stderr
 
 
@@ -87,7 +87,7 @@ def test_only_vehicle_tables_may_go_unlisted(keys, line, tmp_path):
         bundle.verify_bundle(bad, keys[1])
     with pytest.raises(BundleError, match="only table_d may be left out"):
         bundle.bundle_bytes(all_tables(line), line_id=LINE_ID, direction="down", train_type="E10",
-                            private_key=keys[2], expected=["table_a"])
+                            private_key=keys[2], expected=["table_a"], release=release())
 
 
 def test_build_line_uses_each_vehicles_cruise_mode(keys, tmp_path):
@@ -97,7 +97,7 @@ def test_build_line_uses_each_vehicles_cruise_mode(keys, tmp_path):
 
     ln = load_line(write_line_db(tmp_path / "tiny"))
     types = {t.train_type: t.cruise for t in ln.train_types}
-    infos = bundle.build_line(ln, tmp_path / "out", keys[0], directions=["down"])
+    infos = bundle.build_line(ln, tmp_path / "out", keys[0], directions=["down"], release=release())
     for info in infos:
         v = bundle.verify_bundle(info.path, keys[1])
         tt = Path(info.path).stem.split("_")[-1]
