@@ -511,24 +511,19 @@ class LegResult:
 
 
 def _closed_loop(track, train, tables, designated: np.ndarray, rule: MarginRule, record: bool = False):
-    """Nominal and degraded closed-loop runs of the on-board nearest rule, per designated time.
+    """Nominal and bad-day closed-loop runs of the on-board nearest rule, per designated time.
 
     Returns the departure ratios (n,) and the simulator's BatchResult of 2n
     runs: the n designated times at the tables' conditions, then the same
-    under the rule's degraded load and traction (as ``planner.closed_loop.table_runner``,
-    both scenarios in one batch).
+    under the rule's bad-day load and traction, driven by
+    :func:`planner.closed_loop.drive_tables` (the closed-loop proof's own driver).
     """
-    from .onboard import NearestRule, make_controller
-    from .run_curve import simulate
+    from .closed_loop import SCENARIOS, Scenario, drive_tables
 
-    n = len(designated)
-    d2 = np.concatenate([designated, designated])
-    r0 = NearestRule().depart(tables, d2)
-    controller, decision_m, _ = make_controller(tables, "nearest", d2)
-    res = simulate(track, train, r0, load=np.r_[np.zeros(n), np.full(n, rule.bad_load)],
-                   traction_factor=np.r_[np.ones(n), np.full(n, rule.bad_traction)],
-                   controller=controller, decision_m=decision_m, record=record)
-    return r0[:n], res
+    bad = Scenario("bad_day", rule.bad_load, rule.bad_traction)
+    r0, _, res = drive_tables(track, train, tables, designated, [SCENARIOS["nominal"], bad],
+                              ["nearest", "nearest"], record=record)
+    return r0[:len(designated)], res
 
 
 def _first_pattern(line, train, track, res, run: int, cands, adhesion_ms2: float):

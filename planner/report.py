@@ -332,7 +332,9 @@ def adhesion_chart(report) -> tuple[str, str]:
 
 def flagged_summary(sched) -> str:
     """The flagged legs on the first screen: what each lacks and where the bad day's time goes."""
-    f = sched[sched.infeasible | sched.tight | sched.unreachable]
+    # unassessed legs have their own section, listed first; this one lists the legs judged
+    f = sched[(sched.infeasible.fillna(False).astype(bool) | sched.tight.fillna(False).astype(bool)
+               | sched.unreachable.fillna(False).astype(bool)) & ~sched.unassessed.astype(bool)]
     if f.empty:
         return "<p><b>No leg is flagged</b>: every timetabled leg keeps its time on a bad day.</p>"
     f = f.sort_values(["remaining_margin_s", "direction", "train_type", "origin"], kind="stable")

@@ -75,7 +75,7 @@ def test_every_leg_without_a_pattern_is_unassessed_with_its_reason(hopeless):
     assert len(rows) == 5 and rows.unassessed.all()
     assert rows.degraded_min_running_time_s.isna().all() and rows.remaining_margin_s.isna().all()
     assert all(r.startswith("no stopping pattern at adhesion 3 km/h/s") for r in rows.unassessed_reason)
-    tot = hopeless.totals.set_index(["scope", "train_id"])
+    tot = hopeless.totals.set_index(["level", "train_id"])
     assert tot.loc[("train", "L1")].n_unassessed == 2 and tot.loc[("train", "R1")].n_unassessed == 1
     for c in ("remaining_margin_s", "degraded_min_running_time_s", "min_remaining_margin_s", "bad_day_shortfall_s"):
         assert hopeless.totals[c].isna().all(), c  # unknown, not a partial sum that looks like a whole
