@@ -1,4 +1,5 @@
-"""The nightly job: validate → tables → stopping patterns → closed loop → margins → bundles → conflicts → publish.
+"""The nightly job: validate → tables → stopping patterns → closed loop → margins → bundles → conflicts → graph
+→ changes → overview → publish.
 
 One call, :func:`run_job`, regenerates everything a job file names and
 publishes it atomically (:mod:`planner.publish`). Work is split into *units*
@@ -38,7 +39,8 @@ from .publish import (
     Cache, canonical_json, clean_stale_staging, digest, job_lock, latest_run, next_run_id, publish, staging_dir,
 )
 
-STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "publish")
+STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
+         "overview", "publish")
 
 
 # --- digests of exactly what a unit depends on -----------------------------------
@@ -250,6 +252,8 @@ class RunSummary:
     flags: dict[str, int] = field(default_factory=dict)
     bundles: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    """Margin report of each line (kept for :func:`planner.views.run_views`, which puts the changes on top)."""
 
 
 def signing_key_path(job: Job, notes: list[str]) -> Path:
@@ -322,6 +326,9 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
                 _run_line(job, line, stage, runner, summary, key)
             summary.computed, summary.reused = runner.computed, runner.reused
             _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary)
+            from .views import run_views  # changes since the last run, overview page
+
+            run_views(job, lines, stage, root, prog, summary)
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
             summary.timings = dict(prog.timings)
@@ -400,6 +407,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], grid, conflicts)
     _bundles_step(job, line, stage, runner, summary, key)
+    from .views import line_views  # inputs copy, train graph page
+
+    line_views(job, line, stage, runner, summary)
 
 
 def _count(summary: RunSummary, files: Iterable[Path]) -> None:
@@ -446,6 +456,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
     write_html(report, line, stage / "report" / f"{line.line_id}_margins.html")
+    summary.reports[line.line_id] = report
     for flag in ("infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 

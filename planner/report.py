@@ -453,7 +453,7 @@ def conflicts_section(report) -> str:
 
 # --- the page -------------------------------------------------------------------------
 
-def render_html(report, markers: dict[str, dict[str, float]]) -> str:
+def render_html(report, markers: dict[str, dict[str, float]], top: str = "") -> str:
     """The whole report page as one HTML string (module doc for the sections).
 
     Parameters
@@ -462,6 +462,9 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
     markers : dict
         ``{direction: {station_id: stop-marker chainage [m]}}`` for the charts
         (:func:`stop_markers`).
+    top : str
+        An HTML section put first, under the title (the nightly job's "what
+        changed since the last run", :func:`planner.changes.changes_html`).
     """
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
@@ -484,6 +487,8 @@ def render_html(report, markers: dict[str, dict[str, float]]) -> str:
         f"traction ×{rule.degraded_traction:g}, adhesion {adh[0]:g} km/h/s (lowest of the sweep "
         f"{adh[0]:g}–{adh[-1]:g}) · supplement rule {rule.supplement_percent:g} % + "
         f"{rule.supplement_min_per_100km:g} min/100 km · tight below {rule.tight_threshold_s:g} s remaining</p>")
+    if top:
+        parts.append(top)
     cards = [
         ("bad" if n_inf else "ok", n_inf, "infeasible: scheduled below the bad-day minimum"),
         ("warn" if n_tight else "ok", n_tight, f"tight: less than {rule.tight_threshold_s:g} s left on a bad day"),
@@ -606,9 +611,9 @@ def stop_markers(line) -> dict[str, dict[str, float]]:
     return {d: {s.station_id: s.stop_m(d) for s in line.stations} for d in ("down", "up")}
 
 
-def write_html(report, line, path: str | Path) -> Path:
-    """Write the page to ``path`` atomically (temp file in the same folder, then rename)."""
+def write_html(report, line, path: str | Path, top: str = "") -> Path:
+    """Write the page to ``path`` atomically (temp file in the same folder, then rename); ``top`` as in :func:`render_html`."""
     from .atomic import write_bytes_atomic
 
-    write_bytes_atomic(path, render_html(report, stop_markers(line)).encode("utf-8"))
+    write_bytes_atomic(path, render_html(report, stop_markers(line), top).encode("utf-8"))
     return Path(path)
