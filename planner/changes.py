@@ -624,9 +624,12 @@ def changes_html(ch: LineChanges | None, *, first_run_note: str = "") -> str:
     explained = {r["change_id"] for r in legs if r["caused_by"]}
     other = [r for r in legs if r["change_id"] not in explained]
     if other:
-        parts.append("<h3>Legs that moved without a line-table change reaching them</h3><ul>" + "".join(
-            f"<li>{_leg_li(r, e)}</li>" for r in other[:60]) + (f"<li>… {len(other) - 60} more</li>" if len(other) > 60 else "")
-            + "</ul>")
+        groups: dict[str, list] = {}
+        for x in other:
+            groups.setdefault(x["subject"], []).append(x)
+        items = [f"<li>{_leg_group(k, v, e)}</li>" for k, v in groups.items()]
+        parts.append("<h3>Legs that moved without a line-table change reaching them</h3><ul>" + "".join(items[:60])
+                     + (f"<li>… {len(items) - 60} more</li>" if len(items) > 60 else "") + "</ul>")
     for cat, title in (("flag", "Flags that appeared or cleared"), ("conflict", "Conflicts that appeared or cleared"),
                        ("bundle", "Bundles whose content changed")):
         rows = ch.of(cat)
@@ -637,15 +640,29 @@ def changes_html(ch: LineChanges | None, *, first_run_note: str = "") -> str:
     return "".join(parts) + "</section>"
 
 
-def _leg_li(r, e) -> str:
-    d = r["delta"]
-    cls = "" if d is None else (" class='up'" if (d > 0) == (r["field"] == "min_running_time_s") else " class='down'")
-    return f"<span{cls}>{e(r['detail'])}</span>"
+MEASURE_WORDS = {"min_running_time_s": "minimum", "margin_s": "margin", "remaining_margin_s": "bad-day margin"}
+
+
+def _leg_group(subject: str, rows, e) -> str:
+    """One leg, every measure that moved: ``minimum 125.3 → 151.1 s (+25.8 s), margin …``."""
+    bits = []
+    for x in rows:
+        if x["field"] in MEASURE_WORDS and x["delta"] is not None:
+            worse = (x["delta"] > 0) == (x["field"] == "min_running_time_s")
+            bits.append(f"{MEASURE_WORDS[x['field']]} {_num(x['before']):.1f} → {_num(x['after']):.1f} s "
+                        f"<span class='{'up' if worse else 'down'}'>({x['delta']:+.1f} s)</span>")
+        else:
+            bits.append(e(x["detail"]))
+    return f"<b>{e(subject)}</b>: " + ", ".join(bits)
 
 
 def _effect(r, legs, e) -> str:
     hit = [x for x in legs if r["change_id"] in x["caused_by"]]
     if not hit:
         return " — <i>no leg moved by more than the threshold</i>" if r["category"] == "line_table" else ""
-    return (f" — affects {len({x['subject'] for x in hit})} leg(s):<ul>" + "".join(f"<li>{_leg_li(x, e)}</li>" for x in hit[:40])
-            + (f"<li>… {len(hit) - 40} more</li>" if len(hit) > 40 else "") + "</ul>")
+    groups: dict[str, list] = {}
+    for x in hit:
+        groups.setdefault(x["subject"], []).append(x)
+    items = [f"<li>{_leg_group(k, v, e)}</li>" for k, v in groups.items()]
+    return (f" — affects {len(groups)} leg{'s' if len(groups) != 1 else ''}:<ul>" + "".join(items[:40])
+            + (f"<li>… {len(items) - 40} more</li>" if len(items) > 40 else "") + "</ul>")

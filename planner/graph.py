@@ -102,7 +102,11 @@ def simplify(t_s: np.ndarray, x_m: np.ndarray, tol_t_s: float = TOL_T_S, tol_x_m
         return np.arange(n)
     keep = np.zeros(n, dtype=bool)
     keep[0] = keep[-1] = True
-    stack = [(0, n - 1)]
+    # the two ends of each stand (same chainage, time running) are corners the chart must show
+    flat = np.flatnonzero((np.diff(x) == 0) & (np.diff(t) > 0))
+    keep[flat] = keep[flat + 1] = True
+    fixed = np.flatnonzero(keep)
+    stack = list(zip(fixed[:-1].tolist(), fixed[1:].tolist()))
     while stack:
         a, b = stack.pop()
         if b - a < 2:
@@ -479,6 +483,7 @@ def page_payload(data: GraphData) -> dict[str, Any]:
             "m": None if m is None else {k: _num(v) for k, v in m.items()},
         })
     win: dict[str, list] = {}
+    res: dict[str, int] = {}
     w = data.windows
     if w is not None and len(w):
         w = w.sort_values(["train_id", "start_s"], kind="stable")
@@ -489,7 +494,7 @@ def page_payload(data: GraphData) -> dict[str, Any]:
                                  np.minimum(g.from_m, g.to_m).to_numpy(), np.maximum(g.from_m, g.to_m).to_numpy()])
             win[str(tid)] = [_delta(a[:, 0], 10.0), np.round((a[:, 1] - a[:, 0]) * 10).astype(int).tolist(),
                              np.round(a[:, 2]).astype(int).tolist(), np.round(a[:, 3] - a[:, 2]).astype(int).tolist(),
-                             g.resource_id.astype(str).tolist()]
+                             [res.setdefault(r, len(res)) for r in g.resource_id.astype(str)]]
     cons = []
     c = data.conflicts
     if c is not None and len(c):
@@ -502,7 +507,7 @@ def page_payload(data: GraphData) -> dict[str, Any]:
         "day": [math.floor(lo / 3600) * 3600, math.ceil(hi / 3600) * 3600],
         "stations": [[sid, name, x] for sid, name, x in data.stations],
         "colours": {f"{d} {s}": c for (d, s), c in COLOURS.items()},
-        "trains": trains, "windows": win, "conflicts": cons, "notes": data.notes,
+        "trains": trains, "windows": win, "resources": list(res), "conflicts": cons, "notes": data.notes,
     }
 
 
@@ -698,7 +703,7 @@ function select(id) {
     for (let i = 0; i < s.length; i++) {
       const r = el("rect", {x: s[i], y: w[2][i], width: w[1][i] / 10, height: Math.max(w[3][i], 25), fill: "#f2b705",
         "fill-opacity": 0.45, stroke: "#8a6500", "stroke-width": 0.6, "vector-effect": "non-scaling-stroke", class: "window"}, gStair);
-      const ti = el("title", {}, r); ti.textContent = w[4][i] + ": " + hhmm(s[i], true) + "–" + hhmm(s[i] + w[1][i] / 10, true);
+      const ti = el("title", {}, r); ti.textContent = D.resources[w[4][i]] + ": " + hhmm(s[i], true) + "–" + hhmm(s[i] + w[1][i] / 10, true);
     }
   }
   info.textContent = tr.id + " (" + (w ? w[0].length : 0) + " blocking windows)";

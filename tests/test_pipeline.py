@@ -18,6 +18,7 @@ import pyarrow.dataset as ds
 import pytest
 
 from linedb import default_tables, write_line_db
+from planner import load_line
 from planner.errors import PlannerError
 from planner.job import load_job
 from planner.publish import latest_run, list_runs
@@ -124,11 +125,37 @@ def test_one_edited_restriction_recomputes_only_its_interstation(project):
     _run(job)
     # The 70 km/h "up" restriction at 4000-4200 m lies between C (up stop 4740) and B (up stop 2440):
     # only the up run C->B of each of the 2 train types can see it.
+    old_line = load_line(project / "lines" / "tiny")
     _edit_restriction(project, 65.0)
     s = _run(job)
     assert s.computed["tables"] == 2 and s.reused["tables"] == N_UNITS - 2
     assert s.computed["stops"] == 2
     assert s.computed["closed_loop"] == 2
+    _check_changes_name_the_restriction(project, old_line, load_line(project / "lines" / "tiny"))
+
+
+def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> None:
+    """The run's `changes` dataset and the report's top section name the edited restriction and the legs it slowed."""
+    from planner.run_curve import running_time
+
+    ch = ds.dataset(project / "out" / "latest" / "changes", format="parquet", partitioning="hive").to_table().to_pandas()
+    inputs = ch[ch.category == "line_table"]
+    assert list(zip(inputs.subject, inputs.field, inputs.before, inputs.after)) == [("speed_limits", "limit_kmh", "70", "65")]
+    cid = int(inputs.change_id.iloc[0])
+    legs = ch[(ch.category == "leg") & (ch.field == "min_running_time_s")]
+    # only up runs from C to B (or through it) can see a restriction at 4000-4200 m in the up direction
+    assert len(legs) and set(legs.direction) == {"up"} and all(cid in list(c) for c in legs.caused_by)
+    for r in legs.itertuples():
+        assert r.subject.startswith(f"{r.train_type} up C→")
+        # by how much: the same as the simulator's minimum time C→B before and after, run independently here
+        dest = r.subject.split("→")[1][0]
+        want = (running_time(new_line, r.train_type, "C", dest).time_s
+                - running_time(old_line, r.train_type, "C", dest).time_s)
+        assert want > 0.5 and abs(r.delta - want) < 0.05, (r.subject, r.delta, want)
+    html = (project / "out" / "latest" / "report" / "tiny_margins.html").read_text()
+    top = html.index("What changed since the last run")
+    assert top < html.index("infeasible: scheduled below")  # a section at the top, before the headline cards
+    assert "speed restriction 4000–4200 m up civil: limit_kmh 70 → 65 — affects" in html
 
 
 def _edit_restriction(project: Path, limit_kmh: float) -> None:

@@ -39,6 +39,8 @@ from . import margins  # noqa: E402,F401
 from . import run  # noqa: E402,F401
 from . import datasets  # noqa: E402,F401
 from . import timekeeping  # noqa: E402,F401
+from . import graph  # noqa: E402,F401
+from . import diff  # noqa: E402,F401
 
 
 def main() -> None:
