@@ -493,7 +493,7 @@ def page_payload(data: GraphData) -> dict[str, Any]:
             a = np.column_stack([g.start_s.to_numpy(), g.end_s.to_numpy(),
                                  np.minimum(g.from_m, g.to_m).to_numpy(), np.maximum(g.from_m, g.to_m).to_numpy()])
             win[str(tid)] = [_delta(a[:, 0], 10.0), np.round((a[:, 1] - a[:, 0]) * 10).astype(int).tolist(),
-                             np.round(a[:, 2]).astype(int).tolist(), np.round(a[:, 3] - a[:, 2]).astype(int).tolist(),
+                             _delta(a[:, 2], 1.0), np.round(a[:, 3] - a[:, 2]).astype(int).tolist(),
                              [res.setdefault(r, len(res)) for r in g.resource_id.astype(str)]]
     cons = []
     c = data.conflicts
@@ -699,9 +699,9 @@ function select(id) {
   if (!tr) { info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
   const w = D.windows[tr.id];
   if (w) {
-    const s = undelta(w[0], 10);
+    const s = undelta(w[0], 10), lo = undelta(w[2], 1);
     for (let i = 0; i < s.length; i++) {
-      const r = el("rect", {x: s[i], y: w[2][i], width: w[1][i] / 10, height: Math.max(w[3][i], 25), fill: "#f2b705",
+      const r = el("rect", {x: s[i], y: lo[i], width: w[1][i] / 10, height: Math.max(w[3][i], 25), fill: "#f2b705",
         "fill-opacity": 0.45, stroke: "#8a6500", "stroke-width": 0.6, "vector-effect": "non-scaling-stroke", class: "window"}, gStair);
       const ti = el("title", {}, r); ti.textContent = D.resources[w[4][i]] + ": " + hhmm(s[i], true) + "–" + hhmm(s[i] + w[1][i] / 10, true);
     }

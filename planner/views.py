@@ -71,7 +71,7 @@ def line_views(job, line, stage: Path, runner, summary) -> None:
         data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
         if check and line.network is not None and (occ is None or con is None):
             data.notes.append("the run has no occupation/conflicts datasets for this line")
-        write_page(data, stage / "graph" / f"{line.line_id}_graph.html", title_note=f"run {stage.name.removeprefix('.staging-')}")
+        write_page(data, stage / "graph" / f"{line.line_id}_graph.html")
 
 
 def _unit(step, key, fn, args):

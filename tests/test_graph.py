@@ -111,3 +111,19 @@ def test_cli_graph_one_line_errors(tiny, tmp_path):
                         "--train", "nope"], capture_output=True, text=True)
     assert r.returncode != 0 and r.stderr.startswith("error: --train nope") and "Traceback" not in r.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_page_payload_windows_decode(data):
+    import dataclasses
+
+    import pandas as pd
+
+    w = pd.DataFrame({"train_id": ["101"] * 3, "resource_id": ["E1", "N3", "E3"],
+                      "start_s": [21570.04, 21590.0, 21620.3], "end_s": [21640.0, 21655.5, 21900.0],
+                      "from_m": [260.0, 1000.0, 1000.0], "to_m": [1000.0, 1000.0, 4860.0]})
+    pl = page_payload(dataclasses.replace(data, windows=w))
+    start, dur, lo, length, res = pl["windows"]["101"]
+    assert np.allclose(np.cumsum(start) / 10, w.start_s, atol=0.051)
+    assert np.allclose(np.cumsum(start) / 10 + np.array(dur) / 10, w.end_s, atol=0.11)
+    assert np.cumsum(lo).tolist() == [260, 1000, 1000] and length == [740, 0, 3860]
+    assert [pl["resources"][k] for k in res] == ["E1", "N3", "E3"]
