@@ -31,9 +31,13 @@ in the default sweep of +60 s but are flagged the same way.
 Mode dispatch
 -------------
 A mode name maps to a *runner* in :data:`MODE_RUNNERS`. Every table mode of
-:data:`planner.onboard.CHOOSERS` is run by :func:`table_runner`; other modes
-(e.g. time-keeping, DESIGN §4) register their own runner with
+:data:`planner.onboard.CHOOSERS` is run by :func:`table_runner`; the
+time-keeping mode (DESIGN §4, :mod:`planner.timekeeping`) drives the same
+integrator with its own controller; other modes register a runner with
 :func:`register_runner`.
+
+Every mode's stop error is where the plant actually came to a stand, from the
+integrator (:attr:`planner.run_curve.BatchResult.stop_m`), minus the marker.
 """
 from __future__ import annotations
 
@@ -49,6 +53,7 @@ from .datasets import declare, write_partitioned
 from .errors import InputError
 from .model import DIRECTIONS, Line
 from .onboard import CHOOSERS, RunningTimeTables, chooser, load_tables, make_controller
+from .timekeeping import closed_loop_runner as _timekeeping_runner
 
 PARTITION_COLS = ("line", "direction", "train_type", "scenario", "mode")
 """Closed-loop datasets add scenario and mode to the usual partitions, so runs of
@@ -94,6 +99,8 @@ class ClosedLoopResult:
     ----------
     designated_s, actual_s : ndarray, shape (n,)
         Designated and simulated running time [s].
+    stop_error_m : ndarray, shape (n,)
+        Where the plant came to a stand − the stop marker [m] (positive: overrun).
     ratios : ndarray, shape (n, n_x)
         Ratio in force after the decision at each evaluation point (departure first).
     eval_point_ids : tuple of str, length n_x
@@ -116,6 +123,7 @@ class ClosedLoopResult:
     eval_point_ids: tuple[str, ...]
     min_time_s: float
     max_time_s: float
+    stop_error_m: np.ndarray | None = None
 
     @property
     def error_s(self) -> np.ndarray:
@@ -137,11 +145,11 @@ def designated_times(tables: RunningTimeTables, extra_s: float = DEFAULT_EXTRA_S
     return t0 + step_s * np.arange(n + 1)
 
 
-Runner = Callable[..., tuple[np.ndarray, np.ndarray]]
+Runner = Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 def table_runner(track, train, tables: RunningTimeTables, designated_s: np.ndarray, sc: Scenario,
-                 mode: str) -> tuple[np.ndarray, np.ndarray]:
+                 mode: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Run a table mode of :mod:`planner.onboard` in the simulator.
 
     Returns
@@ -150,6 +158,8 @@ def table_runner(track, train, tables: RunningTimeTables, designated_s: np.ndarr
         Simulated running time [s].
     ratios : ndarray, shape (n, n_x)
         Ratio chosen at departure and at each later evaluation point.
+    stop_m : ndarray, shape (n,)
+        Where each run came to a stand [m of running distance].
     """
     from .run_curve import simulate
 
@@ -164,10 +174,10 @@ def table_runner(track, train, tables: RunningTimeTables, designated_s: np.ndarr
         raise RuntimeError(  # internal: the simulator skipped or repeated a decision
             f"{tables.origin}->{tables.destination}: {ratios.shape[1] - 1} decisions for "
             f"{len(tables.eval_point_ids) - 1} evaluation points")
-    return np.asarray(res.time_s, float), ratios
+    return np.asarray(res.time_s, float), ratios, np.asarray(res.stop_m, float)
 
 
-MODE_RUNNERS: dict[str, Runner] = {}
+MODE_RUNNERS: dict[str, Runner] = {"timekeeping": _timekeeping_runner}
 """Non-table modes: name -> runner(track, train, tables, designated_s, scenario, mode)."""
 
 
@@ -178,10 +188,10 @@ def register_runner(mode: str, runner: Runner) -> None:
     simulator's :class:`planner.run_curve.Track` and ``TrainType``, the interstation's
     :class:`~planner.onboard.RunningTimeTables` (for the evaluation points and the minimum),
     the designated running times (n,) [s] and the :class:`Scenario` (load, traction factor) to
-    run under; it returns the simulated running times (n,) [s] and the ratio in force after each
-    evaluation point, shape (n, n_x) (NaN where the mode has no ratio, e.g. time-keeping).
-    Register it from the mode's own module, e.g. ``register_runner("timekeeping", run)``, and
-    import that module where the CLI is assembled.
+    run under; it returns the simulated running times (n,) [s], the ratio in force after each
+    evaluation point, shape (n, n_x) (NaN where the mode has no ratio, e.g. time-keeping), and
+    where each run came to a stand (n,) [m of running distance]. Its on-board logic sees the
+    nominal train; the plant runs under the scenario.
     """
     MODE_RUNNERS[mode] = runner
 
@@ -240,7 +250,7 @@ def closed_loop_interstation(
     track = make_track(line, train_type, tables.origin, tables.destination,
                        settings=settings or SimSettings(), nodes_m=list(tables.eval_distance_m))
     designated = designated_times(tables, extra_s, step_s)
-    actual, ratios = run(track, train, tables, designated, sc, mode)
+    actual, ratios, stop_m = run(track, train, tables, designated, sc, mode)
     ends = simulate(track, train, np.array([tables.ratios[0], tables.ratios[-1]]),
                     load=sc.load, traction_factor=sc.traction_factor)
     return ClosedLoopResult(
@@ -257,6 +267,7 @@ def closed_loop_interstation(
         eval_point_ids=tables.eval_point_ids,
         min_time_s=float(ends.time_s[0]),
         max_time_s=float(ends.time_s[1]),
+        stop_error_m=np.asarray(stop_m, float) - track.length_m,
     )
 
 
@@ -312,7 +323,7 @@ def closed_loop_batch(
     designated = designated_times(tables, extra_s, step_s)
     n = len(designated)
     combos = [(sc, m) for sc in scs for m in table_modes]
-    out: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+    out: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     if combos:
         stacked = _Stacked([(chooser(m), slice(i * n, (i + 1) * n)) for i, (_, m) in enumerate(combos)])
         arrive = np.tile(designated, len(combos))
@@ -327,7 +338,8 @@ def closed_loop_batch(
                 f"{tables.origin}->{tables.destination}: {ratios.shape[1] - 1} decisions for "
                 f"{len(tables.eval_point_ids) - 1} evaluation points")
         for i, (sc, m) in enumerate(combos):
-            out[(sc.name, m)] = (np.asarray(res.time_s[i * n:(i + 1) * n], float), ratios[i * n:(i + 1) * n])
+            sl = slice(i * n, (i + 1) * n)
+            out[(sc.name, m)] = (np.asarray(res.time_s[sl], float), ratios[sl], np.asarray(res.stop_m[sl], float))
     for sc in scs:
         for m in modes:
             if (sc.name, m) not in out:
@@ -339,13 +351,13 @@ def closed_loop_batch(
     results = []
     for j, sc in enumerate(scs):
         for m in modes:
-            actual, ratios = out[(sc.name, m)]
+            actual, ratios, stop_m = out[(sc.name, m)]
             results.append(ClosedLoopResult(
                 line_id=line.line_id, direction=direction, train_type=train_type, origin=tables.origin,
                 destination=tables.destination, scenario=sc.name, mode=m, designated_s=designated,
                 actual_s=np.asarray(actual, float), ratios=np.asarray(ratios, float),
                 eval_point_ids=tables.eval_point_ids, min_time_s=float(ends.time_s[2 * j]),
-                max_time_s=float(ends.time_s[2 * j + 1]),
+                max_time_s=float(ends.time_s[2 * j + 1]), stop_error_m=np.asarray(stop_m, float) - track.length_m,
             ))
     return results
 
@@ -417,6 +429,7 @@ CLOSED_LOOP_SCHEMA = declare(
         ("error_s", pa.float64(), "arrival error actual - designated [s], positive = late"),
         ("feasible", pa.bool_(), "designated time within the scenario's fastest..slowest running time"),
         ("min_time_s", pa.float64(), "scenario minimum running time (ratio 1.0 throughout) [s]"),
+        ("stop_error_m", pa.float64(), "where the train came to a stand - the stop marker [m], positive = overrun"),
         ("eval_point_ids", pa.list_(pa.string()), "evaluation points in running order ('dep' first)"),
         ("ratios", pa.list_(pa.float64()), "ratio chosen at each evaluation point, same order"),
     ],
@@ -432,6 +445,7 @@ CLOSED_LOOP_SUMMARY_SCHEMA = declare(
         ("median_abs_error_s", pa.float64(), "median |arrival error| over feasible runs [s]"),
         ("p95_abs_error_s", pa.float64(), "95th percentile |arrival error| over feasible runs [s]"),
         ("max_abs_error_s", pa.float64(), "maximum |arrival error| over feasible runs [s]"),
+        ("max_abs_stop_error_m", pa.float64(), "maximum |stop error| over all runs [m]"),
         ("min_time_s", pa.float64(), "scenario minimum running time [s]"),
         ("infeasible_excess_max_s", pa.float64(),
          "infeasible runs: worst arrival after the scenario minimum [s] (0 if none)"),
@@ -448,6 +462,10 @@ def _stats(err: np.ndarray) -> tuple[float, float, float]:
     return float(np.median(a)), float(np.percentile(a, 95)), float(a.max())
 
 
+def _max_abs(x) -> float:
+    return float("nan") if x is None or np.size(x) == 0 else float(np.max(np.abs(x)))
+
+
 def summary_row(r: ClosedLoopResult) -> dict:
     """Error statistics of one result (summary dataset row, without partition columns)."""
     f = r.feasible
@@ -458,6 +476,7 @@ def summary_row(r: ClosedLoopResult) -> dict:
     return {
         "origin": r.origin, "destination": r.destination, "n_runs": int(f.size), "n_feasible": int(f.sum()),
         "median_abs_error_s": med, "p95_abs_error_s": p95, "max_abs_error_s": mx,
+        "max_abs_stop_error_m": _max_abs(r.stop_error_m),
         "min_time_s": r.min_time_s, "infeasible_excess_max_s": excess,
     }
 
@@ -468,8 +487,10 @@ def overall(results: Sequence[ClosedLoopResult]) -> dict:
     n = int(sum(r.designated_s.size for r in results))
     med, p95, mx = _stats(err)
     inf = [summary_row(r)["infeasible_excess_max_s"] for r in results]
+    stops = [r.stop_error_m for r in results if r.stop_error_m is not None]
     return {"n_runs": n, "n_feasible": int(err.size), "median_abs_error_s": med, "p95_abs_error_s": p95,
-            "max_abs_error_s": mx, "infeasible_excess_max_s": max(inf, default=0.0)}
+            "max_abs_error_s": mx, "infeasible_excess_max_s": max(inf, default=0.0),
+            "max_abs_stop_error_m": _max_abs(np.concatenate(stops)) if stops else float("nan")}
 
 
 def datasets(results: Sequence[ClosedLoopResult]) -> dict[str, pa.Table]:
@@ -490,6 +511,7 @@ def datasets(results: Sequence[ClosedLoopResult]) -> dict[str, pa.Table]:
                 "origin": r.origin, "destination": r.destination,
                 "designated_s": float(r.designated_s[i]), "actual_s": float(r.actual_s[i]),
                 "error_s": float(err[i]), "feasible": bool(feas[i]), "min_time_s": r.min_time_s,
+                "stop_error_m": float("nan") if r.stop_error_m is None else float(r.stop_error_m[i]),
                 "eval_point_ids": list(r.eval_point_ids), "ratios": [float(x) for x in r.ratios[i]],
             })
         add(summ, part | summary_row(r))

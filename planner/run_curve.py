@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -250,6 +250,30 @@ class RunState:
     ratio: np.ndarray
 
 
+class Command(NamedTuple):
+    """What an on-board controller asks of the runs at a decision node (each array shape (n,)).
+
+    A controller (see :func:`simulate`) returns either a plain ratio array or a
+    Command. The target is ``min(ratio × on-board maximum, cap_ms)``: the ratio
+    modes of DESIGN §3 leave ``cap_ms`` at +inf; the time-keeping mode of §4
+    runs at ratio 1.0 under a cruise-speed cap. A run above its new ceiling
+    sheds speed at ``shed_ms2`` (default: the service brake) until it meets it.
+
+    Attributes
+    ----------
+    ratio : ndarray
+        Target-speed ratio, in (0, 1].
+    cap_ms : ndarray, optional
+        Cruise-speed cap [m/s] (+inf: none). Default: unchanged.
+    shed_ms2 : ndarray, optional
+        Deceleration [m/s²] (> 0) for getting down to a lowered target. Default: unchanged.
+    """
+
+    ratio: np.ndarray
+    cap_ms: np.ndarray | None = None
+    shed_ms2: np.ndarray | None = None
+
+
 @dataclass(frozen=True)
 class BatchResult:
     """Result of :func:`simulate` for n runs.
@@ -257,20 +281,26 @@ class BatchResult:
     ``time_s`` (n,) time at the stop marker [s] (same clock as the start state);
     ``energy_kwh`` (n,) traction work from the start [kWh]; ``snapshots`` the
     RunState at each requested position (taken before any change there).
+    ``stop_m`` (n,) where each run came to a stand [m of running distance]: the
+    arrival marker, or beyond it by the overrun if the last step asked more than
+    the stopping brake gives (it never should: the stopping curve is in the ceiling).
     With ``record=True``: ``s_m`` (m,) the grid from the start node on, and
     ``t_s``, ``v_ms``, ``a_ms2`` (mean acceleration of the step arriving at the
-    node; the first column repeats the first step's), ``phase``, ``ratio``, all (n, m).
+    node; the first column repeats the first step's), ``phase``, ``ratio``,
+    ``cap_ms`` (cruise cap in force, +inf where none), all (n, m).
     """
 
     time_s: np.ndarray
     energy_kwh: np.ndarray
     snapshots: dict
+    stop_m: np.ndarray | None = None
     s_m: np.ndarray | None = None
     t_s: np.ndarray | None = None
     v_ms: np.ndarray | None = None
     a_ms2: np.ndarray | None = None
     phase: np.ndarray | None = None
     ratio: np.ndarray | None = None
+    cap_ms: np.ndarray | None = None
 
 
 class _Ceilings:
@@ -298,19 +328,22 @@ class _Ceilings:
         self.ahead = self.b2 * (send - s)
         self.stop2 = speed_profile.stop_curve_sq(s, track.length_m, train.stop_brake_ms2)
 
-    def set(self, ratio: np.ndarray) -> None:
+    def set(self, ratio: np.ndarray, cap2: np.ndarray) -> None:
+        """Targets ``min(ratio² V², cap²)`` per run (``cap2`` = +inf where there is no cruise cap)."""
         self.r2 = ratio * ratio
+        self.cap2 = cap2
         nb = len(self.bounds)
         e = np.empty((nb, len(ratio)))
         e[-1] = np.inf
-        e[-2] = self.r2 * self.vn2[self.bounds[-1]]
+        e[-2] = np.minimum(self.r2 * self.vn2[self.bounds[-1]], cap2)
         for j in range(nb - 3, -1, -1):
             kb = self.bounds[j + 1]
-            e[j] = np.minimum(self.r2 * self.vn2[kb], e[j + 1] + self.ahead[kb])
+            e[j] = np.minimum(np.minimum(self.r2 * self.vn2[kb], cap2), e[j + 1] + self.ahead[kb])
         self.e = e
 
     def at(self, k: int) -> np.ndarray:
-        return np.minimum(np.minimum(self.r2 * self.vn2[k], self.e[self.seg[k]] + self.ahead[k]), self.stop2[k])
+        target2 = np.minimum(self.r2 * self.vn2[k], self.cap2)
+        return np.minimum(np.minimum(target2, self.e[self.seg[k]] + self.ahead[k]), self.stop2[k])
 
 
 def _check_stall(t, track, train, load, tf, s_list, k_ok: int, k: int) -> None:
@@ -369,8 +402,12 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
     changes : sequence of (s_m, ratio (n,))
         Ratio changes at grid nodes; a lowered ratio brakes at the service brake
         until below the new target.
-    controller : callable ``(s_m, state) -> ratio (n,)``, optional
-        Called at each ``decision_m`` node (after ``changes`` there).
+    controller : callable ``(s_m, state) -> ratio (n,) or Command or None``, optional
+        Called at each ``decision_m`` node (after ``changes`` there). It sees
+        what the vehicle measures (position, time, speed, phase) and returns
+        the ratio, or a :class:`Command` with a cruise-speed cap and the
+        deceleration for shedding speed (the time-keeping mode), or None
+        for no change.
     decision_m, snapshots_m : sequence of float
         Grid nodes [m] for the controller and for returned states.
     record : bool
@@ -405,7 +442,6 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
     me = 1.0 / inv_me
     ag = dynamics.track_accel_ms2(track.gradient, track.curve_specific, train.rotating_mass_factor)
     stop2 = speed_profile.stop_curve_sq(s, track.length_m, train.stop_brake_ms2)
-    b = train.service_brake_ms2
     amax = train.max_accel_ms2
     ra, rb, rc = train.davis_a_N, train.davis_b_N_per_ms, train.davis_c_N_per_ms2
     tsp, tef = train.traction_speed_ms, train.traction_effort_N
@@ -428,6 +464,8 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
         if phase.shape != (n,):
             phase = np.full(n, phase.reshape(-1)[0] if phase.size else PHASE_POWER, dtype=np.int8)
     w = v * v
+    cap2 = np.full(n, np.inf)  # cruise cap² per run (Command.cap_ms): none until a controller sets one
+    shed = np.full(n, float(train.service_brake_ms2))  # deceleration onto a lowered target
     # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
     coasting = (phase != PHASE_POWER) & sawtooth
 
@@ -445,13 +483,13 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
     snapshots: dict[float, RunState] = {}
 
     ceil = _Ceilings(track, train)
-    ceil.set(ratio)
+    ceil.set(ratio, cap2)
     if record:
         mr = m - k0
         rec_t, rec_v = np.empty((n, mr)), np.empty((n, mr))
         rec_a, rec_p = np.zeros((n, mr)), np.empty((n, mr), dtype=np.int8)
-        rec_r = np.empty((n, mr))
-        rec_t[:, 0], rec_v[:, 0], rec_p[:, 0], rec_r[:, 0] = t, v, phase, ratio
+        rec_r, rec_c = np.empty((n, mr)), np.empty((n, mr))
+        rec_t[:, 0], rec_v[:, 0], rec_p[:, 0], rec_r[:, 0], rec_c[:, 0] = t, v, phase, ratio, np.sqrt(cap2)
 
     def state(k: int) -> RunState:
         return RunState(np.full(n, s[k]), t.copy(), v.copy(), phase.copy(), ratio.copy())
@@ -502,14 +540,28 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
                         new = arg
                         what = f"ratio change at {s[k]} m"
                     else:
-                        new = _as_batch(controller(float(s[k]), state(k)), n, "controller ratio")
+                        cmd = controller(float(s[k]), state(k))
+                        if cmd is None:  # nothing to change here
+                            continue
+                        if isinstance(cmd, Command):
+                            if cmd.cap_ms is not None:
+                                cap_ms = _as_batch(cmd.cap_ms, n, "controller cap_ms")
+                                if np.any(~(cap_ms > 0)):
+                                    raise InputError(f"controller cap at {s[k]} m must be > 0 m/s")
+                                cap2 = cap_ms * cap_ms
+                            if cmd.shed_ms2 is not None:
+                                shed = _as_batch(cmd.shed_ms2, n, "controller shed_ms2")
+                                if np.any(~(shed > 0)):
+                                    raise InputError(f"controller deceleration at {s[k]} m must be > 0 m/s²")
+                            cmd = cmd.ratio
+                        new = _as_batch(cmd, n, "controller ratio")
                         what = f"controller ratio at {s[k]} m"
                     _check_ratio(new, what)
                     ratio = new.copy()
                     changed = True
                 if changed:
                     lb_for = None
-                    ceil.set(ratio)
+                    ceil.set(ratio, cap2)
                     c0 = ceil.at(k)
                     maybe_over = True
             ds = s_list[k + 1] - s_list[k]
@@ -518,7 +570,7 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
             if sawtooth:
                 if vint_list[k] != lb_for:  # the band's lower edge changes with the target only
                     lb_for = vint_list[k]
-                    tgt = ratio * lb_for
+                    tgt = np.minimum(ratio * lb_for, np.sqrt(cap2))
                     lb = np.maximum(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
                     lb2 = lb * lb
                 coasting &= w > lb2
@@ -538,8 +590,8 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
                 wend = w + slope * ds
                 cross = wend > c1
                 w1 = np.minimum(wend, c1)
-            else:  # over: service brake, w falls by 2 b per metre, until it meets the ceiling
-                slope = np.where(over, -2.0 * b, a0 + a1)
+            else:  # over: service brake (or the controller's shedding rate), until it meets the ceiling
+                slope = np.where(over, -2.0 * shed, a0 + a1)
                 wend = w + slope * ds
                 cross = np.where(over, wend < c1, wend > c1)
                 # braked down onto a ceiling that rises inside the step (a restriction's tail
@@ -625,7 +677,10 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
             if record:
                 jr = k + 1 - k0
                 rec_t[:, jr], rec_v[:, jr], rec_p[:, jr], rec_r[:, jr] = t + dt, v1, phase, ratio
+                rec_c[:, jr] = np.sqrt(cap2)
                 rec_a[:, jr] = (w1 - w) / (2.0 * ds)
+            if k + 2 == m:
+                w_last = w  # entering the last step, onto the marker
             w, v = w1, v1
             t = t + dt
             work += dwork
@@ -636,17 +691,22 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
     finally:
         err.__exit__(None, None, None)
     energy = work * me
+    # the last step ends standing on the marker; had it asked more than the stopping
+    # brake gives (w above 2 β Δs entering it), the train would have run past by this much
+    overrun = (np.maximum(w_last / (2.0 * train.stop_brake_ms2) - (s[-1] - s[-2]), 0.0)
+               if m - 1 > k0 else np.zeros(n))
+    stop_m = track.length_m + overrun
 
     for kind, arg in events.get(m - 1, []):
         if kind == "snap":
             snapshots[arg] = state(m - 1)
     energy_kwh = energy / KWH
     if not record:
-        return BatchResult(time_s=t, energy_kwh=energy_kwh, snapshots=snapshots)
+        return BatchResult(time_s=t, energy_kwh=energy_kwh, snapshots=snapshots, stop_m=stop_m)
     if rec_a.shape[1] > 1:
         rec_a[:, 0] = rec_a[:, 1]
-    return BatchResult(time_s=t, energy_kwh=energy_kwh, snapshots=snapshots, s_m=s[k0:].copy(),
-                       t_s=rec_t, v_ms=rec_v, a_ms2=rec_a, phase=rec_p, ratio=rec_r)
+    return BatchResult(time_s=t, energy_kwh=energy_kwh, snapshots=snapshots, stop_m=stop_m, s_m=s[k0:].copy(),
+                       t_s=rec_t, v_ms=rec_v, a_ms2=rec_a, phase=rec_p, ratio=rec_r, cap_ms=rec_c)
 
 
 # --- the high-level call ------------------------------------------------------------

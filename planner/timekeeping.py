@@ -12,10 +12,12 @@ Layout follows the computation:
    :func:`cruise_speed` (the closed form of §4), :func:`braking_pattern_speed`,
    :func:`cruise_speed_limited` (the same with a position-dependent on-board
    maximum, solved exactly on a distance grid);
-2. the closed-loop run (:func:`drive`): a single train driven by that target
-   with the real train dynamics of :mod:`planner.dynamics` under the on-board
-   maximum of :mod:`planner.speed_profile`, stopping on a constant-β pattern
-   onto the marker, with scheduled-arrival changes en route;
+2. the on-board logic (:class:`TimekeepingController`): a controller of the
+   one integrator, :func:`planner.run_curve.simulate`, that sees only the
+   vehicle's own nominal model and its measurements; :func:`drive` runs one
+   train with it (the plant: the real train's load and traction), and
+   :func:`closed_loop_runner` the designated-time sweep of ``planner simulate
+   --mode timekeeping``, with scheduled-arrival changes en route;
 3. the high-level API :func:`timekeeping_run` (line database in, a result
    with a run curve DataFrame out).
 """
@@ -391,35 +393,33 @@ def cruise_speed_limited(t_d, s_m, vmax_ms, beta, *, v0_ms: float | None = None,
 
 
 # --------------------------------------------------------------------------
-# 2. The closed-loop run: one train driven by the time-keeping target
+# 2. The on-board logic: a controller of the one integrator
 # --------------------------------------------------------------------------
-ADVICE_POWER, ADVICE_HOLD, ADVICE_COAST, ADVICE_BRAKE = 0, 1, 2, 3
 ADVICE_NAMES = ("power", "hold", "coast", "brake")
-"""Driver-support indication per sample (int8 codes index this tuple)."""
+"""Driver-support indication per sample (int8 codes index this tuple; they are
+:mod:`planner.run_curve`'s phase codes, with ``stop`` shown as ``brake``)."""
 
-RECOMPUTE_S = 1.0
+RECOMPUTE_S = 5.0
 """Re-compute the target at least this often [s] ..."""
-RECOMPUTE_M = 10.0
+RECOMPUTE_M = 50.0
 """... and at least every this many metres [m] (whichever comes first)."""
-COAST_BAND_MS = 2.0 / 3.6
-"""Above the target by more than this [m/s] the advice is to coast (or trim-brake)."""
 TRIM_DECEL_MS2 = 0.2
 """Deceleration [m/s²] used to shed speed above the target where coasting alone
 would slow the train less (level track with little resistance, falling gradient):
 a light brake, so a later scheduled arrival is still kept. Comfortable, well
 below the service brake."""
-HOLD_BAND_MS = 0.5 / 3.6
-"""Below the target by less than this [m/s] the advice stays ``hold`` (the
-constant-speed control makes it up), so the display does not flicker."""
 COAST_MIN_DECEL_MS2 = 0.05
 """Coasting counts as a way to shed speed only where it slows the train by at
 least this much [m/s²]; weaker coasting would need kilometres."""
+LEARN_MIN_STEPS = 10
+"""Full-notch steps the vehicle measures before it trusts its fitted traction factor θ."""
+LEARN_REPLAN_TOL = 0.005
+"""Re-run the flat-out look-ahead when θ has moved by more than this since the last plan ..."""
+LEARN_REPLAN_M = 200.0
+"""... at most once every this many metres [m]."""
 ACCEL_FLOOR_MS2 = 0.02
 """Below this full-notch acceleration [m/s²] the acceleration envelope is left
 out of the target computation (the train holds its speed rather than gains)."""
-_W_TOL = 1e-9
-"""Tolerance on v² [m²/s²] when comparing with a target or ceiling node value."""
-
 
 def _compress(s: np.ndarray, w: np.ndarray, tol: float = 1e-7):
     """Keep only the nodes where the slope of a piecewise-linear w(s) changes.
@@ -466,87 +466,6 @@ def _compress_tol(s: np.ndarray, w: np.ndarray, tol: float):
             stack.append((i, i + 1 + m))
             stack.append((i + 1 + m, j))
     return s[keep], w[keep]
-
-
-class _Vehicle:
-    """Scalar force model of one train on one track: :mod:`planner.dynamics`, one speed at a time.
-
-    The closed loop advances a single train, so numpy's per-call overhead on
-    0-d arrays would dominate; this adapter evaluates the same formulas
-    (dynamics' mass, track-acceleration and resistance functions, and its
-    linear traction-curve interpolation and acceleration cap, re-stated for
-    Python floats). ``tests/test_timekeeping_drive.py`` checks it against
-    :func:`planner.dynamics.acceleration_ms2` on random speeds.
-    """
-
-    def __init__(self, track, train, load: float, traction_factor: float):
-        from . import dynamics
-
-        self.dyn = dynamics
-        m = dynamics.mass_kg(train.empty_mass_kg, train.full_load_mass_kg, load)
-        self.inv_me = 1.0 / float(dynamics.effective_mass_kg(m, train.rotating_mass_factor))
-        self.ag = np.asarray(
-            dynamics.track_accel_ms2(track.gradient, track.curve_specific, train.rotating_mass_factor),
-            dtype=float,
-        ).tolist()
-        self.train = train
-        self.tf = float(traction_factor)
-        self._vs = [float(x) for x in train.traction_speed_ms]
-        self._fs = [float(x) * self.tf for x in train.traction_effort_N]
-        self._r = (float(train.davis_a_N), float(train.davis_b_N_per_ms), float(train.davis_c_N_per_ms2))
-        self._amax = float(train.max_accel_ms2)
-
-    def effort(self, v: float) -> float:
-        """Full-notch tractive effort [N]: linear interpolation, end values held (as np.interp)."""
-        vs, fs = self._vs, self._fs
-        if v <= vs[0]:
-            return fs[0]
-        if v >= vs[-1]:
-            return fs[-1]
-        i = bisect.bisect_right(vs, v)
-        return fs[i - 1] + (fs[i] - fs[i - 1]) * (v - vs[i - 1]) / (vs[i] - vs[i - 1])
-
-    def resistance(self, v: float) -> float:
-        """Davis running resistance [N]."""
-        a, b, c = self._r
-        return a + v * (b + c * v)
-
-    def full(self, v: float, k: int) -> float:
-        """Full-notch acceleration at speed v, grid node k [m/s²] (dynamics.acceleration_ms2)."""
-        coast = self.ag[k] - self.resistance(v) * self.inv_me
-        full = coast + self.effort(v) * self.inv_me
-        return min(full, max(self._amax, coast))
-
-    def coast(self, v: float, k: int) -> float:
-        """Coasting acceleration at speed v, grid node k [m/s²] (resistance and track only)."""
-        return self.ag[k] - self.resistance(v) * self.inv_me
-
-
-def _piece(w0: float, slope: float, g0: float, g1: float, ds: float, from_below: bool):
-    """One step: a piece of constant dw/ds ``slope`` until it meets the guide line, then the guide.
-
-    The guide (target or ceiling, squared) runs linearly from g0 to g1 over the
-    step. Returns (w1, dt) with each piece's time exact for constant
-    acceleration, Δt = 2 Δs / (v_a + v_b) (the same scheme as
-    :mod:`planner.run_curve`).
-    """
-    wend = w0 + slope * ds
-    gap0, gap1 = w0 - g0, wend - g1
-    cross = gap1 > 0.0 if from_below else gap1 < 0.0
-    if cross:
-        den = gap0 - gap1
-        x = ds * min(max(gap0 / den, 0.0), 1.0) if den != 0.0 else 0.0
-        wc = max(w0 + slope * x, 0.0)
-        w1 = max(g1, 0.0)
-    else:
-        x, wc, w1 = ds, max(wend, 0.0), max(wend, 0.0)
-    v0, vc, v1 = math.sqrt(w0), math.sqrt(wc), math.sqrt(w1)
-    dt = 0.0
-    if x > 0.0:
-        dt += 2.0 * x / (v0 + vc) if v0 + vc > 0.0 else math.inf
-    if ds - x > 0.0:
-        dt += 2.0 * (ds - x) / (vc + v1) if vc + v1 > 0.0 else math.inf
-    return w1, dt
 
 
 @dataclass(frozen=True)
@@ -633,187 +552,248 @@ class DriveResult:
         return self.shortfall_s <= 0.0
 
 
-class _Driver:
-    """The time-keeping driver on one track: shared set-up for the run and its look-aheads."""
+class TimekeepingController:
+    """The time-keeping on-board logic (DESIGN §4) as a controller of :func:`planner.run_curve.simulate`.
 
-    def __init__(self, track, train, load, traction_factor, recompute_s, recompute_m):
-        from . import speed_profile
+    It knows what a vehicle knows: the track from its DB, its **own nominal
+    model** of the train (``model`` at ``model_load`` and ``model_traction``),
+    and at each decision node what it measures (position, time since
+    departure, speed). The real train, the plant, is whatever ``simulate`` runs
+    (its load and traction factor); the controller never sees them, so a
+    heavier or weaker train than the model shows up as lateness it corrects.
 
-        self.track, self.train = track, train
-        self.veh = _Vehicle(track, train, load, traction_factor)
-        self.s = np.asarray(track.s_m, dtype=float)
-        self.beta = float(train.stop_brake_ms2)
-        # ceiling: on-board maximum lowered by service-brake curves to every drop
-        # ahead and by the stopping-brake curve onto the marker (v², linear per step)
-        self.c2 = np.asarray(speed_profile.ceiling_sq(
-            self.s, np.asarray(track.vmax_ms, dtype=float), train.service_brake_ms2,
-            track.length_m, train.stop_brake_ms2), dtype=float)
-        self.stop2 = np.asarray(speed_profile.stop_curve_sq(self.s, track.length_m, train.stop_brake_ms2))
-        self.gs, self.gw = _compress(self.s, self.c2)  # limit profile (see _plan)
-        self.brake_max = max(train.service_brake_ms2, train.stop_brake_ms2)
+    At departure, at every decision node and at once when a change of the
+    scheduled arrival takes effect, it computes the cruise speed v_m with
+    :func:`cruise_speed_limited` from the remaining time and distance under
+    its model's flat-out speed profile (full power, braking only for the
+    on-board ceiling), including the acceleration envelope from the current
+    speed and the gentlest way down to a lower speed (coasting where it slows
+    the train noticeably, a light trim brake, the service brake). The
+    vehicle then runs at ratio 1.0 under the cap v_m: power below it, hold at
+    it (constant-speed control; sawtooth vehicles run their coasting band
+    below it), shed speed at the planned deceleration above it, and brake
+    onto the marker on the stopping curve, after which the stop is committed
+    and later changes are recorded but cannot re-plan it.
+
+    Whenever the schedule is set (departure and each change) the model is
+    run flat out from the measured state (the same integrator) for the
+    earliest arrival; a scheduled arrival earlier than that is a shortfall,
+    reported, and the run goes flat out: never silently missed.
+
+    The vehicle learns how far its real performance is from its model, as a
+    driver does in the first seconds of a run: on every full-notch step it
+    compares the measured acceleration with what the model predicts, and
+    fits a traction factor θ (least squares over all such steps, tractive
+    part only: gradient and curve act the same on any load) that folds its
+    unknown load and catenary voltage into one number. When θ has moved by
+    more than :data:`LEARN_REPLAN_TOL` since the last plan (at most every
+    :data:`LEARN_REPLAN_M`), the flat-out look-ahead is re-run with it, so a
+    heavier or weaker train than the model plans with what it really has.
+    Steps at the acceleration cap tell nothing about θ and are skipped.
+
+    Parameters
+    ----------
+    track : planner.run_curve.Track
+    model : planner.model.TrainType
+        The vehicle's own model of itself (the track's train type).
+    arrival_s : float or ndarray (n,)
+        Scheduled arrival of each run [s after departure].
+    changes : sequence of (at_s, arrival_s)
+        For every run: at ``at_s`` s after departure the scheduled arrival
+        becomes ``arrival_s`` s after departure.
+    model_load, model_traction : float
+        The conditions the model assumes (nominal: empty, full traction).
+    recompute_s, recompute_m : float
+        Re-computation period [s] and spacing [m], whichever comes first.
+
+    Every grid node is a decision node (``decision_m``), so a change of the
+    scheduled arrival takes effect within one grid step (≈ 0.05 s at speed);
+    at nodes where nothing is due the controller returns None (no change).
+    """
+
+    def __init__(self, track, model, arrival_s, changes=(), *, model_load: float = 0.0,
+                 model_traction: float = 1.0, recompute_s: float = RECOMPUTE_S,
+                 recompute_m: float = RECOMPUTE_M):
+        from . import dynamics, speed_profile
+
+        if model.train_type != track.train_type:
+            raise InputError(f"track is for train type {track.train_type!r}, not {model.train_type!r}")
+        if not (recompute_m > 0 and recompute_s > 0):
+            raise InputError(f"re-computation every {recompute_s} s / {recompute_m} m: both must be > 0")
+        arrival = np.atleast_1d(np.asarray(arrival_s, dtype=float)).copy()
+        for a in arrival:
+            _check_schedule(float(a), ())
+        self.track, self.model = track, model
+        self.model_load, self.model_traction = float(model_load), float(model_traction)
+        self.changes = _check_schedule(float(arrival[0]), changes)
+        s = np.asarray(track.s_m, dtype=float)
+        self.s = s
+        self.decision_m = s[:-1].tolist()
+        self._k = {x: i for i, x in enumerate(self.decision_m)}
         self.recompute_s, self.recompute_m = float(recompute_s), float(recompute_m)
+        self.beta = float(model.stop_brake_ms2)
+        self.service = float(model.service_brake_ms2)
+        self.stop2 = speed_profile.stop_curve_sq(s, track.length_m, model.stop_brake_ms2)
+        m = dynamics.mass_kg(model.empty_mass_kg, model.full_load_mass_kg, self.model_load)
+        self._inv_me = 1.0 / float(dynamics.effective_mass_kg(m, model.rotating_mass_factor))
+        self._ag = dynamics.track_accel_ms2(track.gradient, track.curve_specific, model.rotating_mass_factor)
+        self.sawtooth = model.cruise == "sawtooth"
+        n = arrival.size
+        self.arrival = arrival
+        self.next_change = np.zeros(n, dtype=int)
+        self.next_at = np.full(n, self.changes[0][0] if self.changes else np.inf)
+        self.next_t = np.full(n, -np.inf)
+        self.next_s = np.full(n, -np.inf)
+        self.flat_out = np.zeros(n, dtype=bool)
+        self.committed = np.zeros(n, dtype=bool)
+        self.cap = np.full(n, np.inf)
+        self.shed = np.full(n, self.service)
+        self.recomputes = np.zeros(n, dtype=int)
+        self.records: list[list[ChangeRecord]] = [[] for _ in range(n)]
+        self.guides: list = [None] * n
+        # learning θ: least-squares sums, the θ of the last plan, where the next re-plan may come
+        self.theta = np.full(n, self.model_traction)
+        self.theta_plan = self.theta.copy()
+        self._sxy, self._sxx = np.zeros(n), np.zeros(n)
+        self._n_fit = np.zeros(n, dtype=int)
+        self.next_replan_s = np.zeros(n)
+        self._prev = None  # (node, speeds) of the previous call
 
-    # -- the target ------------------------------------------------------------
-    def target(self, k: int, t: float, v: float, arrival_s: float) -> CruiseTarget:
-        """Limit-aware cruise speed from node k at time t and speed v."""
+    # -- the vehicle's own model, one speed at a time ----------------------------
+    def _accel(self, v: float, k: int, theta: float) -> tuple[float, float]:
+        """Full-notch and coasting acceleration of the model at speed v, node k, traction θ [m/s²]."""
+        from . import dynamics
+
+        md = self.model
+        res = float(dynamics.davis_resistance_N(v, md.davis_a_N, md.davis_b_N_per_ms, md.davis_c_N_per_ms2))
+        eff = float(dynamics.tractive_effort_N(v, md.traction_speed_ms, md.traction_effort_N, theta))
+        full = float(dynamics.acceleration_ms2(v, eff, res, self._inv_me, self._ag[k], md.max_accel_ms2))
+        return full, float(self._ag[k]) - res * self._inv_me
+
+    def _learn(self, k: int, state) -> None:
+        """Fit θ from the full-notch step that arrived at node k (class doc)."""
+        from . import dynamics
+        from .run_curve import PHASE_POWER
+
+        prev, self._prev = self._prev, (k, state.v_ms.copy())
+        if prev is None or prev[0] != k - 1:
+            return
+        v0, v1 = prev[1], state.v_ms
+        md = self.model
+        a_meas = (v1 * v1 - v0 * v0) / (2.0 * (self.s[k] - self.s[k - 1]))
+        ok = (state.phase == PHASE_POWER) & (a_meas < md.max_accel_ms2 - 1e-3) & (v0 > 0.0)
+        if not ok.any():
+            return
+        parts = []
+        for v, j in ((v0, k - 1), (v1, k)):
+            f = dynamics.tractive_effort_N(v, md.traction_speed_ms, md.traction_effort_N) * self._inv_me
+            r = dynamics.davis_resistance_N(v, md.davis_a_N, md.davis_b_N_per_ms, md.davis_c_N_per_ms2)
+            parts.append((f, self._ag[j] - r * self._inv_me))
+        a_f = 0.5 * (parts[0][0] + parts[1][0])
+        a_rest = 0.5 * (parts[0][1] + parts[1][1])
+        ok &= a_f > 1e-3
+        self._sxy += np.where(ok, a_f * (a_meas - a_rest), 0.0)
+        self._sxx += np.where(ok, a_f * a_f, 0.0)
+        self._n_fit += ok
+        fit = self._n_fit >= LEARN_MIN_STEPS
+        self.theta = np.where(fit, self._sxy / np.where(fit, self._sxx, 1.0), self.theta)
+
+    # -- planning: the earliest arrival and the limit profile --------------------
+    def _plan(self, k: int, runs: np.ndarray, state, at_s: np.ndarray | None) -> None:
+        """Run the model flat out from the measured state of ``runs`` (the one integrator).
+
+        ``at_s`` the times the schedule was set (recorded as :class:`ChangeRecord`);
+        None for a re-plan after learning θ (not a schedule event).
+        """
+        from .run_curve import RunState, simulate
+
+        t, v, ph = state.t_s[runs], state.v_ms[runs], state.phase[runs]
+        start = RunState(np.full(runs.size, self.s[k]), t, v, ph, np.ones(runs.size))
+        res = simulate(self.track, self.model, 1.0, load=self.model_load, traction_factor=self.theta[runs],
+                       start=start, record=True)
+        self.theta_plan[runs] = self.theta[runs]
+        for j, i in enumerate(runs.tolist()):
+            earliest = float(res.time_s[j])
+            short = max(0.0, earliest - self.arrival[i])
+            if at_s is not None:
+                self.records[i].append(ChangeRecord(float(at_s[j]), float(t[j]), float(self.arrival[i]),
+                                                    earliest, short))
+            self.flat_out[i] = short > 0.0
+            self.guides[i] = _compress_tol(res.s_m, np.square(res.v_ms[j]), GUIDE_TOL_MS2)
+
+    def _target(self, i: int, k: int, t: float, v: float) -> None:
+        gs, gw = self.guides[i]
         s0 = self.s[k]
-        j = int(np.searchsorted(self.gs, s0, side="right"))
-        s_sub = np.concatenate([[s0], self.gs[j:]])
-        w_sub = np.concatenate([[max(np.interp(s0, self.gs, self.gw), v * v)], self.gw[j:]])
-        a0 = self.veh.full(v, k)
-        # how the driver gets down to a lower target, gentlest first: coasting (where
-        # it slows the train noticeably), a light trim brake, the service brake
-        dc = -self.veh.coast(v, k)
+        j = int(np.searchsorted(gs, s0, side="right"))
+        s_sub = np.concatenate([[s0], gs[j:]])
+        w_sub = np.concatenate([[max(float(np.interp(s0, gs, gw)), v * v)], gw[j:]])
+        if s_sub.size < 2:
+            return
+        a0, coast = self._accel(v, k, float(self.theta[i]))
+        dc = -coast
         d_trim = max(TRIM_DECEL_MS2, dc)
-        decels = ((dc,) if dc >= COAST_MIN_DECEL_MS2 else ()) + (d_trim, max(d_trim, self.train.service_brake_ms2))
-        return cruise_speed_limited(
-            arrival_s - t, s_sub, np.sqrt(np.maximum(w_sub, 0.0)), self.beta,
-            v0_ms=v, accel_ms2=a0 if a0 > ACCEL_FLOOR_MS2 else None, decel_ms2=decels), dc
+        decels = ((dc,) if dc >= COAST_MIN_DECEL_MS2 else ()) + (d_trim, max(d_trim, self.service))
+        tg = cruise_speed_limited(self.arrival[i] - t, s_sub, np.sqrt(np.maximum(w_sub, 0.0)), self.beta,
+                                  v0_ms=v, accel_ms2=a0 if a0 > ACCEL_FLOOR_MS2 else None, decel_ms2=decels)
+        self.recomputes[i] += 1
+        if not tg.feasible:
+            self.cap[i], self.shed[i] = np.inf, self.service
+            return
+        cap = float(tg.speed_ms)
+        if self.sawtooth:
+            # a vehicle without constant-speed control coasts down its band below the cap and
+            # powers back up: its mean speed is about the band's middle, so aim the band there
+            cap += 0.5 * self.model.coast_band_ms
+        self.cap[i] = cap
+        self.shed[i] = float(tg.decel_ms2) if math.isfinite(tg.decel_ms2) else self.service
 
-    # -- the integrator --------------------------------------------------------
-    def run(self, k0: int, t0: float, v0: float, *, schedule=None, record=True):
-        """Drive from node k0 (time t0, speed v0) to the stop.
+    def __call__(self, s_m: float, state):
+        from .run_curve import Command
 
-        ``schedule`` None runs flat out (target = ceiling: the earliest
-        arrival). Otherwise it is ``(arrival_s, changes)`` with changes sorted
-        by time; the target is re-computed every ``recompute_s`` /
-        ``recompute_m`` and at once when a change takes effect.
-        """
-        s, c2, stop2, veh = self.s, self.c2, self.stop2, self.veh
-        m = len(s)
-        b_serv = self.train.service_brake_ms2
-        w, t = v0 * v0, t0
-        vm2 = math.inf
-        pending = list(schedule[1]) if schedule is not None else []
-        records: list[ChangeRecord] = []
-        shortfall = 0.0
-        arrival = schedule[0] if schedule is not None else math.nan
-        flat_out = schedule is None
-        next_t, next_s = -math.inf, -math.inf
-        committed = False
-        recomputes = 0
-        decel, coast_plan = TRIM_DECEL_MS2, False
-        if record:
-            out_t = np.empty(m - k0)
-            out_v = np.empty(m - k0)
-            out_tg = np.empty(m - k0)
-            out_a = np.zeros(m - k0, dtype=np.int8)
-            out_t[0], out_v[0] = t0, v0
-        if schedule is not None:
-            rec = self._plan(k0, t0, v0, 0.0, arrival)
-            records.append(rec)
-            shortfall = rec.shortfall_s
-            flat_out = shortfall > 0.0
-        for k in range(k0, m - 1):
-            v = math.sqrt(w)
-            # scheduled-arrival changes take effect at the first node at or after their time
-            changed = False
-            while pending and t >= pending[0][0] - 1e-12:
-                at, arrival = pending.pop(0)
-                if committed:
+        k = self._k[s_m]
+        t, v = state.t_s, state.v_ms
+        n = t.size
+        plan = np.zeros(n, dtype=bool)
+        at = np.zeros(n)
+        if k == 0 and not self.records[0]:
+            plan[:] = True
+        # scheduled-arrival changes take effect at the first node at or after their time
+        for i in np.flatnonzero(t >= self.next_at - 1e-12).tolist():
+            while self.next_change[i] < len(self.changes) and t[i] >= self.changes[self.next_change[i]][0] - 1e-12:
+                c_at, c_arr = self.changes[self.next_change[i]]
+                self.next_change[i] += 1
+                self.arrival[i] = c_arr
+                if self.committed[i]:
                     # already braking onto the marker: the stop cannot be re-planned
-                    records.append(ChangeRecord(at, t, arrival, math.nan, math.nan))
-                    continue
-                rec = self._plan(k, t, v, at, arrival)
-                records.append(rec)
-                shortfall = rec.shortfall_s
-                flat_out = shortfall > 0.0
-                changed = True
-            if not committed and w >= stop2[k] - 1e-9 and k > k0:
-                committed = True  # on the stopping pattern: keep braking onto the marker
-            if not flat_out and not committed and (changed or t >= next_t or s[k] >= next_s):
-                tg, dc = self.target(k, t, v, arrival)
-                recomputes += 1
-                vm2 = tg.speed_ms ** 2 if tg.feasible else math.inf
-                # getting down to a lower target: as planned (trim/coast, or the
-                # service brake when that is needed to lose enough time)
-                decel = tg.decel_ms2 if math.isfinite(tg.decel_ms2) else self.train.service_brake_ms2
-                coast_plan = tg.decel_ms2 == dc
-                next_t, next_s = t + self.recompute_s, s[k] + self.recompute_m
-            if flat_out:
-                vm2 = math.inf
-            ds = s[k + 1] - s[k]
-            c0, c1 = c2[k], c2[k + 1]
-            g0, g1 = min(vm2, c0), min(vm2, c1)
-            if w > c0 * (1.0 + 1e-12) + _W_TOL:
-                # above the ceiling (never on a planned run, kept for safety): service brake
-                w1, dt = _piece(w, -2.0 * b_serv, c0, c1, ds, from_below=False)
-                adv = ADVICE_BRAKE
-            elif w < g0 - _W_TOL:
-                # below the target: full notch (Heun in v²) until it is reached
-                a0 = veh.full(v, k)
-                vp = math.sqrt(max(w + 2.0 * a0 * ds, 0.0))
-                a1 = veh.full(vp, k + 1)
-                w1, dt = _piece(w, a0 + a1, g0, g1, ds, from_below=True)
-                # a small shortfall after a re-computation is made up within "hold"
-                adv = ADVICE_POWER if v < math.sqrt(g0) - HOLD_BAND_MS else ADVICE_HOLD
-            elif v > math.sqrt(g0) + COAST_BAND_MS:
-                # well above the target (a later arrival): coast, or trim-brake if coasting is too weak
-                a0 = veh.coast(v, k)
-                vp = math.sqrt(max(w + 2.0 * a0 * ds, 0.0))
-                a1 = veh.coast(vp, k + 1)
-                slope = a0 + a1
-                if coast_plan or slope <= -2.0 * decel:
-                    adv = ADVICE_COAST
+                    self.records[i].append(ChangeRecord(c_at, float(t[i]), c_arr, math.nan, math.nan))
                 else:
-                    slope, adv = -2.0 * decel, ADVICE_BRAKE
-                w1, dt = _piece(w, slope, g0, g1, ds, from_below=False)
+                    plan[i], at[i] = True, c_at
+            nc = self.next_change[i]
+            self.next_at[i] = self.changes[nc][0] if nc < len(self.changes) else np.inf
+        if plan.any():
+            self._plan(k, np.flatnonzero(plan), state, at[plan])
+        self._learn(k, state)
+        replan = (~plan & ~self.committed & (np.abs(self.theta - self.theta_plan) > LEARN_REPLAN_TOL)
+                  & (s_m >= self.next_replan_s))
+        if replan.any():
+            self._plan(k, np.flatnonzero(replan), state, None)
+            self.next_replan_s[replan] = s_m + LEARN_REPLAN_M
+            plan |= replan
+        newly = np.zeros(n, dtype=bool)
+        if k > 0:
+            # on the stopping curve: the stop is committed, the curve alone governs
+            newly = ~self.committed & (v * v >= self.stop2[k] - 1e-9)
+            self.committed |= newly
+        due = plan | ((t >= self.next_t) | (s_m >= self.next_s)) & ~self.committed & ~self.flat_out
+        if not (due.any() or newly.any()):
+            return None
+        for i in np.flatnonzero(due | newly).tolist():
+            if self.committed[i] or self.flat_out[i]:
+                self.cap[i], self.shed[i] = np.inf, self.service
             else:
-                # at the target: constant-speed control follows it (the target line is
-                # linear in v² over the step), within what power and brake can do
-                need = (g1 - w) / ds
-                a0 = veh.full(v, k)
-                vp = math.sqrt(max(w + 2.0 * a0 * ds, 0.0))
-                up = a0 + veh.full(vp, k + 1)
-                # a braking curve of the ceiling is followed at whatever it asks (≤ the
-                # brakes); a lowered cruise target only at the gentle trim rate
-                follow_ceiling = c1 <= vm2
-                lo = -2.0 * (self.brake_max if follow_ceiling else decel)
-                if need > up:
-                    w1, dt = _piece(w, up, g0, g1, ds, from_below=True)
-                    adv = ADVICE_POWER if math.sqrt(g1) - math.sqrt(w1) > HOLD_BAND_MS else ADVICE_HOLD
-                else:
-                    slope = max(need, lo)
-                    w1 = max(w + slope * ds, 0.0)
-                    v1 = math.sqrt(w1)
-                    dt = 2.0 * ds / (v + v1) if v + v1 > 0 else math.inf
-                    if follow_ceiling and slope < -_W_TOL:
-                        adv = ADVICE_BRAKE  # on a braking curve (restriction ahead, or the stop)
-                    else:
-                        adv = ADVICE_HOLD
-            # the ceiling always holds (the last node is the marker: standing)
-            w1 = min(w1, c1)
-            if k + 1 == m - 1:
-                w1 = 0.0
-            if not math.isfinite(dt) or (w1 <= 0.0 and k + 1 < m - 1):
-                raise InfeasibleError(
-                    f"train type {self.train.train_type} stalls {self.track.origin}->"
-                    f"{self.track.destination} at running distance {s[k + 1]:.1f} m: "
-                    "tractive effort cannot overcome resistance and gradient")
-            w, t = w1, t + dt
-            if record:
-                j = k + 1 - k0
-                out_t[j], out_v[j], out_a[j] = t, math.sqrt(w), adv
-                out_tg[j - 1] = math.sqrt(min(vm2, c0))
-        if not record:
-            return t, records, shortfall, recomputes, None
-        out_tg[-1] = 0.0
-        if len(out_a) > 1:
-            out_a[0] = out_a[1]
-        return t, records, shortfall, recomputes, (out_t, out_v, out_tg, out_a)
-
-    def _plan(self, k: int, t: float, v: float, at: float, arrival: float) -> ChangeRecord:
-        """Earliest possible arrival from the current state, and so the shortfall.
-
-        The flat-out run's speed profile is also the highest speed the train
-        can reach anywhere ahead (full power, braking only for the ceiling), so
-        it replaces the ceiling as the limit profile of the target
-        computation: power-limited stretches (long rises, acceleration out of
-        a restriction) are then part of the prediction.
-        """
-        earliest, _, _, _, rec = self.run(k, t, v, schedule=None, record=True)
-        self.gs, self.gw = _compress_tol(self.s[k:], np.square(rec[1]), GUIDE_TOL_MS2)
-        return ChangeRecord(at, t, arrival, earliest, max(0.0, earliest - arrival))
+                self._target(i, k, float(t[i]), float(v[i]))
+                self.next_t[i], self.next_s[i] = t[i] + self.recompute_s, s_m + self.recompute_m
+        return Command(np.ones(n), self.cap.copy(), self.shed.copy())
 
 
 def _check_schedule(arrival_s: float, changes) -> list[tuple[float, float]]:
@@ -836,42 +816,15 @@ def _check_schedule(arrival_s: float, changes) -> list[tuple[float, float]]:
 
 
 def drive(track, train, arrival_s: float, *, changes=(), load: float = 0.0,
-          traction_factor: float = 1.0, recompute_s: float = RECOMPUTE_S,
-          recompute_m: float = RECOMPUTE_M) -> DriveResult:
-    """Closed-loop run of one train driven by the time-keeping target (DESIGN §4).
+          traction_factor: float = 1.0, recompute_s: float = RECOMPUTE_S, recompute_m: float = RECOMPUTE_M,
+          model_load: float = 0.0, model_traction: float = 1.0) -> DriveResult:
+    """One train driven by the time-keeping logic in the one integrator (DESIGN §4).
 
-    The on-board logic, at departure, every ``recompute_s`` seconds or
-    ``recompute_m`` metres (whichever first) and at once when a change of the
-    scheduled arrival takes effect, computes the cruise speed v_m with
-    :func:`cruise_speed_limited` from the remaining time and the remaining
-    distance under the ceiling (on-board maximum lowered by the service-brake
-    curves to every drop ahead and by the stopping-brake curve at β =
-    ``train.stop_brake_ms2``), including the constant-acceleration envelope
-    from the current speed. The train follows the target min(v_m, ceiling):
-
-    * below it: full notch (``power``) until it is reached;
-    * at it: constant-speed control (``hold``), trimming down at most
-      :data:`TRIM_DECEL_MS2` when v_m is lowered, following braking curves
-      of the ceiling at the deceleration they ask (``brake``);
-    * above it by more than :data:`COAST_BAND_MS` (a later arrival): coast if
-      that slows the train by at least the trim deceleration, else a light
-      trim brake (``coast`` / ``brake``);
-    * above the ceiling: service brake (``brake``);
-    * once on the stopping pattern (v² ≥ 2β(L − s)) the stop is committed:
-      it brakes at β onto the marker, and later changes are recorded but
-      cannot re-plan the stop.
-
-    Whenever the schedule is set (departure and each change) an earliest-
-    arrival look-ahead runs the same train flat out (target = ceiling) from
-    the current state. If even that is later than the scheduled arrival the
-    run reports the shortfall and drives flat out — it is never silently
-    missed.
-
-    Integration is the scheme of :mod:`planner.run_curve` on the track's grid
-    (Heun's method in v² against distance, pieces split where they meet the
-    target or ceiling, Δt = 2Δs/(v₀ + v₁) per constant-acceleration piece),
-    with the forces of :mod:`planner.dynamics`. A change takes effect at the
-    first grid node at or after its time (≤ one step, ≈ 0.05 s at speed).
+    The on-board logic is a :class:`TimekeepingController` with the vehicle's
+    nominal model of itself (``model_load``, ``model_traction``); the plant is
+    the real train at ``load`` and ``traction_factor``, run by
+    :func:`planner.run_curve.simulate` (the same run-curve physics as every
+    table). See the controller for what the logic does.
 
     Parameters
     ----------
@@ -886,34 +839,38 @@ def drive(track, train, arrival_s: float, *, changes=(), load: float = 0.0,
     load, traction_factor : float
         Load factor and tractive-effort multiplier of the real train.
     recompute_s, recompute_m : float
-        Re-computation period [s] and spacing [m].
+        Re-computation period [s] and spacing [m] of the target.
+    model_load, model_traction : float
+        What the on-board model assumes (nominal by default).
 
     Returns
     -------
     DriveResult
     """
+    from .run_curve import PHASE_BRAKE, PHASE_STOP, simulate
+
     if train.train_type != track.train_type:
         raise InputError(f"track is for train type {track.train_type!r}, not {train.train_type!r}")
     if not (load >= 0.0 and traction_factor > 0.0):
         raise InputError(f"load must be ≥ 0 and traction factor > 0, got {load} and {traction_factor}")
-    ch = _check_schedule(arrival_s, changes)
-    drv = _Driver(track, train, float(load), float(traction_factor), recompute_s, recompute_m)
-    t_end, records, shortfall, recomputes, rec = drv.run(0, 0.0, 0.0, schedule=(float(arrival_s), ch))
-    out_t, out_v, out_tg, out_a = rec
-    s = drv.s
-    # the stop: the first node after departure where the train stands (the marker, unless it stalled)
-    standing = np.flatnonzero(out_v[1:] <= 0.0)
-    stop_m = float(s[1 + standing[0]]) if len(standing) else float(s[-1])
+    ctl = TimekeepingController(track, train, float(arrival_s), changes, model_load=model_load,
+                                model_traction=model_traction, recompute_s=recompute_s, recompute_m=recompute_m)
+    res = simulate(track, train, 1.0, load=float(load), traction_factor=float(traction_factor),
+                   controller=ctl, decision_m=ctl.decision_m, record=True)
+    t_end = float(res.time_s[0])
     # changes that came while braking onto the marker could not re-plan the stop:
     # the earliest arrival was the committed one
     records = [r if math.isfinite(r.earliest_s) else
                ChangeRecord(r.at_s, r.applied_s, r.arrival_s, t_end, max(0.0, t_end - r.arrival_s))
-               for r in records]
-    shortfall = records[-1].shortfall_s
+               for r in ctl.records[0]]
+    phase = res.phase[0]
+    advice = np.where(phase == PHASE_STOP, PHASE_BRAKE, phase).astype(np.int8)
+    c2 = track.ceiling_sq(1.0, train)[0]
+    target = np.sqrt(np.minimum(np.square(res.cap_ms[0]), c2[-res.s_m.size:]))
     return DriveResult(
-        s_m=s.copy(), t_s=out_t, v_ms=out_v, target_ms=out_tg, advice=out_a, time_s=float(t_end),
-        scheduled_s=float(records[-1].arrival_s), stop_m=stop_m, length_m=float(track.length_m),
-        shortfall_s=float(shortfall), changes=tuple(records), recomputes=recomputes)
+        s_m=res.s_m.copy(), t_s=res.t_s[0], v_ms=res.v_ms[0], target_ms=target, advice=advice, time_s=t_end,
+        scheduled_s=float(records[-1].arrival_s), stop_m=float(res.stop_m[0]), length_m=float(track.length_m),
+        shortfall_s=float(records[-1].shortfall_s), changes=tuple(records), recomputes=int(ctl.recomputes[0]))
 
 
 # --------------------------------------------------------------------------
@@ -1035,11 +992,12 @@ def timekeeping_run(line_or_path, train_type: str, origin: str, destination: str
 
 
 def closed_loop_runner(track, train, tables, designated_s, sc, mode="timekeeping"):
-    """Runner for :func:`planner.closed_loop.register_runner` (``planner simulate --mode timekeeping``).
+    """The ``timekeeping`` mode of :mod:`planner.closed_loop` (``planner simulate --mode timekeeping``).
 
-    Drives every designated running time of the sweep in time-keeping mode
-    (no tables needed: the target comes from the remaining time and distance)
-    under the scenario's load and traction.
+    Every designated running time of the sweep in one batch of the integrator:
+    the on-board logic with the vehicle's nominal model (no tables needed: the
+    target comes from the remaining time and distance), the plant under the
+    scenario's load and traction.
 
     Returns
     -------
@@ -1047,9 +1005,14 @@ def closed_loop_runner(track, train, tables, designated_s, sc, mode="timekeeping
         Simulated running times [s].
     ratios : ndarray (n, n_x)
         NaN: this mode chooses no ratios (shape as the table modes' for the datasets).
+    stop_m : ndarray (n,)
+        Where each run came to a stand [m of running distance].
     """
+    from .run_curve import simulate
+
     designated = np.asarray(designated_s, dtype=float).reshape(-1)
-    actual = np.array([drive(track, train, float(t), load=sc.load, traction_factor=sc.traction_factor).time_s
-                       for t in designated])
+    ctl = TimekeepingController(track, train, designated)
+    res = simulate(track, train, 1.0 + 0.0 * designated, load=sc.load, traction_factor=sc.traction_factor,
+                   controller=ctl, decision_m=ctl.decision_m)
     n_x = len(getattr(tables, "eval_point_ids", ()))
-    return actual, np.full((len(designated), n_x), np.nan)
+    return np.asarray(res.time_s, float), np.full((designated.size, n_x), np.nan), np.asarray(res.stop_m, float)

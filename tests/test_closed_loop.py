@@ -165,3 +165,37 @@ def test_one_batch_of_every_scenario_and_mode_equals_separate_batches(flat):
         np.testing.assert_array_equal(r.actual_s, alone.actual_s)
         np.testing.assert_array_equal(r.ratios, alone.ratios)
         assert (r.min_time_s, r.max_time_s) == (alone.min_time_s, alone.max_time_s)
+
+
+def test_timekeeping_is_a_closed_loop_mode(flat):
+    """Issue 14: `mode="timekeeping"` runs the sweep through the one integrator; the on-board logic has the
+    nominal model, the plant is perturbed; arrival within 0.5 s wherever the plant can make it, and the
+    stop error is where the plant stood."""
+    ln, _, tabs = flat
+    r = closed_loop_interstation(ln, "T", tabs, scenario="perturbed", mode="timekeeping", step_s=5.0)
+    assert r.mode == "timekeeping" and np.isnan(r.ratios).all()
+    f = r.feasible
+    assert f.sum() >= 10
+    assert np.abs(r.error_s[f]).max() <= 0.5
+    assert r.stop_error_m.shape == r.actual_s.shape and np.abs(r.stop_error_m).max() <= 0.2
+    # infeasible designated times: it ran flat out, so it arrives at the plant's minimum
+    if (~f).any():
+        assert np.abs(r.actual_s[~f] - r.min_time_s).max() <= 0.5
+
+
+def test_stop_position_is_measured_from_the_plant(flat):
+    """BatchResult.stop_m: a run forced to stand at the marker from above the stopping curve overran
+    by v²/(2 β) − Δs (closed form); a run on the curve stands on the marker."""
+    from planner.run_curve import RunState, make_track, simulate
+
+    ln, _, _ = flat
+    train = ln.train_type("T")
+    tr = make_track(ln, "T", "S0", "S1")
+    k = len(tr.s_m) - 2
+    ds = tr.s_m[-1] - tr.s_m[-2]
+    v = np.array([10.0, 0.5 * np.sqrt(2 * train.stop_brake_ms2 * ds)])
+    st = RunState(np.full(2, tr.s_m[k]), np.zeros(2), v, np.full(2, 3, dtype=np.int8), np.ones(2))
+    res = simulate(tr, train, 1.0, start=st)
+    assert res.stop_m[0] == pytest.approx(tr.length_m + 100.0 / (2 * train.stop_brake_ms2) - ds)
+    assert res.stop_m[1] == tr.length_m
+    assert simulate(tr, train, 0.8).stop_m[0] == tr.length_m

@@ -78,16 +78,29 @@ def test_cli_bad_input_is_one_line():
     assert r.exit_code != 0 and "unknown train type" in r.stderr
 
 
-def test_planner_simulate_mode_timekeeping():
-    """`planner simulate --mode timekeeping` drives one run with en-route arrival changes (issue 10)."""
-    _need_sample()
-    r = runner.invoke(app, ["simulate", str(SAMPLE), "--mode", "timekeeping", "--train-type", "E10",
-                            "--from", "TKD", "--to", "OHS", "--arrival", "340", "--change", "40:380", "--json"])
+def test_planner_simulate_mode_timekeeping(tmp_path):
+    """`planner simulate --mode timekeeping` sweeps designated times like the table modes and writes
+    the same closed_loop rows, with the plant's stop error (issue 14)."""
+    import pyarrow.dataset as ds
+
+    from linedb import write_line_db
+
+    line_dir = write_line_db(tmp_path / "tiny")
+    tabs, sim = tmp_path / "tables", tmp_path / "sim"
+    r = runner.invoke(app, ["tables", str(line_dir), "--out", str(tabs), "--train-type", "EMU10",
+                            "--ratios", "1.0:0.6:0.1", "--jobs", "1"])
     assert r.exit_code == 0, r.output
-    d = json.loads(r.stdout)
-    assert d["scheduled_arrival_s"] == 380.0 and abs(d["arrival_s"] - 380.0) <= 0.2
-    assert abs(d["arrival_error_s"]) <= 0.2 and abs(d["stop_error_m"]) <= 0.2
-    bad = runner.invoke(app, ["simulate", str(SAMPLE), "--mode", "timekeeping", "--train-type", "E10"])
-    assert bad.exit_code == 1 and "--from" in bad.output and "Traceback" not in bad.output
-    no_tables = runner.invoke(app, ["simulate", str(SAMPLE), "--mode", "nearest"])
+    r = runner.invoke(app, ["simulate", str(line_dir), "--tables", str(tabs), "--out", str(sim), "--train-type",
+                            "EMU10", "--mode", "timekeeping", "--extra", "6",
+                            "--jobs", "1"])
+    assert r.exit_code == 0, r.output
+    assert "stop error" in r.output
+    rows = ds.dataset(sim / "closed_loop", partitioning="hive").to_table().to_pandas()
+    assert set(rows["mode"]) == {"timekeeping"} and set(rows["scenario"]) == {"nominal"}
+    assert len(rows) == 4 * 7  # 4 interstation x direction, designated minimum … minimum + 6 s
+    feas = rows[rows.feasible]
+    assert len(feas) >= 4 * 6
+    assert feas.error_s.abs().max() <= 0.5
+    assert rows.stop_error_m.abs().max() <= 0.2
+    no_tables = runner.invoke(app, ["simulate", str(SAMPLE), "--mode", "timekeeping"])
     assert no_tables.exit_code == 1 and "--tables" in no_tables.output

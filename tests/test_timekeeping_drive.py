@@ -13,7 +13,6 @@ from planner.errors import InputError
 from planner.run_curve import SimSettings, make_track, simulate
 from planner.timekeeping import (
     ADVICE_NAMES,
-    _Vehicle,
     cruise_speed_limited,
     drive,
     timekeeping_run,
@@ -92,21 +91,35 @@ def _check_run(res, *, tol_s=ARRIVAL_TOL_S):
         assert res.arrival_error_s == pytest.approx(res.shortfall_s, abs=tol_s)
 
 
-# --- the force adapter is dynamics' model -----------------------------------------
-def test_vehicle_adapter_matches_dynamics(line1k_davis):
+# --- the on-board logic knows its model, not the plant (issue 14, defect 3) ----------
+def test_onboard_logic_plans_with_its_nominal_model_and_learns_the_real_train(line1k_davis):
+    """The plant is full and weak (load 1, traction × 0.9); the logic's model is the nominal train.
+    Its earliest arrival at departure is therefore the nominal minimum (it cannot know the plant),
+    yet it arrives on time at a designated time the weak train can just make (it learns θ)."""
     tr = make_track(line1k_davis, "R", "S0", "S1")
     train = line1k_davis.train_type("R")
-    veh = _Vehicle(tr, train, 0.7, 0.9)
-    m = dynamics.mass_kg(train.empty_mass_kg, train.full_load_mass_kg, 0.7)
-    inv_me = 1.0 / dynamics.effective_mass_kg(m, train.rotating_mass_factor)
-    ag = dynamics.track_accel_ms2(tr.gradient, tr.curve_specific, train.rotating_mass_factor)
-    rng = np.random.default_rng(3)
-    for v, k in zip(rng.uniform(0, 40, 200), rng.integers(0, len(tr.s_m), 200)):
-        f = dynamics.tractive_effort_N(v, train.traction_speed_ms, train.traction_effort_N, 0.9)
-        r = dynamics.davis_resistance_N(v, train.davis_a_N, train.davis_b_N_per_ms, train.davis_c_N_per_ms2)
-        ref = dynamics.acceleration_ms2(v, f, r, inv_me, ag[k], train.max_accel_ms2)
-        assert veh.full(v, int(k)) == pytest.approx(float(ref), rel=1e-12, abs=1e-12)
-        assert veh.coast(v, int(k)) == pytest.approx(float(ag[k] - r * inv_me), rel=1e-12, abs=1e-12)
+    t_nom = float(simulate(tr, train, 1.0).time_s[0])
+    t_deg = float(simulate(tr, train, 1.0, load=1.0, traction_factor=0.9).time_s[0])
+    assert t_deg > t_nom + 1.0
+    for extra in (0.5, 3.0):
+        d = drive(tr, train, t_deg + extra, load=1.0, traction_factor=0.9)
+        assert d.changes[0].earliest_s == pytest.approx(t_nom, abs=1e-9)
+        assert abs(d.arrival_error_s) <= 0.5, extra
+        assert abs(d.stop_error_m) <= STOP_TOL_M
+
+
+def test_learned_traction_factor_is_the_real_trains(line1k_davis):
+    """On level track the fitted θ is F_real/F_model × M_e,model/M_e,real, up to resistance (small here)."""
+    from planner.timekeeping import TimekeepingController
+
+    tr = make_track(line1k_davis, "R", "S0", "S1")
+    train = line1k_davis.train_type("R")
+    ctl = TimekeepingController(tr, train, 200.0)
+    simulate(tr, train, 1.0, load=0.5, traction_factor=0.9, controller=ctl, decision_m=ctl.decision_m)
+    me = lambda load: train.effective_mass_kg(load)  # noqa: E731
+    expected = 0.9 * me(0.0) / me(0.5)
+    assert ctl.theta[0] == pytest.approx(expected, rel=0.02)
+    assert abs(ctl.theta[0] - 1.0) > 0.1  # it did move from the model's 1.0
 
 
 # --- pure target with an acceleration / deceleration envelope ----------------------
@@ -178,8 +191,8 @@ def test_earlier_arrival_impossible_is_reported(line1k):
     # 40 s after departure the train is inside the held 60 km/h limit; the earliest
     # arrival from there is closed form, so the shortfall is checked independently.
     r = timekeeping_run(line1k, "T", "S0", "S1", arrival_s=80.0, changes=[(40.0, 70.0)])
-    s0, v0 = _state_at(r, 40.0)
     t0 = float(r.changes["applied_s"].iloc[1])
+    s0, v0 = _state_at(r, t0)
     assert 400.0 <= s0 <= 700.0 and v0 <= VR
     earliest = t0 + flat_out_from_restriction(s0, v0)
     assert not r.feasible

@@ -79,44 +79,22 @@ def simulate(
                                  "(load 1.0, traction x 0.9)."),
     mode: str = typer.Option("nearest", "--mode", help="On-board mode: nearest (published rule), "
                              "interpolate (fractional ratios), adaptive (interpolate + learns the "
-                             "train's deviation from the tables), timekeeping (one run driven by the "
-                             "remaining time and distance, DESIGN §4), or any registered mode."),
+                             "train's deviation from the tables), timekeeping (cruise speed from the "
+                             "remaining time and distance, DESIGN §4; one interstation with arrival "
+                             "changes: `planner timekeeping`), or any registered mode."),
     train_type: Optional[list[str]] = typer.Option(None, "--train-type", help="Train type (repeatable)."),
     extra_s: float = typer.Option(60.0, "--extra", help="Sweep designated times up to minimum + this [s]."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
-    origin: Optional[str] = typer.Option(None, "--from", help="timekeeping: departure station id."),
-    destination: Optional[str] = typer.Option(None, "--to", help="timekeeping: arrival station id."),
-    arrival_s: Optional[float] = typer.Option(None, "--arrival", help="timekeeping: scheduled arrival "
-                                              "[s after departure]."),
-    change: Optional[list[str]] = typer.Option(None, "--change", help="timekeeping: T:ARRIVAL, at T s after "
-                                               "departure the scheduled arrival becomes ARRIVAL (repeatable)."),
-    load: float = typer.Option(0.0, "--load", help="timekeeping: load factor of the real train."),
-    traction: float = typer.Option(1.0, "--traction", help="timekeeping: traction factor of the real train."),
-    as_json: bool = typer.Option(False, "--json", help="timekeeping: print the result as JSON."),
 ) -> None:
-    """Closed loop: run the on-board ratio choice against designated running times; report arrival errors.
-
-    With --mode timekeeping: one run driven by the time-keeping support logic instead
-    (--train-type, --from, --to, --arrival, optional --change T:ARRIVAL ...).
-    """
+    """Closed loop: the on-board logic (its nominal model) drives the real train (the scenario)
+    against designated running times from the minimum to the minimum + --extra; reports arrival
+    and stop errors."""
     from ..closed_loop import overall, run_closed_loop, write_closed_loop
     from ..loader import load_line
 
-    if mode == "timekeeping":
-        from .timekeeping import simulate_timekeeping_cli
-
-        missing = [o for o, v in (("--from", origin), ("--to", destination), ("--arrival", arrival_s)) if v is None]
-        if missing or not train_type or len(train_type) != 1:
-            raise _fail(PlannerError(
-                f"--mode timekeeping needs one --train-type and {', '.join(missing) or '--train-type'}"))
-        try:
-            simulate_timekeeping_cli(line_dir, train_type[0], origin, destination, arrival_s, change or (),
-                                     load, traction, as_json)
-        except PlannerError as e:
-            raise _fail(e) from None
-        return
     if tables_dir is None or out is None:
-        raise _fail(PlannerError(f"--mode {mode} needs --tables DIR (from `planner tables`) and --out DIR"))
+        raise _fail(PlannerError(f"--mode {mode} needs --tables DIR (from `planner tables`: the sweep starts "
+                                 "at their minimum) and --out DIR"))
     try:
         line = load_line(line_dir)
         with _progress(f"simulate {scenario}/{mode}") as update:
@@ -129,7 +107,8 @@ def simulate(
     typer.echo(f"{line.line_id}: closed loop {scenario}/{mode}, {o['n_runs']} runs over "
                f"{len(results)} interstation x direction x train type")
     typer.echo(f"  |arrival error| over {o['n_feasible']} feasible runs: median {o['median_abs_error_s']:.2f} s, "
-               f"p95 {o['p95_abs_error_s']:.2f} s, max {o['max_abs_error_s']:.2f} s")
+               f"p95 {o['p95_abs_error_s']:.2f} s, max {o['max_abs_error_s']:.2f} s; "
+               f"|stop error| max {o['max_abs_stop_error_m']:.3f} m")
     n_inf = o["n_runs"] - o["n_feasible"]
     if n_inf:
         typer.echo(f"  {n_inf} runs infeasible by physics (designated below the {scenario} minimum); "
