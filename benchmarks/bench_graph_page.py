@@ -6,7 +6,9 @@ planned the current sample line, else computed), writes the page, and opens it
 in headless Chromium (``tests/browser.py``) several times: the figure is the
 median time from navigation start to the end of the load event, which includes
 parsing the inline data and building every SVG path (the script runs before
-the load event). Then the same for a day of N trains, made by repeating the
+the load event), and the renderer main thread's CPU time for it (Chromium's
+``TaskDuration`` in thread ticks), which does not grow when other work shares
+the machine. Then the same for a day of N trains, made by repeating the
 sample trains shifted in time (every train's path, windows and calls; 2,000 by
 default), to show how the page scales.
 
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import statistics
 import sys
 import tempfile
@@ -96,14 +99,15 @@ def scaled(g, n: int):
 def measure(path: Path, repeat: int) -> tuple[float, list[str]]:
     from browser import Browser
 
-    times, errors = [], []
+    times, cpu, errors = [], [], []
     with Browser(1500, 900) as b:
         for _ in range(repeat):
             p = b.open(path)
             assert p.eval("document.body.dataset.ready") == "1"
             times.append(p.load_ms)
+            cpu.append(1000 * p.metrics.get("TaskDuration", float("nan")))
             errors += p.errors
-    return statistics.median(times), errors
+    return statistics.median(times), statistics.median(cpu), errors
 
 
 def main() -> None:
@@ -124,10 +128,11 @@ def main() -> None:
         for label, data in (("sample day", g), (f"{a.trains} trains", scaled(g, a.trains))):
             path = write_page(data, Path(tmp) / "graph.html")
             size = path.stat().st_size
-            ms, errors = measure(path, a.repeat)
+            ms, cpu, errors = measure(path, a.repeat)
             print(f"{label}: {len(data.trains)} trains, page {size / 1e6:.2f} MB "
-                  f"({size / len(data.trains) / 1e3:.1f} kB per train), load {ms:.0f} ms "
-                  f"(median of {a.repeat}, navigation start to load end, headless Chromium)"
+                  f"({size / len(data.trains) / 1e3:.1f} kB per train), load {ms:.0f} ms wall "
+                  f"(navigation start to load end), {cpu:.0f} ms main-thread CPU (medians of {a.repeat}, "
+                  f"headless Chromium; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)"
                   + (f"; console errors: {errors}" if errors else ""))
             if a.shots and label == "sample day":
                 shots(path, a.shots)

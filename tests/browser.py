@@ -62,6 +62,9 @@ class Page:
     """URLs of every request the page made (the page itself first)."""
     load_ms: float = float("nan")
     """Navigation start to the load event, from the page's own performance timing [ms]."""
+    metrics: dict = field(default_factory=dict)
+    """Chromium's Performance.getMetrics after the load; ``TaskDuration``, ``ScriptDuration``,
+    ``LayoutDuration`` … are main-thread CPU time [s] (thread ticks)."""
 
     @property
     def errors(self) -> list[str]:
@@ -187,6 +190,8 @@ class Browser:
         session = self.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
         for dom in ("Page", "Runtime", "Log", "Network"):
             self.send(f"{dom}.enable", session=session)
+        # durations in CPU time of the renderer's main thread, which other load on the machine does not inflate
+        self.send("Performance.enable", {"timeDomain": "threadTicks"}, session=session)
         self.send("Emulation.setDeviceMetricsOverride", {"width": self.width, "height": self.height,
                                                           "deviceScaleFactor": 1, "mobile": False}, session=session)
         page = Page(self, session, url)
@@ -198,6 +203,8 @@ class Browser:
         page.load_ms = float(page.eval(
             "(() => { const n = performance.getEntriesByType('navigation')[0];"
             " return n ? n.loadEventEnd - n.startTime : NaN; })()") or float("nan"))
+        m = self.send("Performance.getMetrics", session=session)["metrics"]
+        page.metrics = {x["name"]: float(x["value"]) for x in m}
         for e in self._events:
             if e.get("sessionId") != session:
                 continue
