@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def sample_graph():
     from planner import load_line
-    from planner.changes import _read, read_manifest
+    from planner.changes import read_line_dataset, read_manifest
     from planner.graph import graph_data
 
     line = load_line(ROOT / "lines" / "sample")
@@ -45,8 +45,8 @@ def sample_graph():
     try:
         m = read_manifest(run)
         if any(x.get("source_digest") == line.source_digest for x in m.get("lines", [])):
-            kw = {"windows": _read(run, "occupation", "sample"), "conflicts": _read(run, "conflicts", "sample"),
-                  "margin_totals": _read(run, "margin_totals", "sample")}
+            kw = {name: read_line_dataset(run, ds, "sample") for name, ds in
+                  (("windows", "occupation"), ("conflicts", "conflicts"), ("margin_totals", "margin_totals"))}
             print(f"windows, conflicts, margins from {run.resolve().name}")
     except Exception:  # noqa: BLE001 - no run: compute the conflicts, no margins
         print("no matching outputs/latest: conflicts computed here, margins not shown")

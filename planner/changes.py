@@ -186,7 +186,7 @@ def line_inputs(run_dir: Path, manifest: dict[str, Any], line_id: str) -> Path |
     return folder
 
 
-def _read(run_dir: Path, dataset: str, line_id: str):
+def read_line_dataset(run_dir: Path, dataset: str, line_id: str):
     """A dataset of one line as pandas (partition columns as strings), or None when the run has none."""
     import pyarrow.compute as pc
 
@@ -555,8 +555,10 @@ def compare_runs(old_dir: str | Path, new_dir: str | Path, *, threshold_s: float
         ch = LineChanges(lid, str(om["run_id"]), str(nm["run_id"]), float(threshold_s))
         reach = _input_changes(ch, old_dir, om, new_dir, nm)
         geometry = _geometry(new_dir, nm, lid)
-        _leg_changes(ch, _read(old_dir, "margins", lid), _read(new_dir, "margins", lid), reach, threshold_s, geometry)
-        _conflict_changes(ch, _read(old_dir, "conflicts", lid), _read(new_dir, "conflicts", lid))
+        _leg_changes(ch, read_line_dataset(old_dir, "margins", lid), read_line_dataset(new_dir, "margins", lid),
+                     reach, threshold_s, geometry)
+        _conflict_changes(ch, read_line_dataset(old_dir, "conflicts", lid),
+                          read_line_dataset(new_dir, "conflicts", lid))
         _bundle_changes(ch, old_dir, new_dir)
         out.append(ch)
     return out
@@ -587,13 +589,13 @@ def write_changes(changes: LineChanges, out_dir: str | Path) -> list[Path]:
     """Write ``changes/line=L/part-0.parquet`` (an empty file when nothing changed, so readers find the schema)."""
     from .datasets import write_parquet_atomic
 
-    path = Path(out_dir) / "changes" / f"line={_safe(changes.line_id)}" / "part-0.parquet"
+    path = Path(out_dir) / "changes" / f"line={path_id(changes.line_id)}" / "part-0.parquet"
     t = changes.table().drop_columns(["line"])
     write_parquet_atomic(t.cast(CHANGES_SCHEMA), path)
     return [path]
 
 
-def _safe(line_id: str) -> str:
+def path_id(line_id: str) -> str:
     from .bundle import check_id
 
     return check_id(line_id, "line id")

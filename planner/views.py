@@ -26,11 +26,14 @@ from .errors import JobError, PlannerError
 
 def copy_inputs(line, stage: Path) -> Path:
     """Copy the line database's Parquet tables into ``stage/inputs/<line_id>/`` and check the copy's digest."""
-    from .changes import INPUTS_DIR, _safe
+    from .changes import INPUTS_DIR, path_id
     from .loader import source_digest
 
     src = Path(line.source_path)
-    dst = stage / INPUTS_DIR / _safe(line.line_id)
+    dst = stage / INPUTS_DIR / path_id(line.line_id)
+    if not line.source_path or not src.is_dir():
+        raise JobError(f"line {line.line_id}: no line database folder to keep a copy of (source path "
+                       f"{line.source_path!r}); load the line from its folder")
     dst.mkdir(parents=True, exist_ok=True)
     for f in sorted(src.glob("*.parquet")):
         if f.is_file():
@@ -55,7 +58,7 @@ def _graph_unit(line, check: bool):
 
 def line_views(job, line, stage: Path, runner, summary) -> None:
     """Inputs copy and train graph page of one line (module doc)."""
-    from .changes import _read
+    from .changes import read_line_dataset, path_id
     from .graph import graph_data, write_page, TOL_T_S, TOL_X_M
     from .pipeline import code_digest
     from .publish import digest
@@ -65,13 +68,13 @@ def line_views(job, line, stage: Path, runner, summary) -> None:
     key = digest(["graph", code_digest(), line.source_digest, check, TOL_T_S, TOL_X_M])
     paths = runner.run("graph", [_unit("graph", key, _graph_unit, (line, check))])[0]
     with runner.progress.step("graph"):
-        occ = _read(stage, "occupation", line.line_id)
-        con = _read(stage, "conflicts", line.line_id)
-        mt = _read(stage, "margin_totals", line.line_id)
+        occ = read_line_dataset(stage, "occupation", line.line_id)
+        con = read_line_dataset(stage, "conflicts", line.line_id)
+        mt = read_line_dataset(stage, "margin_totals", line.line_id)
         data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
         if check and line.network is not None and (occ is None or con is None):
             data.notes.append("the run has no occupation/conflicts datasets for this line")
-        write_page(data, stage / "graph" / f"{line.line_id}_graph.html")
+        write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html")
 
 
 def _unit(step, key, fn, args):

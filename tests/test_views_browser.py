@@ -79,14 +79,13 @@ def _fake_run(tmp_path: Path, line) -> Path:
 
     run = tmp_path / "r0002-0123456789"
     copy_inputs(line, run)
-    keys = generate_keypair(tmp_path / "keys")
+    generate_keypair(tmp_path / "keys")
     key = load_private_key(tmp_path / "keys" / "signing_key.pem")
     build_line(line, run / "bundles", key)
     shutil.copy(tmp_path / "keys" / "signing_key.pub.pem", run / "bundles" / "signing_key.pub.pem")
     (run / "report").mkdir()
     (run / "report" / "tiny_margins.html").write_text("<!DOCTYPE html><title>r</title>")
     (run / "table_a").mkdir()
-    del keys
     return run
 
 

@@ -22,7 +22,7 @@ def graph(
 ) -> None:
     """Draw every train from its predicted run: charts per direction and both, and a page to zoom and hover."""
     from .. import load_line
-    from ..changes import _read, read_manifest
+    from ..changes import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
     from ..graph import draw_chart, graph_data, parse_hhmm, write_page
 
@@ -38,14 +38,15 @@ def graph(
         if rec is None or rec.get("source_digest") != line.source_digest:
             raise InputError(f"--run {run}: this run did not plan {line_dir} as it is now (line {line.line_id}, "
                              "source digest differs); run the job again or leave --run out")
-        kw = {"windows": _read(run, "occupation", line.line_id), "conflicts": _read(run, "conflicts", line.line_id),
-              "margin_totals": _read(run, "margin_totals", line.line_id)}
+        kw = {name: read_line_dataset(run, ds, line.line_id) for name, ds in
+              (("windows", "occupation"), ("conflicts", "conflicts"), ("margin_totals", "margin_totals"))}
     data = graph_data(line, **kw)
     if train:
         data.train(train)  # a one-line error for an unknown train, before anything is written
-    files = [write_page(data, out / f"{line.line_id}_graph.html", t0=t0, t1=t1, train=train)]
+    name = path_id(line.line_id)  # becomes a file name: checked again here
+    files = [write_page(data, out / f"{name}_graph.html", t0=t0, t1=t1, train=train)]
     for d in ("both", "down", "up"):
-        files.append(draw_chart(data, out / f"{line.line_id}_{d}.{fmt}", direction=d, t0=t0, t1=t1, train=train))
+        files.append(draw_chart(data, out / f"{name}_{d}.{fmt}", direction=d, t0=t0, t1=t1, train=train))
     nc = int(data.conflicts.conflict_id.nunique()) if data.conflicts is not None and len(data.conflicts) else 0
     typer.echo(f"line {line.line_id}: {len(data.trains)} trains, {nc} conflicts")
     for n in data.notes:
