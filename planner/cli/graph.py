@@ -31,6 +31,9 @@ def graph(
     t0 = parse_hhmm(t_from, "--from") if t_from else None
     t1 = parse_hhmm(t_to, "--to") if t_to else None
     line = load_line(line_dir)
+    if train and train not in {t.train_id for t in line.trains}:  # before the run curves are simulated
+        raise InputError(f"--train {train}: no such train on line {line.line_id} "
+                         f"(e.g. {', '.join(t.train_id for t in line.trains[:3])})")
     kw = {}
     if run is not None:
         m = read_manifest(run)
@@ -41,8 +44,6 @@ def graph(
         kw = {name: read_line_dataset(run, ds, line.line_id) for name, ds in
               (("windows", "occupation"), ("conflicts", "conflicts"), ("margin_totals", "margin_totals"))}
     data = graph_data(line, **kw)
-    if train:
-        data.train(train)  # a one-line error for an unknown train, before anything is written
     name = path_id(line.line_id)  # becomes a file name: checked again here
     files = [write_page(data, out / f"{name}_graph.html", t0=t0, t1=t1, train=train)]
     for d in ("both", "down", "up"):
