@@ -107,7 +107,7 @@ class ClosedLoopResult:
     min_time_s : float
         Scenario minimum: ratio 1.0 throughout under the scenario's conditions [s].
     max_time_s : float
-        Scenario time at the lowest grid ratio [s].
+        Scenario time at the lowest grid ratio [s] (+inf for the time-keeping mode: no ratio grid).
     """
 
     line_id: str
@@ -209,6 +209,12 @@ def _runner(mode: str) -> Runner:
     raise InputError(f"--mode {mode!r} is unknown; use one of {', '.join(modes())}")
 
 
+def _slowest(mode: str, table_slowest_s: float) -> float:
+    """Slowest designated time a mode can meet [s]: the lowest grid ratio's for the table modes; no
+    bound for the time-keeping mode, which cruises as slowly as the remaining time asks."""
+    return float(table_slowest_s) if mode in CHOOSERS else math.inf
+
+
 def closed_loop_interstation(
     line: Line,
     train_type: str,
@@ -266,7 +272,7 @@ def closed_loop_interstation(
         ratios=np.asarray(ratios, float),
         eval_point_ids=tables.eval_point_ids,
         min_time_s=float(ends.time_s[0]),
-        max_time_s=float(ends.time_s[1]),
+        max_time_s=_slowest(mode, ends.time_s[1]),
         stop_error_m=np.asarray(stop_m, float) - track.length_m,
     )
 
@@ -357,7 +363,7 @@ def closed_loop_batch(
                 destination=tables.destination, scenario=sc.name, mode=m, designated_s=designated,
                 actual_s=np.asarray(actual, float), ratios=np.asarray(ratios, float),
                 eval_point_ids=tables.eval_point_ids, min_time_s=float(ends.time_s[2 * j]),
-                max_time_s=float(ends.time_s[2 * j + 1]), stop_error_m=np.asarray(stop_m, float) - track.length_m,
+                max_time_s=_slowest(m, ends.time_s[2 * j + 1]), stop_error_m=np.asarray(stop_m, float) - track.length_m,
             ))
     return results
 

@@ -26,9 +26,12 @@ The steps follow DESIGN §8 and the networked-interlocking method it condenses:
    section, or a switch node) is claimed from
    ``entry − setting_s − approach_s`` (route setting, then sight and reaction
    while the train approaches the signal at the entry) until
-   ``clear + release_s``, where *clear* is when the tail has passed the exit
-   (front at exit + train length, from the same run curve, so a train that
-   stops holds the section behind it through its dwell). This is the
+   ``clear + release_s``, where *entry* is when the front moves past the
+   resource's entry (where the train stands with its front at the entry, as
+   at its origin and at every stop whose stop node begins the next section,
+   its departure) and *clear* is when the tail has passed the exit (front at
+   exit + train length, from the same run curve, so a train that stops holds
+   the sections under it through its dwell). This is the
    blocking-time model of Pachl, *Railway Operation and Control*, ch. 4, and
    Hansen & Pachl, *Railway Timetabling & Operations*, ch. 4. Sections are
    the edges split at the block signals of ``signals.parquet`` that govern
@@ -550,6 +553,10 @@ at the driving the vehicle uses for the scheduled running time ``scheduled_s``
 (time from departure; the last time is the running time)."""
 
 
+STAND_TOL_M = 1e-6
+"""Chainages this close [m] are the same point for :meth:`Trajectory.front_leaves` (round-off only)."""
+
+
 @dataclass(frozen=True, eq=False)
 class Trajectory:
     """Predicted front position over the whole run of one train.
@@ -588,6 +595,28 @@ class Trajectory:
         out = np.where(inside, lin, out)
         out = np.where(exact, t[np.minimum(i, len(u) - 1)], out)
         return np.where(q <= u[0], t[0], out)
+
+    def front_leaves(self, chainage_m) -> np.ndarray:
+        """Time the front moves on past each chainage [s]; +inf beyond the destination.
+
+        The last time the front is at the chainage: where the train stands with
+        its front there (a stop), the departure, as at the origin; elsewhere the
+        same as :meth:`front_time`. A resource is entered when the front moves
+        past its entry, so this is the entry time of blocking-time windows.
+        Chainages within ``STAND_TOL_M`` of a sample count as that sample (the
+        run curves of two interstations meet at the stop marker up to round-off).
+        """
+        q = sign(self.direction) * np.asarray(chainage_m, dtype=float)
+        u, t = self.u_m, self.t_s
+        j = np.searchsorted(u, q + STAND_TOL_M, side="right")  # first sample past q
+        jj = np.clip(j, 1, len(u) - 1)
+        u0, u1, t0, t1 = u[jj - 1], u[jj], t[jj - 1], t[jj]
+        du = np.where(u1 > u0, u1 - u0, 1.0)
+        lin = t0 + (t1 - t0) * np.clip((q - u0) / du, 0.0, 1.0)
+        at = np.abs(u[np.maximum(j - 1, 0)] - q) <= STAND_TOL_M  # the front stands or passes at sample j − 1
+        out = np.where(at, t[np.maximum(j - 1, 0)], lin)
+        out = np.where(j >= len(u), np.where(at, t[-1], np.inf), out)
+        return np.where(j == 0, t[0], out)
 
 
 def build_trajectory(line: Line, train: Train, curves: RunCurveSource) -> Trajectory:
@@ -786,7 +815,7 @@ class Windows:
     item: np.ndarray       # int
     from_m: np.ndarray     # entry chainage [m]
     to_m: np.ndarray       # exit chainage [m]
-    entry_s: np.ndarray    # front reaches the entry
+    entry_s: np.ndarray    # front moves past the entry (at a stop: departs)
     exit_s: np.ndarray     # front reaches the exit
     clear_s: np.ndarray    # tail passes the exit
     start_s: np.ndarray    # window opens = entry − setting − approach
@@ -809,10 +838,15 @@ def occupation_windows(g: TrackGraph, route: Route, traj: Trajectory, length_m: 
 
     For a resource entered at chainage e and left at x (e = x for a switch):
 
-        start = t_front(e) − setting_s − approach_s
+        start = t_leave(e) − setting_s − approach_s
         end   = t_front(x + L) + release_s      (tail clear: front one train length past x)
 
-    t_front is the predicted front trajectory; where x + L lies beyond the
+    t_front is the first time the predicted front reaches a chainage
+    (:meth:`Trajectory.front_time`), t_leave the last, when it moves on
+    (:meth:`Trajectory.front_leaves`): the two differ only where the train
+    stands, so the section after a stop opens at departure − lead, at every
+    stop as at the origin, while the sections the standing train fills stay
+    claimed until its tail clears them after departure. Where x + L lies beyond the
     destination the tail never clears during the run, and the window ends at
     arrival + terminal_s + release_s. Sections are the route's edges, split at
     block signals (:class:`TrackGraph`).
@@ -843,8 +877,9 @@ def occupation_windows(g: TrackGraph, route: Route, traj: Trajectory, length_m: 
                 item += 1
     entry_m = np.asarray(ent, dtype=float)
     exit_m = np.asarray(ext, dtype=float)
-    entry = traj.front_time(entry_m)
-    exit_ = traj.front_time(exit_m)
+    # Entered when the front moves past the entry (at a stop: the departure); left when it first reaches the exit.
+    entry = traj.front_leaves(entry_m)
+    exit_ = np.maximum(traj.front_time(exit_m), entry)
     clear = np.minimum(traj.front_time(exit_m + sgn * length_m), traj.end_s + params.terminal_s)
     m = len(kinds)
     return Windows(
@@ -1164,12 +1199,12 @@ def _schemas():
         ("track", pa.string(), "track name of the section, or of the node"),
         ("from_m", pa.float64(), "chainage where the front enters the resource [m]"),
         ("to_m", pa.float64(), "chainage where the front leaves the resource [m]"),
-        ("entry_s", pa.float64(), "predicted time the front reaches the entry [s after midnight]"),
+        ("entry_s", pa.float64(), "predicted time the front enters the resource: passes its entry, or departs where it stands there [s after midnight]"),
         ("exit_s", pa.float64(), "predicted time the front reaches the exit [s after midnight]"),
         ("clear_s", pa.float64(), "predicted time the tail clears the exit (front one train length past it) [s after midnight]"),
         ("setting_s", pa.float64(), "route setting time before the approach [s]"),
         ("approach_s", pa.float64(), "sight/reaction and approach time before the entry [s]"),
-        ("running_s", pa.float64(), "running time of the front through the resource, dwell included [s]"),
+        ("running_s", pa.float64(), "running time of the front through the resource, exit − entry; includes a dwell only where the train stops with its front inside the resource [s]"),
         ("clearing_s", pa.float64(), "clearing time: tail clears the exit after the front reached it [s]"),
         ("release_s", pa.float64(), "route release time after clearing [s]"),
         ("start_s", pa.float64(), "window opens: entry − setting − approach [s after midnight]"),

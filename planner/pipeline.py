@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
+import signal
 import time
 import warnings
 from contextlib import contextmanager
@@ -177,10 +178,26 @@ class Runner:
                     )
                 for i, res in zip(todo, gen):
                     self.cache.put("objects", units[i].key, res)  # survives a later failure
+                    _kill_point()
                     results[i] = res
                     self.progress.advance(step)
         self.progress.finish(step)
         return results
+
+
+# --- test hook -----------------------------------------------------------------------
+KILL_ENV = "PLANNER_TEST_KILL_AT"
+"""Tests only: with ``N`` in this environment variable a run SIGKILLs its own process at its N-th
+kill point (each unit just stored in the cache, then the staged run just before publishing), so
+tests kill runs at deterministic moments instead of after a wall-clock delay. Unset normally."""
+_kill_points = 0
+
+
+def _kill_point() -> None:
+    global _kill_points
+    _kill_points += 1
+    if os.environ.get(KILL_ENV) == str(_kill_points):
+        os.kill(os.getpid(), signal.SIGKILL)
 
 
 # --- progress ------------------------------------------------------------------------
@@ -329,6 +346,7 @@ def run_job(job: Job, *, show_progress: bool = True) -> RunSummary:
             from .views import run_views  # changes since the last run, overview page
 
             run_views(job, lines, stage, root, prog, summary)
+            _kill_point()
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
             summary.timings = dict(prog.timings)

@@ -40,6 +40,12 @@ A run's *phase* at a node (``PHASE_*``) is what it did on the step that
 arrived there; a start state with any phase but power puts a sawtooth vehicle
 in its coasting band, so a run continued from a snapshot repeats the original.
 
+The loop is :class:`_Integrator`, one method per step above (events and the
+controller hook, free running, ceiling and brake, sawtooth band, phase codes,
+recording); it is the one integrator: the tables, the closed loop of every
+on-board mode (the ratio modes and the time-keeping mode, through
+:class:`Command`), the margins and the run-curve API all run through it.
+
 Energy is the mechanical traction work at the wheel ``∫ F ds`` while F > 0
 (regenerative braking not credited), in kWh.
 """
@@ -424,8 +430,6 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
     """
     if train.train_type != track.train_type:
         raise InputError(f"track is for train type {track.train_type!r}, not {train.train_type!r}")
-    s = track.s_m
-    m = len(s)
     sizes = [np.size(x) for x in (ratio, load, traction_factor) if np.ndim(x) > 0]
     if start is not None:
         sizes.append(np.size(start.v_ms))
@@ -436,277 +440,347 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
     tf = _as_batch(traction_factor, n, "traction_factor")
     if np.any(load < 0) or np.any(tf <= 0):
         raise InputError("load must be ≥ 0 and traction_factor > 0")
-
-    inv_me = 1.0 / dynamics.effective_mass_kg(
-        dynamics.mass_kg(train.empty_mass_kg, train.full_load_mass_kg, load), train.rotating_mass_factor)
-    me = 1.0 / inv_me
-    ag = dynamics.track_accel_ms2(track.gradient, track.curve_specific, train.rotating_mass_factor)
-    stop2 = speed_profile.stop_curve_sq(s, track.length_m, train.stop_brake_ms2)
-    amax = train.max_accel_ms2
-    ra, rb, rc = train.davis_a_N, train.davis_b_N_per_ms, train.davis_c_N_per_ms2
-    tsp, tef = train.traction_speed_ms, train.traction_effort_N
-    sawtooth = train.cruise == "sawtooth"
-    band = train.coast_band_ms
-
     if start is None:
         k0 = 0
-        t = np.zeros(n)
-        v = np.zeros(n)
-        phase = np.full(n, PHASE_POWER, dtype=np.int8)
+        state = RunState(np.zeros(n), np.zeros(n), np.zeros(n), np.full(n, PHASE_POWER, dtype=np.int8), ratio)
     else:
         s0 = np.asarray(start.s_m, dtype=float).reshape(-1)
         if s0.size and np.ptp(s0) > NODE_TOL_M:
             raise InputError("all runs of a batch must start at the same running distance")
         k0 = track.node_index(float(s0[0]) if s0.size else 0.0)
-        t = _as_batch(start.t_s, n, "start.t_s")
-        v = _as_batch(start.v_ms, n, "start.v_ms")
         phase = np.asarray(start.phase, dtype=np.int8).reshape(-1).copy()
         if phase.shape != (n,):
             phase = np.full(n, phase.reshape(-1)[0] if phase.size else PHASE_POWER, dtype=np.int8)
-    w = v * v
-    cap2 = np.full(n, np.inf)  # cruise cap² per run (Command.cap_ms): none until a controller sets one
-    shed = np.full(n, float(train.service_brake_ms2))  # deceleration onto a lowered target
-    # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
-    coasting = (phase != PHASE_POWER) & sawtooth
+        state = RunState(np.zeros(n), _as_batch(start.t_s, n, "start.t_s"), _as_batch(start.v_ms, n, "start.v_ms"),
+                         phase, ratio)
+    run = _Integrator(track, train, load, tf, state, k0, record)
+    run.schedule(changes, controller, decision_m, snapshots_m)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        run.run()
+    return run.result()
 
-    # events at nodes: snapshots first (state before any change), then changes, then controller
-    events: dict[int, list] = {}
-    for sm in snapshots_m:
-        events.setdefault(track.node_index(sm), []).append(("snap", sm))
-    for sm, r in changes:
-        events.setdefault(track.node_index(sm), []).append(("change", _as_batch(r, n, "change ratio")))
-    if controller is not None:
-        for sm in decision_m:
-            events.setdefault(track.node_index(sm), []).append(("decide", sm))
-    for k in events:
-        events[k].sort(key=lambda e: ("snap", "change", "decide").index(e[0]))
-    snapshots: dict[float, RunState] = {}
 
-    ceil = _Ceilings(track, train)
-    ceil.set(ratio, cap2)
-    if record:
-        mr = m - k0
-        rec_t, rec_v = np.empty((n, mr)), np.empty((n, mr))
-        rec_a, rec_p = np.zeros((n, mr)), np.empty((n, mr), dtype=np.int8)
-        rec_r, rec_c = np.empty((n, mr)), np.empty((n, mr))
-        rec_t[:, 0], rec_v[:, 0], rec_p[:, 0], rec_r[:, 0], rec_c[:, 0] = t, v, phase, ratio, np.sqrt(cap2)
+class _Integrator:
+    """One batch of runs through :func:`simulate`, one method per step of the method (module doc).
 
-    def state(k: int) -> RunState:
-        return RunState(np.full(n, s[k]), t.copy(), v.copy(), phase.copy(), ratio.copy())
+    The loop (:meth:`run`) advances every run from grid node k to k + 1: the
+    events at k (:meth:`_events`: snapshots, ratio changes, the controller),
+    then free running (:meth:`_free`, Heun's step under full notch or coasting),
+    the ceiling and the service brake (:meth:`_guided`, split at the crossing),
+    the sawtooth band (:meth:`_sawtooth`), the phase codes (:meth:`_phase`) and
+    the recording (:meth:`_record`). Everything per run is an array of shape (n,).
+    """
 
-    # per-run constants divided by M_e: the loop works in accelerations, and the
-    # traction work per unit M_e follows from the energy balance of each piece
-    ram, rbm, rcm = ra * inv_me, rb * inv_me, rc * inv_me
-    tfi = tf * inv_me
-    vint = track.vmax_interval_ms
+    def __init__(self, track: Track, train: TrainType, load: np.ndarray, tf: np.ndarray, state: RunState,
+                 k0: int, record: bool):
+        self.track, self.train, self.load, self.tf = track, train, load, tf
+        s = track.s_m
+        self.s, self.m, self.k0, self.n = s, len(s), k0, load.size
+        n = self.n
+        # the plant: per-run constants divided by M_e (the loop works in accelerations, and the
+        # traction work per unit M_e follows from the energy balance of each piece)
+        self.inv_me = 1.0 / dynamics.effective_mass_kg(
+            dynamics.mass_kg(train.empty_mass_kg, train.full_load_mass_kg, load), train.rotating_mass_factor)
+        self.ag = dynamics.track_accel_ms2(track.gradient, track.curve_specific, train.rotating_mass_factor)
+        self.amax = train.max_accel_ms2
+        self.ram = train.davis_a_N * self.inv_me
+        self.rbm = train.davis_b_N_per_ms * self.inv_me
+        self.rcm = train.davis_c_N_per_ms2 * self.inv_me
+        self.tfi = tf * self.inv_me
+        self.tsp, self.tef = train.traction_speed_ms, train.traction_effort_N
+        # the acceleration cap can only bind below the coasting acceleration where the fall
+        # alone is steeper than a_max (R ≥ 0, so a_coast ≤ a_track): test once per node
+        self.steep = (self.ag >= self.amax).tolist()
+        self.sawtooth = train.cruise == "sawtooth"
+        self.band = train.coast_band_ms
+        self.stop2 = speed_profile.stop_curve_sq(s, track.length_m, train.stop_brake_ms2)
+        self.s_list, self.stop2_list = s.tolist(), self.stop2.tolist()
+        self.vint_list = track.vmax_interval_ms.tolist()
+        # the batch's state
+        self.t, self.v, self.phase, self.ratio = state.t_s, state.v_ms, state.phase, state.ratio.copy()
+        self.w = self.v * self.v
+        self.cap2 = np.full(n, np.inf)  # cruise cap² per run (Command.cap_ms): none until a controller sets one
+        self.shed = np.full(n, float(train.service_brake_ms2))  # deceleration onto a lowered target
+        # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
+        self.coasting = (self.phase != PHASE_POWER) & self.sawtooth
+        self.work = np.zeros(n)  # traction work / M_e [J/kg]
+        self.maybe_over = True  # above the ceiling only after a lowered target (or a start state)
+        self.lb_for = None
+        self.ceil = _Ceilings(track, train)
+        self.ceil.set(self.ratio, self.cap2)
+        self.c0 = self.ceil.at(k0)
+        self.w_last = self.w
+        self.record = record
+        if record:
+            mr = self.m - k0
+            self.rec_t, self.rec_v = np.empty((n, mr)), np.empty((n, mr))
+            self.rec_a, self.rec_p = np.zeros((n, mr)), np.empty((n, mr), dtype=np.int8)
+            self.rec_r, self.rec_c = np.empty((n, mr)), np.empty((n, mr))
+            self.rec_t[:, 0], self.rec_v[:, 0], self.rec_p[:, 0] = self.t, self.v, self.phase
+            self.rec_r[:, 0], self.rec_c[:, 0] = self.ratio, np.sqrt(self.cap2)
 
-    # the acceleration cap can only bind below the coasting acceleration where the fall
-    # alone is steeper than a_max (R ≥ 0, so a_coast ≤ a_track): test once per node
-    steep = (ag >= amax).tolist()
+    # -- events -------------------------------------------------------------------
+    def schedule(self, changes, controller, decision_m, snapshots_m) -> None:
+        """Events at nodes: snapshots first (state before any change), then changes, then the controller."""
+        track, n = self.track, self.n
+        events: dict[int, list] = {}
+        for sm in snapshots_m:
+            events.setdefault(track.node_index(sm), []).append(("snap", sm))
+        for sm, r in changes:
+            events.setdefault(track.node_index(sm), []).append(("change", _as_batch(r, n, "change ratio")))
+        if controller is not None:
+            for sm in decision_m:
+                events.setdefault(track.node_index(sm), []).append(("decide", sm))
+        for k in events:
+            events[k].sort(key=lambda e: ("snap", "change", "decide").index(e[0]))
+        self.events, self.controller = events, controller
+        self.snapshots: dict[float, RunState] = {}
+        need = np.full(self.m, self.record)
+        need[list(events)] = True
+        need[self.m - 1] = True
+        self.need_phase = need.tolist()
 
-    def accel(vv, k):
+    def state(self, k: int) -> RunState:
+        n = self.n
+        return RunState(np.full(n, self.s[k]), self.t.copy(), self.v.copy(), self.phase.copy(), self.ratio.copy())
+
+    def _events(self, k: int) -> None:
+        changed = False
+        s, n = self.s, self.n
+        for kind, arg in self.events[k]:
+            if kind == "snap":
+                self.snapshots[arg] = self.state(k)
+                continue
+            if kind == "change":
+                new = arg
+                what = f"ratio change at {s[k]} m"
+            else:
+                cmd = self.controller(float(s[k]), self.state(k))
+                if cmd is None:  # nothing to change here
+                    continue
+                if isinstance(cmd, Command):
+                    if cmd.cap_ms is not None:
+                        cap_ms = _as_batch(cmd.cap_ms, n, "controller cap_ms")
+                        if np.any(~(cap_ms > 0)):
+                            raise InputError(f"controller cap at {s[k]} m must be > 0 m/s")
+                        self.cap2 = cap_ms * cap_ms
+                    if cmd.shed_ms2 is not None:
+                        shed = _as_batch(cmd.shed_ms2, n, "controller shed_ms2")
+                        if np.any(~(shed > 0)):
+                            raise InputError(f"controller deceleration at {s[k]} m must be > 0 m/s²")
+                        self.shed = shed
+                    cmd = cmd.ratio
+                new = _as_batch(cmd, n, "controller ratio")
+                what = f"controller ratio at {s[k]} m"
+            _check_ratio(new, what)
+            self.ratio = new.copy()
+            changed = True
+        if changed:
+            self.lb_for = None
+            self.ceil.set(self.ratio, self.cap2)
+            self.c0 = self.ceil.at(k)
+            self.maybe_over = True
+
+    # -- free running ----------------------------------------------------------------
+    def accel(self, vv, k: int):
         """Free acceleration [m/s²] at speed vv, node k (full notch, capped; or coasting) and
         the coasting acceleration ``a_track − R/M_e``."""
-        coast = ag[k] - (ram + vv * (rbm + rcm * vv))
-        a = np.minimum(coast + _interp(vv, tsp, tef) * tfi, np.maximum(amax, coast) if steep[k] else amax)
-        if sawtooth:
-            a = np.where(coasting, coast, a)
+        coast = self.ag[k] - (self.ram + vv * (self.rbm + self.rcm * vv))
+        amax = self.amax
+        a = np.minimum(coast + _interp(vv, self.tsp, self.tef) * self.tfi,
+                       np.maximum(amax, coast) if self.steep[k] else amax)
+        if self.sawtooth:
+            a = np.where(self.coasting, coast, a)
         return a, coast
 
-    need_phase = np.full(m, record)
-    need_phase[list(events)] = True
-    need_phase[m - 1] = True
-    need_phase = need_phase.tolist()
-    s_list = s.tolist()
-    stop2_list = stop2.tolist()
-    work = np.zeros(n)  # traction work / M_e [J/kg]
-    maybe_over = True
-    k_last_ok = k0
-    vint_list = vint.tolist()
-    lb_for = None
-    c0 = ceil.at(k0)
-    err = np.errstate(divide="ignore", invalid="ignore")
-    err.__enter__()
-    try:
-        for k in range(k0, m - 1):
-            ev = events.get(k)
-            if ev:
-                changed = False
-                for kind, arg in ev:
-                    if kind == "snap":
-                        snapshots[arg] = state(k)
-                        continue
-                    if kind == "change":
-                        new = arg
-                        what = f"ratio change at {s[k]} m"
-                    else:
-                        cmd = controller(float(s[k]), state(k))
-                        if cmd is None:  # nothing to change here
-                            continue
-                        if isinstance(cmd, Command):
-                            if cmd.cap_ms is not None:
-                                cap_ms = _as_batch(cmd.cap_ms, n, "controller cap_ms")
-                                if np.any(~(cap_ms > 0)):
-                                    raise InputError(f"controller cap at {s[k]} m must be > 0 m/s")
-                                cap2 = cap_ms * cap_ms
-                            if cmd.shed_ms2 is not None:
-                                shed = _as_batch(cmd.shed_ms2, n, "controller shed_ms2")
-                                if np.any(~(shed > 0)):
-                                    raise InputError(f"controller deceleration at {s[k]} m must be > 0 m/s²")
-                            cmd = cmd.ratio
-                        new = _as_batch(cmd, n, "controller ratio")
-                        what = f"controller ratio at {s[k]} m"
-                    _check_ratio(new, what)
-                    ratio = new.copy()
-                    changed = True
-                if changed:
-                    lb_for = None
-                    ceil.set(ratio, cap2)
-                    c0 = ceil.at(k)
-                    maybe_over = True
+    def _free(self, k: int, ds: float):
+        """Heun's step in w = v²: the acceleration at both ends of the step (predictor ṽ₁)."""
+        a0, cs0 = self.accel(self.v, k)
+        vp = np.sqrt(np.maximum(self.w + (2.0 * ds) * a0, 0.0))
+        a1, cs1 = self.accel(vp, k + 1)
+        return a0, cs0, a1, cs1
+
+    # -- the ceiling and the service brake -------------------------------------------
+    def _guided(self, a0, a1, c1, st1, ds: float):
+        """Free running capped by the ceiling; above it (a lowered target) braking at the shedding
+        rate until it meets it. Returns the step's slope dw/ds before the crossing, its end without
+        the ceiling, where it crosses, the end value and which runs were above the ceiling."""
+        w, c0 = self.w, self.c0
+        over = None
+        if self.maybe_over:
+            over = w > c0 * (1.0 + 1e-12) + 1e-9
+            if not np.count_nonzero(over):
+                over, self.maybe_over = None, False
+        if over is None:
+            slope = a0 + a1
+            wend = w + slope * ds
+            cross = wend > c1
+            w1 = np.minimum(wend, c1)
+        else:
+            slope = np.where(over, -2.0 * self.shed, a0 + a1)
+            wend = w + slope * ds
+            cross = np.where(over, wend < c1, wend > c1)
+            # braked down onto a ceiling that rises inside the step (a restriction's tail
+            # clears): from the crossing the train runs free, capped by the ceiling; it must
+            # not ride up the ceiling faster than it can accelerate
+            fc = np.clip((w - c0) / np.where(cross, w - c0 - (wend - c1), 1.0), 0.0, 1.0)
+            free = w + slope * fc * ds + (a0 + a1) * (1.0 - fc) * ds
+            w1 = np.minimum(np.where(cross, np.where(over, np.minimum(c1, free), c1), wend), st1)
+            self.maybe_over = bool(np.count_nonzero(over & ~cross))
+        # a stalled run (w ≤ 0 before the marker) turns its time into NaN; checked in run()
+        return slope, wend, cross, w1, over
+
+    def _split(self, slope, wend, cross, w1, over, c1, cs0, cs1, ds: float):
+        """Split at the crossing (root of the gap w − c², linear in s on both pieces): time
+        Δt = 2Δs/(v₀ + v₁) and traction work per M_e of each piece."""
+        w, v, gap0 = self.w, self.v, self.w - self.c0
+        if over is None:  # gap0 ≤ 0 < gap1 on crossing lanes: the root lies in [0, ds)
+            frac = np.where(cross, gap0 / (gap0 - (wend - c1)), 1.0)
+        else:
+            frac = np.where(cross, np.minimum(np.maximum(gap0 / (gap0 - (wend - c1)), 0.0), 1.0), 1.0)
+        xc = frac * ds
+        wc = w + slope * xc
+        vc = np.sqrt(wc)
+        v1 = np.sqrt(w1)
+        rest = ds - xc
+        dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
+        # traction work / M_e on each piece: F·Δs = M_e (Δw/2 − a_coast Δs), when positive
+        # (the free piece is (a − a_coast) Δs ≥ 0 under power, 0 when coasting)
+        cb = 0.5 * (cs0 + cs1)
+        if over is None:
+            dwork = xc * (0.5 * slope - cb) + np.maximum(0.5 * (w1 - wc) - rest * cb, 0.0)
+        else:
+            dwork = (np.maximum(0.5 * (wc - w) - xc * cb, 0.0)
+                     + np.maximum(0.5 * (w1 - wc) - rest * cb, 0.0))
+        return wc, vc, w1, v1, xc, rest, dt, dwork, cb
+
+    # -- the sawtooth band ---------------------------------------------------------
+    def _band_edge(self, k: int) -> None:
+        """The band's lower edge ``max(target − band, 0.5 target)``, squared; it changes with the target only."""
+        if self.vint_list[k] != self.lb_for:
+            self.lb_for = self.vint_list[k]
+            tgt = np.minimum(self.ratio * self.lb_for, np.sqrt(self.cap2))
+            self.lb = np.maximum(tgt - self.band, SAWTOOTH_MIN_FRACTION * tgt)
+            self.lb2 = self.lb * self.lb
+
+    def _sawtooth(self, k: int, ds: float, cross, c1, wend, wc, vc, w1, v1, xc, rest, dt, dwork, cb, cs1):
+        """A sawtooth vehicle coasts from where it meets a level or falling ceiling (still capped
+        by it), and powers again from the band's lower edge, splitting the step there."""
+        w, v = self.w, self.v
+        hit = cross & (c1 <= self.c0 * (1 + 1e-12))
+        if np.count_nonzero(hit):
+            wco = np.minimum(wc + 2.0 * cs1 * rest, c1)
+            wco = np.where(hit, wco, w1)
+            vco = np.sqrt(wco)
+            dt = 2.0 * (xc / (v + vc) + rest / (vc + vco))
+            dwork = np.where(hit, np.maximum(0.5 * (wc - w) - xc * cb, 0.0)
+                             + np.maximum(0.5 * (wco - wc) - rest * cb, 0.0), dwork)
+            w1, v1 = wco, vco
+        # coasting below the band's lower edge: split there and power the rest of the step
+        band_i = None
+        lb2 = self.lb2
+        band_x = self.coasting & ~cross & (wend < lb2)
+        if np.count_nonzero(band_x):
+            band_i = i = np.flatnonzero(band_x)
+            xb = ds * np.clip((w[i] - lb2[i]) / (w[i] - wend[i]), 0.0, 1.0)
+            self.coasting[i] = False
+            sub = ds - xb
+            vb, tfb = self.lb[i], self.tfi[i]
+            ram, rbm, rcm, ag, amax = self.ram, self.rbm, self.rcm, self.ag, self.amax
+            cb_i = ag[k + 1] - (ram[i] + vb * (rbm[i] + rcm[i] * vb))
+            aa = np.minimum(cb_i + np.interp(vb, self.tsp, self.tef) * tfb, np.maximum(amax, cb_i))
+            vq = np.sqrt(np.maximum(lb2[i] + 2.0 * aa * sub, 0.0))
+            cq = ag[k + 1] - (ram[i] + vq * (rbm[i] + rcm[i] * vq))
+            ab = np.minimum(cq + np.interp(vq, self.tsp, self.tef) * tfb, np.maximum(amax, cq))
+            wq = np.minimum(lb2[i] + (aa + ab) * sub, c1[i])
+            vq = np.sqrt(wq)
+            w1[i], v1[i] = wq, vq
+            dt[i] = 2.0 * (xb / (v[i] + vb) + sub / (vb + vq))
+            dwork[i] = np.maximum(0.5 * (wq - lb2[i]) - sub * 0.5 * (cb_i + cq), 0.0)
+        # at the ceiling a sawtooth vehicle coasts (not where the ceiling ramps up: it powers)
+        self.coasting |= cross & (c1 <= self.c0 * (1 + 1e-12))
+        return w1, v1, dt, dwork, band_i
+
+    # -- phase codes and recording -------------------------------------------------------
+    def _phase(self, over, cross, c1, w1, st1, coasting_step, band_i) -> None:
+        n, c0 = self.n, self.c0
+        if self.sawtooth:
+            ph = np.where(coasting_step, PHASE_COAST, PHASE_POWER)
+        else:
+            ph = np.full(n, PHASE_POWER)
+        if over is not None:
+            ph = np.where(over, PHASE_BRAKE, ph)
+        cph = np.where(c1 < c0 * (1 - 1e-12), PHASE_BRAKE,
+                       np.where(c1 > c0 * (1 + 1e-12), PHASE_POWER, PHASE_HOLD))
+        ph = np.where(cross, cph, ph).astype(np.int8)
+        if self.sawtooth:
+            ph[cross & (w1 < c1 * (1 - 1e-12))] = PHASE_COAST
+        if band_i is not None:
+            ph[band_i] = PHASE_POWER
+        ph[w1 >= st1] = PHASE_STOP
+        self.phase = ph
+
+    def _record(self, k: int, w1, v1, dt, ds: float) -> None:
+        jr = k + 1 - self.k0
+        self.rec_t[:, jr], self.rec_v[:, jr], self.rec_p[:, jr] = self.t + dt, v1, self.phase
+        self.rec_r[:, jr], self.rec_c[:, jr] = self.ratio, np.sqrt(self.cap2)
+        self.rec_a[:, jr] = (w1 - self.w) / (2.0 * ds)
+
+    # -- the loop -------------------------------------------------------------------------
+    def run(self) -> None:
+        s_list, m = self.s_list, self.m
+        k_last_ok = self.k0
+        for k in range(self.k0, m - 1):
+            if k in self.events:
+                self._events(k)
             ds = s_list[k + 1] - s_list[k]
-            c1 = ceil.at(k + 1)
-            st1 = stop2_list[k + 1]
-            if sawtooth:
-                if vint_list[k] != lb_for:  # the band's lower edge changes with the target only
-                    lb_for = vint_list[k]
-                    tgt = np.minimum(ratio * lb_for, np.sqrt(cap2))
-                    lb = np.maximum(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
-                    lb2 = lb * lb
-                coasting &= w > lb2
-                coasting_step = coasting.copy()
-
-            # free running: Heun's step in w = v²
-            a0, cs0 = accel(v, k)
-            vp = np.sqrt(np.maximum(w + (2.0 * ds) * a0, 0.0))
-            a1, cs1 = accel(vp, k + 1)
-            over = None
-            if maybe_over:  # above the ceiling only after a lowered ratio (or a start state)
-                over = w > c0 * (1.0 + 1e-12) + 1e-9
-                if not np.count_nonzero(over):
-                    over, maybe_over = None, False
-            if over is None:
-                slope = a0 + a1
-                wend = w + slope * ds
-                cross = wend > c1
-                w1 = np.minimum(wend, c1)
-            else:  # over: service brake (or the controller's shedding rate), until it meets the ceiling
-                slope = np.where(over, -2.0 * shed, a0 + a1)
-                wend = w + slope * ds
-                cross = np.where(over, wend < c1, wend > c1)
-                # braked down onto a ceiling that rises inside the step (a restriction's tail
-                # clears): from the crossing the train runs free, capped by the ceiling; it must
-                # not ride up the ceiling faster than it can accelerate
-                fc = np.clip((w - c0) / np.where(cross, w - c0 - (wend - c1), 1.0), 0.0, 1.0)
-                free = w + slope * fc * ds + (a0 + a1) * (1.0 - fc) * ds
-                w1 = np.minimum(np.where(cross, np.where(over, np.minimum(c1, free), c1), wend), st1)
-                maybe_over = bool(np.count_nonzero(over & ~cross))
-            # a stalled run (w ≤ 0 before the marker) turns its time into NaN; checked below
-
-            # split at the crossing: root of the gap w − c², linear in s on both pieces
-            gap0 = w - c0
-            if over is None:  # gap0 ≤ 0 < gap1 on crossing lanes: the root lies in [0, ds)
-                frac = np.where(cross, gap0 / (gap0 - (wend - c1)), 1.0)
-            else:
-                frac = np.where(cross, np.minimum(np.maximum(gap0 / (gap0 - (wend - c1)), 0.0), 1.0), 1.0)
-            xc = frac * ds
-            wc = w + slope * xc
-            vc = np.sqrt(wc)
-            v1 = np.sqrt(w1)
-            rest = ds - xc
-            dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
-            # traction work / M_e on each piece: F·Δs = M_e (Δw/2 − a_coast Δs), when positive
-            # (the free piece is (a − a_coast) Δs ≥ 0 under power, 0 when coasting)
-            cb = 0.5 * (cs0 + cs1)
-            if over is None:
-                dwork = xc * (0.5 * slope - cb) + np.maximum(0.5 * (w1 - wc) - rest * cb, 0.0)
-            else:
-                dwork = (np.maximum(0.5 * (wc - w) - xc * cb, 0.0)
-                         + np.maximum(0.5 * (w1 - wc) - rest * cb, 0.0))
-
+            c1 = self.ceil.at(k + 1)
+            st1 = self.stop2_list[k + 1]
+            if self.sawtooth:
+                self._band_edge(k)
+                self.coasting &= self.w > self.lb2
+                coasting_step = self.coasting.copy()
+            a0, cs0, a1, cs1 = self._free(k, ds)
+            slope, wend, cross, w1, over = self._guided(a0, a1, c1, st1, ds)
+            wc, vc, w1, v1, xc, rest, dt, dwork, cb = self._split(slope, wend, cross, w1, over, c1, cs0, cs1, ds)
             band_i = None
-            if sawtooth:
-                # a sawtooth vehicle that meets a level (or falling) ceiling coasts from the crossing on;
-                # the ceiling still caps it (downhill, braking curves)
-                hit = cross & (c1 <= c0 * (1 + 1e-12))
-                if np.count_nonzero(hit):
-                    wco = np.minimum(wc + 2.0 * cs1 * rest, c1)
-                    wco = np.where(hit, wco, w1)
-                    vco = np.sqrt(wco)
-                    dt = 2.0 * (xc / (v + vc) + rest / (vc + vco))
-                    dwork = np.where(hit, np.maximum(0.5 * (wc - w) - xc * cb, 0.0)
-                                     + np.maximum(0.5 * (wco - wc) - rest * cb, 0.0), dwork)
-                    w1, v1 = wco, vco
-                # coasting below the band's lower edge: split there and power the rest of the step
-                band_x = coasting & ~cross & (wend < lb2)
-                if np.count_nonzero(band_x):
-                    band_i = i = np.flatnonzero(band_x)
-                    xb = ds * np.clip((w[i] - lb2[i]) / (w[i] - wend[i]), 0.0, 1.0)
-                    coasting[i] = False
-                    sub = ds - xb
-                    vb, tfb = lb[i], tfi[i]
-                    cb_i = ag[k + 1] - (ram[i] + vb * (rbm[i] + rcm[i] * vb))
-                    aa = np.minimum(cb_i + np.interp(vb, tsp, tef) * tfb, np.maximum(amax, cb_i))
-                    vq = np.sqrt(np.maximum(lb2[i] + 2.0 * aa * sub, 0.0))
-                    cq = ag[k + 1] - (ram[i] + vq * (rbm[i] + rcm[i] * vq))
-                    ab = np.minimum(cq + np.interp(vq, tsp, tef) * tfb, np.maximum(amax, cq))
-                    wq = np.minimum(lb2[i] + (aa + ab) * sub, c1[i])
-                    vq = np.sqrt(wq)
-                    w1[i], v1[i] = wq, vq
-                    dt[i] = 2.0 * (xb / (v[i] + vb) + sub / (vb + vq))
-                    dwork[i] = np.maximum(0.5 * (wq - lb2[i]) - sub * 0.5 * (cb_i + cq), 0.0)
-                # at the ceiling a sawtooth vehicle coasts (not where the ceiling ramps up: it powers)
-                coasting |= cross & (c1 <= c0 * (1 + 1e-12))
-
-            if need_phase[k + 1]:
-                if sawtooth:
-                    ph = np.where(coasting_step, PHASE_COAST, PHASE_POWER)
-                else:
-                    ph = np.full(n, PHASE_POWER)
-                if over is not None:
-                    ph = np.where(over, PHASE_BRAKE, ph)
-                cph = np.where(c1 < c0 * (1 - 1e-12), PHASE_BRAKE,
-                               np.where(c1 > c0 * (1 + 1e-12), PHASE_POWER, PHASE_HOLD))
-                ph = np.where(cross, cph, ph).astype(np.int8)
-                if sawtooth:
-                    ph[cross & (w1 < c1 * (1 - 1e-12))] = PHASE_COAST
-                if band_i is not None:
-                    ph[band_i] = PHASE_POWER
-                ph[w1 >= st1] = PHASE_STOP
-                phase = ph
-            if record:
-                jr = k + 1 - k0
-                rec_t[:, jr], rec_v[:, jr], rec_p[:, jr], rec_r[:, jr] = t + dt, v1, phase, ratio
-                rec_c[:, jr] = np.sqrt(cap2)
-                rec_a[:, jr] = (w1 - w) / (2.0 * ds)
+            if self.sawtooth:
+                w1, v1, dt, dwork, band_i = self._sawtooth(k, ds, cross, c1, wend, wc, vc, w1, v1, xc, rest, dt,
+                                                           dwork, cb, cs1)
+            if self.need_phase[k + 1]:
+                self._phase(over, cross, c1, w1, st1, coasting_step if self.sawtooth else None, band_i)
+            if self.record:
+                self._record(k, w1, v1, dt, ds)
             if k + 2 == m:
-                w_last = w  # entering the last step, onto the marker
-            w, v = w1, v1
-            t = t + dt
-            work += dwork
-            c0 = c1
+                self.w_last = self.w  # entering the last step, onto the marker
+            self.w, self.v = w1, v1
+            self.t = self.t + dt
+            self.work += dwork
+            self.c0 = c1
             if (k & 63) == 0 or k + 2 >= m - 1:
-                _check_stall(t, track, train, load, tf, s_list, k_last_ok, k + 1)
+                _check_stall(self.t, self.track, self.train, self.load, self.tf, s_list, k_last_ok, k + 1)
                 k_last_ok = k + 1
-    finally:
-        err.__exit__(None, None, None)
-    energy = work * me
-    # the last step ends standing on the marker; had it asked more than the stopping
-    # brake gives (w above 2 β Δs entering it), the train would have run past by this much
-    overrun = (np.maximum(w_last / (2.0 * train.stop_brake_ms2) - (s[-1] - s[-2]), 0.0)
-               if m - 1 > k0 else np.zeros(n))
-    stop_m = track.length_m + overrun
 
-    for kind, arg in events.get(m - 1, []):
-        if kind == "snap":
-            snapshots[arg] = state(m - 1)
-    energy_kwh = energy / KWH
-    if not record:
-        return BatchResult(time_s=t, energy_kwh=energy_kwh, snapshots=snapshots, stop_m=stop_m)
-    if rec_a.shape[1] > 1:
-        rec_a[:, 0] = rec_a[:, 1]
-    return BatchResult(time_s=t, energy_kwh=energy_kwh, snapshots=snapshots, stop_m=stop_m, s_m=s[k0:].copy(),
-                       t_s=rec_t, v_ms=rec_v, a_ms2=rec_a, phase=rec_p, ratio=rec_r, cap_ms=rec_c)
+    def result(self) -> BatchResult:
+        s, m, train = self.s, self.m, self.train
+        energy = self.work * (1.0 / self.inv_me)
+        for kind, arg in self.events.get(m - 1, []):
+            if kind == "snap":
+                self.snapshots[arg] = self.state(m - 1)
+        # the last step ends standing on the marker; had it asked more than the stopping
+        # brake gives (w above 2 β Δs entering it), the train would have run past by this much
+        overrun = (np.maximum(self.w_last / (2.0 * train.stop_brake_ms2) - (s[-1] - s[-2]), 0.0)
+                   if m - 1 > self.k0 else np.zeros(self.n))
+        stop_m = self.track.length_m + overrun
+        energy_kwh = energy / KWH
+        if not self.record:
+            return BatchResult(time_s=self.t, energy_kwh=energy_kwh, snapshots=self.snapshots, stop_m=stop_m)
+        rec_a = self.rec_a
+        if rec_a.shape[1] > 1:
+            rec_a[:, 0] = rec_a[:, 1]
+        return BatchResult(time_s=self.t, energy_kwh=energy_kwh, snapshots=self.snapshots, stop_m=stop_m,
+                           s_m=s[self.k0:].copy(), t_s=self.rec_t, v_ms=self.rec_v, a_ms2=rec_a,
+                           phase=self.rec_p, ratio=self.rec_r, cap_ms=self.rec_c)
 
 
 # --- the high-level call ------------------------------------------------------------

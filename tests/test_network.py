@@ -325,6 +325,25 @@ def test_front_time_at_nodes_with_stretch_and_dwell():
     got = traj.front_time([0.0, 500.0, 1000.0, 1500.0, 2000.0])
     assert got == pytest.approx([0.0, 50.0, 100.0, 180.0, 230.0], abs=TOL_S)
     assert traj.front_time([2100.0])[0] == math.inf
+    # The front moves on past S1 when it departs (130); elsewhere it passes when it arrives.
+    assert traj.front_leaves([-50.0, 0.0, 500.0, 1000.0, 1500.0, 2000.0]) == pytest.approx(
+        [0.0, 0.0, 50.0, 130.0, 180.0, 230.0], abs=TOL_S)
+    assert traj.front_leaves([2100.0])[0] == math.inf
+
+
+def test_front_leaves_a_stop_at_departure_despite_round_off_where_curves_meet():
+    # Two curves that meet at the stop marker 1000 m only up to round-off (1000 + 4.5e-13 and 1000):
+    # a stop node at exactly 1000 is still left at the departure (130), not at the arrival (100).
+    from planner.network import Trajectory
+
+    u = np.array([0.0, 1000.0 + 4.5e-13, 1000.0, 2000.0])
+    t = np.array([0.0, 100.0, 130.0, 230.0])
+    traj = Trajectory("T", "down", np.maximum.accumulate(u), t)
+    assert traj.front_leaves([1000.0, 1000.0 - 1e-3])[0] == pytest.approx(130.0, abs=TOL_S)
+    assert traj.front_leaves([1000.0 - 1e-3])[0] == pytest.approx(100.0 - 1e-4, abs=1e-9)  # passed before it
+    assert traj.front_leaves([1500.0])[0] == pytest.approx(180.0, abs=TOL_S)
+    up = Trajectory("U", "up", np.array([-2000.0, -1000.0, -1000.0, 0.0]), t)
+    assert up.front_leaves([1000.0, 2000.0, 0.0, -10.0]) == pytest.approx([130.0, 0.0, 230.0, math.inf])
 
 
 def test_up_train_prediction_runs_towards_lower_chainage():
@@ -442,3 +461,73 @@ def test_sections_are_split_at_the_block_signals_of_their_direction():
     assert c.loc["a-b/2", "overlap_s"] == pytest.approx(25.0, abs=TOL_S)
     assert (c.loc["a-b/2", "from_m"], c.loc["a-b/2", "to_m"]) == (1000.0, 2000.0)
     assert set(c["train_a"]) == {"L"} and c["delay_s"].iloc[0] == pytest.approx(30.0, abs=TOL_S)
+
+
+# --- windows at an intermediate stop (issue 14, defect 4)
+# S0 (0) – m (1000, stop of S1) – c (2000), one track "1"; block signals split a–m at 950 (both directions)
+# so the 100 m train standing at m fills a–m/2 [950, 1000] and reaches 50 m back into a–m/1.
+# T runs 0 → S1 arr 100, dep 400 → S2 arr 500: the 50 s curve (20 m/s) is stretched to the 100 s
+# schedule, so the front runs at 10 m/s: it is at x at t_dep + |x − x_dep| / 10.
+DWELL_NODES = [("a", "stop", 0.0, "IL1", "S0", "1"), ("m", "stop", 1000.0, "IL1", "S1", "1"),
+               ("c", "stop", 2000.0, "IL1", "S2", "1")]
+DWELL_EDGES = edges_between(DWELL_NODES, [("a", "m"), ("m", "c")], "1")
+
+
+def dwell_line(direction="down", others=()):
+    from planner.model import Signal
+
+    order = ("S0", "S1", "S2") if direction == "down" else ("S2", "S1", "S0")
+    t = train("T", direction, [(order[0], NAN, 0.0, True), (order[1], 100.0, 400.0, True),
+                               (order[2], 500.0, NAN, True)])
+    line = make_line([0.0, 1000.0, 2000.0], DWELL_NODES, DWELL_EDGES, [t, *others])
+    signals = (Signal("sd", 950.0, "down"),) if direction == "down" else (Signal("su", 1050.0, "up"),)
+    return dataclasses.replace(line, signals=signals)
+
+
+def windows_of(rep, tid="T"):
+    occ = rep.occupation.query("train_id == @tid").set_index("resource_id")
+    return {r: (row.start_s, row.end_s) for r, row in occ.iterrows()}, occ
+
+
+def test_section_after_an_intermediate_stop_opens_at_departure_minus_lead():
+    # Down: the front enters m–c when it leaves S1 at 400 (not when it arrives at 100):
+    #   m–c opens 400 − 30 = 370 and closes at the arrival 500 (+ terminal 0) + 5 = 505.
+    # The origin's first section opens at departure − lead likewise: a–m/1 at 0 − 30.
+    w, occ = windows_of(check(dwell_line("down")))
+    assert w["m-c"] == pytest.approx((370.0, 505.0), abs=TOL_S)
+    assert occ.loc["m-c", "entry_s"] == pytest.approx(400.0, abs=TOL_S)
+    assert w["a-m/1"][0] == pytest.approx(-30.0, abs=TOL_S)
+
+
+def test_section_after_an_intermediate_stop_opens_at_departure_minus_lead_up():
+    # Up (S2 2000 → S1 1000 → S0 0; up signal at 1050 splits m–c): a–m is entered at the departure from S1.
+    w, _ = windows_of(check(dwell_line("up")))
+    assert w["a-m"] == pytest.approx((370.0, 505.0), abs=TOL_S)
+    assert w["m-c/2"][0] == pytest.approx(-30.0, abs=TOL_S)
+
+
+def test_sections_the_train_stands_in_stay_claimed_through_the_dwell():
+    # The train stands with its front at m (1000) and its tail at 900 from 100 to 400. Both sections
+    # under it are claimed over the whole dwell: they close when the tail clears their exit.
+    #   a–m/1 [0, 950]:    opens −30, tail clears 950 when the front is at 1050: 400 + 5 = 405 → 410
+    #   a–m/2 [950, 1000]: opens 95 − 30 = 65, tail clears 1000 at front 1100: 400 + 10 = 410 → 415
+    w, occ = windows_of(check(dwell_line("down")))
+    assert w["a-m/1"] == pytest.approx((-30.0, 410.0), abs=TOL_S)
+    assert w["a-m/2"] == pytest.approx((65.0, 415.0), abs=TOL_S)
+    assert occ.loc["a-m/2", "exit_s"] == pytest.approx(100.0, abs=TOL_S)  # the front reaches the stop at arrival
+    for r in ("a-m/1", "a-m/2"):
+        assert w[r][0] <= 100.0 and w[r][1] >= 400.0
+
+
+def test_train_leaving_the_platform_ahead_before_the_arrival_is_no_conflict():
+    # P starts from S1's stop node at 60 and runs to S2 (arr 160, 10 m/s): m–c [60 − 30, 160 + 5] = [30, 165].
+    # T arrives at S1 at 100 but enters m–c only at its departure 400: [370, 505]; no overlap.
+    # (Windows opened at T's arrival, [70, 505], would report a 95 s conflict.)
+    p = train("P", "down", [("S1", NAN, 60.0, True), ("S2", 160.0, NAN, True)])
+    rep = check(dwell_line("down", [p]))
+    assert windows_of(rep, "P")[0]["m-c"] == pytest.approx((30.0, 165.0), abs=TOL_S)
+    assert len(rep.conflicts) == 0
+    # Moved so that P clears m–c after 370, the remaining overlap is a conflict of exactly that size.
+    p2 = train("P", "down", [("S1", NAN, 300.0, True), ("S2", 400.0, NAN, True)])
+    c = check(dwell_line("down", [p2])).conflicts
+    assert list(c["resource_id"]) == ["m-c"] and c["overlap_s"].iloc[0] == pytest.approx(405.0 - 370.0, abs=TOL_S)

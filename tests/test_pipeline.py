@@ -11,7 +11,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import pyarrow.dataset as ds
@@ -189,32 +188,58 @@ def test_failing_step_leaves_latest_untouched(project, monkeypatch):
     assert s.computed["tables"] == 0 and s.computed["stops"] == 0 and s.computed["closed_loop"] == 0
 
 
-def test_sigkill_at_random_moments_leaves_the_previous_run(project):
+def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_path_factory):
+    """SIGKILL a run at deterministic points, each signalled by the run itself (no wall-clock race).
+
+    After one edited restriction a run stores 7 units in the cache, in this order: tables 2, stops 2,
+    closed loop 2, margins 1; its 8th kill point is the complete staged run just before publishing.
+    Successive runs are killed at the 1st (mid tables), 3rd (first stop pattern), 5th (mid closed
+    loop), 7th (last unit cached, bundles not yet written) and 8th of those points; each resumes from
+    what the killed ones cached. After every kill ``latest`` and the published run are untouched; the
+    run that finally completes computes nothing and publishes exactly what an uninterrupted run from
+    the same starting cache publishes.
+    """
+    import shutil
+
+    from planner.pipeline import KILL_ENV
+
     job = _job(project)
     first = _run(job)
-    before = _tree_digest(project / "out" / first.run_id)
-    t = default_tables()
-    t["line"].loc[0, "max_speed_kmh"] = 90.0  # every unit's inputs change: a long cold run to kill
-    _write_tiny(project / "lines" / "tiny", line=t["line"])
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent))
-    code = ("import sys; from planner.job import load_job; from planner.pipeline import run_job; "
-            f"run_job(load_job({str(job)!r}), show_progress=False)")
-    import random
+    out = project / "out"
+    before = _tree_digest(out / first.run_id)
+    _edit_restriction(project, 65.0)
+    # Reference: the same run, uninterrupted, in a copy of the project with the same cache and key.
+    ref = tmp_path_factory.mktemp("ref")
+    shutil.copytree(project / "lines", ref / "lines")
+    for d in (".cache", ".dev-key"):
+        shutil.copytree(out / d, ref / "out" / d)
+    clean = _run(_job(ref))
+    assert {k: v for k, v in clean.computed.items() if v} == {"tables": 2, "stops": 2, "closed_loop": 2,
+                                                              "margins": 1}
 
-    rnd = random.Random(7)
-    for _ in range(3):
-        p = subprocess.Popen([sys.executable, "-c", code], env=env, start_new_session=True)
-        time.sleep(rnd.uniform(1.0, 6.0))
-        os.killpg(p.pid, signal.SIGKILL)
-        p.wait()
-        out = project / "out"
-        if latest_run(out) != first.run_id:  # the run finished before the kill: fine, it is complete
-            assert (out / "latest" / "manifest.json").is_file()
-            return
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent))
+    code = ("from planner.job import load_job; from planner.pipeline import run_job; "
+            f"run_job(load_job({str(job)!r}), show_progress=False)")
+    done = 0
+    for point in (1, 3, 5, 7, 8):
+        p = subprocess.Popen([sys.executable, "-c", code], env=env | {KILL_ENV: str(point - done)},
+                             start_new_session=True)
+        rc = p.wait()
+        try:
+            os.killpg(p.pid, signal.SIGKILL)  # its joblib workers, if any outlived it
+        except ProcessLookupError:
+            pass
+        assert rc == -signal.SIGKILL, f"run not killed at kill point {point} (exit code {rc})"
+        done = point
+        assert latest_run(out) == first.run_id and list_runs(out) == [first.run_id]
         assert _tree_digest(out / first.run_id) == before
     s = _run(job)
-    assert latest_run(project / "out") == s.run_id
-    assert sum(s.reused.get(k, 0) for k in UNIT_STEPS) > 0  # picked up what the killed runs cached
+    assert latest_run(out) == s.run_id and not [p for p in out.iterdir() if p.name.startswith(".staging")]
+    assert not any(s.computed.values())  # every unit came from what the killed runs cached
+    a = _tree_digest(out / s.run_id)
+    b = _tree_digest(ref / "out" / clean.run_id)
+    a.pop("manifest.json"), b.pop("manifest.json")
+    assert a == b
 
 
 def test_dask_backend_gives_the_same_datasets(project, tmp_path_factory):

@@ -1,0 +1,65 @@
+"""Benchmark: the time-keeping mode (DESIGN §4) in closed loop on the whole sample line (issue 14).
+
+The on-board logic has the vehicle's nominal model (load 0, traction 1.0); the
+plant is the real train of the scenario (``perturbed``: load 1.0, traction × 0.9).
+For every interstation, direction and train type, designated running times from
+the tables' minimum to the minimum + 60 s (``--step`` apart) are driven through
+the one integrator. Prints |arrival error| median / p95 / max over the runs the
+plant can make (designated ≥ the plant's own minimum), |stop error| max (where
+the plant came to a stand − the marker), CPU time, the worst interstations, and
+the issue's targets (max arrival error ≤ 0.5 s, stop error ≤ 0.2 m).
+
+Run: ``.venv/bin/python benchmarks/bench_timekeeping.py [--scenarios perturbed,nominal]
+[--step 5] [--jobs N]``
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import planner  # noqa: E402
+from planner.closed_loop import overall, run_closed_loop, summary_row  # noqa: E402
+from planner.tables import build_tables, write_tables  # noqa: E402
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenarios", default="perturbed,nominal")
+    ap.add_argument("--step", type=float, default=5.0, help="designated-time step [s]")
+    ap.add_argument("--jobs", type=int, default=-1)
+    ap.add_argument("--worst", type=int, default=5)
+    args = ap.parse_args()
+    line = planner.load_line(ROOT / "lines" / "sample")
+    with tempfile.TemporaryDirectory() as tmp:
+        write_tables(build_tables(line, ratios=[1.0, 0.9], n_jobs=args.jobs), tmp)  # only the minimum is used
+        for sc in [s for s in args.scenarios.split(",") if s]:
+            t0 = time.perf_counter()
+            res = run_closed_loop(line, tmp, scenario=sc, mode="timekeeping", step_s=args.step, n_jobs=args.jobs)
+            wall = time.perf_counter() - t0
+            st = overall(res)
+            print(f"bench_timekeeping {sc}: {st['n_runs']} runs ({st['n_feasible']} feasible for the plant) over "
+                  f"{len(res)} interstation x direction x type, {wall:.1f} s wall")
+            print(f"  |arrival error| median {st['median_abs_error_s']:.3f} s, p95 {st['p95_abs_error_s']:.3f} s, "
+                  f"max {st['max_abs_error_s']:.3f} s; |stop error| max {st['max_abs_stop_error_m']:.4f} m; "
+                  f"infeasible runs: worst arrival after the plant's minimum {st['infeasible_excess_max_s']:.3f} s")
+            for tt in sorted({r.train_type for r in res}):
+                o = overall([r for r in res if r.train_type == tt])
+                print(f"  {tt}: median {o['median_abs_error_s']:.3f} s, max {o['max_abs_error_s']:.3f} s")
+            rows = sorted(((summary_row(r), r) for r in res), key=lambda x: -x[0]["max_abs_error_s"])
+            print("  worst: " + "; ".join(f"{r.train_type} {r.origin}->{r.destination} {s['max_abs_error_s']:.3f} s"
+                                          for s, r in rows[: args.worst]))
+            ok = st["max_abs_error_s"] <= 0.5 and st["max_abs_stop_error_m"] <= 0.2
+            print(f"  target (max arrival error <= 0.5 s, stop error <= 0.2 m): {'met' if ok else 'NOT met'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
