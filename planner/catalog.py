@@ -27,7 +27,7 @@ class DatasetDoc:
 
 def datasets() -> list[DatasetDoc]:
     """Every dataset a nightly run publishes, in pipeline order."""
-    from . import closed_loop, margins, network, stops, tables
+    from . import changes, closed_loop, margins, network, stops, tables
 
     occ, con = network._schemas()
     out = [DatasetDoc(n, s, HIVE, "tables") for n, s in tables.SCHEMAS.items()]
@@ -39,6 +39,7 @@ def datasets() -> list[DatasetDoc]:
     ]
     out += [DatasetDoc(n, s, HIVE, "margins") for n, s in margins.SCHEMAS.items()]
     out += [DatasetDoc("conflicts", con, ("line",), "conflicts"), DatasetDoc("occupation", occ, HIVE, "conflicts")]
+    out.append(DatasetDoc("changes", changes.CHANGES_SCHEMA, ("line",), "changes"))
     return out
 
 
@@ -60,9 +61,12 @@ def readme() -> str:
         "outputs/",
         "  latest -> r0007-3f9a2c01d4         the last complete run (a symlink, switched atomically)",
         "  r0007-3f9a2c01d4/",
+        "    index.html                      overview: inputs, steps, flags, changes, every dataset and bundle",
         "    manifest.json                   inputs digest, parameters, software versions, timings, row counts",
+        "    inputs/<line>/*.parquet         copy of each line database planned (checked by its source digest)",
         "    <dataset>/line=L/direction=D/train_type=T/part-0.parquet",
-        "    report/<line>_margins.html      the margin-time report (self-contained)",
+        "    report/<line>_margins.html      the margin-time report, what changed since the last run on top",
+        "    graph/<line>_graph.html         the interactive train graph (time-distance diagram)",
         "    bundles/<line>_<dir>_<type>.pdb signed on-board DB bundles + signing_key.pub.pem",
         "  .cache/                           work cache keyed by input digests, verified on read (safe to delete)",
         "```",

@@ -1,4 +1,5 @@
-"""The nightly job: validate → tables → stopping patterns → closed loop → margins → bundles → conflicts → publish.
+"""The nightly job: validate → tables → stopping patterns → closed loop → margins → bundles → conflicts → graph
+→ changes → overview → publish.
 
 One call, :func:`run_job`, regenerates everything a job file names and
 publishes it atomically (:mod:`planner.publish`). Work is split into *units*
@@ -43,7 +44,8 @@ from .publish import (
     staging_dir,
 )
 
-STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "publish")
+STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
+         "overview", "publish")
 
 
 # --- digests of exactly what a unit depends on -----------------------------------
@@ -274,6 +276,8 @@ class RunSummary:
     warnings: list[str] = field(default_factory=list)
     release: Any = None
     """The :class:`planner.bundle.Release` the run's bundles were issued with."""
+    reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    """Margin report of each line (kept for :func:`planner.views.run_views`, which puts the changes on top)."""
 
 
 def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
@@ -424,10 +428,13 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             summary.computed, summary.reused = runner.computed, runner.reused
             if cache.rejected:  # once per run, with the count
                 summary.warnings.append(cache.rejected_note())
+            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
+            from .views import run_views  # changes since the last run, overview page
+
+            run_views(job, lines, stage, root, prog, summary)
             from .catalog import datasets as catalog
 
             stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
-            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
             _kill_point()
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
@@ -508,6 +515,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], grid, conflicts)
     _bundles_step(job, line, stage, runner, summary, key)
+    from .views import line_views  # inputs copy, train graph page
+
+    line_views(job, line, stage, runner, summary)
 
 
 def _count(summary: RunSummary, files: Iterable[Path]) -> None:
@@ -557,6 +567,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     _count(summary, write_margins(report, stage))
     write_html(report, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
                datasets_root=stage)
+    summary.reports[line.line_id] = report
     for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 

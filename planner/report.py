@@ -553,7 +553,7 @@ def energy_change(saved_percent: float) -> str:
     return f"{saved_percent:.0f} % saved" if saved_percent > 0 else f"{-saved_percent:.0f} % more"
 
 
-def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str = ".") -> str:
+def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str = ".", top: str = "") -> str:
     """The whole report page as one HTML string (module doc for the sections).
 
     Parameters
@@ -565,6 +565,9 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     datasets_href : str
         Relative path from the page's folder to the folder holding the ``margins`` and
         ``margin_totals`` datasets (``..`` in a published run, ``.`` for ``planner margins --out``).
+    top : str
+        An HTML section put first, under the title (the nightly job's "what
+        changed since the last run", :func:`planner.changes.changes_html`).
     """
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
@@ -587,6 +590,8 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         f"minimum = ratio 100 %, empty, nominal traction · <b>bad day</b> = {_e(rule.describe(adh))} "
         f"(adhesion sweep {adh[0]:g}–{adh[-1]:g} km/h/s) · supplement rule {rule.supplement_percent:g} % + "
         f"{rule.supplement_min_per_100km:g} min/100 km · tight below {rule.tight_threshold_s:g} s remaining</p>")
+    if top:
+        parts.append(top)
     # cards count distinct legs (train type × stop → next stop × scheduled time); the totals table
     # below counts train runs, and says so
     cards = [
@@ -726,11 +731,11 @@ def stop_markers(line) -> dict[str, dict[str, float]]:
     return {d: {s.station_id: s.stop_m(d) for s in line.stations} for d in ("down", "up")}
 
 
-def write_html(report, line, path: str | Path, datasets_root: str | Path | None = None) -> Path:
+def write_html(report, line, path: str | Path, datasets_root: str | Path | None = None, top: str = "") -> Path:
     """Write the page to ``path`` atomically (temp file in the same folder, then rename).
 
     ``datasets_root``: the folder holding the ``margins`` datasets (default: the page's folder);
-    the page links to it by a relative path.
+    the page links to it by a relative path. ``top`` as in :func:`render_html`.
     """
     import os
 
@@ -738,5 +743,5 @@ def write_html(report, line, path: str | Path, datasets_root: str | Path | None 
 
     path = Path(path)
     href = "." if datasets_root is None else Path(os.path.relpath(Path(datasets_root), path.parent)).as_posix()
-    write_bytes_atomic(path, render_html(report, stop_markers(line), datasets_href=href).encode("utf-8"))
+    write_bytes_atomic(path, render_html(report, stop_markers(line), datasets_href=href, top=top).encode("utf-8"))
     return path

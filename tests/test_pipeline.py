@@ -17,6 +17,7 @@ import pyarrow.dataset as ds
 import pytest
 
 from linedb import default_tables, write_line_db
+from planner import load_line
 from planner.errors import PlannerError
 from planner.job import load_job
 from planner.publish import latest_run, list_runs
@@ -70,13 +71,26 @@ def _tree_digest(folder: Path) -> dict[str, str]:
     }
 
 
-def _assert_same_but_run_id(run_a: Path, run_b: Path, skip: str = "") -> None:
-    """Two published runs hold the same files, byte for byte, except the manifest and each dataset
-    row's run_id (issue 17: every row carries its run's id); the rest of every dataset is equal."""
+def _assert_same_but_run_id(run_a: Path, run_b: Path, skip: str = "", no_changes: bool = False) -> None:
+    """Two published runs hold the same files, byte for byte, except the manifest and overview page
+    (they name the run and its timings) and each dataset row's run_id (issue 17: every row carries its
+    run's id); the rest of every dataset is equal. ``no_changes``: one run has no earlier run, so the
+    ``changes`` dataset and the report's "what changed" section are left out of the comparison."""
+    import re
+
     import pyarrow.parquet as pq
 
     a, b = _tree_digest(run_a), _tree_digest(run_b)
-    a.pop("manifest.json"), b.pop("manifest.json")
+    for run_page in ("manifest.json", "index.html"):
+        a.pop(run_page, None), b.pop(run_page, None)
+    if no_changes:
+        for d, folder in ((a, run_a), (b, run_b)):
+            for k in [k for k in d if k.startswith("changes/")]:
+                d.pop(k)
+            for k in [k for k in d if k.startswith("report/") and k.endswith("_margins.html")]:
+                text = (folder / k).read_text()
+                text = re.sub(r"<style>[^<]*</style><section class='changes'.*?</section>", "", text, flags=re.S)
+                d[k] = hashlib.sha256(text.encode()).hexdigest()
     if skip:
         a = {k: v for k, v in a.items() if not k.startswith(skip)}
         b = {k: v for k, v in b.items() if not k.startswith(skip)}
@@ -162,7 +176,8 @@ def test_unchanged_rerun_computes_nothing(project, monkeypatch):
     assert third.reused["tables"] == N_UNITS
     a = _tree_digest(project / "out" / first.run_id)
     b = _tree_digest(project / "out" / third.run_id)
-    a.pop("manifest.json"), b.pop("manifest.json")
+    for run_page in ("manifest.json", "index.html"):  # they name the run and its timings
+        a.pop(run_page), b.pop(run_page)
     # byte-identical report and bundles from cache; datasets identical but for their run_id column
     pq_files = [k for k in a if k.endswith(".parquet")]
     assert {k: v for k, v in a.items() if k not in pq_files} == {k: v for k, v in b.items() if k not in pq_files}
@@ -184,11 +199,37 @@ def test_one_edited_restriction_recomputes_only_its_interstation(project):
     _run(job)
     # The 70 km/h "up" restriction at 4000-4200 m lies between C (up stop 4740) and B (up stop 2440):
     # only the up run C->B of each of the 2 train types can see it.
+    old_line = load_line(project / "lines" / "tiny")
     _edit_restriction(project, 65.0)
     s = _run(job)
     assert s.computed["tables"] == 2 and s.reused["tables"] == N_UNITS - 2
     assert s.computed["stops"] == 2
     assert s.computed["closed_loop"] == 2
+    _check_changes_name_the_restriction(project, old_line, load_line(project / "lines" / "tiny"))
+
+
+def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> None:
+    """The run's `changes` dataset and the report's top section name the edited restriction and the legs it slowed."""
+    from planner.run_curve import running_time
+
+    ch = ds.dataset(project / "out" / "latest" / "changes", format="parquet", partitioning="hive").to_table().to_pandas()
+    inputs = ch[ch.category == "line_table"]
+    assert list(zip(inputs.subject, inputs.field, inputs.before, inputs.after)) == [("speed_limits", "limit_kmh", "70", "65")]
+    cid = int(inputs.change_id.iloc[0])
+    legs = ch[(ch.category == "leg") & (ch.field == "min_running_time_s")]
+    # only up runs from C to B (or through it) can see a restriction at 4000-4200 m in the up direction
+    assert len(legs) and set(legs.direction) == {"up"} and all(cid in list(c) for c in legs.caused_by)
+    for r in legs.itertuples():
+        assert r.subject.startswith(f"{r.train_type} up C→")
+        # by how much: the same as the simulator's minimum time C→B before and after, run independently here
+        dest = r.subject.split("→")[1][0]
+        want = (running_time(new_line, r.train_type, "C", dest).time_s
+                - running_time(old_line, r.train_type, "C", dest).time_s)
+        assert want > 0.5 and abs(r.delta - want) < 0.05, (r.subject, r.delta, want)
+    html = (project / "out" / "latest" / "report" / "tiny_margins.html").read_text()
+    top = html.index("What changed since the last run")
+    assert top < html.index("infeasible: scheduled below")  # a section at the top, before the headline cards
+    assert "speed restriction 4000–4200 m up civil: limit_kmh 70 → 65 — affects" in html
 
 
 def _edit_restriction(project: Path, limit_kmh: float) -> None:
@@ -247,14 +288,15 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     for d in (".cache", ".dev-key"):
         shutil.copytree(out / d, ref / "out" / d)
     clean = _run(_job(ref))
+    # the train graph's trajectories are one unit keyed by the whole line database: it changes too
     assert {k: v for k, v in clean.computed.items() if v} == {"tables": 2, "stops": 2, "closed_loop": 2,
-                                                              "margins": 1}
+                                                              "margins": 1, "graph": 1}
 
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent))
     code = ("from planner.job import load_job; from planner.pipeline import run_job; "
             f"run_job(load_job({str(job)!r}), show_progress=False)")
     done = 0
-    for point in (1, 3, 5, 7, 8):
+    for point in (1, 3, 5, 7, 8, 9):  # 8: after the graph unit, 9: before publishing
         p = subprocess.Popen([sys.executable, "-c", code], env=env | {KILL_ENV: str(point - done)},
                              start_new_session=True)
         rc = p.wait()
@@ -269,7 +311,7 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     s = _run(job)
     assert latest_run(out) == s.run_id and not [p for p in out.iterdir() if p.name.startswith(".staging")]
     assert not any(s.computed.values())  # every unit came from what the killed runs cached
-    _assert_same_but_run_id(out / s.run_id, ref / "out" / clean.run_id)
+    _assert_same_but_run_id(out / s.run_id, ref / "out" / clean.run_id, no_changes=True)
 
 
 def test_dask_backend_gives_the_same_datasets(project, tmp_path_factory):

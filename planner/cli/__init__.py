@@ -67,6 +67,8 @@ from . import timekeeping  # noqa: E402,F401
 from . import cache  # noqa: E402,F401
 from . import schema  # noqa: E402,F401
 from . import importer  # noqa: E402,F401
+from . import graph  # noqa: E402,F401
+from . import diff  # noqa: E402,F401
 
 
 def main() -> None:

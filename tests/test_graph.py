@@ -1,0 +1,129 @@
+"""The train graph's data: thinning, locals/rapids, trajectories from the network module, page payload, charts."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from linedb import write_line_db
+from planner.errors import InputError
+from planner.graph import (
+    TOL_T_S, TOL_X_M, draw_chart, graph_data, page_payload, parse_hhmm, render_page, service_of, simplify,
+)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    from planner import load_line
+
+    folder = tmp_path_factory.mktemp("line") / "tiny"
+    write_line_db(folder, nodes=None, edges=None)
+    return load_line(folder)
+
+
+@pytest.fixture(scope="module")
+def data(tiny):
+    return graph_data(tiny)
+
+
+def _chord_error(t, x, keep, tol_t, tol_x):
+    """Largest scaled distance of a dropped point from its kept chord (must be ≤ 1)."""
+    worst = 0.0
+    for a, b in zip(keep[:-1], keep[1:]):
+        for i in range(a + 1, b):
+            dt, dx = (t[b] - t[a]) / tol_t, (x[b] - x[a]) / tol_x
+            pt, px = (t[i] - t[a]) / tol_t, (x[i] - x[a]) / tol_x
+            worst = max(worst, abs(pt * dx - px * dt) / math.hypot(dt, dx))
+    return worst
+
+
+def test_simplify_keeps_every_point_within_tolerance_and_the_steps():
+    # a stop (flat step) between two smooth runs, densely sampled
+    t = np.concatenate([np.linspace(0, 100, 501), np.linspace(100, 130, 31)[1:], np.linspace(130, 230, 501)[1:]])
+    x = np.concatenate([1000 * (1 - np.cos(np.linspace(0, np.pi, 501))) / 2, np.full(30, 1000.0),
+                        1000 + 1000 * (1 - np.cos(np.linspace(0, np.pi, 501)[1:])) / 2])
+    keep = simplify(t, x)
+    assert keep[0] == 0 and keep[-1] == len(t) - 1 and len(keep) < len(t) / 10
+    assert _chord_error(t, x, keep, TOL_T_S, TOL_X_M) <= 1.0
+    # both ends of the stop survive: the step stays flat
+    assert 500 in keep and 530 in keep
+    # a straight line needs its two ends only
+    assert simplify(np.arange(100.0), 3 * np.arange(100.0)).tolist() == [0, 99]
+
+
+def test_locals_and_rapids(tiny):
+    services = {t.train_id: service_of(t) for t in tiny.trains}
+    assert services == {"101": "local", "202": "rapid"}  # 202 passes B
+
+
+def test_paths_follow_the_predicted_trajectory(tiny, data):
+    from planner.network import SimulatorCurves, build_trajectory
+
+    src = SimulatorCurves(tiny)
+    for tp, train in zip(data.trains, tiny.trains):
+        traj = build_trajectory(tiny, train, src)
+        x = (1 if train.direction == "down" else -1) * traj.u_m
+        # the drawn path is within the thinning tolerance of the network module's trajectory
+        xi = np.interp(traj.t_s, tp.t_s, tp.x_m)
+        step = np.r_[True, np.diff(traj.t_s) > 0]  # skip the instant of a stop (same time, two chainages)
+        assert np.all(np.abs(xi - x)[step] <= TOL_X_M + 60.0 * TOL_T_S)
+        assert tp.t_s[0] == pytest.approx(train.calls[0].departure_s)
+    # 101 stands at B from 21800 to 21830 s: a flat step at B's down stop marker
+    p = data.train("101")
+    at_b = (p.t_s >= 21800) & (p.t_s <= 21830)
+    assert np.ptp(p.x_m[at_b]) < 1.0 and p.x_m[at_b][0] == pytest.approx(2560.0, abs=1.0)
+
+
+def test_page_payload_decodes_to_the_paths(data):
+    pl = page_payload(data)
+    for tr, tp in zip(pl["trains"], data.trains):
+        assert np.allclose(np.cumsum(tr["t"]) / 10.0, tp.t_s, atol=0.051)
+        assert np.allclose(np.cumsum(tr["x"]), tp.x_m, atol=0.51)
+    page = render_page(data)
+    assert "http://" not in page.replace("http://www.w3.org/2000/svg", "") and "https://" not in page
+    assert render_page(data) == page  # deterministic
+    js = page.split("id='graph-data'>")[1].split("</script>")[0]
+    assert json.loads(js)["view"] == [21600, 25200]
+
+
+def test_charts_and_bad_input(data, tmp_path):
+    svg = draw_chart(data, tmp_path / "g.svg", direction="down", train="101")
+    assert svg.read_text().count("<svg") == 1
+    assert draw_chart(data, tmp_path / "g.png").read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(InputError, match="--train 999"):
+        draw_chart(data, tmp_path / "x.svg", train="999")
+    with pytest.raises(InputError, match=r"\.svg or \.png"):
+        draw_chart(data, tmp_path / "x.pdf")
+    assert parse_hhmm("07:30", "--from") == 27000 and parse_hhmm("24:15", "--to") == 87300
+    for bad in ("7.30", "07:60", "x"):
+        with pytest.raises(InputError, match="HH:MM"):
+            parse_hhmm(bad, "--from")
+    assert not (tmp_path / "x.svg").exists()
+
+
+def test_cli_graph_one_line_errors(tiny, tmp_path):
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "planner.cli", "graph", tiny.source_path, "--out", str(tmp_path / "o"),
+                        "--train", "nope"], capture_output=True, text=True)
+    assert r.returncode != 0 and r.stderr.startswith("error: --train nope") and "Traceback" not in r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_page_payload_windows_decode(data):
+    import dataclasses
+
+    import pandas as pd
+
+    w = pd.DataFrame({"train_id": ["101"] * 3, "resource_id": ["E1", "N3", "E3"],
+                      "start_s": [21570.04, 21590.0, 21620.3], "end_s": [21640.0, 21655.5, 21900.0],
+                      "from_m": [260.0, 1000.0, 1000.0], "to_m": [1000.0, 1000.0, 4860.0]})
+    pl = page_payload(dataclasses.replace(data, windows=w))
+    start, dur, lo, length, res = pl["windows"]["101"]
+    assert np.allclose(np.cumsum(start) / 10, w.start_s, atol=0.051)
+    assert np.allclose(np.cumsum(start) / 10 + np.array(dur) / 10, w.end_s, atol=0.11)
+    assert np.cumsum(lo).tolist() == [260, 1000, 1000] and length == [740, 0, 3860]
+    assert [pl["resources"][k] for k in res] == ["E1", "N3", "E3"]

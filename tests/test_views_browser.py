@@ -1,0 +1,149 @@
+"""The run's pages in a real headless browser: train graph, overview, changes section.
+
+Each page is opened in Debian's ``chromium`` (driven over the DevTools pipe by
+``tests/browser.py``); a page passes when it loads without console errors,
+uncaught exceptions or any network request, and shows what it should: the
+train paths, a tooltip naming the train under a real mouse pointer, the
+stairway of a clicked train, the zoom to an hour; the overview's datasets,
+pages and bundle verify status (a tampered bundle shows FAILED).
+
+``.ci/run`` installs chromium when it is missing, so in CI this runs; on a
+machine without it the tests are skipped with the reason.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from browser import Browser, find_chromium
+from linedb import write_line_db
+
+pytestmark = pytest.mark.skipif(find_chromium() is None, reason="needs chromium (apt-get install chromium)")
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with Browser(1200, 800) as b:
+        yield b
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    from planner import load_line
+
+    folder = tmp_path_factory.mktemp("line") / "tiny"
+    write_line_db(folder, nodes=None, edges=None)
+    return load_line(folder)
+
+
+def _clean(page) -> None:
+    assert page.errors == [], page.errors
+    assert page.failed == [] and page.requests == [page.url], page.requests  # self-contained: no request but the page
+
+
+def test_graph_page_draws_hovers_selects_and_zooms(browser, tiny, tmp_path):
+    from planner.graph import graph_data, write_page
+
+    data = graph_data(tiny)
+    path = write_page(data, tmp_path / "g.html", train="202")
+    page = browser.open(path)
+    _clean(page)
+    assert page.eval("document.body.dataset.ready") == "1"
+    ids = page.eval("[...document.querySelectorAll('#trains path')].map(p => p.dataset.train)")
+    assert sorted(ids) == sorted(t.train_id for t in tiny.trains)
+    # the train given on the command line opens selected (no network here: no windows to draw)
+    assert page.eval("document.getElementById('selinfo').textContent").startswith("202")
+    # a real pointer over train 101 mid-run: the tooltip names it, its type and its times
+    t = (data.train("101").start_s + data.train("101").end_s) / 2
+    x, y = page.eval(f"(() => {{ const tr = byId.get('101'); const r = svg.getBoundingClientRect();"
+                     f" return [r.left + sx({t}), r.top + sy(xAt(tr, {t}))]; }})()")
+    page.mouse(x, y)
+    tip = page.eval("document.getElementById('tip').innerText")
+    assert "101" in tip and "EMU10" in tip and "A 06:00 → C 06:08" in tip
+    page.mouse(x, y, "click")
+    assert page.eval("document.getElementById('selinfo').textContent").startswith("101")
+    # zoom to the 06:00 hour with its button
+    page.eval("document.querySelector('button.hour[data-t0=\"21600\"]').click()")
+    assert page.eval("document.getElementById('range').textContent") == "06:00 – 07:00"
+    assert page.errors == []
+
+
+def _fake_run(tmp_path: Path, line) -> Path:
+    """A run folder with what the overview reads: manifest, inputs copy, one dataset, signed bundles, pages."""
+    from planner.bundle import build_line
+    from planner.signing import generate_keypair, load_private_key
+    from planner.views import copy_inputs
+
+    run = tmp_path / "r0002-0123456789"
+    copy_inputs(line, run)
+    generate_keypair(tmp_path / "keys")
+    key = load_private_key(tmp_path / "keys" / "signing_key.pem")
+    build_line(line, run / "bundles", key)
+    shutil.copy(tmp_path / "keys" / "signing_key.pub.pem", run / "bundles" / "signing_key.pub.pem")
+    (run / "report").mkdir()
+    (run / "report" / "tiny_margins.html").write_text("<!DOCTYPE html><title>r</title>")
+    (run / "table_a").mkdir()
+    return run
+
+
+def test_overview_page_lists_inputs_datasets_and_bundle_status(browser, tiny, tmp_path):
+    from planner.overview import write_overview
+
+    run = _fake_run(tmp_path, tiny)
+    bundles = sorted(p.name for p in (run / "bundles").glob("*.pdb"))
+    # tamper with one bundle: the page must say it fails verification
+    bad = run / "bundles" / bundles[0]
+    data = bytearray(bad.read_bytes())
+    data[600] ^= 1
+    bad.write_bytes(bytes(data))
+    manifest = {"run_id": run.name, "job": "nightly", "inputs_digest": "ab" * 32, "code_digest": "cd" * 32,
+                "software": {"planner": "0.1.0"}, "lines": [{"line_id": "tiny", "path": "lines/tiny",
+                                                              "source_digest": tiny.source_digest}],
+                "parameters": {"tables": {"ds_m": 1.0}}, "timings_s": {"tables": 12.5, "graph": 0.4},
+                "units_computed": {"tables": 2}, "units_reused": {"tables": 6}, "rows": {"table_a": 112},
+                "flags": {"infeasible": 1, "tight": 0}, "changes": {"base_run": "r0001-9999999999",
+                                                                   "lines": {"tiny": {"line_table": 1, "leg": 3}}}}
+    page = browser.open(write_overview(run, manifest))
+    _clean(page)
+    text = page.eval("document.body.innerText")
+    assert f"Run {run.name}" in text and tiny.source_digest in text
+    assert "1 line table, 3 leg" in text  # what changed, per line
+    status = page.eval("Object.fromEntries([...document.querySelectorAll('#bundles + table tbody tr')]"
+                       ".map(r => [r.cells[0].innerText, r.cells[1].innerText]))")
+    assert sorted(status) == bundles
+    assert status[bundles[0]].startswith("FAILED") and all(v.startswith("verified") for k, v in status.items()
+                                                           if k != bundles[0])
+    rows = page.eval("Object.fromEntries([...document.querySelectorAll('#datasets + table tbody tr')]"
+                     ".map(r => [r.cells[0].innerText, r.cells[1].innerText]))")
+    assert rows["table_a"] == "112" and rows["changes"] == "not written"
+    links = page.eval("[...document.querySelectorAll('a')].map(a => a.getAttribute('href'))")
+    assert "report/tiny_margins.html" in links and "#ds-changes" in links
+    assert "graph/tiny_graph.html" not in links  # only pages that exist are linked
+    steps = page.eval("[...document.querySelectorAll('#steps + table tbody tr')].map(r => r.innerText)")
+    assert any(s.startswith("tables\t12.5\t2\t6\tpartly reused") for s in steps), steps
+
+
+def test_changes_section_renders_in_the_report_page(browser, tmp_path):
+    from planner.changes import LineChanges, changes_html
+
+    ch = LineChanges("tiny", "r0001-aaaaaaaaaa", "r0002-bbbbbbbbbb")
+    cid = ch.add("line_table", "speed_limits", "speed restriction 4000–4200 m up civil: limit_kmh 70 → 65",
+                 field_="limit_kmh", before=70.0, after=65.0, delta=-5.0)
+    ch.add("leg", "EMU6 up C→B (scheduled 200 s)", "x", field_="min_running_time_s", before=129.8, after=133.1,
+           delta=3.3, caused_by=[cid])
+    page = browser.open(_page(tmp_path, changes_html(ch)))
+    _clean(page)
+    text = page.eval("document.getElementById('changes').innerText")
+    assert "limit_kmh 70 → 65 — affects 1 leg" in text and "minimum 129.8 → 133.1 s (+3.3 s)" in text
+    assert json.loads(page.eval("JSON.stringify(getComputedStyle(document.querySelector('#changes .up')).color)")) \
+        == "rgb(198, 40, 40)"  # slower is red
+
+
+def _page(tmp_path: Path, body: str) -> Path:
+    p = tmp_path / "c.html"
+    p.write_text("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>c</title></head><body>"
+                 + body + "</body></html>")
+    return p
