@@ -242,10 +242,10 @@ MARGIN_COLUMNS = ("margin_s", "remaining_margin_s", "min_remaining_margin_s", "n
 
 
 def margins_by_train(margin_totals) -> dict[str, dict[str, float]]:
-    """Per-train margin totals (rows with ``scope == 'train'`` of the ``margin_totals`` dataset)."""
+    """Per-train margin totals (rows with ``level == 'train'`` of the ``margin_totals`` dataset)."""
     if margin_totals is None or len(margin_totals) == 0:
         return {}
-    rows = margin_totals[margin_totals["scope"] == "train"]
+    rows = margin_totals[margin_totals["level"] == "train"]
     out = {}
     for r in rows.itertuples(index=False):
         out[str(r.train_id)] = {c: float(getattr(r, c)) for c in MARGIN_COLUMNS if hasattr(r, c)}

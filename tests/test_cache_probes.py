@@ -31,8 +31,8 @@ from planner.cache import SUFFIX, Cache
 from planner.publish import latest_run
 from test_network_cli import EDGES, NODES
 
-VOLATILE = ("run_id", "timings_s", "units_computed", "units_reused")  # wall-clock and how a run got there
-KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1}
+VOLATILE = ("run_id", "timings_s", "units_computed", "units_reused", "changes")  # wall-clock, how a run got there, what it is compared with
+KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1, "graph": 1}
 
 
 def _job(project: Path, output_root: str) -> Path:
@@ -84,10 +84,27 @@ def _published(root: Path) -> dict[str, str]:
     for p in sorted(run.rglob("*")):
         if p.is_file():
             rel = p.relative_to(run).as_posix()
+            if rel == "index.html" or rel.startswith("changes/"):
+                continue  # the overview shows each step's timings; changes compare with an earlier run
+            if rel.startswith("report/") and rel.endswith(".html"):
+                import re  # the report's "what changed since the last run" section, likewise
+
+                text = re.sub(r"<style>[^<]*</style><section class='changes'.*?</section>", "", p.read_text(),
+                              flags=re.S)
+                out[rel] = hashlib.sha256(text.encode()).hexdigest()
+                continue
             if rel == "manifest.json":
                 m = json.loads(p.read_text())
                 m["parameters"]["job"].pop("output_root")  # each probe has its own
+                m.get("rows", {}).pop("changes", None)  # rows of the comparison with an earlier run
                 out[rel] = json.dumps({k: v for k, v in m.items() if k not in VOLATILE}, sort_keys=True)
+            elif rel.endswith(".parquet"):
+                # every row carries its run's id (issue 17), which names the run: compare the rest
+                import pyarrow.parquet as pq
+
+                t = pq.read_table(p, partitioning=None)
+                t = t.drop_columns(["run_id"]) if "run_id" in t.column_names else t
+                out[rel] = hashlib.sha256(str(t.schema).encode() + t.to_pandas().to_csv().encode()).hexdigest()
             else:
                 out[rel] = hashlib.sha256(p.read_bytes()).hexdigest()
     return out

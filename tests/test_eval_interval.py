@@ -17,6 +17,7 @@ from planner.onboard import load_tables
 from planner.ratios import ratio_grid
 from planner.tables import interstation_tables, write_tables
 from test_tables import CLOSED_FORM_TOL_S, VMAX, flat_line, t_b
+from test_bundle_support import release
 
 INTERVAL_M = 500.0
 # flat line (tests/test_tables.py): 3000 m, stop markers at 0 and 3000, beacons B1 at 1000 m and
@@ -64,7 +65,8 @@ def test_interval_points_round_trip_through_the_datasets_and_the_bundle(flat, tm
     np.testing.assert_array_equal(back.remaining_s, t.remaining_s)
 
     priv, pub = signing.generate_keypair(tmp_path / "keys")
-    info = bundle.build_line(ln, tmp_path / "out", priv, tables_dir=tmp_path / "tables", directions=["down"])[0]
+    info = bundle.build_line(ln, tmp_path / "out", priv, tables_dir=tmp_path / "tables", directions=["down"],
+                             release=release())[0]
     v = bundle.read_bundle(info.path, pub)
     ep = v.tables["eval_points"].to_pydict()
     assert list(zip(ep["eval_point_id"], ep["eval_distance_m"], ep["eval_point_kind"])) == EXPECTED
@@ -89,7 +91,7 @@ def test_bundle_refuses_a_misnamed_odometer_point(flat, tmp_path):
                                           pa.array(new, pa.string()))
         return t2
 
-    kw = dict(line_id=ln.line_id, direction="down", train_type="T", private_key=key)
+    kw = dict(line_id=ln.line_id, direction="down", train_type="T", private_key=key, release=release())
     bundle.bundle_bytes(tabs, **kw)  # as built: accepted
     odo_as_beacon = ["beacon" if k == "interval" else k for k in kinds]
     with pytest.raises(BundleError, match="not in beacons"):

@@ -197,7 +197,7 @@ def test_cli_import_and_any_folder_name(tmp_path):
     assert "defaults used: " in res.output and load_line(out).line_id == "coast"
     res = CliRunner().invoke(app, ["import", "railjson", str(i), "--path", "W,M,E", "--rolling-stock", str(r),
                                    "--out", str(out)])
-    assert res.exit_code != 0 and "already exists" in str(res.exception or res.output)
+    assert res.exit_code != 0 and "already exists" in res.output + res.stderr + str(res.exception or "")
 
 
 # --------------------------------------------------------------------------- refusals

@@ -99,8 +99,10 @@ def _assert_same_but_run_id(run_a: Path, run_b: Path, skip: str = "", no_changes
         if not k.endswith(".parquet"):
             assert a[k] == b[k], k
             continue
-        ta = pq.read_table(run_a / k, partitioning=None).drop_columns(["run_id"])
-        tb = pq.read_table(run_b / k, partitioning=None).drop_columns(["run_id"])
+        ta = pq.read_table(run_a / k, partitioning=None)
+        tb = pq.read_table(run_b / k, partitioning=None)
+        stamped = [c for c in ("run_id",) if c in ta.column_names]  # datasets; not the inputs/ copies
+        ta, tb = ta.drop_columns(stamped), tb.drop_columns(stamped)
         assert ta.schema.equals(tb.schema, check_metadata=True), k
         assert ta.to_pandas().equals(tb.to_pandas()), k  # NaN in the same places counts as equal
 
@@ -179,9 +181,9 @@ def test_unchanged_rerun_computes_nothing(project, monkeypatch):
     for run_page in ("manifest.json", "index.html"):  # they name the run and its timings
         a.pop(run_page), b.pop(run_page)
     # byte-identical report and bundles from cache; datasets identical but for their run_id column
-    pq_files = [k for k in a if k.endswith(".parquet")]
+    pq_files = [k for k in a if k.endswith(".parquet") and not k.startswith("inputs/")]  # datasets
     assert {k: v for k, v in a.items() if k not in pq_files} == {k: v for k, v in b.items() if k not in pq_files}
-    assert sorted(pq_files) == sorted(k for k in b if k.endswith(".parquet"))
+    assert sorted(pq_files) == sorted(k for k in b if k.endswith(".parquet") and not k.startswith("inputs/"))
     import pyarrow.parquet as pq
 
     for k in pq_files:
@@ -262,7 +264,7 @@ def test_failing_step_leaves_latest_untouched(project, monkeypatch):
     assert s.computed["tables"] == 0 and s.computed["stops"] == 0 and s.computed["closed_loop"] == 0
 
 
-def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_path_factory):
+def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_path_factory, monkeypatch):
     """SIGKILL a run at deterministic points, each signalled by the run itself (no wall-clock race).
 
     After one edited restriction a run stores 7 units in the cache, in this order: tables 2, stops 2,
@@ -284,6 +286,7 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     _edit_restriction(project, 65.0)
     # Reference: the same run, uninterrupted, in a copy of the project with the same cache and key.
     ref = tmp_path_factory.mktemp("ref")
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")  # the same build time as the killed runs below
     shutil.copytree(project / "lines", ref / "lines")
     for d in (".cache", ".dev-key"):
         shutil.copytree(out / d, ref / "out" / d)
@@ -292,7 +295,8 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     assert {k: v for k, v in clean.computed.items() if v} == {"tables": 2, "stops": 2, "closed_loop": 2,
                                                               "margins": 1, "graph": 1}
 
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent))
+    # bundles carry their build time (issue 21): the killed runs and the reference share one
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent), SOURCE_DATE_EPOCH="1767225600")
     code = ("from planner.job import load_job; from planner.pipeline import run_job; "
             f"run_job(load_job({str(job)!r}), show_progress=False)")
     done = 0

@@ -81,7 +81,9 @@ def _fake_run(tmp_path: Path, line) -> Path:
     copy_inputs(line, run)
     generate_keypair(tmp_path / "keys")
     key = load_private_key(tmp_path / "keys" / "signing_key.pem")
-    build_line(line, run / "bundles", key)
+    from test_bundle_support import release
+
+    build_line(line, run / "bundles", key, release=release())
     shutil.copy(tmp_path / "keys" / "signing_key.pub.pem", run / "bundles" / "signing_key.pub.pem")
     (run / "report").mkdir()
     (run / "report" / "tiny_margins.html").write_text("<!DOCTYPE html><title>r</title>")
