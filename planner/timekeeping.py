@@ -1012,7 +1012,7 @@ def closed_loop_runner(track, train, tables, designated_s, sc, mode="timekeeping
 
     designated = np.asarray(designated_s, dtype=float).reshape(-1)
     ctl = TimekeepingController(track, train, designated)
-    res = simulate(track, train, 1.0 + 0.0 * designated, load=sc.load, traction_factor=sc.traction_factor,
+    res = simulate(track, train, np.ones_like(designated), load=sc.load, traction_factor=sc.traction_factor,
                    controller=ctl, decision_m=ctl.decision_m)
     n_x = len(getattr(tables, "eval_point_ids", ()))
     return np.asarray(res.time_s, float), np.full((designated.size, n_x), np.nan), np.asarray(res.stop_m, float)
