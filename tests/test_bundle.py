@@ -27,13 +27,6 @@ HERE = Path(__file__).parent
 
 
 @pytest.fixture(scope="module")
-def keys(tmp_path_factory):
-    d = tmp_path_factory.mktemp("keys")
-    priv, pub = signing.generate_keypair(d)
-    return priv, pub, signing.load_private_key(priv)
-
-
-@pytest.fixture(scope="module")
 def line():
     return make_line()
 

@@ -11,17 +11,10 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from planner import bundle, signing
+from planner import bundle
 from planner.cli import app
 from planner.errors import BundleError
 from test_bundle_support import LINE_ID, all_tables, forge, make_line, release
-
-
-@pytest.fixture(scope="module")
-def keys(tmp_path_factory):
-    d = tmp_path_factory.mktemp("keys")
-    priv, pub = signing.generate_keypair(d)
-    return priv, pub, signing.load_private_key(priv)
 
 
 @pytest.fixture(scope="module")

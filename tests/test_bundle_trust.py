@@ -23,13 +23,6 @@ JAN_02 = "2026-01-02T00:00:00Z"  # one day after BUILT_AT_S, well inside every t
 
 
 @pytest.fixture(scope="module")
-def keys(tmp_path_factory):
-    d = tmp_path_factory.mktemp("keys")
-    priv, pub = signing.generate_keypair(d)
-    return priv, pub, signing.load_private_key(priv)
-
-
-@pytest.fixture(scope="module")
 def small_line():
     return testing.line(line_id=LINE_ID, train_types=[testing.train_type("E10")])
 
