@@ -23,14 +23,13 @@ Layout follows the computation:
 """
 from __future__ import annotations
 
-import bisect
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
-from .errors import InfeasibleError, InputError
+from .errors import InputError
 
 __all__ = [
     "CruiseTarget",
@@ -420,20 +419,6 @@ LEARN_REPLAN_M = 200.0
 ACCEL_FLOOR_MS2 = 0.02
 """Below this full-notch acceleration [m/s²] the acceleration envelope is left
 out of the target computation (the train holds its speed rather than gains)."""
-
-def _compress(s: np.ndarray, w: np.ndarray, tol: float = 1e-7):
-    """Keep only the nodes where the slope of a piecewise-linear w(s) changes.
-
-    Lossless for the ceiling (linear in v² between grid nodes): the target
-    computation then runs on tens of nodes instead of thousands.
-    """
-    if len(s) <= 2:
-        return s.copy(), w.copy()
-    slope = np.diff(w) / np.diff(s)
-    keep = np.ones(len(s), dtype=bool)
-    keep[1:-1] = np.abs(np.diff(slope)) > tol * np.maximum(1.0, np.abs(slope[1:]))
-    return s[keep], w[keep]
-
 
 GUIDE_TOL_MS2 = 0.01
 """Tolerance [m²/s²] on v² when the flat-out speed profile is thinned to the
