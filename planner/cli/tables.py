@@ -70,7 +70,8 @@ def tables(
     beacons and, with --eval-interval, odometer points at that regular interval.
     """
     from planner.line.loader import load_line
-    from planner.tables.build import build_tables, write_tables
+    from planner.tables.build import build_tables
+    from planner.datasets.tables import write_tables
     from .checks import check_jobs, check_out_dir, train_type_codes
 
     try:

@@ -473,7 +473,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         for k in tasks
     ]
     tables = runner.run("tables", t_units)
-    from planner.tables.build import write_tables
+    from planner.datasets.tables import write_tables
 
     _count(summary, write_tables(tables, stage))
 

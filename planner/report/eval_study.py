@@ -39,13 +39,8 @@ from planner.tables.closed_loop import ClosedLoopResult, closed_loop_batch, get_
 from planner.tables.eval_points import check_interval
 from planner.line.model import Line
 from planner.tables.ratios import ratio_grid
-from planner.tables.build import (
-    InterstationTables,
-    datasets as table_datasets,
-    interstation_tables,
-    table_tasks,
-    write_tables,
-)
+from planner.tables.build import InterstationTables, interstation_tables, table_tasks
+from planner.datasets.tables import datasets as table_datasets, write_tables
 
 GRIDS: dict[str, str] = {
     "default": "1.0:0.7:0.1,0.7:floor:0.05",

@@ -914,7 +914,7 @@ def compute_margins(
     """
     import pandas as pd
 
-    from planner.tables.onboard import load_tables
+    from planner.datasets.tables import load_tables
 
     types = list(train_types) if train_types else [t.train_type for t in line.train_types]
     for t in types:

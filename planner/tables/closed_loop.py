@@ -52,7 +52,8 @@ import pyarrow as pa
 from planner.io.parquet import declare, write_partitioned
 from planner.errors import InputError
 from planner.line.model import DIRECTIONS, Line
-from planner.tables.onboard import CHOOSERS, RunningTimeTables, chooser, load_tables, make_controller
+from planner.tables.onboard import CHOOSERS, RunningTimeTables, chooser, make_controller
+from planner.datasets.tables import load_tables
 from planner.tables.timekeeping import closed_loop_runner as _timekeeping_runner
 from planner.io.parallel import map_tasks
 
