@@ -35,7 +35,8 @@ def _tables_dir(line, args, scratch: Path) -> Path | None:
     if args.no_tables:
         return None
     try:
-        from planner.tables.build import build_tables, write_tables
+        from planner.tables.build import build_tables
+        from planner.datasets.tables import write_tables
     except ImportError as e:
         print(f"  running-time tables: not available ({e})")
         return None

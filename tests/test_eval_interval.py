@@ -10,12 +10,12 @@ import pyarrow as pa
 import pytest
 
 from planner.bundle import container as bundle, signing
-from planner.tables.closed_loop import closed_loop_interstation
 from planner.errors import BundleError, JobError
 from planner.job.config import load_job
-from planner.tables.onboard import load_tables
+from planner.datasets.tables import load_tables
 from planner.tables.ratios import ratio_grid
-from planner.tables.build import interstation_tables, write_tables
+from planner.tables.build import interstation_tables
+from planner.datasets.tables import write_tables
 from test_tables import CLOSED_FORM_TOL_S, VMAX, flat_line, t_b
 from test_bundle_support import release
 

@@ -512,7 +512,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         for u, tab in zip(t_units, tables)
     ]
     loops = [r for batch in runner.run("closed_loop", c_units) for r in batch]
-    from planner.tables.closed_loop import write_closed_loop
+    from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
 
