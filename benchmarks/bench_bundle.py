@@ -52,7 +52,8 @@ def _stops_dir(line, args, scratch: Path) -> Path | None:
     if args.no_stops:
         return None
     try:
-        from planner.stopping.sweep import stop_sweep, write_stops
+        from planner.stopping.sweep import stop_sweep
+        from planner.datasets.stops import write_stops
     except ImportError as e:
         print(f"  stopping patterns: not available ({e})")
         return None

@@ -28,9 +28,8 @@ class DatasetDoc:
 def datasets() -> list[DatasetDoc]:
     """Every dataset a nightly run publishes, in pipeline order."""
     from planner.report import changes, margins
-    from planner.tables import closed_loop, build as tables
+    from planner.datasets import closed_loop, stops, tables
     from planner.network import conflicts as network
-    from planner.stopping import sweep as stops
 
     occ, con = network._schemas()
     out = [DatasetDoc(n, s, HIVE, "tables") for n, s in tables.SCHEMAS.items()]

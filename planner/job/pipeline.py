@@ -487,7 +487,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         for k in tasks
     ]
     stops = runner.run("stops", s_units)
-    from planner.stopping.sweep import write_stops
+    from planner.datasets.stops import write_stops
 
     _count(summary, write_stops(stops, stage))
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
