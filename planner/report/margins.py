@@ -1057,7 +1057,7 @@ def compute_margins(
             note = "the line database has no track network (nodes.parquet, edges.parquet)"
         else:
             from planner.errors import PlannerError
-            from planner.network.conflicts import conflicts_table
+            from planner.datasets.conflicts import conflicts_table
 
             try:
                 con = conflicts_table(line, conflict_params)

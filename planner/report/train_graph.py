@@ -173,7 +173,7 @@ def train_paths(line: Line, curves=None, *, tol_t_s: float = TOL_T_S, tol_x_m: f
     loops : mapping, optional
         ``train_id`` → stations where it stands on a loop (from the routes).
     """
-    from planner.network.conflicts import SimulatorCurves, build_trajectory, interstation_keys
+    from planner.network.arrivals import SimulatorCurves, build_trajectory, interstation_keys
 
     src = curves if curves is not None else SimulatorCurves(line)
     if hasattr(src, "prepare"):
@@ -273,7 +273,9 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
         Run the conflict check when windows/conflicts are not given (False:
         draw without them, as when the job has ``[conflicts] enabled = false``).
     """
-    from planner.network.conflicts import SimulatorCurves, check_conflicts, plan_routes
+    from planner.datasets.conflicts import check_conflicts
+    from planner.network.arrivals import SimulatorCurves
+    from planner.network.routes import plan_routes
 
     notes: list[str] = []
     src = curves if curves is not None else SimulatorCurves(line)
