@@ -766,7 +766,7 @@ class MarginReport:
         Key of the leg whose run curves are drawn (``direction, train_type,
         origin, destination, scheduled_running_time_s``).
     conflicts : pandas.DataFrame or None
-        :func:`planner.network.conflicts.conflicts_table` rows (None: not checked).
+        :func:`planner.datasets.conflicts.conflicts_table` rows (None: not checked).
     conflicts_note : str
         Why conflicts were not checked, or "".
     """
