@@ -596,14 +596,14 @@ def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
 
 
 def _conflicts_unit(line, params):
-    from planner.network.conflicts import check_conflicts
+    from planner.datasets.conflicts import check_conflicts
 
     return check_conflicts(line, params)
 
 
 def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary):
     """Route conflicts of the line's whole timetable; returns the conflicts table for the report."""
-    from planner.network.conflicts import write_conflicts
+    from planner.datasets.conflicts import write_conflicts
 
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
     key = digest(["conflicts", code_digest(), line.source_digest, params, job.tables.ds_m])
