@@ -91,20 +91,20 @@ def _check_expect(m: dict, expect: Expect, pub_id: str, where: str) -> None:
     """Provenance and freshness of a proven manifest; one reason per refusal."""
     if m["key_id"] != pub_id:
         raise fail(where, f"manifest names signing key {m['key_id'][:16]}, but it was verified with key "
-                           f"{pub_id[:16]}: the manifest lies about its signer (refused)")
+                          f"{pub_id[:16]}: the manifest lies about its signer (refused)")
     target = f"{m['line_id']}/{m['direction']}/{m['train_type']}"
     if expect.target is not None and target != Expect.parse_target(expect.target):
         raise fail(where, f"bundle is for {target}, not the expected {expect.target} (renamed or mixed up; refused)")
     if m["key_kind"] != "production" and not expect.allow_dev:
         raise fail(where, f"signed with a {m['key_kind']} key: not for service (refused; --allow-dev on a test "
-                           "bench only)")
+                          "bench only)")
     if m["bundle_version"] < expect.min_version:
         raise fail(where, f"bundle version {m['bundle_version']} is older than the installed version "
-                           f"{expect.min_version} (rollback refused)")
+                          f"{expect.min_version} (rollback refused)")
     now = int(time.time()) if expect.at_s is None else int(expect.at_s)
     if now >= parse_time(m["expires"]):
         raise fail(where, f"bundle expired at {m['expires']} (checked at {format_time(now)}; built "
-                           f"{m['built_at']}): a fresh bundle is needed (refused)")
+                          f"{m['built_at']}): a fresh bundle is needed (refused)")
 
 
 def _verified(path, public_key, expect: Expect | None = None
