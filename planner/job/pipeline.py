@@ -331,7 +331,7 @@ def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
 
 def _renewal_due(last_manifest: dict, now_s: int) -> bool:
     """The published bundles have used half of their validity (or the run has no release record)."""
-    from planner.bundle.container import parse_time
+    from planner.bundle.manifest import parse_time
 
     rel = last_manifest.get("bundles_release")
     try:
@@ -401,7 +401,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)
-            from planner.bundle.container import Release, build_time_s
+            from planner.bundle.manifest import Release, build_time_s
             from planner.bundle.signing import load_private_key, public_key_id
 
             notes: list[str] = []
@@ -615,7 +615,7 @@ def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: 
 
 
 def _release_record(release) -> dict | None:
-    from planner.bundle.container import format_time
+    from planner.bundle.manifest import format_time
 
     if release is None:
         return None

@@ -125,7 +125,8 @@ def bundle_sizes(line: Line, tables_dir: Path, stops_dir: Path | None,
     """Bytes of every signed bundle of ``line`` from these folders (nothing is written)."""
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-    from planner.bundle.container import assemble, bundle_bytes
+    from planner.bundle.assemble import assemble
+    from planner.bundle.container import bundle_bytes
     from planner.line.model import DIRECTIONS
 
     key = Ed25519PrivateKey.generate()  # signatures have a fixed size: the bytes do not depend on it
