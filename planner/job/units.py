@@ -32,13 +32,18 @@ from planner.line.model import Line
 _CODE_DIGEST: str | None = None
 
 
+def code_files() -> list[Path]:
+    """Every source file of the planner package, every floor (sorted)."""
+    return sorted(Path(planner.__file__).resolve().parent.rglob("*.py"))
+
+
 def code_digest() -> str:
     """SHA-256 over the planner package's source files (names and bytes) and its version."""
     global _CODE_DIGEST
     if _CODE_DIGEST is None:
         h = hashlib.sha256(__version__.encode())
-        pkg = Path(planner.__file__).resolve().parent  # the whole package, every floor
-        for p in sorted(pkg.rglob("*.py")):
+        pkg = Path(planner.__file__).resolve().parent
+        for p in code_files():
             h.update(p.relative_to(pkg).as_posix().encode() + b"\0")
             h.update(p.read_bytes())
         _CODE_DIGEST = h.hexdigest()
