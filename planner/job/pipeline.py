@@ -260,12 +260,15 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     types = _types(job, line)
     tasks = [(t, d, a.station_id, b.station_id) for t in types for d in DIRECTIONS for a, b in line.interstations(d)]
     unit_in = {k: digest(interstation_inputs(line, k[0], k[2], k[3])) for k in tasks}
+    # each unit ships only the slice of the line it can see (the slice its key digests), so what a
+    # parallel task costs to send does not grow with the line
+    windows = {k: line.window(k[2], k[3], k[0]) for k in tasks}
 
     # tables
     t_units = [
         Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grid))]),
              f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
-             (line, k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
+             (windows[k], k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
         for k in tasks
     ]
     tables = runner.run("tables", t_units)
@@ -279,7 +282,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     adh_ms2 = [a * KMH_S for a in levels]
     s_units = [
         Unit("stops", digest(["stops", code, unit_in[k], dataclasses.asdict(sp), tp.ds_m]),
-             f"{k[0]} {k[3]}", _stops_unit, (line, k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
+             f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
         for k in tasks
     ]
     stops = runner.run("stops", s_units)
@@ -304,8 +307,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
              digest(["closed_loop", code, u.key, [dataclasses.asdict(sc) for sc in cp.scenarios], list(cp.modes),
                      cp.horizon_s, cp.step_s]),
              u.label, _closed_loop_unit,
-             (line, tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s, tp.ds_m))
-        for u, tab in zip(t_units, tables)
+             (windows[k], tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s,
+              tp.ds_m))
+        for k, u, tab in zip(tasks, t_units, tables)
     ]
     loops = [r for batch in runner.run("closed_loop", c_units) for r in batch]
     from planner.datasets.closed_loop import write_closed_loop
