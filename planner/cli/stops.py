@@ -40,7 +40,6 @@ def stops(
     from planner.stopping.sweep import (
         InfeasibleStopWarning,
         adhesion_levels,
-        plot_approach,
         stop_sweep,
         write_stops,
     )
@@ -79,7 +78,9 @@ def stops(
             types = train_type or [line.train_types[0].train_type]
             pick = next(r for r in results
                         if r.station_id == plot and r.direction == plot_dir and r.train_type == types[0])
-            png = plot_approach(pick, Path(out) / "plots" / f"stop_{pick.station_id}_{pick.direction}_"
+            from planner.report.plots import approach_chart
+
+            png = approach_chart(pick, Path(out) / "plots" / f"stop_{pick.station_id}_{pick.direction}_"
                                 f"{pick.train_type}.png")
     except PlannerError as e:
         raise _fail(e) from None

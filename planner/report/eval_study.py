@@ -372,7 +372,8 @@ def format_worst(w: Worst, last: int = 4) -> str:
 def render_html(results: Sequence[SettingResult], *, line_name: str, base_bytes: int | None = None,
                 note: str = "") -> str:
     """The study as one self-contained HTML page (inline CSS and SVG, no scripts), deterministic."""
-    from planner.report.html import CSS, _e, _mpl, _svg
+    from planner.report.html import CSS, _e
+    from planner.report.plots import interval_study_chart
 
     rows = study_rows(results, base_bytes)
     cases = list(dict.fromkeys(k.rsplit("/", 1)[0] for k in rows[0] if "/" in k)) if rows else []
@@ -391,20 +392,8 @@ def render_html(results: Sequence[SettingResult], *, line_name: str, base_bytes:
         parts.append(f"<p class='note'>{_e(note)}</p>")
     # chart: max error against interval, one panel per case, a line per grid
     if rows:
-        plt = _mpl()
-        fig, axes = plt.subplots(1, len(cases), figsize=(3.2 * len(cases), 2.8), squeeze=False)
-        labels = list(dict.fromkeys(w["interval"] for w in rows))
-        for ax, c in zip(axes[0], cases):
-            for g in dict.fromkeys(w["grid"] for w in rows):
-                pts = [(labels.index(w["interval"]), w[c + "/max"]) for w in rows if w["grid"] == g]
-                ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", label=g)
-            ax.set_xticks(range(len(labels)), labels, fontsize=8)
-            ax.set_title(c)
-            ax.set_ylabel("max |error| [s]")
-            ax.grid(alpha=0.3)
-        axes[0][0].legend(fontsize=8, title="grid", title_fontsize=8)
-        fig.tight_layout()
-        parts.append(f"<div class='fig'>{_svg(fig)}<div class='caption'>Maximum |arrival error| against the "
+        svg = interval_study_chart(rows, cases)
+        parts.append(f"<div class='fig'>{svg}<div class='caption'>Maximum |arrival error| against the "
                      "evaluation interval, per ratio grid.</div></div>")
     head = ("<tr><th class='l' rowspan=2>grid</th><th class='l' rowspan=2>interval</th><th rowspan=2>ratios</th>"
             "<th rowspan=2>points</th><th rowspan=2>table (b) rows</th><th rowspan=2>all table rows</th>"
