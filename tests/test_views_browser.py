@@ -75,7 +75,7 @@ def _fake_run(tmp_path: Path, line) -> Path:
     """A run folder with what the overview reads: manifest, inputs copy, one dataset, signed bundles, pages."""
     from planner.bundle.container import build_line
     from planner.bundle.signing import generate_keypair, load_private_key
-    from planner.report.views import copy_inputs
+    from planner.job.views import copy_inputs
 
     run = tmp_path / "r0002-0123456789"
     copy_inputs(line, run)

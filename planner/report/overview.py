@@ -87,7 +87,7 @@ def _bundles(run_dir: Path) -> list[list[str]]:
 
 def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = ()) -> str:
     """The overview page of a run folder as HTML (module doc for the sections)."""
-    from planner.datasets.catalog import datasets
+    from planner.report.catalog import datasets
     from planner.report.changes import INPUTS_DIR
 
     run_dir = Path(run_dir)

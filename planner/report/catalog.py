@@ -27,7 +27,7 @@ class DatasetDoc:
 
 def datasets() -> list[DatasetDoc]:
     """Every dataset a nightly run publishes, in pipeline order."""
-    from planner.report import changes, margins
+    from planner.report import changes, margin_datasets as margins
     from planner.tables import closed_loop, build as tables
     from planner.network import conflicts as network
     from planner.stopping import sweep as stops
