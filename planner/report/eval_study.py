@@ -218,7 +218,7 @@ def run_setting(
         Only these interstations (a subset of the line); default all. Bundle bytes are only
         computed for the whole line (0 otherwise).
     n_jobs : int
-        joblib processes (-1 = all cores).
+        Worker processes (-1 = all cores, 1 = this process).
     explain : bool
         Replay the worst run of each mode and scenario (:func:`replay`).
     work_dir : path, optional
@@ -226,7 +226,7 @@ def run_setting(
     """
     import tempfile
 
-    from joblib import Parallel, delayed
+    from planner.io.parallel import map_tasks
 
     interval = check_interval(setting.interval_m, "interval")
     grid = ratio_grid(setting.ratios, line_max_speed_ms=line.max_speed_ms)
@@ -236,9 +236,9 @@ def run_setting(
         tasks = [t for t in tasks if (t[2], t[3]) in want]
     order = sorted(range(len(tasks)), key=lambda i: -line.run_between(tasks[i][2], tasks[i][3]).length_m)
     w0 = time.perf_counter()
-    jobs = [delayed(_task)(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, interval, list(scenarios),
-                           list(modes), settings) for i in order]
-    got = [f(*a, **kw) for f, a, kw in jobs] if n_jobs == 1 else Parallel(n_jobs=n_jobs)(jobs)
+    # the longest interstations first, so the workers finish together; results come back in this order
+    got = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, interval, list(scenarios),
+                             list(modes), settings) for i in order], n_jobs)
     wall = time.perf_counter() - w0
     res: list = [None] * len(tasks)
     for i, g in zip(order, got):
