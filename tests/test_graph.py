@@ -14,12 +14,11 @@ from planner.report.train_graph import (
     TOL_T_S,
     TOL_X_M,
     graph_data,
-    page_payload,
     parse_hhmm,
-    render_page,
     service_of,
     simplify,
 )
+from planner.report.train_graph_page import page_payload, render_page
 
 
 @pytest.fixture(scope="module")

@@ -45,7 +45,8 @@ def _clean(page) -> None:
 
 
 def test_graph_page_draws_hovers_selects_and_zooms(browser, tiny, tmp_path):
-    from planner.report.train_graph import graph_data, write_page
+    from planner.report.train_graph import graph_data
+    from planner.report.train_graph_page import write_page
 
     data = graph_data(tiny)
     path = write_page(data, tmp_path / "g.html", train="202")

@@ -25,7 +25,8 @@ def graph(
     from planner.report.changes import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
     from planner.report.plots import train_graph_chart
-    from planner.report.train_graph import graph_data, parse_hhmm, write_page
+    from planner.report.train_graph import graph_data, parse_hhmm
+    from planner.report.train_graph_page import write_page
 
     if fmt not in ("svg", "png"):
         raise InputError(f"--format must be svg or png, not {fmt!r}")

@@ -60,7 +60,8 @@ def _graph_unit(line, check: bool):
 def line_views(job, line, stage: Path, runner, summary) -> None:
     """Inputs copy and train graph page of one line (module doc)."""
     from planner.report.changes import read_line_dataset, path_id
-    from planner.report.train_graph import graph_data, write_page, TOL_T_S, TOL_X_M
+    from planner.report.train_graph import graph_data, TOL_T_S, TOL_X_M
+    from planner.report.train_graph_page import write_page
     from planner.job.pipeline import code_digest
     from planner.job.publish import digest
 
