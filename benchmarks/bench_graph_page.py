@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def sample_graph():
     from planner import load_line
-    from planner.report.changes import read_line_dataset, read_manifest
+    from planner.report.published_run import read_line_dataset, read_manifest
     from planner.report.train_graph import graph_data
 
     line = load_line(ROOT / "lines" / "sample")

@@ -130,7 +130,8 @@ def test_overview_page_lists_inputs_datasets_and_bundle_status(browser, tiny, tm
 
 
 def test_changes_section_renders_in_the_report_page(browser, tmp_path):
-    from planner.report.changes import LineChanges, changes_html
+    from planner.report.changes import LineChanges
+    from planner.report.changes_html import changes_html
 
     ch = LineChanges("tiny", "r0001-aaaaaaaaaa", "r0002-bbbbbbbbbb")
     cid = ch.add("line_table", "speed_limits", "speed restriction 4000–4200 m up civil: limit_kmh 70 → 65",

@@ -22,7 +22,7 @@ def graph(
 ) -> None:
     """Draw every train from its predicted run: charts per direction and both, and a page to zoom and hover."""
     from .. import load_line
-    from planner.report.changes import read_line_dataset, path_id, read_manifest
+    from planner.report.published_run import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
     from planner.report.plots import train_graph_chart
     from planner.report.train_graph import graph_data, parse_hhmm

@@ -331,7 +331,7 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         ``margin_totals`` datasets (``..`` in a published run, ``.`` for ``planner margins --out``).
     top : str
         An HTML section put first, under the title (the nightly job's "what
-        changed since the last run", :func:`planner.report.changes.changes_html`).
+        changed since the last run", :func:`planner.report.changes_html.changes_html`).
     """
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]

@@ -88,7 +88,7 @@ def _bundles(run_dir: Path) -> list[list[str]]:
 def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = ()) -> str:
     """The overview page of a run folder as HTML (module doc for the sections)."""
     from planner.report.catalog import datasets
-    from planner.report.changes import INPUTS_DIR
+    from planner.report.published_run import INPUTS_DIR
 
     run_dir = Path(run_dir)
     run_id = manifest.get("run_id", run_dir.name)
@@ -218,7 +218,7 @@ def write_overview(run_dir: str | Path, manifest: dict[str, Any] | None = None, 
 
     run_dir = Path(run_dir)
     if manifest is None:
-        from planner.report.changes import read_manifest
+        from planner.report.published_run import read_manifest
 
         manifest = read_manifest(run_dir)
     path = run_dir / "index.html"
