@@ -335,10 +335,39 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     """
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
+    trains = report.totals[report.totals.level == "train"]
+    rule, adh = report.rule, report.adhesion_kmh_s
+    parts = _headline(report, sched, trains, top)
+    parts.append("<ul>" + "".join(f"<li>{x}</li>" for x in _findings(sched, trains)) + "</ul>")
+    parts.append(flagged_summary(sched))
+    parts.append(bad_day_shares(sched, rule, adh))
+    parts.append("<h3>Totals per direction and train type (every timetabled train run, the whole day)</h3>")
+    parts.append(totals_table(report.totals))
+    parts += _chart_sections(report, markers)
+    parts.append("<h2>Every leg</h2>")
+    parts.append(
+        "<p class='caption'>One row per leg and scheduled time (trains with the same leg and time share a row). "
+        "<i>min ↑10 s</i>: the minimum rounded up to the 10-second timetable unit. <i>bad-day loss</i>: what the "
+        "degraded load and traction cost up to the pattern start, and what the low-adhesion stop costs against "
+        "the planned stopping brake. <i>ratio</i>: the target-speed ratio the vehicle picks at an on-time "
+        "departure. <i>arrival error</i>: closed loop of the on-board logic, positive = late. <i>energy saved</i>: "
+        "traction energy at that ratio against ratio 100 %. Hover a row for notes.</p>")
+    parts.append(rows_table(rows))
+    parts.append(f"<details><summary>Totals per train ({len(trains)} trains; with infeasible legs first)</summary>"
+                 f"{train_table(report.totals)}</details>")
+    parts.append(conflicts_section(report))
+    parts.append(_method(report, datasets_href))
+    parts.append("</main></body></html>\n")
+    return "\n".join(parts)
+
+
+def _headline(report, sched, trains, top: str) -> list[str]:
+    """The page's head, title, conditions, the ``top`` section and the flag cards."""
+    rows = report.rows
+    sched = rows[rows.scheduled_running_time_s.notna()]
     n_inf, n_tight, n_unr = int(sched.infeasible.sum()), int(sched.tight.sum()), int(sched.unreachable.sum())
     n_short = int((~sched.supplement_met).sum())
     n_una = int(rows.unassessed.sum())
-    trains = report.totals[report.totals.level == "train"]
     rule = report.rule
     adh = report.adhesion_kmh_s
     types = ", ".join(sorted(rows.train_type.unique()))
@@ -370,6 +399,12 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     parts.append("<div class='cards'>" + "".join(
         f"<div class='card {c}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></div>" for c, n, l in cards)
         + "</div>")
+    return parts
+
+
+def _findings(sched, trains) -> list[str]:
+    """What stands out among the legs that could be assessed, as list items (HTML)."""
+    n_inf = int(sched.infeasible.sum())
     # what stands out (among the legs that could be assessed)
     find = []
     if (~sched.unassessed.astype(bool)).any():
@@ -407,12 +442,13 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         find.append(f"The on-board logic (nearest ratio) arrives within {cl.max():.1f} s of the scheduled time "
                     f"on every leg under nominal conditions (median {cl.median():.1f} s); under the bad-day load "
                     f"and traction (stopping brake as planned) it is up to {sched.arrival_error_degraded_s.max():.1f} s late.")
-    parts.append("<ul>" + "".join(f"<li>{x}</li>" for x in find) + "</ul>")
-    parts.append(flagged_summary(sched))
-    parts.append(bad_day_shares(sched, rule, adh))
-    parts.append("<h3>Totals per direction and train type (every timetabled train run, the whole day)</h3>")
-    parts.append(totals_table(report.totals))
+    return find
 
+
+def _chart_sections(report, markers: dict[str, dict[str, float]]) -> list[str]:
+    """Margin per interstation, the run curves of the chosen leg and stopping time against adhesion."""
+    rule = report.rule
+    parts = []
     parts.append("<h2>Margin per interstation along the line</h2>")
     parts.append(
         "<p class='caption'>Each bar spans one leg from stop marker to stop marker. Light bar: margin the timetable "
@@ -448,19 +484,13 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
                 f"braking. {_e(hardest)}</p>")
             parts.append(f"<div class='fig'>{svg}</div>")
 
-    parts.append("<h2>Every leg</h2>")
-    parts.append(
-        "<p class='caption'>One row per leg and scheduled time (trains with the same leg and time share a row). "
-        "<i>min ↑10 s</i>: the minimum rounded up to the 10-second timetable unit. <i>bad-day loss</i>: what the "
-        "degraded load and traction cost up to the pattern start, and what the low-adhesion stop costs against "
-        "the planned stopping brake. <i>ratio</i>: the target-speed ratio the vehicle picks at an on-time "
-        "departure. <i>arrival error</i>: closed loop of the on-board logic, positive = late. <i>energy saved</i>: "
-        "traction energy at that ratio against ratio 100 %. Hover a row for notes.</p>")
-    parts.append(rows_table(rows))
-    parts.append(f"<details><summary>Totals per train ({len(trains)} trains; with infeasible legs first)</summary>"
-                 f"{train_table(report.totals)}</details>")
-    parts.append(conflicts_section(report))
-    parts.append(
+    return parts
+
+
+def _method(report, datasets_href: str) -> str:
+    """How the numbers are made, with links to the datasets."""
+    rule, adh = report.rule, report.adhesion_kmh_s
+    return (
         "<h2>How the numbers are made</h2><div class='note'><ul>"
         "<li><b>Minimum</b>: table (a) at ratio 100 % — full notch to the on-board maximum, constant-speed "
         "hold, service-brake curves to lower limits and the stopping brake to the marker; empty train, nominal "
@@ -486,8 +516,6 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         f"<a href='{_e(datasets_href)}/margin_totals/'><code>margin_totals</code></a> "
         f"({'in this folder' if datasets_href == '.' else 'in the run folder, one level up from this page'}) "
         "hold every number with its unit in the column name.</li></ul></div>")
-    parts.append("</main></body></html>\n")
-    return "\n".join(parts)
 
 
 def stop_markers(line) -> dict[str, dict[str, float]]:
