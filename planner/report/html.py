@@ -94,6 +94,47 @@ def _leg(r) -> str:
 
 # --- tables ------------------------------------------------------------------------
 
+LOSS_COLUMNS = ("degraded_loss_load_s", "degraded_loss_traction_s", "degraded_loss_stop_s", "degraded_loss_stop_model_s")
+"""The shares of the bad day's cost (degraded − minimum) in the ``margins`` dataset: load, traction, stop, stop model."""
+
+
+def added_up(total: float, parts, nd: int = 1) -> tuple[float, list[float]]:
+    """``total`` and its ``parts`` rounded to ``nd`` decimals so that the rounded parts add up to the rounded total.
+
+    Each part is rounded down to the unit, then the units the rounded total still lacks go to the
+    parts with the largest remainders (the largest-remainder method), so a row never shows
+    ``14.8 = 7.0 + 3.0 + 5.5 − 0.6`` off by a unit. The parts must add up to the total (to round-off).
+
+    Examples
+    --------
+    >>> added_up(0.15, [0.05, 0.05, 0.05])
+    (0.1, [0.1, 0.0, 0.0])
+    >>> added_up(14.830341, [6.953380, 2.989338, 5.464473, -0.576850])
+    (14.8, [6.9, 3.0, 5.5, -0.6])
+    """
+    unit = 10.0 ** -nd
+    t = round(float(f"{total:.{nd}f}") / unit)
+    raw = [p / unit for p in parts]
+    low = [math.floor(x) for x in raw]
+    order = sorted(range(len(raw)), key=lambda i: -(raw[i] - low[i]))  # stable: ties go to the first part
+    for i in order[:max(t - sum(low), 0)]:
+        low[i] += 1
+    return round(t * unit, nd), [round(k * unit, nd) for k in low]
+
+
+def cost_breakdown(r, nd: int = 1) -> str:
+    """``cost = load + traction + stop ± stop model`` of a margin row [s], the shown parts adding up to the shown cost."""
+    cost = r.degraded_min_running_time_s - r.min_running_time_s
+    parts = [getattr(r, c) for c in LOSS_COLUMNS]
+    if not all(math.isfinite(x) for x in [cost] + parts):
+        return f"{_f(cost, nd)} = " + " + ".join(_f(x, nd) for x in parts)
+    t, shown = added_up(cost, parts, nd)
+    text = f"{t:.{nd}f} = {shown[0]:.{nd}f}"
+    for x in shown[1:]:
+        text += f" − {abs(x):.{nd}f}" if x < 0 else f" + {x:.{nd}f}"
+    return text
+
+
 def flagged_summary(sched) -> str:
     """The flagged legs on the first screen: what each lacks and where the bad day's time goes."""
     # unassessed legs have their own section, listed first; this one lists the legs judged
@@ -105,7 +146,7 @@ def flagged_summary(sched) -> str:
     med = float(sched.margin_percent.median())
     out = [f"<h3>Flagged legs ({len(f)} of {len(sched)})</h3><div class='tw'><table><tr><th class='l'>flag</th>"
            "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
-           "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop</th>"
+           "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop + stop model</th>"
            "<th>remaining on a bad day [s]</th><th class='l'>why</th></tr>"]
     for r in f.itertuples(index=False):
         flag = flag_of(r)
@@ -120,8 +161,7 @@ def flagged_summary(sched) -> str:
             f"<td class='l'>{_e(r.direction)}</td><td class='l'>{_e(r.train_type)}</td><td class='l'>{_leg(r)}</td>"
             f"<td>{r.n_trains}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
             f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
-            f"<td>{_f(cost)} = {_f(r.degraded_loss_load_s)} + {_f(r.degraded_loss_traction_s)} + "
-            f"{_f(r.degraded_loss_stop_s)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td>"
+            f"<td>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td>"
             f"<td class='l'>{_e(why)}</td></tr>")
     out.append("</table></div>")
     return "\n".join(out)
@@ -137,7 +177,9 @@ def bad_day_shares(sched, rule, adh) -> str:
              ("traction", "degraded_loss_traction_s", rule.bad_day_traction,
               f"traction ×{rule.degraded_traction:g}"),
              ("adhesion (the stop)", "degraded_loss_stop_s", rule.bad_day_adhesion,
-              f"adhesion {rule.bad_adhesion_kmh_s(adh):g} km/h/s" if rule.bad_day_adhesion else "stopping brake")]
+              f"adhesion {rule.bad_adhesion_kmh_s(adh):g} km/h/s" if rule.bad_day_adhesion else "stopping brake"),
+             ("stop model", "degraded_loss_stop_model_s", True,
+              "stopping pattern against the tables' stopping brake, not a bad-day effect")]
     vals = [float(np.nansum(sched[c].to_numpy(float) * w)) for _, c, _, _ in parts]
     tot = sum(vals)
     cells = []
@@ -146,14 +188,15 @@ def bad_day_shares(sched, rule, adh) -> str:
         state = what if on else "off"
         cells.append(f"<b>{_e(name)}</b> ({_e(state)}): {v / 3600:.2f} h, {share}")
     return ("<p class='sub'>Where a bad day's time goes, summed over every train run of the day: "
-            + " · ".join(cells) + ". Each effect is switched on or off and valued in the job file "
-            "(<code>[margins]</code> <code>bad_day_*</code>, <code>degraded_*</code>).</p>")
+            + " · ".join(cells) + f" (together {tot / 3600:.2f} h, the whole bad-day cost). Each effect is switched "
+            "on or off and valued in the job file (<code>[margins]</code> <code>bad_day_*</code>, "
+            "<code>degraded_*</code>).</p>")
 
 
 ROW_HEAD = ("<tr><th class='l'>flags</th><th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th>"
             "<th>trains</th><th>km</th><th>minimum [s]</th><th>min ↑10 s</th><th>scheduled [s]</th>"
             "<th>margin [s] (%)</th><th>rule asks [s]</th><th>bad-day minimum [s]</th>"
-            "<th>remaining on a bad day [s]</th><th>bad-day loss: load + traction + stop [s]</th>"
+            "<th>remaining on a bad day [s]</th><th>bad-day cost: load + traction + stop + stop model [s]</th>"
             "<th>ratio at on-time departure</th><th>arrival error nominal / bad day [s]</th>"
             "<th>energy at that ratio vs 100 %</th></tr>")
 
@@ -178,8 +221,7 @@ def _row_html(r) -> str:
         f"<td>{_f(r.min_running_time_rounded_s, 0)}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
         f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
         f"<td>{_f(r.supplement_required_s)}</td><td>{_f(r.degraded_min_running_time_s)}</td>"
-        f"<td>{rem_s}</td><td>{_f(r.degraded_loss_load_s)} + {_f(r.degraded_loss_traction_s)} + "
-        f"{_f(r.degraded_loss_stop_s)}</td>"
+        f"<td>{rem_s}</td><td>{cost_breakdown(r)}</td>"
         f"<td>{'–' if not math.isfinite(r.ratio_on_time) else f'{r.ratio_on_time:.0%}'}</td>"
         f"<td>{_f(r.arrival_error_s, 1, True)} / {_f(r.arrival_error_degraded_s, 1, True)}</td>"
         f"<td>{energy_change(r.energy_saved_percent)}</td></tr>"
@@ -347,9 +389,11 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     parts.append("<h2>Every leg</h2>")
     parts.append(
         "<p class='caption'>One row per leg and scheduled time (trains with the same leg and time share a row). "
-        "<i>min ↑10 s</i>: the minimum rounded up to the 10-second timetable unit. <i>bad-day loss</i>: what the "
-        "degraded load and traction cost up to the pattern start, and what the low-adhesion stop costs against "
-        "the planned stopping brake. <i>ratio</i>: the target-speed ratio the vehicle picks at an on-time "
+        "<i>min ↑10 s</i>: the minimum rounded up to the 10-second timetable unit. <i>bad-day cost</i>: bad-day "
+        "minimum − minimum, and its four shares: what the degraded load and traction cost up to the pattern start, "
+        "what the low-adhesion stop costs against the best adhesion, and the stop model (the nominal run's stopping "
+        "pattern against the tables' constant stopping brake; negative when the pattern stops sooner). "
+        "<i>ratio</i>: the target-speed ratio the vehicle picks at an on-time "
         "departure. <i>arrival error</i>: closed loop of the on-board logic, positive = late. <i>energy saved</i>: "
         "traction energy at that ratio against ratio 100 %. Hover a row for notes.</p>")
     parts.append(rows_table(rows))
@@ -503,7 +547,12 @@ def _method(report, datasets_href: str) -> str:
            "limit, the vehicle's jerk limit)." if rule.bad_day_adhesion else
            "the stopping brake of the running-time tables (the adhesion effect is off in the job file).")
         + " Each effect (load, traction, adhesion) is switched and valued in the job file's <code>[margins]</code>; "
-        "its share is the load alone against the nominal run, then the traction on top of it, then the stop.</li>"
+        "its share is the load alone against the nominal run, then the traction on top of it, then the stop at "
+        "the bad day's adhesion against the best of the sweep. The fourth share, the <i>stop model</i>, is no "
+        "effect of the bad day: the minimum (table (a)) stops with the constant stopping brake, the bad day with "
+        "the jerk-limited stopping pattern, so it is the nominal run with that pattern (best adhesion) − the "
+        "minimum. The four add up to the bad-day cost; each row's shares are rounded so that the shown "
+        "numbers add up too.</li>"
         "<li><b>Flags</b>: <i>unassessed</i> — the bad-day minimum could not be computed (the row says why, e.g. "
         "no stopping pattern at the lowest adhesion); its infeasible and tight are unknown (null in the dataset); "
         "<i>infeasible</i> — scheduled below the bad-day minimum; <i>tight</i> — not infeasible "

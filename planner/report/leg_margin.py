@@ -73,6 +73,7 @@ class LegResult:
     degraded_loss_stop_s: float
     degraded_loss_load_s: float
     degraded_loss_traction_s: float
+    degraded_loss_stop_model_s: float
     pattern_start_s_m: float
     pattern_start_m: float
     pattern_source: str
@@ -207,6 +208,9 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
         slowest_time_s=float(tables.time_a_s[-1]), energy_full_kwh=e_full, degraded_min_s=bad.degraded_s,
         degraded_loss_running_s=bad.t_deg_s - bad.t_nom_s, degraded_loss_stop_s=bad.stop_deg_s - bad.stop_nom_s,
         degraded_loss_load_s=bad.t_load_s - bad.t_nom_s, degraded_loss_traction_s=bad.t_deg_s - bad.t_load_s,
+        # the nominal run with the bad day's stop model against the table minimum (constant stopping brake):
+        # not a bad-day effect, but part of degraded - minimum, so the four shares add up to it
+        degraded_loss_stop_model_s=bad.t_nom_s + bad.stop_nom_s - min_time,
         pattern_start_s_m=float(bad.start_s_m), pattern_start_m=float(ext.start_m + ext.sign * bad.start_s_m),
         pattern_source=bad.source, v_pattern_degraded_ms=bad.v_deg_ms, stop_time_degraded_s=bad.stop_deg_s,
         stop_time_nominal_s=bad.stop_nom_s, adhesion_min_kmh_s=bad.adhesion_kmh_s, adhesion_loss_s=loss,

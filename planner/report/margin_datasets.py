@@ -44,6 +44,10 @@ MARGINS_SCHEMA = declare(
          "share of degraded_loss_running_s due to the load: the bad day's load alone, nominal traction [s]"),
         ("degraded_loss_traction_s", pa.float64(),
          "share of degraded_loss_running_s due to weak traction, on top of the load: running - load share [s]"),
+        ("degraded_loss_stop_model_s", pa.float64(),
+         "part due to the stop model, not to the bad day: the nominal run to the pattern start plus stop_time_nominal_s "
+         "(the stopping pattern) - min_running_time_s (table (a): the constant stopping brake) [s]. load + traction + "
+         "stop + stop model = degraded_min_running_time_s - min_running_time_s"),
         ("supplement_required_s", pa.float64(), "supplement the rule asks for: percent of the minimum + minutes per 100 km [s]"),
         ("supplement_met", pa.bool_(), "margin >= required supplement"),
         ("supplement_shortfall_s", pa.float64(), "required supplement - margin, at least 0 [s]"),

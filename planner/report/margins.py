@@ -34,8 +34,12 @@ What each row holds, and how
   is off takes its nominal value, and without adhesion the stop is the tables'
   stopping brake), and its share is a column: ``degraded_loss_load_s`` (the
   load alone), ``degraded_loss_traction_s`` (traction on top of the load),
-  ``degraded_loss_stop_s`` (the stop). The three add up to degraded − the
-  nominal run's time. It is built in two parts:
+  ``degraded_loss_stop_s`` (the stop at the bad day's adhesion against the best),
+  and ``degraded_loss_stop_model_s``, which is no effect of the bad day but of
+  the model: the minimum stops with the tables' constant stopping brake, the
+  bad day with a jerk-limited stopping pattern, so this is the nominal run with
+  the pattern (at the best adhesion) − the minimum. The four add up to
+  degraded − minimum. It is built in two parts:
 
   1. the degraded run at ratio 1.0 from departure to the **pattern start**,
      where the on-board stopping control takes over: the TASC beacon of the
@@ -442,6 +446,7 @@ def _leg_columns(line: Line, r: LegResult) -> dict:
         "degraded_min_running_time_s": r.degraded_min_s, "slowest_running_time_s": r.slowest_time_s,
         "degraded_loss_running_s": r.degraded_loss_running_s, "degraded_loss_stop_s": r.degraded_loss_stop_s,
         "degraded_loss_load_s": r.degraded_loss_load_s, "degraded_loss_traction_s": r.degraded_loss_traction_s,
+        "degraded_loss_stop_model_s": r.degraded_loss_stop_model_s,
         "energy_at_full_ratio_kwh": r.energy_full_kwh, "pattern_start_m": r.pattern_start_m,
         "pattern_start_source": r.pattern_source,
         "pattern_start_speed_degraded_kmh": kmh(r.v_pattern_degraded_ms),
