@@ -2,7 +2,7 @@
 
 :func:`render_html` turns a :class:`planner.report.margins.MarginReport` into a
 single HTML document that needs no network: inline CSS, charts as inline SVG
-drawn with matplotlib's SVG backend, no scripts. It is deterministic
+drawn by :mod:`planner.report.plots` (matplotlib's SVG backend), no scripts. It is deterministic
 (same report, same bytes): no timestamps, SVG ids from a fixed hash salt, no
 date in the SVG metadata.
 
