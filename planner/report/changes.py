@@ -412,7 +412,7 @@ def _conflict_changes(ch: LineChanges, old, new) -> None:
 
 
 def _bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
-    from planner.bundle.container import read_bundle
+    from planner.bundle.verify import read_bundle
     from planner.errors import PlannerError
 
     ob, nb = Path(old_dir) / "bundles", Path(new_dir) / "bundles"

@@ -197,7 +197,7 @@ class MarginReport:
         Key of the leg whose run curves are drawn (``direction, train_type,
         origin, destination, scheduled_running_time_s``).
     conflicts : pandas.DataFrame or None
-        :func:`planner.network.conflicts.conflicts_table` rows (None: not checked).
+        :func:`planner.datasets.conflicts.conflicts_table` rows (None: not checked).
     conflicts_note : str
         Why conflicts were not checked, or "".
     """
@@ -380,7 +380,7 @@ def _scheduled_times(line: Line, types: Sequence[str], legs: Sequence[TrainLeg])
 
 def _given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, dict]:
     """The tables and table (a) energy of a ``--tables`` folder, by (direction, type, origin, destination)."""
-    from planner.tables.onboard import load_tables
+    from planner.datasets.tables import load_tables
 
     tabs: dict = {}
     energy: dict = {}
@@ -488,7 +488,7 @@ def _conflicts(line: Line, check: bool, conflict_params):
     if line.network is None:
         return None, "the line database has no track network (nodes.parquet, edges.parquet)"
     from planner.errors import PlannerError
-    from planner.network.conflicts import conflicts_table
+    from planner.datasets.conflicts import conflicts_table
 
     try:
         return conflicts_table(line, conflict_params), ""

@@ -63,6 +63,6 @@ def read_line_dataset(run_dir: Path, dataset: str, line_id: str):
 
 def path_id(line_id: str) -> str:
     """A line id checked for use as a file or partition name (refused otherwise)."""
-    from planner.bundle.container import check_id
+    from planner.bundle.manifest import check_id
 
     return check_id(line_id, "line id")
