@@ -47,7 +47,7 @@ def margins(
     from planner.report.html import write_html
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import compute_margins, margin_options
-    from .tables import _fail, _progress
+    from .tables import _progress
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_code, train_type_codes
 
@@ -80,8 +80,8 @@ def margins(
                 closed_loop_dir=closed_loop_dir, chosen=chosen, n_jobs=jobs, progress=update)
         files = write_margins(report, out)
         page = write_html(report, line, out / "margins.html")
-    except PlannerError as e:
-        raise _fail(e) from None
+    except PlannerError:
+        raise  # the root command prints it as one line (cli.main)
     rows = report.rows
     s = rows[rows.scheduled_running_time_s.notna()]
     typer.echo(f"{line.line_id}: {len(rows)} legs x train type ({len(s)} timetabled, "

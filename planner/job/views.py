@@ -22,7 +22,7 @@ import shutil
 from pathlib import Path
 
 from planner.errors import JobError, PlannerError
-from planner.line.schema import check_path_id
+from planner.io.paths import check_path_id
 
 
 def copy_inputs(line, stage: Path) -> Path:
@@ -62,7 +62,7 @@ def line_views(job, line, stage: Path, runner, summary) -> None:
     from planner.report.published_run import read_line_dataset, path_id
     from planner.report.train_graph import graph_data, TOL_T_S, TOL_X_M
     from planner.report.train_graph_page import write_page
-    from planner.job.pipeline import code_digest
+    from planner.job.units import code_digest
     from planner.job.publish import digest
 
     copy_inputs(line, stage)
@@ -80,7 +80,7 @@ def line_views(job, line, stage: Path, runner, summary) -> None:
 
 
 def _unit(step, key, fn, args):
-    from planner.job.pipeline import Unit
+    from planner.job.units import Unit
 
     return Unit(step, key, step, fn, args)
 
