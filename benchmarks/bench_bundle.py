@@ -6,7 +6,7 @@ signing, atomic write) and the verify time (structure, signature, hashes,
 schema, consistency), plus the tables each holds and the ones it misses.
 
 The running-time tables and stopping patterns are computed first with
-``planner.tables`` and ``planner.stops`` (not timed; ``--tables DIR`` /
+``planner.tables.build`` and ``planner.stopping.sweep`` (not timed; ``--tables DIR`` /
 ``--stops DIR`` reuse existing output folders instead, ``--no-tables`` /
 ``--no-stops`` leave them out).
 
@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner import bundle, signing  # noqa: E402
+from planner.bundle import container as bundle, signing  # noqa: E402
 
 
 def _tables_dir(line, args, scratch: Path) -> Path | None:
@@ -35,7 +35,7 @@ def _tables_dir(line, args, scratch: Path) -> Path | None:
     if args.no_tables:
         return None
     try:
-        from planner.tables import build_tables, write_tables
+        from planner.tables.build import build_tables, write_tables
     except ImportError as e:
         print(f"  running-time tables: not available ({e})")
         return None
@@ -51,7 +51,7 @@ def _stops_dir(line, args, scratch: Path) -> Path | None:
     if args.no_stops:
         return None
     try:
-        from planner.stops import stop_sweep, write_stops
+        from planner.stopping.sweep import stop_sweep, write_stops
     except ImportError as e:
         print(f"  stopping patterns: not available ({e})")
         return None

@@ -1,6 +1,6 @@
 """Benchmark: arrival error and cost against the evaluation interval and the ratio grid (issue 22).
 
-The study of the published method on the sample line (:mod:`planner.eval_study`): for every
+The study of the published method on the sample line (:mod:`planner.report.eval_study`): for every
 ratio grid (the job's default — 10 % steps to 70 %, then 5 % — and 10 %, 5 %, 2.5 % steps all
 the way) and every evaluation interval (beacons only, 1000, 500, 200 m), build the tables of
 every interstation, direction and train type, run the closed loop (designated times minimum …
@@ -33,8 +33,15 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.eval_study import (  # noqa: E402
-    GRIDS, INTERVALS, Setting, best_nearest, format_table, format_worst, run_setting, write_html,
+from planner.report.eval_study import (
+    GRIDS,
+    INTERVALS,
+    Setting,
+    best_nearest,
+    format_table,
+    format_worst,
+    run_setting,
+    write_html,
 )
 
 NEAREST_BOUNDS = {"nominal": 2.0, "perturbed": 3.0}
@@ -103,7 +110,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         stops = args.stops
         if stops is None:
-            from planner.stops import stop_sweep, write_stops
+            from planner.stopping.sweep import stop_sweep, write_stops
 
             t0 = time.perf_counter()
             stops = Path(tmp) / "stops"

@@ -36,8 +36,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def sample_graph():
     from planner import load_line
-    from planner.changes import read_line_dataset, read_manifest
-    from planner.graph import graph_data
+    from planner.report.changes import read_line_dataset, read_manifest
+    from planner.report.train_graph import graph_data
 
     line = load_line(ROOT / "lines" / "sample")
     run = ROOT / "outputs" / "latest"
@@ -118,7 +118,7 @@ def main() -> None:
     a = ap.parse_args()
     from browser import find_chromium
 
-    from planner.graph import write_page
+    from planner.report.train_graph import write_page
 
     if find_chromium() is None:
         print("chromium not found: install Debian's chromium package")

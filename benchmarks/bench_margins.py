@@ -34,8 +34,8 @@ def main() -> None:
     a = ap.parse_args()
 
     from planner import load_line
-    from planner.margins import compute_margins
-    from planner.report import render_html, stop_markers
+    from planner.report.margins import compute_margins
+    from planner.report.html import render_html, stop_markers
 
     line = load_line(a.line)
     t0, c0 = time.perf_counter(), _cpu()

@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from planner import load_line  # noqa: E402
-from planner.network import (  # noqa: E402
+from planner.network.conflicts import (
     BlockingParams,
     SimulatorCurves,
     check_conflicts,

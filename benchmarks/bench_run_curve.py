@@ -20,8 +20,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from planner import testing  # noqa: E402
-from planner.run_curve import make_track, simulate  # noqa: E402
+from planner.line import testing  # noqa: E402
+from planner.physics.track import make_track
+from planner.physics.run_curve import simulate  # noqa: E402
 
 REPEATS = 3
 

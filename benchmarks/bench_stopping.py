@@ -15,7 +15,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.stopping import decel_limit_profile, solve_stop  # noqa: E402
+from planner.stopping.pattern import decel_limit_profile, solve_stop  # noqa: E402
 
 TARGET_MS = 0.5
 N_CASES = 4000
@@ -44,7 +44,7 @@ def safe_side_cost(step_m: float = 0.25) -> dict:
 
     The train-averaged gradient is piecewise linear in the front's position;
     the patterns bound each linear piece by its least favourable value
-    (:func:`planner.approach.gradient_steps`). The exact bound is approached
+    (:func:`planner.stopping.approach.gradient_steps`). The exact bound is approached
     from the safe side by cutting every piece into ``step_m`` slices, each at
     its own least favourable value (the duration converges to the exact
     bound's from above as the slices shrink); the optimistic slices (each at
@@ -56,10 +56,11 @@ def safe_side_cost(step_m: float = 0.25) -> dict:
 
     import numpy as np
 
-    from planner import approach, dynamics
-    from planner.loader import load_line
-    from planner.model import sign
-    from planner.stops import InfeasibleStopWarning, stop_sweep
+    from planner.stopping import approach
+    from planner.physics import dynamics
+    from planner.line.loader import load_line
+    from planner.line.model import sign
+    from planner.stopping.sweep import InfeasibleStopWarning, stop_sweep
 
     line = load_line(Path(__file__).resolve().parents[1] / "lines" / "sample")
     with warnings.catch_warnings():
@@ -130,9 +131,9 @@ def main() -> None:
         ts = by_events[k]
         print(f"    {k} event points: n={len(ts):4d}  median {statistics.median(ts) * 1e3:.3f} ms")
     try:
-        from planner import stops  # the line-level sweep (issue 5 item 3), when it exists
+        from planner.stopping import sweep as stops  # the line-level sweep (issue 5 item 3), when it exists
     except ImportError:
-        print("  line-level sweep: planner.stops not available")
+        print("  line-level sweep: planner.stopping.sweep not available")
     else:
         sweep = getattr(stops, "benchmark_sample_line", None)
         if sweep is not None:

@@ -26,8 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.closed_loop import overall, run_closed_loop, summary_row  # noqa: E402
-from planner.tables import build_tables, write_tables  # noqa: E402
+from planner.tables.closed_loop import overall, run_closed_loop, summary_row  # noqa: E402
+from planner.tables.build import build_tables, write_tables  # noqa: E402
 
 
 def main() -> int:

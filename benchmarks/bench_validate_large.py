@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 CHILD = r"""
 import json, resource, sys, time
-from planner.loader import check_line, load_line
+from planner.line.loader import check_line, load_line
 path, what = sys.argv[1], sys.argv[2]
 t0, c0 = time.perf_counter(), time.process_time()
 if what == "check_line":

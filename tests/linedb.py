@@ -19,7 +19,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from planner.schema import TABLES
+from planner.line.schema import TABLES
 
 N = None  # null
 

@@ -1,4 +1,4 @@
-"""ATS-P data: pattern start, overwrite flags, beacon correction flags (planner.atsp)."""
+"""ATS-P data: pattern start, overwrite flags, beacon correction flags (planner.bundle.atsp)."""
 from __future__ import annotations
 
 import dataclasses
@@ -9,8 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner import atsp, testing
-from planner.bundle import line_tables
+from planner.bundle import atsp
+from planner.line import testing
+from planner.bundle.container import line_tables
 from test_bundle_support import make_line
 
 KMH = 1 / 3.6

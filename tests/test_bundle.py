@@ -1,4 +1,4 @@
-"""On-board DB bundles: build, reproducibility, verify, tampering, consistency, CLI (planner.bundle)."""
+"""On-board DB bundles: build, reproducibility, verify, tampering, consistency, CLI (planner.bundle.container)."""
 from __future__ import annotations
 
 import base64
@@ -18,7 +18,8 @@ import pytest
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-from planner import __version__, bundle, signing
+from planner import __version__
+from planner.bundle import container as bundle, signing
 from planner.errors import BundleError
 from test_bundle_support import (LINE_ID, all_tables, release, canonical, forge, make_line, manifest_for, parquet,
                                  synthetic_tables, tar_bytes)
@@ -116,7 +117,7 @@ def test_rebuild_in_other_processes_gives_identical_bytes(tmp_path, keys):
     """Different interpreters and hash seeds: nothing process-dependent leaks into the bytes."""
     code = (
         "import sys; sys.path.insert(0, sys.argv[3]);"
-        "import test_bundle_support; from test_bundle_support import make_line, all_tables; from planner import bundle;"
+        "import test_bundle_support; from test_bundle_support import make_line, all_tables; from planner.bundle import container as bundle;"
         "bundle.build_bundle(all_tables(make_line()), line_id='tl', direction='down', train_type='E10',"
         " out_dir=sys.argv[1], private_key=sys.argv[2], line_digest='ab'*32, release=test_bundle_support.release())"
     )
@@ -148,7 +149,7 @@ def test_pandas_metadata_is_stripped(line):
 @pytest.fixture(scope="module")
 def small(tmp_path_factory, keys):
     """The smallest complete-enough bundle: the core tables of a line without restrictions."""
-    from planner import testing
+    from planner.line import testing
 
     out = tmp_path_factory.mktemp("small")
     ln = testing.line(line_id=LINE_ID, train_types=[testing.train_type("E10")])
@@ -429,7 +430,7 @@ def test_open_bundle_writes_nothing_when_verify_fails(built, tmp_path):
 
 # --- assembler and CLI ---------------------------------------------------------------
 def write_datasets(root, line, direction, train_type, names):
-    from planner.datasets import write_partitioned
+    from planner.io.parquet import write_partitioned
 
     t = synthetic_tables(line, direction, train_type)
     for n in names:
@@ -496,7 +497,7 @@ def test_cli_keys_build_verify(tmp_path):
                 "--train-type", "EMU10", "--direction", "down", "--built-at", "2026-01-01T00:00:00Z")
     assert r.exit_code == 0 and (tmp_path / "out2" / path.name).read_bytes() == first
     info = bundle.verify_bundle(path, pub, at="2026-01-02T00:00:00Z")
-    from planner.loader import source_digest
+    from planner.line.loader import source_digest
 
     assert info.line_digest == source_digest(line_dir)
 

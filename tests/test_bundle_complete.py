@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from planner import bundle
+from planner.bundle import container as bundle
 from planner.cli import app
 from planner.errors import BundleError
 from test_bundle_support import LINE_ID, all_tables, forge, make_line, release
@@ -86,7 +86,7 @@ def test_only_vehicle_tables_may_go_unlisted(keys, line, tmp_path):
 def test_build_line_uses_each_vehicles_cruise_mode(keys, tmp_path):
     """build_line on the tiny line: a constant-speed type built from a tables folder without table_d verifies complete."""
     from linedb import write_line_db
-    from planner.loader import load_line
+    from planner.line.loader import load_line
 
     ln = load_line(write_line_db(tmp_path / "tiny"))
     types = {t.train_type: t.cruise for t in ln.train_types}

@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-from planner import bundle, testing
+from planner.bundle import container as bundle
+from planner.line import testing
 from planner.errors import BundleError
 from test_bundle_support import LINE_ID, release, tar_bytes
 

@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from planner import bundle, signing
+from planner.bundle import container as bundle, signing
 
 HERE = Path(__file__).parent
 NAME = "tl_down_E10.pdb"
@@ -26,7 +26,8 @@ CHILD = r"""
 import os, sys, time
 sys.path.insert(0, sys.argv[3])
 from test_bundle_support import make_line, all_tables, release
-from planner import atomic, bundle
+from planner.io import atomic
+from planner.bundle import container as bundle
 tables = all_tables(make_line(), pad_rows=40000 + int(sys.argv[4]))  # variant -> different bytes
 real_write = os.write
 def slow_write(fd, data):

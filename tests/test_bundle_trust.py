@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-from planner import bundle, signing, testing
+from planner.bundle import container as bundle, signing
+from planner.line import testing
 from planner.errors import BundleError
 from test_bundle_support import BUILT_AT_S, LINE_ID, forge, release
 
@@ -210,8 +211,8 @@ def _job(tmp_path: Path, bundles: str) -> Path:
 
 def test_run_without_a_key_refuses_to_sign_with_a_development_key(tmp_path, monkeypatch):
     from planner.errors import JobError
-    from planner.job import load_job
-    from planner.pipeline import run_job
+    from planner.job.config import load_job
+    from planner.job.pipeline import run_job
 
     monkeypatch.delenv("PLANNER_SIGNING_KEY", raising=False)
     job = _job(tmp_path, "")
@@ -232,8 +233,8 @@ def test_run_without_a_key_refuses_to_sign_with_a_development_key(tmp_path, monk
 
 def test_the_development_key_named_as_signing_key_still_needs_allowing(tmp_path, monkeypatch):
     from planner.errors import JobError
-    from planner.job import load_job
-    from planner.pipeline import signing_key_path
+    from planner.job.config import load_job
+    from planner.job.pipeline import signing_key_path
 
     monkeypatch.delenv("PLANNER_SIGNING_KEY", raising=False)
     signing.generate_keypair(tmp_path / "out" / ".dev-key")
@@ -250,7 +251,7 @@ def test_the_development_key_named_as_signing_key_still_needs_allowing(tmp_path,
     ("2026-01-01T00:00:00Z", False), ("2026-01-15T23:59:59Z", False), ("2026-01-16T00:00:00Z", True),
 ])
 def test_an_unchanged_run_reissues_bundles_after_half_their_validity(now, due):
-    from planner.pipeline import _renewal_due
+    from planner.job.pipeline import _renewal_due
 
     m = {"bundles_release": {"built_at": "2026-01-01T00:00:00Z", "expires": "2026-01-31T00:00:00Z"}}
     assert _renewal_due(m, bundle.parse_time(now)) is due

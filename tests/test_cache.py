@@ -13,11 +13,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from planner.cache import MAGIC, Cache, CacheEntryError, decode, encode, pack, unpack
-from planner.model import Segments, Station
-from planner.publish import digest
-from planner.stopping import PatternSamples
-from planner.testing import train_type
+from planner.job.cache import MAGIC, Cache, CacheEntryError, decode, encode, pack, unpack
+from planner.line.model import Segments, Station
+from planner.job.publish import digest
+from planner.stopping.pattern import PatternSamples
+from planner.line.testing import train_type
 
 KEY = digest(["unit", 1])
 OTHER = digest(["unit", 2])
@@ -190,11 +190,11 @@ def test_planted_files_never_run_code(tmp_path):
         "tree naming os.system": _forge("tables", KEY, _npz(tree=_tree(
             {"$dc": "os:system", "f": {}}))),
         "tree naming a planner class with other fields": _forge("tables", KEY, _npz(tree=_tree(
-            {"$dc": "planner.model:Station", "f": {"station_id": "A"}}))),
+            {"$dc": "planner.line.model:Station", "f": {"station_id": "A"}}))),
         "tree naming a planner function": _forge("tables", KEY, _npz(tree=_tree(
-            {"$dc": "planner.atomic:write_bytes_atomic", "f": {}}))),
+            {"$dc": "planner.io.atomic:write_bytes_atomic", "f": {}}))),
         "dotted path out of the package": _forge("tables", KEY, _npz(tree=_tree(
-            {"$dc": "planner.cache:np.lib.format", "f": {}}))),
+            {"$dc": "planner.job.cache:np.lib.format", "f": {}}))),
     }
     # positive control for the object array: numpy would unpickle it if allowed to
     np.load(io.BytesIO(unpack(payloads["npz with a pickled object array"])[1]), allow_pickle=True)["a0"]
@@ -272,7 +272,7 @@ def test_forged_payloads_that_do_not_decode_are_misses(tmp_path):
                                  "index": {"range": [0, 5, 1]}}}), a0=np.zeros(3)),  # length mismatch
         _npz(tree=_tree({"$a": "missing"})),
         _npz(tree=_tree({"$np": "<f8", "v": {"$a": "a0"}}), a0=np.zeros(2)),
-        _npz(tree=_tree({"$dc": "planner.model:Station"})),
+        _npz(tree=_tree({"$dc": "planner.line.model:Station"})),
     ]
     for payload in payloads:
         p.write_bytes(_forge("tables", KEY, payload))

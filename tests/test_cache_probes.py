@@ -27,8 +27,8 @@ from pathlib import Path
 import pytest
 
 from linedb import write_line_db
-from planner.cache import SUFFIX, Cache
-from planner.publish import latest_run
+from planner.job.cache import SUFFIX, Cache
+from planner.job.publish import latest_run
 from test_network_cli import EDGES, NODES
 
 VOLATILE = ("run_id", "timings_s", "units_computed", "units_reused", "changes")  # wall-clock, how a run got there, what it is compared with
@@ -122,8 +122,8 @@ def _fixed_build_time():
 def clean(tmp_path_factory):
     project = tmp_path_factory.mktemp("probes")
     write_line_db(project / "lines" / "tiny", nodes=NODES, edges=EDGES)
-    from planner.job import load_job
-    from planner.pipeline import run_job
+    from planner.job.config import load_job
+    from planner.job.pipeline import run_job
 
     s = run_job(load_job(_job(project, "clean")), show_progress=False)
     assert s.computed == KINDS
@@ -269,7 +269,7 @@ def test_a_full_disk_ends_in_one_line_and_latest_stays(clean, capsys, monkeypatc
             st = os.statvfs(root)
             filler.write_bytes(b"\0" * (st.f_bavail * st.f_frsize - 64 * 1024))
         else:  # simulated: every atomic write fails as on a full disk
-            import planner.atomic as atomic
+            import planner.io.atomic as atomic
 
             def full(path):
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), path)

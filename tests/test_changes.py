@@ -9,7 +9,7 @@ from __future__ import annotations
 import pandas as pd
 
 from linedb import default_tables
-from planner.changes import LineChanges, _causes, diff_table
+from planner.report.changes import LineChanges, _causes, diff_table
 
 
 def test_diff_table_names_changed_added_and_removed_rows():
@@ -37,7 +37,7 @@ def test_legs_are_traced_to_changes_that_reach_them():
 
 
 def test_changes_table_has_the_declared_schema():
-    from planner.changes import CHANGES_SCHEMA
+    from planner.report.changes import CHANGES_SCHEMA
 
     ch = LineChanges("tiny", "r1", "r2")
     ch.add("parameter", "tables.ds_m", "job parameter tables.ds_m: 1 → 0.5", field_="ds_m", before=1.0, after=0.5,

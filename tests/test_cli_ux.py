@@ -40,9 +40,9 @@ def _forbid(monkeypatch, module, name):
 
 # --- output paths checked before computing, one-line errors -----------------------------------
 def test_stops_out_an_existing_file_fails_before_computing(tmp_path, monkeypatch):
-    import planner.stops
+    import planner.stopping.sweep
 
-    _forbid(monkeypatch, planner.stops, "stop_sweep")
+    _forbid(monkeypatch, planner.stopping.sweep, "stop_sweep")
     f = tmp_path / "file"
     f.write_text("x")
     one_line_error(run("stops", SAMPLE, "--out", f), "--out", "not a folder")
@@ -64,9 +64,9 @@ def test_every_out_folder_is_checked(tmp_path, cmd):
 
 
 def test_runtime_plot_in_proc_fails_before_computing(monkeypatch):
-    import planner.run_curve
+    import planner.api
 
-    _forbid(monkeypatch, planner.run_curve, "running_time")
+    _forbid(monkeypatch, planner.api, "running_time")
     one_line_error(run("runtime", SAMPLE, "--train-type", "E10", "--from", "TKD", "--to", "OHS",
                        "--plot", "/proc/x/a.png"), "--plot /proc/x/a.png", "cannot write")
 
@@ -83,9 +83,9 @@ def test_datasets_write_into_a_folder_is_refused(tmp_path):
 
 
 def test_job_whose_output_root_is_a_file(tmp_path, monkeypatch):
-    import planner.pipeline
+    import planner.job.pipeline
 
-    _forbid(monkeypatch, planner.pipeline, "run_job")
+    _forbid(monkeypatch, planner.job.pipeline, "run_job")
     (tmp_path / "lines" / "x").mkdir(parents=True)
     (tmp_path / "outputs").write_text("x")
     (tmp_path / "jobs").mkdir()
@@ -215,7 +215,7 @@ def test_mode_help_and_error_list_the_same_modes():
 
 # --- conflict listings: in order, no "(+0 more)" ----------------------------------------------
 def test_conflict_listing_in_time_order_without_plus_zero():
-    from planner.network import _summary
+    from planner.network.conflicts import _summary
 
     rows = []
     for cid, (t0, delay, n) in enumerate([(100.0, 5.0, 1), (200.0, 30.0, 3), (300.0, 1.0, 1), (400.0, 20.0, 2),

@@ -8,16 +8,20 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from planner import testing
+from planner.line import testing
 from planner.cli import app
-from planner.closed_loop import (
-    closed_loop_interstation, designated_times, overall, run_closed_loop, write_closed_loop,
+from planner.tables.closed_loop import (
+    closed_loop_interstation,
+    designated_times,
+    overall,
+    run_closed_loop,
+    write_closed_loop,
 )
-from planner.datasets import read_dataset
+from planner.io.parquet import read_dataset
 from planner.errors import InputError
-from planner.model import Beacon
-from planner.onboard import load_tables
-from planner.tables import build_tables, write_tables
+from planner.line.model import Beacon
+from planner.tables.onboard import load_tables
+from planner.tables.build import build_tables, write_tables
 
 from linedb import write_line_db
 
@@ -154,7 +158,7 @@ def test_cli_tables_and_simulate(tmp_path):
 def test_one_batch_of_every_scenario_and_mode_equals_separate_batches(flat):
     """Runs in a batch do not interact, so stacking scenarios × modes (how the nightly job runs them,
     several times cheaper) must give exactly the separate results: same times, same ratio choices."""
-    from planner.closed_loop import closed_loop_batch
+    from planner.tables.closed_loop import closed_loop_batch
 
     ln, _, tabs = flat
     modes = ("nearest", "interpolate", "adaptive")
@@ -187,7 +191,8 @@ def test_timekeeping_is_a_closed_loop_mode(flat):
 def test_stop_position_is_measured_from_the_plant(flat):
     """BatchResult.stop_m: a run forced to stand at the marker from above the stopping curve overran
     by v²/(2 β) − Δs (closed form); a run on the curve stands on the marker."""
-    from planner.run_curve import RunState, make_track, simulate
+    from planner.physics.run_curve import RunState, simulate
+    from planner.physics.track import make_track
 
     ln, _, _ = flat
     train = ln.train_type("T")

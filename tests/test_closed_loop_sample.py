@@ -26,9 +26,9 @@ import numpy as np
 import pytest
 
 import planner
-from planner.closed_loop import closed_loop_interstation
-from planner.ratios import ratio_grid
-from planner.tables import interstation_tables
+from planner.tables.closed_loop import closed_loop_interstation
+from planner.tables.ratios import ratio_grid
+from planner.tables.build import interstation_tables
 
 SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 SUBSET = (("TKD", "OHS"), ("HGO", "MDR"), ("OHS", "TKD"), ("KWB", "SKM"))
@@ -97,7 +97,7 @@ def test_adaptive_is_not_tuned_to_the_perturbed_train():
     (load 0.5, traction x 0.95) on the sawtooth E6's worst interstation of the plain adaptive
     mode still arrives within the median bound, and within 1.5 s at worst (the whole line:
     `make bench`, scenario 'half')."""
-    from planner.closed_loop import Scenario
+    from planner.tables.closed_loop import Scenario
 
     line = planner.load_line(SAMPLE)
     grid = ratio_grid(None, line_max_speed_ms=line.max_speed_ms)

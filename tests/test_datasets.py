@@ -4,7 +4,7 @@ import hashlib
 import pyarrow as pa
 import pyarrow.dataset as ds
 
-from planner.datasets import declare, read_dataset, write_partitioned
+from planner.io.parquet import declare, read_dataset, write_partitioned
 
 SCHEMA = declare(
     [("ratio", pa.float64(), "target-speed ratio"), ("running_time_s", pa.float64(), "running time [s]")],

@@ -1,10 +1,11 @@
-"""Forces of the running-theory model (planner.dynamics): hand-computed values."""
+"""Forces of the running-theory model (planner.physics.dynamics): hand-computed values."""
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from planner import dynamics, testing
-from planner.model import G, Segments
+from planner.physics import dynamics
+from planner.line import testing
+from planner.line.model import G, Segments
 
 REL = 1e-12  # pure arithmetic: only float round-off
 

@@ -9,13 +9,13 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
-from planner import bundle, signing
-from planner.closed_loop import closed_loop_interstation
+from planner.bundle import container as bundle, signing
+from planner.tables.closed_loop import closed_loop_interstation
 from planner.errors import BundleError, JobError
-from planner.job import load_job
-from planner.onboard import load_tables
-from planner.ratios import ratio_grid
-from planner.tables import interstation_tables, write_tables
+from planner.job.config import load_job
+from planner.tables.onboard import load_tables
+from planner.tables.ratios import ratio_grid
+from planner.tables.build import interstation_tables, write_tables
 from test_tables import CLOSED_FORM_TOL_S, VMAX, flat_line, t_b
 from test_bundle_support import release
 
@@ -139,9 +139,9 @@ def test_finer_interval_reduces_the_nearest_rules_error():
     before the stop (10 % ratio steps), odometer points every 400 m must at least halve the worst
     error of the beacon alone, in both scenarios (measured: 6.7 -> 1.0 s nominal, 5.3 -> 0.6 s
     perturbed)."""
-    from planner import testing
-    from planner.closed_loop import closed_loop_batch
-    from planner.model import Beacon
+    from planner.line import testing
+    from planner.tables.closed_loop import closed_loop_batch
+    from planner.line.model import Beacon
 
     ln = dataclasses.replace(testing.line(length_m=4000.0),
                              beacons=(Beacon("B1", 1500.0, "down", "signal", "a", True),))
@@ -161,9 +161,9 @@ def test_study_replays_its_worst_run():
     """The study's explanation of a worst run is that run: replayed, it arrives with the error the
     closed loop measured, it decides at every evaluation point after departure, and the point
     it names as the last with authority is one whose row spans more than that error."""
-    from planner import testing
-    from planner.eval_study import Setting, run_setting
-    from planner.model import Beacon
+    from planner.line import testing
+    from planner.report.eval_study import Setting, run_setting
+    from planner.line.model import Beacon
 
     ln = dataclasses.replace(testing.line(length_m=4000.0),
                              beacons=(Beacon("B1", 1500.0, "down", "signal", "a", True),))

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from planner import testing
+from planner.line import testing
 from planner.errors import InputError
-from planner.eval_points import evaluation_points, interstation_length_m
-from planner.model import Beacon
+from planner.tables.eval_points import evaluation_points, interstation_length_m
+from planner.line.model import Beacon
 
 
 def _line():

@@ -9,8 +9,16 @@ import pytest
 
 from linedb import write_line_db
 from planner.errors import InputError
-from planner.graph import (
-    TOL_T_S, TOL_X_M, draw_chart, graph_data, page_payload, parse_hhmm, render_page, service_of, simplify,
+from planner.report.train_graph import (
+    TOL_T_S,
+    TOL_X_M,
+    draw_chart,
+    graph_data,
+    page_payload,
+    parse_hhmm,
+    render_page,
+    service_of,
+    simplify,
 )
 
 
@@ -59,7 +67,7 @@ def test_locals_and_rapids(tiny):
 
 
 def test_paths_follow_the_predicted_trajectory(tiny, data):
-    from planner.network import SimulatorCurves, build_trajectory
+    from planner.network.conflicts import SimulatorCurves, build_trajectory
 
     src = SimulatorCurves(tiny)
     for tp, train in zip(data.trains, tiny.trains):

@@ -21,11 +21,11 @@ from linedb import write_line_db
 from planner import load_line, running_time
 from planner.cli import app
 from planner.errors import SourceError
-from planner.importers.common import DEFAULTS, to_arrow
-from planner.importers.csv import export_csv, import_csv, write_templates
-from planner.importers.railjson import import_railjson
-from planner.importers.railml import import_railml
-from planner.schema import TABLES
+from planner.line.importers.common import DEFAULTS, to_arrow
+from planner.line.importers.csv import export_csv, import_csv, write_templates
+from planner.line.importers.railjson import import_railjson
+from planner.line.importers.railml import import_railml
+from planner.line.schema import TABLES
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "lines" / "sample"
@@ -153,7 +153,7 @@ def test_summary_lists_every_default_used(imported):
 def test_a_copy_of_a_line_under_another_id_is_not_a_cache_hit(imported):
     """Found running the hand-written line and its railjson twin in one job: the stops cache (keyed by
     interstation inputs) handed line 'rj' rows to line 'hand', and margins found no rows for 'hand'."""
-    from planner.pipeline import digest, interstation_inputs
+    from planner.job.pipeline import digest, interstation_inputs
 
     a = interstation_inputs(load_line(imported["hand"]), "EMU", "W", "M")
     b = interstation_inputs(load_line(imported["railjson"][1]), "EMU", "W", "M")

@@ -2,7 +2,7 @@
 import pytest
 
 from planner.errors import JobError
-from planner.job import load_job
+from planner.job.config import load_job
 
 
 def _write(tmp_path, text):
@@ -58,7 +58,7 @@ def test_run_date_is_part_of_the_inputs_digest(tmp_path):
     """Same inputs, another date: another run id (the date is stamped on every row, issue 17)."""
     import dataclasses
 
-    from planner.pipeline import _inputs_digest, resolve_run_date
+    from planner.job.pipeline import _inputs_digest, resolve_run_date
 
     job = load_job(_write(tmp_path, '[job]\nlines = ["lines/x"]\nrun_date = "2026-11-23"\n'))
     assert resolve_run_date(job) == "2026-11-23"

@@ -11,11 +11,11 @@ import pyarrow as pa
 import pytest
 
 import planner
-from planner import testing
+from planner.line import testing
 from planner.errors import InputError
-from planner.loader import load_line, source_digest
-from planner.model import Line, Network, Segments, TrainType
-from planner.schema import SCHEMA_VERSION, TABLES
+from planner.line.loader import load_line, source_digest
+from planner.line.model import Line, Network, Segments, TrainType
+from planner.line.schema import SCHEMA_VERSION, TABLES
 
 from linedb import default_tables, write_line_db
 
@@ -117,7 +117,7 @@ def test_curves_radius_in_metres(line):
 
 
 def test_matches_in_memory_testing_helper(line):
-    """The loader and planner.testing convert the same railway units to the same SI values."""
+    """The loader and planner.line.testing convert the same railway units to the same SI values."""
     rs = default_tables()["rolling_stock"].iloc[0].to_dict()
     rs.pop("train_type")
     ref = testing.train_type("EMU10", traction=((0.0, 300.0), (40.0, 300.0), (120.0, 100.0)), **rs)

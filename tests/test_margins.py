@@ -1,6 +1,6 @@
 """Margin report on a line whose running times are known in closed form.
 
-The line (``planner.testing``): level, straight, no running resistance, a
+The line (``planner.line.testing``): level, straight, no running resistance, a
 constant 300 kN on 300 t empty (no rotating mass), so the train accelerates at
 a = 1 m/s² up to the on-board maximum V = 100 km/h, holds it, and stops with the
 stopping brake b = 1 m/s². Stations at 0, 1500 and 3000 m.
@@ -28,14 +28,20 @@ import pyarrow.parquet as pq
 import pytest
 from hypothesis import given, strategies as st
 
-from planner import testing
-from planner.datasets import read_dataset
+from planner.line import testing
+from planner.io.parquet import read_dataset
 from planner.errors import InputError
-from planner.margins import (
-    MARGIN_TOTALS_SCHEMA, MARGINS_SCHEMA, MarginRule, compute_margins, margin_columns, round_up_s,
-    timetable_legs, write_margins,
+from planner.report.margins import (
+    MARGIN_TOTALS_SCHEMA,
+    MARGINS_SCHEMA,
+    MarginRule,
+    compute_margins,
+    margin_columns,
+    round_up_s,
+    timetable_legs,
+    write_margins,
 )
-from planner.model import Call, Train
+from planner.line.model import Call, Train
 
 V = 100 / 3.6          # on-board maximum [m/s]
 A_NOM = 1.0            # 300 kN / 300 t
@@ -283,7 +289,7 @@ def test_pattern_start_moves_back_when_the_lowest_adhesion_needs_more_room():
 
 
 def test_sweep_matches_the_stopping_pattern_step():
-    from planner.stops import approach_patterns
+    from planner.stopping.sweep import approach_patterns
 
     line = closed_form_line(TRAINS[:1])
     rep = compute_margins(line, adhesion_kmh_s="3.0:3.5:0.1", approach_m=APPROACH, conflicts=False,
@@ -347,7 +353,7 @@ def test_flag_properties(tmin, extra, loss, thr):
 
 
 def test_rule_checks_and_job_section():
-    from planner.job import MarginsSection
+    from planner.job.config import MarginsSection
 
     r = MarginRule.from_section(MarginsSection(supplement_percent=5.0, tight_threshold_s=8.0))
     assert (r.supplement_percent, r.tight_threshold_s, r.degraded_traction) == (5.0, 8.0, 0.9)

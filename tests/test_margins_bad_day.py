@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from planner.errors import InputError
-from planner.margins import MarginRule, leg_result
+from planner.report.margins import MarginRule, leg_result
 from test_margins import A_DEG, APPROACH, SMALL_GRID, TOL_S, V, closed_form_line, t_degraded
 
 A_LOAD = 300e3 / 400e3  # full load, nominal traction

@@ -8,8 +8,8 @@ from typer.testing import CliRunner
 from linedb import write_line_db
 from planner import load_line
 from planner.cli import app
-from planner.datasets import read_dataset
-from planner.margins import compute_margins
+from planner.io.parquet import read_dataset
+from planner.report.margins import compute_margins
 
 runner = CliRunner()
 
@@ -42,8 +42,8 @@ def test_from_scratch(linedir, tmp_path):
 
 
 def test_reuses_tables_and_closed_loop(linedir, tmp_path):
-    from planner.closed_loop import run_closed_loop, write_closed_loop
-    from planner.tables import build_tables, write_tables
+    from planner.tables.closed_loop import run_closed_loop, write_closed_loop
+    from planner.tables.build import build_tables, write_tables
 
     line = load_line(linedir)
     tdir, cdir = tmp_path / "tables", tmp_path / "cl"

@@ -4,7 +4,7 @@ A jerk limit of 1e-9 km/h/s² makes every stopping pattern impossible. Before,
 every leg of that train type was published with ``infeasible = false``,
 ``tight = false`` and a null margin, so ``where infeasible or tight`` listed
 none of them. Now validation refuses such a limit where it can tell up front
-(the rule in :func:`planner.validate.jerk_allows_a_stop`), and a leg whose
+(the rule in :func:`planner.line.validate.jerk_allows_a_stop`), and a leg whose
 bad-day minimum still cannot be computed is ``unassessed`` with a reason, its
 ``infeasible``/``tight`` null in the dataset, and listed first in the report.
 """
@@ -16,17 +16,17 @@ import math
 import numpy as np
 import pytest
 
-from planner.datasets import read_dataset
+from planner.io.parquet import read_dataset
 from planner.errors import LineValidationError
-from planner.margins import MarginRule, compute_margins, margin_columns, write_margins
-from planner.report import render_html
+from planner.report.margins import MarginRule, compute_margins, margin_columns, write_margins
+from planner.report.html import render_html
 from test_margins import APPROACH, SMALL_GRID, closed_form_line
 
 
 # --- validation: the up-front rule -----------------------------------------------------------------
 def test_min_stop_distance_matches_a_numeric_integration():
     """v sqrt(v/j): deceleration ramped up and down at ±j (triangle), integrated independently."""
-    from planner.validate import min_stop_distance_m
+    from planner.line.validate import min_stop_distance_m
 
     v0, j = 5 / 3.6, 0.3
     T = 2 * math.sqrt(v0 / j)
@@ -47,7 +47,7 @@ def _tiny_with_emu6_jerk(tmp_path, jerk_kmh_s2):
 
 
 def test_validation_refuses_a_jerk_limit_that_makes_every_pattern_impossible(tmp_path):
-    from planner.loader import load_line
+    from planner.line.loader import load_line
 
     with pytest.raises(LineValidationError) as e:
         load_line(_tiny_with_emu6_jerk(tmp_path, 1e-9))

@@ -16,10 +16,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner import testing
+from planner.line import testing
 from planner.errors import InputError, PlannerError
-from planner.model import Call, Edge, Network, Node, Train
-from planner.network import (
+from planner.line.model import Call, Edge, Network, Node, Train
+from planner.network.conflicts import (
     BlockingParams,
     RouteNotFoundError,
     TrackGraph,
@@ -334,7 +334,7 @@ def test_front_time_at_nodes_with_stretch_and_dwell():
 def test_front_leaves_a_stop_at_departure_despite_round_off_where_curves_meet():
     # Two curves that meet at the stop marker 1000 m only up to round-off (1000 + 4.5e-13 and 1000):
     # a stop node at exactly 1000 is still left at the departure (130), not at the arrival (100).
-    from planner.network import Trajectory
+    from planner.network.conflicts import Trajectory
 
     u = np.array([0.0, 1000.0 + 4.5e-13, 1000.0, 2000.0])
     t = np.array([0.0, 100.0, 130.0, 230.0])
@@ -422,8 +422,9 @@ def test_missing_network_is_a_clear_error():
 
 # --- run curves from the simulator
 def test_simulator_curves_pick_the_ratio_that_meets_the_schedule():
-    from planner.network import SimulatorCurves
-    from planner.run_curve import SimSettings, running_time
+    from planner.network.conflicts import SimulatorCurves
+    from planner.physics.track import SimSettings
+    from planner.api import running_time
 
     line = testing.line(length_m=1500.0)
     src = SimulatorCurves(line, ratios=(1.0, 0.8, 0.6), ds_m=5.0)
@@ -448,7 +449,7 @@ def test_sections_are_split_at_the_block_signals_of_their_direction():
     #   block 1 [0, 1000]:    leader [−30, front at 1100 = 55, +5 = 60],   follower [30, 120] → 30 s
     #   block 2 [1000, 2000]: leader [50−30, 100+5] = [20, 105],          follower [80, 165] → 25 s
     # (unsplit it would be one section with [−30, 105] vs [30, 165] → 75 s.)
-    from planner.model import Signal
+    from planner.line.model import Signal
 
     nodes = [("a", "stop", 0.0, "IL1", "S0", "D1"), ("b", "stop", 2000.0, "IL1", "S1", "D1")]
     lead = train("L", "down", [("S0", NAN, 0.0, True), ("S1", 100.0, NAN, True)])
@@ -474,7 +475,7 @@ DWELL_EDGES = edges_between(DWELL_NODES, [("a", "m"), ("m", "c")], "1")
 
 
 def dwell_line(direction="down", others=()):
-    from planner.model import Signal
+    from planner.line.model import Signal
 
     order = ("S0", "S1", "S2") if direction == "down" else ("S2", "S1", "S0")
     t = train("T", direction, [(order[0], NAN, 0.0, True), (order[1], 100.0, 400.0, True),

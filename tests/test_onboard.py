@@ -9,14 +9,21 @@ import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
-from planner.eval_points import EvalPoint
-from planner.onboard import (
-    CHOOSERS, InterpolateRule, NearestRule, RunningTimeTables, chooser, load_tables,
-    make_controller, row_at, solve_ratio,
+from planner.tables.eval_points import EvalPoint
+from planner.tables.onboard import (
+    CHOOSERS,
+    InterpolateRule,
+    NearestRule,
+    RunningTimeTables,
+    chooser,
+    load_tables,
+    make_controller,
+    row_at,
+    solve_ratio,
 )
 from planner.errors import InputError
-from planner.ratios import ratio_grid
-from planner.tables import InterstationTables, write_tables
+from planner.tables.ratios import ratio_grid
+from planner.tables.build import InterstationTables, write_tables
 
 RATIOS = ratio_grid(line_max_speed_ms=100 / 3.6)
 ROUNDOFF_S = 1e-9  # exact arithmetic up to float round-off on ~100 s values
@@ -142,7 +149,7 @@ def test_tables_round_trip_through_parquet(tmp_path):
 def test_adaptive_learns_the_train_and_arrives_exactly(theta, frac):
     """A train slower than the tables by exactly theta x (reference - table), everything affine in
     1/r: after one leg the rule knows theta and its choice at the next point arrives on time."""
-    from planner.onboard import AdaptiveRule
+    from planner.tables.onboard import AdaptiveRule
 
     c = 30.0
     t = synthetic()

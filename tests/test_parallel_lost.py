@@ -26,7 +26,7 @@ import pytest
 
 distributed = pytest.importorskip("dask.distributed")
 
-from planner.parallel import ClusterLostError, backend  # noqa: E402
+from planner.io.parallel import ClusterLostError, backend  # noqa: E402
 
 HANG_GUARD_S = 120.0
 """Only to turn a hang into a failure; the bound under test is LOST_S."""
@@ -198,9 +198,9 @@ def test_nightly_job_with_every_worker_killed_fails_fast_frees_the_lock_and_the_
     """Slow (a whole run of the tiny line for one train type after the failed one; minutes on a loaded machine)."""
     import fcntl
 
-    from planner.job import load_job
-    from planner.pipeline import run_job
-    from planner.publish import latest_run
+    from planner.job.config import load_job
+    from planner.job.pipeline import run_job
+    from planner.job.publish import latest_run
 
     lc, plugin, _ = cluster
     job = load_job(_project(tmp_path, lc.scheduler_address))
@@ -236,8 +236,8 @@ def test_nightly_job_with_every_worker_killed_fails_fast_frees_the_lock_and_the_
 LOCAL_CHILD = textwrap.dedent("""
     import os, sys, time
     from pathlib import Path
-    import planner.pipeline as pipeline
-    from planner.job import load_job
+    import planner.job.pipeline as pipeline
+    from planner.job.config import load_job
 
     marks = Path(sys.argv[2])
 

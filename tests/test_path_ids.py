@@ -1,4 +1,4 @@
-"""Ids that become file names or partition values: one rule (planner.schema.PATH_ID_RE), refused by
+"""Ids that become file names or partition values: one rule (planner.line.schema.PATH_ID_RE), refused by
 `validate` up front and checked again where paths are built; and a station beyond the line's end."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import pyarrow as pa
 import pytest
 
 from planner.errors import BundleError, InputError, JobError, LineValidationError
-from planner.loader import load_line
+from planner.line.loader import load_line
 
 from linedb import default_tables, write_line_db
 
@@ -62,8 +62,8 @@ def test_ids_within_the_rule_load(tmp_path, good):
 
 
 def test_writers_check_again_where_they_build_paths(tmp_path):
-    from planner.bundle import bundle_name
-    from planner.datasets import write_partitioned
+    from planner.bundle.container import bundle_name
+    from planner.io.parquet import write_partitioned
 
     table = pa.table({"line": ["tiny"], "direction": ["down"], "train_type": ["../../x"], "v": [1.0]})
     with pytest.raises(InputError, match="cannot name a file or partition"):
@@ -74,7 +74,7 @@ def test_writers_check_again_where_they_build_paths(tmp_path):
 
 
 def test_a_scenario_name_that_cannot_name_a_partition_is_refused(tmp_path):
-    from planner.job import load_job
+    from planner.job.config import load_job
 
     write_line_db(tmp_path / "lines" / "tiny")
     (tmp_path / "jobs").mkdir()

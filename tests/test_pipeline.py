@@ -19,8 +19,8 @@ import pytest
 from linedb import default_tables, write_line_db
 from planner import load_line
 from planner.errors import PlannerError
-from planner.job import load_job
-from planner.publish import latest_run, list_runs
+from planner.job.config import load_job
+from planner.job.publish import latest_run, list_runs
 
 UNIT_STEPS = ("tables", "stops", "closed_loop")
 N_UNITS = 2 * 2 * 2  # interstations × directions × train types
@@ -59,7 +59,7 @@ def project(tmp_path):
 
 
 def _run(job_path: Path):
-    from planner.pipeline import run_job
+    from planner.job.pipeline import run_job
 
     return run_job(load_job(job_path), show_progress=False)
 
@@ -144,8 +144,8 @@ def test_cold_run_publishes_everything_and_reads_back(project):
         t = ds.dataset(out / "latest" / name, format="parquet", partitioning="hive").to_table(
             columns=["run_id", "run_date"]).to_pandas()
         assert (t.run_id == s.run_id).all() and (t.run_date.astype(str) == manifest["run_date"]).all(), name
-    from planner.bundle import verify_bundle
-    from planner.signing import load_public_key
+    from planner.bundle.container import verify_bundle
+    from planner.bundle.signing import load_public_key
 
     pub = load_public_key(out / "latest" / "bundles" / "signing_key.pub.pem")
     for b in s.bundles:
@@ -212,7 +212,7 @@ def test_one_edited_restriction_recomputes_only_its_interstation(project):
 
 def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> None:
     """The run's `changes` dataset and the report's top section name the edited restriction and the legs it slowed."""
-    from planner.run_curve import running_time
+    from planner.api import running_time
 
     ch = ds.dataset(project / "out" / "latest" / "changes", format="parquet", partitioning="hive").to_table().to_pandas()
     inputs = ch[ch.category == "line_table"]
@@ -246,7 +246,7 @@ def test_failing_step_leaves_latest_untouched(project, monkeypatch):
     job = _job(project)
     first = _run(job)
     before = _tree_digest(project / "out" / first.run_id)
-    import planner.pipeline as pl
+    import planner.job.pipeline as pl
 
     def boom(*a, **k):
         raise PlannerError("bundle step failed on purpose")
@@ -277,7 +277,7 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     """
     import shutil
 
-    from planner.pipeline import KILL_ENV
+    from planner.job.pipeline import KILL_ENV
 
     job = _job(project)
     first = _run(job)
@@ -297,7 +297,7 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
 
     # bundles carry their build time (issue 21): the killed runs and the reference share one
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent), SOURCE_DATE_EPOCH="1767225600")
-    code = ("from planner.job import load_job; from planner.pipeline import run_job; "
+    code = ("from planner.job.config import load_job; from planner.job.pipeline import run_job; "
             f"run_job(load_job({str(job)!r}), show_progress=False)")
     done = 0
     for point in (1, 3, 5, 7, 8, 9):  # 8: after the graph unit, 9: before publishing
@@ -332,8 +332,8 @@ def test_dask_backend_gives_the_same_datasets(project, tmp_path_factory):
 
 
 def test_a_new_signing_key_at_the_same_path_is_a_change(project):
-    from planner.bundle import verify_bundle
-    from planner.signing import generate_keypair, load_public_key
+    from planner.bundle.container import verify_bundle
+    from planner.bundle.signing import generate_keypair, load_public_key
 
     keys = project / "keys"
     generate_keypair(keys)

@@ -5,8 +5,16 @@ import pyarrow as pa
 import pytest
 
 from planner.errors import JobError
-from planner.publish import (
-    Cache, clean_stale_staging, digest, job_lock, latest_run, list_runs, next_run_id, publish, staging_dir,
+from planner.job.publish import (
+    Cache,
+    clean_stale_staging,
+    digest,
+    job_lock,
+    latest_run,
+    list_runs,
+    next_run_id,
+    publish,
+    staging_dir,
 )
 
 

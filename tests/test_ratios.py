@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given, strategies as st
 
 from planner.errors import InputError
-from planner.ratios import DEFAULT_SPEC, FLOOR_MERGE, floor_ratio, ratio_grid
+from planner.tables.ratios import DEFAULT_SPEC, FLOOR_MERGE, floor_ratio, ratio_grid
 
 KMH = 1 / 3.6
 

@@ -8,8 +8,8 @@ import stat
 import pandas as pd
 import pytest
 
-from planner.margins import compute_margins
-from planner.report import render_html, stop_markers, write_html
+from planner.report.margins import compute_margins
+from planner.report.html import render_html, stop_markers, write_html
 from test_margins import APPROACH, closed_form_line
 
 

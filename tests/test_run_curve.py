@@ -8,13 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from planner import testing
+from planner.line import testing
 from planner.errors import InfeasibleError, InputError
-from planner.model import G
-from planner.run_curve import (
-    PHASE_BRAKE, PHASE_HOLD, PHASE_POWER, PHASE_STOP, RunState, SimSettings, make_track, simulate,
-)
-from planner.units import KMH, KMH_S
+from planner.line.model import G
+from planner.physics.run_curve import PHASE_BRAKE, PHASE_HOLD, PHASE_POWER, PHASE_STOP, RunState, simulate
+from planner.physics.track import SimSettings, make_track
+from planner.line.units import KMH, KMH_S
 
 TOL_S = 0.05
 """Acceptance: running times within 0.05 s of the closed form (DESIGN §2)."""

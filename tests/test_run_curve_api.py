@@ -9,11 +9,12 @@ import pytest
 from typer.testing import CliRunner
 
 import planner
-from planner import testing
+from planner.line import testing
 from planner.cli import app as cli_app
 from planner.errors import InputError
-from planner.run_curve import PHASE_NAMES, make_track, simulate
-from planner.units import KMH
+from planner.physics.run_curve import PHASE_NAMES, simulate
+from planner.physics.track import make_track
+from planner.line.units import KMH
 
 SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 
@@ -65,7 +66,9 @@ def test_running_time_from_a_path(monkeypatch, tmp_path):
         seen.append(path)
         return line
 
-    monkeypatch.setattr(planner, "load_line", fake_load)
+    import planner.line.loader
+
+    monkeypatch.setattr(planner.line.loader, "load_line", fake_load)
     res = planner.running_time(tmp_path, "T", "S0", "S1")
     assert seen == [tmp_path] and res.time_s > 0
 

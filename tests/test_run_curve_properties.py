@@ -7,8 +7,9 @@ them; ``TOL_V`` is far below anything physical but above that round-off.
 import numpy as np
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from planner import testing
-from planner.run_curve import PHASE_COAST, SAWTOOTH_MIN_FRACTION, make_track, simulate
+from planner.line import testing
+from planner.physics.run_curve import PHASE_COAST, SAWTOOTH_MIN_FRACTION, simulate
+from planner.physics.track import make_track
 
 TOL_V = 1e-6
 """Speed above the ceiling allowed for round-off [m/s]."""

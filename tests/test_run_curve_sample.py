@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import planner
-from planner.run_curve import SimSettings, make_track, simulate
+from planner.physics.track import SimSettings, make_track
+from planner.physics.run_curve import simulate
 
 TOL_S = 0.05
 """Acceptance (DESIGN §2): halving the step changes no running time by more than 0.05 s."""

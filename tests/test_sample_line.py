@@ -375,7 +375,7 @@ def test_running_time_margins_against_the_simulator(db):
     KWB->HGO down (1.5 %, 0 s) and OHS->TKD up (0 %, 10 s)."""
     planner = pytest.importorskip("planner")
     try:
-        from planner.run_curve import running_time  # noqa: F401
+        from planner.api import running_time  # noqa: F401
     except ImportError:
         pytest.skip("run-curve simulator not available")
     rule = {("KWB", "HGO"): (1.5, 0.0), ("OHS", "TKD"): (0.0, 10.0)}  # README.md, "Running times"

@@ -4,8 +4,8 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from planner.cli import app
-from planner.schema import TABLES
-from planner.schema_doc import DOC_PATH, line_database_doc
+from planner.line.schema import TABLES
+from planner.line.schema_doc import DOC_PATH, line_database_doc
 
 ROOT = Path(__file__).resolve().parents[1]
 

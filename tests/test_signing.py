@@ -1,4 +1,4 @@
-"""Ed25519 key files and signatures (planner.signing)."""
+"""Ed25519 key files and signatures (planner.bundle.signing)."""
 from __future__ import annotations
 
 import os
@@ -9,7 +9,7 @@ from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from cryptography.hazmat.primitives.asymmetric.rsa import generate_private_key
 
-from planner import signing
+from planner.bundle import signing
 from planner.errors import BundleError
 
 

@@ -1,13 +1,14 @@
-"""On-board maximum speed profile and braking curves (planner.speed_profile)."""
+"""On-board maximum speed profile and braking curves (planner.physics.speed_profile)."""
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from planner import speed_profile, testing
+from planner.physics import speed_profile
+from planner.line import testing
 from planner.errors import InfeasibleError
-from planner.model import SpeedLimit
-from planner.run_curve import make_track
-from planner.units import KMH
+from planner.line.model import SpeedLimit
+from planner.physics.track import make_track
+from planner.line.units import KMH
 
 
 def test_restriction_held_until_tail_clears_down_and_up():

@@ -8,11 +8,7 @@ import numpy as np
 import pytest
 
 from planner.errors import InfeasibleError, InputError
-from planner.stopping import (
-    StopPattern,
-    decel_limit_profile,
-    solve_stop,
-)
+from planner.stopping.pattern import StopPattern, decel_limit_profile, solve_stop
 
 # Tolerances. The solver is exact (closed-form pieces, roots solved to machine
 # precision), so its own checks use round-off sized tolerances; the 1e-3 s

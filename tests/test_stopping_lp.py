@@ -29,7 +29,7 @@ scipy_optimize = pytest.importorskip("scipy.optimize")
 from scipy.optimize import Bounds, LinearConstraint, milp  # noqa: E402
 from scipy.sparse import lil_matrix  # noqa: E402
 
-from planner.stopping import solve_stop  # noqa: E402
+from planner.stopping.pattern import solve_stop  # noqa: E402
 
 
 def _steps(steps, x_stop):

@@ -18,7 +18,7 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
-from planner.stopping import solve_stop
+from planner.stopping.pattern import solve_stop
 
 # Tolerances: limits are met with equality at touch points, so the dense-sample
 # checks allow round-off only (patterns are exact cubics evaluated in float64).

@@ -1,6 +1,6 @@
 """Stopping patterns for every station approach: set-up from the line, the adhesion sweep, datasets, CLI.
 
-The small in-memory lines use the default test train of ``planner.testing``:
+The small in-memory lines use the default test train of ``planner.line.testing``:
 300 kN constant effort on 300 t, no resistance, no rotating mass, so it
 accelerates at exactly 1 m/s² (the 100 km/h/s cap never binds) and the run's
 speed at running distance s is ``sqrt(2 s)`` until the 100 km/h line maximum;
@@ -19,10 +19,10 @@ import pyarrow.dataset as pads
 import pytest
 from typer.testing import CliRunner
 
-from planner import testing
+from planner.line import testing
 from planner.errors import InputError, UnknownNameError
-from planner.model import Beacon
-from planner.stops import (
+from planner.line.model import Beacon
+from planner.stopping.sweep import (
     DEFAULT_ADHESION_KMH_S,
     STOP_SAMPLES_SCHEMA,
     STOP_SUMMARY_SCHEMA,
@@ -34,7 +34,7 @@ from planner.stops import (
     stop_sweep,
     write_stops,
 )
-from planner.units import KMH, KMH_S
+from planner.line.units import KMH, KMH_S
 
 from linedb import write_line_db
 
@@ -146,7 +146,7 @@ def test_speed_limits_and_gradients_over_the_approach_both_directions():
     # (x = 350: -15), front at 750 (x = 400: -15), front at 800 (x = 450: half on -15 = -7.5), tail
     # at 750 (x = 500: half on +5 = +2.5), marker (x = 550: +5). Each linear piece at its smaller end
     # value: 0 | -15 over 250-450 | -7.5 | +2.5
-    from planner.approach import gradient_steps
+    from planner.stopping.approach import gradient_steps
 
     assert gradient_steps(line, 100.0, "down", 350.0, 550.0, slice_m=math.inf) == [
         (0.0, 0.0), (250.0, -15.0), (450.0, -7.5), (500.0, 2.5)]
@@ -242,7 +242,7 @@ def test_bad_inputs():
 # --------------------------------------------------------------------------------------
 
 
-@pytest.mark.filterwarnings("ignore::planner.stops.InfeasibleStopWarning")
+@pytest.mark.filterwarnings("ignore::planner.stopping.sweep.InfeasibleStopWarning")
 def test_sweep_order_is_deterministic_and_independent_of_n_jobs():
     line = line_b()
     one = stop_sweep(line, adhesion_kmh_s="2.5:3.5:0.5", n_jobs=1)
@@ -255,7 +255,7 @@ def test_sweep_order_is_deterministic_and_independent_of_n_jobs():
                                   [p.duration_s for r in two for p in r.patterns])  # NaN where infeasible
 
 
-@pytest.mark.filterwarnings("ignore::planner.stops.InfeasibleStopWarning")
+@pytest.mark.filterwarnings("ignore::planner.stopping.sweep.InfeasibleStopWarning")
 def test_datasets_read_back_with_hive_partitioning(tmp_path):
     results = stop_sweep(line_b(), adhesion_kmh_s="2.75:3.25:0.25", n_jobs=1)
     files = write_stops(results, tmp_path)
@@ -347,7 +347,7 @@ def test_sample_line_takadai_down(sample_sweep, tmp_path):
         assert tkd[t].v_start_ms * 3.6 == pytest.approx(67.0, abs=1e-9)
     assert 60.0 - 1e-6 <= tkd["E6"].v_start_ms * 3.6 <= 65.0 + 1e-6
     # the gradient steps bound the train-averaged gradient from below, and touch it on every piece
-    from planner import dynamics
+    from planner.physics import dynamics
 
     line = sample_sweep[0]
     r = tkd["E10"]
@@ -435,7 +435,7 @@ def test_one_approach_start_for_stops_and_margins():
     """Issue 14, defect 6: the stopping sweep and the margin report start the approach at the
     same place, also where the fixed approach reaches back beyond the middle of the leg
     (900 m leg, 550 m approach: 350 m after the departure marker)."""
-    from planner.margins import leg_result
+    from planner.report.margins import leg_result
 
     line = line_a()
     r = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2[:1])
@@ -448,8 +448,8 @@ def test_one_approach_start_for_stops_and_margins():
 def sample_brake_demand(sample_sweep):
     """Per feasible pattern of the sample-line sweep: the largest brake demand over the limit [m/s²],
     re-simulated with the run-curve force model (gradient averaged over the train, g/(1 + ρ))."""
-    from planner import dynamics
-    from planner.model import sign
+    from planner.physics import dynamics
+    from planner.line.model import sign
 
     line, results, _ = sample_sweep
     over = []

@@ -10,12 +10,13 @@ import pyarrow.parquet as pq
 import pytest
 
 import planner
-from planner import testing
-from planner.datasets import read_dataset
-from planner.model import Beacon
-from planner.ratios import ratio_grid
-from planner.run_curve import make_track, simulate
-from planner.tables import TABLE_B_SCHEMA, build_tables, interstation_tables, write_tables
+from planner.line import testing
+from planner.io.parquet import read_dataset
+from planner.line.model import Beacon
+from planner.tables.ratios import ratio_grid
+from planner.physics.track import make_track
+from planner.physics.run_curve import simulate
+from planner.tables.build import TABLE_B_SCHEMA, build_tables, interstation_tables, write_tables
 
 from linedb import write_line_db
 
@@ -196,7 +197,7 @@ def test_tiny_line_db_from_disk(tmp_path):
 def _last_states(ln, t):
     """Speed and powering flag of the table train at the last point at each grid ratio, from an
     independent recorded run (not the table build's snapshots)."""
-    from planner.run_curve import PHASE_POWER
+    from planner.physics.run_curve import PHASE_POWER
 
     track = make_track(ln, t.train_type, t.origin, t.destination, nodes_m=[p.s_m for p in t.points])
     rec = simulate(track, ln.train_type(t.train_type), t.ratios, record=True)
@@ -243,8 +244,8 @@ def test_table_d_at_the_table_trains_own_state_reproduces_table_b(hilly):
 def _off_kinks(ap, v: float, powering: bool) -> np.ndarray:
     """Columns of table (d) with no kink within one speed step of ``v``: the ratio's target,
     and, not powering, the coasting band's lower edge (where the time jumps)."""
-    from planner.run_curve import SAWTOOTH_MIN_FRACTION
-    from planner.tables import APPROACH_SPEED_STEP_MS
+    from planner.physics.run_curve import SAWTOOTH_MIN_FRACTION
+    from planner.tables.build import APPROACH_SPEED_STEP_MS
 
     target = ap.ratios * ap.vmax_ms
     far = np.abs(target - v) > 1.01 * APPROACH_SPEED_STEP_MS
@@ -256,7 +257,7 @@ def _off_kinks(ap, v: float, powering: bool) -> np.ndarray:
 
 def test_table_d_speed_interpolation_converges(hilly):
     """Refinement: halving the speed step barely moves table (d) at speeds between the nodes."""
-    from planner import tables as tables_mod
+    from planner.tables import build as tables_mod
 
     ln, results = hilly
     t = next(r for r in results if r.approach is not None and r.direction == "down")
@@ -285,7 +286,7 @@ def test_table_d_speed_interpolation_converges(hilly):
 
 
 def test_table_d_round_trip_through_the_datasets(hilly, tmp_path):
-    from planner.onboard import load_tables
+    from planner.tables.onboard import load_tables
 
     ln, results = hilly
     write_tables(results, tmp_path)

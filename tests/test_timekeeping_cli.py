@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from planner import testing
+from planner.line import testing
 from planner.cli import app
 from planner.cli.timekeeping import parse_change, simulate_timekeeping_cli
 from planner.errors import InputError

@@ -8,15 +8,13 @@ import numpy as np
 import pytest
 
 import planner
-from planner import dynamics, testing
+from planner.physics import dynamics
+from planner.line import testing
 from planner.errors import InputError
-from planner.run_curve import SimSettings, make_track, simulate
-from planner.timekeeping import (
-    ADVICE_NAMES,
-    cruise_speed_limited,
-    drive,
-    timekeeping_run,
-)
+from planner.physics.track import SimSettings, make_track
+from planner.physics.run_curve import simulate
+from planner.api import timekeeping_run
+from planner.tables.timekeeping import ADVICE_NAMES, cruise_speed_limited, drive
 
 ARRIVAL_TOL_S = 0.2
 """Issue 10: arrival within 0.2 s of the (changed) schedule."""
@@ -110,7 +108,7 @@ def test_onboard_logic_plans_with_its_nominal_model_and_learns_the_real_train(li
 
 def test_learned_traction_factor_is_the_real_trains(line1k_davis):
     """On level track the fitted θ is F_real/F_model × M_e,model/M_e,real, up to resistance (small here)."""
-    from planner.timekeeping import TimekeepingController
+    from planner.tables.timekeeping import TimekeepingController
 
     tr = make_track(line1k_davis, "R", "S0", "S1")
     train = line1k_davis.train_type("R")

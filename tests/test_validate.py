@@ -12,8 +12,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from planner.errors import LineValidationError, Violation
-from planner.loader import check_line, load_line
-from planner.validate import format_violations
+from planner.line.loader import check_line, load_line
+from planner.line.validate import format_violations
 
 from linedb import default_tables, to_arrow, write_line_db
 

@@ -7,7 +7,7 @@ from typing import Optional
 import typer
 
 from ..errors import PlannerError
-from ..signing import ENV_SIGNING_KEY
+from planner.bundle.signing import ENV_SIGNING_KEY
 from . import app
 
 keys_app = typer.Typer(help="Ed25519 signing keys for on-board DB bundles.", no_args_is_help=True)
@@ -26,7 +26,7 @@ def keys_generate(
     directory: Path = typer.Argument(..., help="Folder for signing_key.pem (mode 0600) and signing_key.pub.pem."),
 ) -> None:
     """Write a new Ed25519 key pair; never overwrites an existing key."""
-    from ..signing import generate_keypair
+    from planner.bundle.signing import generate_keypair
     from .checks import check_out_dir
 
     try:
@@ -62,8 +62,8 @@ def bundle_build(
     """Build one signed bundle per direction x train type of a line."""
     from rich.progress import Progress
 
-    from ..bundle import Release, build_line, parse_time
-    from ..loader import load_line
+    from planner.bundle.container import Release, build_line, parse_time
+    from planner.line.loader import load_line
 
     from .checks import check_out_dir, train_type_codes
 
@@ -93,7 +93,7 @@ def bundle_build(
 
 def rebuild_advice(missing) -> str:
     """What fixes exactly these missing tables: the build option whose folder provides each."""
-    from ..bundle import TABLE_SOURCES
+    from planner.bundle.container import TABLE_SOURCES
 
     step = {"tables": "`planner tables LINE --out DIR`", "stops": "`planner stops LINE --out DIR`"}
     parts = []
@@ -118,7 +118,7 @@ def bundle_verify(
                                           help="Also fail when expected tables are missing."),
 ) -> None:
     """Check signature, key id, target, key kind, version, expiry, hashes, schema and consistency."""
-    from ..bundle import verify_bundle
+    from planner.bundle.container import verify_bundle
     from ..errors import BundleError
 
     try:

@@ -1,7 +1,7 @@
 """`planner cache verify|clear TARGET`: check or empty the nightly job's work cache.
 
 TARGET is a job file (its ``[job] output_root`` is used) or an output root
-folder; the cache is ``OUTPUT_ROOT/.cache`` (see :mod:`planner.cache`).
+folder; the cache is ``OUTPUT_ROOT/.cache`` (see :mod:`planner.job.cache`).
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ def _root(target: Path) -> Path:
     from ..errors import InputError
 
     if target.is_file():
-        from ..job import load_job
+        from planner.job.config import load_job
 
         job = load_job(target)
         return job.resolve(job.job.output_root)
@@ -37,8 +37,8 @@ def verify(
                                     help="Delete entries that fail and files that are not entries."),
 ) -> None:
     """Check every entry (name, kind, key, payload digest, decoding) as a run would; exit 1 if any fails."""
-    from ..cache import Cache
-    from ..publish import job_lock, output_root_errors
+    from planner.job.cache import Cache
+    from planner.job.publish import job_lock, output_root_errors
 
     root = _root(target)
     cache = Cache(root / ".cache")
@@ -63,8 +63,8 @@ def verify(
 @cache_app.command("clear")
 def clear(target: Path = typer.Argument(..., help="Job file (TOML) or output root folder.")) -> None:
     """Delete the whole cache (the next run recomputes everything); published runs are not touched."""
-    from ..cache import Cache
-    from ..publish import job_lock, output_root_errors
+    from planner.job.cache import Cache
+    from planner.job.publish import job_lock, output_root_errors
 
     root = _root(target)
     cache = Cache(root / ".cache")

@@ -26,7 +26,7 @@ def conflicts(
 
     from .. import load_line
     from ..errors import InputError
-    from ..network import BlockingParams, SimulatorCurves, check_conflicts, write_conflicts
+    from planner.network.conflicts import BlockingParams, SimulatorCurves, check_conflicts, write_conflicts
 
     from .checks import check_jobs, check_out_dir
 
@@ -34,7 +34,7 @@ def conflicts(
     check_jobs(jobs)
     table: dict = {}
     if job is not None:
-        from ..job import load_job
+        from planner.job.config import load_job
 
         j = load_job(job)
         if not j.conflicts.enabled:

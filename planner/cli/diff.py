@@ -17,8 +17,8 @@ def diff(
     out: Optional[Path] = typer.Option(None, "--out", help="Also write the changes dataset and an HTML page here."),
 ) -> None:
     """Compare two runs line by line: changed inputs, and legs, flags, conflicts and bundles they changed."""
-    from ..atomic import write_bytes_atomic
-    from ..changes import changes_html, compare_runs, write_changes
+    from planner.io.atomic import write_bytes_atomic
+    from planner.report.changes import changes_html, compare_runs, write_changes
 
     result = compare_runs(run_a, run_b, threshold_s=threshold_s)
     for ch in result:

@@ -22,9 +22,9 @@ def graph(
 ) -> None:
     """Draw every train from its predicted run: charts per direction and both, and a page to zoom and hover."""
     from .. import load_line
-    from ..changes import read_line_dataset, path_id, read_manifest
+    from planner.report.changes import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
-    from ..graph import draw_chart, graph_data, parse_hhmm, write_page
+    from planner.report.train_graph import draw_chart, graph_data, parse_hhmm, write_page
 
     if fmt not in ("svg", "png"):
         raise InputError(f"--format must be svg or png, not {fmt!r}")

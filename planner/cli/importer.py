@@ -44,7 +44,7 @@ def import_csv_cmd(
                                                            "templates (one CSV per table) into this folder."),
 ) -> None:
     """Import a line from CSV files with the same columns as the Parquet tables (units in the header)."""
-    from ..importers.csv import import_csv, write_templates
+    from planner.line.importers.csv import import_csv, write_templates
 
     if template is not None:
         for p in write_templates(template):
@@ -71,7 +71,7 @@ def import_railjson_cmd(
     force: bool = _FORCE,
 ) -> None:
     """Import the line along the named operational points of an OSRD railjson infrastructure."""
-    from ..importers.railjson import import_railjson
+    from planner.line.importers.railjson import import_railjson
 
     ops = [p.strip() for p in path.split(",") if p.strip()]
     _report(import_railjson(infra, ops, rolling_stock, _need_out(out), extra=extra, line_id=line_id,
@@ -90,7 +90,7 @@ def import_railml_cmd(
     force: bool = _FORCE,
 ) -> None:
     """Import a railML 2.x line: tracks, gradient and speed changes, signals, balises, OCPs."""
-    from ..importers.railml import import_railml
+    from planner.line.importers.railml import import_railml
 
     _report(import_railml(file, line, rolling_stock, _need_out(out), extra=extra, force=force))
 
@@ -101,7 +101,7 @@ def export_csv_cmd(
     out: Path = typer.Option(..., "--out", help="Folder to write <table>.csv into."),
 ) -> None:
     """Write every table of a line database as CSV (what `planner import csv` reads back identically)."""
-    from ..importers.csv import export_csv
+    from planner.line.importers.csv import export_csv
 
     for p in export_csv(line_dir, out):
         typer.echo(f"wrote {p}")

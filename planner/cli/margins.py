@@ -43,9 +43,15 @@ def margins(
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
 ) -> None:
     """Margin-time report: minimum, scheduled and bad-day running time of every leg, flags, totals, HTML page."""
-    from ..loader import load_line
-    from ..margins import DEFAULT_ADHESION_KMH_S, DEFAULT_APPROACH_M, MarginRule, compute_margins, write_margins
-    from ..report import write_html
+    from planner.line.loader import load_line
+    from planner.report.margins import (
+        DEFAULT_ADHESION_KMH_S,
+        DEFAULT_APPROACH_M,
+        MarginRule,
+        compute_margins,
+        write_margins,
+    )
+    from planner.report.html import write_html
     from .tables import _fail, _progress
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_code, train_type_codes
@@ -57,7 +63,7 @@ def margins(
             DEFAULT_APPROACH_M, None, 200.0, None
         interval = 0.0
         if job is not None:
-            from ..job import load_job
+            from planner.job.config import load_job
 
             j = load_job(job)
             rule = MarginRule.from_section(j.margins)

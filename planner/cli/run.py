@@ -17,8 +17,8 @@ def run(
                                        "if nothing changed (fresh entries replace the old ones)."),
 ) -> None:
     """Validate, build tables, stopping patterns, closed loop, margins, bundles and conflicts; publish atomically."""
-    from ..job import load_job
-    from ..pipeline import run_job
+    from planner.job.config import load_job
+    from planner.job.pipeline import run_job
 
     job = load_job(job_file)
     s = run_job(job, show_progress=progress, use_cache=not no_cache)

@@ -53,7 +53,7 @@ def plot_run_curve(result, path: Path) -> None:
         f"ratio {result.ratio:.0%}, load {result.load:.0%}, traction ×{result.traction_factor:g}\n"
         f"running time {result.time_s:.1f} s, traction energy {result.energy_kwh:.1f} kWh", fontsize=10)
     fig.subplots_adjust(left=0.08, right=0.91, top=0.88, bottom=0.22)
-    from ..atomic import save_png
+    from planner.io.atomic import save_png
 
     save_png(fig, path)
 
@@ -72,8 +72,9 @@ def runtime(
     ds: float = typer.Option(1.0, "--ds", help="Integration distance step in metres."),
 ) -> None:
     """Running time (and traction energy) between two stations at a target-speed ratio."""
-    from ..loader import load_line
-    from ..run_curve import SimSettings, running_time
+    from planner.line.loader import load_line
+    from planner.physics.track import SimSettings
+    from planner.api import running_time
     from .checks import check_fraction, check_out_file, station_code, train_type_code
 
     if not 0.0 < ratio <= 1.0:

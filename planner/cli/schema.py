@@ -14,8 +14,8 @@ def schema_cmd(
                                                      "instead of printing it."),
 ) -> None:
     """Print the line-database schema: every table, column, unit and validation rule."""
-    from ..atomic import write_bytes_atomic
-    from ..schema_doc import line_database_doc
+    from planner.io.atomic import write_bytes_atomic
+    from planner.line.schema_doc import line_database_doc
 
     text = line_database_doc()
     if write is None:

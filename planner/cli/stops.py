@@ -36,8 +36,14 @@ def stops(
     """Solve minimum-time jerk-limited stopping patterns for every station approach and adhesion level."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from ..loader import load_line
-    from ..stops import InfeasibleStopWarning, adhesion_levels, plot_approach, stop_sweep, write_stops
+    from planner.line.loader import load_line
+    from planner.stopping.sweep import (
+        InfeasibleStopWarning,
+        adhesion_levels,
+        plot_approach,
+        stop_sweep,
+        write_stops,
+    )
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_codes
 

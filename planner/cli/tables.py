@@ -23,7 +23,7 @@ BUILTIN_MODES = ("nearest", "interpolate", "adaptive", "timekeeping")
 
 def all_modes() -> list[str]:
     """Every mode `planner simulate --mode` accepts: the built-in ones, then registered ones."""
-    from ..closed_loop import modes
+    from planner.tables.closed_loop import modes
 
     return list(BUILTIN_MODES) + [m for m in modes() if m not in BUILTIN_MODES]
 
@@ -69,8 +69,8 @@ def tables(
     Evaluation points: the departure, the point after departure (--after-departure), the flagged
     beacons and, with --eval-interval, odometer points at that regular interval.
     """
-    from ..loader import load_line
-    from ..tables import build_tables, write_tables
+    from planner.line.loader import load_line
+    from planner.tables.build import build_tables, write_tables
     from .checks import check_jobs, check_out_dir, train_type_codes
 
     try:
@@ -112,7 +112,7 @@ def simulate(
                              "(interpolate + learns the train's deviation from the tables), timekeeping "
                              "(cruise speed from the remaining time and distance, DESIGN §4; one interstation "
                              "with arrival changes: `planner timekeeping`); modes registered with "
-                             "planner.closed_loop.register_mode are accepted too."),
+                             "planner.tables.closed_loop.register_mode are accepted too."),
     train_type: Optional[list[str]] = typer.Option(None, "--train-type", help="Train type (repeatable)."),
     extra_s: float = typer.Option(60.0, "--extra", help="Sweep designated times up to minimum + this [s]."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
@@ -120,8 +120,8 @@ def simulate(
     """Closed loop: the on-board logic (its nominal model) drives the real train (the scenario)
     against designated running times from the minimum to the minimum + --extra; reports arrival
     and stop errors."""
-    from ..closed_loop import overall, run_closed_loop, write_closed_loop
-    from ..loader import load_line
+    from planner.tables.closed_loop import overall, run_closed_loop, write_closed_loop
+    from planner.line.loader import load_line
     from .checks import check_jobs, check_out_dir, train_type_codes
 
     known = all_modes()

@@ -55,7 +55,7 @@ def advice_segments(curve) -> list[dict]:
 
 
 def summary(result, *, line_id: str, train_type: str, origin: str, destination: str) -> dict:
-    """A JSON-ready, deterministic summary of a :class:`planner.timekeeping.TimekeepingResult`."""
+    """A JSON-ready, deterministic summary of a :class:`planner.api.TimekeepingResult`."""
     def r(x, nd=3):
         return None if x is None or not math.isfinite(float(x)) else round(float(x), nd)
 
@@ -106,7 +106,7 @@ def write_plot(result, path: Path, title: str) -> Path:
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=8, ncol=6, frameon=False)
     ax.grid(True, alpha=0.3)
     fig.subplots_adjust(left=0.09, right=0.98, top=0.92, bottom=0.24)
-    from ..atomic import save_png
+    from planner.io.atomic import save_png
 
     return save_png(fig, path)
 
@@ -116,7 +116,7 @@ def simulate_timekeeping_cli(line, train_type: str, origin: str, destination: st
                              json: bool = False, plot: Optional[Path] = None):
     """What ``planner simulate --mode timekeeping`` and ``planner timekeeping`` do.
 
-    Runs :func:`planner.timekeeping.timekeeping_run` and prints a short summary
+    Runs :func:`planner.api.timekeeping_run` and prints a short summary
     (or, with ``json``, the :func:`summary` as JSON on stdout). A scheduled
     arrival that cannot be met raises :class:`planner.errors.InfeasibleError` (after the output) with the
     shortfall. Domain errors propagate as :class:`planner.errors.PlannerError`
@@ -139,10 +139,10 @@ def simulate_timekeeping_cli(line, train_type: str, origin: str, destination: st
 
     Returns
     -------
-    planner.timekeeping.TimekeepingResult
+    planner.api.TimekeepingResult
     """
-    from ..model import Line
-    from ..timekeeping import timekeeping_run
+    from planner.line.model import Line
+    from planner.api import timekeeping_run
 
     parsed = [parse_change(c) for c in (changes or ())]
     if isinstance(line, Line):
@@ -204,7 +204,7 @@ def timekeeping(
 
     Exits 1 (after printing the run) when the scheduled arrival cannot be met.
     """
-    from ..loader import load_line
+    from planner.line.loader import load_line
     from .checks import check_fraction, check_out_file, station_code, train_type_code
 
     try:

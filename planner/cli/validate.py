@@ -6,9 +6,9 @@ from pathlib import Path
 import typer
 
 from ..errors import LineValidationError, PlannerError
-from ..model import Line
-from ..units import kmh
-from ..validate import format_violations
+from planner.line.model import Line
+from planner.line.units import kmh
+from planner.line.validate import format_violations
 from . import app
 
 
@@ -41,7 +41,7 @@ def validate(
     line_dir: Path = typer.Argument(..., help="Line database folder (holds line.parquet, stations.parquet, ...)."),
 ) -> None:
     """Check a line database against docs/line-database.md (`planner schema`); print a summary (exit 0) or every problem (exit 1)."""
-    from ..loader import load_line
+    from planner.line.loader import load_line
 
     try:
         line = load_line(line_dir)

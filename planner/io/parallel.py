@@ -1,0 +1,235 @@
+"""Where parallel work runs: local joblib (loky) processes, or a Dask cluster.
+
+Workers are plain module-level functions with small picklable arguments, so
+the same :meth:`Pool.imap` call runs on either backend, and results come back
+in submission order: outputs do not depend on the backend.
+
+Failure behaviour (issue 21):
+
+* **Dask cluster lost.** joblib's dask backend waits for workers without end:
+  with every worker killed a run hung for 900 s holding the job lock. The Dask
+  pool therefore submits futures itself (``client.submit``) and, while it waits
+  for a result, asks the scheduler how many workers it has. When the cluster
+  has had no workers, or the scheduler has not answered, for
+  ``lost_timeout_s`` (job file ``[parallel] dask_lost_timeout_s``), or the
+  scheduler cancels the work, it raises a one-line :class:`ClusterLostError`
+  saying how many units finished: each finished unit is already in the cache,
+  so the next run resumes from them. The caller's ``with`` blocks (the job
+  lock among them) unwind normally, so the lock is released.
+* **Main process killed.** loky workers are separate processes that would
+  idle for minutes (loky's idle timeout) after a SIGKILL of the main process.
+  Each worker runs :func:`_exit_with_parent` at start: a daemon thread that
+  ends the worker within :data:`PARENT_POLL_S` once its parent is gone.
+"""
+from __future__ import annotations
+
+import os
+import threading
+import time
+from contextlib import contextmanager
+from typing import Any, Callable, Iterator, Sequence
+
+import joblib
+
+from planner.errors import JobError
+
+PARENT_POLL_S = 0.5
+"""How often a local worker checks that the main process is alive [s]."""
+
+
+class ClusterLostError(JobError):
+    """The Dask cluster went away (no workers, or no scheduler) for longer than the configured bound."""
+
+    key = "job.cluster_lost"
+
+
+def _exit_with_parent() -> None:
+    """loky worker initializer: exit as soon as the process that started this worker is gone.
+
+    Polls ``os.getppid()``: when the parent dies the worker is re-parented (to
+    init or a subreaper) and the id changes. Polling is used rather than
+    ``PR_SET_PDEATHSIG`` because that signal fires when the *thread* that forked
+    the worker ends, which in loky may be a manager thread, not the process.
+    """
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="planner-exit-with-parent", daemon=True).start()
+
+
+class Pool:
+    """Runs ``fn(*args)`` for each args tuple, results in submission order."""
+
+    n_jobs: int = 1
+
+    def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
+        raise NotImplementedError
+
+
+class LocalPool(Pool):
+    def __init__(self, n_jobs: int):
+        self.n_jobs = n_jobs
+
+    def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
+        from joblib import Parallel, delayed
+
+        return Parallel(n_jobs=self.n_jobs, return_as="generator")(delayed(fn)(*a) for a in arglist)
+
+
+class DaskPool(Pool):
+    """Futures on a ``dask.distributed`` client, with a bounded wait when the cluster is lost."""
+
+    n_jobs = -1
+
+    def __init__(self, client, scheduler: str, lost_timeout_s: float):
+        self.client = client
+        self.scheduler = scheduler
+        self.lost_timeout_s = float(lost_timeout_s)
+        self.poll_s = min(1.0, self.lost_timeout_s / 4.0)
+        self.ask_s = min(5.0, self.lost_timeout_s / 4.0)  # a busy scheduler may take a moment to answer
+
+    def _workers(self) -> int | None:
+        """Workers the scheduler has now, or None when it does not answer within ``ask_s``."""
+        try:
+            info = self.client.sync(self.client.scheduler.identity, n_workers=-1, callback_timeout=self.ask_s)
+        except Exception:  # noqa: BLE001 - any failure to get an answer means: no scheduler right now
+            return None
+        return len(info.get("workers", {}))
+
+    def _lost(self, done: int, total: int, why: str) -> ClusterLostError:
+        resume = (f"the {done} finished unit(s) are cached, so the next run resumes from them"
+                  if done else "no unit of this step finished; earlier steps' units are cached")
+        return ClusterLostError(f"dask cluster {self.scheduler} lost: {why}; {done} of {total} unit(s) of this step "
+                                f"done; {resume}; check the cluster, then run again")
+
+    def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
+        from concurrent.futures import CancelledError
+
+        from distributed import KilledWorker
+
+        total = len(arglist)
+        try:
+            futures = [self.client.submit(fn, *a, pure=False) for a in arglist]
+        except Exception as e:  # noqa: BLE001 - the scheduler went away between connect and submit
+            raise self._lost(0, total, f"cannot submit work ({type(e).__name__}: {e})") from None
+        done = 0
+        try:
+            for fut in futures:
+                lost_since: float | None = None
+                while True:
+                    try:
+                        res = fut.result(timeout=self.poll_s)
+                        break
+                    except TimeoutError:
+                        pass
+                    except CancelledError:  # includes distributed's FutureCancelledError
+                        raise self._lost(done, total, "the scheduler cancelled the work (scheduler gone or "
+                                                      "restarted)") from None
+                    except KilledWorker as e:
+                        raise self._lost(done, total, f"workers died running one unit ({e}); the unit may "
+                                                      "need more memory than a worker has") from None
+                    n = self._workers()
+                    if n:
+                        lost_since = None
+                        continue
+                    lost_since = time.monotonic() if lost_since is None else lost_since
+                    if time.monotonic() - lost_since >= self.lost_timeout_s:
+                        what = "no scheduler answer" if n is None else "no workers"
+                        raise self._lost(done, total, f"{what} for {self.lost_timeout_s:g} s "
+                                                      "([parallel] dask_lost_timeout_s)") from None
+                done += 1
+                yield res
+        finally:
+            if done < total:
+                try:
+                    self.client.cancel(futures[done:], asynchronous=False)
+                except Exception:  # noqa: BLE001 - best effort: the cluster may be gone
+                    pass
+
+
+def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
+              progress: Callable[[int, int], None] | None = None) -> list:
+    """``[fn(*t) for t in tasks]``, in parallel: the one parallel map of the planner.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (it is pickled to the workers).
+    tasks : sequence of tuple
+        The positional arguments of each call; keep them small (a task's
+        arguments are pickled to its worker).
+    n_jobs : int
+        Worker processes; 1 runs in this process (no pickling), -1 all cores.
+        Inside :func:`backend` the backend's workers are used.
+    progress : callable ``(done, total)``, optional
+        Called with ``(0, total)`` first and after every finished task.
+
+    Returns
+    -------
+    list
+        The results in task order, whatever the order the workers finish in, so
+        outputs never depend on ``n_jobs`` or scheduling.
+    """
+    total = len(tasks)
+    if progress:
+        progress(0, total)
+    if n_jobs == 1 or total <= 1:
+        results = (fn(*t) for t in tasks)
+    else:
+        results = joblib.Parallel(n_jobs=n_jobs, return_as="generator")(joblib.delayed(fn)(*t) for t in tasks)
+    out = []
+    for r in results:
+        out.append(r)
+        if progress:
+            progress(len(out), total)
+    return out
+
+
+@contextmanager
+def backend(name: str = "local", *, n_jobs: int = -1, scheduler: str = "",
+            lost_timeout_s: float = 60.0) -> Iterator[Pool]:
+    """Context in which work runs on the chosen backend; yields a :class:`Pool`.
+
+    Parameters
+    ----------
+    name : {"local", "dask"}
+    n_jobs : int
+        Local worker processes (-1 = all cores).
+    scheduler : str
+        Dask scheduler address for ``name="dask"``.
+    lost_timeout_s : float
+        Dask: how long the cluster may have no workers or no scheduler before
+        the run fails with :class:`ClusterLostError` [s]; also the connect timeout.
+
+    Notes
+    -----
+    Inside the context, every ``joblib.Parallel`` of the local backend (also
+    those deeper in the planner, e.g. the margin report's) uses loky workers
+    that end with the main process (:func:`_exit_with_parent`).
+    """
+    if name == "local":
+        with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent):
+            yield LocalPool(n_jobs)
+        return
+    if name != "dask":
+        raise JobError(f"unknown parallel backend {name!r}; use local or dask")
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise JobError("backend dask needs the dask extra: pip install 'planner[dask]'") from None
+    try:
+        client = Client(scheduler, timeout=f"{float(lost_timeout_s)}s")
+    except Exception as e:  # noqa: BLE001 - any connection failure is a user-facing setup problem
+        raise JobError(f"cannot reach the dask scheduler {scheduler!r} within {lost_timeout_s:g} s: {e}") from None
+    try:
+        yield DaskPool(client, scheduler, lost_timeout_s)
+    finally:
+        try:
+            client.close(timeout=min(5.0, float(lost_timeout_s)))
+        except Exception:  # noqa: BLE001 - closing a client of a dead cluster must not mask the real error
+            pass
+

@@ -1,0 +1,195 @@
+"""Parquet datasets: declared schemas and deterministic, atomic, hive-partitioned writes.
+
+Every dataset the planner writes is laid out as
+
+    ROOT/<dataset>/line=L/direction=D/train_type=T/part-0.parquet
+
+so analysts can filter by partition without reading everything
+(``pyarrow.dataset.dataset(ROOT/<dataset>, partitioning="hive")``, DuckDB's
+``read_parquet('.../**/*.parquet', hive_partitioning=true)``). Partition
+columns are not stored inside the files (hive style); each file carries the
+schema's field descriptions and the dataset's schema version as metadata.
+Partition values must be path ids (:data:`planner.line.schema.PATH_ID_RE`); any
+other value is refused here, before a folder is made.
+
+Writes are deterministic (same table, same bytes: no timestamps, fixed
+writer settings) and atomic per file (temp file in the same folder, then
+``os.replace``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
+from planner.io.atomic import atomic_path
+from planner.line.schema import check_path_id
+
+PARTITION_COLS = ("line", "direction", "train_type")
+
+
+def declare(
+    fields: Sequence[tuple[str, pa.DataType, str]],
+    *,
+    name: str = "",
+    version: int = 1,
+    description: str = "",
+) -> pa.Schema:
+    """Declare a dataset schema once: ``(column, type, description)`` triples.
+
+    Units belong in the column name (``running_time_s``); the description says
+    what the column means. The schema metadata records the dataset name, its
+    version and description, so ``outputs/README.md`` can be generated from it.
+    """
+    pa_fields = [
+        pa.field(col, typ, metadata={"description": desc}) for col, typ, desc in fields
+    ]
+    meta = {"dataset": name, "schema_version": str(version), "description": description}
+    return pa.schema(pa_fields, metadata=meta)
+
+
+def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
+    """Select and cast ``table``'s columns to ``schema`` (order, types, metadata)."""
+    cols = [table.column(f.name).cast(f.type) for f in schema]
+    return pa.Table.from_arrays(cols, schema=schema)
+
+
+def write_parquet_atomic(table: pa.Table, path: Path) -> None:
+    """Write ``table`` to ``path`` deterministically; the final name appears only when complete."""
+    with atomic_path(path) as tmp:
+        pq.write_table(
+            table,
+            tmp,
+            compression="zstd",
+            use_dictionary=True,
+            write_statistics=True,
+            store_schema=True,
+        )
+
+
+def write_partitioned(
+    table: pa.Table,
+    root: Path,
+    dataset: str,
+    partition_cols: Iterable[str] = PARTITION_COLS,
+    *,
+    schema: pa.Schema | None = None,
+    sort_by: Sequence[str] = (),
+) -> list[Path]:
+    """Write ``table`` as a hive-partitioned dataset under ``root/dataset``.
+
+    Parameters
+    ----------
+    table : pyarrow.Table
+        Rows including the partition columns.
+    root : Path
+        Output root (e.g. a run folder).
+    dataset : str
+        Dataset name, the first folder level.
+    partition_cols : iterable of str
+        Columns that become ``col=value`` folders, in that order.
+    schema : pyarrow.Schema, optional
+        Declared schema of the *stored* columns (without partition columns);
+        the stored table is conformed to it.
+    sort_by : sequence of str
+        Columns to sort rows by inside each file, for determinism.
+
+    Returns
+    -------
+    list of Path
+        Files written, in sorted partition order.
+    """
+    root = Path(root)
+    parts = list(partition_cols)
+    written: list[Path] = []
+    if table.num_rows == 0:
+        return written
+    keys = table.select(parts).to_pylist()
+    groups: dict[tuple, list[int]] = {}
+    for i, k in enumerate(keys):
+        groups.setdefault(tuple(str(k[c]) for c in parts), []).append(i)
+    for key in sorted(groups):
+        sub = table.take(pa.array(groups[key], type=pa.int64())).drop_columns(parts)
+        if sort_by:
+            sub = sub.sort_by([(c, "ascending") for c in sort_by])
+        if schema is not None:
+            sub = conform(sub, schema)
+        folder = root / dataset
+        for c, v in zip(parts, key):  # validated already; checked again where the path is built
+            folder = folder / f"{c}={check_path_id(v, f'partition value {c}=')}"
+        path = folder / "part-0.parquet"
+        write_parquet_atomic(sub, path)
+        written.append(path)
+    return written
+
+
+def read_dataset(root: Path, dataset: str, **filters) -> pa.Table:
+    """Read a hive-partitioned dataset, optionally filtered by partition values.
+
+    ``read_dataset(out, "table_a", direction="down", train_type="E10")``.
+    Partition columns come back as strings.
+    """
+    import pyarrow.dataset as ds
+
+    path = Path(root) / dataset
+    d = ds.dataset(path, format="parquet", partitioning="hive")
+    expr = None
+    for k, v in filters.items():
+        e = pc.field(k) == v
+        expr = e if expr is None else expr & e
+    t = d.to_table(filter=expr)
+    # Partition columns inferred as dictionary/int by pyarrow; make them plain strings.
+    for name in PARTITION_COLS:
+        if name in t.column_names:
+            idx = t.column_names.index(name)
+            t = t.set_column(idx, name, pc.cast(t.column(name), pa.string()))
+    return t
+
+
+RUN_FIELDS = (
+    ("run_id", pa.string(), "the published run these rows belong to (outputs/<run_id>/), e.g. r0007-3f9a2c01d4"),
+    ("run_date", pa.date32(), "the run's date: [job] run_date, else the UTC date when `planner run` started "
+                              "(part of the run's inputs digest, so one run id always has one date)"),
+)
+"""Columns `planner run` appends to every row of every published dataset, so runs compare in one query."""
+
+
+def with_run_fields(schema: pa.Schema) -> pa.Schema:
+    """``schema`` plus the :data:`RUN_FIELDS` (what a published file holds)."""
+    out = schema
+    for col, typ, desc in RUN_FIELDS:
+        if col not in out.names:
+            out = out.append(pa.field(col, typ, metadata={"description": desc}))
+    return out
+
+
+def stamp_run(root: Path, datasets: Iterable[str], run_id: str, run_date) -> int:
+    """Append ``run_id`` and ``run_date`` to every row of every Parquet file of ``datasets`` under ``root``.
+
+    Done once, on the staged run, after every step has read what it needs (the bundles are built
+    before, so their bytes do not depend on the run). Each file is rewritten atomically with the
+    same writer settings; the schema metadata (descriptions) is kept. Returns the files stamped.
+    """
+    import datetime
+
+    if not isinstance(run_date, datetime.date):
+        run_date = datetime.date.fromisoformat(str(run_date))
+    n = 0
+    for name in datasets:
+        folder = Path(root) / name
+        if not folder.is_dir():
+            continue
+        for f in sorted(folder.rglob("*.parquet")):
+            t = pq.read_table(f, partitioning=None)
+            for col, typ, desc in RUN_FIELDS:
+                if col in t.column_names:
+                    t = t.drop_columns([col])
+                val = run_id if col == "run_id" else run_date
+                t = t.append_column(pa.field(col, typ, metadata={"description": desc}),
+                                    pa.array([val] * t.num_rows, type=typ))
+            write_parquet_atomic(t, f)
+            n += 1
+    return n

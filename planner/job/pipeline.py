@@ -1,0 +1,659 @@
+"""The nightly job: validate → tables → stopping patterns → closed loop → margins → bundles → conflicts → graph
+→ changes → overview → publish.
+
+One call, :func:`run_job`, regenerates everything a job file names and
+publishes it atomically (:mod:`planner.job.publish`). Work is split into *units*
+(an interstation × direction × train type for tables and the closed loop, a
+station approach for stopping patterns, a line for margins and conflicts) and
+every unit is keyed by the digest of exactly the inputs it depends on:
+
+* the slice of the line database the unit can see (its interstation's stop
+  markers, the gradients, curves, restrictions and beacons between them and
+  one train length beyond, the train type, the line maximum),
+* the job parameters of its step,
+* the planner's own code (a digest of its source files), so that a new
+  version never reuses results computed by an old one.
+
+A unit whose key is in the cache (``OUTPUT_ROOT/.cache``) is not recomputed;
+so a re-run with nothing changed computes nothing, and editing one speed
+restriction recomputes only the interstations (and approaches) it reaches.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+import signal
+import time
+import warnings
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+from planner import __version__
+from planner.io.atomic import write_bytes_atomic
+from planner.io.parquet import stamp_run
+from planner.errors import JobError, PlannerError
+from planner.job.config import Job
+from planner.line.model import DIRECTIONS, Line
+from planner.line.schema import check_path_id
+from planner.job.cache import Cache
+from planner.job.publish import (
+    canonical_json,
+    clean_stale_staging,
+    digest,
+    job_lock,
+    latest_run,
+    next_run_id,
+    output_root_errors,
+    publish,
+    staging_dir,
+)
+
+STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
+         "overview", "publish")
+
+
+# --- digests of exactly what a unit depends on -----------------------------------
+_CODE_DIGEST: str | None = None
+
+
+def code_digest() -> str:
+    """SHA-256 over the planner package's source files (names and bytes) and its version."""
+    global _CODE_DIGEST
+    if _CODE_DIGEST is None:
+        h = hashlib.sha256(__version__.encode())
+        pkg = Path(__file__).resolve().parent
+        for p in sorted(pkg.rglob("*.py")):
+            h.update(p.relative_to(pkg).as_posix().encode() + b"\0")
+            h.update(p.read_bytes())
+        _CODE_DIGEST = h.hexdigest()
+    return _CODE_DIGEST
+
+
+def _segments_in(seg, lo: float, hi: float) -> list:
+    m = (seg.end_m > lo) & (seg.start_m < hi)  # vectorised: gradient tables may have millions of rows
+    return [(float(a), float(b), float(v)) for a, b, v in zip(seg.start_m[m], seg.end_m[m], seg.value[m])]
+
+
+def interstation_inputs(line: Line, train_type: str, origin: str, destination: str) -> dict[str, Any]:
+    """Everything of the line database that a run from ``origin`` to ``destination`` can see.
+
+    The window is the stretch between the two stop markers widened by one
+    train length on both sides: restrictions are held until the tail clears
+    them and gradients/curves are averaged over the train's length, so
+    anything within a train length behind the departure can matter.
+    """
+    ext = line.run_between(origin, destination)
+    direction, a, b = ext.direction, ext.start_m, ext.end_m
+    tt = line.train_type(train_type)
+    lo, hi = min(a, b) - tt.length_m - 1.0, max(a, b) + tt.length_m + 1.0
+    return {
+        "line_id": line.line_id,  # results carry it (partition line=): a copy under another id is not a hit
+        "direction": direction,
+        "origin": [origin, a],
+        "destination": [destination, b],
+        "line_max_ms": line.max_speed_ms,
+        "train": dataclasses.asdict(tt),
+        "gradients": _segments_in(line.gradients, lo, hi),
+        "curves": _segments_in(line.curves, lo, hi),
+        "limits": [
+            dataclasses.astuple(s) for s in line.limits_for(direction, train_type) if s.end_m > lo and s.start_m < hi
+        ],
+        "beacons": [
+            dataclasses.astuple(x) for x in line.beacons_for(direction) if lo < x.position_m < hi
+        ],
+    }
+
+
+# --- units of work -----------------------------------------------------------------
+@dataclass(frozen=True)
+class Unit:
+    """One cacheable piece of work: ``fn(*args)`` whose result is keyed by ``key``."""
+
+    step: str
+    key: str
+    label: str
+    fn: Callable
+    args: tuple
+
+
+def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m, eval_interval_m=0.0):
+    from planner.physics.track import SimSettings
+    from planner.tables.build import interstation_tables
+
+    return interstation_tables(line, tt, o, d, grid, after_departure_m=eval_offset_m,
+                               eval_interval_m=eval_interval_m or None, settings=SimSettings(ds_m=ds_m))
+
+
+def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):
+    from planner.physics.track import SimSettings
+    from planner.stopping.sweep import approach_patterns
+
+    return approach_patterns(line, tt, o, d, adhesions_ms2, approach_m, settings=SimSettings(ds_m=ds_m))
+
+
+def _closed_loop_unit(line, tt, tables, scenarios, modes, horizon_s, step_s, ds_m):
+    from planner.tables.closed_loop import Scenario, closed_loop_batch
+    from planner.physics.track import SimSettings
+
+    return closed_loop_batch(line, tt, tables, scenarios=[Scenario(s.name, s.load, s.traction) for s in scenarios],
+                             modes=modes, extra_s=horizon_s, step_s=step_s, settings=SimSettings(ds_m=ds_m))
+
+
+def _call(fn, args):
+    """joblib worker: module level, so it pickles to local processes and Dask workers alike."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fn(*args)
+
+
+class Runner:
+    """Runs units through the cache and the parallel backend, counting what it computed."""
+
+    def __init__(self, job: Job, cache: Cache, progress: "Progress"):
+        self.job = job
+        self.cache = cache
+        self.progress = progress
+        self.computed: dict[str, int] = {}
+        self.reused: dict[str, int] = {}
+
+    def run(self, step: str, units: Sequence[Unit]) -> list:
+        """Results of ``units`` in order; cached ones loaded, the rest computed in parallel.
+
+        Each result is cached as soon as it arrives, so a run that fails part
+        way (e.g. :class:`planner.io.parallel.ClusterLostError`) leaves the
+        finished units for the next run.
+        """
+        from planner.io.parallel import backend
+
+        results: list = [None] * len(units)
+        todo = []
+        for i, u in enumerate(units):
+            obj = self.cache.get(step, u.key)
+            if obj is None:
+                todo.append(i)
+            else:
+                results[i] = obj
+        self.reused[step] = self.reused.get(step, 0) + len(units) - len(todo)
+        self.computed[step] = self.computed.get(step, 0) + len(todo)
+        self.progress.start(step, len(units), done=len(units) - len(todo))
+        if todo:
+            p = self.job.parallel
+            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
+                         lost_timeout_s=p.dask_lost_timeout_s) as pool:
+                if pool.n_jobs == 1 or len(todo) == 1:
+                    gen = (_call(units[i].fn, units[i].args) for i in todo)
+                else:
+                    gen = pool.imap(_call, [(units[i].fn, units[i].args) for i in todo])
+                for i, res in zip(todo, gen):
+                    self.cache.put(step, units[i].key, res)  # survives a later failure
+                    _kill_point()
+                    results[i] = res
+                    self.progress.advance(step)
+        self.progress.finish(step)
+        return results
+
+
+# --- test hook -----------------------------------------------------------------------
+KILL_ENV = "PLANNER_TEST_KILL_AT"
+"""Tests only: with ``N`` in this environment variable a run SIGKILLs its own process at its N-th
+kill point (each unit just stored in the cache, then the staged run just before publishing), so
+tests kill runs at deterministic moments instead of after a wall-clock delay. Unset normally."""
+_kill_points = 0
+
+
+def _kill_point() -> None:
+    global _kill_points
+    _kill_points += 1
+    if os.environ.get(KILL_ENV) == str(_kill_points):
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
+# --- progress ------------------------------------------------------------------------
+class Progress:
+    """A rich progress bar per step (counts and time left) plus the per-step timings."""
+
+    def __init__(self, enabled: bool = True):
+        self.timings: dict[str, float] = {}
+        self._t0: dict[str, float] = {}
+        self._ids: dict[str, Any] = {}
+        self._bar = None
+        if enabled:
+            from rich.progress import (
+                BarColumn, MofNCompleteColumn, Progress as RichProgress, TextColumn, TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self._bar = RichProgress(
+                TextColumn("{task.description:<12}"), BarColumn(), MofNCompleteColumn(),
+                TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(), transient=False,
+            )
+
+    def __enter__(self):
+        if self._bar:
+            self._bar.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self._bar:
+            self._bar.stop()
+
+    def start(self, step: str, total: int, done: int = 0) -> None:
+        self._t0.setdefault(step, time.perf_counter())
+        if self._bar is not None:
+            if step in self._ids:
+                self._bar.update(self._ids[step], total=total, completed=done)
+            else:
+                self._ids[step] = self._bar.add_task(step, total=total, completed=done)
+
+    def advance(self, step: str, n: int = 1) -> None:
+        if self._bar is not None and step in self._ids:
+            self._bar.advance(self._ids[step], n)
+
+    def finish(self, step: str) -> None:
+        self.timings[step] = round(time.perf_counter() - self._t0.get(step, time.perf_counter()), 3)
+        if self._bar is not None and step in self._ids:
+            t = self._bar.tasks[[x.id for x in self._bar.tasks].index(self._ids[step])]
+            self._bar.update(self._ids[step], completed=t.total)
+
+    @contextmanager
+    def step(self, name: str, total: int = 1):
+        self.start(name, total)
+        yield
+        self.finish(name)
+
+
+# --- the job -----------------------------------------------------------------------------
+@dataclass
+class RunSummary:
+    """What a job did: the published run, per-step timings, counts."""
+
+    run_id: str | None
+    run_dir: Path | None
+    up_to_date: bool
+    timings: dict[str, float] = field(default_factory=dict)
+    computed: dict[str, int] = field(default_factory=dict)
+    reused: dict[str, int] = field(default_factory=dict)
+    rows: dict[str, int] = field(default_factory=dict)
+    flags: dict[str, int] = field(default_factory=dict)
+    bundles: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    release: Any = None
+    """The :class:`planner.bundle.container.Release` the run's bundles were issued with."""
+    reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    """Margin report of each line (kept for :func:`planner.report.views.run_views`, which puts the changes on top)."""
+
+
+def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
+    """The private key to sign bundles with, and whether it is a development key.
+
+    The job file's ``[bundles] signing_key``, else ``$PLANNER_SIGNING_KEY``; with
+    neither, a development key under ``OUTPUT_ROOT/.dev-key`` only when the job
+    says ``allow_development_key = true`` (else a :class:`JobError`). A
+    configured key that lies in that folder is a development key too.
+    """
+    from planner.bundle.signing import generate_keypair
+
+    dev = job.resolve(job.job.output_root) / ".dev-key"
+    p = None
+    if job.bundles.signing_key:
+        p = job.resolve(job.bundles.signing_key)
+        if not p.is_file():
+            raise JobError(f"{job.path}: [bundles] signing_key: {p} not found; "
+                           "create one with `planner keys generate DIR`")
+    elif os.environ.get("PLANNER_SIGNING_KEY"):
+        p = Path(os.environ["PLANNER_SIGNING_KEY"])
+        if not p.is_file():
+            raise JobError(f"PLANNER_SIGNING_KEY: {p} not found")
+    if p is not None:
+        is_dev = p.resolve().parent == dev.resolve()
+        if is_dev and not job.bundles.allow_development_key:
+            raise JobError(f"{job.path}: [bundles] signing_key: {p} is the development key; use a production key "
+                           "(`planner keys generate DIR`) or set allow_development_key = true for test runs")
+        if is_dev:
+            notes.append(f"bundles signed with the DEVELOPMENT key {p}: marked development, refused by vehicles")
+        return p, is_dev
+    if not job.bundles.allow_development_key:
+        raise JobError(f"{job.path}: [bundles] no signing key: set signing_key to a production key "
+                       "(`planner keys generate DIR`) or PLANNER_SIGNING_KEY, or allow_development_key = true "
+                       "for test runs")
+    key = dev / "signing_key.pem"
+    made = not key.is_file()
+    if made:
+        generate_keypair(dev)
+    notes.append(f"no signing key configured: bundles signed with the {'new ' if made else ''}DEVELOPMENT key {key} "
+                 "(allow_development_key = true); they are marked development and vehicles refuse them")
+    return key, True
+
+
+def _renewal_due(last_manifest: dict, now_s: int) -> bool:
+    """The published bundles have used half of their validity (or the run has no release record)."""
+    from planner.bundle.container import parse_time
+
+    rel = last_manifest.get("bundles_release")
+    try:
+        built, expires = parse_time(rel["built_at"]), parse_time(rel["expires"])
+    except (TypeError, KeyError, PlannerError):
+        return True
+    return now_s >= built + (expires - built) // 2
+
+
+def _result_params(job: Job) -> dict[str, Any]:
+    """The job parameters that can change a result: all but where runs go, how many are kept, and the
+    run's date (it goes into the inputs digest on its own)."""
+    params = job.parameters()
+    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root", "run_date")}
+    return params
+
+
+def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str, run_date: str = "") -> str:
+    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id),
+    and the run's date (stamped on every dataset row, so one run id always has one date)."""
+    return digest({"code": code_digest(), "params": _result_params(job), "lines": [ln.source_digest for ln in lines],
+                   "key": key_id, "run_date": run_date})
+
+
+def resolve_run_date(job: Job) -> str:
+    """The run's date, YYYY-MM-DD: ``[job] run_date``, else today's UTC date (read once, at the start of the run)."""
+    if job.job.run_date:
+        return job.job.run_date
+    import datetime
+
+    return datetime.datetime.now(datetime.timezone.utc).date().isoformat()
+
+
+def _distinct_line_ids(job: Job, lines) -> None:
+    """Folders may have any name, but line ids name the outputs: two lines may not share one."""
+    seen: dict[str, str] = {}
+    for p, line in zip(job.job.lines, lines):
+        if line.line_id in seen:
+            raise JobError(f"job lines {seen[line.line_id]!r} and {p!r} both hold line_id {line.line_id!r}; "
+                           f"outputs are named by line_id, so give each line its own id (line.parquet)")
+        seen[line.line_id] = p
+
+
+def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> RunSummary:
+    """Run a whole job and publish it; raise a :class:`PlannerError` (latest untouched) on failure.
+
+    ``use_cache=False`` (``planner run --no-cache``) trusts no cache entry: every
+    unit is recomputed, the fresh results replace the entries, and a new run is
+    published even when nothing changed since ``latest``.
+    """
+    root = job.resolve(job.job.output_root)
+    with output_root_errors(root):
+        return _run_job(job, root, show_progress, use_cache)
+
+
+def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunSummary:
+    from planner.line.loader import load_line
+
+    run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
+    with job_lock(root):
+        clean_stale_staging(root)
+        cache = Cache(root / ".cache", enabled=use_cache)
+        with Progress(show_progress) as prog:
+            with prog.step("validate", len(job.job.lines)):
+                lines = [load_line(job.resolve(p)) for p in job.job.lines]
+                _distinct_line_ids(job, lines)
+                for line in lines:
+                    for t in job.job.train_types:
+                        line.train_type(t)
+            from planner.bundle.container import Release, build_time_s
+            from planner.bundle.signing import load_private_key, public_key_id
+
+            notes: list[str] = []
+            key_path, development = signing_key_path(job, notes)
+            key = load_private_key(key_path)
+            # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or the clock now
+            release = Release.issue(build_time_s(), valid_days=job.bundles.valid_days, development=development)
+            inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
+            last = latest_run(root)
+            if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
+                import json
+
+                try:
+                    m = json.loads((root / last / "manifest.json").read_text())
+                except ValueError:  # a damaged manifest proves nothing: run again
+                    m = {}
+                if isinstance(m, dict) and m.get("inputs_digest") == inputs \
+                        and not _renewal_due(m, release.built_at_s):
+                    return RunSummary(last, root / last, True, timings=prog.timings,
+                                      notes=notes + [f"nothing changed since run {last}: it stays the latest"])
+                if m.get("inputs_digest") == inputs:
+                    notes.append(f"nothing changed since run {last}, but its bundles are past half their validity: "
+                                 "re-issued")
+            run_id = next_run_id(root, inputs)
+            stage = staging_dir(root, run_id)
+            summary = RunSummary(run_id, None, False, notes=notes)
+            runner = Runner(job, cache, prog)
+            summary.release = release
+            for line in lines:
+                _run_line(job, line, stage, runner, summary, key)
+            summary.computed, summary.reused = runner.computed, runner.reused
+            if cache.rejected:  # once per run, with the count
+                summary.warnings.append(cache.rejected_note())
+            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
+            from planner.report.views import run_views  # changes since the last run, overview page
+
+            run_views(job, lines, stage, root, prog, summary)
+            from planner.datasets.catalog import datasets as catalog
+
+            stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
+            _kill_point()
+            with prog.step("publish"):
+                summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
+            summary.timings = dict(prog.timings)
+    return summary
+
+
+def _types(job: Job, line: Line) -> list[str]:
+    return list(job.job.train_types) or [t.train_type for t in line.train_types]
+
+
+def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key) -> None:
+    from planner.tables.ratios import ratio_grid
+    from planner.stopping.sweep import adhesion_levels
+    from planner.line.units import KMH, KMH_S
+
+    tp, code = job.tables, code_digest()
+    grid = ratio_grid(tp.ratios, line_max_speed_ms=line.max_speed_ms,
+                      min_target_speed_ms=tp.min_target_kmh * KMH)
+    types = _types(job, line)
+    tasks = [(t, d, a.station_id, b.station_id) for t in types for d in DIRECTIONS for a, b in line.interstations(d)]
+    unit_in = {k: digest(interstation_inputs(line, k[0], k[2], k[3])) for k in tasks}
+
+    # tables
+    t_units = [
+        Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grid))]),
+             f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
+             (line, k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
+        for k in tasks
+    ]
+    tables = runner.run("tables", t_units)
+    from planner.tables.build import write_tables
+
+    _count(summary, write_tables(tables, stage))
+
+    # stopping patterns, one unit per arrival
+    sp = job.stops
+    levels = adhesion_levels(sp.adhesion_kmh_s)
+    adh_ms2 = [a * KMH_S for a in levels]
+    s_units = [
+        Unit("stops", digest(["stops", code, unit_in[k], dataclasses.asdict(sp), tp.ds_m]),
+             f"{k[0]} {k[3]}", _stops_unit, (line, k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
+        for k in tasks
+    ]
+    stops = runner.run("stops", s_units)
+    from planner.stopping.sweep import write_stops
+
+    _count(summary, write_stops(stops, stage))
+    summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
+        len(r.patterns) - r.n_feasible for r in stops)
+    for r in stops:  # one line per approach, not per adhesion level
+        bad = [a for a, p in zip(r.adhesion_kmh_s, r.patterns) if not p.feasible]
+        if bad:
+            first = next(p for p in r.patterns if not p.feasible)
+            levels = f"{bad[0]:g}" if len(bad) == 1 else f"{bad[0]:g}…{bad[-1]:g}"
+            summary.notes.append(
+                f"{line.line_id}: no stopping pattern at {r.station_id} ({r.direction}, {r.train_type}, from "
+                f"{r.origin}) for adhesion {levels} km/h/s ({len(bad)} of {len(r.patterns)} levels): {first.reason}")
+
+    # closed loop: every scenario and mode of an interstation in one batch
+    cp = job.closed_loop
+    c_units = [
+        Unit("closed_loop",
+             digest(["closed_loop", code, u.key, [dataclasses.asdict(sc) for sc in cp.scenarios], list(cp.modes),
+                     cp.horizon_s, cp.step_s]),
+             u.label, _closed_loop_unit,
+             (line, tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s, tp.ds_m))
+        for u, tab in zip(t_units, tables)
+    ]
+    loops = [r for batch in runner.run("closed_loop", c_units) for r in batch]
+    from planner.tables.closed_loop import write_closed_loop
+
+    _count(summary, write_closed_loop(loops, stage))
+
+    conflicts = None
+    if job.conflicts.enabled and line.network is not None:
+        conflicts = _conflicts_step(job, line, stage, runner, summary)
+    _margins_step(job, line, stage, runner, summary,
+                  [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], grid, conflicts)
+    _bundles_step(job, line, stage, runner, summary, key)
+    from planner.report.views import line_views  # inputs copy, train graph page
+
+    line_views(job, line, stage, runner, summary)
+
+
+def _count(summary: RunSummary, files: Iterable[Path]) -> None:
+    """Add the rows of written dataset files to the summary, per dataset (the folder above ``line=``)."""
+    import pyarrow.parquet as pq
+
+    for f in map(Path, files):
+        parts = f.parts
+        name = next(parts[i - 1] for i, p in enumerate(parts) if p.startswith("line="))
+        summary.rows[name] = summary.rows.get(name, 0) + pq.ParquetFile(f).metadata.num_rows
+
+
+def _line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
+    """A line-level unit: loaded from the cache when its key is there, else computed here."""
+    return runner.run(step, [Unit(step, key, step, fn, args)])[0]
+
+
+def _margins_unit(line, job_margins, types, stage, stops_levels, approach_m, ratios, eval_offset_m, ds_m, n_jobs,
+                  eval_interval_m=0.0):
+    from planner.report.margins import MarginRule, compute_margins
+    from planner.physics.track import SimSettings
+
+    return compute_margins(
+        line, rule=MarginRule.from_section(job_margins), train_types=types, tables_dir=stage, stops_dir=stage,
+        closed_loop_dir=stage, ratios=ratios, adhesion_kmh_s=stops_levels, approach_m=approach_m,
+        after_departure_m=eval_offset_m, eval_interval_m=eval_interval_m or None, conflicts=False,
+        settings=SimSettings(ds_m=ds_m), n_jobs=n_jobs,
+    )
+
+
+def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
+                  unit_keys: list[str], grid, conflicts) -> None:
+    from planner.report.margins import write_margins
+    from planner.report.html import write_html
+
+    key = digest(["margins", code_digest(), line.source_digest, unit_keys, _result_params(job)])
+    n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
+    report = _line_unit(runner, "margins", key, _margins_unit, line, job.margins, _types(job, line), stage,
+                        job.stops.adhesion_kmh_s, job.stops.approach_m, list(map(float, grid)),
+                        job.tables.eval_offset_m, job.tables.ds_m, n_jobs, job.tables.eval_interval_m)
+    if conflicts is not None:
+        report.conflicts, report.conflicts_note = conflicts, ""
+    elif not job.conflicts.enabled:
+        report.conflicts_note = "not checked ([conflicts] enabled = false in the job file)"
+    else:
+        report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
+    _count(summary, write_margins(report, stage))
+    write_html(report, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
+               datasets_root=stage)
+    summary.reports[line.line_id] = report
+    for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
+        summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
+
+
+def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key) -> None:
+    """Signed bundles for every direction × train type, and the public key that verifies them."""
+    from cryptography.hazmat.primitives import serialization
+
+    from planner.bundle.container import build_line
+
+    out = stage / "bundles"
+    with runner.progress.step("bundles", 2 * len(_types(job, line))):
+        infos = build_line(line, out, key, release=summary.release, tables_dir=stage, stops_dir=stage,
+                           train_types=_types(job, line),
+                           on_built=lambda info: runner.progress.advance("bundles"))
+    pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
+    write_bytes_atomic(out / "signing_key.pub.pem", pem)
+    summary.bundles += [Path(i.path).name for i in infos]
+
+
+def _conflicts_unit(line, params):
+    from planner.network.conflicts import check_conflicts
+
+    return check_conflicts(line, params)
+
+
+def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary):
+    """Route conflicts of the line's whole timetable; returns the conflicts table for the report."""
+    from planner.network.conflicts import write_conflicts
+
+    params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
+    key = digest(["conflicts", code_digest(), line.source_digest, params, job.tables.ds_m])
+    report = _line_unit(runner, "conflicts", key, _conflicts_unit, line, params)
+    _count(summary, write_conflicts(report, stage))
+    summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
+        report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0)
+    return report.conflicts
+
+
+def _release_record(release) -> dict | None:
+    from planner.bundle.container import format_time
+
+    if release is None:
+        return None
+    return {"version": release.version, "built_at": format_time(release.built_at_s),
+            "expires": format_time(release.expires_s),
+            "key_kind": "development" if release.development else "production"}
+
+
+def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary,
+                    run_date: str = "") -> None:
+    import platform
+
+    import numpy
+    import pyarrow
+
+    manifest = {
+        "run_id": run_id,
+        "run_date": run_date,
+        "job": job.job.name,
+        "inputs_digest": inputs,
+        "code_digest": code_digest(),
+        "software": {"planner": __version__, "python": platform.python_version(),
+                     "numpy": numpy.__version__, "pyarrow": pyarrow.__version__},
+        "lines": [{"line_id": ln.line_id, "path": Path(p).as_posix(), "source_digest": ln.source_digest}
+                  for ln, p in zip(lines, job.job.lines)],
+        "parameters": job.parameters(),
+        "timings_s": dict(timings),
+        "units_computed": dict(summary.computed),
+        "units_reused": dict(summary.reused),
+        "rows": dict(sorted(summary.rows.items())),
+        "flags": dict(sorted(summary.flags.items())),
+        "bundles": sorted(summary.bundles),
+        "bundles_release": _release_record(summary.release),
+    }
+    write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
+    from planner.datasets.catalog import readme
+
+    write_bytes_atomic(stage / "README.md", readme().encode())
+
+
+__all__ = ["STEPS", "RunSummary", "code_digest", "interstation_inputs", "run_job"]

@@ -1,0 +1,217 @@
+"""Run folders, atomic publication and the work cache of the nightly job.
+
+Layout under the output root::
+
+    outputs/
+      latest -> r0007-3f9a2c01d4        (symlink, swapped atomically)
+      r0006-.../  r0007-.../            (complete runs; the last N are kept)
+      .staging-r0008-.../               (a run being written; never read by users)
+      .cache/<kind>/<ab>/<key>.pce      (results keyed by the digest of their inputs; planner.job.cache)
+      .lock                             (one job at a time per output root)
+
+A run is written entirely under ``.staging-<run_id>`` and renamed to
+``<run_id>`` only when every step succeeded; then ``latest`` is re-pointed
+with ``os.replace`` of a fresh symlink, which is atomic on POSIX. A failing or
+killed run therefore never changes ``latest`` nor touches a published run;
+its staging folder is removed by the next run.
+
+A file-system failure (a full disk, a read-only or unwritable output root)
+ends the job with one :class:`JobError` line naming the path and the fix
+(:func:`output_root_errors`); ``latest`` is untouched.
+"""
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import json
+import errno
+import os
+import re
+import shutil
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+
+from planner.io.atomic import _fsync_dir, _fsync_file
+from planner.job.cache import Cache  # noqa: F401  (the cache lived here; planner.cache is its home now)
+from planner.errors import JobError
+
+RUN_RE = re.compile(r"^r(\d{4,})-([0-9a-f]{10})$")
+
+
+def canonical_json(obj: Any) -> bytes:
+    """Stable JSON bytes: sorted keys, no spaces, floats as Python repr (exact round trip)."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=_default).encode()
+
+
+def _default(o: Any):
+    import dataclasses
+
+    import numpy as np
+
+    if dataclasses.is_dataclass(o):
+        return {f.name: getattr(o, f.name) for f in dataclasses.fields(o)}
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer, np.bool_)):
+        return o.item()
+    if isinstance(o, Path):
+        return o.as_posix()
+    raise TypeError(f"cannot digest {type(o).__name__}")
+
+
+def digest(obj: Any) -> str:
+    """SHA-256 hex digest of ``obj``'s canonical JSON."""
+    return hashlib.sha256(canonical_json(obj)).hexdigest()
+
+
+# --- runs and publication -----------------------------------------------------
+def list_runs(root: Path) -> list[str]:
+    """Published run ids under ``root``, oldest first."""
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    runs = [p.name for p in root.iterdir() if p.is_dir() and not p.is_symlink() and RUN_RE.match(p.name)]
+    return sorted(runs, key=lambda r: int(RUN_RE.match(r).group(1)))
+
+
+def latest_run(root: Path) -> str | None:
+    """The run ``latest`` points at, or None."""
+    link = Path(root) / "latest"
+    if link.is_symlink():
+        target = os.readlink(link)
+        if (Path(root) / target).is_dir():
+            return Path(target).name
+    return None
+
+
+def next_run_id(root: Path, inputs_digest: str) -> str:
+    """``r<seq>-<digest10>``: a sequence number after every run seen, and the inputs digest."""
+    root = Path(root)
+    seqs = [int(RUN_RE.match(r).group(1)) for r in list_runs(root)]
+    if root.is_dir():
+        for p in root.iterdir():
+            m = re.match(r"^\.staging-r(\d{4,})-", p.name)
+            if m:
+                seqs.append(int(m.group(1)))
+    return f"r{(max(seqs) + 1) if seqs else 1:04d}-{inputs_digest[:10]}"
+
+
+_FIXES = {
+    errno.ENOSPC: ("no space left on device", "free space there or set [job] output_root to a larger disk"),
+    errno.EDQUOT: ("disk quota exceeded", "free space there or set [job] output_root to a larger disk"),
+    errno.EROFS: ("read-only file system", "mount it read-write or set [job] output_root to a writable folder"),
+    errno.EACCES: ("permission denied", "give the planner write access or set [job] output_root elsewhere"),
+    errno.EPERM: ("operation not permitted", "give the planner write access or set [job] output_root elsewhere"),
+}
+
+
+def _errno_of(e: OSError) -> int | None:
+    if e.errno is not None:
+        return e.errno
+    text = str(e)  # pyarrow's IO errors carry the reason in the message only
+    for code, (why, _) in _FIXES.items():
+        if why.lower() in text.lower() or os.strerror(code).lower() in text.lower():
+            return code
+    return None
+
+
+@contextmanager
+def output_root_errors(root: Path) -> Iterator[None]:
+    """Turn a file-system error under ``root`` into one :class:`JobError` line naming the path and the fix.
+
+    A full disk, a read-only file system or missing permissions end the job
+    here; ``latest`` has not been touched (publication is the last step). The
+    staging folder is removed by :func:`job_lock` at once when the disk is full
+    (to give the space back), else by the next run.
+    """
+    root = Path(root)
+    try:
+        yield
+    except OSError as e:
+        code = _errno_of(e)
+        text = str(e).splitlines()[0] if str(e) else type(e).__name__
+        why, fix = _FIXES.get(code, (e.strerror or text, "check the path and the disk"))
+        where = Path(e.filename) if e.filename else root
+        last = latest_run(root)
+        kept = f"latest still points at {last}" if last else "nothing was published"
+        if not _under(where, root):  # not the output root: an input or a key file
+            raise JobError(f"{where}: {why}; check that path, then run again ({kept})") from None
+        raise JobError(f"{where}: {why} (output root {root}); {fix}, then run again ({kept})") from None
+
+
+def _under(path: Path, root: Path) -> bool:
+    try:
+        Path(os.path.abspath(path)).relative_to(os.path.abspath(root))
+        return True
+    except ValueError:
+        return False
+
+
+@contextmanager
+def job_lock(root: Path) -> Iterator[None]:
+    """One job per output root at a time (an advisory lock the kernel drops if we die)."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    fd = os.open(root / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise JobError(f"{root}: another planner job is running on this output root; wait for it") from None
+        try:
+            yield
+        except OSError as e:
+            if _errno_of(e) in (errno.ENOSPC, errno.EDQUOT):
+                clean_stale_staging(root)  # give the space back now (still under the lock)
+            raise
+    finally:
+        os.close(fd)
+
+
+def clean_stale_staging(root: Path) -> list[str]:
+    """Remove staging folders left by failed or killed runs (call under the job lock)."""
+    removed = []
+    root = Path(root)
+    if root.is_dir():
+        for p in root.iterdir():
+            if p.name.startswith(".staging-") and p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+                removed.append(p.name)
+    return sorted(removed)
+
+
+def staging_dir(root: Path, run_id: str) -> Path:
+    p = Path(root) / f".staging-{run_id}"
+    p.mkdir(parents=True, exist_ok=False)
+    return p
+
+
+def _fsync_tree(folder: Path) -> None:
+    for dirpath, _dirs, files in os.walk(folder):
+        for f in files:
+            _fsync_file(os.path.join(dirpath, f))
+        _fsync_dir(Path(dirpath))
+
+
+def publish(root: Path, staging: Path, run_id: str, keep: int) -> Path:
+    """Make a complete staged run visible: rename it, swap ``latest``, prune old runs.
+
+    Returns the published run folder.
+    """
+    root = Path(root)
+    _fsync_tree(staging)
+    final = root / run_id
+    os.rename(staging, final)
+    tmp_link = root / f".latest-{run_id}.tmp"
+    if tmp_link.is_symlink() or tmp_link.exists():
+        tmp_link.unlink()
+    os.symlink(run_id, tmp_link)
+    os.replace(tmp_link, root / "latest")
+    _fsync_dir(root)
+    runs = list_runs(root)
+    for old in runs[: max(0, len(runs) - keep)]:
+        if old != run_id:
+            shutil.rmtree(root / old, ignore_errors=True)
+    return final

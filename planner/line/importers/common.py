@@ -1,0 +1,378 @@
+"""What every importer shares: the ``--extra`` TOML, documented defaults, the summary, the atomic write.
+
+A source format describes infrastructure; it does not know where the front
+of a stopping train should be, what an ATS-P beacon sends, the timetable, or
+the ride-comfort limits. Those come from a small TOML file beside the source
+(``--extra``), or from :data:`DEFAULTS`. Every default actually used is
+recorded in the :class:`ImportSummary` with the elements it was used for, so
+nothing is silently invented.
+
+The ``--extra`` TOML is :data:`EXTRA_EXAMPLE` (every section optional).
+"""
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import tempfile
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import pandas as pd
+import pyarrow as pa
+
+from planner.io.parquet import write_parquet_atomic
+from planner.errors import SourceError, Violation
+from planner.line.schema import TABLES
+
+EXTRA_EXAMPLE = """
+[line]
+line_id = "coast"            # default: the source's line/path name
+name = "Coast Line"          # default: the line id
+max_speed_kmh = 120.0        # default: the highest speed limit on the path
+
+[defaults]                   # replace any documented default, e.g.
+platform_length_m = 180.0
+
+[stations.OP_ID]             # by the source's id of the station / operational point
+station_id = "CST"           # default: the source id
+name = "Coast"
+platform_length_m = 210.0
+stop_down_m = 1300.0         # chainage of the stop marker (train front), direction down
+stop_up_m = 1100.0
+
+[rolling_stock.NAME]         # by the source's name; any rolling_stock column, e.g.
+train_type = "EMU10"         # default: the source's name (ids become file and partition names)
+jerk_limit_kmh_s2 = 2.5
+full_load_mass_t = 90.0
+
+[[beacons]]                  # ATS-P ground beacons; `at` = a source element id (signal, detector,
+beacon_id = "B1"             #  balise, operational point) or give position_m
+at = "S12"
+direction = "down"
+kind = "signal"
+telegram = "S12:G"
+evaluation_point = true
+
+[[timetable]]                # rows of timetable.parquet
+train_id = "101"
+train_type = "EMU"
+direction = "down"
+seq = 0
+station_id = "CST"
+departure_s = 21600.0
+stops = true
+"""
+"""An ``--extra`` TOML with every section (also shown in docs/line-database.md)."""
+
+DEFAULTS: dict[str, tuple[object, str]] = {
+    "platform_length_m": (200.0, "platform length where the source gives none [m]"),
+    "stop_markers": ("platform ends", "stop markers at the platform end in each direction "
+                                      "(down: centre + length/2, up: centre − length/2), clipped to the line"),
+    "speed_limit_kind": ("civil", "kind of every imported speed restriction"),
+    "has_beacon": (False, "no ATS-P beacon sends an imported restriction's pattern"),
+    "line_max_speed": ("highest limit", "line max_speed_kmh = the highest speed limit on the path"),
+    "line_name": ("line id", "display name = the line id"),
+    "beacons": ("none", "no ATS-P beacons (add [[beacons]] to the TOML)"),
+    "timetable": ("empty", "no trains (add [[timetable]] rows to the TOML)"),
+    "missing_gradient": (0.0, "gradient of a railML track with no gradientChange [‰] (level)"),
+    "beacon_kind": ("other", "kind of a beacon (railML balise, or [[beacons]] without kind)"),
+    "beacon_telegram": ("", "telegram of a beacon the TOML gives none for (empty)"),
+    "evaluation_point": (False, "a beacon is not an evaluation point unless the TOML says so"),
+    "full_load_mass_t": (0.0, "passenger mass at 100 % load [t]"),
+    "max_accel_kmh_s": ("comfort_acceleration", "acceleration cap = the source's comfort acceleration"),
+    "comfort_accel_kmh_s": ("comfort_acceleration", "ride-comfort acceleration = the source's comfort "
+                                                    "acceleration"),
+    "service_brake_kmh_s": ("braking", "restriction braking = the source's braking deceleration"),
+    "stop_brake_kmh_s": ("braking", "station stopping braking = the source's braking deceleration"),
+    "atsp_pattern_kmh_s": ("braking", "ATS-P pattern deceleration = the source's braking deceleration"),
+    "jerk_limit_kmh_s2": (1.8, "ride-comfort jerk limit [km/h/s²] (0.5 m/s³)"),
+    "speed_margin_kmh": (0.0, "on-board speed margin below the limit [km/h]"),
+    "cruise": ("constant", "cruise mode"),
+    "coast_band_kmh": (0.0, "sawtooth band [km/h] (unused with constant cruise)"),
+}
+"""Every default an importer may use: key → (value, what it means). ``[defaults]`` in the TOML overrides."""
+
+OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_name", "beacons", "timetable"}
+"""Defaults with one value that ``[defaults]`` may replace (the others describe a rule or an absence)."""
+
+_ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema)  # train_type renames
+_SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable"}
+_LINE_KEYS = {"line_id", "name", "max_speed_kmh"}
+_STATION_KEYS = {"station_id", "name", "platform_length_m", "stop_down_m", "stop_up_m"}
+_BEACON_KEYS = {f.name for f in TABLES["beacons"].schema} | {"at"}
+_TIMETABLE_KEYS = {f.name for f in TABLES["timetable"].schema}
+
+
+@dataclass
+class ImportSummary:
+    """What an import did: the source, the result, and every default it used."""
+
+    source: str
+    out: Path | None = None
+    line_id: str = ""
+    rows: dict[str, int] = field(default_factory=dict)
+    defaults: dict[str, list[str]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    extra: "Extras | None" = None
+    describe: Callable[[Violation], str] = str
+    """How a violation of the written tables is named in terms of the source (CSV: file and line)."""
+
+    def default(self, key: str, where: str | None = None):
+        """The value of default ``key`` (the TOML's ``[defaults]`` first), recorded as used for ``where``."""
+        value = self.extra.defaults.get(key) if self.extra is not None else None
+        src = "TOML [defaults]" if value is not None else "default"
+        if value is None:
+            value = DEFAULTS[key][0]
+        label = f"{key} = {value!r} ({src}: {DEFAULTS[key][1]})"
+        self.defaults.setdefault(label, [])
+        if where is not None and where not in self.defaults[label]:
+            self.defaults[label].append(where)
+        return value
+
+    def lines(self) -> list[str]:
+        """Printable summary: one fact per line, then every default used and where."""
+        out = [f"imported {self.source} -> {self.out} (line_id {self.line_id}): valid"]
+        out += [f"  {name + ':':<15}{n} row{'' if n == 1 else 's'}" for name, n in self.rows.items()]
+        out.append(f"  defaults used: {len(self.defaults) or 'none'}")
+        for label, where in self.defaults.items():
+            tail = f" for {', '.join(where[:8])}{' …' if len(where) > 8 else ''}" if where else ""
+            out.append(f"    - {label}{tail}")
+        out += [f"  note: {n}" for n in self.notes]
+        return out
+
+
+# --------------------------------------------------------------------------- the --extra TOML
+@dataclass
+class Extras:
+    """The parsed ``--extra`` TOML (empty when none is given)."""
+
+    path: str = "--extra"
+    line: dict = field(default_factory=dict)
+    defaults: dict = field(default_factory=dict)
+    stations: dict = field(default_factory=dict)
+    rolling_stock: dict = field(default_factory=dict)
+    beacons: list = field(default_factory=list)
+    timetable: list = field(default_factory=list)
+
+    def err(self, where: str, message: str) -> SourceError:
+        return SourceError(f"{self.path}: {where}: {message}")
+
+
+def _check_keys(ex: Extras, where: str, table: dict, allowed: set[str]) -> None:
+    if not isinstance(table, dict):
+        raise ex.err(where, f"must be a table, found {type(table).__name__}")
+    for k in table:
+        if k not in allowed:
+            raise ex.err(f"{where}.{k}", f"unknown key; expected one of {', '.join(sorted(allowed))}")
+
+
+def load_extras(path: str | Path | None) -> Extras:
+    """Read and check the ``--extra`` TOML; None gives an empty :class:`Extras`."""
+    if path is None:
+        return Extras()
+    p = Path(path)
+    ex = Extras(path=p.name)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise SourceError(f"{p}: --extra file does not exist") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise SourceError(f"{p.name}: not valid TOML ({e})") from None
+    _check_keys(ex, "top level", data, _SECTIONS)
+    ex.line = data.get("line", {})
+    _check_keys(ex, "[line]", ex.line, _LINE_KEYS)
+    ex.defaults = data.get("defaults", {})
+    _check_keys(ex, "[defaults]", ex.defaults, set(OVERRIDABLE))
+    ex.stations = data.get("stations", {})
+    for k, v in ex.stations.items():
+        _check_keys(ex, f"[stations.{k}]", v, _STATION_KEYS)
+    ex.rolling_stock = data.get("rolling_stock", {})
+    for k, v in ex.rolling_stock.items():
+        _check_keys(ex, f"[rolling_stock.{k}]", v, set(_ROLLING_STOCK_COLS))
+    for name, keys in (("beacons", _BEACON_KEYS), ("timetable", _TIMETABLE_KEYS)):
+        rows = data.get(name, [])
+        if not isinstance(rows, list):
+            raise ex.err(name, "must be an array of tables ([[" + name + "]])")
+        for i, r in enumerate(rows):
+            _check_keys(ex, f"[[{name}]] #{i + 1}", r, keys)
+        setattr(ex, name, rows)
+    return ex
+
+
+def number(value, where: str, fix: str = "", *, positive: bool = False) -> float:
+    """A finite float from a source value, or a SourceError naming ``where``."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise SourceError(f"{where}: {value!r} is not a number{'; ' + fix if fix else ''}") from None
+    if not math.isfinite(x) or (positive and not x > 0):
+        need = "a number > 0" if positive else "a finite number"
+        raise SourceError(f"{where}: {value!r} must be {need}{'; ' + fix if fix else ''}")
+    return x
+
+
+# --------------------------------------------------------------------------- shared table builders
+def line_table(line_id: str, start_m: float, end_m: float, limits: pd.DataFrame, s: ImportSummary) -> pd.DataFrame:
+    """line.parquet from the TOML's [line] and the defaults."""
+    ex = s.extra or Extras()
+    lid = str(line_id)
+    name = ex.line.get("name")
+    if name is None:
+        s.default("line_name")
+        name = lid
+    vmax = ex.line.get("max_speed_kmh")
+    if vmax is None:
+        if limits.empty:
+            raise SourceError(f"{s.source}: no speed limit on the path; set [line] max_speed_kmh in the "
+                              f"--extra TOML")
+        s.default("line_max_speed")
+        vmax = float(limits["limit_kmh"].max())
+    vmax = number(vmax, f"{ex.path}: [line] max_speed_kmh", positive=True)
+    s.line_id = lid
+    return pd.DataFrame([dict(line_id=lid, name=str(name), start_m=float(start_m), end_m=float(end_m),
+                              max_speed_kmh=vmax, schema_version=1)])
+
+
+def station_table(found: list[dict], start_m: float, end_m: float, s: ImportSummary) -> pd.DataFrame:
+    """stations.parquet from located stations ``{source_id, name, position_m[, platform_length_m,
+    stop_down_m, stop_up_m]}``, the TOML's [stations.*] and the defaults."""
+    ex = s.extra or Extras()
+    known = {st["source_id"] for st in found}
+    for k in ex.stations:
+        if k not in known:
+            raise ex.err(f"[stations.{k}]", f"no station {k!r} on the imported path; stations are "
+                                            f"{', '.join(sorted(known))}")
+    rows = []
+    for st in sorted(found, key=lambda r: r["position_m"]):
+        sid = st["source_id"]
+        over = {**{k: v for k, v in st.items() if v is not None}, **ex.stations.get(sid, {})}
+        plat = over.get("platform_length_m")
+        if plat is None:
+            plat = s.default("platform_length_m", sid)
+        plat = number(plat, f"station {sid}: platform_length_m", positive=True)
+        pos = st["position_m"]
+        down, up = over.get("stop_down_m"), over.get("stop_up_m")
+        if down is None or up is None:
+            s.default("stop_markers", sid)
+        down = min(pos + plat / 2, end_m) if down is None else number(down, f"station {sid}: stop_down_m")
+        up = max(pos - plat / 2, start_m) if up is None else number(up, f"station {sid}: stop_up_m")
+        rows.append(dict(station_id=str(over.get("station_id", sid)), name=str(over.get("name", sid)),
+                         position_m=pos, stop_down_m=down, stop_up_m=up, platform_length_m=plat))
+    return pd.DataFrame(rows, columns=[f.name for f in TABLES["stations"].schema])
+
+
+def beacon_table(located: dict[str, float], s: ImportSummary, native: list[dict] | None = None) -> pd.DataFrame:
+    """beacons.parquet: ``native`` rows from the source, then the TOML's [[beacons]] (``at`` = an element id)."""
+    ex = s.extra or Extras()
+    rows = list(native or [])
+    by_id = {r["beacon_id"]: r for r in rows}
+    for i, b in enumerate(ex.beacons):
+        where = f"[[beacons]] #{i + 1}"
+        b = dict(b)
+        if b.get("beacon_id") in by_id:  # completes a beacon of the source (a railML balise)
+            by_id[b["beacon_id"]].update(b)
+            continue
+        if "at" in b:
+            at = b.pop("at")
+            if at not in located:
+                raise ex.err(f"{where}.at", f"no element {at!r} on the imported path; give an id of a signal, "
+                                            f"detector, balise or station on it, or position_m")
+            b.setdefault("position_m", located[at])
+        for k in ("beacon_id", "position_m", "direction"):
+            if k not in b:
+                raise ex.err(where, f"missing key {k!r}" + (" (or at)" if k == "position_m" else ""))
+        b["position_m"] = number(b["position_m"], f"{ex.path}: {where}.position_m")
+        rows.append(b)
+    if not rows:
+        s.default("beacons")
+    for r in rows:
+        for col, key in (("kind", "beacon_kind"), ("telegram", "beacon_telegram"),
+                         ("evaluation_point", "evaluation_point")):
+            if r.get(col) is None:
+                r[col] = s.default(key, str(r["beacon_id"]))
+    return pd.DataFrame(rows, columns=[f.name for f in TABLES["beacons"].schema])
+
+
+def timetable_table(s: ImportSummary) -> pd.DataFrame:
+    """timetable.parquet from the TOML's [[timetable]] rows (empty by default)."""
+    ex = s.extra or Extras()
+    cols = [f.name for f in TABLES["timetable"].schema]
+    if not ex.timetable:
+        s.default("timetable")
+    rows = []
+    for i, r in enumerate(ex.timetable):
+        for k in ("train_id", "train_type", "direction", "seq", "station_id", "stops"):
+            if k not in r:
+                raise ex.err(f"[[timetable]] #{i + 1}", f"missing key {k!r}")
+        rows.append({c: r.get(c) for c in cols})
+    return pd.DataFrame(rows, columns=cols)
+
+
+# --------------------------------------------------------------------------- writing
+def to_arrow(name: str, df: pd.DataFrame) -> pa.Table:
+    """A DataFrame of table ``name`` as a pyarrow table with the declared schema (optional columns may be absent)."""
+    spec = TABLES[name]
+    fields = [f for f in spec.schema if f.name in df.columns or f.name not in spec.optional_columns]
+    arrays = []
+    for f in fields:
+        if f.name not in df.columns:
+            raise SourceError(f"{name}: column {f.name} is missing")
+        values = [None if (isinstance(v, float) and math.isnan(v)) else v for v in df[f.name].tolist()]
+        if pa.types.is_floating(f.type):
+            values = [None if v is None else float(v) for v in values]
+        arrays.append(pa.array(values, type=f.type))
+    return pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=spec.schema.metadata))
+
+
+def write_line(tables: dict[str, pd.DataFrame | pa.Table], out: str | Path, summary: ImportSummary,
+               *, force: bool = False) -> ImportSummary:
+    """Write the tables as a line database at ``out``: temp folder, validation, then one rename.
+
+    Raises
+    ------
+    SourceError
+        ``out`` exists (without ``force``), or the imported tables break a rule of
+        docs/line-database.md; nothing is left behind.
+    """
+    from planner.line.loader import check_line
+
+    out = Path(out)
+    if out.exists() and not force:
+        raise SourceError(f"{out}: already exists; choose another --out or pass --force to replace it")
+    made = [p for p in reversed(out.parents) if not p.exists()]  # removed again if the import fails
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.import-", dir=out.parent))
+    done = False
+    try:
+        for name, t in tables.items():
+            table = t if isinstance(t, pa.Table) else to_arrow(name, t)
+            write_parquet_atomic(table, tmp / TABLES[name].file)
+            summary.rows[name] = table.num_rows
+        problems = check_line(tmp)
+        if problems:
+            more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+            raise SourceError(f"{summary.source}: the imported line would be invalid: {summary.describe(problems[0])}{more}; "
+                              f"fix the source or the --extra TOML (rules: docs/line-database.md)")
+        os.chmod(tmp, 0o755)
+        if out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+            os.replace(out, old / "x")
+            os.replace(tmp, out)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out)
+        done = True
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+        if not done:
+            for p in reversed(made):
+                try:
+                    p.rmdir()
+                except OSError:
+                    break
+    summary.out = out
+    return summary

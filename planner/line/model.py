@@ -1,0 +1,304 @@
+"""Domain model of a line, in SI units.
+
+These frozen dataclasses are what the loader returns and what every later step
+consumes; no DataFrame travels past the loader. Every quantity is SI (m, s,
+m/s, m/s², m/s³, N, kg) and its unit is written in the field name's suffix:
+
+``_m`` metres, ``_s`` seconds, ``_ms`` metres per second, ``_ms2`` m/s²,
+``_ms3`` m/s³, ``_kg`` kilograms, ``_N`` newtons. Gradients are stored as the
+dimensionless rise per metre (‰ / 1000), positive when rising towards
+increasing chainage.
+
+Direction ``"down"`` runs towards increasing chainage, ``"up"`` towards
+decreasing chainage. ``sign(direction)`` is +1 for down, -1 for up.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from planner.errors import UnknownNameError
+
+Direction = Literal["down", "up"]
+DIRECTIONS: tuple[Direction, Direction] = ("down", "up")
+G = 9.80665
+"""Standard gravity [m/s²]."""
+
+
+def sign(direction: str) -> int:
+    """+1 for ``down`` (increasing chainage), -1 for ``up``."""
+    if direction == "down":
+        return 1
+    if direction == "up":
+        return -1
+    raise ValueError(f"direction must be 'down' or 'up', not {direction!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Segments:
+    """A piecewise-constant quantity over chainage; gaps mean "none" (level, straight).
+
+    Attributes
+    ----------
+    start_m, end_m : ndarray
+        Segment bounds [m], sorted, non-overlapping, start < end.
+    value : ndarray
+        The quantity on each segment (gradient as rise/m, or curve radius [m]).
+    """
+
+    start_m: np.ndarray
+    end_m: np.ndarray
+    value: np.ndarray
+
+    @staticmethod
+    def empty() -> "Segments":
+        z = np.zeros(0)
+        return Segments(z, z.copy(), z.copy())
+
+    def __len__(self) -> int:
+        return len(self.start_m)
+
+
+@dataclass(frozen=True)
+class Station:
+    """A station. Positions are chainages [m]."""
+
+    station_id: str
+    name: str
+    position_m: float
+    stop_down_m: float
+    stop_up_m: float
+    platform_length_m: float
+
+    def stop_m(self, direction: str) -> float:
+        """Stop marker for the train front in ``direction`` [m]."""
+        return self.stop_down_m if direction == "down" else self.stop_up_m
+
+
+@dataclass(frozen=True)
+class SpeedLimit:
+    """A speed restriction on the stretch [start_m, end_m] (front of train).
+
+    ``train_type`` None applies to every train type; ``direction`` is
+    ``both``, ``down`` or ``up``. ``row`` is the 0-based row in
+    speed_limits.parquet, used as a stable id.
+    """
+
+    start_m: float
+    end_m: float
+    limit_ms: float
+    direction: str
+    train_type: str | None
+    kind: str
+    has_beacon: bool
+    row: int = -1
+
+    def applies(self, direction: str, train_type: str) -> bool:
+        return self.direction in ("both", direction) and self.train_type in (None, train_type)
+
+
+@dataclass(frozen=True)
+class Beacon:
+    """A ground beacon (transponder) read by trains running in ``direction``."""
+
+    beacon_id: str
+    position_m: float
+    direction: str
+    kind: str  # signal, pattern_update, tasc, other
+    telegram: str
+    evaluation_point: bool
+
+
+@dataclass(frozen=True)
+class Signal:
+    """A block signal (block boundary) for trains running in ``direction``."""
+
+    signal_id: str
+    position_m: float
+    direction: str
+
+
+@dataclass(frozen=True, eq=False)
+class TrainType:
+    """Rolling stock of one train type, in SI.
+
+    Davis resistance R(v) = davis_a_N + davis_b_N_per_ms·v + davis_c_N_per_ms2·v²
+    [N] with v in m/s. ``traction_speed_ms``/``traction_effort_N`` is the
+    full-notch tractive-effort curve of the whole train (linear interpolation).
+    """
+
+    train_type: str
+    length_m: float
+    empty_mass_kg: float
+    full_load_mass_kg: float
+    rotating_mass_factor: float
+    max_speed_ms: float
+    max_accel_ms2: float
+    davis_a_N: float
+    davis_b_N_per_ms: float
+    davis_c_N_per_ms2: float
+    service_brake_ms2: float
+    stop_brake_ms2: float
+    atsp_pattern_ms2: float
+    comfort_accel_ms2: float
+    jerk_limit_ms3: float
+    speed_margin_ms: float
+    cruise: str  # "constant" or "sawtooth"
+    coast_band_ms: float
+    traction_speed_ms: np.ndarray
+    traction_effort_N: np.ndarray
+
+    def mass_kg(self, load: float = 0.0) -> float:
+        """Static mass M = empty + load × full passenger mass [kg]."""
+        return self.empty_mass_kg + load * self.full_load_mass_kg
+
+    def effective_mass_kg(self, load: float = 0.0) -> float:
+        """Effective (inertial) mass M_e = M (1 + rotating-mass factor) [kg]."""
+        return self.mass_kg(load) * (1.0 + self.rotating_mass_factor)
+
+
+@dataclass(frozen=True)
+class Call:
+    """One call of a timetabled train at a station (times in s after midnight, NaN if none)."""
+
+    seq: int
+    station_id: str
+    arrival_s: float
+    departure_s: float
+    stops: bool
+
+
+@dataclass(frozen=True)
+class Train:
+    """A timetabled train: its type, direction and calls in running order."""
+
+    train_id: str
+    train_type: str
+    direction: str
+    calls: tuple[Call, ...]
+
+
+@dataclass(frozen=True)
+class Node:
+    node_id: str
+    kind: str  # switch, stop, boundary, end
+    position_m: float
+    interlocking: str
+    station_id: str | None = None  # optional nodes.parquet column: the station a stop node serves
+    track: str | None = None  # optional nodes.parquet column
+
+
+@dataclass(frozen=True)
+class Edge:
+    edge_id: str
+    from_node: str
+    to_node: str
+    length_m: float
+    track: str
+
+
+@dataclass(frozen=True)
+class Network:
+    """Track network: nodes (switches, stop targets, boundaries) and track pieces."""
+
+    nodes: tuple[Node, ...]
+    edges: tuple[Edge, ...]
+
+
+@dataclass(frozen=True)
+class RunExtent:
+    """Where a run between two stations lies: from the origin's stop marker to the destination's.
+
+    ``start_m``/``end_m`` are chainages [m]; ``length_m`` the running distance
+    (positive when the markers leave room to run); running distance s maps to
+    chainage ``start_m + sign * s``.
+    """
+
+    direction: Direction
+    sign: int
+    start_m: float
+    end_m: float
+    length_m: float
+
+
+@dataclass(frozen=True, eq=False)
+class Line:
+    """A validated line database, in SI.
+
+    ``source_digest`` is the SHA-256 over the input files (names and bytes) it
+    was loaded from; "" for lines built in memory.
+    """
+
+    line_id: str
+    name: str
+    start_m: float
+    end_m: float
+    max_speed_ms: float
+    schema_version: int
+    stations: tuple[Station, ...]
+    gradients: Segments
+    curves: Segments
+    speed_limits: tuple[SpeedLimit, ...]
+    beacons: tuple[Beacon, ...]
+    signals: tuple[Signal, ...]
+    train_types: tuple[TrainType, ...]
+    trains: tuple[Train, ...]
+    network: Network | None = None
+    source_digest: str = ""
+    source_path: str = field(default="", compare=False)
+
+    # --- look-ups -----------------------------------------------------------
+    def station(self, station_id: str) -> Station:
+        """The station with this id; an exact match first, else the one match ignoring case."""
+        return _lookup(self.stations, "station_id", station_id, "station", self.line_id)
+
+    def train_type(self, train_type: str) -> TrainType:
+        """The train type with this id; an exact match first, else the one match ignoring case."""
+        return _lookup(self.train_types, "train_type", train_type, "train type", self.line_id)
+
+    def direction_between(self, origin: str, destination: str) -> Direction:
+        """``down`` if destination lies at greater chainage than origin, else ``up``."""
+        a, b = self.station(origin), self.station(destination)
+        if a.station_id == b.station_id:
+            raise UnknownNameError(f"origin and destination are the same station {origin!r}")
+        return "down" if b.position_m > a.position_m else "up"
+
+    def run_between(self, origin: str, destination: str) -> RunExtent:
+        """Direction, stop markers and running distance of a run ``origin`` → ``destination``."""
+        d = self.direction_between(origin, destination)
+        a, b = self.station(origin).stop_m(d), self.station(destination).stop_m(d)
+        return RunExtent(d, sign(d), a, b, sign(d) * (b - a))
+
+    def interstations(self, direction: str) -> list[tuple[Station, Station]]:
+        """Consecutive station pairs in running order for ``direction``."""
+        st = sorted(self.stations, key=lambda s: s.position_m, reverse=(direction == "up"))
+        return list(zip(st[:-1], st[1:]))
+
+    def beacons_for(self, direction: str) -> list[Beacon]:
+        """Beacons read in ``direction``, in running order."""
+        b = [x for x in self.beacons if x.direction == direction]
+        return sorted(b, key=lambda x: sign(direction) * x.position_m)
+
+    def limits_for(self, direction: str, train_type: str) -> list[SpeedLimit]:
+        """Speed restrictions that apply to ``direction`` and ``train_type``."""
+        return [s for s in self.speed_limits if s.applies(direction, train_type)]
+
+
+def _lookup(items, attr: str, text: str, what: str, line_id: str):
+    """Exact id, else the unique case-insensitive match; else UnknownNameError with a suggestion."""
+    import difflib
+
+    for x in items:
+        if getattr(x, attr) == text:
+            return x
+    ids = [getattr(x, attr) for x in items]
+    folded = [x for x in items if str(getattr(x, attr)).casefold() == str(text).casefold()]
+    if len(folded) == 1:
+        return folded[0]
+    close = difflib.get_close_matches(str(text).upper(), [i.upper() for i in ids], n=1, cutoff=0.5)
+    hint = ""
+    if close:
+        hint = f"; did you mean {next(i for i in ids if i.upper() == close[0])}?"
+    raise UnknownNameError(f"unknown {what} {text!r} on line {line_id}{hint} (known: {', '.join(ids)})")

@@ -1,0 +1,237 @@
+"""Line database schema v1: one pyarrow schema per table, declared once.
+
+This module is the machine-readable form of ``SCHEMA.md``: the table files,
+their columns (units in the column names), the column types, which columns may
+hold nulls, which tables must exist and how many rows they need. The loader
+(:mod:`planner.line.loader`) and the validator (:mod:`planner.line.validate`) read it;
+nothing else restates the column list.
+
+Every field carries a ``description`` metadata entry, and every schema the
+metadata ``table`` and ``schema_version``. Users may add their own columns and
+tables (SCHEMA.md); columns not declared here are ignored on load. Columns
+listed in :attr:`TableSpec.optional_columns` may be absent.
+
+Ids that become file names or partition values
+----------------------------------------------
+``line.line_id`` and ``rolling_stock.train_type`` become folder and file
+names (``line=<line_id>/``, ``train_type=<train_type>/`` partitions,
+``<line_id>_<direction>_<train_type>.pdb`` bundles, ``<line_id>_margins.html``).
+One rule, :data:`PATH_ID_RE`, holds for each of them (:data:`PATH_ID_COLUMNS`)
+and for the job file's closed-loop scenario names (a partition too): **1 to 64
+characters, letters A-Z a-z, digits, ``.``, ``_`` or ``-``, the first a letter
+or digit**. So an id can never be ``..``, hold a ``/``, a ``=`` or a ``%``
+(hive partition syntax), a space or a control character. The validator
+refuses other values up front and the writers check again where they build a
+path (:func:`check_path_id`).
+
+Examples
+--------
+>>> from planner.line.schema import TABLES
+>>> TABLES["gradients"].schema.field("gradient_permil").type
+DataType(double)
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import pyarrow as pa
+
+SCHEMA_VERSION = 1
+"""Version of the line-database contract described by this module and SCHEMA.md."""
+
+DIRECTIONS = ("down", "up")
+"""Running directions: ``down`` towards increasing chainage, ``up`` towards decreasing."""
+LIMIT_DIRECTIONS = ("both", "down", "up")
+BEACON_KINDS = ("signal", "pattern_update", "tasc", "other")
+CRUISE_MODES = ("constant", "sawtooth")
+NODE_KINDS = ("switch", "stop", "boundary", "end")
+PATH_ID_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+"""Ids that become file names or partition values (module doc): 1-64 of A-Z a-z 0-9 . _ -, first alphanumeric."""
+PATH_ID_RULE = "use 1-64 letters, digits, '.', '_' or '-', starting with a letter or digit"
+"""The rule in words, for messages."""
+PATH_ID_COLUMNS = {"line": ("line_id",), "rolling_stock": ("train_type",)}
+"""The line-database columns whose values become file names or partition values."""
+
+
+def is_path_id(value: object) -> bool:
+    """True when ``value`` can name a file or partition (:data:`PATH_ID_RE`)."""
+    return isinstance(value, str) and PATH_ID_RE.fullmatch(value) is not None
+
+
+def check_path_id(value: object, what: str) -> str:
+    """``value`` if it can name a file or partition, else an :class:`~planner.errors.InputError` line.
+
+    Writers call it where they build a path, even though validation refused bad
+    ids already: a line built in memory does not pass the validator.
+    """
+    if not is_path_id(value):
+        from planner.errors import InputError
+
+        raise InputError(f"{what} {value!r} cannot name a file or partition: {PATH_ID_RULE}")
+    return value  # type: ignore[return-value]
+
+
+MAX_GRADIENT_PERMIL = 40.0
+"""Steepest gradient accepted [‰]; steeper is outside adhesion railway practice and a likely typo."""
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """One table of the line database.
+
+    Attributes
+    ----------
+    name : str
+        Table name; the file is ``<name>.parquet``.
+    schema : pyarrow.Schema
+        Declared columns with types, nullability and descriptions.
+    required : bool
+        The file must exist (it may still be empty when ``min_rows`` is 0).
+    min_rows, max_rows : int, int or None
+        Row-count bounds (``max_rows`` None = unbounded).
+    row_id : tuple of str
+        Columns that identify a row in messages, e.g. ``("station_id",)``.
+    optional_columns : frozenset of str
+        Declared columns that may be absent from the file.
+    """
+
+    name: str
+    schema: pa.Schema
+    required: bool
+    min_rows: int = 0
+    max_rows: int | None = None
+    row_id: tuple[str, ...] = ()
+    optional_columns: frozenset[str] = frozenset()
+
+    @property
+    def file(self) -> str:
+        """The table's file name inside the line folder."""
+        return f"{self.name}.parquet"
+
+
+def _schema(table: str, fields: list[tuple]) -> pa.Schema:
+    """Build a schema from ``(name, type, description[, nullable])`` tuples."""
+    out = []
+    for f in fields:
+        name, typ, desc = f[:3]
+        nullable = f[3] if len(f) > 3 else False
+        out.append(pa.field(name, typ, nullable=nullable, metadata={"description": desc}))
+    return pa.schema(out, metadata={"table": table, "schema_version": str(SCHEMA_VERSION)})
+
+
+S, D, I32, B = pa.string(), pa.float64(), pa.int32(), pa.bool_()
+NULLABLE = True
+
+_SPECS = [
+    TableSpec("line", _schema("line", [
+        ("line_id", S, "line identifier, used in every output; the folder may have any name; names files (PATH_ID_RE)"),
+        ("name", S, "display name"),
+        ("start_m", D, "first chainage covered by the database [m]"),
+        ("end_m", D, "last chainage covered by the database [m]"),
+        ("max_speed_kmh", D, "line maximum speed [km/h]"),
+        ("schema_version", I32, "line-database schema version; 1"),
+    ]), required=True, min_rows=1, max_rows=1, row_id=("line_id",)),
+    TableSpec("stations", _schema("stations", [
+        ("station_id", S, "unique station identifier"),
+        ("name", S, "display name"),
+        ("position_m", D, "chainage of the centre of the platform [m]"),
+        ("stop_down_m", D, "stop marker for the train front, direction down [m]"),
+        ("stop_up_m", D, "stop marker for the train front, direction up [m]"),
+        ("platform_length_m", D, "platform length [m]"),
+    ]), required=True, min_rows=2, row_id=("station_id",)),
+    TableSpec("gradients", _schema("gradients", [
+        ("start_m", D, "segment start chainage [m]"),
+        ("end_m", D, "segment end chainage [m]; > start_m"),
+        ("gradient_permil", D, "gradient [‰], positive = rising towards increasing chainage"),
+    ]), required=True, row_id=("start_m",)),
+    TableSpec("curves", _schema("curves", [
+        ("start_m", D, "curve start chainage [m]"),
+        ("end_m", D, "curve end chainage [m]; > start_m"),
+        ("radius_m", D, "curve radius [m]; > 0"),
+    ]), required=True, row_id=("start_m",)),
+    TableSpec("speed_limits", _schema("speed_limits", [
+        ("start_m", D, "restricted stretch start chainage [m]"),
+        ("end_m", D, "restricted stretch end chainage [m]; > start_m"),
+        ("limit_kmh", D, "speed limit [km/h]; > 0"),
+        ("direction", S, "both, down or up"),
+        ("train_type", S, "train type it applies to; null = every train type", NULLABLE),
+        ("kind", S, "curve, turnout, civil, station, ..."),
+        ("has_beacon", B, "an ATS-P ground beacon already sends this restriction's pattern"),
+    ]), required=True, row_id=("start_m",)),
+    TableSpec("beacons", _schema("beacons", [
+        ("beacon_id", S, "unique beacon identifier"),
+        ("position_m", D, "beacon chainage [m]"),
+        ("direction", S, "down or up: trains that read it"),
+        ("kind", S, "signal, pattern_update, tasc or other"),
+        ("telegram", S, "telegram content as received on board"),
+        ("evaluation_point", B, "running time is re-evaluated here"),
+    ]), required=True, row_id=("beacon_id",)),
+    TableSpec("signals", _schema("signals", [
+        ("signal_id", S, "unique signal identifier"),
+        ("position_m", D, "signal chainage (block boundary) [m]"),
+        ("direction", S, "down or up"),
+    ]), required=False, row_id=("signal_id",)),
+    TableSpec("rolling_stock", _schema("rolling_stock", [
+        ("train_type", S, "unique train type; names files (PATH_ID_RE)"),
+        ("length_m", D, "train length [m]"),
+        ("empty_mass_t", D, "empty train mass [t]"),
+        ("full_load_mass_t", D, "passenger mass added at 100 % load [t]"),
+        ("rotating_mass_factor", D, "rotating-mass allowance, e.g. 0.08 [-]"),
+        ("max_speed_kmh", D, "vehicle maximum speed [km/h]"),
+        ("max_accel_kmh_s", D, "acceleration cap [km/h/s]"),
+        ("davis_a_kN", D, "Davis resistance constant term A [kN]"),
+        ("davis_b_kN_per_kmh", D, "Davis resistance linear term B [kN/(km/h)]"),
+        ("davis_c_kN_per_kmh2", D, "Davis resistance quadratic term C [kN/(km/h)^2]"),
+        ("service_brake_kmh_s", D, "intermediate (restriction) braking deceleration [km/h/s]"),
+        ("stop_brake_kmh_s", D, "station stopping deceleration [km/h/s]"),
+        ("atsp_pattern_kmh_s", D, "deceleration of ATS-P speed-check patterns [km/h/s]"),
+        ("comfort_accel_kmh_s", D, "ride-comfort acceleration limit [km/h/s]"),
+        ("jerk_limit_kmh_s2", D, "ride-comfort jerk limit [km/h/s^2]"),
+        ("speed_margin_kmh", D, "on-board maximum speed = limit - margin [km/h]"),
+        ("cruise", S, "constant (constant-speed control) or sawtooth"),
+        ("coast_band_kmh", D, "sawtooth speed band [km/h]"),
+    ]), required=True, min_rows=1, row_id=("train_type",)),
+    TableSpec("traction", _schema("traction", [
+        ("train_type", S, "train type (references rolling_stock)"),
+        ("speed_kmh", D, "speed of this curve point [km/h]; strictly increasing per train type from 0"),
+        ("effort_kN", D, "full-notch tractive effort of the whole train [kN]; >= 0"),
+    ]), required=True, min_rows=1, row_id=("train_type", "speed_kmh")),
+    TableSpec("timetable", _schema("timetable", [
+        ("train_id", S, "train identifier"),
+        ("train_type", S, "train type (references rolling_stock)"),
+        ("direction", S, "down or up"),
+        ("seq", I32, "order of the call along the run, from 0"),
+        ("station_id", S, "station (references stations)"),
+        ("arrival_s", D, "arrival [s after midnight, may exceed 86400]; null at the origin", NULLABLE),
+        ("departure_s", D, "departure [s after midnight, may exceed 86400]; null at the terminus",
+         NULLABLE),
+        ("stops", B, "false for a pass"),
+    ]), required=True, row_id=("train_id", "seq")),
+    TableSpec("nodes", _schema("nodes", [
+        ("node_id", S, "unique node identifier"),
+        ("kind", S, "switch, stop, boundary or end"),
+        ("position_m", D, "node chainage [m]"),
+        ("interlocking", S, "interlocking that controls the node"),
+        ("station_id", S, "station a stop node belongs to (optional column)", NULLABLE),
+        ("track", S, "track the node lies on (optional column)", NULLABLE),
+    ]), required=False, row_id=("node_id",), optional_columns=frozenset({"station_id", "track"})),
+    TableSpec("edges", _schema("edges", [
+        ("edge_id", S, "unique edge identifier"),
+        ("from_node", S, "node id at one end"),
+        ("to_node", S, "node id at the other end"),
+        ("length_m", D, "track length between the nodes [m]; > 0"),
+        ("track", S, "track name"),
+    ]), required=False, row_id=("edge_id",)),
+]
+
+TABLES: dict[str, TableSpec] = {t.name: t for t in _SPECS}
+"""Every table of schema v1 by name, in SCHEMA.md order."""
+
+
+def describe(table: str) -> list[tuple[str, str, bool, str]]:
+    """``(column, type, nullable, description)`` for each declared column of ``table``."""
+    return [
+        (f.name, str(f.type), f.nullable, f.metadata[b"description"].decode())
+        for f in TABLES[table].schema
+    ]

@@ -1,0 +1,677 @@
+"""What changed between two runs: inputs (line tables, job parameters, code) and what that did to the outputs.
+
+:func:`compare_runs` reads two published run folders and lists, per line:
+
+* **inputs** — the code version (``code_digest``, planner version), every job
+  parameter whose value differs, and for the line database every row of every
+  table that was added, removed or changed (a run keeps a copy of its line
+  tables under ``inputs/<line_id>/``, checked against the line's
+  ``source_digest`` in the manifest before it is read);
+* **legs** — margin rows (stop → next stop, train type, direction, scheduled
+  time) whose minimum running time, margin or bad-day margin moved by more
+  than ``threshold_s``, or that appeared or disappeared; each is traced to the
+  line-table changes that lie within one train length of its stretch (or name
+  its train type or trains), which is how the page says "this restriction made
+  these legs this much slower";
+* **flags** — legs whose ``infeasible``/``tight``/``unreachable`` flag appeared
+  or cleared, and conflicts (train pair, resource) that appeared or cleared;
+* **bundles** — bundles whose content changed: members whose SHA-256 differs,
+  with the rows that differ and the bytes, after both bundles verified against
+  their own run's public key.
+
+The result is one table (the ``changes`` dataset, :data:`CHANGES_SCHEMA`) and
+an HTML section (:func:`changes_html`) that the nightly job puts at the top of
+the margin report. ``planner diff RUN_A RUN_B`` prints the same.
+"""
+from __future__ import annotations
+
+import html
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+import pyarrow as pa
+
+from planner.io.parquet import declare
+from planner.errors import InputError
+
+THRESHOLD_S = 0.5
+"""A leg's minimum or margin must move by more than this to be listed [s] (tables are exact to ~0.05 s)."""
+
+INPUTS_DIR = "inputs"
+"""Folder of a run that holds the copy of each line database it planned (``inputs/<line_id>/*.parquet``)."""
+
+TABLE_KEYS: dict[str, tuple[str, ...]] = {
+    "line": ("line_id",),
+    "stations": ("station_id",),
+    "gradients": ("start_m", "end_m"),
+    "curves": ("start_m", "end_m"),
+    "speed_limits": ("start_m", "end_m", "direction", "train_type", "kind"),
+    "beacons": ("beacon_id",),
+    "signals": ("signal_id",),
+    "rolling_stock": ("train_type",),
+    "traction": ("train_type", "speed_kmh"),
+    "timetable": ("train_id", "seq"),
+    "nodes": ("node_id",),
+    "edges": ("edge_id",),
+}
+"""Columns that identify a row of each line table: a row with the same key but other values is *changed*."""
+
+LEG_KEY = ("direction", "train_type", "origin", "destination", "scheduled_running_time_s")
+LEG_MEASURES = ("min_running_time_s", "margin_s", "remaining_margin_s")
+LEG_FLAGS = ("infeasible", "tight", "unreachable")
+
+CATEGORIES = ("code", "parameter", "line_table", "leg", "flag", "conflict", "bundle")
+
+CHANGES_SCHEMA = declare([
+    ("base_run", pa.string(), "run this one is compared with (the previous published run)"),
+    ("run", pa.string(), "this run"),
+    ("change_id", pa.int32(), "number of the change within the line, from 0"),
+    ("category", pa.string(), "`code`, `parameter`, `line_table` (inputs); `leg`, `flag`, `conflict`, `bundle` (outputs)"),
+    ("subject", pa.string(), "what changed: parameter key, table name, leg, flag, conflict or bundle file"),
+    ("field", pa.string(), "column or measure that changed (its unit is in its name); `row` for a whole row"),
+    ("before", pa.string(), "value in the base run, as text (empty: did not exist)"),
+    ("after", pa.string(), "value in this run, as text (empty: no longer exists)"),
+    ("delta", pa.float64(), "after − before for numbers, in the unit of `field`; null otherwise"),
+    ("detail", pa.string(), "the change in one sentence"),
+    ("direction", pa.string(), "running direction of a leg or bundle; null otherwise"),
+    ("train_type", pa.string(), "train type of a leg or bundle; null otherwise"),
+    ("from_m", pa.float64(), "lower chainage of a line-table change or a leg [m]; null when it has none"),
+    ("to_m", pa.float64(), "upper chainage [m]; null when it has none"),
+    ("caused_by", pa.list_(pa.int32()), "change_ids of the input changes that reach this leg (within a train length of its stretch, or naming its train type or trains)"),
+], name="changes", description="What changed since the previous run: inputs (code, job parameters, line-table rows) and outputs (legs whose minimum or margin moved, flags, conflicts, bundles)")
+
+
+@dataclass
+class LineChanges:
+    """Changes of one line between two runs; ``rows`` are dicts with the columns of :data:`CHANGES_SCHEMA`."""
+
+    line_id: str
+    base_run: str
+    run: str
+    threshold_s: float = THRESHOLD_S
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    def add(self, category: str, subject: str, detail: str, *, field_: str = "", before: Any = "", after: Any = "",
+            delta: float | None = None, direction: str | None = None, train_type: str | None = None,
+            from_m: float | None = None, to_m: float | None = None, caused_by: Iterable[int] = ()) -> int:
+        cid = len(self.rows)
+        self.rows.append({
+            "base_run": self.base_run, "run": self.run, "change_id": cid, "category": category,
+            "subject": subject, "field": field_, "before": _text(before), "after": _text(after),
+            "delta": None if delta is None or not math.isfinite(delta) else float(delta), "detail": detail,
+            "direction": direction, "train_type": train_type, "from_m": from_m, "to_m": to_m,
+            "caused_by": [int(c) for c in caused_by],
+        })
+        return cid
+
+    def of(self, *categories: str) -> list[dict[str, Any]]:
+        return [r for r in self.rows if r["category"] in categories]
+
+    def table(self) -> pa.Table:
+        """The rows as a pyarrow table with the ``line`` column (for the hive-partitioned dataset)."""
+        cols = {f.name: [r[f.name] for r in self.rows] for f in CHANGES_SCHEMA}
+        t = pa.Table.from_pydict(cols, schema=CHANGES_SCHEMA)
+        return t.append_column("line", pa.array([self.line_id] * len(self.rows), pa.string()))
+
+    def summary_lines(self) -> list[str]:
+        n = {c: len(self.of(c)) for c in CATEGORIES}
+        out = [f"line {self.line_id}: {self.run} against {self.base_run}: "
+               + (", ".join(f"{v} {k}" for k, v in n.items() if v) or "no changes")]
+        for r in self.rows:
+            out.append(f"  [{r['category']}] {r['detail']}")
+        out += [f"  note: {x}" for x in self.notes]
+        return out
+
+
+def _text(v: Any) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        if math.isnan(v):
+            return ""
+        return f"{v:g}" if abs(v) >= 1e-3 or v == 0 else repr(v)
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return json.dumps([_plain(x) for x in v], ensure_ascii=False)
+    return str(_plain(v))
+
+
+def _plain(x):
+    if isinstance(x, (np.generic,)):
+        return x.item()
+    return x
+
+
+def _num(v) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return float("nan")
+    return f
+
+
+# ---------------------------------------------------------------------------
+# Reading runs
+# ---------------------------------------------------------------------------
+def read_manifest(run_dir: Path) -> dict[str, Any]:
+    p = Path(run_dir) / "manifest.json"
+    if not p.is_file():
+        raise InputError(f"{run_dir}: not a published run (no manifest.json); give a folder like outputs/r0007-…")
+    try:
+        m = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise InputError(f"{p}: unreadable manifest ({e}); the run is damaged, compare another one") from None
+    if not isinstance(m, dict) or "run_id" not in m:
+        raise InputError(f"{p}: not a planner run manifest (no run_id)")
+    return m
+
+
+def line_inputs(run_dir: Path, manifest: dict[str, Any], line_id: str) -> Path | None:
+    """The run's copy of a line database, when present and matching the manifest's ``source_digest``."""
+    from planner.line.loader import source_digest
+
+    rec = next((x for x in manifest.get("lines", []) if x.get("line_id") == line_id), None)
+    if rec is None:
+        return None
+    folder = Path(run_dir) / INPUTS_DIR / line_id
+    if not folder.is_dir():
+        return None
+    if source_digest(folder) != rec.get("source_digest"):
+        raise InputError(f"{folder}: its tables do not match the run manifest's source_digest; "
+                         "the run's input copy was altered, compare another run")
+    return folder
+
+
+def read_line_dataset(run_dir: Path, dataset: str, line_id: str):
+    """A dataset of one line as pandas (partition columns as strings), or None when the run has none."""
+    import pyarrow.compute as pc
+
+    from planner.io.parquet import read_dataset
+
+    if not (Path(run_dir) / dataset).is_dir():
+        return None
+    t = read_dataset(run_dir, dataset)
+    if "line" in t.column_names:
+        t = t.filter(pc.equal(t.column("line"), line_id))
+    return t.to_pandas()
+
+
+# ---------------------------------------------------------------------------
+# Inputs
+# ---------------------------------------------------------------------------
+def _flatten(d: Any, prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    if isinstance(d, dict):
+        for k in sorted(d):
+            out.update(_flatten(d[k], f"{prefix}.{k}" if prefix else str(k)))
+    else:
+        out[prefix] = d
+    return out
+
+
+def _row_text(table: str, row: dict[str, Any]) -> str:
+    """A line-table row in words, e.g. ``5000–5150 m both civil 85 km/h``."""
+    if table == "speed_limits":
+        tt = row.get("train_type")
+        return (f"speed restriction {_text(row.get('start_m'))}–{_text(row.get('end_m'))} m "
+                f"{row.get('direction')}{'' if tt in (None, '') or (isinstance(tt, float) and math.isnan(tt)) else ' ' + str(tt)} "
+                f"{row.get('kind')}")
+    key = TABLE_KEYS.get(table)
+    if key and all(k in row for k in key):
+        return f"{table} " + " ".join(_text(row[k]) for k in key)
+    return f"{table} row"
+
+
+def _extent(table: str, row: dict[str, Any]) -> tuple[float, float] | None:
+    if "start_m" in row and "end_m" in row and table in ("gradients", "curves", "speed_limits", "line"):
+        return float(row["start_m"]), float(row["end_m"])
+    for c in ("position_m",):
+        if c in row and row[c] is not None and math.isfinite(_num(row[c])):
+            lo, hi = _num(row[c]), _num(row[c])
+            for s in ("stop_down_m", "stop_up_m"):
+                if s in row:
+                    lo, hi = min(lo, _num(row[s])), max(hi, _num(row[s]))
+            return lo, hi
+    return None
+
+
+def _records(df) -> list[dict[str, Any]]:
+    out = []
+    for r in df.to_dict("records"):
+        out.append({k: (None if isinstance(v, float) and math.isnan(v) else _plain(v)) for k, v in r.items()})
+    return out
+
+
+def _canon(v):
+    if isinstance(v, float):
+        return None if math.isnan(v) else round(v, 9)
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return tuple(_canon(x) for x in v)
+    return v
+
+
+def diff_table(name: str, old, new) -> list[tuple[str, dict | None, dict | None, list[str]]]:
+    """Rows added, removed or changed between two versions of a line table.
+
+    Returns
+    -------
+    list of (kind, old_row, new_row, changed_columns)
+        kind is ``changed`` (same key, other values), ``added`` or ``removed``;
+        in table order of the new (then old) version.
+    """
+    old_r, new_r = _records(old), _records(new)
+    cols = [c for c in new.columns if c in set(old.columns)]
+    key = [k for k in TABLE_KEYS.get(name, ()) if k in cols]
+    sig = lambda r: tuple(_canon(r.get(c)) for c in sorted(set(r)))  # noqa: E731
+    old_sigs = {}
+    for r in old_r:
+        old_sigs.setdefault(sig(r), []).append(r)
+    new_sigs = {}
+    for r in new_r:
+        new_sigs.setdefault(sig(r), []).append(r)
+    gone = [r for s, rs in old_sigs.items() for r in rs[len(new_sigs.get(s, [])):]]
+    came = [r for s, rs in new_sigs.items() for r in rs[len(old_sigs.get(s, [])):]]
+    out = []
+    if key:
+        kf = lambda r: tuple(_canon(r.get(k)) for k in key)  # noqa: E731
+        gone_by = {}
+        for r in gone:
+            gone_by.setdefault(kf(r), []).append(r)
+        for r in came:
+            lst = gone_by.get(kf(r))
+            if lst:
+                o = lst.pop(0)
+                changed = [c for c in sorted(set(o) | set(r)) if _canon(o.get(c)) != _canon(r.get(c))]
+                out.append(("changed", o, r, changed))
+            else:
+                out.append(("added", None, r, []))
+        for lst in gone_by.values():
+            out += [("removed", o, None, []) for o in lst]
+    else:
+        out += [("added", None, r, []) for r in came] + [("removed", o, None, []) for o in gone]
+    return out
+
+
+def _input_changes(ch: LineChanges, old_dir: Path, old_m: dict, new_dir: Path, new_m: dict) -> dict[int, dict]:
+    """Code, parameter and line-table rows; returns the line-table changes by id with their reach."""
+    import pyarrow.parquet as pq
+
+    if old_m.get("code_digest") != new_m.get("code_digest"):
+        ov = (old_m.get("software") or {}).get("planner", "?")
+        nv = (new_m.get("software") or {}).get("planner", "?")
+        ch.add("code", "planner", f"planner code changed (version {ov} → {nv}, code digest "
+               f"{str(old_m.get('code_digest'))[:12]} → {str(new_m.get('code_digest'))[:12]}): every result may move",
+               field_="code_digest", before=old_m.get("code_digest"), after=new_m.get("code_digest"))
+    po, pn = _flatten(old_m.get("parameters", {})), _flatten(new_m.get("parameters", {}))
+    for k in sorted(set(po) | set(pn)):
+        if k in ("job.keep_runs", "job.output_root"):
+            continue
+        if _canon(po.get(k)) != _canon(pn.get(k)):
+            ch.add("parameter", k, f"job parameter {k}: {_text(po.get(k)) or '(unset)'} → {_text(pn.get(k)) or '(unset)'}",
+                   field_=k.rsplit(".", 1)[-1], before=po.get(k), after=pn.get(k),
+                   delta=_num(pn.get(k)) - _num(po.get(k)) if not isinstance(po.get(k), bool) else None)
+    reach: dict[int, dict] = {}
+    rec_o = next((x for x in old_m.get("lines", []) if x.get("line_id") == ch.line_id), None)
+    rec_n = next((x for x in new_m.get("lines", []) if x.get("line_id") == ch.line_id), None)
+    if rec_o is None:
+        ch.notes.append(f"line {ch.line_id} is new in this run: nothing to compare it with")
+        return reach
+    if rec_n is None or rec_o.get("source_digest") == rec_n.get("source_digest"):
+        return reach
+    fo, fn = line_inputs(old_dir, old_m, ch.line_id), line_inputs(new_dir, new_m, ch.line_id)
+    if fo is None or fn is None:
+        ch.add("line_table", "line database", f"line database {ch.line_id} changed (source digest "
+               f"{str(rec_o.get('source_digest'))[:12]} → {str(rec_n.get('source_digest'))[:12]}); "
+               "the base run kept no copy of its tables, so the rows cannot be named",
+               field_="source_digest", before=rec_o.get("source_digest"), after=rec_n.get("source_digest"))
+        return reach
+    names = sorted({p.stem for p in fo.glob("*.parquet")} | {p.stem for p in fn.glob("*.parquet")})
+    for name in names:
+        po_, pn_ = fo / f"{name}.parquet", fn / f"{name}.parquet"
+        if po_.is_file() and pn_.is_file() and po_.read_bytes() == pn_.read_bytes():
+            continue
+        if not po_.is_file() or not pn_.is_file():
+            ch.add("line_table", name, f"table {name}.parquet {'added' if pn_.is_file() else 'removed'}",
+                   field_="table", before="" if pn_.is_file() else name, after=name if pn_.is_file() else "")
+            continue
+        old, new = pq.read_table(po_).to_pandas(), pq.read_table(pn_).to_pandas()
+        for kind, o, n, cols in diff_table(name, old, new):
+            row = n if n is not None else o
+            what = _row_text(name, row)
+            ext = _extent(name, row)
+            if kind == "changed" and ext is not None and o is not None:
+                eo = _extent(name, o)
+                if eo:
+                    ext = (min(ext[0], eo[0]), max(ext[1], eo[1]))
+            scope = {"extent": ext, "train_type": row.get("train_type") if name in ("rolling_stock", "traction", "speed_limits") else None,
+                     "train_id": row.get("train_id") if name == "timetable" else None,
+                     "direction": row.get("direction") if name in ("speed_limits", "beacons", "signals") else None,
+                     "all": name in ("line",)}
+            lo, hi = (ext if ext else (None, None))
+            if kind == "changed":
+                for c in cols:
+                    b, a = o.get(c), n.get(c)
+                    d = _num(a) - _num(b) if not isinstance(a, (bool, str)) and a is not None and b is not None else None
+                    cid = ch.add("line_table", name, f"{what}: {c} {_text(b)} → {_text(a)}", field_=c, before=b,
+                                 after=a, delta=d, direction=scope["direction"], train_type=_str(scope["train_type"]),
+                                 from_m=lo, to_m=hi)
+                    reach[cid] = scope
+            else:
+                cid = ch.add("line_table", name, f"{what}: row {kind}", field_="row",
+                             before=json.dumps(o, default=str, ensure_ascii=False, sort_keys=True) if o else "",
+                             after=json.dumps(n, default=str, ensure_ascii=False, sort_keys=True) if n else "",
+                             direction=scope["direction"], train_type=_str(scope["train_type"]), from_m=lo, to_m=hi)
+                reach[cid] = scope
+    return reach
+
+
+def _str(v) -> str | None:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return None
+    return str(v)
+
+
+# ---------------------------------------------------------------------------
+# Outputs
+# ---------------------------------------------------------------------------
+def _leg_label(r) -> str:
+    via = f" via {len(r['passes'])} passes" if r.get("passes") is not None and len(r["passes"]) else ""
+    sched = _num(r.get("scheduled_running_time_s"))
+    return (f"{r['train_type']} {r['direction']} {r['origin']}→{r['destination']}{via} "
+            + (f"(scheduled {sched:g} s)" if math.isfinite(sched) else "(not timetabled)"))
+
+
+def _causes(reach: dict[int, dict], r: dict, lo: float, hi: float, length_m: float) -> list[int]:
+    out = []
+    for cid, sc in reach.items():
+        if sc.get("direction") not in (None, "both", r["direction"]):
+            continue
+        if sc.get("train_type") not in (None, "") and sc["train_type"] != r["train_type"]:
+            continue
+        if sc.get("train_id") is not None:
+            if sc["train_id"] in set(r.get("train_ids") or ()):
+                out.append(cid)
+            continue
+        ext = sc.get("extent")
+        if sc.get("all") or ext is None:
+            if sc.get("train_type") or sc.get("all"):
+                out.append(cid)
+            continue
+        if ext[1] >= lo - length_m and ext[0] <= hi + length_m:
+            out.append(cid)
+    return out
+
+
+def _leg_changes(ch: LineChanges, old, new, reach: dict[int, dict], threshold_s: float, geometry) -> None:
+    """Legs whose minimum or margins moved by more than the threshold, and flags that appeared or cleared."""
+    if old is None or new is None:
+        ch.notes.append("margins not in both runs: legs not compared")
+        return
+    key = list(LEG_KEY)
+    o = {tuple(_canon(v) for v in k): r for k, r in zip(old[key].itertuples(index=False, name=None), _records(old))}
+    n = {tuple(_canon(v) for v in k): r for k, r in zip(new[key].itertuples(index=False, name=None), _records(new))}
+    for k in sorted(set(o) | set(n), key=lambda k: tuple(str(x) for x in k)):
+        a, b = o.get(k), n.get(k)
+        r = b or a
+        label = _leg_label(r)
+        lo, hi, length = geometry(r)
+        causes = _causes(reach, r, lo, hi, length) if lo is not None else []
+        common = dict(direction=r["direction"], train_type=r["train_type"], from_m=lo, to_m=hi, caused_by=causes)
+        if a is None or b is None:
+            ch.add("leg", label, f"leg {label} {'appeared' if b else 'disappeared'}", field_="row",
+                   before="" if b else label, after=label if b else "", **common)
+            continue
+        moved = []
+        for m in LEG_MEASURES:
+            va, vb = _num(a.get(m)), _num(b.get(m))
+            if math.isfinite(va) and math.isfinite(vb) and abs(vb - va) > threshold_s:
+                moved.append((m, va, vb))
+        for m, va, vb in moved:
+            ch.add("leg", label, f"leg {label}: {m} {va:.1f} → {vb:.1f} s ({vb - va:+.1f} s)", field_=m,
+                   before=round(va, 3), after=round(vb, 3), delta=vb - va, **common)
+        for f in LEG_FLAGS:
+            fa, fb = bool(a.get(f)), bool(b.get(f))
+            if fa != fb:
+                ch.add("flag", label, f"leg {label}: {f} {'appeared' if fb else 'cleared'} "
+                       f"(bad-day margin {_num(a.get('remaining_margin_s')):.1f} → {_num(b.get('remaining_margin_s')):.1f} s)",
+                       field_=f, before=fa, after=fb, **common)
+
+
+def _conflict_changes(ch: LineChanges, old, new) -> None:
+    if old is None or new is None:
+        return
+    def keys(df):
+        out = {}
+        for r in _records(df):
+            out.setdefault((r["train_a"], r["train_b"], r["resource_id"]), r)
+        return out
+    o, n = keys(old), keys(new)
+    for k in sorted(set(o) ^ set(n)):
+        r = n.get(k) or o[k]
+        appeared = k in n
+        ch.add("conflict", f"{k[0]}/{k[1]} at {k[2]}",
+               f"conflict {k[0]} before {k[1]} at {k[2]} {'appeared' if appeared else 'cleared'} "
+               f"(delay {_num(r.get('delay_s')):.1f} s, {r.get('rule')})",
+               field_="delay_s", before="" if appeared else r.get("delay_s"), after=r.get("delay_s") if appeared else "",
+               direction=r.get("direction_b"), from_m=r.get("from_m"), to_m=r.get("to_m"))
+
+
+def _bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
+    from planner.bundle.container import read_bundle
+    from planner.errors import PlannerError
+
+    ob, nb = Path(old_dir) / "bundles", Path(new_dir) / "bundles"
+    pref = f"{ch.line_id}_"
+    names = sorted({p.name for d in (ob, nb) if d.is_dir() for p in d.glob(f"{pref}*.pdb")})
+    for name in names:
+        po, pn = ob / name, nb / name
+        if not po.is_file() or not pn.is_file():
+            ch.add("bundle", name, f"bundle {name} {'added' if pn.is_file() else 'removed'}", field_="row",
+                   before="" if pn.is_file() else name, after=name if pn.is_file() else "")
+            continue
+        if po.read_bytes() == pn.read_bytes():
+            continue
+        try:
+            a = read_bundle(po, ob / "signing_key.pub.pem")
+            b = read_bundle(pn, nb / "signing_key.pub.pem")
+        except PlannerError as e:
+            ch.add("bundle", name, f"bundle {name} changed but could not be compared: {e}", field_="sha256")
+            continue
+        fa = {f.name: f for f in a.info.files}
+        fb = {f.name: f for f in b.info.files}
+        parts, rows_changed, bytes_changed = [], 0, 0
+        for m in sorted(set(fa) | set(fb)):
+            x, y = fa.get(m), fb.get(m)
+            if x and y and x.sha256 == y.sha256:
+                continue
+            tname = m.removesuffix(".parquet")
+            nd = _rows_differing(a.tables.get(tname), b.tables.get(tname))
+            rows_changed += nd
+            bytes_changed += abs((y.size if y else 0) - (x.size if x else 0))
+            parts.append(f"{tname} {nd} rows")
+        d, t = _bundle_keys(name, ch.line_id)
+        key_note = " (signed with another key)" if a.info.key_id != b.info.key_id else ""
+        what = (f"{len(parts)} table{'s' if len(parts) != 1 else ''} changed: {', '.join(parts)}" if parts else
+                "no table changed, only the signed manifest (it names the line database digest"
+                + (" and the software version" if a.info.software_version != b.info.software_version else "") + ")")
+        ch.add("bundle", name, f"bundle {name}: {what}; {a.info.size_bytes} → {b.info.size_bytes} bytes{key_note}",
+               field_="rows_differing", before=a.info.sha256, after=b.info.sha256, delta=float(rows_changed),
+               direction=d, train_type=t)
+
+
+def _bundle_keys(name: str, line_id: str) -> tuple[str | None, str | None]:
+    rest = name[len(line_id) + 1:].removesuffix(".pdb")
+    d, _, t = rest.partition("_")
+    return (d or None), (t or None)
+
+
+def _rows_differing(a, b) -> int:
+    """Rows in one table and not the other (as multisets of whole rows)."""
+    if a is None or b is None:
+        return (a.num_rows if a is not None else 0) + (b.num_rows if b is not None else 0)
+    from collections import Counter
+
+    import pandas as pd
+
+    def rows(t) -> Counter:
+        try:  # one 64-bit hash per row: fast for the large tables (b) and (d)
+            return Counter(pd.util.hash_pandas_object(t.to_pandas(), index=False).tolist())
+        except TypeError:  # list columns cannot be hashed by pandas
+            return Counter(tuple(_canon(v) for v in r.values()) for r in t.to_pylist())
+
+    ca, cb = rows(a), rows(b)
+    return sum(((ca - cb) + (cb - ca)).values())
+
+
+# ---------------------------------------------------------------------------
+# The comparison
+# ---------------------------------------------------------------------------
+def compare_runs(old_dir: str | Path, new_dir: str | Path, *, threshold_s: float = THRESHOLD_S,
+                 lines: Iterable[str] | None = None) -> list[LineChanges]:
+    """Compare two published runs, line by line (module doc for what is compared).
+
+    Parameters
+    ----------
+    old_dir, new_dir : path
+        Run folders (``outputs/r0006-…``, ``outputs/r0007-…``); ``new_dir`` may
+        also be a staging folder holding a manifest.
+    threshold_s : float
+        Legs whose minimum running time, margin or bad-day margin moved by
+        more than this are listed [s].
+    lines : iterable of str, optional
+        Line ids to compare (default: every line of the newer run).
+    """
+    if not (isinstance(threshold_s, (int, float)) and threshold_s >= 0):
+        raise InputError(f"--threshold-s must be a number ≥ 0, found {threshold_s!r}")
+    old_dir, new_dir = Path(old_dir), Path(new_dir)
+    om, nm = read_manifest(old_dir), read_manifest(new_dir)
+    ids = list(lines) if lines is not None else [x["line_id"] for x in nm.get("lines", [])]
+    out = []
+    for lid in ids:
+        ch = LineChanges(lid, str(om["run_id"]), str(nm["run_id"]), float(threshold_s))
+        reach = _input_changes(ch, old_dir, om, new_dir, nm)
+        geometry = _geometry(new_dir, nm, lid)
+        _leg_changes(ch, read_line_dataset(old_dir, "margins", lid), read_line_dataset(new_dir, "margins", lid),
+                     reach, threshold_s, geometry)
+        _conflict_changes(ch, read_line_dataset(old_dir, "conflicts", lid),
+                          read_line_dataset(new_dir, "conflicts", lid))
+        _bundle_changes(ch, old_dir, new_dir)
+        out.append(ch)
+    return out
+
+
+def _geometry(run_dir: Path, manifest: dict, line_id: str):
+    """Function leg row → (lower, upper chainage of its stop markers, train length) from the run's line copy."""
+    folder = line_inputs(run_dir, manifest, line_id)
+    if folder is None:
+        return lambda r: (None, None, 0.0)
+    import pyarrow.parquet as pq
+
+    st = pq.read_table(folder / "stations.parquet").to_pandas().set_index("station_id")
+    rs = pq.read_table(folder / "rolling_stock.parquet").to_pandas().set_index("train_type")
+
+    def geo(r):
+        col = "stop_down_m" if r["direction"] == "down" else "stop_up_m"
+        try:
+            a, b = float(st.loc[r["origin"], col]), float(st.loc[r["destination"], col])
+            length = float(rs.loc[r["train_type"], "length_m"])
+        except KeyError:
+            return None, None, 0.0
+        return min(a, b), max(a, b), length
+    return geo
+
+
+def write_changes(changes: LineChanges, out_dir: str | Path) -> list[Path]:
+    """Write ``changes/line=L/part-0.parquet`` (an empty file when nothing changed, so readers find the schema)."""
+    from planner.io.parquet import write_parquet_atomic
+
+    path = Path(out_dir) / "changes" / f"line={path_id(changes.line_id)}" / "part-0.parquet"
+    t = changes.table().drop_columns(["line"])
+    write_parquet_atomic(t.cast(CHANGES_SCHEMA), path)
+    return [path]
+
+
+def path_id(line_id: str) -> str:
+    from planner.bundle.container import check_id
+
+    return check_id(line_id, "line id")
+
+
+# ---------------------------------------------------------------------------
+# HTML
+# ---------------------------------------------------------------------------
+CSS = """
+.changes{background:#fff;border:1px solid #d5d9de;border-left:6px solid #5a7da8;border-radius:8px;padding:8px 16px;margin:12px 0}
+.changes h2{margin:4px 0 6px;border:0;font-size:18px}.changes h3{margin:10px 0 4px;font-size:14px}
+.changes ul{margin:2px 0 6px;padding-left:20px}.changes li{font-size:13px;line-height:1.4}
+.changes .up{color:#c62828;font-weight:600}.changes .down{color:#2e7d32;font-weight:600}
+.changes table{width:auto;margin:4px 0}
+"""
+
+
+def changes_html(ch: LineChanges | None, *, first_run_note: str = "") -> str:
+    """The "what changed since the last run" section (self-contained HTML fragment with its own CSS)."""
+    e = lambda x: html.escape(str(x), quote=True)  # noqa: E731
+    if ch is None:
+        return (f"<style>{CSS}</style><section class='changes' id='changes'><h2>What changed since the last run</h2>"
+                f"<p>{e(first_run_note or 'No earlier run to compare with.')}</p></section>")
+    head = (f"<style>{CSS}</style><section class='changes' id='changes'><h2>What changed since the last run</h2>"
+            f"<p class='sub'>Run <code>{e(ch.run)}</code> compared with <code>{e(ch.base_run)}</code>; legs listed when "
+            f"their minimum or margin moved by more than {ch.threshold_s:g} s. Dataset <code>changes</code> holds every row.</p>")
+    if not ch.rows:
+        return head + "<p>Nothing changed in the inputs or the outputs.</p>" + "".join(
+            f"<p>{e(n)}</p>" for n in ch.notes) + "</section>"
+    parts = [head]
+    inputs = ch.of("code", "parameter", "line_table")
+    legs = ch.of("leg")
+    parts.append("<h3>Inputs</h3><ul>" + ("".join(f"<li>{e(r['detail'])}" + _effect(r, legs, e) + "</li>"
+                                                    for r in inputs) or "<li>none</li>") + "</ul>")
+    explained = {r["change_id"] for r in legs if r["caused_by"]}
+    other = [r for r in legs if r["change_id"] not in explained]
+    if other:
+        groups: dict[str, list] = {}
+        for x in other:
+            groups.setdefault(x["subject"], []).append(x)
+        items = [f"<li>{_leg_group(k, v, e)}</li>" for k, v in groups.items()]
+        parts.append("<h3>Legs that moved without a line-table change reaching them</h3><ul>" + "".join(items[:60])
+                     + (f"<li>… {len(items) - 60} more</li>" if len(items) > 60 else "") + "</ul>")
+    for cat, title in (("flag", "Flags that appeared or cleared"), ("conflict", "Conflicts that appeared or cleared"),
+                       ("bundle", "Bundles whose content changed")):
+        rows = ch.of(cat)
+        if rows:
+            parts.append(f"<h3>{title}</h3><ul>" + "".join(f"<li>{e(r['detail'])}</li>" for r in rows[:60])
+                         + (f"<li>… {len(rows) - 60} more</li>" if len(rows) > 60 else "") + "</ul>")
+    parts += [f"<p>{e(n)}</p>" for n in ch.notes]
+    return "".join(parts) + "</section>"
+
+
+MEASURE_WORDS = {"min_running_time_s": "minimum", "margin_s": "margin", "remaining_margin_s": "bad-day margin"}
+
+
+def _leg_group(subject: str, rows, e) -> str:
+    """One leg, every measure that moved: ``minimum 125.3 → 151.1 s (+25.8 s), margin …``."""
+    bits = []
+    for x in rows:
+        if x["field"] in MEASURE_WORDS and x["delta"] is not None:
+            worse = (x["delta"] > 0) == (x["field"] == "min_running_time_s")
+            bits.append(f"{MEASURE_WORDS[x['field']]} {_num(x['before']):.1f} → {_num(x['after']):.1f} s "
+                        f"<span class='{'up' if worse else 'down'}'>({x['delta']:+.1f} s)</span>")
+        else:
+            bits.append(e(x["detail"]))
+    return f"<b>{e(subject)}</b>: " + ", ".join(bits)
+
+
+def _effect(r, legs, e) -> str:
+    hit = [x for x in legs if r["change_id"] in x["caused_by"]]
+    if not hit:
+        return " — <i>no leg moved by more than the threshold</i>" if r["category"] == "line_table" else ""
+    groups: dict[str, list] = {}
+    for x in hit:
+        groups.setdefault(x["subject"], []).append(x)
+    items = [f"<li>{_leg_group(k, v, e)}</li>" for k, v in groups.items()]
+    return (f" — affects {len(groups)} leg{'s' if len(groups) != 1 else ''}:<ul>" + "".join(items[:40])
+            + (f"<li>… {len(items) - 40} more</li>" if len(items) > 40 else "") + "</ul>")

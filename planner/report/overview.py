@@ -1,0 +1,226 @@
+"""The run overview page ``outputs/<run>/index.html``: where everything of a run is, on one self-contained page.
+
+Sections, in the order someone opening a run reads them:
+
+1. the run: id, job, inputs digest, code digest, software versions, and what
+   changed since the previous run (counts per line, linked to the section at
+   the top of each margin report);
+2. flags (infeasible/tight/unreachable legs, infeasible stops, conflicts) and
+   the notes of the run;
+3. pages: the margin report and the train graph of each line;
+4. inputs: each line database with its source digest and, per table of the
+   copy kept under ``inputs/<line_id>/``, rows and SHA-256; the job
+   parameters;
+5. steps: time, units computed and units reused;
+6. datasets: every dataset with its row count, its partitions and a link to
+   its schema (declared columns, types and meanings, further down the page);
+7. bundles: every bundle with its verify status
+   (:func:`planner.bundle.container.verify_bundle` against the run's public key), size,
+   SHA-256 and tables.
+
+Everything is inline (CSS, no script, no image, no network); links are
+relative, so the run folder can be moved or copied whole. The page depends
+only on the run folder, so the same run gives the same bytes.
+"""
+from __future__ import annotations
+
+import hashlib
+import html
+import json
+from pathlib import Path
+from typing import Any, Sequence
+
+CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;color:#1d2327;background:#f6f7f9}
+main{max-width:1200px;margin:0 auto;padding:16px 26px 60px}
+h1{font-size:24px;margin:6px 0 2px}h2{font-size:18px;margin:28px 0 8px;border-bottom:2px solid #d5d9de;padding-bottom:3px}
+h3{font-size:15px;margin:14px 0 4px}p,li{font-size:14px;line-height:1.45}.sub{color:#555;font-size:13px;margin:0 0 10px}
+.cards{display:flex;flex-wrap:wrap;gap:10px;margin:10px 0}
+.card{background:#fff;border:1px solid #d5d9de;border-radius:8px;padding:8px 14px;min-width:130px}
+.card .n{font-size:24px;font-weight:700}.card .l{font-size:12px;color:#555}
+.card.bad{border-left:6px solid #c62828}.card.warn{border-left:6px solid #ef8f00}.card.ok{border-left:6px solid #2e7d32}
+.card.info{border-left:6px solid #5a7da8}
+table{border-collapse:collapse;background:#fff;font-size:12.5px;margin:4px 0 10px}
+th,td{border:1px solid #dde1e5;padding:3px 7px;text-align:left;vertical-align:top}
+th{background:#eef1f4;font-weight:600}td.n{text-align:right;font-variant-numeric:tabular-nums}
+code{font-size:12px}.ok{color:#2e7d32;font-weight:600}.bad{color:#c62828;font-weight:600}
+a{color:#1f5fa8}details{margin:6px 0}summary{cursor:pointer;font-weight:600;font-size:14px}
+.links a{display:inline-block;margin:2px 12px 2px 0;font-size:14px}
+"""
+
+
+def _e(x: Any) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _table(head: Sequence[str], rows: Sequence[Sequence[str]], num: Sequence[int] = ()) -> str:
+    h = "".join(f"<th>{_e(x)}</th>" for x in head)
+    body = "".join("<tr>" + "".join(f"<td class='n'>{c}</td>" if i in num else f"<td>{c}</td>" for i, c in enumerate(r))
+                   + "</tr>" for r in rows)
+    return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _bundles(run_dir: Path) -> list[list[str]]:
+    from planner.bundle.container import verify_bundle
+    from planner.errors import PlannerError
+
+    folder = run_dir / "bundles"
+    pub = folder / "signing_key.pub.pem"
+    out = []
+    for b in sorted(folder.glob("*.pdb")) if folder.is_dir() else []:
+        try:
+            info = verify_bundle(b, pub)
+            status = "<span class='ok'>verified</span>" + ("" if info.complete else
+                                                           f" (partial: missing {_e(', '.join(info.missing))})")
+            tables = ", ".join(f"{f.name.removesuffix('.parquet')} {f.rows}" for f in info.files)
+            out.append([f"<code>{_e(b.name)}</code>", status, f"{info.size_bytes:,}", f"<code>{info.sha256[:16]}</code>",
+                        f"{_e(info.line_id)} {_e(info.direction)} {_e(info.train_type)}", _e(tables)])
+        except PlannerError as e:
+            out.append([f"<code>{_e(b.name)}</code>", f"<span class='bad'>FAILED</span>: {_e(e)}", f"{b.stat().st_size:,}",
+                        f"<code>{_sha(b)[:16]}</code>", "", ""])
+    return out
+
+
+def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = ()) -> str:
+    """The overview page of a run folder as HTML (module doc for the sections)."""
+    from planner.datasets.catalog import datasets
+    from planner.report.changes import INPUTS_DIR
+
+    run_dir = Path(run_dir)
+    run_id = manifest.get("run_id", run_dir.name)
+    sw = manifest.get("software", {})
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+        f"<title>Run {_e(run_id)} — planner</title><style>{CSS}</style></head><body><main>",
+        f"<h1>Run <code>{_e(run_id)}</code> <span style='color:#777;font-weight:400'>job {_e(manifest.get('job', ''))}</span></h1>",
+        f"<p class='sub'>inputs digest <code>{_e(manifest.get('inputs_digest', ''))}</code> · code digest "
+        f"<code>{_e(str(manifest.get('code_digest', ''))[:16])}</code> · planner {_e(sw.get('planner', '?'))}, "
+        f"Python {_e(sw.get('python', '?'))}, numpy {_e(sw.get('numpy', '?'))}, pyarrow {_e(sw.get('pyarrow', '?'))}</p>",
+    ]
+    # flags
+    flags = manifest.get("flags", {})
+    labels = {"infeasible": "legs infeasible (below the bad-day minimum)", "tight": "legs tight",
+              "unreachable": "legs unreachable (above the slowest ratio)",
+              "infeasible_stops": "stopping patterns infeasible (approach × adhesion)",
+              "conflicts": "route conflicts"}
+    cards = [("bad" if v and k in ("infeasible", "conflicts") else "warn" if v else "ok", v, labels.get(k, k))
+             for k, v in sorted(flags.items())]
+    parts.append("<h2 id='flags'>Flags</h2><div class='cards'>" + "".join(
+        f"<div class='card {c}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></div>" for c, n, l in cards)
+        + "</div>")
+    if notes:
+        parts.append("<details><summary>Notes of the run (" + str(len(notes)) + ")</summary><ul>"
+                     + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul></details>")
+    # changes
+    ch = manifest.get("changes") or {}
+    lines = [x["line_id"] for x in manifest.get("lines", [])]
+    parts.append("<h2 id='changes'>What changed since the last run</h2>")
+    if not ch.get("base_run"):
+        parts.append("<p>First run in this output folder: nothing to compare with.</p>")
+    else:
+        rows = []
+        for lid in lines:
+            c = ch.get("lines", {}).get(lid)
+            if c is None:
+                rows.append([_e(lid), "not compared", ""])
+                continue
+            what = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in c.items() if v) or "nothing"
+            rows.append([_e(lid), _e(what), f"<a href='report/{_e(lid)}_margins.html#changes'>details</a>"])
+        parts.append(f"<p>Compared with run <code>{_e(ch['base_run'])}</code>; every change is a row of the "
+                     "<a href='#ds-changes'><code>changes</code></a> dataset.</p>" + _table(["line", "changes", ""], rows))
+    # pages
+    parts.append("<h2 id='pages'>Pages</h2>")
+    for lid in lines:
+        links = []
+        for rel, label in ((f"report/{lid}_margins.html", "margin report"), (f"graph/{lid}_graph.html", "train graph")):
+            if (run_dir / rel).is_file():
+                links.append(f"<a href='{_e(rel)}'>{_e(label)}</a>")
+        parts.append(f"<p class='links'><b>{_e(lid)}</b>: " + ("".join(links) or "none") + "</p>")
+    # inputs
+    parts.append("<h2 id='inputs'>Inputs</h2>")
+    for rec in manifest.get("lines", []):
+        lid = rec["line_id"]
+        folder = run_dir / INPUTS_DIR / lid
+        parts.append(f"<h3>Line {_e(lid)}</h3><p class='sub'>from <code>{_e(rec.get('path', ''))}</code> · source digest "
+                     f"<code>{_e(rec.get('source_digest', ''))}</code>"
+                     + (f" · a copy of its tables is in <a href='{INPUTS_DIR}/{_e(lid)}/'><code>{INPUTS_DIR}/{_e(lid)}/</code></a>"
+                        if folder.is_dir() else "") + "</p>")
+        if folder.is_dir():
+            import pyarrow.parquet as pq
+
+            rows = [[f"<code>{_e(f.name)}</code>", f"{pq.ParquetFile(f).metadata.num_rows:,}", f"{f.stat().st_size:,}",
+                     f"<code>{_sha(f)}</code>"] for f in sorted(folder.glob("*.parquet"))]
+            parts.append(_table(["table", "rows", "bytes", "SHA-256"], rows, num=(1, 2)))
+    params = manifest.get("parameters", {})
+    prow = []
+    for sec in sorted(params):
+        val = params[sec]
+        if isinstance(val, dict):
+            prow += [[f"<code>[{_e(sec)}] {_e(k)}</code>", f"<code>{_e(json.dumps(v, ensure_ascii=False))}</code>"]
+                     for k, v in sorted(val.items())]
+        else:
+            prow.append([f"<code>{_e(sec)}</code>", f"<code>{_e(json.dumps(val, ensure_ascii=False))}</code>"])
+    parts.append("<details><summary>Job parameters (" + str(len(prow)) + ")</summary>" + _table(["key", "value"], prow)
+                 + "</details>")
+    # steps
+    tim, comp, reu = manifest.get("timings_s", {}), manifest.get("units_computed", {}), manifest.get("units_reused", {})
+    steps = list(tim) + [s for s in list(comp) + list(reu) if s not in tim]
+    srows = []
+    for s in steps:
+        c, r = comp.get(s), reu.get(s)
+        what = ("—" if c is None and r is None else "recomputed" if not r else "reused" if not c else "partly reused")
+        srows.append([_e(s), f"{tim[s]:.1f}" if s in tim else "", "" if c is None else str(c), "" if r is None else str(r),
+                      what])
+    parts.append("<h2 id='steps'>Steps</h2>" + _table(["step", "time [s]", "units computed", "units reused", ""], srows,
+                                                       num=(1, 2, 3))
+                 + "<p class='sub'>A unit is reused when its key (digest of exactly the inputs it depends on) is in "
+                 "the work cache; the publish step runs after this page is written.</p>")
+    # datasets
+    docs = {d.name: d for d in datasets()}
+    counts = manifest.get("rows", {})
+    drows = []
+    for name, d in docs.items():
+        present = (run_dir / name).is_dir()
+        drows.append([f"<code>{_e(name)}</code>" if not present else f"<a href='{_e(name)}/'><code>{_e(name)}</code></a>",
+                      f"{counts[name]:,}" if name in counts else ("0" if present else "not written"),
+                      _e(d.step), _e(", ".join(d.partitions)), f"<a href='#ds-{_e(name)}'>schema</a>"])
+    parts.append("<h2 id='datasets'>Datasets</h2>" + _table(["dataset", "rows", "step", "partitioned by", ""], drows,
+                                                             num=(1,))
+                 + "<p class='sub'>Hive-partitioned Parquet; <code>README.md</code> in this folder shows how to read "
+                 "them with pandas, pyarrow and DuckDB.</p>")
+    # bundles
+    brows = _bundles(run_dir)
+    parts.append("<h2 id='bundles'>Bundles</h2>" + (_table(["bundle", "verify", "bytes", "SHA-256", "for", "tables (rows)"],
+                                                           brows, num=(2,)) if brows else "<p>none</p>")
+                 + "<p class='sub'>Verified with <code>bundles/signing_key.pub.pem</code> of this run, as "
+                 "<code>planner bundle verify</code> does: signature, hashes, schema and consistency.</p>")
+    # schemas
+    parts.append("<h2 id='schemas'>Dataset schemas</h2>")
+    for name, d in docs.items():
+        meta = d.schema.metadata or {}
+        desc = meta.get(b"description", b"").decode()
+        rows = [[f"<code>{_e(f.name)}</code>", _e(f.type), _e((f.metadata or {}).get(b"description", b"").decode())]
+                for f in d.schema]
+        parts.append(f"<details id='ds-{_e(name)}'><summary><code>{_e(name)}</code> — {_e(desc)}</summary>"
+                     + _table(["column", "type", "meaning"], rows) + "</details>")
+    parts.append("</main></body></html>\n")
+    return "\n".join(parts)
+
+
+def write_overview(run_dir: str | Path, manifest: dict[str, Any] | None = None, *, notes: Sequence[str] = ()) -> Path:
+    """Write ``index.html`` into a run folder atomically (the manifest read from the folder when not given)."""
+    from planner.io.atomic import write_bytes_atomic
+
+    run_dir = Path(run_dir)
+    if manifest is None:
+        from planner.report.changes import read_manifest
+
+        manifest = read_manifest(run_dir)
+    path = run_dir / "index.html"
+    write_bytes_atomic(path, render_overview(run_dir, manifest, notes=notes).encode("utf-8"))
+    return path

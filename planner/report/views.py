@@ -1,0 +1,137 @@
+"""The nightly job's views: train graph page, "what changed since the last run", run overview page.
+
+Two hooks called by :mod:`planner.job.pipeline`:
+
+* :func:`line_views`, after a line's bundles: keep a copy of the line's tables
+  in the run (``inputs/<line_id>/``, so a later run can name the rows that
+  changed), and write its interactive train graph
+  (``graph/<line_id>_graph.html``). The trajectories are a cached unit keyed by
+  the line database, the code and the run-curve step, so an unchanged line
+  reuses them; windows, conflicts and margins come from the run's own
+  ``occupation``, ``conflicts`` and ``margin_totals`` datasets.
+* :func:`run_views`, after the manifest: compare the run with the previous
+  published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
+  dataset and put the section at the top of each margin report, add the
+  datasets and timings to the manifest, then write the overview
+  ``index.html`` (:mod:`planner.report.overview`).
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+from planner.errors import JobError, PlannerError
+from planner.line.schema import check_path_id
+
+
+def copy_inputs(line, stage: Path) -> Path:
+    """Copy the line database's Parquet tables into ``stage/inputs/<line_id>/`` and check the copy's digest."""
+    from planner.report.changes import INPUTS_DIR, path_id
+    from planner.line.loader import source_digest
+
+    src = Path(line.source_path)
+    dst = stage / INPUTS_DIR / path_id(line.line_id)
+    if not line.source_path or not src.is_dir():
+        raise JobError(f"line {line.line_id}: no line database folder to keep a copy of (source path "
+                       f"{line.source_path!r}); load the line from its folder")
+    dst.mkdir(parents=True, exist_ok=True)
+    for f in sorted(src.glob("*.parquet")):
+        if f.is_file():
+            shutil.copyfile(f, dst / f.name)
+    if source_digest(dst) != line.source_digest:
+        raise JobError(f"{src}: the line database changed while the job ran (its digest no longer matches what "
+                       "was planned); run the job again")
+    return dst
+
+
+def _graph_unit(line, check: bool):
+    """Thinned predicted trajectories of every train (with loop stops when the line has a network)."""
+    from planner.report.train_graph import loop_stations, train_paths
+
+    loops = {}
+    if line.network is not None and check:
+        from planner.network.conflicts import plan_routes
+
+        loops = loop_stations(line, plan_routes(line))
+    return train_paths(line, loops=loops)
+
+
+def line_views(job, line, stage: Path, runner, summary) -> None:
+    """Inputs copy and train graph page of one line (module doc)."""
+    from planner.report.changes import read_line_dataset, path_id
+    from planner.report.train_graph import graph_data, write_page, TOL_T_S, TOL_X_M
+    from planner.job.pipeline import code_digest
+    from planner.job.publish import digest
+
+    copy_inputs(line, stage)
+    check = bool(job.conflicts.enabled)
+    key = digest(["graph", code_digest(), line.source_digest, check, TOL_T_S, TOL_X_M])
+    paths = runner.run("graph", [_unit("graph", key, _graph_unit, (line, check))])[0]
+    with runner.progress.step("graph"):
+        occ = read_line_dataset(stage, "occupation", line.line_id)
+        con = read_line_dataset(stage, "conflicts", line.line_id)
+        mt = read_line_dataset(stage, "margin_totals", line.line_id)
+        data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
+        if check and line.network is not None and (occ is None or con is None):
+            data.notes.append("the run has no occupation/conflicts datasets for this line")
+        write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html")
+
+
+def _unit(step, key, fn, args):
+    from planner.job.pipeline import Unit
+
+    return Unit(step, key, step, fn, args)
+
+
+def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
+    """Changes since the previous run, report sections, manifest additions and the overview page (module doc)."""
+    from planner.io.atomic import write_bytes_atomic
+    from planner.report.changes import changes_html, compare_runs, write_changes
+    from planner.report.overview import write_overview
+    from planner.job.publish import canonical_json, latest_run
+    from planner.report.html import write_html
+
+    manifest_path = stage / "manifest.json"
+    manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+    base = latest_run(root)
+    rows: dict[str, int] = {}
+    counts: dict[str, dict[str, int]] = {}
+    with prog.step("changes", len(lines)):
+        found = {}
+        if base is not None:
+            try:
+                found = {c.line_id: c for c in compare_runs(root / base, stage, lines=[ln.line_id for ln in lines])}
+            except PlannerError as e:  # a damaged old run must not stop tonight's run
+                summary.notes.append(f"changes: could not compare with run {base}: {e}")
+        for line in lines:
+            ch = found.get(line.line_id)
+            if ch is not None:
+                for f in write_changes(ch, stage):
+                    import pyarrow.parquet as pq
+
+                    rows["changes"] = rows.get("changes", 0) + pq.ParquetFile(f).metadata.num_rows
+                counts[line.line_id] = {c: len(ch.of(c)) for c in
+                                        ("code", "parameter", "line_table", "leg", "flag", "conflict", "bundle")}
+            note = "This is the first run in this output folder: nothing to compare with." if base is None else \
+                f"Line {line.line_id} could not be compared with run {base}."
+            top = changes_html(ch, first_run_note=note)
+            rep = summary.reports.get(line.line_id)
+            if rep is not None:
+                write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
+                           datasets_root=stage, top=top)
+            prog.advance("changes")
+    summary.rows.update(rows)
+    manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))
+    manifest["changes"] = {"base_run": base, "lines": counts}
+    manifest["timings_s"] = dict(prog.timings)
+    manifest["units_computed"] = dict(summary.computed)
+    manifest["units_reused"] = dict(summary.reused)
+    write_bytes_atomic(manifest_path, canonical_json(manifest) + b"\n")
+    with prog.step("overview"):
+        # notes name the development key by its path: keep the page free of absolute paths
+        notes = [n.replace(str(root), job.job.output_root) for n in summary.notes]
+        write_overview(stage, manifest, notes=notes)
+
+
+__all__ = ["copy_inputs", "line_views", "run_views"]

@@ -1,0 +1,195 @@
+"""A station approach as the stopping control meets it: where it starts, and its limits (DESIGN §5).
+
+One definition, used by the stopping-pattern sweep (:mod:`planner.stopping.sweep`), the
+margin report (:mod:`planner.report.margins`) and so by the on-board bundles (which
+carry the sweep's ``stop_summary``):
+
+* **where the approach starts** (:func:`approach_start`): the last ``tasc``
+  beacon read in the running direction strictly inside the run, where the
+  on-board unit learns its exact distance to go; without one, a fixed distance
+  ``approach_m`` before the stop marker. Nothing is clamped: a start at or
+  before the departure marker is returned as such (``s_m <= 0``) and the
+  callers say that no pattern fits;
+* **speed limits** (:func:`speed_limits`): the on-board maximum of the
+  run-curve track (every restriction held until the tail clears, minus the
+  vehicle's speed margin), a step function of the distance from the start;
+* **deceleration limits** (:func:`decel_limits`): ``min(comfort, adhesion)``
+  plus what gravity adds, from the gradient averaged over the whole train
+  exactly as the run curves take it (:func:`planner.physics.dynamics.running_gradient`,
+  :func:`planner.physics.dynamics.track_accel_ms2`: ``g ḡ / (1 + ρ)``). Averaged over
+  the length, ḡ is piecewise linear in the front's position (kinks where the
+  front or the tail passes a gradient change). The solver takes step
+  functions, so each linear piece is bounded from the safe side by its least
+  favourable value (the smaller end value): the pattern never asks the brake
+  for more than ``min(comfort, adhesion)``. Curve and running resistance,
+  which only help the brake, are left out (safe side too; running resistance
+  also depends on speed and load).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.physics import dynamics
+from planner.line.model import Line, sign
+
+__all__ = [
+    "DEFAULT_APPROACH_M",
+    "ApproachStart",
+    "approach_start",
+    "brake_demand_ms2",
+    "decel_limits",
+    "gradient_steps",
+    "speed_limits",
+]
+
+DEFAULT_APPROACH_M = 550.0
+"""Approach length where a run has no TASC beacon [m] (the usual beacon spacing)."""
+SLICE_M = 25.0
+"""Longest step of the safe-side gradient bound where the train-averaged gradient changes [m]."""
+
+
+@dataclass(frozen=True)
+class ApproachStart:
+    """Where the stopping pattern of an arrival starts.
+
+    Attributes
+    ----------
+    s_m : float
+        Running distance from the departure stop marker [m] (``<= 0`` when the
+        fixed approach is not shorter than the run).
+    source : str
+        ``"tasc"`` (at a TASC beacon) or ``"approach"`` (fixed distance).
+    beacon_id : str
+        The TASC beacon, or ``""``.
+    """
+
+    s_m: float
+    source: str
+    beacon_id: str
+
+
+def approach_start(line: Line, origin: str, destination: str,
+                   approach_m: float = DEFAULT_APPROACH_M) -> ApproachStart:
+    """Start of the stopping approach of the run ``origin`` → ``destination`` (module doc).
+
+    Examples
+    --------
+    >>> from planner.line import testing
+    >>> approach_start(testing.line(length_m=3000.0, stations=[0.0, 900.0, 2900.0]), "S0", "S1")
+    ApproachStart(s_m=350.0, source='approach', beacon_id='')
+    """
+    ext = line.run_between(origin, destination)
+    best = None
+    for b in line.beacons_for(ext.direction):  # running order: the last one inside wins
+        if b.kind == "tasc" and 0.0 < ext.sign * (b.position_m - ext.start_m) < ext.length_m:
+            best = b
+    if best is not None:
+        return ApproachStart(float(ext.sign * (best.position_m - ext.start_m)), "tasc", best.beacon_id)
+    return ApproachStart(float(ext.length_m - approach_m), "approach", "")
+
+
+def speed_limits(track, s_start_m: float) -> list[tuple[float, float]]:
+    """On-board maximum [m/s] from the track node at ``s_start_m`` on, as steps ``(x_from_m, speed_ms)``.
+
+    ``track`` is a :func:`planner.physics.track.make_track` track with a node at
+    ``s_start_m``; ``vmax_interval_ms`` is constant on each grid interval.
+    """
+    k0 = track.node_index(s_start_m)
+    s = np.asarray(track.s_m[k0:], float) - float(track.s_m[k0])
+    v = np.asarray(track.vmax_interval_ms[k0:], float)
+    change = np.flatnonzero(v[1:] != v[:-1]) + 1
+    idx = np.concatenate([[0], change])
+    return [(float(s[i]), float(v[i])) for i in idx]
+
+
+def _mean_gradient_knots(line: Line, train_length_m: float, direction: str, start_chainage_m: float,
+                         length_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Front positions from the start where ḡ kinks (with 0 and ``length_m``) and ḡ there [rise/m]."""
+    sg = sign(direction)
+    g = line.gradients
+    edges = np.concatenate([np.asarray(g.start_m, float), np.asarray(g.end_m, float)])
+    # the front at x has chainage c0 + sg x and the tail c0 + sg (x - L): kinks where either is on an edge
+    xf = sg * (edges - start_chainage_m)
+    xs = np.concatenate([[0.0, length_m], xf, xf + train_length_m])
+    xs = np.unique(xs[(xs >= 0.0) & (xs <= length_m)])
+    gbar = dynamics.running_gradient(g, start_chainage_m + sg * xs, train_length_m, sg)
+    return xs, np.asarray(gbar, float)
+
+
+def gradient_steps(line: Line, train_length_m: float, direction: str, start_chainage_m: float,
+                   length_m: float, slice_m: float = SLICE_M) -> list[tuple[float, float]]:
+    """Safe-side step bound of the train-averaged gradient over an approach, in ‰ (running direction).
+
+    Each linear piece of ḡ (between kinks) takes its smaller end value, the
+    least favourable for braking. Equal neighbours are merged.
+
+    Parameters
+    ----------
+    line : Line
+    train_length_m : float
+        Train length [m].
+    direction : str
+    start_chainage_m : float
+        Chainage of the front at the approach start [m].
+    length_m : float
+        Approach length (to the stop marker) [m].
+
+    Returns
+    -------
+    list of (x_from_m, gradient_permil)
+        From the approach start, the first at 0.
+    """
+    xs, gbar = _mean_gradient_knots(line, train_length_m, direction, start_chainage_m, length_m)
+    if xs.size >= 2 and slice_m < math.inf:
+        # cut the sloping pieces into slices of at most slice_m (ḡ is linear there: interpolate exactly)
+        cuts = [xs[:1]]
+        for x0, x1, g0, g1 in zip(xs[:-1], xs[1:], gbar[:-1], gbar[1:]):
+            n = int(math.ceil((x1 - x0) / slice_m)) if g0 != g1 else 1
+            cuts.append(x0 + (x1 - x0) * np.arange(1, n + 1) / n)
+        fine = np.concatenate(cuts)
+        gbar = np.interp(fine, xs, gbar)
+        xs = fine
+    out: list[tuple[float, float]] = []
+    if xs.size < 2:
+        return [(0.0, round(float(gbar[0]) * 1000.0, 9) + 0.0)] if xs.size else [(0.0, 0.0)]
+    lo = np.minimum(gbar[:-1], gbar[1:]) * 1000.0
+    for x, permil in zip(xs[:-1], lo):
+        permil = round(float(permil), 9) + 0.0  # round: ‰ -> rise/m -> ‰ loses the last bit; +0.0: no -0.0
+        if out and out[-1][1] == permil:
+            continue
+        out.append((float(x), permil))
+    return out
+
+
+def decel_limits(line: Line, train, direction: str, start_chainage_m: float, length_m: float,
+                 adhesion_ms2: float, gradients_permil=None) -> list[tuple[float, float]]:
+    """Deceleration limit along an approach [m/s²], a step function from its start (module doc).
+
+    ``min(comfort, adhesion) + g ḡ / (1 + ρ)`` with ḡ bounded per piece from the
+    safe side (:func:`gradient_steps`, passed in as ``gradients_permil`` when
+    already computed). Raises :class:`planner.errors.InputError` when a fall
+    leaves no deceleration (as :func:`planner.stopping.pattern.decel_limit_profile`).
+    """
+    from planner.stopping.pattern import decel_limit_profile
+
+    if gradients_permil is None:
+        gradients_permil = gradient_steps(line, train.length_m, direction, start_chainage_m, length_m)
+    return decel_limit_profile(train.comfort_accel_ms2, adhesion_ms2, gradients_permil,
+                               rotating_mass_factor=train.rotating_mass_factor)
+
+
+def brake_demand_ms2(line: Line, train, direction: str, start_chainage_m: float, x_m, a_ms2):
+    """What the brake must give at the front positions ``x_m`` for the accelerations ``a_ms2`` [m/s²].
+
+    The run-curve force model without the resistances that only help:
+    ``-a + a_track(ḡ)``, with ḡ averaged over the train at each sample
+    (:func:`planner.physics.dynamics.running_gradient`, :func:`planner.physics.dynamics.track_accel_ms2`).
+    """
+    sg = sign(direction)
+    front = start_chainage_m + sg * np.asarray(x_m, float)
+    gbar = dynamics.running_gradient(line.gradients, front, train.length_m, sg)
+    return -np.asarray(a_ms2, float) + dynamics.track_accel_ms2(gbar, 0.0, train.rotating_mass_factor)
+

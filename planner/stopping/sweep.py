@@ -1,0 +1,728 @@
+"""Stopping patterns for every station approach of a line, over a sweep of adhesion levels (DESIGN §5).
+
+The nightly job solves, for every arrival of every interstation, direction and
+train type, the minimum-time jerk-limited stopping pattern of
+:func:`planner.stopping.pattern.solve_stop` for a sweep of adhesion-limited
+decelerations, so the vehicle can pick the pattern for today's rail condition
+and the margin report can size the margin from the growth in stopping time.
+
+One *approach* is set up from the line as the vehicle meets it, by
+:mod:`planner.stopping.approach` (the one definition the margin report uses too):
+
+* **start**: the TASC beacon before the stop marker (the last ``tasc`` beacon
+  read in that direction inside the interstation), where the on-board unit
+  learns its exact distance to go; without one, a fixed distance
+  ``approach_m`` (550 m by default, the usual TASC beacon spacing) before
+  the marker (:func:`planner.stopping.approach.approach_start`);
+* **start speed**: the speed of the minimum-time run there (ratio 1.0, load 0,
+  nominal traction, :func:`planner.physics.run_curve.simulate`; the point is an exact
+  grid node, read from a snapshot). The pattern takes it with acceleration 0;
+* **speed limits**: the on-board maximum ``Track.vmax_interval_ms`` (every
+  restriction held until the tail clears, minus the vehicle's speed margin),
+  which is piecewise constant on the run-curve grid, as a step function of the
+  distance from the approach start;
+* **deceleration limits**: ``min(comfort, adhesion) + g s / 1000 / (1 + ρ)``
+  for the gradient ``s`` [‰] averaged over the whole train in the running
+  direction (sign flipped for ``up``), exactly as the run curves take it, each
+  linear piece bounded by its least favourable value
+  (:func:`planner.stopping.approach.decel_limits`), one profile per adhesion level;
+* **jerk**: the vehicle's ``jerk_limit_ms3``.
+
+An approach with no admissible pattern at some adhesion level is kept as a row
+with ``feasible = False`` and the solver's reason, and produces a warning
+(:class:`InfeasibleStopWarning`) naming station, direction, train type and
+adhesion: the stopping control must start earlier there, or the limits must
+be relaxed.
+
+Outputs are two hive-partitioned Parquet datasets (``stop_summary`` and
+``stop_samples``, schemas :data:`STOP_SUMMARY_SCHEMA`,
+:data:`STOP_SAMPLES_SCHEMA`) written by :func:`write_stops`.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import pyarrow as pa
+
+from planner.io.parquet import declare, write_partitioned
+from planner.stopping import approach as _approach
+from planner.stopping.approach import DEFAULT_APPROACH_M
+from planner.errors import InputError, UnknownNameError
+from planner.line.model import DIRECTIONS, Line, sign
+from planner.stopping.pattern import StopPattern, solve_stop
+from planner.io.parallel import map_tasks
+from planner.line.units import KMH_S
+
+__all__ = [
+    "ApproachResult",
+    "DEFAULT_ADHESION_KMH_S",
+    "DEFAULT_APPROACH_M",
+    "DEFAULT_SAMPLE_DT_S",
+    "InfeasibleStopWarning",
+    "STOP_SAMPLES_SCHEMA",
+    "STOP_SUMMARY_SCHEMA",
+    "adhesion_levels",
+    "approach_patterns",
+    "approach_tasks",
+    "benchmark_sample_line",
+    "datasets",
+    "plot_approach",
+    "stop_sweep",
+    "write_stops",
+]
+
+DEFAULT_SAMPLE_DT_S = 0.1
+"""Time step of the sampled patterns in ``stop_samples`` [s]."""
+V_START_ROUNDOFF_MS = 1e-6
+"""The run's speed may exceed the on-board maximum by round-off only; below this it is clipped [m/s]."""
+_MAX_LEVELS = 1000
+
+
+class InfeasibleStopWarning(UserWarning):
+    """A station approach has no admissible stopping pattern at one adhesion level."""
+
+
+# --------------------------------------------------------------------------------------
+# The adhesion sweep
+# --------------------------------------------------------------------------------------
+
+
+def adhesion_levels(spec: str | Sequence[float]) -> tuple[float, ...]:
+    """Adhesion levels [km/h/s] from ``'START:STOP:STEP'`` (inclusive), ``'a,b,c'`` or numbers.
+
+    Parameters
+    ----------
+    spec : str or sequence of float
+        ``"2.5:3.5:0.1"`` gives 2.5, 2.6, …, 3.5 (the stop is included when the
+        steps land on it within 1e-9 of a step); ``"2.5,3.0"`` a list; or the
+        levels themselves.
+
+    Returns
+    -------
+    tuple of float
+        Sorted, distinct, positive levels [km/h/s], rounded to 9 decimals (so
+        2.6 is 2.6, not 2.6000000000000005).
+
+    Raises
+    ------
+    InputError
+        Naming the ``--adhesion`` flag and the accepted forms.
+
+    Examples
+    --------
+    >>> adhesion_levels("2.5:3.0:0.1")
+    (2.5, 2.6, 2.7, 2.8, 2.9, 3.0)
+    """
+    how = "give --adhesion as START:STOP:STEP in km/h/s (e.g. 2.5:3.5:0.1) or a list like 2.5,3.0,3.5"
+    if isinstance(spec, str):
+        text = spec.strip()
+        try:
+            if ":" in text:
+                parts = [float(p) for p in text.split(":")]
+                if len(parts) != 3:
+                    raise ValueError
+                start, stop, step = parts
+                if not (step > 0.0 and math.isfinite(start) and math.isfinite(stop) and stop >= start):
+                    raise InputError(f"--adhesion {spec!r}: need STOP >= START and STEP > 0; {how}")
+                n = int(math.floor((stop - start) / step + 1e-9)) + 1
+                if n > _MAX_LEVELS:
+                    raise InputError(f"--adhesion {spec!r} gives {n} levels (at most {_MAX_LEVELS}); "
+                                     "use a larger STEP")
+                values = [start + k * step for k in range(n)]
+            else:
+                values = [float(p) for p in text.split(",") if p.strip()]
+        except ValueError:
+            raise InputError(f"--adhesion {spec!r} is not understood; {how}") from None
+    else:
+        try:
+            values = [float(v) for v in spec]
+        except (TypeError, ValueError):
+            raise InputError(f"adhesion levels {spec!r} are not numbers; {how}") from None
+    if not values:
+        raise InputError(f"--adhesion {spec!r} gives no levels; {how}")
+    for v in values:
+        if not (math.isfinite(v) and v > 0.0):
+            raise InputError(f"--adhesion level {v!r} km/h/s must be a positive number; {how}")
+    return tuple(sorted({round(v, 9) for v in values}))
+
+
+DEFAULT_ADHESION_KMH_S = adhesion_levels("2.5:3.5:0.1")
+"""Default sweep: 2.5 … 3.5 km/h/s in 0.1 km/h/s steps (issue 5)."""
+
+
+# --------------------------------------------------------------------------------------
+# One approach
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ApproachResult:
+    """Stopping patterns of one station approach (interstation, direction, train type) per adhesion level.
+
+    Positions ``x`` in the step functions are metres from the approach start in
+    the running direction (the frame of :func:`planner.stopping.pattern.solve_stop`);
+    ``*_m`` positions called chainage are line chainages.
+
+    Attributes
+    ----------
+    line_id, train_type, direction, origin, station_id : str
+        The approach: arrival at ``station_id`` from ``origin``.
+    stop_m : float
+        Chainage of the stop marker [m].
+    approach_start_m : float
+        Chainage of the approach start [m].
+    approach_length_m : float
+        Distance from the approach start to the stop marker [m] (``x_stop``).
+    tasc_beacon_id : str
+        The TASC beacon the approach starts at, or ``""`` (fixed distance).
+    v_start_ms : float
+        Speed of the minimum-time run at the approach start [m/s] (NaN if none).
+    run_phase : str
+        Phase of that run there (``power``, ``hold``, ``coast``, ``brake``, ``stop``):
+        ``brake`` (for a restriction) or ``stop`` (on the stopping-brake curve) means the
+        run was already braking there; the pattern still starts with a = 0.
+    jerk_max_ms3, comfort_ms2 : float
+        Vehicle jerk limit [m/s³] and comfort deceleration limit [m/s²].
+    speed_limits : tuple of (x_from_m, speed_ms)
+        On-board maximum over the approach.
+    gradients_permil : tuple of (x_from_m, gradient_permil)
+        Gradient averaged over the train, positive rising in the running
+        direction, each linear piece at its least favourable value
+        (:func:`planner.stopping.approach.gradient_steps`).
+    adhesion_kmh_s : tuple of float
+        The adhesion levels [km/h/s], ascending.
+    decel_limits : tuple
+        Per level, the deceleration limit step function ``((x_from_m, decel_ms2), ...)``,
+        or ``()`` when the gradient leaves no deceleration.
+    patterns : tuple of StopPattern
+        Per level, the pattern (``feasible`` False with the reason when there is none).
+    warnings : tuple of str
+        One message per infeasible level, naming station, direction, train type, adhesion.
+    """
+
+    line_id: str
+    train_type: str
+    direction: str
+    origin: str
+    station_id: str
+    stop_m: float
+    approach_start_m: float
+    approach_length_m: float
+    tasc_beacon_id: str
+    v_start_ms: float
+    run_phase: str
+    jerk_max_ms3: float
+    comfort_ms2: float
+    speed_limits: tuple[tuple[float, float], ...]
+    gradients_permil: tuple[tuple[float, float], ...]
+    adhesion_kmh_s: tuple[float, ...]
+    decel_limits: tuple[tuple[tuple[float, float], ...], ...]
+    patterns: tuple[StopPattern, ...]
+    warnings: tuple[str, ...]
+
+    @property
+    def n_feasible(self) -> int:
+        """Number of adhesion levels with a pattern."""
+        return sum(p.feasible for p in self.patterns)
+
+    @property
+    def best_duration_s(self) -> float:
+        """Shortest feasible pattern duration over the sweep [s] (NaN if none)."""
+        d = [p.duration_s for p in self.patterns if p.feasible]
+        return min(d) if d else math.nan
+
+    @property
+    def time_lost_s(self) -> tuple[float, ...]:
+        """Per level, duration minus the best duration of the sweep [s] (NaN when infeasible)."""
+        best = self.best_duration_s
+        return tuple(p.duration_s - best if p.feasible else math.nan for p in self.patterns)
+
+    def chainage_m(self, x_m):
+        """Chainage [m] of a distance ``x_m`` from the approach start."""
+        return self.approach_start_m + sign(self.direction) * np.asarray(x_m, dtype=float)
+
+
+def _warning(train_type: str, direction: str, origin: str, station_id: str, adhesion_kmh_s: float,
+             reason: str) -> str:
+    return (f"no stopping pattern at {station_id} ({direction}, train type {train_type}, from {origin}) "
+            f"at adhesion {adhesion_kmh_s:g} km/h/s: {reason}")
+
+
+def approach_patterns(
+    line: Line,
+    train_type: str,
+    origin: str,
+    destination: str,
+    adhesions_ms2: Sequence[float],
+    approach_m: float = DEFAULT_APPROACH_M,
+    *,
+    settings=None,
+) -> ApproachResult:
+    """Stopping patterns of the arrival at ``destination`` from ``origin``, one per adhesion level.
+
+    Pure: no I/O, no warnings issued (they are returned); the unit of work of
+    the nightly job.
+
+    Parameters
+    ----------
+    line : Line
+    train_type, origin, destination : str
+        Consecutive stations; the direction follows from them.
+    adhesions_ms2 : sequence of float
+        Adhesion-limited braking decelerations [m/s²], > 0 (sorted ascending in the result).
+    approach_m : float
+        Approach length where the interstation has no TASC beacon [m], > 0.
+    settings : planner.physics.track.SimSettings, optional
+        Grid of the minimum-time run (default 1 m).
+
+    Returns
+    -------
+    ApproachResult
+
+    Raises
+    ------
+    UnknownNameError
+        Unknown train type or station.
+    InputError
+        Bad ``approach_m`` or adhesion levels.
+
+    Notes
+    -----
+    ``A(x) = min(comfort, adhesion) + g s(x) / 1000 / (1 + ρ)`` (DESIGN §5) with
+    ``s`` the gradient averaged over the train, bounded per piece from the safe
+    side (:mod:`planner.stopping.approach`); ``v_lim(x)`` the on-board maximum (restriction
+    held to the tail, minus the speed margin); the start speed is the
+    minimum-time run's (ratio 1.0, load 0, traction 1.0) at the approach start.
+    """
+    from planner.physics.run_curve import PHASE_NAMES, simulate
+    from planner.physics.track import SimSettings, make_track
+
+    if not (isinstance(approach_m, (int, float)) and math.isfinite(approach_m) and approach_m > 0.0):
+        raise InputError(f"approach_m must be a positive number of metres, got {approach_m!r}")
+    levels_ms2 = sorted(float(a) for a in adhesions_ms2)
+    if not levels_ms2 or not all(math.isfinite(a) and a > 0.0 for a in levels_ms2):
+        raise InputError(f"adhesion levels must be positive decelerations [m/s²], got {list(adhesions_ms2)!r}")
+    levels_kmh_s = tuple(round(a / KMH_S, 9) for a in levels_ms2)
+    train = line.train_type(train_type)
+    ext = line.run_between(origin, destination)
+    direction, sg, x0, stop, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m
+    start = _approach.approach_start(line, origin, destination, float(approach_m))
+    s_a = start.s_m
+    X = length - s_a
+    J = train.jerk_limit_ms3
+    comfort = train.comfort_accel_ms2
+    common = dict(line_id=line.line_id, train_type=train_type, direction=direction, origin=origin,
+                  station_id=destination, stop_m=float(stop), approach_start_m=float(x0 + sg * s_a),
+                  approach_length_m=float(X), tasc_beacon_id=start.beacon_id,
+                  jerk_max_ms3=J, comfort_ms2=comfort, adhesion_kmh_s=levels_kmh_s)
+
+    def all_infeasible(reason: str, v0: float, phase: str, sl=(), grads=()) -> ApproachResult:
+        pats = tuple(StopPattern(False, reason, v_start_ms=v0, x_stop_m=max(X, 0.0), jerk_max_ms3=J)
+                     for _ in levels_ms2)
+        msgs = tuple(_warning(train_type, direction, origin, destination, a, reason) for a in levels_kmh_s)
+        return ApproachResult(**common, v_start_ms=v0, run_phase=phase, speed_limits=tuple(sl),
+                              gradients_permil=tuple(grads), decel_limits=tuple(() for _ in levels_ms2),
+                              patterns=pats, warnings=msgs)
+
+    if not s_a > 0.0:
+        return all_infeasible(
+            f"the approach of {approach_m:g} m is not shorter than the interstation ({length:.1f} m); "
+            "lower approach_m or add a TASC beacon", math.nan, "")
+
+    track = make_track(line, train_type, origin, destination, settings=settings or SimSettings(),
+                       nodes_m=[s_a])
+    res = simulate(track, train, 1.0, load=0.0, traction_factor=1.0, snapshots_m=[s_a])
+    snap = res.snapshots[s_a]
+    v0 = float(snap.v_ms[0])
+    phase = PHASE_NAMES[int(snap.phase[0])]
+    sl = _approach.speed_limits(track, s_a)
+    if sl[0][1] < v0 <= sl[0][1] + V_START_ROUNDOFF_MS:
+        v0 = sl[0][1]  # the run holds the maximum; its last bit of round-off is not a violation
+    grads = _approach.gradient_steps(line, train.length_m, direction, common["approach_start_m"], X)
+
+    decels: list[tuple[tuple[float, float], ...]] = []
+    pats: list[StopPattern] = []
+    msgs: list[str] = []
+    for a_ms2, a_kmh_s in zip(levels_ms2, levels_kmh_s):
+        try:
+            dl = _approach.decel_limits(line, train, direction, common["approach_start_m"], X, a_ms2, grads)
+        except InputError as e:  # a fall so steep that nothing is left: no pattern at this level
+            decels.append(())
+            p = StopPattern(False, str(e), v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J)
+        else:
+            decels.append(tuple(dl))
+            p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+        pats.append(p)
+        if not p.feasible:
+            msgs.append(_warning(train_type, direction, origin, destination, a_kmh_s, p.reason))
+    return ApproachResult(**common, v_start_ms=v0, run_phase=phase, speed_limits=tuple(sl),
+                          gradients_permil=tuple(grads), decel_limits=tuple(decels), patterns=tuple(pats),
+                          warnings=tuple(msgs))
+
+
+# --------------------------------------------------------------------------------------
+# The whole line
+# --------------------------------------------------------------------------------------
+
+
+def approach_tasks(line: Line, train_types: Sequence[str] | None = None,
+                   directions: Sequence[str] | None = None) -> list[tuple[str, str, str, str]]:
+    """The fixed task order: ``(train_type, direction, origin, destination)`` for every arrival.
+
+    Raises
+    ------
+    UnknownNameError
+        For an unknown train type or direction (the message lists the known ones).
+    """
+    types = list(train_types) if train_types else [t.train_type for t in line.train_types]
+    for t in types:
+        line.train_type(t)
+    dirs = list(directions) if directions else list(DIRECTIONS)
+    for d in dirs:
+        if d not in DIRECTIONS:
+            raise UnknownNameError(f"unknown direction {d!r}; use down or up")
+    return [(t, d, a.station_id, b.station_id) for t in types for d in DIRECTIONS if d in dirs
+            for a, b in line.interstations(d)]
+
+
+def _approach_task(line: Line, train_type: str, origin: str, destination: str, adhesions_ms2, approach_m,
+                   settings) -> ApproachResult:
+    """joblib worker: one approach (module-level, picklable inputs)."""
+    return approach_patterns(line, train_type, origin, destination, adhesions_ms2, approach_m, settings=settings)
+
+
+def stop_sweep(
+    line: Line,
+    *,
+    train_types: Sequence[str] | None = None,
+    adhesion_kmh_s: str | Sequence[float] = DEFAULT_ADHESION_KMH_S,
+    approach_m: float = DEFAULT_APPROACH_M,
+    directions: Sequence[str] | None = None,
+    n_jobs: int = -1,
+    settings=None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[ApproachResult]:
+    """Stopping patterns for every station approach of a line over an adhesion sweep, in parallel.
+
+    Parameters
+    ----------
+    line : Line
+    train_types : sequence of str, optional
+        Default every train type of the line.
+    adhesion_kmh_s : str or sequence of float
+        Adhesion levels [km/h/s], or a spec for :func:`adhesion_levels`
+        (default 2.5 … 3.5 in 0.1 steps).
+    approach_m : float
+        Approach length where there is no TASC beacon [m].
+    directions : sequence of str, optional
+        Default both.
+    n_jobs : int
+        joblib processes; -1 = all cores, 1 = in this process.
+    settings : planner.physics.track.SimSettings, optional
+    progress : callable ``(done, total)``, optional
+        Called after each finished approach.
+
+    Returns
+    -------
+    list of ApproachResult
+        In :func:`approach_tasks` order, independent of ``n_jobs``.
+
+    Warns
+    -----
+    InfeasibleStopWarning
+        Once per approach and adhesion level without a pattern, naming station,
+        direction, train type and adhesion (also in ``ApproachResult.warnings``).
+    """
+    levels = adhesion_levels(adhesion_kmh_s)
+    levels_ms2 = [a * KMH_S for a in levels]
+    tasks = approach_tasks(line, train_types, directions)
+    out: list[ApproachResult] = map_tasks(
+        _approach_task, [(line, t, o, d, levels_ms2, approach_m, settings) for t, _, o, d in tasks], n_jobs, progress)
+    for r in out:
+        for msg in r.warnings:  # issued here: warnings raised in worker processes are lost
+            warnings.warn(msg, InfeasibleStopWarning, stacklevel=2)
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# Datasets
+# --------------------------------------------------------------------------------------
+
+STOP_SUMMARY_SCHEMA = declare(
+    [
+        ("station_id", pa.string(), "station of the stop (arrival of the interstation)"),
+        ("origin", pa.string(), "departure station of the interstation"),
+        ("tasc_beacon_id", pa.string(), "TASC beacon the approach starts at; empty when a fixed distance is used"),
+        ("approach_start_m", pa.float64(), "chainage of the approach (pattern) start [m]"),
+        ("stop_m", pa.float64(), "chainage of the stop marker [m]"),
+        ("approach_length_m", pa.float64(), "distance from the approach start to the stop marker [m]"),
+        ("v_start_kmh", pa.float64(), "speed of the minimum-time run (ratio 1.0, load 0) at the approach start [km/h]"),
+        ("run_phase", pa.string(), "phase of that run at the approach start (power, hold, coast, brake, stop)"),
+        ("jerk_max_kmh_s2", pa.float64(), "jerk limit of the train type [km/h/s²]"),
+        ("comfort_kmh_s", pa.float64(), "comfort deceleration limit of the train type [km/h/s]"),
+        ("adhesion_kmh_s", pa.float64(), "adhesion-limited braking deceleration of this sweep level [km/h/s]"),
+        ("feasible", pa.bool_(), "true when a pattern meeting every limit exists"),
+        ("reason", pa.string(), "why there is no pattern (empty when feasible)"),
+        ("duration_s", pa.float64(), "pattern duration from the approach start to standstill at the marker [s]"),
+        ("brake_start_m", pa.float64(), "chainage where deceleration first begins [m] (null when infeasible)"),
+        ("brake_start_distance_m", pa.float64(),
+         "distance from the brake start to the stop marker [m]; when infeasible, the distance the limits "
+         "would need (longer than the approach), null if unknown"),
+        ("time_lost_s", pa.float64(),
+         "duration minus the shortest feasible duration of the approach's sweep (the best adhesion) [s]"),
+    ],
+    name="stop_summary",
+    description="Minimum-time jerk-limited stopping patterns: one row per station approach and adhesion level "
+                "(DESIGN §5).",
+)
+
+STOP_SAMPLES_SCHEMA = declare(
+    [
+        ("station_id", pa.string(), "station of the stop"),
+        ("adhesion_kmh_s", pa.float64(), "adhesion level of the pattern [km/h/s]"),
+        ("t_s", pa.float64(), "time from the approach start [s]"),
+        ("position_m", pa.float64(), "chainage of the train front [m]"),
+        ("distance_to_stop_m", pa.float64(), "distance from the front to the stop marker [m]"),
+        ("speed_kmh", pa.float64(), "speed [km/h]"),
+        ("accel_ms2", pa.float64(), "acceleration [m/s²], negative when braking"),
+        ("jerk_ms3", pa.float64(), "jerk of the constant-jerk piece the sample lies in [m/s³]"),
+    ],
+    name="stop_samples",
+    description="Feasible stopping patterns sampled in time (exact values of the cubic pieces) (DESIGN §5).",
+)
+
+SCHEMAS = {"stop_summary": STOP_SUMMARY_SCHEMA, "stop_samples": STOP_SAMPLES_SCHEMA}
+SORT_BY = {"stop_summary": ("station_id", "adhesion_kmh_s"), "stop_samples": ("station_id", "adhesion_kmh_s", "t_s")}
+
+
+def _nan_to_none(x: float):
+    return None if x is None or (isinstance(x, float) and math.isnan(x)) else x
+
+
+def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_DT_S) -> dict[str, pa.Table]:
+    """The ``stop_summary`` and ``stop_samples`` rows (with partition columns line/direction/train_type).
+
+    Parameters
+    ----------
+    results : sequence of ApproachResult
+    dt_s : float
+        Sampling step of the patterns [s].
+    """
+    summ: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SUMMARY_SCHEMA.names)}
+    samp: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SAMPLES_SCHEMA.names)}
+    for r in results:
+        lost = r.time_lost_s
+        for a, p, tl in zip(r.adhesion_kmh_s, r.patterns, lost):
+            row = {
+                "line": r.line_id, "direction": r.direction, "train_type": r.train_type,
+                "station_id": r.station_id, "origin": r.origin, "tasc_beacon_id": r.tasc_beacon_id,
+                "approach_start_m": r.approach_start_m, "stop_m": r.stop_m,
+                "approach_length_m": r.approach_length_m,
+                "v_start_kmh": _nan_to_none(r.v_start_ms * 3.6), "run_phase": r.run_phase,
+                "jerk_max_kmh_s2": r.jerk_max_ms3 * 3.6, "comfort_kmh_s": r.comfort_ms2 * 3.6,
+                "adhesion_kmh_s": a, "feasible": p.feasible, "reason": p.reason,
+                "duration_s": _nan_to_none(p.duration_s),
+                "brake_start_m": float(r.chainage_m(p.brake_start_m)) if p.feasible else None,
+                "brake_start_distance_m": _nan_to_none(p.braking_distance_m),
+                "time_lost_s": _nan_to_none(tl),
+            }
+            for k, v in row.items():
+                summ[k].append(v)
+            if not p.feasible:
+                continue
+            s = p.sample(dt_s)
+            n = s.t_s.size
+            samp["line"] += [r.line_id] * n
+            samp["direction"] += [r.direction] * n
+            samp["train_type"] += [r.train_type] * n
+            samp["station_id"] += [r.station_id] * n
+            samp["adhesion_kmh_s"] += [a] * n
+            samp["t_s"].append(s.t_s)
+            samp["position_m"].append(r.chainage_m(s.x_m))
+            samp["distance_to_stop_m"].append(r.approach_length_m - s.x_m)
+            samp["speed_kmh"].append(s.v_ms * 3.6)
+            samp["accel_ms2"].append(s.a_ms2)
+            samp["jerk_ms3"].append(s.j_ms3)
+    for k in ("t_s", "position_m", "distance_to_stop_m", "speed_kmh", "accel_ms2", "jerk_ms3"):
+        samp[k] = np.concatenate(samp[k]) if samp[k] else np.zeros(0)
+    summary = pa.table({k: pa.array(v, type=_type(k, STOP_SUMMARY_SCHEMA)) for k, v in summ.items()})
+    samples = pa.table({k: pa.array(v, type=_type(k, STOP_SAMPLES_SCHEMA)) for k, v in samp.items()})
+    return {"stop_summary": summary, "stop_samples": samples}
+
+
+def _type(name: str, schema: pa.Schema) -> pa.DataType:
+    return schema.field(name).type if name in schema.names else pa.string()
+
+
+def write_stops(results: Sequence[ApproachResult], out_dir: str | Path, *,
+                dt_s: float = DEFAULT_SAMPLE_DT_S) -> list[Path]:
+    """Write ``stop_summary`` and ``stop_samples`` under ``out_dir`` (atomic per file, deterministic).
+
+    Returns
+    -------
+    list of Path
+        Files written.
+    """
+    written: list[Path] = []
+    for name, table in datasets(results, dt_s=dt_s).items():
+        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=SORT_BY[name])
+    return written
+
+
+# --------------------------------------------------------------------------------------
+# Figure
+# --------------------------------------------------------------------------------------
+
+
+def plot_approach(result: ApproachResult, path: str | Path) -> Path:
+    """Speed, acceleration and jerk against distance to the stop marker, one curve per adhesion level.
+
+    Three stacked axes sharing the distance to the marker (decreasing to the
+    right, as the train runs). Drawn limits: the on-board maximum speed
+    (black steps), the deceleration limit of each adhesion level (dashed, in
+    the level's colour) and ±jerk limit (grey dashed). Brake starts are marked
+    on the speed axis. Infeasible levels are listed in the title. The PNG is
+    written atomically (temp file, rename).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib import cm, colors
+
+    path = Path(path)
+    X = result.approach_length_m
+    levels = result.adhesion_kmh_s
+    norm = colors.Normalize(vmin=min(levels), vmax=max(levels) if max(levels) > min(levels) else min(levels) + 1)
+    cmap = matplotlib.colormaps["viridis"]
+    fig, (ax_v, ax_a, ax_j) = plt.subplots(3, 1, sharex=True, figsize=(10, 8.5), layout="constrained",
+                                           gridspec_kw={"height_ratios": [3, 2, 1.4]})
+
+    def steps(pairs, scale):
+        """Step function over [0, X] as distance-to-go arrays for plotting."""
+        xs = [p[0] for p in pairs] + [X]
+        d, y = [], []
+        for k, (x, val) in enumerate(pairs):
+            d += [X - xs[k], X - xs[k + 1]]
+            y += [val * scale, val * scale]
+        return np.array(d), np.array(y)
+
+    if result.speed_limits:
+        d, y = steps(result.speed_limits, 3.6)
+        ax_v.plot(d, y, color="black", lw=1.4, label="on-board maximum speed")
+    J = result.jerk_max_ms3 * 3.6
+    for sgn in (1, -1):
+        ax_j.axhline(sgn * J, color="0.45", ls="--", lw=1.0, label="jerk limit" if sgn > 0 else None)
+    infeasible = []
+    for a, p, dl in zip(levels, result.patterns, result.decel_limits):
+        col = cmap(norm(a))
+        if dl:
+            d, y = steps(dl, -3.6)
+            ax_a.plot(d, y, color=col, ls="--", lw=0.9, alpha=0.9)
+        if not p.feasible:
+            infeasible.append(f"{a:g}")
+            continue
+        s = p.sample(max(p.duration_s / 2000.0, 1e-3))
+        dist = X - s.x_m
+        ax_v.plot(dist, s.v_ms * 3.6, color=col, lw=1.2)
+        ax_a.plot(dist, s.a_ms2 * 3.6, color=col, lw=1.2)
+        # jerk is piecewise constant: draw it from the breakpoints, not from samples
+        jd, jy = [], []
+        for k, j in enumerate(p.j_ms3):
+            jd += [X - p.x_m[k], X - p.x_m[k + 1]]
+            jy += [j * 3.6, j * 3.6]
+        ax_j.plot(jd, jy, color=col, lw=1.1, alpha=0.8)
+        ax_v.plot([X - p.brake_start_m], [p.v_start_ms * 3.6], marker="o", ms=4, color=col)
+    ax_v.set_ylabel("speed [km/h]")
+    ax_a.set_ylabel("acceleration [km/h/s]")
+    ax_j.set_ylabel("jerk [km/h/s²]")
+    ax_j.set_xlabel("distance to the stop marker [m]")
+    ax_v.set_ylim(bottom=0.0)
+    ax_a.plot([], [], color="0.3", ls="--", lw=0.9, label="deceleration limit (per adhesion)")
+    ax_a.plot([], [], color="0.3", lw=1.2, label="pattern (colour: adhesion)")
+    ax_v.plot([], [], color="0.3", marker="o", ls="none", ms=4, label="brake start")
+    for ax in (ax_v, ax_a, ax_j):
+        ax.grid(True, lw=0.4, alpha=0.6)
+        ax.legend(loc="center left" if ax is ax_a else "lower left", fontsize=8, framealpha=0.85)
+    ax_j.set_ylim(-1.6 * J, 1.6 * J)
+    lo, _ = ax_a.get_ylim()
+    ax_a.set_ylim(lo, -0.18 * lo)  # headroom above a = 0 for the gradient labels
+    # the gradient (over the train, safe-side steps) explains the steps of the deceleration limits
+    gx = [g[0] for g in result.gradients_permil] + [X]
+    for k, (x, g) in enumerate(result.gradients_permil):
+        mid = X - 0.5 * (x + gx[k + 1])
+        ax_a.text(mid, 0.97, f"{g:+g} ‰" if g else "level", transform=ax_a.get_xaxis_transform(),
+                  ha="center", va="top", fontsize=8, color="0.3")
+        if k:
+            ax_a.axvline(X - x, color="0.6", lw=0.6, ls=":")
+    ax_j.set_xlim(X, 0.0)  # the train runs left to right, towards the marker at 0
+    start = f"TASC beacon {result.tasc_beacon_id}" if result.tasc_beacon_id else "fixed approach start"
+    title = (f"{result.line_id}: stop at {result.station_id} ({result.direction}, {result.train_type}, from "
+             f"{result.origin}) — {start} {X:.0f} m before the marker, "
+             f"v_start {result.v_start_ms * 3.6:.1f} km/h")
+    if infeasible:
+        title += f"\nno pattern at adhesion {', '.join(infeasible)} km/h/s"
+    fig.suptitle(title, fontsize=10)
+    sm = cm.ScalarMappable(norm=norm, cmap=cmap)
+    fig.colorbar(sm, ax=[ax_v, ax_a, ax_j], label="adhesion limit [km/h/s]", shrink=0.6, pad=0.02)
+    from planner.io.atomic import save_png
+
+    save_png(fig, path, dpi=110)
+    return path
+
+
+# --------------------------------------------------------------------------------------
+# Benchmark hook
+# --------------------------------------------------------------------------------------
+
+
+def benchmark_sample_line(n_jobs: int = -1) -> dict:
+    """Time the whole default sweep of the sample line and print the figures (used by ``make bench``).
+
+    Returns
+    -------
+    dict
+        ``approaches``, ``patterns``, ``infeasible``, ``wall_s``, ``solve_median_ms``.
+    """
+    import statistics
+    import time
+
+    from planner.line.loader import load_line
+
+    root = Path(__file__).resolve().parents[1] / "lines" / "sample"
+    line = load_line(root)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", InfeasibleStopWarning)
+        results = stop_sweep(line, n_jobs=n_jobs)
+    wall = time.perf_counter() - t0
+    # solve time alone, from the approaches as set up (the simulation of v_start dominates the sweep)
+    solves = []
+    for r in results:
+        for a, dl in zip(r.adhesion_kmh_s, r.decel_limits):
+            if not dl:
+                continue
+            t1 = time.perf_counter()
+            solve_stop(r.v_start_ms, r.approach_length_m, jerk_max=r.jerk_max_ms3, decel_limits=dl,
+                       speed_limits=r.speed_limits)
+            solves.append(time.perf_counter() - t1)
+    n_pat = sum(len(r.patterns) for r in results)
+    n_inf = sum(len(r.patterns) - r.n_feasible for r in results)
+    lost = [t for r in results for t in r.time_lost_s if not math.isnan(t)]
+    med = statistics.median(solves) * 1e3 if solves else math.nan
+    print(f"  sample line sweep: {len(results)} approaches x {len(results[0].adhesion_kmh_s) if results else 0} "
+          f"adhesion levels = {n_pat} patterns ({n_inf} infeasible) in {wall:.2f} s wall "
+          f"(n_jobs={n_jobs}); solve_stop median {med:.3f} ms on these approaches; "
+          f"time lost vs best adhesion up to {max(lost) if lost else math.nan:.2f} s")
+    return {"approaches": len(results), "patterns": n_pat, "infeasible": n_inf, "wall_s": wall,
+            "solve_median_ms": med}

@@ -1,0 +1,603 @@
+"""Running-time tables (a) and (b) for every interstation, direction and train type (DESIGN §3).
+
+Table (a): for every grid ratio r, the running time departure → arrival at
+constant r (and the traction energy). Table (b): for every evaluation point X
+and pair (r_before, r_after), the running time from X to arrival when the train
+ran at r_before up to X and at r_after from X on.
+
+The evaluation points are those of :func:`planner.tables.eval_points.evaluation_points`:
+the departure, the point after departure, the odometer points at the regular
+interval (``eval_interval_m``, none by default) and the flagged beacons. Each
+point after departure costs n_r² runs and n_r² rows of table (b).
+
+How it is computed (per interstation, direction and train type)
+---------------------------------------------------------------
+1. One batch of n_r runs at constant ratio from departure to arrival, with a
+   snapshot of the state at every evaluation point: the totals are table (a),
+   the snapshots are the states at X after running at each r_before (speed,
+   time, and whether powering, holding or braking).
+2. For each evaluation point X after departure, one batch of n_r² runs that
+   start from those snapshots — each r_before state repeated once per
+   r_after — with ratio r_after from X: table (b) at X is their arrival time
+   minus the time at X. At the departure itself the state does not depend on
+   r_before (standing at s = 0), so every row of table (b) there is table (a).
+
+Work: n_r full runs plus n_x · n_r² suffix runs, each batch lock-stepped on
+the same distance grid (evaluation points are grid nodes, so snapshots are
+exact). Interstations × directions × train types are spread over processes
+with joblib; each task gets the (small, picklable) Line and names, and the
+results are assembled in the fixed task order, so the output does not depend
+on ``n_jobs`` or scheduling.
+
+3. Table (c), for the ``adaptive`` on-board mode: the same n_r constant-ratio
+   runs for a reference train (full load, traction × 0.9: the degraded train of
+   the margin report), in the same batch, giving at every point the remaining
+   time at constant ratio of both trains and the table train's speed there.
+4. Table (d), also for ``adaptive``, for sawtooth vehicles at the last evaluation point only: the
+   remaining time from a grid of states there (speed every 2 km/h, powering or
+   not) at every ratio of a 1 % grid, for the table and the reference train
+   (:func:`approach_table`, one batch of short runs). Tables (b) and (c) index
+   the state at a point by the ratio run before it; at the last point, where no
+   later decision can correct anything, the vehicle looks its own state up
+   instead (a sawtooth train's place in its coasting band is not a function of
+   that ratio, and cost up to 1.5 s there). A constant-speed vehicle's state at
+   the point is (r_b × maximum speed, or a braking curve), which the rows of
+   table (b) already index, so it gets no table (d).
+
+Datasets (hive-partitioned line / direction / train_type, see schemas below):
+``eval_points``, ``table_a``, ``table_b``, ``table_c``, ``table_d``. The vehicle
+reads them back with :func:`planner.tables.onboard.load_tables`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import pyarrow as pa
+
+from planner.io.parquet import declare, write_partitioned
+from planner.errors import InfeasibleError
+from planner.tables.eval_points import (
+    DEFAULT_AFTER_DEPARTURE_M,
+    DEFAULT_INTERVAL_M,
+    EvalPoint,
+    check_interval,
+    evaluation_points,
+    interstation_length_m,
+)
+from planner.line.model import DIRECTIONS, Line
+from planner.tables.onboard import ApproachTable, RunningTimeTables
+from planner.io.parallel import map_tasks
+from planner.tables.ratios import ratio_grid
+
+EVAL_POINTS_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id of the interstation"),
+        ("destination", pa.string(), "arrival station id of the interstation"),
+        ("eval_point_id", pa.string(), "'dep', 'dep+<m>' (odometer point <m> metres after departure) "
+                                       "or the beacon_id"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("eval_distance_m", pa.float64(), "running distance from the departure stop marker [m]"),
+        ("eval_point_kind", pa.string(), "'departure', 'after_departure', 'interval' (odometer point at "
+                                         "the regular interval) or 'beacon'"),
+    ],
+    name="eval_points",
+    description="Evaluation points per interstation, in running order (DESIGN §3).",
+)
+TABLE_A_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("ratio", pa.float64(), "target-speed ratio (target = ratio x on-board maximum speed), 0..1"),
+        ("running_time_s", pa.float64(), "running time stop marker to stop marker at constant ratio [s]"),
+        ("energy_kwh", pa.float64(), "traction energy at the wheel over the run [kWh]"),
+    ],
+    name="table_a",
+    description="Table (a): running time per ratio, tables at load 0 and nominal traction (DESIGN §3).",
+)
+TABLE_B_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "evaluation point id (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("ratio_before", pa.float64(), "ratio run from departure up to the evaluation point"),
+        ("ratio_after", pa.float64(), "ratio run from the evaluation point to arrival"),
+        ("remaining_time_s", pa.float64(), "running time from the evaluation point to arrival [s]"),
+        ("elapsed_time_s", pa.float64(), "running time from departure to the evaluation point at ratio_before [s]"),
+    ],
+    name="table_b",
+    description="Table (b): remaining running time per evaluation point and ratio pair (DESIGN §3).",
+)
+
+TABLE_C_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "evaluation point id (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("ratio", pa.float64(), "ratio run from departure to arrival"),
+        ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
+        ("remaining_time_ref_s", pa.float64(),
+         "the same for the reference train (load ref_load, traction x ref_traction_factor) [s]"),
+        ("ref_load", pa.float64(), "load factor of the reference train"),
+        ("ref_traction_factor", pa.float64(), "traction factor of the reference train"),
+        ("speed_kmh", pa.float64(), "speed of the table train at the point at constant ratio [km/h]"),
+    ],
+    name="table_c",
+    description="Table (c): remaining time at constant ratio for the table train and a reference "
+                "(full-load, weak-traction) train; lets the on-board 'adaptive' mode learn how far the "
+                "real train is from the tables.",
+)
+TABLE_D_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "the last evaluation point of the interstation (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("speed_kmh", pa.float64(), "speed of the train as it passes the point [km/h] (2 km/h grid)"),
+        ("powering", pa.bool_(), "the train passes the point powering (notch on); false: coasting, "
+                                 "holding or braking (only sawtooth vehicles have both)"),
+        ("ratio_after", pa.float64(), "ratio run from the point to arrival (1 % grid plus table_a's ratios)"),
+        ("vmax_kmh", pa.float64(), "on-board maximum speed just after the point [km/h]; the target "
+                                   "there is ratio_after x vmax_kmh"),
+        ("coast_band_kmh", pa.float64(), "the vehicle's coasting band [km/h] (sawtooth cruise)"),
+        ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
+        ("remaining_time_ref_s", pa.float64(), "the same for the reference train of table_c [s]"),
+    ],
+    name="table_d",
+    description="Table (d): remaining time from the last evaluation point by the train's own state "
+                "(speed, powering) and a fine grid of ratios; the 'adaptive' mode's last decision.",
+)
+REF_LOAD = 1.0
+"""Load factor of the reference train of tables (c) and (d): the full-load train."""
+REF_TRACTION = 0.9
+"""Traction factor of the reference train of tables (c) and (d) (0.9 = weak catenary). With
+``REF_LOAD`` it is the degraded train the margin report plans for (``MarginRule.degraded_*``):
+the adaptive mode places the real train between the table train and this one."""
+APPROACH_SPEED_STEP_MS = 2.0 / 3.6
+"""Speed step of table (d) [m/s] (2 km/h)."""
+APPROACH_RATIO_STEP = 0.01
+"""Ratio step of table (d)'s ratios after the last point (the grid ratios are kept as well)."""
+APPROACH_SPEED_MARGIN_MS = 3 * APPROACH_SPEED_STEP_MS
+"""Table (d) covers speeds up to the fastest table-train speed at the point plus this [m/s]."""
+
+
+@dataclass(frozen=True, eq=False)
+class InterstationTables:
+    """Tables (a) and (b) of one interstation, direction and train type.
+
+    Attributes
+    ----------
+    line_id, direction, train_type, origin, destination : str
+    ratios : ndarray, shape (n_r,)
+        Grid ratios, descending.
+    points : tuple of EvalPoint, length n_x
+        Evaluation points (``dep`` first).
+    time_a_s, energy_a_kwh : ndarray, shape (n_r,)
+        Table (a): running time [s] and traction energy [kWh] per ratio.
+    elapsed_s : ndarray, shape (n_r, n_x)
+        Time from departure to each point at constant ratio [s].
+    speed_ms : ndarray, shape (n_r, n_x)
+        Speed at each point at constant ratio [m/s].
+    ref_remaining_s : ndarray, shape (n_x, n_r)
+        Table (c): remaining time from each point at constant ratio, reference train [s].
+    approach : ApproachTable or None
+        Table (d) at the last evaluation point (sawtooth vehicles; None for the others and where
+        a run of it stalls).
+    remaining_s : ndarray, shape (n_x, n_r, n_r)
+        Table (b) ``[x, i_before, j_after]`` [s].
+    """
+
+    line_id: str
+    direction: str
+    train_type: str
+    origin: str
+    destination: str
+    ratios: np.ndarray
+    points: tuple[EvalPoint, ...]
+    time_a_s: np.ndarray
+    energy_a_kwh: np.ndarray
+    elapsed_s: np.ndarray
+    remaining_s: np.ndarray
+    ref_remaining_s: np.ndarray | None = None
+    ref_load: float = float("nan")
+    speed_ms: np.ndarray | None = None
+    ref_traction_factor: float = float("nan")
+    approach: ApproachTable | None = None
+
+    def onboard(self) -> RunningTimeTables:
+        """The vehicle's view of these tables (same numbers as the datasets hold)."""
+        return RunningTimeTables(
+            origin=self.origin,
+            destination=self.destination,
+            ratios=self.ratios,
+            time_a_s=self.time_a_s,
+            eval_point_ids=tuple(p.eval_point_id for p in self.points),
+            eval_distance_m=np.array([p.s_m for p in self.points]),
+            eval_position_m=np.array([p.position_m for p in self.points]),
+            remaining_s=self.remaining_s,
+            ref_remaining_s=self.ref_remaining_s,
+            speed_ms=None if self.speed_ms is None else self.speed_ms.T.copy(),
+            approach=self.approach,
+        )
+
+
+class _Half:
+    """The runs ``sl`` of a BatchResult: times, energies and snapshot states."""
+
+    def __init__(self, res, sl: slice):
+        from planner.physics.run_curve import RunState
+
+        self.time_s = np.asarray(res.time_s, float)[sl]
+        self.energy_kwh = np.asarray(res.energy_kwh, float)[sl]
+        self.snapshots = {
+            key: RunState(*(np.asarray(getattr(st, f))[sl] for f in ("s_m", "t_s", "v_ms", "phase", "ratio")))
+            for key, st in res.snapshots.items()
+        }
+
+
+def _snapshot(snapshots: dict, s_m: float):
+    """The snapshot taken at ``s_m`` (keys may carry grid round-off)."""
+    if s_m in snapshots:
+        return snapshots[s_m]
+    keys = np.array(list(snapshots), dtype=float)
+    return snapshots[list(snapshots)[int(np.argmin(np.abs(keys - s_m)))]]
+
+
+def interstation_tables(
+    line: Line,
+    train_type: str,
+    origin: str,
+    destination: str,
+    ratios: Sequence[float],
+    *,
+    after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
+    eval_interval_m: float | None = DEFAULT_INTERVAL_M,
+    settings=None,
+    load: float = 0.0,
+    traction_factor: float = 1.0,
+    ref_load: float = REF_LOAD,
+    ref_traction_factor: float = REF_TRACTION,
+) -> InterstationTables:
+    """Compute tables (a) and (b) of one interstation (module doc, steps 1–2).
+
+    Parameters
+    ----------
+    line : Line
+    train_type, origin, destination : str
+    ratios : sequence of float
+        Grid ratios, descending (see :func:`planner.tables.ratios.ratio_grid`).
+    after_departure_m : float or None
+        Distance of the evaluation point after departure [m].
+    eval_interval_m : float or None
+        Interval of the odometer evaluation points after it [m]; None: beacons only
+        (:func:`planner.tables.eval_points.evaluation_points`).
+    settings : planner.physics.track.SimSettings, optional
+        Integrator settings (distance step).
+    load, traction_factor : float
+        Conditions the tables assume (DESIGN: load 0, traction 1.0).
+    ref_load, ref_traction_factor : float
+        Load and traction factor of the reference train of tables (c) and (d).
+
+    Returns
+    -------
+    InterstationTables
+    """
+    from planner.physics.run_curve import RunState, simulate
+    from planner.physics.track import SimSettings, make_track
+
+    settings = settings or SimSettings()
+    direction = line.direction_between(origin, destination)
+    points = evaluation_points(line, origin, destination, after_departure_m=after_departure_m,
+                               interval_m=eval_interval_m)
+    s_pts = [p.s_m for p in points]
+    track = make_track(line, train_type, origin, destination, settings=settings, nodes_m=s_pts)
+    train = line.train_type(train_type)
+    r = np.asarray(ratios, dtype=float)
+    n_r, n_x = len(r), len(points)
+    kw = dict(load=load, traction_factor=traction_factor)
+
+    # the constant-ratio runs of the table train and of the reference train (table (c)) in one
+    # batch: the integrator's cost is per step, nearly independent of the batch size
+    try:
+        both = simulate(track, train, np.concatenate([r, r]), snapshots_m=s_pts[1:],
+                        load=np.concatenate([np.full(n_r, load), np.full(n_r, ref_load)]),
+                        traction_factor=np.concatenate([np.full(n_r, traction_factor),
+                                                        np.full(n_r, ref_traction_factor)]))
+        full = _Half(both, slice(0, n_r))
+        ref = _Half(both, slice(n_r, 2 * n_r))
+        ref_rem = np.empty((n_x, n_r))
+        ref_rem[0] = ref.time_s
+        for k in range(1, n_x):
+            ref_rem[k] = ref.time_s - _snapshot(ref.snapshots, s_pts[k]).t_s
+    except InfeasibleError:
+        # the full-load reference stalls on this interstation: no table (c) here (the adaptive
+        # mode then says so); the table train itself must run, so let its own error surface
+        full = _Half(simulate(track, train, r, snapshots_m=s_pts[1:], **kw), slice(None))
+        ref_rem = None
+    time_a = full.time_s
+    elapsed = np.zeros((n_r, n_x))
+    speed = np.zeros((n_r, n_x))
+    remaining = np.empty((n_x, n_r, n_r))
+    remaining[0] = time_a[None, :]  # at departure every row is table (a)
+    # One lock-step batch for every point after departure: group k holds, for each distinct
+    # state at X_k, the runs (r_before -> every r_after). Every run starts from the prefix's
+    # snapshot at the first point X_1 at its r_before and switches to r_after at X_k, so the
+    # batch advances over L - s(X_1) once instead of once per point; the integrator is
+    # per-run arithmetic, so a run's state at X_k equals the prefix's snapshot there.
+    groups = []  # (k, representative r_before index per distinct state, inverse map)
+    for k in range(1, n_x):
+        snap = _snapshot(full.snapshots, s_pts[k])
+        t_x = np.asarray(snap.t_s, float)
+        elapsed[:, k] = t_x
+        speed[:, k] = snap.v_ms
+        # ratios whose runs are still identical at X (e.g. all still powering below their
+        # targets just after departure) reach X in the same state: their rows are equal,
+        # so one start state per distinct (t, v, phase) is enough
+        key = np.column_stack([t_x, np.asarray(snap.v_ms, float), np.asarray(snap.phase, float)])
+        _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        groups.append((k, first, inv.reshape(-1)))
+    if groups:
+        b_idx = np.concatenate([np.repeat(first, n_r) for _, first, _ in groups])
+        a_idx = np.concatenate([np.tile(np.arange(n_r), len(first)) for _, first, _ in groups])
+        g_of = np.concatenate([np.full(len(first) * n_r, k) for k, first, _ in groups])
+        snap1 = _snapshot(full.snapshots, s_pts[1])
+        start = RunState(
+            s_m=np.asarray(snap1.s_m, float)[b_idx],
+            t_s=np.asarray(snap1.t_s, float)[b_idx],
+            v_ms=np.asarray(snap1.v_ms, float)[b_idx],
+            phase=np.asarray(snap1.phase)[b_idx],
+            ratio=np.asarray(snap1.ratio, float)[b_idx],
+        )
+        ratio0 = np.where(g_of == 1, r[a_idx], r[b_idx])
+        changes = [(s_pts[k], np.where(g_of <= k, r[a_idx], r[b_idx])) for k in range(2, n_x)]
+        res = simulate(track, train, ratio0, start=start, changes=changes, snapshots_m=s_pts[1:], **kw)
+        total = np.asarray(res.time_s, float)
+        for k, first, inv in groups:
+            sel = g_of == k
+            t_k = np.asarray(_snapshot(res.snapshots, s_pts[k]).t_s, float)[sel]
+            remaining[k] = (total[sel] - t_k).reshape(len(first), n_r)[inv]
+    approach = None
+    # table (d) only where the state at the last point is not a function of the ratio run before
+    # it: a constant-speed vehicle there is at r_b x maximum (or on a braking curve), a sawtooth
+    # vehicle anywhere in its coasting band, powering or not (module doc, step 4)
+    if n_x > 1 and ref_rem is not None and train.cruise == "sawtooth":
+        try:
+            approach = approach_table(track, train, s_pts[-1], float(speed[:, -1].max()), r, load=load,
+                                      traction_factor=traction_factor, ref_load=ref_load,
+                                      ref_traction_factor=ref_traction_factor)
+        except InfeasibleError:
+            approach = None  # a start from (nearly) standstill stalls: the adaptive mode uses table (c)
+    return InterstationTables(
+        line_id=line.line_id,
+        direction=direction,
+        train_type=train_type,
+        origin=origin,
+        destination=destination,
+        ratios=r,
+        points=points,
+        time_a_s=time_a,
+        energy_a_kwh=np.asarray(full.energy_kwh, float),
+        elapsed_s=elapsed,
+        remaining_s=remaining,
+        ref_remaining_s=ref_rem,
+        ref_load=float(ref_load) if ref_rem is not None else float("nan"),
+        speed_ms=speed,
+        ref_traction_factor=float(ref_traction_factor) if ref_rem is not None else float("nan"),
+        approach=approach,
+    )
+
+
+def approach_ratios(ratios: Sequence[float], step: float = APPROACH_RATIO_STEP) -> np.ndarray:
+    """Ratios after the last point in table (d): the grid plus a ``step`` grid down to its lowest, descending.
+
+    Examples
+    --------
+    >>> approach_ratios([1.0, 0.9], step=0.05).tolist()
+    [1.0, 0.95, 0.9]
+    """
+    r = np.asarray(ratios, float)
+    fine = np.arange(r[0], r[-1] - 1e-9, -step)
+    return np.unique(np.round(np.concatenate([r, fine]), 6))[::-1]
+
+
+def approach_table(track, train, s_x: float, top_speed_ms: float, ratios: Sequence[float], *,
+                   load: float, traction_factor: float, ref_load: float,
+                   ref_traction_factor: float) -> ApproachTable:
+    """Table (d) at the evaluation point ``s_x``: remaining time from a grid of states there.
+
+    One batch: every start speed 0, 2, 4 … km/h up to ``top_speed_ms`` plus a margin, in each
+    phase the vehicle can be in (powering or not; only a sawtooth vehicle's future depends on
+    it), times every ratio of :func:`approach_ratios`, for the table train and the reference
+    train. Each run starts at ``s_x`` at t = 0, so its running time is the remaining time.
+
+    Raises
+    ------
+    InfeasibleError
+        If a run stalls (e.g. the reference train from standstill on a steep rise).
+    """
+    from planner.physics.run_curve import PHASE_COAST, PHASE_POWER, RunState, simulate
+
+    ra = approach_ratios(ratios)
+    v = np.arange(0.0, top_speed_ms + APPROACH_SPEED_MARGIN_MS + 1e-9, APPROACH_SPEED_STEP_MS)
+    powering = (True, False) if train.cruise == "sawtooth" else (True,)
+    n_p, n_v, n_a = len(powering), len(v), len(ra)
+    phase = np.repeat([PHASE_POWER if p else PHASE_COAST for p in powering], n_v * n_a).astype(np.int8)
+    speed = np.tile(np.repeat(v, n_a), n_p)
+    ratio = np.tile(ra, n_p * n_v)
+    n = speed.size
+    both = lambda x: np.concatenate([x, x])  # noqa: E731  (table train, then reference train)
+    start = RunState(s_m=np.full(2 * n, float(s_x)), t_s=np.zeros(2 * n), v_ms=both(speed),
+                     phase=both(phase), ratio=both(ratio))
+    res = simulate(track, train, both(ratio), start=start,
+                   load=np.r_[np.full(n, load), np.full(n, ref_load)],
+                   traction_factor=np.r_[np.full(n, traction_factor), np.full(n, ref_traction_factor)])
+    t = np.asarray(res.time_s, float).reshape(2, n_p, n_v, n_a)
+    k = track.node_index(float(s_x))
+    vmax = float(track.vmax_interval_ms[min(k, len(track.vmax_interval_ms) - 1)])
+    return ApproachTable(speeds_ms=v, powering=powering, ratios=ra, time_s=t[0], ref_time_s=t[1], vmax_ms=vmax,
+                         coast_band_ms=float(train.coast_band_ms) if train.cruise == "sawtooth" else 0.0)
+
+
+def table_tasks(line: Line, train_types: Sequence[str] | None = None) -> list[tuple[str, str, str, str]]:
+    """The fixed task order: (train_type, direction, origin, destination)."""
+    types = list(train_types) if train_types else [t.train_type for t in line.train_types]
+    for t in types:
+        line.train_type(t)  # UnknownNameError early, naming the known types
+    return [
+        (t, d, a.station_id, b.station_id)
+        for t in types
+        for d in DIRECTIONS
+        for a, b in line.interstations(d)
+    ]
+
+
+def _task(line: Line, train_type: str, origin: str, destination: str, ratios, after_departure_m, settings,
+          eval_interval_m=None):
+    """joblib worker: one interstation, direction, train type (module-level, picklable inputs)."""
+    return interstation_tables(
+        line, train_type, origin, destination, ratios,
+        after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings,
+    )
+
+
+def build_tables(
+    line: Line,
+    *,
+    train_types: Sequence[str] | None = None,
+    ratios: str | Sequence[float] | None = None,
+    after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
+    eval_interval_m: float | None = DEFAULT_INTERVAL_M,
+    n_jobs: int = -1,
+    settings=None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[InterstationTables]:
+    """Tables for every interstation × direction × train type of a line, in parallel.
+
+    Parameters
+    ----------
+    line : Line
+    train_types : sequence of str, optional
+        Default every train type of the line.
+    ratios : str, sequence of float or None
+        Ratio grid spec or list (:func:`planner.tables.ratios.ratio_grid`); default grid if None.
+    after_departure_m : float or None
+        Distance of the evaluation point after departure [m].
+    eval_interval_m : float or None
+        Interval of the odometer evaluation points [m]; None: beacons only.
+    n_jobs : int
+        joblib processes; -1 = all cores, 1 = in this process.
+    settings : planner.physics.track.SimSettings, optional
+    progress : callable ``(done, total)``, optional
+        Called after each finished task (in task order).
+
+    Returns
+    -------
+    list of InterstationTables
+        In :func:`table_tasks` order, independent of ``n_jobs``.
+    """
+    grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
+    eval_interval_m = check_interval(eval_interval_m)
+    tasks = table_tasks(line, train_types)
+    # longest interstations first, so no core idles on one long task at the end; the results
+    # are put back in task order, so the output does not depend on this or on n_jobs
+    order = sorted(range(len(tasks)), key=lambda i: -interstation_length_m(line, tasks[i][2], tasks[i][3]))
+    results = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, after_departure_m, settings,
+                                 eval_interval_m) for i in order], n_jobs, progress)
+    out: list[InterstationTables | None] = [None] * len(tasks)
+    for i, res in zip(order, results):
+        out[i] = res
+    return out
+
+
+# --- datasets -------------------------------------------------------------------
+
+def _keys(t: InterstationTables, n: int) -> dict[str, list]:
+    return {
+        "line": [t.line_id] * n,
+        "direction": [t.direction] * n,
+        "train_type": [t.train_type] * n,
+        "origin": [t.origin] * n,
+        "destination": [t.destination] * n,
+    }
+
+
+def _concat(cols: list[dict[str, list]]) -> dict[str, list]:
+    out: dict[str, list] = {}
+    for c in cols:
+        for k, v in c.items():
+            out.setdefault(k, []).extend(list(v))
+    return out
+
+
+def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
+    """The ``eval_points`` and ``table_a`` … ``table_d`` rows, with partition columns, in task order."""
+    ep, ta, tb, tc, td = [], [], [], [], []
+    for t in results:
+        n_r, n_x = len(t.ratios), len(t.points)
+        ep.append(_keys(t, n_x) | {
+            "eval_point_id": [p.eval_point_id for p in t.points],
+            "eval_position_m": [p.position_m for p in t.points],
+            "eval_distance_m": [p.s_m for p in t.points],
+            "eval_point_kind": [p.kind for p in t.points],
+        })
+        ta.append(_keys(t, n_r) | {
+            "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
+        })
+        k, i, j = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), np.arange(n_r), indexing="ij"))
+        tb.append(_keys(t, len(k)) | {
+            "eval_point_id": [t.points[x].eval_point_id for x in k],
+            "eval_position_m": np.array([p.position_m for p in t.points])[k],
+            "ratio_before": t.ratios[i],
+            "ratio_after": t.ratios[j],
+            "remaining_time_s": t.remaining_s[k, i, j],
+            "elapsed_time_s": t.elapsed_s[i, k],
+        })
+        if t.ref_remaining_s is not None:
+            k, i = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), indexing="ij"))
+            tc.append(_keys(t, len(k)) | {
+                "eval_point_id": [t.points[x].eval_point_id for x in k],
+                "eval_position_m": np.array([p.position_m for p in t.points])[k],
+                "ratio": t.ratios[i],
+                "remaining_time_s": t.remaining_s[k, i, i],
+                "remaining_time_ref_s": t.ref_remaining_s[k, i],
+                "ref_load": [t.ref_load] * len(k),
+                "ref_traction_factor": [t.ref_traction_factor] * len(k),
+                "speed_kmh": t.speed_ms[i, k] * 3.6 if t.speed_ms is not None else np.full(len(k), np.nan),
+            })
+        if t.approach is not None:
+            ap, last = t.approach, t.points[-1]
+            p, v, a = (x.ravel() for x in np.meshgrid(np.arange(len(ap.powering)), np.arange(len(ap.speeds_ms)),
+                                                      np.arange(len(ap.ratios)), indexing="ij"))
+            td.append(_keys(t, len(p)) | {
+                "eval_point_id": [last.eval_point_id] * len(p),
+                "eval_position_m": np.full(len(p), last.position_m),
+                "speed_kmh": ap.speeds_ms[v] * 3.6,
+                "powering": np.asarray(ap.powering, bool)[p],
+                "ratio_after": ap.ratios[a],
+                "vmax_kmh": np.full(len(p), ap.vmax_ms * 3.6),
+                "coast_band_kmh": np.full(len(p), ap.coast_band_ms * 3.6),
+                "remaining_time_s": ap.time_s[p, v, a],
+                "remaining_time_ref_s": ap.ref_time_s[p, v, a],
+            })
+    out = {"eval_points": pa.table(_concat(ep)), "table_a": pa.table(_concat(ta)), "table_b": pa.table(_concat(tb))}
+    if tc:
+        out["table_c"] = pa.table(_concat(tc))
+    if td:
+        out["table_d"] = pa.table(_concat(td))
+    return out
+
+
+SCHEMAS = {"eval_points": EVAL_POINTS_SCHEMA, "table_a": TABLE_A_SCHEMA, "table_b": TABLE_B_SCHEMA,
+           "table_c": TABLE_C_SCHEMA, "table_d": TABLE_D_SCHEMA}
+
+
+def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> list[Path]:
+    """Write the datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
+    written: list[Path] = []
+    for name, table in datasets(results).items():
+        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
+    return written

@@ -1,0 +1,541 @@
+"""Closed-loop proof of the tables: the on-board logic driving the simulated train (DESIGN §3).
+
+For every interstation, direction and train type, and for designated running
+times from the minimum (table (a) at ratio 1.0, rounded up to the second) to
+the minimum + 60 s in 1 s steps, one batch of runs is simulated in which the
+on-board logic (:mod:`planner.tables.onboard`, reading only the tables) picks the
+ratio at departure and at every evaluation point, through the simulator's
+``controller``/``decision_m`` hook. The arrival error is actual − designated
+running time.
+
+Scenarios
+---------
+``nominal``: the train the tables assume (load 0, traction × 1.0).
+``perturbed``: the tables stay the nominal ones, the train runs at load 1.0
+and traction × 0.9 (heavier and weaker: every ratio is slower than the table).
+
+Infeasible designated times
+---------------------------
+A designated time below the *scenario's* minimum running time (ratio 1.0 from
+departure to arrival under the scenario's conditions, simulated) cannot be
+met by any choice of ratios: the method's fastest run is ratio 1.0
+throughout. Those runs are flagged ``feasible = False`` and reported apart:
+their lateness is physics, not controller error. The error statistics of the
+summary cover feasible runs only; for the infeasible ones the summary reports
+how many there were and ``infeasible_excess_max_s``, the worst arrival after
+the scenario's minimum (the controller's share of their lateness: it should
+be ≈ 0, i.e. the logic did run at 1.0). Designated times above the slowest
+table time (lowest ratio) would be infeasible the other way; they do not occur
+in the default sweep of +60 s but are flagged the same way.
+
+Mode dispatch
+-------------
+A mode name maps to a *runner* in :data:`MODE_RUNNERS`. Every table mode of
+:data:`planner.tables.onboard.CHOOSERS` is run by :func:`table_runner`; the
+time-keeping mode (DESIGN §4, :mod:`planner.tables.timekeeping`) drives the same
+integrator with its own controller; other modes register a runner with
+:func:`register_runner`.
+
+Every mode's stop error is where the plant actually came to a stand, from the
+integrator (:attr:`planner.physics.run_curve.BatchResult.stop_m`), minus the marker.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import pyarrow as pa
+
+from planner.io.parquet import declare, write_partitioned
+from planner.errors import InputError
+from planner.line.model import DIRECTIONS, Line
+from planner.tables.onboard import CHOOSERS, RunningTimeTables, chooser, load_tables, make_controller
+from planner.tables.timekeeping import closed_loop_runner as _timekeeping_runner
+from planner.io.parallel import map_tasks
+
+PARTITION_COLS = ("line", "direction", "train_type", "scenario", "mode")
+"""Closed-loop datasets add scenario and mode to the usual partitions, so runs of
+``planner simulate`` with different options into one folder do not overwrite each other."""
+DEFAULT_EXTRA_S = 60.0
+"""Sweep designated times up to the minimum + this [s] (DESIGN §3)."""
+DEFAULT_STEP_S = 1.0
+"""Step of the designated-time sweep [s]."""
+FEASIBLE_TOL_S = 1e-6
+"""A designated time this close below the scenario minimum still counts as feasible (round-off)."""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Conditions of the real run (the tables always assume load 0, traction 1.0)."""
+
+    name: str
+    load: float
+    traction_factor: float
+
+
+SCENARIOS: dict[str, Scenario] = {
+    "nominal": Scenario("nominal", 0.0, 1.0),
+    "perturbed": Scenario("perturbed", 1.0, 0.9),
+}
+
+
+def get_scenario(name: "str | Scenario") -> Scenario:
+    """The :class:`Scenario` called ``name`` (or ``name`` itself when it is one); InputError otherwise."""
+    if isinstance(name, Scenario):
+        return name
+    try:
+        return SCENARIOS[name]
+    except KeyError:
+        raise InputError(f"--scenario {name!r} is unknown; use one of {', '.join(SCENARIOS)}") from None
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedLoopResult:
+    """Closed-loop runs of one interstation, direction, train type, scenario and mode.
+
+    Attributes
+    ----------
+    designated_s, actual_s : ndarray, shape (n,)
+        Designated and simulated running time [s].
+    stop_error_m : ndarray, shape (n,)
+        Where the plant came to a stand − the stop marker [m] (positive: overrun).
+    ratios : ndarray, shape (n, n_x)
+        Ratio in force after the decision at each evaluation point (departure first).
+    eval_point_ids : tuple of str, length n_x
+    min_time_s : float
+        Scenario minimum: ratio 1.0 throughout under the scenario's conditions [s].
+    max_time_s : float
+        Scenario time at the lowest grid ratio [s] (+inf for the time-keeping mode: no ratio grid).
+    """
+
+    line_id: str
+    direction: str
+    train_type: str
+    origin: str
+    destination: str
+    scenario: str
+    mode: str
+    designated_s: np.ndarray
+    actual_s: np.ndarray
+    ratios: np.ndarray
+    eval_point_ids: tuple[str, ...]
+    min_time_s: float
+    max_time_s: float
+    stop_error_m: np.ndarray | None = None
+
+    @property
+    def error_s(self) -> np.ndarray:
+        """Arrival error, actual − designated [s]; positive = late."""
+        return self.actual_s - self.designated_s
+
+    @property
+    def feasible(self) -> np.ndarray:
+        """Designated time within [scenario minimum, scenario slowest] (module doc)."""
+        d = self.designated_s
+        return (d >= self.min_time_s - FEASIBLE_TOL_S) & (d <= self.max_time_s + FEASIBLE_TOL_S)
+
+
+def designated_times(tables: RunningTimeTables, extra_s: float = DEFAULT_EXTRA_S,
+                     step_s: float = DEFAULT_STEP_S) -> np.ndarray:
+    """Designated running times: ceil(minimum) … ceil(minimum) + extra in ``step_s`` steps [s]."""
+    t0 = math.ceil(tables.min_time_s - 1e-9)
+    n = int(math.floor(extra_s / step_s + 1e-9))
+    return t0 + step_s * np.arange(n + 1)
+
+
+Runner = Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def drive_tables(track, train, tables: RunningTimeTables, designated_s: np.ndarray,
+                 scenarios: Sequence[Scenario], modes: Sequence[str], *, record: bool = False,
+                 snapshots_m: Sequence[float] = ()):
+    """The table modes of :mod:`planner.tables.onboard` driving the plant in one simulator batch.
+
+    Runs every designated time for each (scenario, mode) pair, ``scenarios[i]``
+    with ``modes[i]``, stacked in that order (runs in a batch do not interact:
+    the same results as one batch each, several times cheaper). The closed-loop
+    proof and the margin report both drive the tables through here.
+
+    Returns
+    -------
+    r0 : ndarray, shape (k n,)
+        Ratio chosen at departure.
+    ratios : ndarray, shape (k n, n_x)
+        Ratio chosen at departure and at each later evaluation point.
+    res : planner.physics.run_curve.BatchResult
+        The simulator's result (``record`` and ``snapshots_m`` as in ``simulate``).
+    """
+    from planner.physics.run_curve import simulate
+
+    designated_s = np.asarray(designated_s, float)
+    n = designated_s.size
+    stacked = _Stacked([(chooser(m), slice(i * n, (i + 1) * n)) for i, m in enumerate(modes)])
+    arrive = np.tile(designated_s, len(modes))
+    r0 = stacked.depart(tables, arrive)
+    controller, decision_m, chosen = make_controller(tables, stacked, arrive)
+    res = simulate(track, train, r0, load=np.repeat([sc.load for sc in scenarios], n),
+                   traction_factor=np.repeat([sc.traction_factor for sc in scenarios], n),
+                   controller=controller, decision_m=decision_m, record=record, snapshots_m=snapshots_m)
+    ratios = np.column_stack([r0] + [np.broadcast_to(c, r0.shape) for c in chosen])
+    if ratios.shape[1] != len(tables.eval_point_ids):
+        raise RuntimeError(  # internal: the simulator skipped or repeated a decision
+            f"{tables.origin}->{tables.destination}: {ratios.shape[1] - 1} decisions for "
+            f"{len(tables.eval_point_ids) - 1} evaluation points")
+    return r0, ratios, res
+
+
+def table_runner(track, train, tables: RunningTimeTables, designated_s: np.ndarray, sc: Scenario,
+                 mode: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Run a table mode of :mod:`planner.tables.onboard` in the simulator.
+
+    Returns
+    -------
+    actual_s : ndarray, shape (n,)
+        Simulated running time [s].
+    ratios : ndarray, shape (n, n_x)
+        Ratio chosen at departure and at each later evaluation point.
+    stop_m : ndarray, shape (n,)
+        Where each run came to a stand [m of running distance].
+    """
+    _, ratios, res = drive_tables(track, train, tables, designated_s, [sc], [mode])
+    return np.asarray(res.time_s, float), ratios, np.asarray(res.stop_m, float)
+
+
+MODE_RUNNERS: dict[str, Runner] = {"timekeeping": _timekeeping_runner}
+"""Non-table modes: name -> runner(track, train, tables, designated_s, scenario, mode)."""
+
+
+def register_runner(mode: str, runner: Runner) -> None:
+    """Make ``mode`` selectable in :func:`closed_loop_interstation` and ``planner simulate --mode``.
+
+    ``runner(track, train, tables, designated_s, scenario, mode) -> (actual_s, ratios)`` gets the
+    simulator's :class:`planner.physics.track.Track` and ``TrainType``, the interstation's
+    :class:`~planner.tables.onboard.RunningTimeTables` (for the evaluation points and the minimum),
+    the designated running times (n,) [s] and the :class:`Scenario` (load, traction factor) to
+    run under; it returns the simulated running times (n,) [s], the ratio in force after each
+    evaluation point, shape (n, n_x) (NaN where the mode has no ratio, e.g. time-keeping), and
+    where each run came to a stand (n,) [m of running distance]. Its on-board logic sees the
+    nominal train; the plant runs under the scenario.
+    """
+    MODE_RUNNERS[mode] = runner
+
+
+def modes() -> list[str]:
+    """Every selectable mode name."""
+    return list(CHOOSERS) + [m for m in MODE_RUNNERS if m not in CHOOSERS]
+
+
+def _runner(mode: str) -> Runner:
+    if mode in MODE_RUNNERS:
+        return MODE_RUNNERS[mode]
+    if mode in CHOOSERS:
+        return table_runner
+    raise InputError(f"--mode {mode!r} is unknown; use one of {', '.join(modes())}")
+
+
+def _slowest(mode: str, table_slowest_s: float) -> float:
+    """Slowest designated time a mode can meet [s]: the lowest grid ratio's for the table modes; no
+    bound for the time-keeping mode, which cruises as slowly as the remaining time asks."""
+    return float(table_slowest_s) if mode in CHOOSERS else math.inf
+
+
+def closed_loop_interstation(
+    line: Line,
+    train_type: str,
+    tables: RunningTimeTables,
+    *,
+    scenario: str = "nominal",
+    mode: str = "nearest",
+    extra_s: float = DEFAULT_EXTRA_S,
+    step_s: float = DEFAULT_STEP_S,
+    settings=None,
+    scenario_name: str | None = None,
+) -> ClosedLoopResult:
+    """Closed-loop runs of one interstation for the whole designated-time sweep.
+
+    Parameters
+    ----------
+    line : Line
+        The line (the simulator needs the track; the on-board logic sees only ``tables``).
+    train_type : str
+    tables : RunningTimeTables
+        Tables as read from the datasets.
+    scenario : {"nominal", "perturbed"}
+        (``scenario_name`` is accepted as an alias.)
+    mode : str
+        On-board mode (:func:`modes`).
+    extra_s, step_s : float
+        Sweep of designated times [s] (:func:`designated_times`).
+    settings : planner.physics.track.SimSettings, optional
+
+    Returns
+    -------
+    ClosedLoopResult
+    """
+    from planner.physics.track import SimSettings, make_track
+    from planner.physics.run_curve import simulate
+
+    sc = get_scenario(scenario_name or scenario)
+    run = _runner(mode)
+    train = line.train_type(train_type)
+    track = make_track(line, train_type, tables.origin, tables.destination,
+                       settings=settings or SimSettings(), nodes_m=list(tables.eval_distance_m))
+    designated = designated_times(tables, extra_s, step_s)
+    actual, ratios, stop_m = run(track, train, tables, designated, sc, mode)
+    ends = simulate(track, train, np.array([tables.ratios[0], tables.ratios[-1]]),
+                    load=sc.load, traction_factor=sc.traction_factor)
+    return ClosedLoopResult(
+        line_id=line.line_id,
+        direction=line.direction_between(tables.origin, tables.destination),
+        train_type=train_type,
+        origin=tables.origin,
+        destination=tables.destination,
+        scenario=sc.name,
+        mode=mode,
+        designated_s=designated,
+        actual_s=np.asarray(actual, float),
+        ratios=np.asarray(ratios, float),
+        eval_point_ids=tables.eval_point_ids,
+        min_time_s=float(ends.time_s[0]),
+        max_time_s=_slowest(mode, ends.time_s[1]),
+        stop_error_m=np.asarray(stop_m, float) - track.length_m,
+    )
+
+
+class _Stacked:
+    """Several choosers side by side in one batch, each driving its own slice of the runs.
+
+    The simulator's cost per grid step is mostly fixed overhead, so running every
+    scenario × mode of an interstation as one batch is several times cheaper than
+    one batch each; each chooser still sees only its own runs, in the same order.
+    """
+
+    def __init__(self, parts):
+        self.parts = parts  # [(chooser, slice)]
+
+    def depart(self, tables, designated_s):
+        return np.concatenate([np.asarray(ch.depart(tables, designated_s[sl]), float) for ch, sl in self.parts])
+
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
+        out = np.array(ratio, dtype=float, copy=True)
+        for ch, sl in self.parts:
+            v = None if speed_ms is None else speed_ms[sl]
+            p = None if powering is None else powering[sl]
+            out[sl] = ch.at_point(tables, k, ratio[sl], remaining_s[sl], v, p)
+        return out
+
+
+def closed_loop_batch(
+    line: Line,
+    train_type: str,
+    tables: RunningTimeTables,
+    *,
+    scenarios: Sequence[str | Scenario] = ("nominal", "perturbed"),
+    modes: Sequence[str] = ("nearest",),
+    extra_s: float = DEFAULT_EXTRA_S,
+    step_s: float = DEFAULT_STEP_S,
+    settings=None,
+) -> list[ClosedLoopResult]:
+    """Every scenario × mode of one interstation, table modes in one simulator batch.
+
+    Gives the same results as :func:`closed_loop_interstation` per (scenario, mode)
+    (runs in a batch do not interact), in the order scenarios × modes. Modes that
+    are not table modes (registered runners) run on their own.
+    """
+    from planner.physics.track import SimSettings, make_track
+    from planner.physics.run_curve import simulate
+
+    scs = [get_scenario(s) for s in scenarios]
+    for m in modes:
+        _runner(m)
+    table_modes = [m for m in modes if m not in MODE_RUNNERS and m in CHOOSERS]
+    train = line.train_type(train_type)
+    track = make_track(line, train_type, tables.origin, tables.destination,
+                       settings=settings or SimSettings(), nodes_m=list(tables.eval_distance_m))
+    designated = designated_times(tables, extra_s, step_s)
+    n = len(designated)
+    combos = [(sc, m) for sc in scs for m in table_modes]
+    out: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    if combos:
+        _, ratios, res = drive_tables(track, train, tables, designated, [sc for sc, _ in combos],
+                                      [m for _, m in combos])
+        for i, (sc, m) in enumerate(combos):
+            sl = slice(i * n, (i + 1) * n)
+            out[(sc.name, m)] = (np.asarray(res.time_s[sl], float), ratios[sl], np.asarray(res.stop_m[sl], float))
+    for sc in scs:
+        for m in modes:
+            if (sc.name, m) not in out:
+                out[(sc.name, m)] = _runner(m)(track, train, tables, designated, sc, m)
+    ends = simulate(track, train, np.tile([tables.ratios[0], tables.ratios[-1]], len(scs)),
+                    load=np.repeat([sc.load for sc in scs], 2),
+                    traction_factor=np.repeat([sc.traction_factor for sc in scs], 2))
+    direction = line.direction_between(tables.origin, tables.destination)
+    results = []
+    for j, sc in enumerate(scs):
+        for m in modes:
+            actual, ratios, stop_m = out[(sc.name, m)]
+            results.append(ClosedLoopResult(
+                line_id=line.line_id, direction=direction, train_type=train_type, origin=tables.origin,
+                destination=tables.destination, scenario=sc.name, mode=m, designated_s=designated,
+                actual_s=np.asarray(actual, float), ratios=np.asarray(ratios, float),
+                eval_point_ids=tables.eval_point_ids, min_time_s=float(ends.time_s[2 * j]),
+                max_time_s=_slowest(m, ends.time_s[2 * j + 1]), stop_error_m=np.asarray(stop_m, float) - track.length_m,
+            ))
+    return results
+
+
+def _task(line, train_type, tables, scenario, mode, extra_s, step_s, settings):
+    """joblib worker (module level, picklable inputs)."""
+    return closed_loop_interstation(line, train_type, tables, scenario=scenario, mode=mode,
+                                    extra_s=extra_s, step_s=step_s, settings=settings)
+
+
+def run_closed_loop(
+    line: Line,
+    tables_dir: str | Path,
+    *,
+    train_types: Sequence[str] | None = None,
+    scenario: str = "nominal",
+    mode: str = "nearest",
+    extra_s: float = DEFAULT_EXTRA_S,
+    step_s: float = DEFAULT_STEP_S,
+    n_jobs: int = -1,
+    settings=None,
+    progress: Callable[[int, int], None] | None = None,
+    scenario_name: str | None = None,
+) -> list[ClosedLoopResult]:
+    """Closed loop over every interstation × direction × train type, tables read from Parquet.
+
+    Results come in the fixed order train type, direction, interstation
+    (running order), independent of ``n_jobs``. ``scenario_name`` is an alias of ``scenario``.
+    """
+    scenario = scenario_name or scenario
+    get_scenario(scenario)
+    _runner(mode)
+    types = list(train_types) if train_types else [t.train_type for t in line.train_types]
+    tasks = []
+    for t in types:
+        line.train_type(t)
+        for d in DIRECTIONS:
+            tabs = load_tables(tables_dir, line.line_id, d, t)
+            for a, b in line.interstations(d):
+                key = (a.station_id, b.station_id)
+                if key not in tabs:
+                    raise InputError(f"--tables {tables_dir}: no tables for {t} {d} {key[0]}->{key[1]}; "
+                                     "rebuild them with `planner tables`")
+                tasks.append((t, tabs[key]))
+    out = map_tasks(_task, [(line, t, tab, scenario, mode, extra_s, step_s, settings) for t, tab in tasks],
+                    n_jobs, progress)
+    return out
+
+
+# --- summary and datasets --------------------------------------------------------
+
+CLOSED_LOOP_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("designated_s", pa.float64(), "designated running time (scheduled arrival - departure) [s]"),
+        ("actual_s", pa.float64(), "simulated running time under the scenario [s]"),
+        ("error_s", pa.float64(), "arrival error actual - designated [s], positive = late"),
+        ("feasible", pa.bool_(), "designated time within the scenario's fastest..slowest running time"),
+        ("min_time_s", pa.float64(), "scenario minimum running time (ratio 1.0 throughout) [s]"),
+        ("stop_error_m", pa.float64(), "where the train came to a stand - the stop marker [m], positive = overrun"),
+        ("eval_point_ids", pa.list_(pa.string()), "evaluation points in running order ('dep' first)"),
+        ("ratios", pa.list_(pa.float64()), "ratio chosen at each evaluation point, same order"),
+    ],
+    name="closed_loop",
+    description="Closed-loop runs of the on-board ratio choice, one row per designated time (DESIGN §3).",
+)
+CLOSED_LOOP_SUMMARY_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("n_runs", pa.int32(), "designated times simulated"),
+        ("n_feasible", pa.int32(), "runs whose designated time the scenario can meet"),
+        ("median_abs_error_s", pa.float64(), "median |arrival error| over feasible runs [s]"),
+        ("p95_abs_error_s", pa.float64(), "95th percentile |arrival error| over feasible runs [s]"),
+        ("max_abs_error_s", pa.float64(), "maximum |arrival error| over feasible runs [s]"),
+        ("max_abs_stop_error_m", pa.float64(), "maximum |stop error| over all runs [m]"),
+        ("min_time_s", pa.float64(), "scenario minimum running time [s]"),
+        ("infeasible_excess_max_s", pa.float64(),
+         "infeasible runs: worst arrival after the scenario minimum [s] (0 if none)"),
+    ],
+    name="closed_loop_summary",
+    description="Arrival error statistics per interstation (DESIGN §3).",
+)
+
+
+def _stats(err: np.ndarray) -> tuple[float, float, float]:
+    a = np.abs(err)
+    if a.size == 0:
+        return (float("nan"),) * 3
+    return float(np.median(a)), float(np.percentile(a, 95)), float(a.max())
+
+
+def _max_abs(x) -> float:
+    return float("nan") if x is None or np.size(x) == 0 else float(np.max(np.abs(x)))
+
+
+def summary_row(r: ClosedLoopResult) -> dict:
+    """Error statistics of one result (summary dataset row, without partition columns)."""
+    f = r.feasible
+    med, p95, mx = _stats(r.error_s[f])
+    inf = ~f
+    excess = float(np.max(np.abs(r.actual_s[inf] - np.clip(r.designated_s[inf], r.min_time_s, r.max_time_s)),
+                          initial=0.0))
+    return {
+        "origin": r.origin, "destination": r.destination, "n_runs": int(f.size), "n_feasible": int(f.sum()),
+        "median_abs_error_s": med, "p95_abs_error_s": p95, "max_abs_error_s": mx,
+        "max_abs_stop_error_m": _max_abs(r.stop_error_m),
+        "min_time_s": r.min_time_s, "infeasible_excess_max_s": excess,
+    }
+
+
+def overall(results: Sequence[ClosedLoopResult]) -> dict:
+    """Statistics over every feasible run of ``results`` (for the CLI summary and the report)."""
+    err = np.concatenate([r.error_s[r.feasible] for r in results]) if results else np.zeros(0)
+    n = int(sum(r.designated_s.size for r in results))
+    med, p95, mx = _stats(err)
+    inf = [summary_row(r)["infeasible_excess_max_s"] for r in results]
+    stops = [r.stop_error_m for r in results if r.stop_error_m is not None]
+    return {"n_runs": n, "n_feasible": int(err.size), "median_abs_error_s": med, "p95_abs_error_s": p95,
+            "max_abs_error_s": mx, "infeasible_excess_max_s": max(inf, default=0.0),
+            "max_abs_stop_error_m": _max_abs(np.concatenate(stops)) if stops else float("nan")}
+
+
+def datasets(results: Sequence[ClosedLoopResult]) -> dict[str, pa.Table]:
+    """``closed_loop`` and ``closed_loop_summary`` rows with partition columns, in result order."""
+    runs: dict[str, list] = {}
+    summ: dict[str, list] = {}
+
+    def add(dst, row):
+        for k, v in row.items():
+            dst.setdefault(k, []).append(v)
+
+    for r in results:
+        part = {"line": r.line_id, "direction": r.direction, "train_type": r.train_type,
+                "scenario": r.scenario, "mode": r.mode}
+        feas, err = r.feasible, r.error_s
+        for i in range(r.designated_s.size):
+            add(runs, part | {
+                "origin": r.origin, "destination": r.destination,
+                "designated_s": float(r.designated_s[i]), "actual_s": float(r.actual_s[i]),
+                "error_s": float(err[i]), "feasible": bool(feas[i]), "min_time_s": r.min_time_s,
+                "stop_error_m": float("nan") if r.stop_error_m is None else float(r.stop_error_m[i]),
+                "eval_point_ids": list(r.eval_point_ids), "ratios": [float(x) for x in r.ratios[i]],
+            })
+        add(summ, part | summary_row(r))
+    return {"closed_loop": pa.table(runs), "closed_loop_summary": pa.table(summ)}
+
+
+def write_closed_loop(results: Sequence[ClosedLoopResult], out_dir: str | Path) -> list[Path]:
+    """Write ``closed_loop`` and ``closed_loop_summary`` under ``out_dir`` (atomic per file)."""
+    schemas = {"closed_loop": CLOSED_LOOP_SCHEMA, "closed_loop_summary": CLOSED_LOOP_SUMMARY_SCHEMA}
+    written: list[Path] = []
+    for name, table in datasets(results).items():
+        written += write_partitioned(table, Path(out_dir), name, PARTITION_COLS, schema=schemas[name])
+    return written

@@ -1,0 +1,665 @@
+"""The on-board ratio choice: pick the target-speed ratio from the running-time tables (DESIGN §3).
+
+This is the logic the vehicle runs. It sees **only the tables** (table (a),
+table (b) and the evaluation points, as read from the Parquet datasets by
+:func:`load_tables`) and, while running, the designated or remaining running
+time. It never calls the simulator.
+
+Modes
+-----
+``nearest`` — the published rule. At departure pick the grid ratio whose
+table-(a) time is nearest the designated running time; at each evaluation
+point X, in the row of the current ratio in X's table (b), pick the grid ratio
+whose remaining time is nearest the remaining time (scheduled arrival − now).
+Ties go to the higher ratio (arriving early is cheaper than late).
+
+``interpolate`` — a continuous version of the same rule. Running time is
+monotone in the ratio, and close to affine in its reciprocal ``u = 1/r`` (the
+cruise part of a run takes distance / (r · v_max)). So the table is treated as
+samples of a function T(u) and the ratio is the fractional one whose
+interpolated time *equals* the wanted time:
+
+* at departure: solve T_a(u) = designated for u by piecewise-linear
+  interpolation of table (a) in u, r = 1/u;
+* at evaluation point X with the current (fractional) ratio r_b: the row of
+  table (b) for r_b is interpolated linearly in u between the rows of the two
+  neighbouring grid ratios (the state at X, reached at r_b, lies between the
+  states reached at its neighbours), then T_b(u_after) = remaining is solved
+  the same way.
+
+The result is clamped to [lowest grid ratio, 1]. Any ratio between grid values
+is valid for the simulator and the vehicle (the target speed is just
+``r × maximum speed``). The residual error is then the interpolation error at
+the last evaluation points instead of the grid step, and because every point
+re-solves with fresh remaining time the errors do not add up.
+
+``adaptive`` — ``interpolate`` that also learns how far the real train is
+from the table train. Tables (a)/(b) are built for one train (load 0, nominal
+traction); a heavier or weaker train is slower at every ratio, and a rule that
+trusts the tables keeps choosing slightly too low a ratio and arrives late.
+Table (c) holds, for every evaluation point X and ratio r, the remaining time
+at constant r for the table train T(X, r) and for a reference train (full
+load, traction × 0.9: the degraded train the margin report plans for)
+T_ref(X, r); their difference Δ(X, r) is the table's estimate of how much
+a slower train loses from X on. The vehicle models its own remaining time as
+
+    T(X, r_b, r_a; θ) = T_b(X, r_b, r_a) + θ · Δ(X, r_a)        (θ = 0: table train, 1: reference)
+
+and learns θ from what it has already run: on each leg between evaluation
+points, observed leg time − table leg time = θ · (reference − table leg time),
+summed over the legs so far (least squares through the origin):
+θ = Σ(observed − table) / Σ(reference − table). At X it then solves
+T(X, r_b, r_a; θ) = remaining for r_a. The leg times come from the vehicle's
+clock between beacons, which it has anyway; nothing but the tables and the
+clock is used. θ is clipped to ``AdaptiveRule.THETA_RANGE`` (never below 0:
+the table train is the fastest).
+
+Two details make it robust for sawtooth vehicles, whose running time is not a
+smooth (not even a monotone) function of the ratio:
+
+* Δ(X, ·) is smoothed across the ratio grid (median of each ratio and its two
+  neighbours, clipped at 0). Table (c) compares two constant-ratio runs from
+  departure, so Δ also holds the difference of the two trains' coasting-band
+  phases at X, which flips sign from one ratio to the next (±5 s at low ratios
+  on the sample line); multiplied by θ it once sent a train that was on time
+  to the lowest ratio 325 m before the stop (5 s late).
+* T(X, r_b, ·; θ) is piecewise linear in 1/r between grid ratios and need not
+  be monotone, so every crossing with the remaining time is found exactly
+  (:func:`solve_piecewise`) and the one nearest the current ratio wins: the
+  smallest change of driving that the tables say arrives on time.
+* At the **last** evaluation point of a sawtooth vehicle, where nothing later
+  can correct the choice, the row of table (b) is replaced by table (d)
+  (:class:`ApproachTable`, built for sawtooth vehicles only): the
+  remaining time from the train's *own* state there — its measured speed,
+  interpolated on a 2 km/h grid, and whether it is powering — at every ratio
+  of a 1 % grid, for the table and the reference train, so
+  T = T_d(v, phase, r_a) + θ · (T_d,ref − T_d). A sawtooth train's place in
+  its coasting band is part of that state, which a row indexed by the ratio
+  run before cannot know (it cost up to 1.5 s on the sample line). Here the
+  reference difference is not clipped: from the same state a heavier train
+  really does coast further.
+
+A new mode is a :class:`RatioChooser` factory registered in :data:`CHOOSERS`
+(``register_mode``); modes that do not use the tables (e.g. time-keeping) are
+dispatched by :mod:`planner.tables.closed_loop` instead.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Protocol
+
+import numpy as np
+
+from planner.errors import InputError
+from planner.physics.run_curve import PHASE_POWER  # the run state's phase code (a constant; no simulation here)
+
+SAME_POINT_M = 1e-3
+"""A decision within this distance [m] of an evaluation point is that point (grid round-off)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ApproachTable:
+    """Table (d): remaining time from the last evaluation point, indexed by the train's own state.
+
+    Tables (b) and (c) index the state at a point by the ratio the train ran before it. At the
+    last point nothing later can correct the choice, and a sawtooth train's state there (where
+    in its coasting band it is) is not a function of that ratio. Table (d) instead holds, for
+    a grid of speeds at the point and both phases (powering, or coasting / holding / braking),
+    the remaining time at each ratio of a fine grid, for the table train and the reference
+    train; the vehicle interpolates at its measured speed in its actual phase.
+
+    Attributes
+    ----------
+    speeds_ms : ndarray, shape (n_v,)
+        Start speeds, ascending [m/s].
+    powering : tuple of bool, length n_p
+        Phase of each slice: True = powering (notch on), False = not powering.
+    ratios : ndarray, shape (n_ra,)
+        Ratios after the point, descending.
+    time_s, ref_time_s : ndarray, shape (n_p, n_v, n_ra)
+        Remaining time to arrival of the table train and of the reference train [s].
+    vmax_ms : float
+        On-board maximum speed just after the point [m/s]: ratio r's target there is
+        ``r × vmax_ms``.
+    coast_band_ms : float
+        The vehicle's coasting band [m/s].
+
+    Notes
+    -----
+    Each column is smooth in speed except at its kinks: the target (above it the train brakes
+    at once) and, not powering, the coasting band's lower edge ``max(target − band,
+    run_curve.SAWTOOTH_MIN_FRACTION × target)`` (below it the train powers at once). :meth:`rows`
+    interpolates linearly across them, which is off by up to ~0.8 s within one speed step of
+    a kink. Taking both nodes on the train's side of the kink instead was tried and measured
+    worse in closed loop on the sample line (extrapolating a steep column), so it is not done.
+    """
+
+    speeds_ms: np.ndarray
+    powering: tuple[bool, ...]
+    ratios: np.ndarray
+    time_s: np.ndarray
+    ref_time_s: np.ndarray
+    vmax_ms: float = float("inf")
+    coast_band_ms: float = 0.0
+
+    def rows(self, speed_ms: float, powering: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Table and reference remaining time per ratio at a speed and phase, linear in speed [s].
+
+        Speeds outside the grid are clamped to its ends; a phase the table does not hold (e.g.
+        coasting for a constant-speed vehicle, whose phase does not change its future) uses
+        the one it does.
+        """
+        p = self.powering.index(bool(powering)) if bool(powering) in self.powering else 0
+        if len(self.speeds_ms) == 1:
+            return self.time_s[p, 0], self.ref_time_s[p, 0]
+        v = float(np.clip(speed_ms, self.speeds_ms[0], self.speeds_ms[-1]))
+        j = int(np.clip(np.searchsorted(self.speeds_ms, v, side="right") - 1, 0, len(self.speeds_ms) - 2))
+        f = (v - self.speeds_ms[j]) / (self.speeds_ms[j + 1] - self.speeds_ms[j])
+        t = (1.0 - f) * self.time_s[p, j] + f * self.time_s[p, j + 1]
+        ref = (1.0 - f) * self.ref_time_s[p, j] + f * self.ref_time_s[p, j + 1]
+        return t, ref
+
+
+@dataclass(frozen=True, eq=False)
+class RunningTimeTables:
+    """The tables of one interstation, direction and train type, as the vehicle holds them.
+
+    Attributes
+    ----------
+    origin, destination : str
+        Station ids.
+    ratios : ndarray, shape (n_r,)
+        Grid ratios, descending (1.0 first).
+    time_a_s : ndarray, shape (n_r,)
+        Table (a): running time departure → arrival at constant ratio [s].
+    eval_point_ids : tuple of str, length n_x
+        Evaluation points in running order (``dep`` first).
+    eval_distance_m : ndarray, shape (n_x,)
+        Running distance of each point from the departure stop marker [m].
+    eval_position_m : ndarray, shape (n_x,)
+        Chainage of each point [m].
+    remaining_s : ndarray, shape (n_x, n_r, n_r)
+        Table (b): ``remaining_s[x, i, j]`` is the running time from point x
+        to arrival after running at ``ratios[i]`` up to x and ``ratios[j]``
+        from x on [s].
+    ref_remaining_s : ndarray, shape (n_x, n_r), optional
+        Table (c): remaining time from point x at constant ``ratios[i]`` for
+        the reference (full-load, traction × 0.9) train [s]; needed by the ``adaptive`` mode.
+    speed_ms : ndarray, shape (n_x, n_r), optional
+        Table (c): speed of the table train at point x at constant ``ratios[i]`` [m/s].
+    approach : ApproachTable, optional
+        Table (d) at the last evaluation point; used by the ``adaptive`` mode there.
+    """
+
+    origin: str
+    destination: str
+    ratios: np.ndarray
+    time_a_s: np.ndarray
+    eval_point_ids: tuple[str, ...]
+    eval_distance_m: np.ndarray
+    eval_position_m: np.ndarray
+    remaining_s: np.ndarray
+    ref_remaining_s: np.ndarray | None = None
+    speed_ms: np.ndarray | None = None
+    approach: ApproachTable | None = None
+
+    @property
+    def min_time_s(self) -> float:
+        """Minimum running time: table (a) at the highest ratio [s]."""
+        return float(self.time_a_s[0])
+
+    @property
+    def max_time_s(self) -> float:
+        """Longest running time the table can stretch to (lowest ratio) [s]."""
+        return float(self.time_a_s[-1])
+
+
+class RatioChooser(Protocol):
+    """A ratio-choice rule, vectorised over n runs that share one interstation's tables."""
+
+    def depart(self, tables: RunningTimeTables, designated_s: np.ndarray) -> np.ndarray:
+        """Ratio per run at departure, from the designated running time [s]."""
+
+    def at_point(
+        self, tables: RunningTimeTables, k: int, ratio: np.ndarray, remaining_s: np.ndarray,
+        speed_ms: np.ndarray | None = None, powering: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """New ratio per run at evaluation point ``k`` from the current ratio, remaining time [s]
+        and, for modes that use them, the measured speed [m/s] and whether the train is
+        powering (notch on) as it passes the point."""
+
+
+def _nearest_index(values: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Index of the value nearest each target; the first (highest ratio) wins ties."""
+    return np.argmin(np.abs(values[None, :] - np.asarray(target, float)[:, None]), axis=1)
+
+
+def grid_index(ratios: np.ndarray, ratio: np.ndarray) -> np.ndarray:
+    """Index of the grid ratio nearest each of ``ratio``."""
+    return _nearest_index(ratios, ratio)
+
+
+class NearestRule:
+    """The published nearest-time rule (DESIGN §3); chooses grid ratios only."""
+
+    name = "nearest"
+
+    def depart(self, tables: RunningTimeTables, designated_s: np.ndarray) -> np.ndarray:
+        return tables.ratios[_nearest_index(tables.time_a_s, designated_s)]
+
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
+        rows = tables.remaining_s[k, grid_index(tables.ratios, ratio)]  # (n, n_r)
+        j = np.argmin(np.abs(rows - np.asarray(remaining_s, float)[:, None]), axis=1)
+        return tables.ratios[j]
+
+
+def solve_ratio(ratios: np.ndarray, times_s: np.ndarray, want_s: float) -> float:
+    """Fractional ratio whose time, interpolated linearly in ``u = 1/r``, equals ``want_s``.
+
+    Parameters
+    ----------
+    ratios : ndarray
+        Grid ratios, descending.
+    times_s : ndarray
+        Running time at each grid ratio [s]; expected to grow as the ratio
+        falls. Where it does not (a higher ratio that is no faster, e.g. a
+        target that the train never reaches anyway), the running maximum is
+        used, which picks the highest ratio among equally fast ones.
+    want_s : float
+        Wanted time [s].
+
+    Returns
+    -------
+    float
+        Ratio in [ratios[-1], ratios[0]]; the end ratio when ``want_s`` lies
+        outside the table's range.
+
+    Examples
+    --------
+    >>> round(solve_ratio(np.array([1.0, 0.5]), np.array([100.0, 200.0]), 150.0), 4)
+    0.6667
+    """
+    u = 1.0 / ratios
+    t = np.maximum.accumulate(times_s)
+    if want_s <= t[0]:
+        return float(ratios[0])
+    if want_s >= t[-1]:
+        return float(ratios[-1])
+    # first node with t >= want: the segment (j-1, j) brackets it, t[j] > t[j-1]
+    j = int(np.searchsorted(t, want_s, side="left"))
+    f = (want_s - t[j - 1]) / (t[j] - t[j - 1])
+    return float(1.0 / (u[j - 1] + f * (u[j] - u[j - 1])))
+
+
+def row_at(tables: RunningTimeTables, k: int, ratio: float) -> np.ndarray:
+    """Table (b) row at point ``k`` for a fractional ratio before, linear in ``1/r`` [s]."""
+    r = tables.ratios
+    rb = float(np.clip(ratio, r[-1], r[0]))
+    # ratios descend: i is the last grid ratio >= rb
+    i = int(np.searchsorted(-r, -rb, side="right")) - 1
+    i = min(max(i, 0), len(r) - 1)
+    if i == len(r) - 1 or r[i] == rb:
+        return tables.remaining_s[k, i]
+    f = (1.0 / rb - 1.0 / r[i]) / (1.0 / r[i + 1] - 1.0 / r[i])
+    return (1.0 - f) * tables.remaining_s[k, i] + f * tables.remaining_s[k, i + 1]
+
+
+class InterpolateRule:
+    """Fractional ratios from tables interpolated in ``1/r`` (module doc)."""
+
+    name = "interpolate"
+
+    def depart(self, tables, designated_s):
+        d = np.atleast_1d(np.asarray(designated_s, float))
+        return np.array([solve_ratio(tables.ratios, tables.time_a_s, x) for x in d])
+
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
+        ratio = np.atleast_1d(np.asarray(ratio, float))
+        rem = np.broadcast_to(np.asarray(remaining_s, float), ratio.shape)
+        return np.array(
+            [solve_ratio(tables.ratios, row_at(tables, k, rb), x) for rb, x in zip(ratio, rem)]
+        )
+
+
+def _interp_u(ratios: np.ndarray, values: np.ndarray, r: float) -> float:
+    """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``."""
+    u = 1.0 / ratios
+    return float(np.interp(1.0 / np.clip(r, ratios[-1], ratios[0]), u, values))
+
+
+def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, prefer: float) -> float:
+    """Ratio where the piecewise-linear-in-``1/r`` function through ``values_s`` equals ``want_s``.
+
+    Unlike :func:`solve_ratio` the function need not be monotone (a sawtooth train's times are
+    not, and a learned correction can add noise): every crossing is found exactly, segment by
+    segment, and the one nearest the ratio ``prefer`` (the current ratio) in ``u = 1/r`` wins —
+    the smallest change of driving that the tables say arrives on time. Without a crossing, the
+    grid ratio whose value is nearest ``want_s`` (ties: nearest ``prefer``).
+
+    Parameters
+    ----------
+    ratios : ndarray
+        Grid ratios, descending.
+    values_s : ndarray
+        Predicted time at each grid ratio [s].
+    want_s : float
+        Wanted time [s].
+    prefer : float
+        Current ratio.
+
+    Returns
+    -------
+    float
+        Ratio in [ratios[-1], ratios[0]].
+
+    Examples
+    --------
+    >>> r = np.array([1.0, 0.5, 0.25])
+    >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 1.0), 4)   # two crossings
+    0.5714
+    >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 0.25), 4)
+    0.3333
+    """
+    u = 1.0 / np.asarray(ratios, float)
+    f = np.asarray(values_s, float)
+    up = 1.0 / float(np.clip(prefer, ratios[-1], ratios[0]))
+    d0, d1 = f[:-1] - want_s, f[1:] - want_s
+    cross = (d0 * d1 <= 0.0) & (f[:-1] != f[1:])
+    w = np.where(cross, d0 / np.where(cross, d0 - d1, 1.0), 0.0)
+    cand = list(u[:-1][cross] + w[cross] * np.diff(u)[cross])
+    flat = (d0 == 0.0) & (d1 == 0.0)  # a whole segment on the wanted time: its point nearest prefer
+    cand += list(np.clip(up, u[:-1][flat], u[1:][flat]))
+    if cand:
+        c = np.asarray(cand)
+        return float(1.0 / c[np.argmin(np.abs(c - up))])
+    err = np.abs(f - want_s)
+    best = np.flatnonzero(err <= err.min() + 1e-12)
+    return float(1.0 / u[best[np.argmin(np.abs(u[best] - up))]])
+
+
+class AdaptiveRule:
+    """``interpolate`` plus a learned performance offset (module doc, mode ``adaptive``).
+
+    Stateful per batch of runs: create one per closed-loop batch (:func:`chooser` does).
+    """
+
+    name = "adaptive"
+    THETA_RANGE = (0.0, 4.0)
+    """Bounds of the learned performance parameter (0 = table train, 1 = reference train). The
+    table train is the empty train at nominal traction, so a real train is never systematically
+    faster: a negative estimate is noise (sawtooth cycles, legs of a few metres) and is not
+    acted on. Above 4 the train is broken, not slow; extrapolating further would amplify noise."""
+
+    def __init__(self):
+        self._s: dict | None = None
+        self._dcache: dict = {}
+
+    def _delta_row(self, tables: RunningTimeTables, k: int) -> np.ndarray:
+        """Reference − table remaining time from point k at constant ratio, per grid ratio [s].
+
+        Table (c) compares two constant-ratio runs from departure, so besides the reference
+        train's own loss after X it holds the difference of the two trains' states at X. For a
+        sawtooth train that part is the phase of the coast band and flips sign from one ratio to
+        the next (±5 s on the sample line at low ratios). The vehicle wants the smooth part:
+        a median over each ratio and its two grid neighbours (which leaves any monotone
+        sequence unchanged and removes one-ratio spikes), clipped at 0 because a heavier,
+        weaker train is never faster than the table train from the same state.
+        """
+        key = (id(tables), k)
+        if key not in self._dcache:
+            ref = tables.ref_remaining_s
+            if ref is None:
+                raise InputError("mode adaptive needs table (c) (table_c dataset); rebuild the tables with "
+                                 "`planner tables`")
+            d = ref[k] - np.diagonal(tables.remaining_s[k])
+            pad = np.concatenate([d[:1], d, d[-1:]])
+            med = np.median(np.stack([pad[:-2], pad[1:-1], pad[2:]]), axis=0)
+            self._dcache[key] = (tables, np.maximum(med, 0.0))  # keep tables alive: id stays unique
+        return self._dcache[key][1]
+
+    def _delta(self, tables: RunningTimeTables, k: int, r: float) -> float:
+        """Smoothed reference − table remaining time from point k at ratio r [s]."""
+        return _interp_u(tables.ratios, self._delta_row(tables, k), r)
+
+    def depart(self, tables, designated_s):
+        d = np.atleast_1d(np.asarray(designated_s, float))
+        r0 = np.array([solve_ratio(tables.ratios, tables.time_a_s, x) for x in d])
+        self._s = {
+            "k": np.zeros(d.size, int),
+            "rem": d.copy(),  # actual remaining time at the last point
+            "pred": np.array([_interp_u(tables.ratios, tables.time_a_s, r) for r in r0]),
+            "delta": np.array([self._delta(tables, 0, r) for r in r0]),
+            "num": np.zeros(d.size),
+            "den": np.zeros(d.size),
+        }
+        return r0
+
+    def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
+        ratio = np.atleast_1d(np.asarray(ratio, float))
+        rem = np.broadcast_to(np.asarray(remaining_s, float), ratio.shape)
+        st = self._s
+        if st is None:
+            raise RuntimeError("AdaptiveRule.at_point before depart")
+        out = np.empty_like(ratio)
+        dk = self._delta_row(tables, k)
+        ap = tables.approach if k == len(tables.eval_distance_m) - 1 and speed_ms is not None else None
+        if ap is not None:
+            v = np.broadcast_to(np.asarray(speed_ms, float), ratio.shape)
+            on = np.broadcast_to(True if powering is None else np.asarray(powering, bool), ratio.shape)
+        for i, (rb, x) in enumerate(zip(ratio, rem)):
+            row = row_at(tables, k, rb)
+            # the leg just run, at ratio rb: observed vs. table time, and the reference's extra
+            pred_here = float(_interp_u(tables.ratios, row, rb))
+            st["num"][i] += (st["rem"][i] - x) - (st["pred"][i] - pred_here)
+            st["den"][i] += st["delta"][i] - self._delta(tables, k, rb)
+            theta = st["num"][i] / st["den"][i] if st["den"][i] > 1e-3 else 0.0
+            theta = float(np.clip(theta, *self.THETA_RANGE))
+            if ap is not None:
+                # the last point: predict from the train's own state (table (d), fine ratio grid)
+                t_d, ref_d = ap.rows(float(v[i]), bool(on[i]))
+                ra = solve_piecewise(ap.ratios, t_d + theta * (ref_d - t_d), x, rb)
+            else:
+                # predicted remaining time per grid ratio after X; piecewise linear in 1/r between them
+                ra = solve_piecewise(tables.ratios, row + theta * dk, x, rb)
+            out[i] = ra
+            st["rem"][i] = x
+            st["pred"][i] = _interp_u(tables.ratios, row, ra)
+            st["delta"][i] = self._delta(tables, k, ra)
+        return out
+
+
+CHOOSERS: dict[str, Callable[[], RatioChooser]] = {
+    "nearest": NearestRule, "interpolate": InterpolateRule, "adaptive": AdaptiveRule,
+}
+"""Table-based on-board modes by name: a factory giving a fresh chooser per batch of runs."""
+
+
+def register_mode(name: str, factory: Callable[[], RatioChooser]) -> None:
+    """Add a table-based on-board mode (selectable by ``--mode name``)."""
+    CHOOSERS[name] = factory
+
+
+def chooser(mode: str) -> RatioChooser:
+    """A fresh chooser for ``mode``; InputError naming the known modes otherwise."""
+    try:
+        return CHOOSERS[mode]()
+    except KeyError:
+        raise InputError(f"--mode {mode!r} is not a table mode; known: {', '.join(CHOOSERS)}") from None
+
+
+def make_controller(
+    tables: RunningTimeTables, mode: str | RatioChooser, arrival_s: np.ndarray
+) -> tuple[Callable, list[float], list[list[float]]]:
+    """A simulator controller that runs the on-board choice at each evaluation point after departure.
+
+    The vehicle evaluates at a point when its odometer passes it (beacon points and odometer
+    points alike); the simulator's odometer is exact, so that is the point's running distance.
+
+    Parameters
+    ----------
+    tables : RunningTimeTables
+    mode : str or RatioChooser
+        A key of :data:`CHOOSERS`, or the chooser that also made the departure choice
+        (stateful modes need the same instance).
+    arrival_s : ndarray, shape (n,)
+        Scheduled arrival per run, in the run's clock (departure at t = 0) [s].
+
+    Returns
+    -------
+    controller : callable ``(s_m, state) -> ratio``
+        For ``planner.physics.run_curve.simulate(controller=..., decision_m=...)``.
+    decision_m : list of float
+        Running distances of the evaluation points after departure [m].
+    chosen : list of list of float
+        Filled while running: the ratios returned at each decision, per point.
+    """
+    ch = chooser(mode) if isinstance(mode, str) else mode
+    ks = [k for k, s in enumerate(tables.eval_distance_m) if s > 0]
+    pts = np.asarray(tables.eval_distance_m, float)
+    chosen: list[np.ndarray] = []
+    arrival = np.asarray(arrival_s, float)
+
+    def controller(s_m, state):
+        k = int(np.argmin(np.abs(pts - float(s_m))))
+        if k not in ks or abs(pts[k] - float(s_m)) > SAME_POINT_M:
+            return state.ratio  # a decision we did not ask for: keep the ratio
+        new = ch.at_point(tables, k, state.ratio, arrival - state.t_s, state.v_ms,
+                          np.asarray(state.phase) == PHASE_POWER)
+        chosen.append(np.asarray(new, float))
+        return new
+
+    return controller, [float(pts[k]) for k in ks], chosen
+
+
+# --- reading the tables back (the vehicle's side) -------------------------------
+
+def load_tables(
+    tables_dir: str | Path, line_id: str, direction: str, train_type: str
+) -> dict[tuple[str, str], RunningTimeTables]:
+    """Read the ``eval_points``, ``table_a`` and ``table_b`` datasets of one line, direction, type.
+
+    Parameters
+    ----------
+    tables_dir : path
+        The ``--out`` folder of ``planner tables`` (holding ``table_a/`` etc.).
+    line_id, direction, train_type : str
+        Partition to read.
+
+    Returns
+    -------
+    dict
+        ``(origin, destination) -> RunningTimeTables`` in running order.
+
+    Raises
+    ------
+    InputError
+        Missing datasets or partitions, or tables that do not fit together.
+    """
+    from planner.io.parquet import read_dataset
+
+    root = Path(tables_dir)
+    out = {}
+    try:
+        ep = read_dataset(root, "eval_points", line=line_id, direction=direction, train_type=train_type).to_pandas()
+        ta = read_dataset(root, "table_a", line=line_id, direction=direction, train_type=train_type).to_pandas()
+        tb = read_dataset(root, "table_b", line=line_id, direction=direction, train_type=train_type).to_pandas()
+    except (FileNotFoundError, OSError) as e:
+        raise InputError(f"--tables {root}: cannot read the tables ({e}); run `planner tables` first") from None
+    tc = _optional(root, "table_c", line_id, direction, train_type)  # only the adaptive mode needs
+    td = _optional(root, "table_d", line_id, direction, train_type)  # tables (c) and (d)
+    if ta.empty:
+        raise InputError(
+            f"--tables {root}: no table_a rows for line={line_id} direction={direction} "
+            f"train_type={train_type}; run `planner tables` for it"
+        )
+    for (o, d), a in ta.groupby(["origin", "destination"], sort=False):
+        a = a.sort_values("ratio", ascending=False)
+        ratios = a["ratio"].to_numpy(float)
+        p = ep[(ep.origin == o) & (ep.destination == d)].sort_values("eval_distance_m")
+        b = tb[(tb.origin == o) & (tb.destination == d)]
+        n_r, n_x = len(ratios), len(p)
+        if len(b) != n_x * n_r * n_r:
+            raise InputError(
+                f"--tables {root}: table_b for {o}->{d} has {len(b)} rows, expected "
+                f"{n_x} points x {n_r}^2 ratios; rebuild the tables"
+            )
+        k = {pid: i for i, pid in enumerate(p["eval_point_id"])}
+        ri = {float(r): i for i, r in enumerate(ratios)}
+        rem = np.full((n_x, n_r, n_r), np.nan)
+        rem[b["eval_point_id"].map(k).to_numpy(), b["ratio_before"].map(ri).to_numpy(),
+            b["ratio_after"].map(ri).to_numpy()] = b["remaining_time_s"].to_numpy(float)
+        if np.isnan(rem).any():
+            raise InputError(f"--tables {root}: table_b for {o}->{d} is incomplete; rebuild the tables")
+        ref = spd = None
+        if tc is not None and not tc.empty:
+            c = tc[(tc.origin == o) & (tc.destination == d)]
+            if len(c) == n_x * n_r:
+                ref = np.full((n_x, n_r), np.nan)
+                ref[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
+                    c["remaining_time_ref_s"].to_numpy(float)
+                if np.isnan(ref).any():
+                    ref = None
+                if "speed_kmh" in c:
+                    spd = np.full((n_x, n_r), np.nan)
+                    spd[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
+                        c["speed_kmh"].to_numpy(float) / 3.6
+                    if np.isnan(spd).any():
+                        spd = None
+        out[(o, d)] = RunningTimeTables(
+            approach=_approach(td, o, d, p["eval_point_id"].iloc[-1], root) if td is not None and n_x > 1 else None,
+            origin=o,
+            destination=d,
+            ratios=ratios,
+            time_a_s=a["running_time_s"].to_numpy(float),
+            eval_point_ids=tuple(p["eval_point_id"]),
+            eval_distance_m=p["eval_distance_m"].to_numpy(float),
+            eval_position_m=p["eval_position_m"].to_numpy(float),
+            remaining_s=rem,
+            ref_remaining_s=ref,
+            speed_ms=spd,
+        )
+    return out
+
+
+def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str):
+    """One partition of an optional dataset as a DataFrame, or None when the dataset is absent."""
+    from planner.io.parquet import read_dataset
+
+    try:
+        df = read_dataset(root, name, line=line_id, direction=direction, train_type=train_type).to_pandas()
+    except (FileNotFoundError, OSError):
+        return None
+    return None if df.empty else df
+
+
+def _approach(td, origin: str, destination: str, last_point: str, root: Path) -> ApproachTable | None:
+    """Table (d) of one interstation from its dataset rows (None when it has none)."""
+    g = td[(td.origin == origin) & (td.destination == destination)]
+    if g.empty:
+        return None
+    if set(g["eval_point_id"]) != {last_point}:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} is not at the last "
+                         f"evaluation point {last_point!r}; rebuild the tables")
+    speeds = np.sort(g["speed_kmh"].unique()) / 3.6
+    ratios = np.sort(g["ratio_after"].unique())[::-1]
+    powering = tuple(sorted({bool(x) for x in g["powering"]}, reverse=True))
+    n_p, n_v, n_a = len(powering), len(speeds), len(ratios)
+    if len(g) != n_p * n_v * n_a:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} has {len(g)} rows, expected "
+                         f"{n_p} phases x {n_v} speeds x {n_a} ratios; rebuild the tables")
+    t = np.full((2, n_p, n_v, n_a), np.nan)
+    ip = g["powering"].map({p: i for i, p in enumerate(powering)}).to_numpy()
+    iv = np.searchsorted(speeds, g["speed_kmh"].to_numpy(float) / 3.6)
+    ia = g["ratio_after"].map({r: i for i, r in enumerate(ratios)}).to_numpy()
+    t[0, ip, iv, ia] = g["remaining_time_s"].to_numpy(float)
+    t[1, ip, iv, ia] = g["remaining_time_ref_s"].to_numpy(float)
+    if np.isnan(t).any():
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} is incomplete; rebuild the tables")
+    vmax = g["vmax_kmh"].unique() / 3.6 if "vmax_kmh" in g else np.array([np.inf])
+    if len(vmax) != 1:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} has several vmax_kmh; "
+                         "rebuild the tables")
+    band = g["coast_band_kmh"].unique() / 3.6 if "coast_band_kmh" in g else np.array([0.0])
+    return ApproachTable(speeds_ms=speeds, powering=powering, ratios=ratios, time_s=t[0], ref_time_s=t[1],
+                         vmax_ms=float(vmax[0]), coast_band_ms=float(band[0]))

@@ -1,0 +1,886 @@
+"""Time-keeping driver support: the cruise speed that arrives on time (DESIGN §4).
+
+A continuous on-board support method, an alternative to the ratio tables of
+§3: from the remaining time t_d and remaining distance x_d, and the stopping
+deceleration β, compute the constant cruise speed v_m that reaches the stop
+marker exactly at the scheduled arrival, and re-compute it as the train runs
+and whenever the traffic-control centre moves the scheduled arrival.
+
+Layout follows the computation:
+
+1. pure target-speed functions (no I/O, floats or arrays, SI):
+   :func:`cruise_speed` (the closed form of §4), :func:`braking_pattern_speed`,
+   :func:`cruise_speed_limited` (the same with a position-dependent on-board
+   maximum, solved exactly on a distance grid);
+2. the on-board logic (:class:`TimekeepingController`): a controller of the
+   one integrator, :func:`planner.physics.run_curve.simulate`, that sees only the
+   vehicle's own nominal model and its measurements; :func:`drive` runs one
+   train with it (the plant: the real train's load and traction), and
+   :func:`closed_loop_runner` the designated-time sweep of ``planner simulate
+   --mode timekeeping``, with scheduled-arrival changes en route.
+
+The single-run call with frames, :func:`planner.api.timekeeping_run`, sits on
+top of :func:`drive`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from planner.errors import InputError
+
+__all__ = [
+    "CruiseTarget",
+    "cruise_speed",
+    "braking_pattern_speed",
+    "cruise_speed_limited",
+    "profile_time",
+]
+
+
+# --------------------------------------------------------------------------
+# 1. Pure target-speed functions
+# --------------------------------------------------------------------------
+class CruiseTarget(NamedTuple):
+    """The answer of a target-speed computation.
+
+    Attributes
+    ----------
+    speed_ms : float or ndarray
+        Cruise speed to run at [m/s]. When the arrival cannot be met
+        (``shortfall_s > 0``) it is the fastest admissible speed instead: run
+        there and arrive ``shortfall_s`` late.
+    shortfall_s : float or ndarray
+        How late the train arrives even at ``speed_ms`` [s]; 0 when on time is
+        possible. Never silently dropped: callers must report it.
+    decel_ms2 : float
+        Where the cruise speed lies below the current speed: the deceleration
+        [m/s²] the answer assumes for getting down to it (see
+        :func:`cruise_speed_limited`); NaN otherwise.
+    """
+
+    speed_ms: np.ndarray | float
+    shortfall_s: np.ndarray | float
+    decel_ms2: float = math.nan
+
+    @property
+    def feasible(self):
+        """True where the scheduled arrival can be kept (no shortfall)."""
+        return np.asarray(self.shortfall_s) <= 0.0
+
+
+def braking_pattern_speed(x_d, beta):
+    """Speed of the constant-deceleration stopping pattern onto the marker.
+
+    ``v_t = sqrt(2 β x_d)``: the highest speed at remaining distance ``x_d``
+    from which braking at ``β`` still stops at the marker (DESIGN §4).
+
+    Parameters
+    ----------
+    x_d : float or array_like
+        Remaining distance to the stop marker [m]; negative counts as 0.
+    beta : float or array_like
+        Stopping deceleration [m/s²], > 0.
+
+    Returns
+    -------
+    float or ndarray
+        Pattern speed [m/s].
+
+    Examples
+    --------
+    >>> float(braking_pattern_speed(200.0, 1.0))
+    20.0
+    """
+    x = np.maximum(np.asarray(x_d, dtype=float), 0.0)
+    return np.sqrt(2.0 * np.asarray(beta, dtype=float) * x)
+
+
+def cruise_speed(t_d, x_d, beta) -> CruiseTarget:
+    """Cruise speed that arrives exactly on time, then stops at constant ``β``.
+
+    Running at v_m and braking at β onto the marker covers the cruise part
+    x_d − v_m²/(2β) in (x_d − v_m²/(2β))/v_m and the braking part in v_m/β, so
+    arriving after exactly t_d means (DESIGN §4)
+
+        x_d − v_m²/(2β) = v_m (t_d − v_m/β)
+        ⇔  v_m²/(2β) − t_d v_m + x_d = 0
+        ⇔  v_m = β (t_d − sqrt(t_d² − 2 x_d/β)).
+
+    The smaller root is the physical one (the larger gives v_m/β > t_d: more
+    braking time than time left). It is evaluated in the cancellation-free
+    form v_m = 2 x_d / (t_d + sqrt(t_d² − 2 x_d/β)) (multiply by the
+    conjugate), which stays accurate when t_d² ≫ 2 x_d/β.
+
+    No solution when t_d² < 2 x_d/β: the running time x_d/v + v/(2β) is
+    smallest, sqrt(2 x_d/β), at the braking-pattern speed v = sqrt(2 β x_d)
+    (run on the pattern from here); with less time than that the train can
+    only run there and arrive ``shortfall_s = sqrt(2 x_d/β) − t_d`` late.
+
+    Parameters
+    ----------
+    t_d : float or array_like
+        Remaining time until the scheduled arrival [s].
+    x_d : float or array_like
+        Remaining distance to the stop marker [m], ≥ 0.
+    beta : float or array_like
+        Stopping deceleration [m/s²], > 0.
+
+    Returns
+    -------
+    CruiseTarget
+        ``speed_ms`` v_m [m/s] (the pattern speed where infeasible) and
+        ``shortfall_s`` [s] (0 where feasible). Arrays broadcast.
+
+    Notes
+    -----
+    Acceleration and speed limits are ignored here (the train is assumed to
+    be at v_m already); :func:`cruise_speed_limited` adds the on-board
+    maximum, and the closed loop re-computes v_m as the train runs.
+
+    Examples
+    --------
+    t_d = 100 s, x_d = 2000 m, β = 1 m/s²: v_m = 100 − sqrt(6000) ≈ 22.54 m/s.
+
+    >>> round(float(cruise_speed(100.0, 2000.0, 1.0).speed_ms), 4)
+    22.5403
+    """
+    t = np.asarray(t_d, dtype=float)
+    x = np.maximum(np.asarray(x_d, dtype=float), 0.0)
+    b = np.asarray(beta, dtype=float)
+    t_min = np.sqrt(2.0 * x / b)  # fastest possible: on the braking pattern
+    disc = t * t - 2.0 * x / b
+    ok = (disc >= 0.0) & (t > 0.0)
+    root = np.sqrt(np.where(ok, disc, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_ok = np.where(x > 0.0, 2.0 * x / np.where(ok, t + root, 1.0), 0.0)
+    speed = np.where(ok, v_ok, braking_pattern_speed(x, b))
+    # At x_d = 0 with t_d <= 0 the train is already there: no shortfall.
+    short = np.where(ok, 0.0, np.maximum(t_min - t, 0.0))
+    if speed.ndim == 0:
+        return CruiseTarget(float(speed), float(short))
+    return CruiseTarget(speed, short)
+
+
+def _interval_times(v, a2, b2, ds):
+    """Time [s] to cross each interval at min(v, u(s)), u² linear from a2 to b2.
+
+    On an interval of length ds where the squared limit speed u² runs
+    linearly from ``a2`` to ``b2`` (exact for constant-deceleration braking
+    curves and constant limits), the speed is min(v, u). Where u stays above
+    v the time is ds/v; where it stays below, constant acceleration gives
+    2 ds/(u_a + u_b); where it crosses v² the interval is split at the
+    crossing.
+    """
+    v2 = v * v
+    ua, ub = np.sqrt(a2), np.sqrt(b2)
+    lo2, hi2 = np.minimum(a2, b2), np.maximum(a2, b2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_cap = ds / v
+        t_lim = 2.0 * ds / (ua + ub)
+        # fraction of the interval where u² < v² (the limited part)
+        frac = np.where(hi2 > lo2, (v2 - lo2) / (hi2 - lo2), 0.0)
+        ulo = np.minimum(ua, ub)
+        t_cross = frac * ds * 2.0 / (ulo + v) + (1.0 - frac) * ds / v
+    return np.where(lo2 >= v2, t_cap, np.where(hi2 <= v2, t_lim, t_cross))
+
+
+def profile_time(s_m, u_ms, v_ms=np.inf) -> float:
+    """Running time [s] along a speed profile capped at a constant speed.
+
+    Parameters
+    ----------
+    s_m : array_like
+        Increasing distance grid [m].
+    u_ms : array_like
+        Limit speed at each node [m/s]; between nodes u² is taken linear in
+        distance (exact for constant-deceleration curves and constant limits).
+    v_ms : float
+        Constant cap [m/s]; ``inf`` for the limit profile itself.
+
+    Returns
+    -------
+    float
+        ∫ ds / min(v, u(s)) over the grid [s]; ``inf`` if the profile stands
+        still anywhere except at the final node.
+    """
+    s = np.asarray(s_m, dtype=float)
+    u = np.asarray(u_ms, dtype=float)
+    if len(s) < 2:
+        return 0.0
+    ds = np.diff(s)
+    u2 = u * u
+    if np.isinf(v_ms):
+        a, b = u[:-1], u[1:]
+        with np.errstate(divide="ignore"):
+            return float(np.sum(2.0 * ds / (a + b)))
+    return float(np.sum(_interval_times(float(v_ms), u2[:-1], u2[1:], ds)))
+
+
+def _min_with_line(s, lim2, line2):
+    """Grid and min(lim², line²) where both are linear in s on every interval.
+
+    The minimum of two linear functions has at most one kink per interval,
+    where they cross; inserting that crossing as a node keeps the result
+    linear between nodes (exact on coarse grids too).
+    """
+    d = lim2 - line2
+    cross = (d[:-1] * d[1:]) < 0.0
+    if np.any(cross):
+        i = np.nonzero(cross)[0]
+        f = d[i] / (d[i] - d[i + 1])
+        s_new = s[i] + f * (s[i + 1] - s[i])
+        lim_new = lim2[i] + f * (lim2[i + 1] - lim2[i])
+        line_new = line2[i] + f * (line2[i + 1] - line2[i])
+        order = np.argsort(np.concatenate([s, s_new]), kind="stable")
+        s = np.concatenate([s, s_new])[order]
+        lim2 = np.concatenate([lim2, lim_new])[order]
+        line2 = np.concatenate([line2, line_new])[order]
+    return s, np.minimum(lim2, line2)
+
+
+def cruise_speed_limited(t_d, s_m, vmax_ms, beta, *, v0_ms: float | None = None,
+                         accel_ms2: float | None = None, decel_ms2: float | None = None,
+                         xtol_ms: float = 1e-9) -> CruiseTarget:
+    """Constant cruise speed that arrives on time under a position-dependent maximum.
+
+    The train runs at u(s) = min(v, vmax(s), sqrt(2 β (L − s))) from the
+    first grid node to the stop marker at L = ``s_m[-1]``: the cruise speed
+    v where allowed, the on-board maximum where it is lower, and the
+    constant-β stopping pattern at the end. The running time
+
+        T(v) = ∫ ds / u(s)
+
+    is continuous and strictly decreasing in v (until v reaches the highest
+    limit), so the v with T(v) = t_d is unique; it is found by Brent's method
+    on an exact evaluation of T (between nodes the squared limit speed is
+    linear in distance, so every interval's time is closed form; where two
+    such lines cross inside an interval the crossing becomes a node). With no
+    limit below the cruise speed this is exactly :func:`cruise_speed`, whose
+    derivation (x_d − v_m²/(2β) = v_m (t_d − v_m/β)) is the special case of
+    one cruise and one braking piece.
+
+    Optionally the way from the current speed v0 to v is modelled too, so the
+    answer does not assume an instant change of speed: up to v at constant
+    ``accel_ms2`` (u² ≤ v0² + 2 a (s − s0)), down to v at constant
+    ``decel_ms2`` (u² ≥ v0² − 2 d (s − s0), still under the maximum). Both
+    keep T(v) continuous and decreasing.
+
+    If even the limit profile itself (v → ∞) takes longer than t_d, there is
+    no solution: the answer is that profile (``speed_ms`` = its highest speed,
+    so min(speed_ms, limit) is the limit) and the shortfall T(∞) − t_d.
+
+    Parameters
+    ----------
+    t_d : float
+        Remaining time until the scheduled arrival [s].
+    s_m : array_like
+        Increasing distance grid from the train's position to the stop marker
+        [m] (running distance; the last node is the marker).
+    vmax_ms : array_like
+        Admissible speed at each node [m/s]: the on-board maximum, possibly
+        already lowered to braking curves towards restrictions ahead; u² is
+        taken linear between nodes. Must be > 0 except at the first node
+        (standing at departure) and the last.
+    beta : float
+        Stopping deceleration [m/s²], > 0.
+    v0_ms : float, optional
+        Current speed [m/s] (needed by ``accel_ms2`` / ``decel_ms2``).
+    accel_ms2 : float, optional
+        Acceleration [m/s²] (> 0) the train will use to get up from v0 to
+        the cruise speed. Omit for an instant change (the plain model of
+        DESIGN §4).
+    decel_ms2 : float or sequence of float, optional
+        Deceleration(s) [m/s²] (> 0) for getting down from v0, tried in
+        order (e.g. a gentle trim, then the service brake): the first with
+        which running down and holding can still take t_d is used and
+        returned in ``decel_ms2``; if none can, an instant change.
+    xtol_ms : float
+        Absolute tolerance on v [m/s].
+
+    Returns
+    -------
+    CruiseTarget
+        Scalar ``speed_ms`` [m/s], ``shortfall_s`` [s] and ``decel_ms2``
+        [m/s²] (NaN unless a deceleration from v0 was modelled).
+
+    Examples
+    --------
+    High limits reproduce the closed form of :func:`cruise_speed`:
+
+    >>> s = np.linspace(0.0, 2000.0, 2001)
+    >>> round(cruise_speed_limited(100.0, s, np.full_like(s, 50.0), 1.0).speed_ms, 4)
+    22.5403
+    """
+    from scipy.optimize import brentq
+
+    s = np.asarray(s_m, dtype=float)
+    vmax = np.asarray(vmax_ms, dtype=float)
+    if s.ndim != 1 or s.shape != vmax.shape:
+        raise ValueError("s_m and vmax_ms must be 1-D arrays of the same length")
+    t_d = float(t_d)
+    if len(s) < 2 or s[-1] - s[0] <= 0.0:
+        return CruiseTarget(0.0, max(-t_d, 0.0) if len(s) >= 1 else 0.0)
+    if np.any(np.diff(s) <= 0.0):
+        raise ValueError("s_m must be strictly increasing")
+    beta = float(beta)
+    # the ceiling: maximum and stopping pattern, u² piecewise linear
+    sc, c2 = _min_with_line(s, vmax * vmax, 2.0 * beta * (s[-1] - s))
+    c2[-1] = 0.0  # standing at the marker
+    if np.any((c2[:-1] <= 0.0) & (c2[1:] <= 0.0)):
+        raise ValueError("vmax_ms must not stand still over an interval (> 0 inside the grid)")
+    v0 = None if v0_ms is None else float(v0_ms)
+    # the fast side (v ≥ v0): also under the acceleration envelope
+    sf, f2 = sc, c2
+    if v0 is not None and accel_ms2 is not None and accel_ms2 > 0.0:
+        sf, f2 = _min_with_line(sc, c2, v0 * v0 + 2.0 * float(accel_ms2) * (sc - sc[0]))
+    dsf, fa2, fb2 = np.diff(sf), f2[:-1], f2[1:]
+
+    def t_fast(v):
+        return float(np.sum(_interval_times(v, fa2, fb2, dsf)))
+
+    u_top = np.sqrt(f2)
+    v_top = float(np.max(u_top))
+    t_limit = profile_time(sf, u_top)
+    if t_d <= t_limit:
+        return CruiseTarget(v_top, t_limit - t_d)
+    decels = () if decel_ms2 is None else tuple(np.atleast_1d(np.asarray(decel_ms2, dtype=float)))
+    slow = v0 is not None and v0 > 0.0 and len(decels) > 0
+    dsc = np.diff(sc)
+    for d in (decels if slow and t_fast(v0) < t_d else ()):
+        # slower than now: run down from v0 at d to v (reached at s_x), then hold v,
+        # never above the ceiling. T = ∫ under min(C, run-down line) up to s_x (the
+        # same for every v: prefix sums) + ∫ under min(C, v) after s_x.
+        sd, md = _min_with_line(sc, c2, v0 * v0 - 2.0 * d * (sc - sc[0]))
+        ud = np.sqrt(np.maximum(md, 0.0))
+        dsd = np.diff(sd)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pieces = np.where(dsd > 0.0, 2.0 * dsd / (ud[:-1] + ud[1:]), 0.0)
+        cum_d = np.concatenate([[0.0], np.cumsum(pieces)])
+
+        def t_slow(v, d=d, sd=sd, md=md, ud=ud, cum_d=cum_d):
+            sx = sc[0] + (v0 * v0 - v * v) / (2.0 * d)
+            if sx >= sc[-1]:
+                return float(cum_d[-1])  # still running down at the marker
+            i = min(int(np.searchsorted(sd, sx, side="right")) - 1, len(sd) - 2)
+            wx = md[i] + (md[i + 1] - md[i]) * (sx - sd[i]) / (sd[i + 1] - sd[i])
+            first = cum_d[i] + 2.0 * (sx - sd[i]) / (ud[i] + math.sqrt(max(wx, 0.0)))
+            j = min(int(np.searchsorted(sc, sx, side="right")) - 1, len(sc) - 2)
+            cx = c2[j] + (c2[j + 1] - c2[j]) * (sx - sc[j]) / (sc[j + 1] - sc[j])
+            part = _interval_times(v, np.array([cx]), c2[j + 1:j + 2], np.array([sc[j + 1] - sx]))
+            rest = _interval_times(v, c2[j + 1:-1], c2[j + 2:], dsc[j + 1:])
+            return float(first + part.sum() + rest.sum())
+
+        lo = 0.5 * v0
+        while t_slow(lo) < t_d and lo > 1e-3 * v0:
+            lo *= 0.5
+        if t_slow(v0) >= t_d:  # round-off at the boundary between the two sides
+            return CruiseTarget(v0, 0.0, float(d))
+        if t_slow(lo) >= t_d:
+            v = brentq(lambda x: t_slow(x) - t_d, lo, v0, xtol=xtol_ms,
+                       rtol=4 * np.finfo(float).eps, maxiter=200)
+            return CruiseTarget(float(v), 0.0, float(d))
+        # so much time that running down at d loses too little: try the next
+        # (stronger) deceleration, at last an instant change
+    # T(v) ≥ (L − s0)/v on this side, so v = (L − s0)/t_d is slow enough
+    v_lo = (s[-1] - s[0]) / t_d
+    v = brentq(lambda x: t_fast(x) - t_d, v_lo, v_top, xtol=xtol_ms, rtol=4 * np.finfo(float).eps,
+               maxiter=200)
+    return CruiseTarget(float(v), 0.0)
+
+
+# --------------------------------------------------------------------------
+# 2. The on-board logic: a controller of the one integrator
+# --------------------------------------------------------------------------
+ADVICE_NAMES = ("power", "hold", "coast", "brake")
+"""Driver-support indication per sample (int8 codes index this tuple; they are
+:mod:`planner.physics.run_curve`'s phase codes, with ``stop`` shown as ``brake``)."""
+
+RECOMPUTE_S = 5.0
+"""Re-compute the target at least this often [s] ..."""
+RECOMPUTE_M = 50.0
+"""... and at least every this many metres [m] (whichever comes first)."""
+TRIM_DECEL_MS2 = 0.2
+"""Deceleration [m/s²] used to shed speed above the target where coasting alone
+would slow the train less (level track with little resistance, falling gradient):
+a light brake, so a later scheduled arrival is still kept. Comfortable, well
+below the service brake."""
+COAST_MIN_DECEL_MS2 = 0.05
+"""Coasting counts as a way to shed speed only where it slows the train by at
+least this much [m/s²]; weaker coasting would need kilometres."""
+LEARN_MIN_STEPS = 10
+"""Full-notch steps the vehicle measures before it trusts its fitted traction factor θ."""
+LEARN_REPLAN_TOL = 0.005
+"""Re-run the flat-out look-ahead when θ has moved by more than this since the last plan ..."""
+LEARN_REPLAN_M = 200.0
+"""... at most once every this many metres [m]."""
+ACCEL_FLOOR_MS2 = 0.02
+"""Below this full-notch acceleration [m/s²] the acceleration envelope is left
+out of the target computation (the train holds its speed rather than gains)."""
+
+GUIDE_TOL_MS2 = 0.01
+"""Tolerance [m²/s²] on v² when the flat-out speed profile is thinned to the
+nodes that matter (≈ 3e-4 m/s at 20 m/s: far below a 0.01 s effect on time)."""
+
+
+def _compress_tol(s: np.ndarray, w: np.ndarray, tol: float):
+    """Thin a sampled w(s) to a polyline within ``tol`` (Ramer–Douglas–Peucker).
+
+    Exactly linear stretches (holding, constant-deceleration braking) keep
+    only their ends; curved ones (powering) keep as many nodes as the
+    tolerance needs.
+    """
+    n = len(s)
+    if n <= 2:
+        return s.copy(), w.copy()
+    keep = np.zeros(n, dtype=bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, n - 1)]
+    while stack:
+        i, j = stack.pop()
+        if j - i < 2:
+            continue
+        x = s[i + 1:j]
+        chord = w[i] + (w[j] - w[i]) * (x - s[i]) / (s[j] - s[i])
+        dev = np.abs(w[i + 1:j] - chord)
+        m = int(np.argmax(dev))
+        if dev[m] > tol:
+            keep[i + 1 + m] = True
+            stack.append((i, i + 1 + m))
+            stack.append((i + 1 + m, j))
+    return s[keep], w[keep]
+
+
+@dataclass(frozen=True)
+class ChangeRecord:
+    """A scheduled-arrival change as the run applied it.
+
+    Attributes
+    ----------
+    at_s : float
+        Time after departure the change was sent [s].
+    applied_s : float
+        Time it took effect (the first grid node at or after ``at_s``) [s].
+    arrival_s : float
+        New scheduled arrival [s after departure].
+    earliest_s : float
+        Earliest possible arrival from the state at ``applied_s`` (full
+        performance to the ceiling, then the stop) [s after departure].
+    shortfall_s : float
+        max(0, earliest − scheduled) [s]: how late the train must be.
+    """
+
+    at_s: float
+    applied_s: float
+    arrival_s: float
+    earliest_s: float
+    shortfall_s: float
+
+
+@dataclass(frozen=True)
+class DriveResult:
+    """Outcome of :func:`drive` (arrays on the track's grid, SI).
+
+    Attributes
+    ----------
+    s_m, t_s, v_ms, target_ms : ndarray
+        Running distance [m], time after departure [s], speed [m/s] and the
+        target the driver is shown [m/s] at every grid node.
+    advice : ndarray of int8
+        Index into :data:`ADVICE_NAMES` for the step arriving at each node
+        (the first node repeats the first step's).
+    time_s : float
+        Arrival at the stop (speed zero) [s after departure].
+    scheduled_s : float
+        Scheduled arrival in force at the end [s after departure].
+    stop_m : float
+        Running distance where the train came to a stand [m].
+    length_m : float
+        Distance to the stop marker [m].
+    shortfall_s : float
+        Predicted lateness when the last scheduled arrival could not be met
+        (see :class:`ChangeRecord`); 0 when it could.
+    changes : tuple of ChangeRecord
+        The departure schedule first (``at_s`` = 0), then every change.
+    recomputes : int
+        How many times the target was re-computed.
+    """
+
+    s_m: np.ndarray
+    t_s: np.ndarray
+    v_ms: np.ndarray
+    target_ms: np.ndarray
+    advice: np.ndarray
+    time_s: float
+    scheduled_s: float
+    stop_m: float
+    length_m: float
+    shortfall_s: float
+    changes: tuple
+    recomputes: int
+
+    @property
+    def arrival_error_s(self) -> float:
+        """Actual − scheduled arrival [s] (positive: late)."""
+        return self.time_s - self.scheduled_s
+
+    @property
+    def stop_error_m(self) -> float:
+        """Stop position − stop marker [m] (positive: overrun)."""
+        return self.stop_m - self.length_m
+
+    @property
+    def feasible(self) -> bool:
+        """True if the final scheduled arrival could be kept."""
+        return self.shortfall_s <= 0.0
+
+
+class TimekeepingController:
+    """The time-keeping on-board logic (DESIGN §4) as a controller of :func:`planner.physics.run_curve.simulate`.
+
+    It knows what a vehicle knows: the track from its DB, its **own nominal
+    model** of the train (``model`` at ``model_load`` and ``model_traction``),
+    and at each decision node what it measures (position, time since
+    departure, speed). The real train, the plant, is whatever ``simulate`` runs
+    (its load and traction factor); the controller never sees them, so a
+    heavier or weaker train than the model shows up as lateness it corrects.
+
+    At departure, at every decision node and at once when a change of the
+    scheduled arrival takes effect, it computes the cruise speed v_m with
+    :func:`cruise_speed_limited` from the remaining time and distance under
+    its model's flat-out speed profile (full power, braking only for the
+    on-board ceiling), including the acceleration envelope from the current
+    speed and the gentlest way down to a lower speed (coasting where it slows
+    the train noticeably, a light trim brake, the service brake). The
+    vehicle then runs at ratio 1.0 under the cap v_m: power below it, hold at
+    it (constant-speed control; sawtooth vehicles run their coasting band
+    below it), shed speed at the planned deceleration above it, and brake
+    onto the marker on the stopping curve, after which the stop is committed
+    and later changes are recorded but cannot re-plan it.
+
+    Whenever the schedule is set (departure and each change) the model is
+    run flat out from the measured state (the same integrator) for the
+    earliest arrival; a scheduled arrival earlier than that is a shortfall,
+    reported, and the run goes flat out: never silently missed.
+
+    The vehicle learns how far its real performance is from its model, as a
+    driver does in the first seconds of a run: on every full-notch step it
+    compares the measured acceleration with what the model predicts, and
+    fits a traction factor θ (least squares over all such steps, tractive
+    part only: gradient and curve act the same on any load) that folds its
+    unknown load and catenary voltage into one number. When θ has moved by
+    more than :data:`LEARN_REPLAN_TOL` since the last plan (at most every
+    :data:`LEARN_REPLAN_M`), the flat-out look-ahead is re-run with it, so a
+    heavier or weaker train than the model plans with what it really has.
+    Steps at the acceleration cap tell nothing about θ and are skipped.
+
+    Parameters
+    ----------
+    track : planner.physics.track.Track
+    model : planner.line.model.TrainType
+        The vehicle's own model of itself (the track's train type).
+    arrival_s : float or ndarray (n,)
+        Scheduled arrival of each run [s after departure].
+    changes : sequence of (at_s, arrival_s)
+        For every run: at ``at_s`` s after departure the scheduled arrival
+        becomes ``arrival_s`` s after departure.
+    model_load, model_traction : float
+        The conditions the model assumes (nominal: empty, full traction).
+    recompute_s, recompute_m : float
+        Re-computation period [s] and spacing [m], whichever comes first.
+
+    Every grid node is a decision node (``decision_m``), so a change of the
+    scheduled arrival takes effect within one grid step (≈ 0.05 s at speed);
+    at nodes where nothing is due the controller returns None (no change).
+    """
+
+    def __init__(self, track, model, arrival_s, changes=(), *, model_load: float = 0.0,
+                 model_traction: float = 1.0, recompute_s: float = RECOMPUTE_S,
+                 recompute_m: float = RECOMPUTE_M):
+        from planner.physics import dynamics, speed_profile
+
+        if model.train_type != track.train_type:
+            raise InputError(f"track is for train type {track.train_type!r}, not {model.train_type!r}")
+        if not (recompute_m > 0 and recompute_s > 0):
+            raise InputError(f"re-computation every {recompute_s} s / {recompute_m} m: both must be > 0")
+        arrival = np.atleast_1d(np.asarray(arrival_s, dtype=float)).copy()
+        for a in arrival:
+            _check_schedule(float(a), ())
+        self.track, self.model = track, model
+        self.model_load, self.model_traction = float(model_load), float(model_traction)
+        self.changes = _check_schedule(float(arrival[0]), changes)
+        s = np.asarray(track.s_m, dtype=float)
+        self.s = s
+        self.decision_m = s[:-1].tolist()
+        self._k = {x: i for i, x in enumerate(self.decision_m)}
+        self.recompute_s, self.recompute_m = float(recompute_s), float(recompute_m)
+        self.beta = float(model.stop_brake_ms2)
+        self.service = float(model.service_brake_ms2)
+        self.stop2 = speed_profile.stop_curve_sq(s, track.length_m, model.stop_brake_ms2)
+        m = dynamics.mass_kg(model.empty_mass_kg, model.full_load_mass_kg, self.model_load)
+        self._inv_me = 1.0 / float(dynamics.effective_mass_kg(m, model.rotating_mass_factor))
+        self._ag = dynamics.track_accel_ms2(track.gradient, track.curve_specific, model.rotating_mass_factor)
+        self.sawtooth = model.cruise == "sawtooth"
+        n = arrival.size
+        self.arrival = arrival
+        self.next_change = np.zeros(n, dtype=int)
+        self.next_at = np.full(n, self.changes[0][0] if self.changes else np.inf)
+        self.next_t = np.full(n, -np.inf)
+        self.next_s = np.full(n, -np.inf)
+        self.flat_out = np.zeros(n, dtype=bool)
+        self.committed = np.zeros(n, dtype=bool)
+        self.cap = np.full(n, np.inf)
+        self.shed = np.full(n, self.service)
+        self.recomputes = np.zeros(n, dtype=int)
+        self.records: list[list[ChangeRecord]] = [[] for _ in range(n)]
+        self.guides: list = [None] * n
+        # learning θ: least-squares sums, the θ of the last plan, where the next re-plan may come
+        self.theta = np.full(n, self.model_traction)
+        self.theta_plan = self.theta.copy()
+        self._sxy, self._sxx = np.zeros(n), np.zeros(n)
+        self._n_fit = np.zeros(n, dtype=int)
+        self.next_replan_s = np.zeros(n)
+        self._prev = None  # (node, speeds) of the previous call
+
+    # -- the vehicle's own model, one speed at a time ----------------------------
+    def _accel(self, v: float, k: int, theta: float) -> tuple[float, float]:
+        """Full-notch and coasting acceleration of the model at speed v, node k, traction θ [m/s²]."""
+        from planner.physics import dynamics
+
+        md = self.model
+        res = float(dynamics.davis_resistance_N(v, md.davis_a_N, md.davis_b_N_per_ms, md.davis_c_N_per_ms2))
+        eff = float(dynamics.tractive_effort_N(v, md.traction_speed_ms, md.traction_effort_N, theta))
+        full = float(dynamics.acceleration_ms2(v, eff, res, self._inv_me, self._ag[k], md.max_accel_ms2))
+        return full, float(self._ag[k]) - res * self._inv_me
+
+    def _learn(self, k: int, state) -> None:
+        """Fit θ from the full-notch step that arrived at node k (class doc)."""
+        from planner.physics import dynamics
+        from planner.physics.run_curve import PHASE_POWER
+
+        prev, self._prev = self._prev, (k, state.v_ms.copy())
+        if prev is None or prev[0] != k - 1:
+            return
+        v0, v1 = prev[1], state.v_ms
+        md = self.model
+        a_meas = (v1 * v1 - v0 * v0) / (2.0 * (self.s[k] - self.s[k - 1]))
+        ok = (state.phase == PHASE_POWER) & (a_meas < md.max_accel_ms2 - 1e-3) & (v0 > 0.0)
+        if not ok.any():
+            return
+        parts = []
+        for v, j in ((v0, k - 1), (v1, k)):
+            f = dynamics.tractive_effort_N(v, md.traction_speed_ms, md.traction_effort_N) * self._inv_me
+            r = dynamics.davis_resistance_N(v, md.davis_a_N, md.davis_b_N_per_ms, md.davis_c_N_per_ms2)
+            parts.append((f, self._ag[j] - r * self._inv_me))
+        a_f = 0.5 * (parts[0][0] + parts[1][0])
+        a_rest = 0.5 * (parts[0][1] + parts[1][1])
+        ok &= a_f > 1e-3
+        self._sxy += np.where(ok, a_f * (a_meas - a_rest), 0.0)
+        self._sxx += np.where(ok, a_f * a_f, 0.0)
+        self._n_fit += ok
+        fit = self._n_fit >= LEARN_MIN_STEPS
+        self.theta = np.where(fit, self._sxy / np.where(fit, self._sxx, 1.0), self.theta)
+
+    # -- planning: the earliest arrival and the limit profile --------------------
+    def _plan(self, k: int, runs: np.ndarray, state, at_s: np.ndarray | None) -> None:
+        """Run the model flat out from the measured state of ``runs`` (the one integrator).
+
+        ``at_s`` the times the schedule was set (recorded as :class:`ChangeRecord`);
+        None for a re-plan after learning θ (not a schedule event).
+        """
+        from planner.physics.run_curve import RunState, simulate
+
+        t, v, ph = state.t_s[runs], state.v_ms[runs], state.phase[runs]
+        start = RunState(np.full(runs.size, self.s[k]), t, v, ph, np.ones(runs.size))
+        res = simulate(self.track, self.model, 1.0, load=self.model_load, traction_factor=self.theta[runs],
+                       start=start, record=True)
+        self.theta_plan[runs] = self.theta[runs]
+        for j, i in enumerate(runs.tolist()):
+            earliest = float(res.time_s[j])
+            short = max(0.0, earliest - self.arrival[i])
+            if at_s is not None:
+                self.records[i].append(ChangeRecord(float(at_s[j]), float(t[j]), float(self.arrival[i]),
+                                                    earliest, short))
+            self.flat_out[i] = short > 0.0
+            self.guides[i] = _compress_tol(res.s_m, np.square(res.v_ms[j]), GUIDE_TOL_MS2)
+
+    def _target(self, i: int, k: int, t: float, v: float) -> None:
+        gs, gw = self.guides[i]
+        s0 = self.s[k]
+        j = int(np.searchsorted(gs, s0, side="right"))
+        s_sub = np.concatenate([[s0], gs[j:]])
+        w_sub = np.concatenate([[max(float(np.interp(s0, gs, gw)), v * v)], gw[j:]])
+        if s_sub.size < 2:
+            return
+        a0, coast = self._accel(v, k, float(self.theta[i]))
+        dc = -coast
+        d_trim = max(TRIM_DECEL_MS2, dc)
+        decels = ((dc,) if dc >= COAST_MIN_DECEL_MS2 else ()) + (d_trim, max(d_trim, self.service))
+        tg = cruise_speed_limited(self.arrival[i] - t, s_sub, np.sqrt(np.maximum(w_sub, 0.0)), self.beta,
+                                  v0_ms=v, accel_ms2=a0 if a0 > ACCEL_FLOOR_MS2 else None, decel_ms2=decels)
+        self.recomputes[i] += 1
+        if not tg.feasible:
+            self.cap[i], self.shed[i] = np.inf, self.service
+            return
+        cap = float(tg.speed_ms)
+        if self.sawtooth:
+            # a vehicle without constant-speed control coasts down its band below the cap and
+            # powers back up: its mean speed is about the band's middle, so aim the band there
+            cap += 0.5 * self.model.coast_band_ms
+        self.cap[i] = cap
+        self.shed[i] = float(tg.decel_ms2) if math.isfinite(tg.decel_ms2) else self.service
+
+    def __call__(self, s_m: float, state):
+        from planner.physics.run_curve import Command
+
+        k = self._k[s_m]
+        t, v = state.t_s, state.v_ms
+        n = t.size
+        plan = np.zeros(n, dtype=bool)
+        at = np.zeros(n)
+        if k == 0 and not self.records[0]:
+            plan[:] = True
+        # scheduled-arrival changes take effect at the first node at or after their time
+        for i in np.flatnonzero(t >= self.next_at - 1e-12).tolist():
+            while self.next_change[i] < len(self.changes) and t[i] >= self.changes[self.next_change[i]][0] - 1e-12:
+                c_at, c_arr = self.changes[self.next_change[i]]
+                self.next_change[i] += 1
+                self.arrival[i] = c_arr
+                if self.committed[i]:
+                    # already braking onto the marker: the stop cannot be re-planned
+                    self.records[i].append(ChangeRecord(c_at, float(t[i]), c_arr, math.nan, math.nan))
+                else:
+                    plan[i], at[i] = True, c_at
+            nc = self.next_change[i]
+            self.next_at[i] = self.changes[nc][0] if nc < len(self.changes) else np.inf
+        if plan.any():
+            self._plan(k, np.flatnonzero(plan), state, at[plan])
+        self._learn(k, state)
+        replan = (~plan & ~self.committed & (np.abs(self.theta - self.theta_plan) > LEARN_REPLAN_TOL)
+                  & (s_m >= self.next_replan_s))
+        if replan.any():
+            self._plan(k, np.flatnonzero(replan), state, None)
+            self.next_replan_s[replan] = s_m + LEARN_REPLAN_M
+            plan |= replan
+        newly = np.zeros(n, dtype=bool)
+        if k > 0:
+            # on the stopping curve: the stop is committed, the curve alone governs
+            newly = ~self.committed & (v * v >= self.stop2[k] - 1e-9)
+            self.committed |= newly
+        due = plan | ((t >= self.next_t) | (s_m >= self.next_s)) & ~self.committed & ~self.flat_out
+        if not (due.any() or newly.any()):
+            return None
+        for i in np.flatnonzero(due | newly).tolist():
+            if self.committed[i] or self.flat_out[i]:
+                self.cap[i], self.shed[i] = np.inf, self.service
+            else:
+                self._target(i, k, float(t[i]), float(v[i]))
+                self.next_t[i], self.next_s[i] = t[i] + self.recompute_s, s_m + self.recompute_m
+        return Command(np.ones(n), self.cap.copy(), self.shed.copy())
+
+
+def _check_schedule(arrival_s: float, changes) -> list[tuple[float, float]]:
+    """Validate the scheduled arrival and the changes; return changes sorted by time."""
+    if not (isinstance(arrival_s, (int, float, np.floating)) and math.isfinite(arrival_s) and arrival_s > 0):
+        raise InputError(f"scheduled arrival must be a positive number of seconds after departure, "
+                         f"got {arrival_s!r} (--arrival)")
+    out = []
+    for i, ch in enumerate(changes):
+        try:
+            at, new = (float(x) for x in ch)
+        except (TypeError, ValueError):
+            raise InputError(f"change {i} must be (seconds after departure, new arrival), got {ch!r} "
+                             "(--change T:ARRIVAL)") from None
+        if not (math.isfinite(at) and math.isfinite(new) and at >= 0.0 and new > 0.0):
+            raise InputError(f"change {i} ({at:g}:{new:g}) needs a time ≥ 0 and a new arrival > 0 "
+                             "seconds after departure (--change T:ARRIVAL)")
+        out.append((at, new))
+    return sorted(out, key=lambda c: c[0])
+
+
+def drive(track, train, arrival_s: float, *, changes=(), load: float = 0.0,
+          traction_factor: float = 1.0, recompute_s: float = RECOMPUTE_S, recompute_m: float = RECOMPUTE_M,
+          model_load: float = 0.0, model_traction: float = 1.0) -> DriveResult:
+    """One train driven by the time-keeping logic in the one integrator (DESIGN §4).
+
+    The on-board logic is a :class:`TimekeepingController` with the vehicle's
+    nominal model of itself (``model_load``, ``model_traction``); the plant is
+    the real train at ``load`` and ``traction_factor``, run by
+    :func:`planner.physics.run_curve.simulate` (the same run-curve physics as every
+    table). See the controller for what the logic does.
+
+    Parameters
+    ----------
+    track : planner.physics.track.Track
+    train : planner.line.model.TrainType
+        Must be ``track``'s train type.
+    arrival_s : float
+        Scheduled arrival [s after departure].
+    changes : sequence of (at_s, arrival_s)
+        At ``at_s`` seconds after departure the scheduled arrival becomes
+        ``arrival_s`` seconds after departure.
+    load, traction_factor : float
+        Load factor and tractive-effort multiplier of the real train.
+    recompute_s, recompute_m : float
+        Re-computation period [s] and spacing [m] of the target.
+    model_load, model_traction : float
+        What the on-board model assumes (nominal by default).
+
+    Returns
+    -------
+    DriveResult
+    """
+    from planner.physics.run_curve import PHASE_BRAKE, PHASE_STOP, simulate
+
+    if train.train_type != track.train_type:
+        raise InputError(f"track is for train type {track.train_type!r}, not {train.train_type!r}")
+    if not (load >= 0.0 and traction_factor > 0.0):
+        raise InputError(f"load must be ≥ 0 and traction factor > 0, got {load} and {traction_factor}")
+    ctl = TimekeepingController(track, train, float(arrival_s), changes, model_load=model_load,
+                                model_traction=model_traction, recompute_s=recompute_s, recompute_m=recompute_m)
+    res = simulate(track, train, 1.0, load=float(load), traction_factor=float(traction_factor),
+                   controller=ctl, decision_m=ctl.decision_m, record=True)
+    t_end = float(res.time_s[0])
+    # changes that came while braking onto the marker could not re-plan the stop:
+    # the earliest arrival was the committed one
+    records = [r if math.isfinite(r.earliest_s) else
+               ChangeRecord(r.at_s, r.applied_s, r.arrival_s, t_end, max(0.0, t_end - r.arrival_s))
+               for r in ctl.records[0]]
+    phase = res.phase[0]
+    advice = np.where(phase == PHASE_STOP, PHASE_BRAKE, phase).astype(np.int8)
+    c2 = track.ceiling_sq(1.0, train)[0]
+    target = np.sqrt(np.minimum(np.square(res.cap_ms[0]), c2[-res.s_m.size:]))
+    return DriveResult(
+        s_m=res.s_m.copy(), t_s=res.t_s[0], v_ms=res.v_ms[0], target_ms=target, advice=advice, time_s=t_end,
+        scheduled_s=float(records[-1].arrival_s), stop_m=float(res.stop_m[0]), length_m=float(track.length_m),
+        shortfall_s=float(records[-1].shortfall_s), changes=tuple(records), recomputes=int(ctl.recomputes[0]))
+
+
+def closed_loop_runner(track, train, tables, designated_s, sc, mode="timekeeping"):
+    """The ``timekeeping`` mode of :mod:`planner.tables.closed_loop` (``planner simulate --mode timekeeping``).
+
+    Every designated running time of the sweep in one batch of the integrator:
+    the on-board logic with the vehicle's nominal model (no tables needed: the
+    target comes from the remaining time and distance), the plant under the
+    scenario's load and traction.
+
+    Returns
+    -------
+    actual_s : ndarray (n,)
+        Simulated running times [s].
+    ratios : ndarray (n, n_x)
+        NaN: this mode chooses no ratios (shape as the table modes' for the datasets).
+    stop_m : ndarray (n,)
+        Where each run came to a stand [m of running distance].
+    """
+    from planner.physics.run_curve import simulate
+
+    designated = np.asarray(designated_s, dtype=float).reshape(-1)
+    ctl = TimekeepingController(track, train, designated)
+    res = simulate(track, train, np.ones_like(designated), load=sc.load, traction_factor=sc.traction_factor,
+                   controller=ctl, decision_m=ctl.decision_m)
+    n_x = len(getattr(tables, "eval_point_ids", ()))
+    return np.asarray(res.time_s, float), np.full((designated.size, n_x), np.nan), np.asarray(res.stop_m, float)
