@@ -16,9 +16,9 @@ steps (its window names the stretch in the error message).
 
 Layout of the arrays (row constants below): ``trk`` (7, m) per node of the
 track, ``seg`` (m,) the ceiling segment of each node, ``par`` (9, n) per run
-and constant between events, ``st`` (6, n) the runs' state, ``lane`` (2, n)
+and constant between events, ``st`` (7, n) the runs' state, ``lane`` (2, n)
 int8 phase code and sawtooth coasting flag, ``e`` (segments, n) the
-ceiling's service-brake value at each segment end, ``flags`` int64 (4,);
+ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
 ``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves.
 
 Compiled lazily on first use, in memory only: no ``cache=True``, because
@@ -47,11 +47,12 @@ T_S, T_VN2, T_AHEAD, T_STOP2, T_AG, T_VINT, T_STEEP = range(7)
 # cruise cap, shedding deceleration
 P_RAM, P_RBM, P_RCM, P_TFI, P_R2, P_CAP2, P_RATIO, P_CAPV, P_SHED = range(9)
 # rows of st (per run): time, speed, speed², traction work / M_e, ceiling² at the node, speed² entering
-# the last step
-S_T, S_V, S_W, S_WORK, S_C0, S_WLAST = range(6)
+# the last step, the first step after which its time was not finite (+inf: none)
+S_T, S_V, S_W, S_WORK, S_C0, S_WLAST, S_BAD = range(7)
 L_PHASE, L_COAST = range(2)
 # flags: any run may be above its ceiling; last node the stall check passed; stall window (from, to)
-F_MAYBE_OVER, F_K_OK, F_STALL_FROM, F_STALL_TO = range(4)
+# and the first run found stalled there
+F_MAYBE_OVER, F_K_OK, F_STALL_FROM, F_STALL_TO, F_STALL_RUN = range(5)
 # rows of rec (record=True): time, speed, acceleration, ratio, cruise cap at each node
 R_T, R_V, R_A, R_RATIO, R_CAP = range(5)
 
@@ -179,6 +180,7 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tsp, tef
         r2, cap2, ratio, capv, shed = par[P_R2, i], par[P_CAP2, i], par[P_RATIO, i], par[P_CAPV, i], par[P_SHED, i]
         w, v, c0, t, work = st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i]
         co, ph = lane[L_COAST, i] != 0, lane[L_PHASE, i]
+        bad_at = st[S_BAD, i]
         above = False
         for k in range(k_from, k_to):
             ds = trk[T_S, k + 1] - trk[T_S, k]
@@ -246,9 +248,11 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tsp, tef
                 st[S_WLAST, i] = w  # entering the last step, onto the marker
             w, v, c0, t = w1, v1, c1, t + dt
             work += dwork
-            if k < first_bad and not math.isfinite(t):
-                first_bad = k
-        st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i] = w, v, c0, t, work
+            if not math.isfinite(t) and k < bad_at:
+                bad_at = k
+        st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i], st[S_BAD, i] = w, v, c0, t, work, bad_at
+        if bad_at < k_to:  # a time once not finite stays so: stalled from bad_at, or before this sweep
+            first_bad = min(first_bad, max(int(bad_at), k_from))
         lane[L_PHASE, i], lane[L_COAST, i] = ph, 1 if co else 0
         still_over = still_over or above
     return still_over, first_bad
@@ -284,6 +288,10 @@ def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tsp, tef, flags, 
             if (kc & 63) == 0 or kc + 2 >= m - 1:
                 if kc >= first_bad:
                     flags[F_STALL_FROM], flags[F_STALL_TO] = flags[F_K_OK], kc + 1
+                    for i in range(st.shape[1]):  # the first run stalled by then
+                        if st[S_BAD, i] <= kc:
+                            flags[F_STALL_RUN] = i
+                            break
                     return
                 flags[F_K_OK] = kc + 1
         k = k_end

@@ -192,14 +192,10 @@ _PREPARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 """Per track (while it lives), its :class:`_Prep` per train constants; kept out of the track, so never pickled with it."""
 
 
-def _check_stall(t, track, train, load, tf, s, k_ok: int, k: int) -> None:
-    """A run that stalled has a NaN or infinite time (v = sqrt(w ≤ 0)): say where, within the checked stretch."""
-    bad = ~np.isfinite(t)
-    if not np.count_nonzero(bad):
-        return
-    j = int(np.flatnonzero(bad)[0])
+def _stall_error(track, train, load, tf, s, j: int, k_ok: int, k: int) -> InfeasibleError:
+    """Run j stalled (v = sqrt(w ≤ 0): its time turned NaN or infinite) between nodes k_ok and k."""
     a, b = sorted((float(track.position_m(s[k_ok])), float(track.position_m(s[k]))))
-    raise InfeasibleError(
+    return InfeasibleError(
         f"train type {train.train_type} stalls on {track.origin}->{track.destination} between chainage "
         f"{a:.0f} and {b:.0f} m (run {j}: load {load[j]:g}, traction factor {tf[j]:g}): tractive effort "
         "cannot overcome resistance and gradient; check traction.parquet or the gradients")
@@ -332,10 +328,11 @@ class _Integrator:
         par[K.P_RATIO] = state.ratio
         par[K.P_CAP2] = par[K.P_CAPV] = np.inf  # cruise cap (Command.cap_ms): none until a controller sets one
         par[K.P_SHED] = float(train.service_brake_ms2)  # deceleration onto a lowered target
-        st = self.st = np.empty((6, n))
+        st = self.st = np.empty((7, n))
         st[K.S_T], st[K.S_V] = state.t_s, state.v_ms
         st[K.S_W] = st[K.S_V] * st[K.S_V]
         st[K.S_WORK] = 0.0  # traction work / M_e [J/kg]
+        st[K.S_BAD] = np.inf
         lane = self.lane = np.empty((2, n), dtype=np.int8)
         lane[K.L_PHASE] = state.phase
         # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
@@ -344,7 +341,7 @@ class _Integrator:
         self.tsp = np.ascontiguousarray(train.traction_speed_ms, dtype=float)
         self.tef = np.ascontiguousarray(train.traction_effort_N, dtype=float)
         # above the ceiling only after a lowered target (or a start state); the stall check's last node
-        self.flags = np.array([1, k0, -1, -1], dtype=np.int64)
+        self.flags = np.array([1, k0, -1, -1, -1], dtype=np.int64)
         self._set_ceiling()
         st[K.S_C0] = self._ceiling_at(k0)
         st[K.S_WLAST] = st[K.S_W]
@@ -444,8 +441,9 @@ class _Integrator:
             K.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane, self.e,
                       self.cst, self.tsp, self.tef, self.flags, self.rec, self.rec_p, self.record)
             if self.flags[K.F_STALL_TO] >= 0:
-                _check_stall(self.st[K.S_T], self.track, self.train, self.load, self.tf, self.s,
-                             int(self.flags[K.F_STALL_FROM]), int(self.flags[K.F_STALL_TO]))
+                f = self.flags
+                raise _stall_error(self.track, self.train, self.load, self.tf, self.s, int(f[K.F_STALL_RUN]),
+                                   int(f[K.F_STALL_FROM]), int(f[K.F_STALL_TO]))
             k = k_next
 
     def result(self) -> BatchResult:
