@@ -72,21 +72,26 @@ def _mx(a, b):
 
 
 @njit(**_JIT)
-def _interp(x, xp, fp):
-    """``np.interp(x, xp, fp)`` for one x, with numpy's formula and end values."""
-    n = xp.shape[0]
+def _interp(x, tab):
+    """``np.interp(x, xp, fp)`` for one x, with numpy's formula, end values and NaN fall-backs.
+
+    ``tab`` rows: ``xp``, ``fp`` and the slopes ``(fp[j+1] − fp[j]) / (xp[j+1] − xp[j])``, which
+    numpy also computes once for a call on as many x as table points.
+    """
+    n = tab.shape[1]
     lo, hi = 0, n - 1
     while hi - lo > 1:  # xp[lo] ≤ x < xp[hi] for x inside the table
         mid = (lo + hi) >> 1
-        if xp[mid] <= x:
+        if tab[0, mid] <= x:
             lo = mid
         else:
             hi = mid
-    return _lin(x, xp[lo], xp[hi], fp[lo], fp[hi], xp[0], xp[n - 1], fp[0], fp[n - 1])
+    return _lin(x, tab[0, lo], tab[0, hi], tab[1, lo], tab[1, hi], tab[2, lo],
+                tab[0, 0], tab[0, n - 1], tab[1, 0], tab[1, n - 1])
 
 
 @njit(**_JIT)
-def _lin(x, x0, x1, f0, f1, x_first, x_last, f_first, f_last):
+def _lin(x, x0, x1, f0, f1, slope, x_first, x_last, f_first, f_last):
     """numpy's interpolation between (x0, f0) and (x1, f1), its end values and NaN fall-backs."""
     if x != x:
         return x
@@ -96,7 +101,6 @@ def _lin(x, x0, x1, f0, f1, x_first, x_last, f_first, f_last):
         return f_last
     if x0 == x:
         return f0
-    slope = (f1 - f0) / (x1 - x0)
     r = slope * (x - x0) + f0
     if r != r:
         r = slope * (x - x1) + f1
@@ -166,7 +170,7 @@ def _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth):
 
 
 @njit(**_JIT)
-def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tsp, tef, rec, rec_p, record):
+def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec, rec_p, record):
     """Every run on its own from node k_from to k_to, its state in registers, with the batch-wide
     ``use_over`` switch fixed. Returns whether any run ended still above its ceiling (having been
     above it and not met it on the last step) and the first step after which a run's time is not
@@ -193,12 +197,12 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tsp, tef
                 co = co and w > lb * lb
             coasting_step = co
             # free running: Heun's step in w = v² (predictor ṽ₁)
-            a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, _interp(v, tsp, tef))
+            a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, _interp(v, tab))
             if co:
                 a0 = cs0
             vp = math.sqrt(_mx(w + (2.0 * ds) * a0, 0.0))
             a1, cs1 = _accel(vp, trk[T_AG, k + 1], trk[T_STEEP, k + 1], amax, ram, rbm, rcm, tfi,
-                             _interp(vp, tsp, tef))
+                             _interp(vp, tab))
             if co:
                 a1 = cs1
             slope, wend, cross, frac, w1, over = _guided(w, c0, c1, st1, a0, a1, shed, ds, use_over)
@@ -206,7 +210,8 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tsp, tef
             xc = frac * ds
             wc = w + slope * xc
             vc = math.sqrt(wc)
-            v1 = math.sqrt(w1)
+            # no crossing and no run above its ceiling: the step ends where it would free, w1 = wc
+            v1 = vc if not (cross or use_over) else math.sqrt(w1)
             rest = ds - xc
             dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
             cb = 0.5 * (cs0 + cs1)
@@ -229,9 +234,9 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tsp, tef
                     lb2 = lb * lb
                     xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
                     sub = ds - xb
-                    aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, _interp(lb, tsp, tef))
+                    aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, _interp(lb, tab))
                     vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
-                    ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, _interp(vq, tsp, tef))
+                    ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, _interp(vq, tab))
                     w1 = _mn(lb2 + (aa + ab) * sub, c1)
                     v1 = math.sqrt(w1)
                     dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
@@ -267,7 +272,7 @@ def _any_over(st):
 
 
 @njit(**_JIT)
-def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tsp, tef, flags, rec, rec_p, record):
+def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, rec_p, record):
     """Advance every run from node ``k_from`` to node ``k_to`` (no event strictly between).
 
     While some run may be above its ceiling (after a lowered target) the batch-wide switch is
@@ -281,7 +286,7 @@ def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tsp, tef, flags, 
     while k < k_to:
         over_mode = flags[F_MAYBE_OVER] != 0 and _any_over(st)
         k_end = k + 1 if over_mode else k_to
-        still_over, first_bad = _sweep(k, k_end, k0, over_mode, trk, seg, par, st, lane, e, cst, tsp, tef,
+        still_over, first_bad = _sweep(k, k_end, k0, over_mode, trk, seg, par, st, lane, e, cst, tab,
                                        rec, rec_p, record)
         flags[F_MAYBE_OVER] = 1 if over_mode and still_over else 0
         for kc in range(k, k_end):  # the stall checks of the steps just made

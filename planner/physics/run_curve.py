@@ -338,8 +338,10 @@ class _Integrator:
         # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
         lane[K.L_COAST] = (state.phase != PHASE_POWER) & sawtooth
         self.cst = np.array([train.max_accel_ms2, train.coast_band_ms, float(sawtooth)])
-        self.tsp = np.ascontiguousarray(train.traction_speed_ms, dtype=float)
-        self.tef = np.ascontiguousarray(train.traction_effort_N, dtype=float)
+        # the tractive-effort table (speed, effort, slope of each piece) for the kernel's np.interp
+        tab = self.tab = np.zeros((3, len(train.traction_speed_ms)))
+        tab[0], tab[1] = train.traction_speed_ms, train.traction_effort_N
+        tab[2, :-1] = np.diff(tab[1]) / np.diff(tab[0])
         # above the ceiling only after a lowered target (or a start state); the stall check's last node
         self.flags = np.array([1, k0, -1, -1, -1], dtype=np.int64)
         self._set_ceiling()
@@ -439,7 +441,7 @@ class _Integrator:
             if k in self.events:
                 self._events(k)
             K.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane, self.e,
-                      self.cst, self.tsp, self.tef, self.flags, self.rec, self.rec_p, self.record)
+                      self.cst, self.tab, self.flags, self.rec, self.rec_p, self.record)
             if self.flags[K.F_STALL_TO] >= 0:
                 f = self.flags
                 raise _stall_error(self.track, self.train, self.load, self.tf, self.s, int(f[K.F_STALL_RUN]),
