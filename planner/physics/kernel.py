@@ -264,6 +264,24 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
 
 
 @njit(**_JIT)
+def set_targets(k, trk, seg, bounds, par, st, e):
+    """From the ratios and cruise caps in ``par``: ratio² into ``par``, the ceiling's segment table
+    ``e`` (the service-brake ceiling at each segment's end node, ``bounds``), and the ceiling² at
+    node k into ``st``. ``c²_k = min(r² V_k², cap², E_seg(k) + 2 b (s_end − s_k), stopping curve²)``."""
+    nb = bounds.shape[0]
+    for i in range(par.shape[1]):
+        r2 = par[P_RATIO, i] * par[P_RATIO, i]
+        cap2 = par[P_CAP2, i]
+        par[P_R2, i] = r2
+        e[nb - 1, i] = np.inf
+        e[nb - 2, i] = _mn(r2 * trk[T_VN2, bounds[nb - 1]], cap2)
+        for j in range(nb - 3, -1, -1):
+            kb = bounds[j + 1]
+            e[j, i] = _mn(_mn(r2 * trk[T_VN2, kb], cap2), e[j + 1, i] + trk[T_AHEAD, kb])
+        st[S_C0, i] = _mn(_mn(_mn(r2 * trk[T_VN2, k], cap2), e[seg[k], i] + trk[T_AHEAD, k]), trk[T_STOP2, k])
+
+
+@njit(**_JIT)
 def _any_over(st):
     for i in range(st.shape[1]):
         if st[S_W, i] > st[S_C0, i] * (1.0 + 1e-12) + 1e-9:

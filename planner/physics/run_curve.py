@@ -150,8 +150,8 @@ class _Prep:
     the target is constant, so the backward recursion only matters at those change
     nodes ``K_e``: with ``E_e`` = service-brake ceiling at the end node of segment e,
     ``c²_k = min(r² V_k², E_e + 2 b (s_end(e) − s_k), 2 b_stop (L − s_k))`` for k in
-    segment e. ``E`` (segments, n) is :meth:`_Integrator._set_ceiling`'s, whenever the
-    ratios change; the segment of each node and ``2 b (s_end(e) − s_k)`` are here.
+    segment e. ``E`` (segments, n) is :func:`planner.physics.kernel.set_targets`'s, whenever
+    the ratios change; the segment of each node and ``2 b (s_end(e) − s_k)`` are here.
     Built once per track and train constants (:meth:`of`): a track is run many times.
     """
 
@@ -174,7 +174,7 @@ class _Prep:
         # the acceleration cap can only bind below the coasting acceleration where the fall
         # alone is steeper than a_max (R ≥ 0, so a_coast ≤ a_track)
         trk[K.T_STEEP] = ag >= train.max_accel_ms2
-        self.trk, self.seg, self.bounds = trk, seg.astype(np.int64), bounds
+        self.trk, self.seg, self.bounds = trk, seg.astype(np.int64), bounds.astype(np.int64)
 
     @staticmethod
     def of(track: Track, train: TrainType) -> "_Prep":
@@ -344,8 +344,8 @@ class _Integrator:
         tab[2, :-1] = np.diff(tab[1]) / np.diff(tab[0])
         # above the ceiling only after a lowered target (or a start state); the stall check's last node
         self.flags = np.array([1, k0, -1, -1, -1], dtype=np.int64)
-        self._set_ceiling()
-        st[K.S_C0] = self._ceiling_at(k0)
+        self.e = np.empty((len(self.prep.bounds), n))  # the ceiling's segment table (kernel.set_targets)
+        K.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
         st[K.S_WLAST] = st[K.S_W]
         self.record = record
         mr = self.m - k0 if record else 1
@@ -354,26 +354,6 @@ class _Integrator:
             self.rec[K.R_T, :, 0], self.rec[K.R_V, :, 0] = st[K.S_T], st[K.S_V]
             self.rec[K.R_RATIO, :, 0], self.rec[K.R_CAP, :, 0] = par[K.P_RATIO], par[K.P_CAPV]
             self.rec_p[:, 0] = lane[K.L_PHASE]
-
-    def _set_ceiling(self) -> None:
-        """The targets ``min(ratio² V², cap²)`` per run and the segment table E (:class:`_Prep`)."""
-        par, trk, bounds = self.par, self.prep.trk, self.prep.bounds
-        r2, cap2 = par[K.P_R2], par[K.P_CAP2]
-        np.multiply(par[K.P_RATIO], par[K.P_RATIO], out=r2)
-        vn2, ahead = trk[K.T_VN2], trk[K.T_AHEAD]
-        nb = len(bounds)
-        e = np.empty((nb, self.n))
-        e[-1] = np.inf
-        e[-2] = np.minimum(r2 * vn2[bounds[-1]], cap2)
-        for j in range(nb - 3, -1, -1):
-            kb = bounds[j + 1]
-            e[j] = np.minimum(np.minimum(r2 * vn2[kb], cap2), e[j + 1] + ahead[kb])
-        self.e = e
-
-    def _ceiling_at(self, k: int) -> np.ndarray:
-        par, trk = self.par, self.prep.trk
-        target2 = np.minimum(par[K.P_R2] * trk[K.T_VN2, k], par[K.P_CAP2])
-        return np.minimum(np.minimum(target2, self.e[self.prep.seg[k]] + trk[K.T_AHEAD, k]), trk[K.T_STOP2, k])
 
     # -- events -------------------------------------------------------------------
     def schedule(self, changes, controller, decision_m, snapshots_m) -> None:
@@ -430,8 +410,7 @@ class _Integrator:
             par[K.P_RATIO] = new
             changed = True
         if changed:
-            self._set_ceiling()
-            self.st[K.S_C0] = self._ceiling_at(k)
+            K.set_targets(k, self.prep.trk, self.prep.seg, self.prep.bounds, par, self.st, self.e)
             self.flags[K.F_MAYBE_OVER] = 1
 
     # -- the loop -------------------------------------------------------------------------
