@@ -130,14 +130,6 @@ def main() -> None:
     for k in sorted(by_events):
         ts = by_events[k]
         print(f"    {k} event points: n={len(ts):4d}  median {statistics.median(ts) * 1e3:.3f} ms")
-    try:
-        from planner.stopping import sweep as stops  # the line-level sweep (issue 5 item 3), when it exists
-    except ImportError:
-        print("  line-level sweep: planner.stopping.sweep not available")
-    else:
-        sweep = getattr(stops, "benchmark_sample_line", None)
-        if sweep is not None:
-            sweep()
     safe_side_cost()
 
 

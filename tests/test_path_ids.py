@@ -1,4 +1,4 @@
-"""Ids that become file names or partition values: one rule (planner.line.schema.PATH_ID_RE), refused by
+"""Ids that become file names or partition values: one rule (planner.io.paths.PATH_ID_RE), refused by
 `validate` up front and checked again where paths are built; and a station beyond the line's end."""
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ def test_ids_within_the_rule_load(tmp_path, good):
 
 
 def test_writers_check_again_where_they_build_paths(tmp_path):
-    from planner.bundle.container import bundle_name
+    from planner.bundle.manifest import bundle_name
     from planner.io.parquet import write_partitioned
 
     table = pa.table({"line": ["tiny"], "direction": ["down"], "train_type": ["../../x"], "v": [1.0]})

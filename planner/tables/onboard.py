@@ -86,13 +86,14 @@ dispatched by :mod:`planner.tables.closed_loop` instead.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Protocol
 
 import numpy as np
 
 from planner.errors import InputError
-from planner.physics.run_curve import PHASE_POWER  # the run state's phase code (a constant; no simulation here)
+from planner.physics.run_curve import (  # the run state's phase code (a constant; no simulation here)
+    PHASE_POWER,
+)
 
 SAME_POINT_M = 1e-3
 """A decision within this distance [m] of an evaluation point is that point (grid round-off)."""
@@ -534,132 +535,4 @@ def make_controller(
 
 # --- reading the tables back (the vehicle's side) -------------------------------
 
-def load_tables(
-    tables_dir: str | Path, line_id: str, direction: str, train_type: str
-) -> dict[tuple[str, str], RunningTimeTables]:
-    """Read the ``eval_points``, ``table_a`` and ``table_b`` datasets of one line, direction, type.
 
-    Parameters
-    ----------
-    tables_dir : path
-        The ``--out`` folder of ``planner tables`` (holding ``table_a/`` etc.).
-    line_id, direction, train_type : str
-        Partition to read.
-
-    Returns
-    -------
-    dict
-        ``(origin, destination) -> RunningTimeTables`` in running order.
-
-    Raises
-    ------
-    InputError
-        Missing datasets or partitions, or tables that do not fit together.
-    """
-    from planner.io.parquet import read_dataset
-
-    root = Path(tables_dir)
-    out = {}
-    try:
-        ep = read_dataset(root, "eval_points", line=line_id, direction=direction, train_type=train_type).to_pandas()
-        ta = read_dataset(root, "table_a", line=line_id, direction=direction, train_type=train_type).to_pandas()
-        tb = read_dataset(root, "table_b", line=line_id, direction=direction, train_type=train_type).to_pandas()
-    except (FileNotFoundError, OSError) as e:
-        raise InputError(f"--tables {root}: cannot read the tables ({e}); run `planner tables` first") from None
-    tc = _optional(root, "table_c", line_id, direction, train_type)  # only the adaptive mode needs
-    td = _optional(root, "table_d", line_id, direction, train_type)  # tables (c) and (d)
-    if ta.empty:
-        raise InputError(
-            f"--tables {root}: no table_a rows for line={line_id} direction={direction} "
-            f"train_type={train_type}; run `planner tables` for it"
-        )
-    for (o, d), a in ta.groupby(["origin", "destination"], sort=False):
-        a = a.sort_values("ratio", ascending=False)
-        ratios = a["ratio"].to_numpy(float)
-        p = ep[(ep.origin == o) & (ep.destination == d)].sort_values("eval_distance_m")
-        b = tb[(tb.origin == o) & (tb.destination == d)]
-        n_r, n_x = len(ratios), len(p)
-        if len(b) != n_x * n_r * n_r:
-            raise InputError(
-                f"--tables {root}: table_b for {o}->{d} has {len(b)} rows, expected "
-                f"{n_x} points x {n_r}^2 ratios; rebuild the tables"
-            )
-        k = {pid: i for i, pid in enumerate(p["eval_point_id"])}
-        ri = {float(r): i for i, r in enumerate(ratios)}
-        rem = np.full((n_x, n_r, n_r), np.nan)
-        rem[b["eval_point_id"].map(k).to_numpy(), b["ratio_before"].map(ri).to_numpy(),
-            b["ratio_after"].map(ri).to_numpy()] = b["remaining_time_s"].to_numpy(float)
-        if np.isnan(rem).any():
-            raise InputError(f"--tables {root}: table_b for {o}->{d} is incomplete; rebuild the tables")
-        ref = spd = None
-        if tc is not None and not tc.empty:
-            c = tc[(tc.origin == o) & (tc.destination == d)]
-            if len(c) == n_x * n_r:
-                ref = np.full((n_x, n_r), np.nan)
-                ref[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
-                    c["remaining_time_ref_s"].to_numpy(float)
-                if np.isnan(ref).any():
-                    ref = None
-                if "speed_kmh" in c:
-                    spd = np.full((n_x, n_r), np.nan)
-                    spd[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
-                        c["speed_kmh"].to_numpy(float) / 3.6
-                    if np.isnan(spd).any():
-                        spd = None
-        out[(o, d)] = RunningTimeTables(
-            approach=_approach(td, o, d, p["eval_point_id"].iloc[-1], root) if td is not None and n_x > 1 else None,
-            origin=o,
-            destination=d,
-            ratios=ratios,
-            time_a_s=a["running_time_s"].to_numpy(float),
-            eval_point_ids=tuple(p["eval_point_id"]),
-            eval_distance_m=p["eval_distance_m"].to_numpy(float),
-            eval_position_m=p["eval_position_m"].to_numpy(float),
-            remaining_s=rem,
-            ref_remaining_s=ref,
-            speed_ms=spd,
-        )
-    return out
-
-
-def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str):
-    """One partition of an optional dataset as a DataFrame, or None when the dataset is absent."""
-    from planner.io.parquet import read_dataset
-
-    try:
-        df = read_dataset(root, name, line=line_id, direction=direction, train_type=train_type).to_pandas()
-    except (FileNotFoundError, OSError):
-        return None
-    return None if df.empty else df
-
-
-def _approach(td, origin: str, destination: str, last_point: str, root: Path) -> ApproachTable | None:
-    """Table (d) of one interstation from its dataset rows (None when it has none)."""
-    g = td[(td.origin == origin) & (td.destination == destination)]
-    if g.empty:
-        return None
-    if set(g["eval_point_id"]) != {last_point}:
-        raise InputError(f"--tables {root}: table_d for {origin}->{destination} is not at the last "
-                         f"evaluation point {last_point!r}; rebuild the tables")
-    speeds = np.sort(g["speed_kmh"].unique()) / 3.6
-    ratios = np.sort(g["ratio_after"].unique())[::-1]
-    powering = tuple(sorted({bool(x) for x in g["powering"]}, reverse=True))
-    n_p, n_v, n_a = len(powering), len(speeds), len(ratios)
-    if len(g) != n_p * n_v * n_a:
-        raise InputError(f"--tables {root}: table_d for {origin}->{destination} has {len(g)} rows, expected "
-                         f"{n_p} phases x {n_v} speeds x {n_a} ratios; rebuild the tables")
-    t = np.full((2, n_p, n_v, n_a), np.nan)
-    ip = g["powering"].map({p: i for i, p in enumerate(powering)}).to_numpy()
-    iv = np.searchsorted(speeds, g["speed_kmh"].to_numpy(float) / 3.6)
-    ia = g["ratio_after"].map({r: i for i, r in enumerate(ratios)}).to_numpy()
-    t[0, ip, iv, ia] = g["remaining_time_s"].to_numpy(float)
-    t[1, ip, iv, ia] = g["remaining_time_ref_s"].to_numpy(float)
-    if np.isnan(t).any():
-        raise InputError(f"--tables {root}: table_d for {origin}->{destination} is incomplete; rebuild the tables")
-    vmax = g["vmax_kmh"].unique() / 3.6 if "vmax_kmh" in g else np.array([np.inf])
-    if len(vmax) != 1:
-        raise InputError(f"--tables {root}: table_d for {origin}->{destination} has several vmax_kmh; "
-                         "rebuild the tables")
-    band = g["coast_band_kmh"].unique() / 3.6 if "coast_band_kmh" in g else np.array([0.0])
-    return ApproachTable(speeds_ms=speeds, powering=powering, ratios=ratios, time_s=t[0], ref_time_s=t[1],
-                         vmax_ms=float(vmax[0]), coast_band_ms=float(band[0]))
