@@ -23,7 +23,7 @@ ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
 
 Compiled lazily on first use, in memory only: no ``cache=True``, because
 numba's cache index is a pickle read back from disk, which the project does
-not trust. The compile costs about 2–3 s of CPU once per process
+not trust. The compile costs about 3 s of CPU once per process
 (``benchmarks/bench_kernel.py`` prints it); every argument type is fixed, so
 there is one compilation per process.
 """
