@@ -39,7 +39,7 @@ def sweep_sample_line(n_jobs: int = -1) -> dict:
     # solve time alone, from the approaches as set up (the simulation of v_start dominates the sweep)
     solves = []
     for r in results:
-        for a, dl in zip(r.adhesion_kmh_s, r.decel_limits):
+        for a, dl in zip(r.adhesion_ms2, r.decel_limits):
             if not dl:
                 continue
             t1 = time.perf_counter()
@@ -50,7 +50,7 @@ def sweep_sample_line(n_jobs: int = -1) -> dict:
     n_inf = sum(len(r.patterns) - r.n_feasible for r in results)
     lost = [t for r in results for t in r.time_lost_s if not math.isnan(t)]
     med = statistics.median(solves) * 1e3 if solves else math.nan
-    print(f"  sample line sweep: {len(results)} approaches x {len(results[0].adhesion_kmh_s) if results else 0} "
+    print(f"  sample line sweep: {len(results)} approaches x {len(results[0].adhesion_ms2) if results else 0} "
           f"adhesion levels = {n_pat} patterns ({n_inf} infeasible) in {wall:.2f} s wall "
           f"(n_jobs={n_jobs}); solve_stop median {med:.3f} ms on these approaches; "
           f"time lost vs best adhesion up to {max(lost) if lost else math.nan:.2f} s")

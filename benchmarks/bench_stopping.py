@@ -76,10 +76,10 @@ def safe_side_cost(step_m: float = 0.25) -> dict:
         g = dynamics.running_gradient(line.gradients, r.approach_start_m + sg * xs, tt.length_m, sg) * 1000.0
         lo = [(float(x), float(v)) for x, v in zip(xs[:-1], np.minimum(g[:-1], g[1:]))]
         hi = [(float(x), float(v)) for x, v in zip(xs[:-1], np.maximum(g[:-1], g[1:]))]
-        for a, p in zip(r.adhesion_kmh_s, r.patterns):
+        for a, p in zip(r.adhesion_ms2, r.patterns):
             if not p.feasible:
                 continue
-            fine = [approach.decel_limits(line, tt, r.direction, r.approach_start_m, X, a / 3.6, gs)
+            fine = [approach.decel_limits(line, tt, r.direction, r.approach_start_m, X, a, gs)
                     for gs in (lo, hi)]
             q_lo, q_hi = (solve_stop(r.v_start_ms, X, jerk_max=r.jerk_max_ms3, decel_limits=dl,
                                      speed_limits=r.speed_limits) for dl in fine)

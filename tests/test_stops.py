@@ -112,7 +112,7 @@ def test_fixed_approach_start_and_speed_of_the_minimum_time_run():
     assert r.run_phase == "power"
     assert r.speed_limits == ((0.0, 100.0 * KMH),)
     assert r.gradients_permil == ((0.0, 0.0),)
-    assert r.adhesion_kmh_s == DEFAULT_ADHESION_KMH_S
+    assert r.adhesion_ms2 == pytest.approx([a * KMH_S for a in DEFAULT_ADHESION_KMH_S], abs=1e-12)
     assert all(p.feasible for p in r.patterns) and r.warnings == ()
 
 
@@ -198,7 +198,8 @@ def test_too_short_approach_is_an_infeasible_row_with_a_warning():
     assert v * (v / A + A / 1.0) / 2.0 > 40.0
     assert r.n_feasible == 0 and math.isnan(r.best_duration_s)
     assert len(r.warnings) == len(LEVELS_MS2)
-    for a, p, msg in zip(r.adhesion_kmh_s, r.patterns, r.warnings):
+    for a, p, msg in zip(r.adhesion_ms2, r.patterns, r.warnings):
+        a = round(a / KMH_S, 9)  # the messages speak km/h/s, as the job file
         assert not p.feasible and "needs" in p.reason and "only 40.0 m" in p.reason
         for part in ("S1", "down", "train type T", f"adhesion {a:g} km/h/s", p.reason):
             assert part in msg
@@ -265,7 +266,7 @@ def test_datasets_read_back_with_hive_partitioning(tmp_path):
     f = pads.dataset(next(p for p in files if "stop_summary" in p.parts), format="parquet").schema
     assert f.field("duration_s").metadata[b"description"]
     rows = [r for r in summ.to_pylist() if r["station_id"] == "S1" and r["direction"] == "down"]
-    assert [r["adhesion_kmh_s"] for r in rows] == [2.75, 3.0, 3.25]
+    assert [r["adhesion_ms2"] for r in rows] == pytest.approx([2.75 * KMH_S, 3.0 * KMH_S, 3.25 * KMH_S], abs=1e-12)
     ref = next(r for r in results if r.station_id == "S1" and r.direction == "down")
     for row, p, lost in zip(rows, ref.patterns, ref.time_lost_s):
         assert row["feasible"] and row["reason"] == ""
@@ -277,7 +278,7 @@ def test_datasets_read_back_with_hive_partitioning(tmp_path):
     samp = pads.dataset(tmp_path / "stop_samples", format="parquet", partitioning="hive").to_table()
     assert set(STOP_SAMPLES_SCHEMA.names) <= set(samp.column_names)
     df = samp.to_pandas()
-    for (st, di, a), g in df.groupby(["station_id", "direction", "adhesion_kmh_s"]):
+    for (st, di, a), g in df.groupby(["station_id", "direction", "adhesion_ms2"]):
         g = g.sort_values("t_s")
         assert g.t_s.iloc[0] == 0.0 and np.all(np.diff(g.t_s) > 0) and np.diff(g.t_s).max() <= 0.1 + 1e-9
         assert g.distance_to_stop_m.iloc[-1] == pytest.approx(0.0, abs=END_X)
@@ -454,13 +455,13 @@ def sample_brake_demand(sample_sweep):
     for r in results:
         tt = line.train_type(r.train_type)
         sg = sign(r.direction)
-        for a, p in zip(r.adhesion_kmh_s, r.patterns):
+        for a, p in zip(r.adhesion_ms2, r.patterns):
             if not p.feasible:
                 continue
             s = p.sample(min(0.01, p.duration_s / 4000.0))
             gbar = dynamics.running_gradient(line.gradients, r.chainage_m(s.x_m), tt.length_m, sg)
             brake = -s.a_ms2 + dynamics.track_accel_ms2(gbar, 0.0, tt.rotating_mass_factor)
-            over.append(float(brake.max()) - min(r.comfort_ms2, a * KMH_S))
+            over.append(float(brake.max()) - min(r.comfort_ms2, a))
     return np.array(over)
 
 

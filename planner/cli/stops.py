@@ -33,6 +33,7 @@ def stops(
     from planner.line.loader import load_line
     from planner.stopping.sweep import InfeasibleStopWarning, adhesion_levels, stop_sweep
     from planner.datasets.stops import write_stops
+    from planner.line.units import KMH_S
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_codes
 
@@ -83,7 +84,7 @@ def stops(
         typer.echo(f"  time lost against the best adhesion: {min(lost):.2f} … {max(lost):.2f} s")
     partial = [r for r in results if r.n_feasible < len(r.patterns)]
     for r in partial[:12]:  # the warnings, one line per approach
-        bad = [(a, p) for a, p in zip(r.adhesion_kmh_s, r.patterns) if not p.feasible]
+        bad = [(a / KMH_S, p) for a, p in zip(r.adhesion_ms2, r.patterns) if not p.feasible]
         span = f"{bad[0][0]:g}" if len(bad) == 1 else f"{bad[0][0]:g} … {bad[-1][0]:g}"
         typer.echo(f"  warning: no pattern at {r.station_id} ({r.direction}, {r.train_type}, from {r.origin}) "
                    f"at adhesion {span} km/h/s; at {bad[0][0]:g}: {bad[0][1].reason}")

@@ -2,7 +2,7 @@
 level) and ``stop_samples`` (the feasible patterns sampled in time), their schemas and writer.
 
 Takes :class:`~planner.stopping.sweep.ApproachResult` s; gives Arrow tables and Parquet files
-partitioned by line, direction and train type. Railway units (km/h) only in the columns that say so.
+partitioned by line, direction and train type. Speeds in km/h (``*_kmh``), every acceleration in m/s² and jerk in m/s³, as the column names say.
 """
 from __future__ import annotations
 
@@ -28,9 +28,10 @@ STOP_SUMMARY_SCHEMA = declare(
         ("approach_length_m", pa.float64(), "distance from the approach start to the stop marker [m]"),
         ("v_start_kmh", pa.float64(), "speed of the minimum-time run (ratio 1.0, load 0) at the approach start [km/h]"),
         ("run_phase", pa.string(), "phase of that run at the approach start (power, hold, coast, brake, stop)"),
-        ("jerk_max_kmh_s2", pa.float64(), "jerk limit of the train type [km/h/s²]"),
-        ("comfort_kmh_s", pa.float64(), "comfort deceleration limit of the train type [km/h/s]"),
-        ("adhesion_kmh_s", pa.float64(), "adhesion-limited braking deceleration of this sweep level [km/h/s]"),
+        ("jerk_max_ms3", pa.float64(), "jerk limit of the train type [m/s³]"),
+        ("comfort_ms2", pa.float64(), "comfort deceleration limit of the train type [m/s²]"),
+        ("adhesion_ms2", pa.float64(), "adhesion-limited braking deceleration of this sweep level [m/s²] "
+                                       "(the job's [stops] adhesion_kmh_s level, in SI)"),
         ("feasible", pa.bool_(), "true when a pattern meeting every limit exists"),
         ("reason", pa.string(), "why there is no pattern (empty when feasible)"),
         ("duration_s", pa.float64(), "pattern duration from the approach start to standstill at the marker [s]"),
@@ -50,7 +51,7 @@ STOP_SUMMARY_SCHEMA = declare(
 STOP_SAMPLES_SCHEMA = declare(
     [
         ("station_id", pa.string(), "station of the stop"),
-        ("adhesion_kmh_s", pa.float64(), "adhesion level of the pattern [km/h/s]"),
+        ("adhesion_ms2", pa.float64(), "adhesion level of the pattern [m/s²]"),
         ("t_s", pa.float64(), "time from the approach start [s]"),
         ("position_m", pa.float64(), "chainage of the train front [m]"),
         ("distance_to_stop_m", pa.float64(), "distance from the front to the stop marker [m]"),
@@ -62,7 +63,7 @@ STOP_SAMPLES_SCHEMA = declare(
     description="Feasible stopping patterns sampled in time (exact values of the cubic pieces) (DESIGN §5).",
 )
 SCHEMAS = {"stop_summary": STOP_SUMMARY_SCHEMA, "stop_samples": STOP_SAMPLES_SCHEMA}
-SORT_BY = {"stop_summary": ("station_id", "adhesion_kmh_s"), "stop_samples": ("station_id", "adhesion_kmh_s", "t_s")}
+SORT_BY = {"stop_summary": ("station_id", "adhesion_ms2"), "stop_samples": ("station_id", "adhesion_ms2", "t_s")}
 
 
 def _nan_to_none(x: float):
@@ -82,15 +83,15 @@ def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_
     samp: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SAMPLES_SCHEMA.names)}
     for r in results:
         lost = r.time_lost_s
-        for a, p, tl in zip(r.adhesion_kmh_s, r.patterns, lost):
+        for a, p, tl in zip(r.adhesion_ms2, r.patterns, lost):
             row = {
                 "line": r.line_id, "direction": r.direction, "train_type": r.train_type,
                 "station_id": r.station_id, "origin": r.origin, "tasc_beacon_id": r.tasc_beacon_id,
                 "approach_start_m": r.approach_start_m, "stop_m": r.stop_m,
                 "approach_length_m": r.approach_length_m,
                 "v_start_kmh": _nan_to_none(kmh(r.v_start_ms)), "run_phase": r.run_phase,
-                "jerk_max_kmh_s2": kmh(r.jerk_max_ms3), "comfort_kmh_s": kmh(r.comfort_ms2),
-                "adhesion_kmh_s": a, "feasible": p.feasible, "reason": p.reason,
+                "jerk_max_ms3": r.jerk_max_ms3, "comfort_ms2": r.comfort_ms2,
+                "adhesion_ms2": a, "feasible": p.feasible, "reason": p.reason,
                 "duration_s": _nan_to_none(p.duration_s),
                 "brake_start_m": float(r.chainage_m(p.brake_start_m)) if p.feasible else None,
                 "brake_start_distance_m": _nan_to_none(p.braking_distance_m),
@@ -106,7 +107,7 @@ def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_
             samp["direction"] += [r.direction] * n
             samp["train_type"] += [r.train_type] * n
             samp["station_id"] += [r.station_id] * n
-            samp["adhesion_kmh_s"] += [a] * n
+            samp["adhesion_ms2"] += [a] * n
             samp["t_s"].append(s.t_s)
             samp["position_m"].append(r.chainage_m(s.x_m))
             samp["distance_to_stop_m"].append(r.approach_length_m - s.x_m)

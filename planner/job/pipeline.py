@@ -292,7 +292,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
     for r in stops:  # one line per approach, not per adhesion level
-        bad = [a for a, p in zip(r.adhesion_kmh_s, r.patterns) if not p.feasible]
+        bad = [a / KMH_S for a, p in zip(r.adhesion_ms2, r.patterns) if not p.feasible]  # km/h/s, as the job
         if bad:
             first = next(p for p in r.patterns if not p.feasible)
             levels = f"{bad[0]:g}" if len(bad) == 1 else f"{bad[0]:g}…{bad[-1]:g}"

@@ -16,6 +16,7 @@ import pyarrow as pa
 
 from planner.errors import InputError
 from planner.io.parquet import declare, read_dataset, write_partitioned
+from planner.line.units import KMH_S
 
 MARGINS_SCHEMA = declare(
     [
@@ -69,8 +70,8 @@ MARGINS_SCHEMA = declare(
          "nominal stop over the same approach with the bad day's stop model: the stopping pattern from the nominal "
          "minimum run's speed at the highest adhesion of the sweep, or the stopping brake when the adhesion effect "
          "is off [s]"),
-        ("adhesion_min_kmh_s", pa.float64(),
-         "adhesion of the bad day's stop: [margins] degraded_adhesion_kmh_s, else the sweep's lowest level [km/h/s]"),
+        ("adhesion_min_ms2", pa.float64(),
+         "adhesion of the bad day's stop: [margins] degraded_adhesion_kmh_s, else the sweep's lowest level [m/s²]"),
         ("adhesion_loss_s", pa.float64(),
          "stopping-pattern duration at the lowest minus at the highest adhesion, nominal approach speed [s]"),
         ("infeasible", pa.bool_(), "flag: scheduled < degraded minimum"),
@@ -207,8 +208,8 @@ def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:
     except (FileNotFoundError, OSError, pa.ArrowInvalid) as e:
         raise InputError(f"--stops {stops_dir}: cannot read the stop_summary dataset ({e}); run "
                          "`planner stops LINE --out DIR` first or leave --stops out") from None
-    if "adhesion_kmh_s" not in t.column_names or t.num_rows == 0:
-        raise InputError(f"--stops {stops_dir}: stop_summary has no adhesion_kmh_s rows for line {line_id}; "
+    if "adhesion_ms2" not in t.column_names or t.num_rows == 0:
+        raise InputError(f"--stops {stops_dir}: stop_summary has no adhesion_ms2 rows for line {line_id}; "
                          "rebuild it with `planner stops`")
-    vals = np.asarray(t.column("adhesion_kmh_s").to_numpy(zero_copy_only=False), dtype=float)
-    return np.unique(np.round(vals[np.isfinite(vals)], 9))
+    vals = np.asarray(t.column("adhesion_ms2").to_numpy(zero_copy_only=False), dtype=float) / KMH_S
+    return np.unique(np.round(vals[np.isfinite(vals)], 9))  # the levels as the job file spells them

@@ -117,7 +117,7 @@ import numpy as np
 from planner.errors import InputError
 from planner.io.parallel import map_tasks
 from planner.line.model import DIRECTIONS, Line, sign
-from planner.line.units import KMH, kmh
+from planner.line.units import KMH, KMH_S, kmh
 from planner.report.leg_margin import LegResult, leg_result
 from planner.report.margin_datasets import MARGINS_SCHEMA, closed_loop_index, read_energy, stops_adhesion
 from planner.report.margin_rule import TOTALS_COLUMNS, MarginRule, margin_columns, margin_totals
@@ -451,7 +451,7 @@ def _leg_columns(line: Line, r: LegResult) -> dict:
         "pattern_start_source": r.pattern_source,
         "pattern_start_speed_degraded_kmh": kmh(r.v_pattern_degraded_ms),
         "stop_time_degraded_s": r.stop_time_degraded_s, "stop_time_nominal_s": r.stop_time_nominal_s,
-        "adhesion_min_kmh_s": r.adhesion_min_kmh_s, "adhesion_loss_s": r.adhesion_loss_s,
+        "adhesion_min_ms2": r.adhesion_min_kmh_s * KMH_S, "adhesion_loss_s": r.adhesion_loss_s,
         "tables_source": r.tables_source, "note": r.note,
     }
 

@@ -193,7 +193,7 @@ def curves_chart(report) -> str:
                   f"ratio 100 % — {row.degraded_min_running_time_s:.1f} s")
     if "pattern_position_m" in c:
         ax.plot(c["pattern_position_m"] / 1000.0, c["pattern_speed_kmh"], color="#c62828", lw=1.5, ls="--",
-                label=f"stopping pattern at adhesion {row.adhesion_min_kmh_s:g} km/h/s\n  — {row.stop_time_degraded_s:.1f} s")
+                label=f"stopping pattern at adhesion {row.adhesion_min_ms2 / KMH_S:g} km/h/s\n  — {row.stop_time_degraded_s:.1f} s")
     ps = c["pattern_start_m"] / 1000.0
     ax.axvline(ps, color="#c62828", lw=0.8, ls=":")
     ax.text(ps, 3, " pattern start", color="#c62828", fontsize=8, ha="left", va="bottom")
@@ -414,7 +414,7 @@ def approach_chart(result, path: str | Path) -> Path:
     plt = _agg()
     path = Path(path)
     X = result.approach_length_m
-    levels = result.adhesion_kmh_s
+    levels = [a / KMH_S for a in result.adhesion_ms2]  # km/h/s, as the job spells them
     norm = colors.Normalize(vmin=min(levels), vmax=max(levels) if max(levels) > min(levels) else min(levels) + 1)
     cmap = matplotlib.colormaps["viridis"]
     fig, (ax_v, ax_a, ax_j) = plt.subplots(3, 1, sharex=True, figsize=(10, 8.5), layout="constrained",

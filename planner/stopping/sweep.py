@@ -185,8 +185,8 @@ class ApproachResult:
         Gradient averaged over the train, positive rising in the running
         direction, each linear piece at its least favourable value
         (:func:`planner.stopping.approach.gradient_steps`).
-    adhesion_kmh_s : tuple of float
-        The adhesion levels [km/h/s], ascending.
+    adhesion_ms2 : tuple of float
+        The adhesion levels (adhesion-limited braking decelerations) [m/s²], ascending.
     decel_limits : tuple
         Per level, the deceleration limit step function ``((x_from_m, decel_ms2), ...)``,
         or ``()`` when the gradient leaves no deceleration.
@@ -211,7 +211,7 @@ class ApproachResult:
     comfort_ms2: float
     speed_limits: tuple[tuple[float, float], ...]
     gradients_permil: tuple[tuple[float, float], ...]
-    adhesion_kmh_s: tuple[float, ...]
+    adhesion_ms2: tuple[float, ...]
     decel_limits: tuple[tuple[tuple[float, float], ...], ...]
     patterns: tuple[StopPattern, ...]
     warnings: tuple[str, ...]
@@ -310,7 +310,7 @@ def approach_patterns(
     common = dict(line_id=line.line_id, train_type=train_type, direction=direction, origin=origin,
                   station_id=destination, stop_m=float(stop), approach_start_m=float(x0 + sg * s_a),
                   approach_length_m=float(X), tasc_beacon_id=start.beacon_id,
-                  jerk_max_ms3=J, comfort_ms2=comfort, adhesion_kmh_s=levels_kmh_s)
+                  jerk_max_ms3=J, comfort_ms2=comfort, adhesion_ms2=tuple(float(a) for a in levels_ms2))
 
     def all_infeasible(reason: str, v0: float, phase: str, sl=(), grads=()) -> ApproachResult:
         pats = tuple(StopPattern(False, reason, v_start_ms=v0, x_stop_m=max(X, 0.0), jerk_max_ms3=J)
