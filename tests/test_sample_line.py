@@ -258,7 +258,8 @@ def test_tasc_before_every_arrival_stop_marker(db):
         assert len(tasc) == len(arrivals)
         for stop in arrivals[col]:
             before = sg * (stop - tasc)
-            assert ((before >= 500) & (before <= 600)).any(), (direction, stop)
+            # lines/sample/README.md: at least 550 m, in whole 50 m, no farther than a block
+            assert ((before >= 550) & (before <= 1000) & (before % 50 == 0)).any(), (direction, stop)
 
 
 def test_pattern_update_beacons_before_beaconed_restrictions(db):

@@ -754,30 +754,42 @@ def signal_layout(direction: str) -> list[tuple[float, str]]:
 def tasc_distance_m(stop_m: float, direction: str, limits: list[dict]) -> float:
     """How far before the stop marker the TASC beacon of ``direction`` must stand [m].
 
-    A real line puts the TASC beacon where the stopping pattern can start from the
-    approach speed: here the braking curve back from the stop marker at the weakest
-    adhesion the nightly sweep assumes (``TASC_ADHESION_KMH_S``), less the falling
-    gradient's pull (``g·i/(1+ρ)``, the lowest rotating-mass factor) and capped by every
-    restriction on the way, must reach the line speed; plus the distance run while the
-    brake builds up at the fleet's lowest jerk, 10 % margin, rounded up to 50 m, and
-    never nearer than ``TASC_DISTANCE_M``.
+    A real line puts the TASC beacon where a train at the highest speed allowed
+    there can still follow a stopping pattern to the marker. Here: the braking
+    curve back from the marker at the weakest adhesion the nightly sweep assumes
+    (``TASC_ADHESION_KMH_S``), less a falling gradient's pull (``g·i/(1+ρ)``, the
+    lowest rotating-mass factor) and capped by every restriction on the way, must
+    reach the speed allowed at the beacon (line speed, or a restriction the beacon
+    stands in) after the distance run while the brake builds up at the fleet's
+    lowest jerk and 10 % margin. The nearest such point at least ``TASC_DISTANCE_M``
+    out, in whole 50 m.
     """
     sg = 1.0 if direction == "down" else -1.0      # down runs towards rising chainage
     rho = min(p["rot"] for p in TRAIN_TYPES.values())
     a_adh = TASC_ADHESION_KMH_S / 3.6
+    j_min = TASC_JERK_KMH_S2 / 3.6
     v_line = MAX_SPEED_KMH / 3.6
     caps = [(min(r["start_m"], r["end_m"]), max(r["start_m"], r["end_m"]), r["limit_kmh"] / 3.6)
             for r in limits if r["direction"] in ("both", direction)]
-    w, y, ds = 0.0, 0.0, 1.0
-    while w < v_line ** 2:
-        x = stop_m - sg * (y + 0.5 * ds)                 # chainage, y metres before the marker
+
+    def allowed(y: float) -> float:
+        x = stop_m - sg * y                               # chainage, y metres before the marker
+        return min([v_line] + [v for lo, hi, v in caps if lo <= x <= hi])
+
+    ds, n = 1.0, 3000
+    brake = np.zeros(n + 1)                               # v² of the braking curve, y = k·ds before the marker
+    for k in range(n):
+        x = stop_m - sg * (k + 0.5) * ds
         rise = sg * sum(g for a, b, g in GRADIENTS if a <= x < b) / 1000.0
         a = a_adh + G * rise / (1.0 + rho)               # a rising approach helps the brake
-        cap = min([v_line] + [v for lo, hi, v in caps if lo <= x <= hi])
-        w = min(w + 2.0 * a * ds, cap * cap)
-        y += ds
-    y += v_line * a_adh / (2.0 * TASC_JERK_KMH_S2 / 3.6)  # the brake building up
-    return max(TASC_DISTANCE_M, math.ceil(y * TASC_MARGIN / TASC_ROUND_M) * TASC_ROUND_M)
+        brake[k + 1] = min(brake[k] + 2.0 * a * ds, allowed((k + 1) * ds) ** 2)
+    y = TASC_DISTANCE_M
+    while True:
+        v = allowed(y)
+        y_eff = (y - v * a_adh / (2.0 * j_min)) / TASC_MARGIN   # brake build-up, then 10 %
+        if brake[min(int(y_eff / ds), n)] >= v * v - 1e-9:
+            return y
+        y += TASC_ROUND_M
 
 
 def signals_and_beacons(limits: list[dict]) -> tuple[list[dict], list[dict]]:
