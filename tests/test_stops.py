@@ -314,7 +314,8 @@ def test_sample_line_sweep_meets_every_limit(sample_sweep):
     n_checked = 0
     for r in results:
         assert r.tasc_beacon_id.startswith(("D-TASC", "U-TASC"))  # every arrival has its TASC beacon
-        assert r.approach_length_m == pytest.approx(550.0)
+        beacon = next(b for b in line.beacons if b.beacon_id == r.tasc_beacon_id)
+        assert r.approach_length_m == pytest.approx(float(beacon.telegram.rsplit(":", 1)[1]))  # the TASC distance
         for k, p in enumerate(r.patterns):
             if p.feasible:
                 assert_meets_limits(r, k)

@@ -159,7 +159,12 @@ SIGNAL_BEACON_OFFSET_M = 20.0      # ATS-P signal beacon this far before its sig
 PU_DISTANCE_M = 450.0              # pattern-update beacon before a restriction
 PU_DISTANCE_RANGE_M = (300.0, 600.0)
 PU_AFTER_STOP_M = 15.0             # ... or this far past a stop marker in between
-TASC_DISTANCE_M = 550.0            # TASC beacon before every stop marker
+TASC_DISTANCE_M = 550.0            # TASC beacon before every stop marker: at least this far out ...
+TASC_ADHESION_KMH_S = 2.5          # ... and far enough that a train at line speed stops from it at the weakest
+                                   # adhesion of the nightly stop sweep (jobs/nightly.toml [stops]), see tasc_distance_m
+TASC_JERK_KMH_S2 = 2.0             # the fleet's lowest jerk limit (the brake builds up no faster)
+TASC_MARGIN = 1.10                 # 10 % on the braking distance
+TASC_ROUND_M = 50.0                # beacon distances in whole 50 m
 BEACON_MIN_GAP_M = 30.0            # two beacons of one direction at least this far apart
 # Automatic block signals on the Ogawa river bridge section were resignalled with
 # ground coils that send a generic telegram (no signal number): consecutive
@@ -746,6 +751,47 @@ def signal_layout(direction: str) -> list[tuple[float, str]]:
     return out
 
 
+def tasc_distance_m(stop_m: float, direction: str, limits: list[dict]) -> float:
+    """How far before the stop marker the TASC beacon of ``direction`` must stand [m].
+
+    A real line puts the TASC beacon where a train at the highest speed allowed
+    there can still follow a stopping pattern to the marker. Here: the braking
+    curve back from the marker at the weakest adhesion the nightly sweep assumes
+    (``TASC_ADHESION_KMH_S``), less a falling gradient's pull (``g·i/(1+ρ)``, the
+    lowest rotating-mass factor) and capped by every restriction on the way, must
+    reach the speed allowed at the beacon (line speed, or a restriction the beacon
+    stands in) after the distance run while the brake builds up at the fleet's
+    lowest jerk and 10 % margin. The nearest such point at least ``TASC_DISTANCE_M``
+    out, in whole 50 m.
+    """
+    sg = 1.0 if direction == "down" else -1.0      # down runs towards rising chainage
+    rho = min(p["rot"] for p in TRAIN_TYPES.values())
+    a_adh = TASC_ADHESION_KMH_S / 3.6
+    j_min = TASC_JERK_KMH_S2 / 3.6
+    v_line = MAX_SPEED_KMH / 3.6
+    caps = [(min(r["start_m"], r["end_m"]), max(r["start_m"], r["end_m"]), r["limit_kmh"] / 3.6)
+            for r in limits if r["direction"] in ("both", direction)]
+
+    def allowed(y: float) -> float:
+        x = stop_m - sg * y                               # chainage, y metres before the marker
+        return min([v_line] + [v for lo, hi, v in caps if lo <= x <= hi])
+
+    ds, n = 1.0, 3000
+    brake = np.zeros(n + 1)                               # v² of the braking curve, y = k·ds before the marker
+    for k in range(n):
+        x = stop_m - sg * (k + 0.5) * ds
+        rise = sg * sum(g for a, b, g in GRADIENTS if a <= x < b) / 1000.0
+        a = a_adh + G * rise / (1.0 + rho)               # a rising approach helps the brake
+        brake[k + 1] = min(brake[k] + 2.0 * a * ds, allowed((k + 1) * ds) ** 2)
+    y = TASC_DISTANCE_M
+    while True:
+        v = allowed(y)
+        y_eff = (y - v * a_adh / (2.0 * j_min)) / TASC_MARGIN   # brake build-up, then 10 %
+        if brake[min(int(y_eff / ds), n)] >= v * v - 1e-9:
+            return y
+        y += TASC_ROUND_M
+
+
 def signals_and_beacons(limits: list[dict]) -> tuple[list[dict], list[dict]]:
     """Block signals and ATS-P / TASC beacons of both directions.
 
@@ -780,10 +826,12 @@ def signals_and_beacons(limits: list[dict]) -> tuple[list[dict], list[dict]]:
         def free(x):
             return START_M <= x <= END_M and all(abs(x - y) >= BEACON_MIN_GAP_M for y in taken)
 
-        # --- TASC: ~550 m before every stop marker a train of this direction arrives at
+        # --- TASC: before every stop marker a train of this direction arrives at, far enough out
+        # for the approach speed (tasc_distance_m), moved out by 10 m steps if a beacon stands there
         n_tasc = 0
         for s in order[1:]:
-            for d in (TASC_DISTANCE_M + 10.0 * k * (-1) ** k for k in range(0, 12)):
+            need = tasc_distance_m(s[col], direction, limits)
+            for d in (need + 10.0 * k for k in range(0, 12)):
                 x = _ahead(direction, s[col], -d)
                 if free(x):
                     break
