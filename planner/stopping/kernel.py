@@ -141,35 +141,38 @@ def _forward(st, ns, v0, X, y_r, out):
     out[2], out[3], out[4], out[5] = T, X - y_r, y_r, n
 
 
-@jit(nt.none(f8, f8, f8, STEPS, i8, b1, V), public=True)
+@jit(i8(f8, f8, f8, STEPS, i8, b1, V), public=True)
 def kernel(v0, X, J, steps, n_dl, optimize, out):
     """Solve one stop: ``steps`` holds the decel limits (first ``n_dl`` rows) then the speed limits.
 
-    Writes ``out[0]`` the code (OK, an infeasibility or a bad input), ``out[1]`` an index or
-    position for the message, and for OK (or NEEDS_MORE: the distance in ``out[4]``) the pattern.
+    Returns the number of pieces ``n`` of the pattern, or minus a code (an infeasibility or a bad
+    input). Writes ``out[0]`` the code (OK or that code), ``out[1]`` an index or position for the
+    message, and for OK: ``out[2:5]`` the duration, brake start and braking distance, ``out[5]``
+    ``n`` and from ``out[HEAD]`` the breakpoints t, x, v, a (``n + 1`` each) then the jerks (``n``);
+    for NEEDS_MORE the braking distance needed in ``out[4]``.
     """
     out[1] = 0.0
     if not (math.isfinite(v0) and v0 >= 0.0):
         out[0] = BAD_V_START
-        return
+        return -int(out[0])
     if not (math.isfinite(X) and X >= 0.0):
         out[0] = BAD_X_STOP
-        return
+        return -int(out[0])
     if not (math.isfinite(J) and J > 0.0):
         out[0] = BAD_JERK
-        return
+        return -int(out[0])
     n = steps.shape[0]
     code, i = check_steps(steps, 0, n_dl, 1)
     if code:
         out[0], out[1] = BAD_DECEL + code, i
-        return
+        return -int(out[0])
     code, i = check_steps(steps, n_dl, n, 0)
     if code:
         out[0], out[1] = BAD_SPEED + code, i
-        return
+        return -int(out[0])
     if v0 > steps[n_dl, 1]:
         out[0] = START_ABOVE_LIMIT
-        return
+        return -int(out[0])
     # the running minimum of the speed limit over [0, x) for x < x_stop (a <= 0: speed never rises)
     cap = v0
     for i in range(n_dl, n):
@@ -179,15 +182,15 @@ def kernel(v0, X, J, steps, n_dl, optimize, out):
             cap = steps[i, 1]
         if cap <= 0.0 and v0 > 0.0:
             out[0], out[1] = ZERO_LIMIT, steps[i, 0]
-            return
+            return -int(out[0])
     if v0 == 0.0:
         if X == 0.0:
             out[0], out[2], out[3], out[4], out[5] = OK, 0.0, 0.0, 0.0, 0.0
             for k in range(4):
                 out[HEAD + k] = 0.0
-            return
+            return 0
         out[0] = STANDING
-        return
+        return -int(out[0])
     Yb, A, C = _regions(v0, X, steps, n_dl)
     cap_nodes = 8 * A.size + 64
     st = np.empty((N_SLOTS, 6, cap_nodes))
@@ -209,12 +212,13 @@ def kernel(v0, X, J, steps, n_dl, optimize, out):
             status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, True)
     if status != DONE:
         out[0] = INTERNAL
-        return
+        return -int(out[0])
     if y_r > X * (1.0 + 1e-12) + 1e-9:
         out[0], out[4] = NEEDS_MORE, y_r
-        return
+        return -int(out[0])
     out[0] = OK
     _forward(st, ns, v0, X, _pmin(y_r, X), out)
+    return int(out[5])
 
 
 def out_size(n_steps: int) -> int:

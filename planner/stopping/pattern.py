@@ -93,6 +93,7 @@ References: DESIGN §5 (event-point constant-jerk stopping pattern method).
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
@@ -374,6 +375,7 @@ def decel_limit_profile(
 # --------------------------------------------------------------------------------------
 
 _new = object.__new__
+_local = threading.local()
 _k = None  # planner.stopping.kernel, imported (and so compiled) on the first solve
 
 
@@ -458,20 +460,28 @@ def solve_stop(
         v0, X, J, steps, n_dl = _request(v_start, x_stop, jerk_max, decel_limits, speed_limits)
     else:
         n_dl = len(decel_limits)
-    out = np.empty(k.out_size(steps.shape[0]))
-    k.kernel(v0, X, J, steps, n_dl, rule == "min-time", out)
-    if out[0] != k.OK:
-        return _not_solved(int(out[0]), out, v0, X, J, steps, n_dl)
-    n = int(out[5])  # pieces; then t, x, v, a (n + 1 each) and j (n) from out[HEAD]
-    vals = out[:k.HEAD + 5 * n + 4].tolist()
-    b = (k.HEAD, k.HEAD + n + 1, k.HEAD + 2 * n + 2, k.HEAD + 3 * n + 3, k.HEAD + 4 * n + 4)
-    p = _new(StopPattern)  # as StopPattern(...) would, minus its ~2.5 µs of frozen per-field setattr
+    out = _out_buffer(k.out_size(steps.shape[0]))
+    n = k.kernel(v0, X, J, steps, n_dl, rule == "min-time", out)
+    if n < 0:
+        return _not_solved(-n, out, v0, X, J, steps, n_dl)
+    vals = out[:k.HEAD + 5 * n + 4].tolist()  # head, then t, x, v, a (n + 1 each) and j (n)
+    b = k.HEAD
+    m = n + 1
+    p = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
     p.__dict__.update(
         feasible=True, reason="", v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J, duration_s=vals[2],
-        brake_start_m=vals[3], braking_distance_m=vals[4], t_s=tuple(vals[b[0]:b[1]]),
-        x_m=tuple(vals[b[1]:b[2]]), v_ms=tuple(vals[b[2]:b[3]]), a_ms2=tuple(vals[b[3]:b[4]]),
-        j_ms3=tuple(vals[b[4]:]))
+        brake_start_m=vals[3], braking_distance_m=vals[4], t_s=tuple(vals[b:b + m]),
+        x_m=tuple(vals[b + m:b + 2 * m]), v_ms=tuple(vals[b + 2 * m:b + 3 * m]),
+        a_ms2=tuple(vals[b + 3 * m:b + 4 * m]), j_ms3=tuple(vals[b + 4 * m:]))
     return p
+
+
+def _out_buffer(size: int) -> np.ndarray:
+    """This thread's output array for the kernel, at least ``size`` long (the kernel runs without the GIL)."""
+    buf = getattr(_local, "out", None)
+    if buf is None or buf.size < size:
+        buf = _local.out = np.empty(max(size, 4096))
+    return buf
 
 
 def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
