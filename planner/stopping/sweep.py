@@ -699,7 +699,7 @@ def benchmark_sample_line(n_jobs: int = -1) -> dict:
 
     from planner.line.loader import load_line
 
-    root = Path(__file__).resolve().parents[1] / "lines" / "sample"
+    root = Path(__file__).resolve().parents[2] / "lines" / "sample"
     line = load_line(root)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
