@@ -309,27 +309,25 @@ def _run(st, ns, J, X, Yb, A, C, capnext, entry, optimize, pend):
     return NO_PROGRESS, _INF
 
 
-@jit(f8(ST, NS, f8, f8, V, V, V, V, V, V))
-def _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend):
+@jit(f8(ST, NS, f8, f8, V, V, V, V, V, V, i8, f8, i8, b1, f8))
+def _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, enter, b_s):
     """Finish the construction with the entries chosen so far; the pattern duration minus X/v0.
 
-    ``tau_end - y_r / v0``: the duration up to a constant when the braking fits
-    (``y_r <= X``); past that, the needed distance counts first.
+    With ``enter`` the working construction is first the one before the step-down of
+    region ``r`` (slot BEFORE) entered with deceleration ``b_s`` (inf when that fails);
+    else it is taken as it is. ``tau_end - y_r / v0``: the duration up to a
+    constant when the braking fits (``y_r <= X``); past that, the needed distance counts first.
+    One function for both (not two): every compiled function costs compile time.
     """
+    if enter:
+        _copy(st, ns, BEFORE, W)
+        if not _enter_braking(st, ns, J, Yb, A, C, capnext, i_v, s_v, r, b_s):
+            return _INF
     status, y_r = _run(st, ns, J, X, Yb, A, C, capnext, entry, False, pend)
     if status != DONE or ns[FLAGS]:
         return _INF
     t = st[W, TAU, ns[W] - 1] - y_r / C[A.size - 1]
     return t if y_r <= X else 1e9 + (y_r - X)
-
-
-@jit(f8(ST, NS, f8, f8, V, V, V, V, V, V, i8, f8, i8, f8))
-def _trial(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, b_s):
-    """The objective of entering the step-down of region r with deceleration ``b_s``."""
-    _copy(st, ns, BEFORE, W)
-    if not _enter_braking(st, ns, J, Yb, A, C, capnext, i_v, s_v, r, b_s):
-        return _INF
-    return _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend)
 
 
 @jit(nt.none(ST, NS, f8, f8, V, V, V, V, V, V, i8, f8, i8))
@@ -347,12 +345,12 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     others' (coordinate descent).
     """
     _copy(st, ns, W, PAPER)
-    f0 = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend)
+    f0 = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, False, 0.0)
     hi = _pmin(A[_region_of(Yb, capnext[r])], math.sqrt(2.0 * J * C[r]) * 0.999)
     a, b, xtol = 0.0, hi, 5e-3 * hi
     g = 0.5 * (3.0 - math.sqrt(5.0))
     x = w = v = a + g * (b - a)
-    fx = fw = fv = _trial(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, x)
+    fx = fw = fv = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, True, x)
     d = e = 0.0
     for _ in range(12):
         m = 0.5 * (a + b)
@@ -378,7 +376,7 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
             e = (a - x) if x >= m else (b - x)
             d = g * e
         u = x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
-        fu = _trial(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, u)
+        fu = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, True, u)
         if fu <= fx:
             if u >= x:
                 a = x
