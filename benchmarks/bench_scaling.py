@@ -36,11 +36,14 @@ MEMORY_RATIO_TARGET = 3.0
 _MEASURE = r"""
 import json, resource, subprocess, sys, time
 t0 = time.perf_counter()
-p = subprocess.run(sys.argv[2:], cwd=sys.argv[1], capture_output=True, text=True)
+with open(sys.argv[1] + "/run.log", "w") as log:
+    p = subprocess.run(sys.argv[2:], cwd=sys.argv[1], stdout=log, stderr=subprocess.STDOUT)
 wall = time.perf_counter() - t0
 ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+with open(sys.argv[1] + "/run.log") as log:
+    tail = log.read()[-4000:]
 print(json.dumps({"rc": p.returncode, "wall_s": wall, "maxrss_kb": ru.ru_maxrss,
-                  "cpu_s": ru.ru_utime + ru.ru_stime, "out": p.stdout[-4000:], "err": p.stderr[-4000:]}))
+                  "cpu_s": ru.ru_utime + ru.ru_stime, "log": tail}))
 """
 
 
@@ -55,7 +58,7 @@ def job_folder(base: Path, line_dir: Path) -> Path:
 
 
 def run_job(base: Path) -> dict:
-    """``planner run jobs/nightly.toml`` in ``base``, measured by a parent process of its own."""
+    """``planner run jobs/nightly.toml`` in ``base``, measured by a parent process of its own (log: base/run.log)."""
     planner = Path(sys.executable).with_name("planner")
     out = subprocess.run([sys.executable, "-c", _MEASURE, str(base), str(planner), "run", "jobs/nightly.toml"],
                          capture_output=True, text=True, check=True)
@@ -74,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
         for name, line_dir in (("sample", ROOT / "lines" / "sample"), (big.name, big)):
             r = run_job(job_folder(work / f"job-{name}", line_dir))
             results[name] = r
-            status = "ok" if r["rc"] == 0 else f"FAILED (exit {r['rc']}): {r['err'][-600:]}"
+            status = "ok" if r["rc"] == 0 else f"FAILED (exit {r['rc']}): {r['log'][-600:]}"
             print(f"  {name:12s} wall {r['wall_s']:7.1f} s   CPU {r['cpu_s']:7.1f} s   "
                   f"peak RSS {r['maxrss_kb'] / 1024:7.1f} MB   {status}", flush=True)
         s, b = results["sample"], results[big.name]
