@@ -340,7 +340,7 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     golden section with parabolic steps, to 0.5 % of its range, a few 1e-3 m/s²;
     the duration is flat at the optimum, so its error is some 1e-4 s), each trial
     finishing the construction with the entries already chosen at the step-downs
-    further back (else the paper's rule); :func:`construct` repeats the whole
+    further back (else the paper's rule); :func:`planner.stopping.kernel.kernel` repeats the whole
     construction once when there are several step-downs, so each choice sees the
     others' (coordinate descent).
     """

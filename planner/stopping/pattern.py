@@ -78,7 +78,7 @@ not the minimum: the optimum enters the restriction still braking with some
 ``b_s``, eases off inside it and cruises slightly below the limit
 (``C - b_s²/2J``); the time lost inside is paid back by braking later before
 it. The construction takes ``b_s`` by a one-dimensional minimisation of the
-duration (:meth:`_Builder._best_entry`, Brent's method; each trial finishes the
+duration (:func:`planner.stopping.construct._best_entry`, Brent's method; each trial finishes the
 construction), and with several step-downs runs once more so that each choice
 sees the others'. The choice also shortens the braking distance, so approaches
 that the paper's rule declares infeasible by less than an easing-off distance
@@ -87,6 +87,14 @@ can get a pattern. ``rule="paper"`` keeps the paper's rule for comparison.
 time-discretised MILP: no slower, and within 0.01 s. Not covered: a step-down
 met without a cruise (the ease-off would end past the restriction start) is
 still entered at exactly the limit speed with the deceleration that gives.
+
+Code. This module is the public face (the result, input checks, the
+deceleration rule, :func:`solve_stop`); the construction runs compiled with
+numba: :mod:`planner.stopping.kernel` (the request, regions, forward
+breakpoints), :mod:`planner.stopping.construct` (the motions, the fixes, the
+entry choice) and :mod:`planner.stopping.pieces` (closed forms and roots of a
+piece). It is compiled on the first solve of a process, some seconds
+(``benchmarks/bench_stopping.py`` prints it); a solve then costs microseconds.
 
 References: DESIGN §5 (event-point constant-jerk stopping pattern method).
 """
