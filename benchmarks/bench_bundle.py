@@ -26,7 +26,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.bundle import container as bundle, signing  # noqa: E402
+from planner.bundle.assemble import assemble  # noqa: E402
+from planner.bundle.container import build_bundle  # noqa: E402
+from planner.bundle.manifest import Release  # noqa: E402
+from planner.bundle.verify import verify_bundle  # noqa: E402
+from planner.bundle import signing  # noqa: E402
 
 
 def _tables_dir(line, args, scratch: Path) -> Path | None:
@@ -35,7 +39,8 @@ def _tables_dir(line, args, scratch: Path) -> Path | None:
     if args.no_tables:
         return None
     try:
-        from planner.tables.build import build_tables, write_tables
+        from planner.tables.build import build_tables
+        from planner.datasets.tables import write_tables
     except ImportError as e:
         print(f"  running-time tables: not available ({e})")
         return None
@@ -51,7 +56,8 @@ def _stops_dir(line, args, scratch: Path) -> Path | None:
     if args.no_stops:
         return None
     try:
-        from planner.stopping.sweep import stop_sweep, write_stops
+        from planner.stopping.sweep import stop_sweep
+        from planner.datasets.stops import write_stops
     except ImportError as e:
         print(f"  stopping patterns: not available ({e})")
         return None
@@ -79,24 +85,24 @@ def main() -> None:
         scratch = Path(d)
         priv, pub = signing.generate_keypair(scratch / "keys")
         key, pubkey = signing.load_private_key(priv), signing.load_public_key(pub)
-        release = bundle.Release.issue()  # built now, valid 30 days: verify below accepts it
+        release = Release.issue()  # built now, valid 30 days: verify below accepts it
         tables_dir = _tables_dir(line, args, scratch)
         stops_dir = _stops_dir(line, args, scratch)
         rows = []
         for direction in ("down", "up"):
             for tt in (t.train_type for t in line.train_types):
                 t0 = time.perf_counter()
-                tables = bundle.assemble(line, direction, tt, tables_dir=tables_dir, stops_dir=stops_dir)
+                tables = assemble(line, direction, tt, tables_dir=tables_dir, stops_dir=stops_dir)
                 t1 = time.perf_counter()
-                info = bundle.build_bundle(tables, line_id=line.line_id, direction=direction, train_type=tt,
-                                           out_dir=scratch / "out", private_key=key,
-                                           line_digest=line.source_digest, release=release,
-                                           line_schema_version=line.schema_version)
+                info = build_bundle(tables, line_id=line.line_id, direction=direction, train_type=tt,
+                                    out_dir=scratch / "out", private_key=key,
+                                    line_digest=line.source_digest, release=release,
+                                    line_schema_version=line.schema_version)
                 t2 = time.perf_counter()
                 best = float("inf")
                 for _ in range(max(args.repeat, 1)):
                     v0 = time.perf_counter()
-                    bundle.verify_bundle(info.path, pubkey)
+                    verify_bundle(info.path, pubkey)
                     best = min(best, time.perf_counter() - v0)
                 rows.append((direction, tt, info, t1 - t0, t2 - t1, best))
         print(f"  {'bundle':<22} {'bytes':>10} {'assemble s':>11} {'build s':>8} {'verify s':>9}  tables (rows)")

@@ -30,10 +30,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.tables.closed_loop import overall, run_closed_loop, summary_row  # noqa: E402
+from planner.tables.closed_loop import overall, summary_row
+from planner.datasets.closed_loop import run_closed_loop  # noqa: E402
 from planner.tables.eval_points import evaluation_points, interstation_length_m  # noqa: E402
 from planner.line.model import DIRECTIONS  # noqa: E402
-from planner.tables.build import build_tables, write_tables  # noqa: E402
+from planner.tables.build import build_tables
+from planner.datasets.tables import write_tables  # noqa: E402
 
 TARGETS = {  # (mode, scenario) -> (median bound, max bound) [s], issue 4
     ("nearest", "nominal"): (None, 2.0),

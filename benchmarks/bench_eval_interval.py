@@ -110,7 +110,8 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         stops = args.stops
         if stops is None:
-            from planner.stopping.sweep import stop_sweep, write_stops
+            from planner.stopping.sweep import stop_sweep
+            from planner.datasets.stops import write_stops
 
             t0 = time.perf_counter()
             stops = Path(tmp) / "stops"

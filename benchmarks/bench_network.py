@@ -17,13 +17,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from planner import load_line  # noqa: E402
-from planner.network.conflicts import (
-    BlockingParams,
-    SimulatorCurves,
-    check_conflicts,
-    interstation_keys,
-    write_conflicts,
-)
+from planner.datasets.conflicts import check_conflicts, write_conflicts  # noqa: E402
+from planner.network.arrivals import SimulatorCurves, interstation_keys  # noqa: E402
+from planner.network.windows import BlockingParams  # noqa: E402
 
 TARGET_S = 10.0
 

@@ -252,14 +252,6 @@ def main() -> None:
         print(f"  position-independent: solve_stop median {mo:.2f} µs, Ruckig calculate {mt:.2f} µs (incl. setting "
               f"its inputs from Python; issue's figure {RUCKIG_US} µs): ratio {mo / mt:.1f}")
     compare_before(cases[:1000])
-    try:
-        from planner.stopping import sweep as stops  # the line-level sweep (issue 5 item 3), when it exists
-    except ImportError:
-        print("  line-level sweep: planner.stopping.sweep not available")
-    else:
-        sweep = getattr(stops, "benchmark_sample_line", None)
-        if sweep is not None:
-            sweep()
     safe_side_cost()
 
 

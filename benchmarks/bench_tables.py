@@ -21,7 +21,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.tables.build import build_tables, write_tables  # noqa: E402
+from planner.tables.build import build_tables
+from planner.datasets.tables import write_tables  # noqa: E402
 
 
 def main() -> None:

@@ -20,14 +20,15 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import planner  # noqa: E402
-from planner.tables.closed_loop import overall, run_closed_loop, summary_row  # noqa: E402
-from planner.tables.build import build_tables, write_tables  # noqa: E402
+from planner.tables.closed_loop import overall, summary_row
+from planner.datasets.closed_loop import run_closed_loop  # noqa: E402
+from planner.tables.build import build_tables
+from planner.datasets.tables import write_tables  # noqa: E402
 
 
 def main() -> int:

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from planner.bundle import atsp
 from planner.line import testing
-from planner.bundle.container import line_tables
+from planner.bundle.assemble import line_tables
 from test_bundle_support import make_line
 
 KMH = 1 / 3.6

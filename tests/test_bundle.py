@@ -1,4 +1,4 @@
-"""On-board DB bundles: build, reproducibility, verify, tampering, consistency, CLI (planner.bundle.container)."""
+"""On-board DB bundles: build, reproducibility, verify, tampering, consistency, CLI (planner.bundle: assemble, container, verify)."""
 from __future__ import annotations
 
 import base64
@@ -19,7 +19,11 @@ from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from planner import __version__
-from planner.bundle import container as bundle, signing
+from planner.bundle.assemble import assemble, line_tables
+from planner.bundle.container import build_bundle, build_line, parquet_bytes
+from planner.bundle.manifest import CORE_TABLES, EXPECTED_TABLES
+from planner.bundle.verify import open_bundle, read_bundle, verify_bundle
+from planner.bundle import signing
 from planner.errors import BundleError
 from test_bundle_support import (LINE_ID, all_tables, release, canonical, forge, make_line, manifest_for, parquet,
                                  synthetic_tables, tar_bytes)
@@ -35,7 +39,7 @@ def line():
 def build(tables, out, priv, **kw):
     args = dict(line_id=LINE_ID, direction="down", train_type="E10", line_digest="ab" * 32, release=release())
     args.update(kw)
-    return bundle.build_bundle(tables, out_dir=out, private_key=priv, **args)
+    return build_bundle(tables, out_dir=out, private_key=priv, **args)
 
 
 @pytest.fixture(scope="module")
@@ -51,12 +55,12 @@ def test_build_writes_one_named_file_that_verifies(built, keys):
     assert path.name == "tl_down_E10.pdb"
     assert sorted(os.listdir(path.parent)) == [path.name]  # no temp files, no key copies
     assert stat.S_IMODE(path.stat().st_mode) == 0o644
-    v = bundle.verify_bundle(path, keys[1])
+    v = verify_bundle(path, keys[1])
     assert v == info
     assert (v.line_id, v.direction, v.train_type, v.software_version) == (LINE_ID, "down", "E10", __version__)
     assert v.line_digest == "ab" * 32 and v.complete and v.missing == ()
     assert v.sha256 == hashlib.sha256(path.read_bytes()).hexdigest() and v.size_bytes == path.stat().st_size
-    assert set(v.tables) == set(bundle.CORE_TABLES) | set(bundle.EXPECTED_TABLES)
+    assert set(v.tables) == set(CORE_TABLES) | set(EXPECTED_TABLES)
 
 
 def test_bundle_is_a_standard_tar_with_fixed_metadata(built):
@@ -85,7 +89,7 @@ def test_bundle_is_a_standard_tar_with_fixed_metadata(built):
 
 def test_read_bundle_returns_the_tables(built, keys, line):
     path, _ = built
-    b = bundle.read_bundle(path, keys[1])
+    b = read_bundle(path, keys[1])
     src = all_tables(line)
     assert set(b.tables) == set(src)
     for name, t in src.items():
@@ -117,8 +121,8 @@ def test_rebuild_in_other_processes_gives_identical_bytes(tmp_path, keys):
     """Different interpreters and hash seeds: nothing process-dependent leaks into the bytes."""
     code = (
         "import sys; sys.path.insert(0, sys.argv[3]);"
-        "import test_bundle_support; from test_bundle_support import make_line, all_tables; from planner.bundle import container as bundle;"
-        "bundle.build_bundle(all_tables(make_line()), line_id='tl', direction='down', train_type='E10',"
+        "import test_bundle_support; from test_bundle_support import make_line, all_tables; from planner.bundle.container import build_bundle;"
+        "build_bundle(all_tables(make_line()), line_id='tl', direction='down', train_type='E10',"
         " out_dir=sys.argv[1], private_key=sys.argv[2], line_digest='ab'*32, release=test_bundle_support.release())"
     )
     outs = []
@@ -133,14 +137,14 @@ def test_rebuild_in_other_processes_gives_identical_bytes(tmp_path, keys):
 
 def test_parquet_writes_are_deterministic(line):
     t = all_tables(line)["table_b"]
-    assert bundle.parquet_bytes(t) == bundle.parquet_bytes(pa.Table.from_pylist(t.to_pylist()))
+    assert parquet_bytes(t) == parquet_bytes(pa.Table.from_pylist(t.to_pylist()))
 
 
 def test_pandas_metadata_is_stripped(line):
     t = all_tables(line)["table_a"]
     from_pandas = pa.Table.from_pandas(t.to_pandas(), preserve_index=False)
     assert b"pandas" in from_pandas.schema.metadata
-    back = pq.read_table(io.BytesIO(bundle.parquet_bytes(from_pandas)))
+    back = pq.read_table(io.BytesIO(parquet_bytes(from_pandas)))
     assert b"pandas" not in (back.schema.metadata or {})
     assert back.to_pylist() == t.to_pylist()
 
@@ -153,8 +157,8 @@ def small(tmp_path_factory, keys):
 
     out = tmp_path_factory.mktemp("small")
     ln = testing.line(line_id=LINE_ID, train_types=[testing.train_type("E10")])
-    info = bundle.build_bundle(bundle.line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
-                               train_type="E10", out_dir=out, private_key=keys[0], release=release())
+    info = build_bundle(line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
+                        train_type="E10", out_dir=out, private_key=keys[0], release=release())
     return Path(info.path)
 
 
@@ -162,7 +166,7 @@ def test_flipping_any_single_byte_fails_verify(small, keys):
     data = small.read_bytes()
     assert len(data) < 20_000  # keeps this exhaustive test fast
     pub = signing.load_public_key(keys[1])
-    bundle.verify_bundle(data, pub)  # the bytes, in memory: the same checks as for the file
+    verify_bundle(data, pub)  # the bytes, in memory: the same checks as for the file
     survivors = []
     for i in range(len(data)):
         # Every byte with its lowest bit flipped (e.g. '0' -> '1' in an octal header field);
@@ -171,7 +175,7 @@ def test_flipping_any_single_byte_fails_verify(small, keys):
             b = bytearray(data)
             b[i] ^= mask
             try:
-                bundle.verify_bundle(bytes(b), pub)
+                verify_bundle(bytes(b), pub)
             except BundleError:
                 continue
             survivors.append((i, mask))
@@ -185,7 +189,7 @@ def test_truncated_or_extended_fails(small, keys, tmp_path, cut):
     p = tmp_path / "t.pdb"
     p.write_bytes(data)
     with pytest.raises(BundleError):
-        bundle.verify_bundle(p, keys[1])
+        verify_bundle(p, keys[1])
 
 
 # --- verify: signature, members, manifest -------------------------------------------------
@@ -204,57 +208,57 @@ def test_wrong_key_fails(built, tmp_path):
     path, _ = built
     other = Ed25519PrivateKey.generate().public_key()
     with pytest.raises(BundleError, match="signature does not match"):
-        bundle.verify_bundle(path, other)
+        verify_bundle(path, other)
 
 
 def test_missing_signature_fails(built, keys, tmp_path):
     m = members_of(built[0])
     del m["manifest.sig"]
     with pytest.raises(BundleError, match="manifest.sig is missing"):
-        bundle.verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
+        verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
 
 
 def test_missing_manifest_fails(built, keys, tmp_path):
     m = members_of(built[0])
     del m["manifest.json"]
     with pytest.raises(BundleError, match="manifest.json is missing"):
-        bundle.verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
+        verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
 
 
 def test_missing_file_fails(built, keys, tmp_path):
     m = members_of(built[0])
     del m["table_b.parquet"]
     with pytest.raises(BundleError, match="missing member.*table_b.parquet"):
-        bundle.verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
+        verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
 
 
 def test_extra_file_fails(built, keys, tmp_path):
     m = members_of(built[0])
     m["zz_extra.parquet"] = m["table_a.parquet"]
     with pytest.raises(BundleError, match="extra member.*zz_extra.parquet"):
-        bundle.verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
+        verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
 
 
 def test_swapped_member_fails(built, keys, tmp_path):
     m = members_of(built[0])
     m["table_a.parquet"], m["table_b.parquet"] = m["table_b.parquet"], m["table_a.parquet"]
     with pytest.raises(BundleError, match="bytes, the manifest says|SHA-256"):
-        bundle.verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
+        verify_bundle(write(tmp_path, tar_bytes(sorted(m.items()))), keys[1])
 
 
 def test_resigned_by_attacker_fails_with_our_key(built, keys, tmp_path, line):
     evil = Ed25519PrivateKey.generate()
     raw = forge(all_tables(line), evil)
     p = write(tmp_path, raw)
-    bundle.verify_bundle(p, evil.public_key())  # well-formed, just not ours
+    verify_bundle(p, evil.public_key())  # well-formed, just not ours
     with pytest.raises(BundleError, match="signature"):
-        bundle.verify_bundle(p, keys[1])
+        verify_bundle(p, keys[1])
 
 
 def test_independent_writer_is_accepted(keys, tmp_path, line):
     """A bundle written from the format description alone (tarfile, json, cryptography) verifies."""
     p = write(tmp_path, forge(all_tables(line), keys[2]))
-    info = bundle.verify_bundle(p, keys[1])
+    info = verify_bundle(p, keys[1])
     assert info.complete and info.software_version == "test"
 
 
@@ -277,7 +281,7 @@ def test_independent_writer_is_accepted(keys, tmp_path, line):
 def test_bad_manifest_fails_even_when_signed(keys, tmp_path, line, change, msg):
     p = write(tmp_path, forge(all_tables(line), keys[2], **change))
     with pytest.raises(BundleError, match=msg):
-        bundle.verify_bundle(p, keys[1])
+        verify_bundle(p, keys[1])
 
 
 def test_non_canonical_manifest_fails_even_when_signed(keys, tmp_path, line):
@@ -286,10 +290,10 @@ def test_non_canonical_manifest_fails_even_when_signed(keys, tmp_path, line):
     m = manifest_for(files, {f"{n}.parquet": t.num_rows for n, t in tables.items()}, key=keys[2])
     pretty = json.dumps(m, sort_keys=True, indent=1).encode()
     with pytest.raises(BundleError, match="canonical"):
-        bundle.verify_bundle(write(tmp_path, forge(tables, keys[2], manifest=pretty)), keys[1])
+        verify_bundle(write(tmp_path, forge(tables, keys[2], manifest=pretty)), keys[1])
     dup = canonical(m)[:-1] + b',"format":"planner-onboard-db"}'
     with pytest.raises(BundleError, match="duplicate key"):
-        bundle.verify_bundle(write(tmp_path, forge(tables, keys[2], manifest=dup)), keys[1])
+        verify_bundle(write(tmp_path, forge(tables, keys[2], manifest=dup)), keys[1])
 
 
 # --- verify: internal consistency (validly signed, wrong content) ----------------------------
@@ -303,7 +307,7 @@ def test_table_b_ratio_missing_from_table_a_fails(keys, tmp_path, line):
     def edit(t):
         t["table_a"] = t["table_a"].filter(pa.compute.not_equal(t["table_a"]["ratio"], 0.6))
     with pytest.raises(BundleError, match="table_b ratio_before 0.6 .* not in table_a"):
-        bundle.verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
+        verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
 
 
 def test_table_c_ratio_missing_from_table_a_fails(keys, tmp_path, line):
@@ -312,21 +316,21 @@ def test_table_c_ratio_missing_from_table_a_fails(keys, tmp_path, line):
             t["table_c"].column_names.index("ratio"), "ratio",
             pa.compute.multiply(t["table_c"]["ratio"], 0.5))
     with pytest.raises(BundleError, match="table_c ratio .* not in table_a"):
-        bundle.verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
+        verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
 
 
 def test_foreign_train_type_rows_fail(keys, tmp_path, line):
     def edit(t):
         t["table_a"] = synthetic_tables(line, "down", "E6")["table_a"]
     with pytest.raises(BundleError, match="table table_a column train_type holds \\['E6'\\]"):
-        bundle.verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
+        verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
 
 
 def test_other_direction_table_fails(keys, tmp_path, line):
     def edit(t):
-        t["beacons"] = bundle.line_tables(line, "up", "E10")["beacons"]
+        t["beacons"] = line_tables(line, "up", "E10")["beacons"]
     with pytest.raises(BundleError, match="column direction"):
-        bundle.verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
+        verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
 
 
 def reseq(t: pa.Table) -> pa.Table:
@@ -361,7 +365,7 @@ def test_inconsistent_core_tables_fail(keys, tmp_path, line, what, msg):
             p = t["max_profile"]
             t["max_profile"] = reseq(pa.concat_tables([p.slice(0, 1), p.slice(2)]))
     with pytest.raises(BundleError, match=msg):
-        bundle.verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
+        verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
 
 
 def test_builder_refuses_what_verify_would_refuse(keys, tmp_path, line):
@@ -379,9 +383,9 @@ def test_builder_refuses_what_verify_would_refuse(keys, tmp_path, line):
 
 
 def test_partial_bundle_lists_what_is_missing(keys, tmp_path, line):
-    info = build(bundle.line_tables(line, "down", "E10"), tmp_path, keys[0])
-    v = bundle.verify_bundle(info.path, keys[1])
-    assert not v.complete and v.missing == tuple(sorted(bundle.EXPECTED_TABLES))
+    info = build(line_tables(line, "down", "E10"), tmp_path, keys[0])
+    v = verify_bundle(info.path, keys[1])
+    assert not v.complete and v.missing == tuple(sorted(EXPECTED_TABLES))
     assert "PARTIAL" in v.summary()[-1]
 
 
@@ -393,7 +397,7 @@ def test_failed_write_keeps_previous_bundle_and_no_temp(keys, tmp_path, line, mo
     def boom(fd):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(bundle.os, "fsync", boom)
+    monkeypatch.setattr(os, "fsync", boom)
     tables = all_tables(line, ratios=(1.0, 0.5))  # different content
     with pytest.raises(BundleError, match="No space left on device"):
         build(tables, tmp_path, keys[0])
@@ -405,7 +409,7 @@ def test_failed_write_keeps_previous_bundle_and_no_temp(keys, tmp_path, line, mo
 # --- open_bundle -------------------------------------------------------------------
 def test_open_bundle_writes_members_only_into_dest(built, keys, tmp_path):
     dest = tmp_path / "dest"
-    info = bundle.open_bundle(built[0], dest, keys[1])
+    info = open_bundle(built[0], dest, keys[1])
     assert sorted(os.listdir(dest)) == sorted([f.name for f in info.files] + ["manifest.json", "manifest.sig"])
     assert os.listdir(tmp_path) == ["dest"]
 
@@ -417,14 +421,14 @@ def test_open_bundle_never_follows_a_planted_symlink(built, keys, tmp_path):
     victim.write_bytes(b"keep")
     (dest / "atsp.parquet").symlink_to(victim)
     with pytest.raises(BundleError, match="already exists"):
-        bundle.open_bundle(built[0], dest, keys[1])
+        open_bundle(built[0], dest, keys[1])
     assert victim.read_bytes() == b"keep"
 
 
 def test_open_bundle_writes_nothing_when_verify_fails(built, tmp_path):
     dest = tmp_path / "dest"
     with pytest.raises(BundleError):
-        bundle.open_bundle(built[0], dest, Ed25519PrivateKey.generate().public_key())
+        open_bundle(built[0], dest, Ed25519PrivateKey.generate().public_key())
     assert not dest.exists() or os.listdir(dest) == []
 
 
@@ -440,23 +444,23 @@ def write_datasets(root, line, direction, train_type, names):
 def test_assemble_reads_the_partitions_that_exist(tmp_path, line):
     write_datasets(tmp_path / "tables", line, "down", "E10", ["eval_points", "table_a", "table_b"])
     write_datasets(tmp_path / "stops", line, "down", "E10", ["stop_summary"])
-    t = bundle.assemble(line, "down", "E10", tables_dir=tmp_path / "tables", stops_dir=tmp_path / "stops")
-    assert set(t) == set(bundle.CORE_TABLES) | {"eval_points", "table_a", "table_b", "stop_summary"}
+    t = assemble(line, "down", "E10", tables_dir=tmp_path / "tables", stops_dir=tmp_path / "stops")
+    assert set(t) == set(CORE_TABLES) | {"eval_points", "table_a", "table_b", "stop_summary"}
     src = synthetic_tables(line, "down", "E10")
     assert sorted(t["table_b"].to_pylist(), key=str) == sorted(src["table_b"].to_pylist(), key=str)
-    other = bundle.assemble(line, "down", "E6", tables_dir=tmp_path / "tables")
+    other = assemble(line, "down", "E6", tables_dir=tmp_path / "tables")
     assert "table_a" not in other  # no partition for E6: left out, listed as missing later
     with pytest.raises(BundleError, match="not a folder"):
-        bundle.assemble(line, "down", "E10", tables_dir=tmp_path / "nope")
+        assemble(line, "down", "E10", tables_dir=tmp_path / "nope")
 
 
 def test_build_line_builds_every_direction_and_type(tmp_path, keys, line):
     write_datasets(tmp_path / "tables", line, "down", "E10", ["eval_points", "table_a", "table_b"])
-    infos = bundle.build_line(line, tmp_path / "out", keys[0], release=release(), tables_dir=tmp_path / "tables")
+    infos = build_line(line, tmp_path / "out", keys[0], release=release(), tables_dir=tmp_path / "tables")
     names = sorted(Path(i.path).name for i in infos)
     assert names == ["tl_down_E10.pdb", "tl_down_E6.pdb", "tl_up_E10.pdb", "tl_up_E6.pdb"]
     for i in infos:
-        v = bundle.verify_bundle(i.path, keys[1])
+        v = verify_bundle(i.path, keys[1])
         has_tables = (v.direction, v.train_type) == ("down", "E10")
         assert ("table_b" in v.tables) == has_tables
 
@@ -496,7 +500,7 @@ def test_cli_keys_build_verify(tmp_path):
     r = run_cli("bundle", "build", line_dir, "--out", tmp_path / "out2", "--key", priv,
                 "--train-type", "EMU10", "--direction", "down", "--built-at", "2026-01-01T00:00:00Z")
     assert r.exit_code == 0 and (tmp_path / "out2" / path.name).read_bytes() == first
-    info = bundle.verify_bundle(path, pub, at="2026-01-02T00:00:00Z")
+    info = verify_bundle(path, pub, at="2026-01-02T00:00:00Z")
     from planner.line.loader import source_digest
 
     assert info.line_digest == source_digest(line_dir)
@@ -523,7 +527,7 @@ def test_table_without_required_columns_is_refused(keys, tmp_path, line):
     with pytest.raises(BundleError, match="table table_b lacks column\\(s\\) ratio_after"):
         build(tables, tmp_path, keys[0])
     with pytest.raises(BundleError, match="lacks column"):
-        bundle.verify_bundle(write(tmp_path, forge(tables, keys[2])), keys[1])
+        verify_bundle(write(tmp_path, forge(tables, keys[2])), keys[1])
 
 
 def test_assemble_refuses_a_stored_partition_column_that_disagrees(tmp_path, line):
@@ -531,4 +535,4 @@ def test_assemble_refuses_a_stored_partition_column_that_disagrees(tmp_path, lin
     folder.mkdir(parents=True)
     pq.write_table(synthetic_tables(line, "down", "E6")["table_a"], folder / "part-0.parquet")
     with pytest.raises(BundleError, match="column train_type holds \\['E6'\\]"):
-        bundle.assemble(line, "down", "E10", tables_dir=tmp_path / "tables")
+        assemble(line, "down", "E10", tables_dir=tmp_path / "tables")

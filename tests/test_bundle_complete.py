@@ -11,7 +11,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from planner.bundle import container as bundle
+from planner.bundle.container import build_bundle, build_line, bundle_bytes
+from planner.bundle.manifest import EXPECTED_TABLES, expected_tables
+from planner.bundle.verify import verify_bundle
 from planner.cli import app
 from planner.errors import BundleError
 from test_bundle_support import LINE_ID, all_tables, forge, make_line, release
@@ -23,21 +25,21 @@ def line():
 
 
 def _build(tables, out, priv, cruise):
-    return bundle.build_bundle(tables, out_dir=out, private_key=priv, line_id=LINE_ID, direction="down",
-                               train_type="E10", line_digest="ab" * 32,
-                               expected=bundle.expected_tables(cruise), release=release())
+    return build_bundle(tables, out_dir=out, private_key=priv, line_id=LINE_ID, direction="down",
+                        train_type="E10", line_digest="ab" * 32,
+                        expected=expected_tables(cruise), release=release())
 
 
 def test_expected_tables_by_cruise_mode():
-    assert "table_d" in bundle.expected_tables("sawtooth")
-    assert "table_d" not in bundle.expected_tables("constant")
-    assert set(bundle.expected_tables("constant")) == set(bundle.EXPECTED_TABLES) - {"table_d"}
+    assert "table_d" in expected_tables("sawtooth")
+    assert "table_d" not in expected_tables("constant")
+    assert set(expected_tables("constant")) == set(EXPECTED_TABLES) - {"table_d"}
 
 
 def test_constant_speed_bundle_without_table_d_is_complete(keys, line, tmp_path):
     tables = {k: v for k, v in all_tables(line).items() if k != "table_d"}
     info = _build(tables, tmp_path, keys[0], "constant")
-    v = bundle.verify_bundle(info.path, keys[1])
+    v = verify_bundle(info.path, keys[1])
     assert v.complete and v.missing == ()
     assert "complete" in v.summary()[-1] and "PARTIAL" not in v.summary()[-1]
     r = CliRunner().invoke(app, ["bundle", "verify", str(info.path), "--public-key", str(keys[1]),
@@ -48,7 +50,7 @@ def test_constant_speed_bundle_without_table_d_is_complete(keys, line, tmp_path)
 def test_sawtooth_bundle_without_table_d_is_partial_and_the_advice_names_the_fix(keys, line, tmp_path):
     tables = {k: v for k, v in all_tables(line).items() if k not in ("table_d", "stop_summary", "stop_samples")}
     info = _build(tables, tmp_path, keys[0], "sawtooth")
-    v = bundle.verify_bundle(info.path, keys[1])
+    v = verify_bundle(info.path, keys[1])
     assert not v.complete and v.missing == ("stop_samples", "stop_summary", "table_d")
     r = CliRunner().invoke(app, ["bundle", "verify", str(info.path), "--public-key", str(keys[1]),
                                  "--expect", f"{LINE_ID}/down/E10", "--require-complete"])
@@ -73,14 +75,14 @@ def test_only_vehicle_tables_may_go_unlisted(keys, line, tmp_path):
     tables = {k: v for k, v in all_tables(line).items() if k not in ("table_d", "table_c")}
     ok = tmp_path / "ok.pdb"
     ok.write_bytes(forge(tables, keys[2], missing=["table_c"]))
-    assert bundle.verify_bundle(ok, keys[1]).missing == ("table_c",)
+    assert verify_bundle(ok, keys[1]).missing == ("table_c",)
     bad = tmp_path / "bad.pdb"
     bad.write_bytes(forge(tables, keys[2], missing=["table_d"]))
     with pytest.raises(BundleError, match="'missing'"):
-        bundle.verify_bundle(bad, keys[1])
+        verify_bundle(bad, keys[1])
     with pytest.raises(BundleError, match="only table_d may be left out"):
-        bundle.bundle_bytes(all_tables(line), line_id=LINE_ID, direction="down", train_type="E10",
-                            private_key=keys[2], expected=["table_a"], release=release())
+        bundle_bytes(all_tables(line), line_id=LINE_ID, direction="down", train_type="E10",
+                     private_key=keys[2], expected=["table_a"], release=release())
 
 
 def test_build_line_uses_each_vehicles_cruise_mode(keys, tmp_path):
@@ -90,8 +92,8 @@ def test_build_line_uses_each_vehicles_cruise_mode(keys, tmp_path):
 
     ln = load_line(write_line_db(tmp_path / "tiny"))
     types = {t.train_type: t.cruise for t in ln.train_types}
-    infos = bundle.build_line(ln, tmp_path / "out", keys[0], directions=["down"], release=release())
+    infos = build_line(ln, tmp_path / "out", keys[0], directions=["down"], release=release())
     for info in infos:
-        v = bundle.verify_bundle(info.path, keys[1])
+        v = verify_bundle(info.path, keys[1])
         tt = Path(info.path).stem.split("_")[-1]
         assert ("table_d" in v.missing) == (types[tt] == "sawtooth")

@@ -9,7 +9,12 @@ from pathlib import Path
 import pytest
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-from planner.bundle import container as bundle
+from planner.bundle import archive, container
+from planner.bundle.archive import tar_header
+from planner.bundle.assemble import line_tables
+from planner.bundle.container import build_bundle, bundle_bytes
+from planner.bundle.manifest import MAX_MEMBERS, MAX_TOTAL_BYTES
+from planner.bundle.verify import open_bundle, read_bundle, verify_bundle
 from planner.line import testing
 from planner.errors import BundleError
 from test_bundle_support import LINE_ID, release, tar_bytes
@@ -21,8 +26,8 @@ PUB = KEY.public_key()
 @pytest.fixture(scope="module")
 def good_members():
     ln = testing.line(line_id=LINE_ID, train_types=[testing.train_type("E10")])
-    data = bundle.bundle_bytes(bundle.line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
-                               train_type="E10", private_key=KEY, release=release())
+    data = bundle_bytes(line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
+                        train_type="E10", private_key=KEY, release=release())
     with tarfile.open(fileobj=io.BytesIO(data)) as tf:
         return {m.name: tf.extractfile(m).read() for m in tf.getmembers()}
 
@@ -46,11 +51,11 @@ def assert_refused(tmp_path, raw: bytes, match: str, good_members=None):
     p.write_bytes(raw)
     before = snapshot(tmp_path)
     with pytest.raises(BundleError, match=match):
-        bundle.verify_bundle(p, PUB)
+        verify_bundle(p, PUB)
     with pytest.raises(BundleError, match=match):
-        bundle.open_bundle(p, case / "dest", PUB)
+        open_bundle(p, case / "dest", PUB)
     with pytest.raises(BundleError, match=match):
-        bundle.read_bundle(raw, PUB)
+        read_bundle(raw, PUB)
     assert snapshot(tmp_path) == before  # not even an empty dest folder
     assert not any("evil" in x for x in snapshot(tmp_path) - {"case/b.pdb"})
 
@@ -109,7 +114,7 @@ def test_extended_headers_refused(tmp_path, good_members, fmt, what):
 
 def header_with_size(name: str, size_field: bytes) -> bytes:
     """A ustar header whose size field says ``size_field`` (checksum kept valid)."""
-    h = bytearray(bundle._tar_header(name, 0))
+    h = bytearray(tar_header(name, 0))
     h[124:136] = size_field
     h[148:156] = b" " * 8
     h[148:156] = format(sum(h), "06o").encode() + b"\0 "
@@ -135,26 +140,27 @@ def test_base256_size_field_refused(tmp_path):
 def test_oversized_file_refused_without_reading(tmp_path):
     p = tmp_path / "huge.pdb"
     with open(p, "wb") as f:
-        f.truncate(bundle.MAX_TOTAL_BYTES + 10 * 1024**2)  # sparse: costs no disk, no memory
+        f.truncate(MAX_TOTAL_BYTES + 10 * 1024**2)  # sparse: costs no disk, no memory
     with pytest.raises(BundleError, match="above the"):
-        bundle.verify_bundle(p, PUB)
+        verify_bundle(p, PUB)
 
 
 def test_member_above_bound_refused_on_read_and_build(tmp_path, good_members, monkeypatch):
     raw = tar_bytes(sorted(good_members.items()))
-    bundle.read_bundle(raw, PUB)
-    monkeypatch.setattr(bundle, "MAX_MEMBER_BYTES", 1000)
+    read_bundle(raw, PUB)
+    for module in (archive, container):  # the reader's bound and the builder's
+        monkeypatch.setattr(module, "MAX_MEMBER_BYTES", 1000)
     with pytest.raises(BundleError, match="above the 1000-byte bound"):
-        bundle.read_bundle(raw, PUB)
+        read_bundle(raw, PUB)
     ln = testing.line(line_id=LINE_ID, train_types=[testing.train_type("E10")])
     with pytest.raises(BundleError, match="above the 1000-byte member bound"):
-        bundle.build_bundle(bundle.line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
-                            train_type="E10", out_dir=tmp_path / "out", private_key=KEY, release=release())
+        build_bundle(line_tables(ln, "down", "E10"), line_id=LINE_ID, direction="down",
+                     train_type="E10", out_dir=tmp_path / "out", private_key=KEY, release=release())
     assert not (tmp_path / "out").exists() or os.listdir(tmp_path / "out") == []
 
 
 def test_too_many_members_refused(tmp_path):
-    raw = tar_bytes([(f"t{i:03d}.parquet", b"x") for i in range(bundle.MAX_MEMBERS + 1)])
+    raw = tar_bytes([(f"t{i:03d}.parquet", b"x") for i in range(MAX_MEMBERS + 1)])
     assert_refused(tmp_path, raw, "more than")
 
 
@@ -162,11 +168,11 @@ def test_non_regular_bundle_paths_refused(tmp_path):
     fifo = tmp_path / "fifo.pdb"
     os.mkfifo(fifo)
     with pytest.raises(BundleError, match="not a regular file"):
-        bundle.verify_bundle(fifo, PUB)  # returns at once: opened non-blocking
+        verify_bundle(fifo, PUB)  # returns at once: opened non-blocking
     with pytest.raises(BundleError):
-        bundle.verify_bundle(tmp_path, PUB)
+        verify_bundle(tmp_path, PUB)
     with pytest.raises(BundleError, match="not found"):
-        bundle.verify_bundle(tmp_path / "none.pdb", PUB)
+        verify_bundle(tmp_path / "none.pdb", PUB)
 
 
 def test_non_canonical_header_fields_refused(tmp_path, good_members):
@@ -194,7 +200,7 @@ def test_good_bundle_opens_only_into_dest(tmp_path, good_members):
     raw = tar_bytes(sorted(good_members.items()))
     p = tmp_path / "b.pdb"
     p.write_bytes(raw)
-    bundle.open_bundle(p, tmp_path / "dest", PUB)
+    open_bundle(p, tmp_path / "dest", PUB)
     assert sorted(os.listdir(tmp_path)) == ["b.pdb", "dest"]
     assert sorted(os.listdir(tmp_path / "dest")) == sorted(good_members)
     for n, d in good_members.items():

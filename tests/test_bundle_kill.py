@@ -18,7 +18,8 @@ import sys
 import time
 from pathlib import Path
 
-from planner.bundle import container as bundle, signing
+from planner.bundle.verify import read_bundle, verify_bundle
+from planner.bundle import signing
 
 HERE = Path(__file__).parent
 NAME = "tl_down_E10.pdb"
@@ -27,7 +28,7 @@ import os, sys, time
 sys.path.insert(0, sys.argv[3])
 from test_bundle_support import make_line, all_tables, release
 from planner.io import atomic
-from planner.bundle import container as bundle
+from planner.bundle.container import build_bundle
 tables = all_tables(make_line(), pad_rows=40000 + int(sys.argv[4]))  # variant -> different bytes
 real_write = os.write
 def slow_write(fd, data):
@@ -36,8 +37,8 @@ def slow_write(fd, data):
 atomic._CHUNK = 4096
 os.write = slow_write
 print("ready", flush=True)
-bundle.build_bundle(tables, line_id="tl", direction="down", train_type="E10", out_dir=sys.argv[1],
-                    private_key=sys.argv[2], line_digest="ab" * 32, release=release())
+build_bundle(tables, line_id="tl", direction="down", train_type="E10", out_dir=sys.argv[1],
+             private_key=sys.argv[2], line_digest="ab" * 32, release=release())
 print("done", flush=True)
 """
 
@@ -71,7 +72,7 @@ def final_state(out: Path, pub) -> bytes | None:
     path = out / NAME
     if not path.exists():
         return None
-    bundle.verify_bundle(path, pub)  # raises if partial or altered
+    verify_bundle(path, pub)  # raises if partial or altered
     return path.read_bytes()
 
 
@@ -109,7 +110,7 @@ def test_sigkill_never_leaves_a_partial_bundle(tmp_path):
         state = final_state(out, pub)
         assert state is not None, "the previous complete bundle disappeared"
         if state != previous:
-            assert bundle.read_bundle(state, pub).tables["stop_samples"].num_rows == 40000 + variant + 16
+            assert read_bundle(state, pub).tables["stop_samples"].num_rows == 40000 + variant + 16
             previous = state
         for n in left:  # leftovers of a kill are hidden temp files, never the bundle's name
             assert n.startswith(f".{NAME}.") and n.endswith(".tmp")

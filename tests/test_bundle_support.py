@@ -26,7 +26,7 @@ BUILT_AT_S = 1767225600
 
 def release(version: int = 1, built_at_s: int = BUILT_AT_S, valid_days: float = 3650.0, development: bool = False):
     """A Release for the tests: fixed build time, ten years valid unless said otherwise."""
-    from planner.bundle.container import Release
+    from planner.bundle.manifest import Release
 
     return Release(version, built_at_s, int(valid_days * 86400), development)
 
@@ -68,7 +68,7 @@ def synthetic_tables(line, direction: str, train_type: str, ratios=(1.0, 0.8, 0.
     """eval_points / table_a / table_b / table_c / table_d / stop_summary / stop_samples with made-up values.
 
     Columns as the tables step writes them (planner.tables.build), plus the partition
-    columns as :func:`planner.bundle.container.read_partition` adds them. ``pad_rows``
+    columns as :func:`planner.bundle.assemble.read_partition` adds them. ``pad_rows``
     adds extra stop_samples rows to make a big bundle.
     """
     pairs = line.interstations(direction)
@@ -118,7 +118,7 @@ def synthetic_tables(line, direction: str, train_type: str, ratios=(1.0, 0.8, 0.
 
 
 def all_tables(line, direction="down", train_type="E10", **kw) -> dict[str, pa.Table]:
-    from planner.bundle.container import line_tables
+    from planner.bundle.assemble import line_tables
 
     return {**line_tables(line, direction, train_type), **synthetic_tables(line, direction, train_type, **kw)}
 
@@ -175,7 +175,7 @@ def tar_bytes(members, *, fmt=tarfile.USTAR_FORMAT) -> bytes:
 def forge(tables: dict[str, pa.Table], key, *, missing=None, sig=None, manifest=None, extra=(),
           drop=(), **over) -> bytes:
     """A bundle from ``tables`` signed with ``key`` by the independent writer."""
-    from planner.bundle.container import EXPECTED_TABLES
+    from planner.bundle.manifest import EXPECTED_TABLES
 
     files = {f"{n}.parquet": parquet(t) for n, t in tables.items()}
     rows = {f"{n}.parquet": t.num_rows for n, t in tables.items()}

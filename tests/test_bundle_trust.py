@@ -14,7 +14,11 @@ from pathlib import Path
 import pytest
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-from planner.bundle import container as bundle, signing
+from planner.bundle.assemble import line_tables
+from planner.bundle.container import build_bundle
+from planner.bundle.manifest import Release, build_time_s, parse_time
+from planner.bundle.verify import verify_bundle
+from planner.bundle import signing
 from planner.line import testing
 from planner.errors import BundleError
 from test_bundle_support import BUILT_AT_S, LINE_ID, forge, release
@@ -29,8 +33,8 @@ def small_line():
 
 
 def build(line, out: Path, key, direction="down", **rel) -> Path:
-    info = bundle.build_bundle(bundle.line_tables(line, direction, "E10"), line_id=LINE_ID, direction=direction,
-                               train_type="E10", out_dir=out, private_key=key, release=release(**rel))
+    info = build_bundle(line_tables(line, direction, "E10"), line_id=LINE_ID, direction=direction,
+                        train_type="E10", out_dir=out, private_key=key, release=release(**rel))
     return Path(info.path)
 
 
@@ -55,12 +59,12 @@ def test_renamed_bundle_is_refused(tmp_path, keys, small_line):
     renamed = tmp_path / f"{LINE_ID}_down_E10.pdb"
     shutil.copy(up, renamed)
     with pytest.raises(BundleError, match=f"bundle is for {LINE_ID}/up/E10, not the expected {LINE_ID}/down/E10"):
-        bundle.verify_bundle(renamed, keys[1], expect=f"{LINE_ID}/down/E10", at=JAN_02)
+        verify_bundle(renamed, keys[1], expect=f"{LINE_ID}/down/E10", at=JAN_02)
     r = run_cli("bundle", "verify", renamed, "--public-key", keys[1], "--expect", f"{LINE_ID}/down/E10",
                 "--at", JAN_02)
     assert "not the expected tl/down/E10" in one_line_error(r)
     # the same file checked for what it really is passes
-    assert bundle.verify_bundle(renamed, keys[1], expect=f"{LINE_ID}/up/E10", at=JAN_02).direction == "up"
+    assert verify_bundle(renamed, keys[1], expect=f"{LINE_ID}/up/E10", at=JAN_02).direction == "up"
 
 
 @pytest.mark.parametrize("bad", ["tl/down", "tl/sideways/E10", "tl/down/E10/x", "../x/down/E10", ""])
@@ -76,13 +80,13 @@ def test_manifest_claiming_another_key_id_is_refused(tmp_path, keys, small_line)
     evil = Ed25519PrivateKey.generate()
     real_id = signing.public_key_id(keys[2].public_key())
     evil_id = signing.public_key_id(evil.public_key())
-    raw = forge(bundle.line_tables(small_line, "down", "E10"), evil, key_id=real_id)
+    raw = forge(line_tables(small_line, "down", "E10"), evil, key_id=real_id)
     p = tmp_path / f"{LINE_ID}_down_E10.pdb"
     p.write_bytes(raw)
     # verified with the attacker's own public key the signature is fine: only the key id check stops it
     with pytest.raises(BundleError, match=f"manifest names signing key {real_id[:16]}, but it was verified "
                                           f"with key {evil_id[:16]}"):
-        bundle.verify_bundle(p, evil.public_key(), expect=f"{LINE_ID}/down/E10", at=JAN_02)
+        verify_bundle(p, evil.public_key(), expect=f"{LINE_ID}/down/E10", at=JAN_02)
     evil_pub = tmp_path / "evil.pub.pem"
     from cryptography.hazmat.primitives import serialization
 
@@ -92,17 +96,17 @@ def test_manifest_claiming_another_key_id_is_refused(tmp_path, keys, small_line)
     assert "the manifest lies about its signer" in one_line_error(r)
     # and with the real key the signature itself fails
     with pytest.raises(BundleError, match="signature does not match"):
-        bundle.verify_bundle(p, keys[1], expect=f"{LINE_ID}/down/E10", at=JAN_02)
+        verify_bundle(p, keys[1], expect=f"{LINE_ID}/down/E10", at=JAN_02)
 
 
 # --- 3. development key ---------------------------------------------------------------------
 def test_development_key_bundle_is_refused_unless_allowed(tmp_path, keys, small_line):
     p = build(small_line, tmp_path / "b", keys[0], development=True)
     with pytest.raises(BundleError, match="signed with a development key: not for service"):
-        bundle.verify_bundle(p, keys[1], expect=f"{LINE_ID}/down/E10", at=JAN_02)
+        verify_bundle(p, keys[1], expect=f"{LINE_ID}/down/E10", at=JAN_02)
     r = run_cli("bundle", "verify", p, "--public-key", keys[1], "--expect", f"{LINE_ID}/down/E10", "--at", JAN_02)
     assert "development key" in one_line_error(r)
-    info = bundle.verify_bundle(p, keys[1], expect=f"{LINE_ID}/down/E10", at=JAN_02, allow_dev=True)
+    info = verify_bundle(p, keys[1], expect=f"{LINE_ID}/down/E10", at=JAN_02, allow_dev=True)
     assert info.key_kind == "development"
     r = run_cli("bundle", "verify", p, "--public-key", keys[1], "--expect", f"{LINE_ID}/down/E10", "--at", JAN_02,
                 "--allow-dev")
@@ -111,7 +115,7 @@ def test_development_key_bundle_is_refused_unless_allowed(tmp_path, keys, small_
 
 def test_production_is_what_the_builder_writes_by_default(tmp_path, keys, small_line):
     p = build(small_line, tmp_path / "b", keys[0])
-    assert bundle.verify_bundle(p, keys[1], at=JAN_02).key_kind == "production"
+    assert verify_bundle(p, keys[1], at=JAN_02).key_kind == "production"
 
 
 # --- 4. rollback -----------------------------------------------------------------------------
@@ -119,41 +123,41 @@ def test_older_bundle_is_refused_as_rollback(tmp_path, keys, small_line):
     old = build(small_line, tmp_path / "old", keys[0], version=5)
     with pytest.raises(BundleError, match="bundle version 5 is older than the installed version 6 "
                                           "\\(rollback refused\\)"):
-        bundle.verify_bundle(old, keys[1], expect=f"{LINE_ID}/down/E10", min_version=6, at=JAN_02)
+        verify_bundle(old, keys[1], expect=f"{LINE_ID}/down/E10", min_version=6, at=JAN_02)
     r = run_cli("bundle", "verify", old, "--public-key", keys[1], "--expect", f"{LINE_ID}/down/E10",
                 "--min-version", 6, "--at", JAN_02)
     assert "rollback refused" in one_line_error(r)
     # the installed release itself (same version) is accepted: reinstalling it is no rollback
-    assert bundle.verify_bundle(old, keys[1], min_version=5, at=JAN_02).bundle_version == 5
+    assert verify_bundle(old, keys[1], min_version=5, at=JAN_02).bundle_version == 5
 
 
 # --- 5. expiry (freeze) -------------------------------------------------------------------------
 def test_expired_bundle_is_refused(tmp_path, keys, small_line):
     p = build(small_line, tmp_path / "b", keys[0], valid_days=30)  # built 2026-01-01, expires 2026-01-31
-    last_second = bundle.parse_time("2026-01-30T23:59:59Z")
-    assert bundle.verify_bundle(p, keys[1], at=last_second).expires == "2026-01-31T00:00:00Z"
+    last_second = parse_time("2026-01-30T23:59:59Z")
+    assert verify_bundle(p, keys[1], at=last_second).expires == "2026-01-31T00:00:00Z"
     with pytest.raises(BundleError, match="bundle expired at 2026-01-31T00:00:00Z \\(checked at "
                                           "2026-01-31T00:00:00Z"):
-        bundle.verify_bundle(p, keys[1], expect=f"{LINE_ID}/down/E10", at=last_second + 1)
+        verify_bundle(p, keys[1], expect=f"{LINE_ID}/down/E10", at=last_second + 1)
     r = run_cli("bundle", "verify", p, "--public-key", keys[1], "--expect", f"{LINE_ID}/down/E10",
                 "--at", "2026-03-01T00:00:00Z")
     assert "expired at 2026-01-31T00:00:00Z" in one_line_error(r)
     # without --at the vehicle's clock is used: a bundle built in 2020 for 30 days is expired today
-    stale = build(small_line, tmp_path / "stale", keys[0], built_at_s=bundle.parse_time("2020-01-01"),
+    stale = build(small_line, tmp_path / "stale", keys[0], built_at_s=parse_time("2020-01-01"),
                   valid_days=30)
     with pytest.raises(BundleError, match="expired at 2020-01-31T00:00:00Z"):
-        bundle.verify_bundle(stale, keys[1])
+        verify_bundle(stale, keys[1])
 
 
 # --- the legitimate update ---------------------------------------------------------------------
 def test_legitimate_newer_bundle_is_accepted(tmp_path, keys, small_line):
-    installed = bundle.Release.issue(BUILT_AT_S, valid_days=30)
-    newer = bundle.Release.issue(BUILT_AT_S + DAY, valid_days=30)
+    installed = Release.issue(BUILT_AT_S, valid_days=30)
+    newer = Release.issue(BUILT_AT_S + DAY, valid_days=30)
     assert newer.version > installed.version
-    info = bundle.build_bundle(bundle.line_tables(small_line, "down", "E10"), line_id=LINE_ID, direction="down",
-                               train_type="E10", out_dir=tmp_path, private_key=keys[2], release=newer)
-    got = bundle.verify_bundle(info.path, keys[1], expect=f"{LINE_ID}/down/E10", min_version=installed.version,
-                               at=BUILT_AT_S + 2 * DAY)
+    info = build_bundle(line_tables(small_line, "down", "E10"), line_id=LINE_ID, direction="down",
+                        train_type="E10", out_dir=tmp_path, private_key=keys[2], release=newer)
+    got = verify_bundle(info.path, keys[1], expect=f"{LINE_ID}/down/E10", min_version=installed.version,
+                        at=BUILT_AT_S + 2 * DAY)
     assert (got.bundle_version, got.built_at, got.expires, got.key_kind) == (
         20260102000000, "2026-01-02T00:00:00Z", "2026-02-01T00:00:00Z", "production")
     r = run_cli("bundle", "verify", info.path, "--public-key", keys[1], "--expect", f"{LINE_ID}/down/E10",
@@ -168,7 +172,7 @@ def test_legitimate_newer_bundle_is_accepted(tmp_path, keys, small_line):
     ("2026-01-31T23:00:00Z", "2026-02-01T01:00:00Z"),
 ])
 def test_versions_grow_with_the_build_time(earlier, later):
-    a, b = (bundle.Release.issue(bundle.parse_time(t)) for t in (earlier, later))
+    a, b = (Release.issue(parse_time(t)) for t in (earlier, later))
     assert a.version < b.version
     # the version reads as the UTC build time
     assert str(a.version) == earlier.replace("-", "").replace(":", "").replace("T", "").rstrip("Z")
@@ -182,9 +186,9 @@ def test_same_inputs_and_release_give_the_same_bytes_and_the_build_time_is_signe
 
 
 def test_build_time_comes_from_source_date_epoch():
-    assert bundle.build_time_s({"SOURCE_DATE_EPOCH": "1767225600"}) == BUILT_AT_S
+    assert build_time_s({"SOURCE_DATE_EPOCH": "1767225600"}) == BUILT_AT_S
     with pytest.raises(BundleError, match="SOURCE_DATE_EPOCH"):
-        bundle.build_time_s({"SOURCE_DATE_EPOCH": "yesterday"})
+        build_time_s({"SOURCE_DATE_EPOCH": "yesterday"})
 
 
 @pytest.mark.parametrize("kw, msg", [
@@ -195,7 +199,7 @@ def test_build_time_comes_from_source_date_epoch():
 def test_bad_release_is_refused(kw, msg):
     args = dict(version=1, built_at_s=BUILT_AT_S, valid_s=DAY) | kw
     with pytest.raises(BundleError, match=msg):
-        bundle.Release(**args)
+        Release(**args)
 
 
 # --- the nightly job: no silent development key ---------------------------------------------------
@@ -254,8 +258,8 @@ def test_an_unchanged_run_reissues_bundles_after_half_their_validity(now, due):
     from planner.job.pipeline import _renewal_due
 
     m = {"bundles_release": {"built_at": "2026-01-01T00:00:00Z", "expires": "2026-01-31T00:00:00Z"}}
-    assert _renewal_due(m, bundle.parse_time(now)) is due
-    assert _renewal_due({}, bundle.parse_time(now))  # a run from before releases: re-issue
+    assert _renewal_due(m, parse_time(now)) is due
+    assert _renewal_due({}, parse_time(now))  # a run from before releases: re-issue
 
 
 def test_cli_build_stamps_version_expiry_and_key_kind(tmp_path):
@@ -269,8 +273,8 @@ def test_cli_build_stamps_version_expiry_and_key_kind(tmp_path):
     assert r.exit_code == 0, r.output
     assert "version 7, built 2026-11-23T04:00:00Z, expires 2026-11-25T04:00:00Z, development key" in r.output
     p = tmp_path / "out" / "tiny_up_EMU6.pdb"
-    info = bundle.verify_bundle(p, pub, expect="tiny/up/EMU6", min_version=7, at="2026-11-24T00:00:00Z",
-                                allow_dev=True)
+    info = verify_bundle(p, pub, expect="tiny/up/EMU6", min_version=7, at="2026-11-24T00:00:00Z",
+                         allow_dev=True)
     assert (info.bundle_version, info.key_kind) == (7, "development")
     r = run_cli("bundle", "build", line_dir, "--out", tmp_path / "out", "--key", priv, "--built-at", "yesterday")
     assert r.exit_code != 0 and "not an ISO 8601 time" in r.output

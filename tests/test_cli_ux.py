@@ -215,7 +215,7 @@ def test_mode_help_and_error_list_the_same_modes():
 
 # --- conflict listings: in order, no "(+0 more)" ----------------------------------------------
 def test_conflict_listing_in_time_order_without_plus_zero():
-    from planner.network.conflicts import _summary
+    from planner.datasets.conflicts import _summary
 
     rows = []
     for cid, (t0, delay, n) in enumerate([(100.0, 5.0, 1), (200.0, 30.0, 3), (300.0, 1.0, 1), (400.0, 20.0, 2),

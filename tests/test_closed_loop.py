@@ -10,18 +10,14 @@ from typer.testing import CliRunner
 
 from planner.line import testing
 from planner.cli import app
-from planner.tables.closed_loop import (
-    closed_loop_interstation,
-    designated_times,
-    overall,
-    run_closed_loop,
-    write_closed_loop,
-)
+from planner.tables.closed_loop import closed_loop_interstation, designated_times, overall
+from planner.datasets.closed_loop import run_closed_loop, write_closed_loop
 from planner.io.parquet import read_dataset
 from planner.errors import InputError
 from planner.line.model import Beacon
-from planner.tables.onboard import load_tables
-from planner.tables.build import build_tables, write_tables
+from planner.datasets.tables import load_tables
+from planner.tables.build import build_tables
+from planner.datasets.tables import write_tables
 
 from linedb import write_line_db
 

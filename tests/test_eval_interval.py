@@ -9,13 +9,16 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
-from planner.bundle import container as bundle, signing
-from planner.tables.closed_loop import closed_loop_interstation
+from planner.bundle.assemble import assemble
+from planner.bundle.container import build_line, bundle_bytes
+from planner.bundle.verify import read_bundle
+from planner.bundle import signing
 from planner.errors import BundleError, JobError
 from planner.job.config import load_job
-from planner.tables.onboard import load_tables
+from planner.datasets.tables import load_tables
 from planner.tables.ratios import ratio_grid
-from planner.tables.build import interstation_tables, write_tables
+from planner.tables.build import interstation_tables
+from planner.datasets.tables import write_tables
 from test_tables import CLOSED_FORM_TOL_S, VMAX, flat_line, t_b
 from test_bundle_support import release
 
@@ -65,9 +68,9 @@ def test_interval_points_round_trip_through_the_datasets_and_the_bundle(flat, tm
     np.testing.assert_array_equal(back.remaining_s, t.remaining_s)
 
     priv, pub = signing.generate_keypair(tmp_path / "keys")
-    info = bundle.build_line(ln, tmp_path / "out", priv, tables_dir=tmp_path / "tables", directions=["down"],
-                             release=release())[0]
-    v = bundle.read_bundle(info.path, pub)
+    info = build_line(ln, tmp_path / "out", priv, tables_dir=tmp_path / "tables", directions=["down"],
+                      release=release())[0]
+    v = read_bundle(info.path, pub)
     ep = v.tables["eval_points"].to_pydict()
     assert list(zip(ep["eval_point_id"], ep["eval_distance_m"], ep["eval_point_kind"])) == EXPECTED
     tb = v.tables["table_b"].to_pydict()
@@ -81,7 +84,7 @@ def test_bundle_refuses_a_misnamed_odometer_point(flat, tmp_path):
     ln, t = flat
     write_tables([t], tmp_path / "tables")
     key = signing.load_private_key(signing.generate_keypair(tmp_path / "keys")[0])
-    tabs = bundle.assemble(ln, "down", "T", tables_dir=tmp_path / "tables")
+    tabs = assemble(ln, "down", "T", tables_dir=tmp_path / "tables")
     ep = tabs["eval_points"]
     kinds = ep["eval_point_kind"].to_pylist()
 
@@ -92,15 +95,15 @@ def test_bundle_refuses_a_misnamed_odometer_point(flat, tmp_path):
         return t2
 
     kw = dict(line_id=ln.line_id, direction="down", train_type="T", private_key=key, release=release())
-    bundle.bundle_bytes(tabs, **kw)  # as built: accepted
+    bundle_bytes(tabs, **kw)  # as built: accepted
     odo_as_beacon = ["beacon" if k == "interval" else k for k in kinds]
     with pytest.raises(BundleError, match="not in beacons"):
-        bundle.bundle_bytes(with_kinds(odo_as_beacon), **kw)
+        bundle_bytes(with_kinds(odo_as_beacon), **kw)
     beacon_as_odo = ["interval" if k == "beacon" else k for k in kinds]
     with pytest.raises(BundleError, match=r"odometer point\(s\) \['B1'\]"):
-        bundle.bundle_bytes(with_kinds(beacon_as_odo), **kw)
+        bundle_bytes(with_kinds(beacon_as_odo), **kw)
     with pytest.raises(BundleError, match="eval_point_kind 'odometer' is not one of"):
-        bundle.bundle_bytes(with_kinds(["odometer"] * len(kinds)), **kw)
+        bundle_bytes(with_kinds(["odometer"] * len(kinds)), **kw)
 
 
 def _write_job(tmp_path, extra: str):

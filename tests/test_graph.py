@@ -67,7 +67,7 @@ def test_locals_and_rapids(tiny):
 
 
 def test_paths_follow_the_predicted_trajectory(tiny, data):
-    from planner.network.conflicts import SimulatorCurves, build_trajectory
+    from planner.network.arrivals import SimulatorCurves, build_trajectory
 
     src = SimulatorCurves(tiny)
     for tp, train in zip(data.trains, tiny.trains):

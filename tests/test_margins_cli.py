@@ -42,8 +42,9 @@ def test_from_scratch(linedir, tmp_path):
 
 
 def test_reuses_tables_and_closed_loop(linedir, tmp_path):
-    from planner.tables.closed_loop import run_closed_loop, write_closed_loop
-    from planner.tables.build import build_tables, write_tables
+    from planner.datasets.closed_loop import run_closed_loop, write_closed_loop
+    from planner.tables.build import build_tables
+    from planner.datasets.tables import write_tables
 
     line = load_line(linedir)
     tdir, cdir = tmp_path / "tables", tmp_path / "cl"

@@ -4,7 +4,7 @@ A jerk limit of 1e-9 km/h/s² makes every stopping pattern impossible. Before,
 every leg of that train type was published with ``infeasible = false``,
 ``tight = false`` and a null margin, so ``where infeasible or tight`` listed
 none of them. Now validation refuses such a limit where it can tell up front
-(the rule in :func:`planner.line.validate.jerk_allows_a_stop`), and a leg whose
+(the rule in :func:`planner.line.rules.jerk_allows_a_stop`), and a leg whose
 bad-day minimum still cannot be computed is ``unassessed`` with a reason, its
 ``infeasible``/``tight`` null in the dataset, and listed first in the report.
 """
@@ -26,7 +26,7 @@ from test_margins import APPROACH, SMALL_GRID, closed_form_line
 # --- validation: the up-front rule -----------------------------------------------------------------
 def test_min_stop_distance_matches_a_numeric_integration():
     """v sqrt(v/j): deceleration ramped up and down at ±j (triangle), integrated independently."""
-    from planner.line.validate import min_stop_distance_m
+    from planner.line.rules import min_stop_distance_m
 
     v0, j = 5 / 3.6, 0.3
     T = 2 * math.sqrt(v0 / j)

@@ -19,20 +19,11 @@ from hypothesis import strategies as st
 from planner.line import testing
 from planner.errors import InputError, PlannerError
 from planner.line.model import Call, Edge, Network, Node, Train
-from planner.network.conflicts import (
-    BlockingParams,
-    RouteNotFoundError,
-    TrackGraph,
-    build_trajectory,
-    check_conflicts,
-    find_overlaps,
-    overtaken_calls,
-    plan_routes,
-    stretched_curve,
-    track_direction,
-    would_deadlock,
-    write_conflicts,
-)
+from planner.datasets.conflicts import check_conflicts, write_conflicts
+from planner.network.arrivals import build_trajectory, stretched_curve
+from planner.network.priority import would_deadlock
+from planner.network.routes import RouteNotFoundError, TrackGraph, overtaken_calls, plan_routes, track_direction
+from planner.network.windows import BlockingParams, find_overlaps
 
 NAN = float("nan")
 V = 20.0  # constant test speed [m/s]
@@ -334,7 +325,7 @@ def test_front_time_at_nodes_with_stretch_and_dwell():
 def test_front_leaves_a_stop_at_departure_despite_round_off_where_curves_meet():
     # Two curves that meet at the stop marker 1000 m only up to round-off (1000 + 4.5e-13 and 1000):
     # a stop node at exactly 1000 is still left at the departure (130), not at the arrival (100).
-    from planner.network.conflicts import Trajectory
+    from planner.network.arrivals import Trajectory
 
     u = np.array([0.0, 1000.0 + 4.5e-13, 1000.0, 2000.0])
     t = np.array([0.0, 100.0, 130.0, 230.0])
@@ -422,7 +413,7 @@ def test_missing_network_is_a_clear_error():
 
 # --- run curves from the simulator
 def test_simulator_curves_pick_the_ratio_that_meets_the_schedule():
-    from planner.network.conflicts import SimulatorCurves
+    from planner.network.arrivals import SimulatorCurves
     from planner.physics.track import SimSettings
     from planner.api import running_time
 

@@ -10,20 +10,12 @@ import pytest
 from hypothesis import given, strategies as st
 
 from planner.tables.eval_points import EvalPoint
-from planner.tables.onboard import (
-    CHOOSERS,
-    InterpolateRule,
-    NearestRule,
-    RunningTimeTables,
-    chooser,
-    load_tables,
-    make_controller,
-    row_at,
-    solve_ratio,
-)
+from planner.tables.onboard import CHOOSERS, InterpolateRule, NearestRule, RunningTimeTables, chooser, make_controller, row_at, solve_ratio
+from planner.datasets.tables import load_tables
 from planner.errors import InputError
 from planner.tables.ratios import ratio_grid
-from planner.tables.build import InterstationTables, write_tables
+from planner.tables.build import InterstationTables
+from planner.datasets.tables import write_tables
 
 RATIOS = ratio_grid(line_max_speed_ms=100 / 3.6)
 ROUNDOFF_S = 1e-9  # exact arithmetic up to float round-off on ~100 s values

@@ -62,7 +62,7 @@ def test_ids_within_the_rule_load(tmp_path, good):
 
 
 def test_writers_check_again_where_they_build_paths(tmp_path):
-    from planner.bundle.container import bundle_name
+    from planner.bundle.manifest import bundle_name
     from planner.io.parquet import write_partitioned
 
     table = pa.table({"line": ["tiny"], "direction": ["down"], "train_type": ["../../x"], "v": [1.0]})

@@ -144,7 +144,7 @@ def test_cold_run_publishes_everything_and_reads_back(project):
         t = ds.dataset(out / "latest" / name, format="parquet", partitioning="hive").to_table(
             columns=["run_id", "run_date"]).to_pandas()
         assert (t.run_id == s.run_id).all() and (t.run_date.astype(str) == manifest["run_date"]).all(), name
-    from planner.bundle.container import verify_bundle
+    from planner.bundle.verify import verify_bundle
     from planner.bundle.signing import load_public_key
 
     pub = load_public_key(out / "latest" / "bundles" / "signing_key.pub.pem")
@@ -332,7 +332,7 @@ def test_dask_backend_gives_the_same_datasets(project, tmp_path_factory):
 
 
 def test_a_new_signing_key_at_the_same_path_is_a_change(project):
-    from planner.bundle.container import verify_bundle
+    from planner.bundle.verify import verify_bundle
     from planner.bundle.signing import generate_keypair, load_public_key
 
     keys = project / "keys"

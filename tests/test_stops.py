@@ -22,18 +22,8 @@ from typer.testing import CliRunner
 from planner.line import testing
 from planner.errors import InputError, UnknownNameError
 from planner.line.model import Beacon
-from planner.stopping.sweep import (
-    DEFAULT_ADHESION_KMH_S,
-    STOP_SAMPLES_SCHEMA,
-    STOP_SUMMARY_SCHEMA,
-    InfeasibleStopWarning,
-    adhesion_levels,
-    approach_patterns,
-    datasets,
-    plot_approach,
-    stop_sweep,
-    write_stops,
-)
+from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, InfeasibleStopWarning, adhesion_levels, approach_patterns, plot_approach, stop_sweep
+from planner.datasets.stops import STOP_SAMPLES_SCHEMA, STOP_SUMMARY_SCHEMA, datasets, write_stops
 from planner.line.units import KMH, KMH_S
 
 from linedb import write_line_db

@@ -16,7 +16,8 @@ from planner.line.model import Beacon
 from planner.tables.ratios import ratio_grid
 from planner.physics.track import make_track
 from planner.physics.run_curve import simulate
-from planner.tables.build import TABLE_B_SCHEMA, build_tables, interstation_tables, write_tables
+from planner.tables.build import build_tables, interstation_tables
+from planner.datasets.tables import TABLE_B_SCHEMA, write_tables
 
 from linedb import write_line_db
 
@@ -286,7 +287,7 @@ def test_table_d_speed_interpolation_converges(hilly):
 
 
 def test_table_d_round_trip_through_the_datasets(hilly, tmp_path):
-    from planner.tables.onboard import load_tables
+    from planner.datasets.tables import load_tables
 
     ln, results = hilly
     write_tables(results, tmp_path)

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 import planner
-from planner.physics import dynamics
 from planner.line import testing
 from planner.errors import InputError
 from planner.physics.track import SimSettings, make_track
 from planner.physics.run_curve import simulate
 from planner.api import timekeeping_run
-from planner.tables.timekeeping import ADVICE_NAMES, cruise_speed_limited, drive
+from planner.tables.timekeeping import ADVICE_NAMES, drive
+from planner.tables.cruise import cruise_speed_limited
 
 ARRIVAL_TOL_S = 0.2
 """Issue 10: arrival within 0.2 s of the (changed) schedule."""

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from planner.tables.timekeeping import braking_pattern_speed, cruise_speed, cruise_speed_limited, profile_time
+from planner.tables.cruise import braking_pattern_speed, cruise_speed, cruise_speed_limited, profile_time
 
 # Exact arithmetic up to rounding: the closed forms involve one sqrt each.
 REL = 1e-9

@@ -62,7 +62,8 @@ def bundle_build(
     """Build one signed bundle per direction x train type of a line."""
     from rich.progress import Progress
 
-    from planner.bundle.container import Release, build_line, parse_time
+    from planner.bundle.container import build_line
+    from planner.bundle.manifest import Release, parse_time
     from planner.line.loader import load_line
 
     from .checks import check_out_dir, train_type_codes
@@ -93,7 +94,7 @@ def bundle_build(
 
 def rebuild_advice(missing) -> str:
     """What fixes exactly these missing tables: the build option whose folder provides each."""
-    from planner.bundle.container import TABLE_SOURCES
+    from planner.bundle.assemble import TABLE_SOURCES
 
     step = {"tables": "`planner tables LINE --out DIR`", "stops": "`planner stops LINE --out DIR`"}
     parts = []
@@ -118,7 +119,7 @@ def bundle_verify(
                                           help="Also fail when expected tables are missing."),
 ) -> None:
     """Check signature, key id, target, key kind, version, expiry, hashes, schema and consistency."""
-    from planner.bundle.container import verify_bundle
+    from planner.bundle.verify import verify_bundle
     from ..errors import BundleError
 
     try:

@@ -26,7 +26,9 @@ def conflicts(
 
     from .. import load_line
     from ..errors import InputError
-    from planner.network.conflicts import BlockingParams, SimulatorCurves, check_conflicts, write_conflicts
+    from planner.datasets.conflicts import check_conflicts, write_conflicts
+    from planner.network.arrivals import SimulatorCurves
+    from planner.network.windows import BlockingParams
 
     from .checks import check_jobs, check_out_dir
 

@@ -37,13 +37,8 @@ def stops(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from planner.line.loader import load_line
-    from planner.stopping.sweep import (
-        InfeasibleStopWarning,
-        adhesion_levels,
-        plot_approach,
-        stop_sweep,
-        write_stops,
-    )
+    from planner.stopping.sweep import InfeasibleStopWarning, adhesion_levels, plot_approach, stop_sweep
+    from planner.datasets.stops import write_stops
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_codes
 

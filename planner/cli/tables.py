@@ -70,7 +70,8 @@ def tables(
     beacons and, with --eval-interval, odometer points at that regular interval.
     """
     from planner.line.loader import load_line
-    from planner.tables.build import build_tables, write_tables
+    from planner.tables.build import build_tables
+    from planner.datasets.tables import write_tables
     from .checks import check_jobs, check_out_dir, train_type_codes
 
     try:
@@ -120,7 +121,8 @@ def simulate(
     """Closed loop: the on-board logic (its nominal model) drives the real train (the scenario)
     against designated running times from the minimum to the minimum + --extra; reports arrival
     and stop errors."""
-    from planner.tables.closed_loop import overall, run_closed_loop, write_closed_loop
+    from planner.tables.closed_loop import overall
+    from planner.datasets.closed_loop import run_closed_loop, write_closed_loop
     from planner.line.loader import load_line
     from .checks import check_jobs, check_out_dir, train_type_codes
 

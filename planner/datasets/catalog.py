@@ -28,11 +28,9 @@ class DatasetDoc:
 def datasets() -> list[DatasetDoc]:
     """Every dataset a nightly run publishes, in pipeline order."""
     from planner.report import changes, margins
-    from planner.tables import closed_loop, build as tables
-    from planner.network import conflicts as network
-    from planner.stopping import sweep as stops
+    from planner.datasets import closed_loop, conflicts, stops, tables
 
-    occ, con = network._schemas()
+    occ, con = conflicts.OCCUPATION_SCHEMA, conflicts.CONFLICTS_SCHEMA
     out = [DatasetDoc(n, s, HIVE, "tables") for n, s in tables.SCHEMAS.items()]
     out += [DatasetDoc(n, s, HIVE, "stops") for n, s in stops.SCHEMAS.items()]
     out += [

@@ -331,7 +331,7 @@ def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
 
 def _renewal_due(last_manifest: dict, now_s: int) -> bool:
     """The published bundles have used half of their validity (or the run has no release record)."""
-    from planner.bundle.container import parse_time
+    from planner.bundle.manifest import parse_time
 
     rel = last_manifest.get("bundles_release")
     try:
@@ -401,7 +401,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)
-            from planner.bundle.container import Release, build_time_s
+            from planner.bundle.manifest import Release, build_time_s
             from planner.bundle.signing import load_private_key, public_key_id
 
             notes: list[str] = []
@@ -473,7 +473,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         for k in tasks
     ]
     tables = runner.run("tables", t_units)
-    from planner.tables.build import write_tables
+    from planner.datasets.tables import write_tables
 
     _count(summary, write_tables(tables, stage))
 
@@ -487,7 +487,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         for k in tasks
     ]
     stops = runner.run("stops", s_units)
-    from planner.stopping.sweep import write_stops
+    from planner.datasets.stops import write_stops
 
     _count(summary, write_stops(stops, stage))
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
@@ -512,7 +512,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         for u, tab in zip(t_units, tables)
     ]
     loops = [r for batch in runner.run("closed_loop", c_units) for r in batch]
-    from planner.tables.closed_loop import write_closed_loop
+    from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
 
@@ -596,14 +596,14 @@ def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
 
 
 def _conflicts_unit(line, params):
-    from planner.network.conflicts import check_conflicts
+    from planner.datasets.conflicts import check_conflicts
 
     return check_conflicts(line, params)
 
 
 def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary):
     """Route conflicts of the line's whole timetable; returns the conflicts table for the report."""
-    from planner.network.conflicts import write_conflicts
+    from planner.datasets.conflicts import write_conflicts
 
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
     key = digest(["conflicts", code_digest(), line.source_digest, params, job.tables.ds_m])
@@ -615,7 +615,7 @@ def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: 
 
 
 def _release_record(release) -> dict | None:
-    from planner.bundle.container import format_time
+    from planner.bundle.manifest import format_time
 
     if release is None:
         return None

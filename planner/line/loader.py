@@ -50,7 +50,8 @@ from planner.line.model import (
 )
 from planner.line.schema import TABLES
 from planner.line.units import KMH, KMH_S, KMH_S2, KN, PERMIL, TONNE
-from planner.line.validate import TableView, check_tables
+from planner.line.validate import check_tables
+from planner.line.conform import TableView
 
 
 def source_digest(line_dir: str | Path) -> str:

@@ -461,7 +461,7 @@ def _conflict_changes(ch: LineChanges, old, new) -> None:
 
 
 def _bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
-    from planner.bundle.container import read_bundle
+    from planner.bundle.verify import read_bundle
     from planner.errors import PlannerError
 
     ob, nb = Path(old_dir) / "bundles", Path(new_dir) / "bundles"
@@ -596,7 +596,7 @@ def write_changes(changes: LineChanges, out_dir: str | Path) -> list[Path]:
 
 
 def path_id(line_id: str) -> str:
-    from planner.bundle.container import check_id
+    from planner.bundle.manifest import check_id
 
     return check_id(line_id, "line id")
 

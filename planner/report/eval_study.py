@@ -39,13 +39,8 @@ from planner.tables.closed_loop import ClosedLoopResult, closed_loop_batch, get_
 from planner.tables.eval_points import check_interval
 from planner.line.model import Line
 from planner.tables.ratios import ratio_grid
-from planner.tables.build import (
-    InterstationTables,
-    datasets as table_datasets,
-    interstation_tables,
-    table_tasks,
-    write_tables,
-)
+from planner.tables.build import InterstationTables, interstation_tables, table_tasks
+from planner.datasets.tables import datasets as table_datasets, write_tables
 
 GRIDS: dict[str, str] = {
     "default": "1.0:0.7:0.1,0.7:floor:0.05",
@@ -130,7 +125,8 @@ def bundle_sizes(line: Line, tables_dir: Path, stops_dir: Path | None,
     """Bytes of every signed bundle of ``line`` from these folders (nothing is written)."""
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-    from planner.bundle.container import assemble, bundle_bytes
+    from planner.bundle.assemble import assemble
+    from planner.bundle.container import bundle_bytes
     from planner.line.model import DIRECTIONS
 
     key = Ed25519PrivateKey.generate()  # signatures have a fixed size: the bytes do not depend on it

@@ -766,7 +766,7 @@ class MarginReport:
         Key of the leg whose run curves are drawn (``direction, train_type,
         origin, destination, scheduled_running_time_s``).
     conflicts : pandas.DataFrame or None
-        :func:`planner.network.conflicts.conflicts_table` rows (None: not checked).
+        :func:`planner.datasets.conflicts.conflicts_table` rows (None: not checked).
     conflicts_note : str
         Why conflicts were not checked, or "".
     """
@@ -914,7 +914,7 @@ def compute_margins(
     """
     import pandas as pd
 
-    from planner.tables.onboard import load_tables
+    from planner.datasets.tables import load_tables
 
     types = list(train_types) if train_types else [t.train_type for t in line.train_types]
     for t in types:
@@ -1057,7 +1057,7 @@ def compute_margins(
             note = "the line database has no track network (nodes.parquet, edges.parquet)"
         else:
             from planner.errors import PlannerError
-            from planner.network.conflicts import conflicts_table
+            from planner.datasets.conflicts import conflicts_table
 
             try:
                 con = conflicts_table(line, conflict_params)

@@ -65,7 +65,7 @@ def _table(head: Sequence[str], rows: Sequence[Sequence[str]], num: Sequence[int
 
 
 def _bundles(run_dir: Path) -> list[list[str]]:
-    from planner.bundle.container import verify_bundle
+    from planner.bundle.verify import verify_bundle
     from planner.errors import PlannerError
 
     folder = run_dir / "bundles"

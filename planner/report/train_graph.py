@@ -3,9 +3,9 @@
 Stations stand on the vertical axis at their chainage (the line's origin at the
 top, so down trains fall to the right, as planners draw them), time runs along
 the horizontal axis. Each train is drawn from its **predicted trajectory**: the
-front's chainage over time that the conflict check of :mod:`planner.network.conflicts`
-predicts from the run-curve simulator (:func:`planner.network.conflicts.build_trajectory`
-with :class:`planner.network.conflicts.SimulatorCurves`), not straight lines between
+front's chainage over time that the conflict check of :mod:`planner.network`
+predicts from the run-curve simulator (:func:`planner.network.arrivals.build_trajectory`
+with :class:`planner.network.arrivals.SimulatorCurves`), not straight lines between
 timetable points, so acceleration and braking bend the line and a stop is a
 flat step (front at the stop marker from arrival to departure). Nothing here
 simulates: the trajectories, blocking-time windows and conflicts are the
@@ -19,7 +19,7 @@ What the graph shows:
   drawn in a warm colour and thicker, locals in a cool colour, each direction
   in its own shade;
 * **stops** as flat steps, **loop stops** (where the route search puts a
-  stopping train on the loop to be overtaken, :attr:`planner.network.conflicts.Route.loop_calls`)
+  stopping train on the loop to be overtaken, :attr:`planner.network.routes.Route.loop_calls`)
   with a ring, so an overtake reads as a rapid crossing a standing local there;
 * **conflicts**: the overlap of two trains' blocking windows on one resource,
   a red box from overlap start to end over the resource's chainage;
@@ -168,12 +168,12 @@ def train_paths(line: Line, curves=None, *, tol_t_s: float = TOL_T_S, tol_x_m: f
     line : Line
     curves : RunCurveSource, optional
         Run curves per interstation (default
-        :class:`planner.network.conflicts.SimulatorCurves` of the line, the same the
+        :class:`planner.network.arrivals.SimulatorCurves` of the line, the same the
         conflict check uses; pass the one the check used to share its cache).
     loops : mapping, optional
         ``train_id`` → stations where it stands on a loop (from the routes).
     """
-    from planner.network.conflicts import SimulatorCurves, build_trajectory, interstation_keys
+    from planner.network.arrivals import SimulatorCurves, build_trajectory, interstation_keys
 
     src = curves if curves is not None else SimulatorCurves(line)
     if hasattr(src, "prepare"):
@@ -191,7 +191,7 @@ def train_paths(line: Line, curves=None, *, tol_t_s: float = TOL_T_S, tol_x_m: f
 
 
 def loop_stations(line: Line, routes: Mapping[str, Any]) -> dict[str, tuple[str, ...]]:
-    """``train_id`` → stations where its route stands on a loop, from :func:`planner.network.conflicts.plan_routes`."""
+    """``train_id`` → stations where its route stands on a loop, from :func:`planner.network.routes.plan_routes`."""
     out = {}
     for t in line.trains:
         r = routes.get(t.train_id)
@@ -258,7 +258,7 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
 
     Given ``windows``/``conflicts`` (the ``occupation``/``conflicts`` datasets
     of a run) they are used as they are; otherwise, when the line has a track
-    network, :func:`planner.network.conflicts.check_conflicts` computes them with the
+    network, :func:`planner.datasets.conflicts.check_conflicts` computes them with the
     same run-curve source as the trajectories (simulated once).
 
     Parameters
@@ -273,7 +273,9 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
         Run the conflict check when windows/conflicts are not given (False:
         draw without them, as when the job has ``[conflicts] enabled = false``).
     """
-    from planner.network.conflicts import SimulatorCurves, check_conflicts, plan_routes
+    from planner.datasets.conflicts import check_conflicts
+    from planner.network.arrivals import SimulatorCurves
+    from planner.network.routes import plan_routes
 
     notes: list[str] = []
     src = curves if curves is not None else SimulatorCurves(line)

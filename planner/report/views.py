@@ -51,7 +51,7 @@ def _graph_unit(line, check: bool):
 
     loops = {}
     if line.network is not None and check:
-        from planner.network.conflicts import plan_routes
+        from planner.network.routes import plan_routes
 
         loops = loop_stations(line, plan_routes(line))
     return train_paths(line, loops=loops)

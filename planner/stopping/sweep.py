@@ -47,9 +47,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
-import pyarrow as pa
 
-from planner.io.parquet import declare, write_partitioned
 from planner.stopping import approach as _approach
 from planner.stopping.approach import DEFAULT_APPROACH_M
 from planner.errors import InputError, UnknownNameError
@@ -64,16 +62,11 @@ __all__ = [
     "DEFAULT_APPROACH_M",
     "DEFAULT_SAMPLE_DT_S",
     "InfeasibleStopWarning",
-    "STOP_SAMPLES_SCHEMA",
-    "STOP_SUMMARY_SCHEMA",
     "adhesion_levels",
     "approach_patterns",
     "approach_tasks",
-    "benchmark_sample_line",
-    "datasets",
     "plot_approach",
     "stop_sweep",
-    "write_stops",
 ]
 
 DEFAULT_SAMPLE_DT_S = 0.1
@@ -450,131 +443,6 @@ def stop_sweep(
 
 
 # --------------------------------------------------------------------------------------
-# Datasets
-# --------------------------------------------------------------------------------------
-
-STOP_SUMMARY_SCHEMA = declare(
-    [
-        ("station_id", pa.string(), "station of the stop (arrival of the interstation)"),
-        ("origin", pa.string(), "departure station of the interstation"),
-        ("tasc_beacon_id", pa.string(), "TASC beacon the approach starts at; empty when a fixed distance is used"),
-        ("approach_start_m", pa.float64(), "chainage of the approach (pattern) start [m]"),
-        ("stop_m", pa.float64(), "chainage of the stop marker [m]"),
-        ("approach_length_m", pa.float64(), "distance from the approach start to the stop marker [m]"),
-        ("v_start_kmh", pa.float64(), "speed of the minimum-time run (ratio 1.0, load 0) at the approach start [km/h]"),
-        ("run_phase", pa.string(), "phase of that run at the approach start (power, hold, coast, brake, stop)"),
-        ("jerk_max_kmh_s2", pa.float64(), "jerk limit of the train type [km/h/s²]"),
-        ("comfort_kmh_s", pa.float64(), "comfort deceleration limit of the train type [km/h/s]"),
-        ("adhesion_kmh_s", pa.float64(), "adhesion-limited braking deceleration of this sweep level [km/h/s]"),
-        ("feasible", pa.bool_(), "true when a pattern meeting every limit exists"),
-        ("reason", pa.string(), "why there is no pattern (empty when feasible)"),
-        ("duration_s", pa.float64(), "pattern duration from the approach start to standstill at the marker [s]"),
-        ("brake_start_m", pa.float64(), "chainage where deceleration first begins [m] (null when infeasible)"),
-        ("brake_start_distance_m", pa.float64(),
-         "distance from the brake start to the stop marker [m]; when infeasible, the distance the limits "
-         "would need (longer than the approach), null if unknown"),
-        ("time_lost_s", pa.float64(),
-         "duration minus the shortest feasible duration of the approach's sweep (the best adhesion) [s]"),
-    ],
-    name="stop_summary",
-    description="Minimum-time jerk-limited stopping patterns: one row per station approach and adhesion level "
-                "(DESIGN §5).",
-)
-
-STOP_SAMPLES_SCHEMA = declare(
-    [
-        ("station_id", pa.string(), "station of the stop"),
-        ("adhesion_kmh_s", pa.float64(), "adhesion level of the pattern [km/h/s]"),
-        ("t_s", pa.float64(), "time from the approach start [s]"),
-        ("position_m", pa.float64(), "chainage of the train front [m]"),
-        ("distance_to_stop_m", pa.float64(), "distance from the front to the stop marker [m]"),
-        ("speed_kmh", pa.float64(), "speed [km/h]"),
-        ("accel_ms2", pa.float64(), "acceleration [m/s²], negative when braking"),
-        ("jerk_ms3", pa.float64(), "jerk of the constant-jerk piece the sample lies in [m/s³]"),
-    ],
-    name="stop_samples",
-    description="Feasible stopping patterns sampled in time (exact values of the cubic pieces) (DESIGN §5).",
-)
-
-SCHEMAS = {"stop_summary": STOP_SUMMARY_SCHEMA, "stop_samples": STOP_SAMPLES_SCHEMA}
-SORT_BY = {"stop_summary": ("station_id", "adhesion_kmh_s"), "stop_samples": ("station_id", "adhesion_kmh_s", "t_s")}
-
-
-def _nan_to_none(x: float):
-    return None if x is None or (isinstance(x, float) and math.isnan(x)) else x
-
-
-def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_DT_S) -> dict[str, pa.Table]:
-    """The ``stop_summary`` and ``stop_samples`` rows (with partition columns line/direction/train_type).
-
-    Parameters
-    ----------
-    results : sequence of ApproachResult
-    dt_s : float
-        Sampling step of the patterns [s].
-    """
-    summ: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SUMMARY_SCHEMA.names)}
-    samp: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SAMPLES_SCHEMA.names)}
-    for r in results:
-        lost = r.time_lost_s
-        for a, p, tl in zip(r.adhesion_kmh_s, r.patterns, lost):
-            row = {
-                "line": r.line_id, "direction": r.direction, "train_type": r.train_type,
-                "station_id": r.station_id, "origin": r.origin, "tasc_beacon_id": r.tasc_beacon_id,
-                "approach_start_m": r.approach_start_m, "stop_m": r.stop_m,
-                "approach_length_m": r.approach_length_m,
-                "v_start_kmh": _nan_to_none(r.v_start_ms * 3.6), "run_phase": r.run_phase,
-                "jerk_max_kmh_s2": r.jerk_max_ms3 * 3.6, "comfort_kmh_s": r.comfort_ms2 * 3.6,
-                "adhesion_kmh_s": a, "feasible": p.feasible, "reason": p.reason,
-                "duration_s": _nan_to_none(p.duration_s),
-                "brake_start_m": float(r.chainage_m(p.brake_start_m)) if p.feasible else None,
-                "brake_start_distance_m": _nan_to_none(p.braking_distance_m),
-                "time_lost_s": _nan_to_none(tl),
-            }
-            for k, v in row.items():
-                summ[k].append(v)
-            if not p.feasible:
-                continue
-            s = p.sample(dt_s)
-            n = s.t_s.size
-            samp["line"] += [r.line_id] * n
-            samp["direction"] += [r.direction] * n
-            samp["train_type"] += [r.train_type] * n
-            samp["station_id"] += [r.station_id] * n
-            samp["adhesion_kmh_s"] += [a] * n
-            samp["t_s"].append(s.t_s)
-            samp["position_m"].append(r.chainage_m(s.x_m))
-            samp["distance_to_stop_m"].append(r.approach_length_m - s.x_m)
-            samp["speed_kmh"].append(s.v_ms * 3.6)
-            samp["accel_ms2"].append(s.a_ms2)
-            samp["jerk_ms3"].append(s.j_ms3)
-    for k in ("t_s", "position_m", "distance_to_stop_m", "speed_kmh", "accel_ms2", "jerk_ms3"):
-        samp[k] = np.concatenate(samp[k]) if samp[k] else np.zeros(0)
-    summary = pa.table({k: pa.array(v, type=_type(k, STOP_SUMMARY_SCHEMA)) for k, v in summ.items()})
-    samples = pa.table({k: pa.array(v, type=_type(k, STOP_SAMPLES_SCHEMA)) for k, v in samp.items()})
-    return {"stop_summary": summary, "stop_samples": samples}
-
-
-def _type(name: str, schema: pa.Schema) -> pa.DataType:
-    return schema.field(name).type if name in schema.names else pa.string()
-
-
-def write_stops(results: Sequence[ApproachResult], out_dir: str | Path, *,
-                dt_s: float = DEFAULT_SAMPLE_DT_S) -> list[Path]:
-    """Write ``stop_summary`` and ``stop_samples`` under ``out_dir`` (atomic per file, deterministic).
-
-    Returns
-    -------
-    list of Path
-        Files written.
-    """
-    written: list[Path] = []
-    for name, table in datasets(results, dt_s=dt_s).items():
-        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=SORT_BY[name])
-    return written
-
-
-# --------------------------------------------------------------------------------------
 # Figure
 # --------------------------------------------------------------------------------------
 
@@ -679,50 +547,3 @@ def plot_approach(result: ApproachResult, path: str | Path) -> Path:
 
     save_png(fig, path, dpi=110)
     return path
-
-
-# --------------------------------------------------------------------------------------
-# Benchmark hook
-# --------------------------------------------------------------------------------------
-
-
-def benchmark_sample_line(n_jobs: int = -1) -> dict:
-    """Time the whole default sweep of the sample line and print the figures (used by ``make bench``).
-
-    Returns
-    -------
-    dict
-        ``approaches``, ``patterns``, ``infeasible``, ``wall_s``, ``solve_median_ms``.
-    """
-    import statistics
-    import time
-
-    from planner.line.loader import load_line
-
-    root = Path(__file__).resolve().parents[2] / "lines" / "sample"
-    line = load_line(root)
-    t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", InfeasibleStopWarning)
-        results = stop_sweep(line, n_jobs=n_jobs)
-    wall = time.perf_counter() - t0
-    # solve time alone, from the approaches as set up (the simulation of v_start dominates the sweep)
-    solves = []
-    for r in results:
-        for a, dl in zip(r.adhesion_kmh_s, r.decel_limits):
-            if not dl:
-                continue
-            t1 = time.perf_counter()
-            solve_stop(r.v_start_ms, r.approach_length_m, jerk_max=r.jerk_max_ms3, decel_limits=dl,
-                       speed_limits=r.speed_limits)
-            solves.append(time.perf_counter() - t1)
-    n_pat = sum(len(r.patterns) for r in results)
-    n_inf = sum(len(r.patterns) - r.n_feasible for r in results)
-    lost = [t for r in results for t in r.time_lost_s if not math.isnan(t)]
-    med = statistics.median(solves) * 1e3 if solves else math.nan
-    print(f"  sample line sweep: {len(results)} approaches x {len(results[0].adhesion_kmh_s) if results else 0} "
-          f"adhesion levels = {n_pat} patterns ({n_inf} infeasible) in {wall:.2f} s wall "
-          f"(n_jobs={n_jobs}); solve_stop median {med:.3f} ms on these approaches; "
-          f"time lost vs best adhesion up to {max(lost) if lost else math.nan:.2f} s")
-    return {"approaches": len(results), "patterns": n_pat, "infeasible": n_inf, "wall_s": wall,
-            "solve_median_ms": med}

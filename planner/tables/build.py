@@ -46,18 +46,15 @@ on ``n_jobs`` or scheduling.
 
 Datasets (hive-partitioned line / direction / train_type, see schemas below):
 ``eval_points``, ``table_a``, ``table_b``, ``table_c``, ``table_d``. The vehicle
-reads them back with :func:`planner.tables.onboard.load_tables`.
+reads them back with :func:`planner.datasets.tables.load_tables`.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
-import pyarrow as pa
 
-from planner.io.parquet import declare, write_partitioned
 from planner.errors import InfeasibleError
 from planner.tables.eval_points import (
     DEFAULT_AFTER_DEPARTURE_M,
@@ -71,93 +68,16 @@ from planner.line.model import DIRECTIONS, Line
 from planner.tables.onboard import ApproachTable, RunningTimeTables
 from planner.io.parallel import map_tasks
 from planner.tables.ratios import ratio_grid
+from planner.line.units import ms
 
-EVAL_POINTS_SCHEMA = declare(
-    [
-        ("origin", pa.string(), "departure station id of the interstation"),
-        ("destination", pa.string(), "arrival station id of the interstation"),
-        ("eval_point_id", pa.string(), "'dep', 'dep+<m>' (odometer point <m> metres after departure) "
-                                       "or the beacon_id"),
-        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
-        ("eval_distance_m", pa.float64(), "running distance from the departure stop marker [m]"),
-        ("eval_point_kind", pa.string(), "'departure', 'after_departure', 'interval' (odometer point at "
-                                         "the regular interval) or 'beacon'"),
-    ],
-    name="eval_points",
-    description="Evaluation points per interstation, in running order (DESIGN §3).",
-)
-TABLE_A_SCHEMA = declare(
-    [
-        ("origin", pa.string(), "departure station id"),
-        ("destination", pa.string(), "arrival station id"),
-        ("ratio", pa.float64(), "target-speed ratio (target = ratio x on-board maximum speed), 0..1"),
-        ("running_time_s", pa.float64(), "running time stop marker to stop marker at constant ratio [s]"),
-        ("energy_kwh", pa.float64(), "traction energy at the wheel over the run [kWh]"),
-    ],
-    name="table_a",
-    description="Table (a): running time per ratio, tables at load 0 and nominal traction (DESIGN §3).",
-)
-TABLE_B_SCHEMA = declare(
-    [
-        ("origin", pa.string(), "departure station id"),
-        ("destination", pa.string(), "arrival station id"),
-        ("eval_point_id", pa.string(), "evaluation point id (see eval_points)"),
-        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
-        ("ratio_before", pa.float64(), "ratio run from departure up to the evaluation point"),
-        ("ratio_after", pa.float64(), "ratio run from the evaluation point to arrival"),
-        ("remaining_time_s", pa.float64(), "running time from the evaluation point to arrival [s]"),
-        ("elapsed_time_s", pa.float64(), "running time from departure to the evaluation point at ratio_before [s]"),
-    ],
-    name="table_b",
-    description="Table (b): remaining running time per evaluation point and ratio pair (DESIGN §3).",
-)
 
-TABLE_C_SCHEMA = declare(
-    [
-        ("origin", pa.string(), "departure station id"),
-        ("destination", pa.string(), "arrival station id"),
-        ("eval_point_id", pa.string(), "evaluation point id (see eval_points)"),
-        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
-        ("ratio", pa.float64(), "ratio run from departure to arrival"),
-        ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
-        ("remaining_time_ref_s", pa.float64(),
-         "the same for the reference train (load ref_load, traction x ref_traction_factor) [s]"),
-        ("ref_load", pa.float64(), "load factor of the reference train"),
-        ("ref_traction_factor", pa.float64(), "traction factor of the reference train"),
-        ("speed_kmh", pa.float64(), "speed of the table train at the point at constant ratio [km/h]"),
-    ],
-    name="table_c",
-    description="Table (c): remaining time at constant ratio for the table train and a reference "
-                "(full-load, weak-traction) train; lets the on-board 'adaptive' mode learn how far the "
-                "real train is from the tables.",
-)
-TABLE_D_SCHEMA = declare(
-    [
-        ("origin", pa.string(), "departure station id"),
-        ("destination", pa.string(), "arrival station id"),
-        ("eval_point_id", pa.string(), "the last evaluation point of the interstation (see eval_points)"),
-        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
-        ("speed_kmh", pa.float64(), "speed of the train as it passes the point [km/h] (2 km/h grid)"),
-        ("powering", pa.bool_(), "the train passes the point powering (notch on); false: coasting, "
-                                 "holding or braking (only sawtooth vehicles have both)"),
-        ("ratio_after", pa.float64(), "ratio run from the point to arrival (1 % grid plus table_a's ratios)"),
-        ("vmax_kmh", pa.float64(), "on-board maximum speed just after the point [km/h]; the target "
-                                   "there is ratio_after x vmax_kmh"),
-        ("coast_band_kmh", pa.float64(), "the vehicle's coasting band [km/h] (sawtooth cruise)"),
-        ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
-        ("remaining_time_ref_s", pa.float64(), "the same for the reference train of table_c [s]"),
-    ],
-    name="table_d",
-    description="Table (d): remaining time from the last evaluation point by the train's own state "
-                "(speed, powering) and a fine grid of ratios; the 'adaptive' mode's last decision.",
-)
 REF_LOAD = 1.0
 """Load factor of the reference train of tables (c) and (d): the full-load train."""
 REF_TRACTION = 0.9
 """Traction factor of the reference train of tables (c) and (d) (0.9 = weak catenary). With
 ``REF_LOAD`` it is the degraded train the margin report plans for (``MarginRule.degraded_*``):
 the adaptive mode places the real train between the table train and this one."""
-APPROACH_SPEED_STEP_MS = 2.0 / 3.6
+APPROACH_SPEED_STEP_MS = ms(2.0)
 """Speed step of table (d) [m/s] (2 km/h)."""
 APPROACH_RATIO_STEP = 0.01
 """Ratio step of table (d)'s ratios after the last point (the grid ratios are kept as well)."""
@@ -515,89 +435,4 @@ def build_tables(
 
 # --- datasets -------------------------------------------------------------------
 
-def _keys(t: InterstationTables, n: int) -> dict[str, list]:
-    return {
-        "line": [t.line_id] * n,
-        "direction": [t.direction] * n,
-        "train_type": [t.train_type] * n,
-        "origin": [t.origin] * n,
-        "destination": [t.destination] * n,
-    }
 
-
-def _concat(cols: list[dict[str, list]]) -> dict[str, list]:
-    out: dict[str, list] = {}
-    for c in cols:
-        for k, v in c.items():
-            out.setdefault(k, []).extend(list(v))
-    return out
-
-
-def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
-    """The ``eval_points`` and ``table_a`` … ``table_d`` rows, with partition columns, in task order."""
-    ep, ta, tb, tc, td = [], [], [], [], []
-    for t in results:
-        n_r, n_x = len(t.ratios), len(t.points)
-        ep.append(_keys(t, n_x) | {
-            "eval_point_id": [p.eval_point_id for p in t.points],
-            "eval_position_m": [p.position_m for p in t.points],
-            "eval_distance_m": [p.s_m for p in t.points],
-            "eval_point_kind": [p.kind for p in t.points],
-        })
-        ta.append(_keys(t, n_r) | {
-            "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
-        })
-        k, i, j = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), np.arange(n_r), indexing="ij"))
-        tb.append(_keys(t, len(k)) | {
-            "eval_point_id": [t.points[x].eval_point_id for x in k],
-            "eval_position_m": np.array([p.position_m for p in t.points])[k],
-            "ratio_before": t.ratios[i],
-            "ratio_after": t.ratios[j],
-            "remaining_time_s": t.remaining_s[k, i, j],
-            "elapsed_time_s": t.elapsed_s[i, k],
-        })
-        if t.ref_remaining_s is not None:
-            k, i = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), indexing="ij"))
-            tc.append(_keys(t, len(k)) | {
-                "eval_point_id": [t.points[x].eval_point_id for x in k],
-                "eval_position_m": np.array([p.position_m for p in t.points])[k],
-                "ratio": t.ratios[i],
-                "remaining_time_s": t.remaining_s[k, i, i],
-                "remaining_time_ref_s": t.ref_remaining_s[k, i],
-                "ref_load": [t.ref_load] * len(k),
-                "ref_traction_factor": [t.ref_traction_factor] * len(k),
-                "speed_kmh": t.speed_ms[i, k] * 3.6 if t.speed_ms is not None else np.full(len(k), np.nan),
-            })
-        if t.approach is not None:
-            ap, last = t.approach, t.points[-1]
-            p, v, a = (x.ravel() for x in np.meshgrid(np.arange(len(ap.powering)), np.arange(len(ap.speeds_ms)),
-                                                      np.arange(len(ap.ratios)), indexing="ij"))
-            td.append(_keys(t, len(p)) | {
-                "eval_point_id": [last.eval_point_id] * len(p),
-                "eval_position_m": np.full(len(p), last.position_m),
-                "speed_kmh": ap.speeds_ms[v] * 3.6,
-                "powering": np.asarray(ap.powering, bool)[p],
-                "ratio_after": ap.ratios[a],
-                "vmax_kmh": np.full(len(p), ap.vmax_ms * 3.6),
-                "coast_band_kmh": np.full(len(p), ap.coast_band_ms * 3.6),
-                "remaining_time_s": ap.time_s[p, v, a],
-                "remaining_time_ref_s": ap.ref_time_s[p, v, a],
-            })
-    out = {"eval_points": pa.table(_concat(ep)), "table_a": pa.table(_concat(ta)), "table_b": pa.table(_concat(tb))}
-    if tc:
-        out["table_c"] = pa.table(_concat(tc))
-    if td:
-        out["table_d"] = pa.table(_concat(td))
-    return out
-
-
-SCHEMAS = {"eval_points": EVAL_POINTS_SCHEMA, "table_a": TABLE_A_SCHEMA, "table_b": TABLE_B_SCHEMA,
-           "table_c": TABLE_C_SCHEMA, "table_d": TABLE_D_SCHEMA}
-
-
-def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> list[Path]:
-    """Write the datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
-    written: list[Path] = []
-    for name, table in datasets(results).items():
-        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
-    return written

@@ -29,7 +29,6 @@ different topology model, netElements and linear locations) is not read.
 """
 from __future__ import annotations
 
-import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
 

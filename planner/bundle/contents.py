@@ -1,0 +1,247 @@
+"""What a bundle's tables must hold: the declared schemas of the tables built from the line DB,
+the columns the vehicle relies on in the other steps' tables, and the consistency between tables.
+
+Takes a bundle's tables by name (pyarrow tables) and its target (line,
+direction, train type); returns nothing when they hold and raises
+:class:`planner.errors.BundleError` naming the first failed check. The builder
+(:mod:`planner.bundle.container`) runs the same checks as the verifier
+(:mod:`planner.bundle.verify`), so it never signs what a vehicle would refuse.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from planner.bundle import atsp
+from planner.bundle.manifest import CORE_TABLES, fail
+from planner.io.parquet import declare
+from planner.line.model import sign
+from planner.tables.eval_points import KINDS as EVAL_POINT_KINDS
+
+
+# --- declared schemas of the tables built from the line DB ----------------------
+def _key_fields() -> list[tuple[str, pa.DataType, str]]:
+    return [
+        ("line", pa.string(), "line id"),
+        ("direction", pa.string(), "running direction, 'down' or 'up'"),
+        ("train_type", pa.string(), "train type the bundle is for"),
+    ]
+
+
+RESTRICTIONS_SCHEMA = declare(
+    _key_fields() + [
+        ("seq", pa.int32(), "running order of the restriction entry, from 0"),
+        ("restriction_id", pa.string(), "'R<row>', row = 0-based row in speed_limits.parquet"),
+        ("kind", pa.string(), "curve, turnout, civil, station, ..."),
+        ("start_m", pa.float64(), "start chainage of the restricted stretch [m]"),
+        ("end_m", pa.float64(), "end chainage of the restricted stretch [m]"),
+        ("entry_m", pa.float64(), "chainage where the train front enters the restriction [m]"),
+        ("clear_m", pa.float64(), "chainage of the front when the tail has left the restriction [m]"),
+        ("limit_kmh", pa.float64(), "restriction speed [km/h]"),
+        ("onboard_max_kmh", pa.float64(), "on-board maximum in it: min(limit, line, vehicle max) - margin [km/h]"),
+        ("has_beacon", pa.bool_(), "a ground beacon sends this restriction's ATS-P pattern"),
+        ("pattern_needed", pa.bool_(), "limit below the approach speed: an ATS-P pattern is needed"),
+        ("pattern_distance_m", pa.float64(), "(v_high^2 - v_limit^2) / (2 b_ATS-P): pattern length [m]"),
+        ("pattern_start_m", pa.float64(), "chainage where the pattern must begin [m]"),
+        ("db_fed", pa.bool_(), "the on-board logic feeds this telegram (a row in atsp)"),
+        ("overwrite_conflict", pa.bool_(), "its pattern and another's would overwrite each other"),
+        ("overwrites", pa.string(), "restriction_id whose pattern this one's telegram overwrites, or null"),
+    ],
+    name="restrictions",
+    description="Speed restrictions for the direction and train type, in running order, with ATS-P data.",
+)
+MAX_PROFILE_SCHEMA = declare(
+    _key_fields() + [
+        ("seq", pa.int32(), "running order, from 0"),
+        ("from_m", pa.float64(), "chainage where the segment begins in the running direction [m]"),
+        ("to_m", pa.float64(), "chainage where the segment ends in the running direction [m]"),
+        ("limit_kmh", pa.float64(), "lowest of line, vehicle and held restriction speeds [km/h]"),
+        ("onboard_max_kmh", pa.float64(), "on-board maximum speed = limit_kmh - speed margin [km/h]"),
+    ],
+    name="max_profile",
+    description="On-board maximum-speed profile over the whole line, restrictions held until the tail clears.",
+)
+ATSP_SCHEMA = declare(
+    _key_fields() + [
+        ("seq", pa.int32(), "running order of the feed point, from 0"),
+        ("restriction_id", pa.string(), "restriction the telegram protects (see restrictions)"),
+        ("feed_m", pa.float64(), "chainage where the telegram is fed to the ATS-P unit [m]"),
+        ("pattern_start_m", pa.float64(), "chainage where the pattern must begin [m] (feed_m unless clipped)"),
+        ("entry_m", pa.float64(), "chainage of the restriction start in the running direction [m]"),
+        ("distance_m", pa.float64(), "distance from the feed point to the restriction start [m]"),
+        ("hold_m", pa.float64(), "restriction length + train length: speed held over it [m]"),
+        ("limit_kmh", pa.float64(), "restriction speed [km/h]"),
+        ("telegram", pa.string(), "telegram to feed: P<limit km/h:3>D<distance m:5>L<hold m:5>"),
+        ("feed_clipped", pa.bool_(), "pattern start lies before the line start; fed at the line start"),
+        ("overwrite_conflict", pa.bool_(), "this telegram and another's would overwrite each other"),
+        ("overwrites", pa.string(), "restriction_id whose pattern this telegram overwrites, or null"),
+    ],
+    name="atsp",
+    description="ATS-P telegrams fed from the DB for restrictions without a ground beacon.",
+)
+BEACONS_SCHEMA = declare(
+    _key_fields() + [
+        ("seq", pa.int32(), "running order, from 0"),
+        ("beacon_id", pa.string(), "beacon id"),
+        ("position_m", pa.float64(), "chainage [m]"),
+        ("kind", pa.string(), "signal, pattern_update, tasc, other"),
+        ("telegram", pa.string(), "telegram as received on board"),
+        ("evaluation_point", pa.bool_(), "running time is re-evaluated here"),
+        ("correction_usable", pa.bool_(), "telegram differs from both neighbours: may correct the position"),
+    ],
+    name="beacons",
+    description="Beacons read in the direction, in running order, with position-correction flags.",
+)
+TIMETABLE_SCHEMA = declare(
+    _key_fields() + [
+        ("train_id", pa.string(), "train number"),
+        ("seq", pa.int32(), "order of calls along the run, from 0"),
+        ("station_id", pa.string(), "station"),
+        ("arrival_s", pa.float64(), "arrival, seconds after midnight; null at the origin [s]"),
+        ("departure_s", pa.float64(), "departure, seconds after midnight; null at the terminus [s]"),
+        ("stops", pa.bool_(), "false for a pass"),
+    ],
+    name="timetable",
+    description="Timetable slice: trains of the train type and direction, calls in order.",
+)
+CORE_SCHEMAS = {
+    "restrictions": RESTRICTIONS_SCHEMA,
+    "max_profile": MAX_PROFILE_SCHEMA,
+    "atsp": ATSP_SCHEMA,
+    "beacons": BEACONS_SCHEMA,
+    "timetable": TIMETABLE_SCHEMA,
+}
+
+
+# --- checks ---------------------------------------------------------------------
+def check_schema(name: str, got: pa.Schema, want: pa.Schema, where: str) -> None:
+    """Table ``name`` has exactly the declared columns and types of ``want``, in order."""
+    g = [(f.name, f.type) for f in got]
+    w = [(f.name, f.type) for f in want]
+    if g != w:
+        gd, wd = dict(g), dict(w)
+        diff = [f"{n}: expected {t}, found {gd.get(n, 'nothing')}" for n, t in w if gd.get(n) != t]
+        diff += [f"{n}: not declared" for n in gd if n not in wd]
+        raise fail(where, f"table {name} does not match its declared schema ({'; '.join(diff) or 'column order'})")
+
+
+def check_keys(name: str, t: pa.Table, line_id: str, direction: str, train_type: str, where: str) -> None:
+    """Every row of ``t`` that carries a line, direction or train type carries the bundle's target."""
+    for col, want in (("line", line_id), ("line_id", line_id), ("direction", direction),
+                      ("train_type", train_type)):
+        if col not in t.column_names or t.num_rows == 0:
+            continue
+        c = t.column(col)
+        if c.null_count or not pc.all(pc.equal(c.cast(pa.string()), want)).as_py():
+            found = sorted({str(x) for x in c.to_pylist()} - {want})
+            raise fail(where, f"table {name} column {col} holds {found}, expected only {want!r}")
+
+
+def _col(t: pa.Table, name: str) -> list:
+    return t.column(name).to_pylist()
+
+
+_REQUIRED_COLUMNS = {
+    "eval_points": ("origin", "destination", "eval_point_id"),
+    "table_a": ("origin", "destination", "ratio", "running_time_s"),
+    "table_b": ("origin", "destination", "eval_point_id", "ratio_before", "ratio_after", "remaining_time_s"),
+    "table_c": ("origin", "destination", "eval_point_id", "ratio", "remaining_time_s", "remaining_time_ref_s"),
+    "table_d": ("origin", "destination", "eval_point_id", "speed_kmh", "powering", "ratio_after",
+                "remaining_time_s", "remaining_time_ref_s"),
+}
+"""Columns the cross-checks (and the vehicle) rely on in the tables step's datasets."""
+
+
+def check_tables(tables: Mapping[str, pa.Table], m: dict, where: str) -> None:
+    """Cross-table consistency of a bundle whose bytes are already proven."""
+    for name, cols in _REQUIRED_COLUMNS.items():
+        if name in tables:
+            lost = [c for c in cols if c not in tables[name].column_names]
+            if lost:
+                raise fail(where, f"table {name} lacks column(s) {', '.join(lost)}")
+    for name, t in tables.items():
+        check_keys(name, t, m["line_id"], m["direction"], m["train_type"], where)
+        if name in CORE_SCHEMAS:
+            check_schema(name, t.schema, CORE_SCHEMAS[name], where)
+    _check_core(tables, sign(m["direction"]), where)
+    _check_step_tables(tables, where)
+
+
+def _check_core(tables: Mapping[str, pa.Table], sg: int, where: str) -> None:
+    """The tables built from the line DB: sequence numbers, ATS-P rows, running order, beacon flags."""
+    r, a, b = tables["restrictions"], tables["atsp"], tables["beacons"]
+    for name in CORE_TABLES:
+        t = tables[name]
+        if "seq" in t.column_names and name != "timetable" and _col(t, "seq") != list(range(t.num_rows)):
+            raise fail(where, f"table {name} seq is not 0..{t.num_rows - 1}")
+    rid = _col(r, "restriction_id")
+    if len(set(rid)) != len(rid):
+        raise fail(where, "restrictions has duplicate restriction_id")
+    fed = [i for i, x in zip(rid, _col(r, "db_fed")) if x]
+    if sorted(fed) != sorted(_col(a, "restriction_id")):
+        raise fail(where, "atsp rows do not match the restrictions marked db_fed")
+    for tname, t in (("restrictions", r), ("atsp", a)):
+        bad = [x for x in _col(t, "overwrites") if x is not None and x not in rid]
+        if bad:
+            raise fail(where, f"{tname} overwrites unknown restriction(s) {bad}")
+    entry = np.array(_col(r, "entry_m"), dtype=float) * sg
+    if np.any(np.diff(entry) < 0):
+        raise fail(where, "restrictions are not in running order")
+    feed = np.array(_col(a, "feed_m"), dtype=float) * sg
+    if np.any(np.diff(feed) < 0):
+        raise fail(where, "atsp telegrams are not in running order")
+    pos = np.array(_col(b, "position_m"), dtype=float) * sg
+    if np.any(np.diff(pos) < 0):
+        raise fail(where, "beacons are not in running order")
+    if _col(b, "correction_usable") != atsp.correction_usable(_col(b, "telegram")).tolist():
+        raise fail(where, "beacons correction_usable flags do not match their telegrams")
+    mp = tables["max_profile"]
+    fr, to = (np.array(_col(mp, c), dtype=float) * sg for c in ("from_m", "to_m"))
+    if mp.num_rows == 0 or np.any(fr[1:] != to[:-1]) or np.any(to <= fr):
+        raise fail(where, "max_profile segments are not contiguous in running order")
+
+
+def _check_step_tables(tables: Mapping[str, pa.Table], where: str) -> None:
+    """The tables and stopping steps' tables: ratios and evaluation points they share, beacon points."""
+    ta, tb, ep = tables.get("table_a"), tables.get("table_b"), tables.get("eval_points")
+    if ta is not None and tb is not None:
+        have = set(zip(_col(ta, "origin"), _col(ta, "destination"), _col(ta, "ratio")))
+        for c in ("ratio_before", "ratio_after"):
+            need = set(zip(_col(tb, "origin"), _col(tb, "destination"), _col(tb, c)))
+            lost = sorted(need - have, key=str)
+            if lost:
+                raise fail(where, f"table_b {c} {lost[0][2]} for {lost[0][0]}->{lost[0][1]} is not in table_a")
+    tc = tables.get("table_c")
+    if ta is not None and tc is not None:  # the adaptive on-board mode reads table (c) beside (a) and (b)
+        have = set(zip(_col(ta, "origin"), _col(ta, "destination"), _col(ta, "ratio")))
+        lost = sorted(set(zip(_col(tc, "origin"), _col(tc, "destination"), _col(tc, "ratio"))) - have, key=str)
+        if lost:
+            raise fail(where, f"table_c ratio {lost[0][2]} for {lost[0][0]}->{lost[0][1]} is not in table_a")
+    if ep is not None:
+        pts = set(zip(_col(ep, "origin"), _col(ep, "destination"), _col(ep, "eval_point_id")))
+        for name in ("table_b", "table_d"):
+            t = tables.get(name)
+            if t is None:
+                continue
+            lost = set(zip(_col(t, "origin"), _col(t, "destination"), _col(t, "eval_point_id"))) - pts
+            if lost:
+                o, d, x = sorted(lost)[0]
+                raise fail(where, f"{name} evaluation point {x!r} for {o}->{d} is not in eval_points")
+        # beacon points must be beacons of this bundle; odometer points (departure, after departure,
+        # regular interval) are named dep / dep+<m> and are found by running distance, not by beacon
+        ids = _col(ep, "eval_point_id")
+        kinds = _col(ep, "eval_point_kind") if "eval_point_kind" in ep.column_names else \
+            ["departure" if x.startswith("dep") else "beacon" for x in ids]
+        bad = sorted({k for k in kinds} - set(EVAL_POINT_KINDS), key=str)
+        if bad:
+            raise fail(where, f"eval_points eval_point_kind {bad[0]!r} is not one of {', '.join(EVAL_POINT_KINDS)}")
+        beacon_ids = set(_col(tables["beacons"], "beacon_id"))
+        strays = sorted({x for x, k in zip(ids, kinds) if k == "beacon" and x not in beacon_ids})
+        if strays:
+            raise fail(where, f"eval_points name beacon(s) {strays} that are not in beacons")
+        odo = sorted({x for x, k in zip(ids, kinds) if k != "beacon" and not (x == "dep" or x.startswith("dep+"))})
+        if odo:
+            raise fail(where, f"eval_points odometer point(s) {odo} are not named 'dep' or 'dep+<m>'")

@@ -1,0 +1,235 @@
+"""The ``conflicts`` and ``occupation`` datasets of the conflict check, its summary, and their writer.
+
+Takes a :class:`~planner.network.check.ConflictCheck` (computed by
+:func:`planner.network.check.check_timetable`); gives a
+:class:`ConflictReport` whose ``conflicts`` and ``occupation`` are pandas
+DataFrames with the columns of :data:`CONFLICTS_SCHEMA` and
+:data:`OCCUPATION_SCHEMA`, the summary the CLI prints, and the Parquet
+datasets (:func:`write_conflicts`). DESIGN §8 and §9.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+
+from planner.io.parquet import declare, write_parquet_atomic, write_partitioned
+from planner.line.model import Line
+from planner.network.arrivals import RunCurveSource
+from planner.network.check import ConflictCheck, check_timetable
+from planner.network.routes import KIND_NAMES, Route, TrackGraph
+from planner.network.windows import BlockingParams, Windows
+
+OCCUPATION_SCHEMA = declare([
+    ("train_id", pa.string(), "timetabled train"),
+    ("seq", pa.int32(), "order of the resource along the train's route, from 0"),
+    ("resource_kind", pa.string(), "`node` (a switch) or `section` (a track piece, edge)"),
+    ("resource_id", pa.string(), "node_id or edge_id in nodes.parquet / edges.parquet"),
+    ("interlocking", pa.string(), "interlocking controlling the resource (of its entry node for a section)"),
+    ("track", pa.string(), "track name of the section, or of the node"),
+    ("from_m", pa.float64(), "chainage where the front enters the resource [m]"),
+    ("to_m", pa.float64(), "chainage where the front leaves the resource [m]"),
+    ("entry_s", pa.float64(), "predicted time the front enters the resource: passes its entry, or departs where it stands there [s after midnight]"),
+    ("exit_s", pa.float64(), "predicted time the front reaches the exit [s after midnight]"),
+    ("clear_s", pa.float64(), "predicted time the tail clears the exit (front one train length past it) [s after midnight]"),
+    ("setting_s", pa.float64(), "route setting time before the approach [s]"),
+    ("approach_s", pa.float64(), "sight/reaction and approach time before the entry [s]"),
+    ("running_s", pa.float64(), "running time of the front through the resource, exit − entry; includes a dwell only where the train stops with its front inside the resource [s]"),
+    ("clearing_s", pa.float64(), "clearing time: tail clears the exit after the front reached it [s]"),
+    ("release_s", pa.float64(), "route release time after clearing [s]"),
+    ("start_s", pa.float64(), "window opens: entry − setting − approach [s after midnight]"),
+    ("end_s", pa.float64(), "window closes: clear + release [s after midnight]"),
+], name="occupation", description="Blocking-time occupation windows of every train on every switch and section of its route")
+CONFLICTS_SCHEMA = declare([
+    ("conflict_id", pa.int32(), "conflict number, in time order; rows of one conflict share it"),
+    ("train_a", pa.string(), "train that goes first by the decision"),
+    ("train_b", pa.string(), "train that waits"),
+    ("direction_a", pa.string(), "running direction of train_a"),
+    ("direction_b", pa.string(), "running direction of train_b"),
+    ("resource_kind", pa.string(), "`node` (a switch) or `section` (a track piece, edge)"),
+    ("resource_id", pa.string(), "node_id or edge_id"),
+    ("interlocking", pa.string(), "interlocking controlling the resource"),
+    ("from_m", pa.float64(), "lower chainage of the resource [m]"),
+    ("to_m", pa.float64(), "upper chainage of the resource [m]"),
+    ("a_start_s", pa.float64(), "train_a's window opens [s after midnight]"),
+    ("a_end_s", pa.float64(), "train_a's window closes [s after midnight]"),
+    ("b_start_s", pa.float64(), "train_b's window opens [s after midnight]"),
+    ("b_end_s", pa.float64(), "train_b's window closes [s after midnight]"),
+    ("overlap_start_s", pa.float64(), "start of the overlap of the two windows [s after midnight]"),
+    ("overlap_end_s", pa.float64(), "end of the overlap [s after midnight]"),
+    ("overlap_s", pa.float64(), "overlap of the two windows on this resource [s]"),
+    ("rule", pa.string(), "priority rule: `no-deadlock`, `timetable-order` or `leaves-first` (DESIGN §8)"),
+    ("decision", pa.string(), "who goes first and why"),
+    ("delay_s", pa.float64(), "delay the decision imposes on train_b: shift that opens each of its windows after train_a's close [s]"),
+    ("deadlock", pa.bool_(), "the two opposing trains would deadlock on a single-track stretch without the decision"),
+    ("stretch", pa.string(), "for deadlocks: the single-track stretch first..last resource; else empty"),
+], name="conflicts", description="Overlapping occupation windows of two trains, with the priority decision and the delay it causes")
+
+
+@dataclass(frozen=True, eq=False)
+class ConflictReport:
+    """Everything the conflict check found for one line.
+
+    ``conflicts`` and ``occupation`` are pandas DataFrames with the columns of
+    :data:`CONFLICTS_SCHEMA` and :data:`OCCUPATION_SCHEMA` (plus ``line``,
+    ``direction``, ``train_type`` partition columns).
+    """
+
+    line_id: str
+    params: BlockingParams
+    routes: dict[str, Route]
+    conflicts: Any
+    occupation: Any
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    def summary_lines(self) -> list[str]:
+        s = self.summary
+        out = [
+            f"line {self.line_id}: {s['trains']} trains routed, {s['windows']} occupation windows "
+            f"({s['loops']} loop stops for overtaking)",
+            f"  conflicts: {s['conflicts']} between {s['pairs']} train pairs on {s['rows']} resources; "
+            f"deadlocks avoided: {s['deadlocks']}",
+        ]
+        for rule, n in sorted(s["by_rule"].items()):
+            out.append(f"    {rule}: {n}")
+        out.append(f"  delay imposed: total {s['delay_total_s']:.1f} s, largest {s['delay_max_s']:.1f} s"
+                   + ("; the largest, in time order:" if s["worst"] else ""))
+        for row in s["worst"]:
+            out.append(f"    {row}")
+        for note in s["notes"]:
+            out.append(f"  note: {note}")
+        return out
+
+
+def check_conflicts(line: Line, params: BlockingParams | Mapping[str, Any] | None = None, *,
+                    curves: RunCurveSource | None = None,
+                    progress: Callable[[int, int], None] | None = None,
+                    curve_progress: Callable[[int, int], None] | None = None) -> ConflictReport:
+    """Check a line's whole timetable for route conflicts (:func:`planner.network.check.check_timetable`, same
+    parameters) and give the result as the datasets' frames."""
+    return conflict_report(check_timetable(line, params, curves=curves, progress=progress,
+                                           curve_progress=curve_progress))
+
+
+def conflict_report(check: ConflictCheck) -> ConflictReport:
+    """The frames of the ``conflicts`` and ``occupation`` datasets, and the summary, of a conflict check."""
+    records = check.conflicts
+    conflicts = pd.DataFrame.from_records(records, columns=[f.name for f in CONFLICTS_SCHEMA] if not records else None)
+    if len(conflicts):
+        conflicts = conflicts[[f.name for f in CONFLICTS_SCHEMA]].sort_values(
+            ["conflict_id", "from_m", "resource_kind", "resource_id"], kind="stable").reset_index(drop=True)
+    conflicts.insert(0, "line", check.line_id)
+    trains = list(check.trains)
+    routes = [check.routes[t.train_id] for t in trains]
+    occupation = _occupation_frame(check.graph, trains, routes, check.windows, check.params, check.line_id)
+    return ConflictReport(check.line_id, check.params, check.routes, conflicts, occupation,
+                          _summary(trains, routes, check.windows, conflicts))
+
+
+def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingParams, line_id: str):
+    tr = w.train
+    kr = list(zip(w.kind.tolist(), w.res.tolist()))
+    names = {x: (g.resource_id(*x), g.resource_interlocking(*x), g.resource_track(*x)) for x in set(kr)}
+    rid = [names[x][0] for x in kr]
+    il = [names[x][1] for x in kr]
+    track = [names[x][2] for x in kr]
+    seq = np.zeros(len(w), dtype=np.int32)
+    for k in np.unique(tr):
+        m = tr == k
+        seq[m] = np.argsort(np.argsort(w.item[m], kind="stable"), kind="stable")
+    df = pd.DataFrame({
+        "line": line_id,
+        "direction": [trains[k].direction for k in tr],
+        "train_type": [trains[k].train_type for k in tr],
+        "train_id": [trains[k].train_id for k in tr],
+        "seq": seq,
+        "resource_kind": np.array(KIND_NAMES, dtype=object)[w.kind.astype(int)],
+        "resource_id": rid,
+        "interlocking": il,
+        "track": track,
+        "from_m": w.from_m, "to_m": w.to_m,
+        "entry_s": w.entry_s, "exit_s": w.exit_s, "clear_s": w.clear_s,
+        "setting_s": p.setting_s, "approach_s": p.approach_s,
+        "running_s": w.exit_s - w.entry_s, "clearing_s": w.clear_s - w.exit_s,
+        "release_s": p.release_s,
+        "start_s": w.start_s, "end_s": w.end_s,
+    })
+    return df.sort_values(["train_id", "seq"], kind="stable").reset_index(drop=True)
+
+
+def _summary(trains, routes, w: Windows, conflicts) -> dict[str, Any]:
+    notes = [f"train {r.train_id}: {n}" for r in routes for n in r.notes]
+    s: dict[str, Any] = {
+        "trains": len(trains), "windows": int(len(w)),
+        "loops": sum(len(r.loop_calls) for r in routes), "notes": notes,
+        "rows": int(len(conflicts)), "conflicts": 0, "pairs": 0, "deadlocks": 0,
+        "by_rule": {}, "delay_total_s": 0.0, "delay_max_s": 0.0, "worst": [],
+    }
+    if len(conflicts):
+        c = conflicts.groupby("conflict_id", sort=True).agg(
+            train_a=("train_a", "first"), train_b=("train_b", "first"), rule=("rule", "first"),
+            delay_s=("delay_s", "first"), deadlock=("deadlock", "first"), overlap_s=("overlap_s", "max"),
+            resource=("resource_id", "first"), t0=("overlap_start_s", "min"), n=("resource_id", "size"))
+        s["conflicts"] = int(len(c))
+        s["pairs"] = int(len(c.groupby(["train_a", "train_b"]).size()))
+        s["deadlocks"] = int(c["deadlock"].sum())
+        s["by_rule"] = {k: int(v) for k, v in c["rule"].value_counts().sort_index().items()}
+        s["delay_total_s"] = float(c["delay_s"].sum())
+        s["delay_max_s"] = float(c["delay_s"].max())
+        # the five largest delays, listed in time order (as the conflict ids run)
+        worst = c.sort_values(["delay_s", "t0"], ascending=[False, True], kind="stable").head(5)
+        worst = worst.sort_values(["t0"], kind="stable")
+        s["worst"] = [
+            f"#{cid}: {r.train_a} before {r.train_b} at {r.resource}"
+            + (f" and {r.n - 1} more resource{'s' if r.n > 2 else ''}" if r.n > 1 else "")
+            + f" ~{_hms(r.t0)}, overlap {r.overlap_s:.1f} s, delay {r.delay_s:.1f} s [{r.rule}]"
+            for cid, r in worst.iterrows()
+        ]
+    return s
+
+
+def _hms(t: float) -> str:
+    t = int(round(t))
+    return f"{t // 3600:02d}:{t // 60 % 60:02d}:{t % 60:02d}"
+
+
+def conflicts_table(line: Line, params: BlockingParams | Mapping[str, Any] | None = None, *,
+                    curves: RunCurveSource | None = None):
+    """The conflicts table of a line, for reports (the margin HTML report calls this).
+
+    Returns an empty DataFrame (with the columns) when the line has no track
+    network.
+    """
+    if line.network is None:
+        return pd.DataFrame(columns=["line"] + [f.name for f in CONFLICTS_SCHEMA])
+    return check_conflicts(line, params, curves=curves).conflicts
+
+
+def write_conflicts(report: ConflictReport, out_dir) -> list:
+    """Write ``conflicts`` and ``occupation`` datasets under ``out_dir`` (hive-partitioned, atomic files).
+
+    ``conflicts/line=L/part-0.parquet`` (a conflict can involve both directions,
+    so it is partitioned by line only) and
+    ``occupation/line=L/direction=D/train_type=T/part-0.parquet``.
+    """
+    occ_schema, con_schema = OCCUPATION_SCHEMA, CONFLICTS_SCHEMA
+    out = Path(out_dir)
+    written = []
+    con = report.conflicts
+    if len(con):
+        written += write_partitioned(pa.Table.from_pandas(con, preserve_index=False), out, "conflicts",
+                                     ("line",), schema=con_schema,
+                                     sort_by=("conflict_id", "from_m", "resource_kind", "resource_id"))
+    else:  # an empty file, so readers find the dataset and its schema
+        path = out / "conflicts" / f"line={report.line_id}" / "part-0.parquet"
+        write_parquet_atomic(con_schema.empty_table(), path)
+        written.append(path)
+    occ = report.occupation
+    if len(occ):
+        written += write_partitioned(pa.Table.from_pandas(occ, preserve_index=False), out, "occupation",
+                                     schema=occ_schema, sort_by=("train_id", "seq"))
+    return written

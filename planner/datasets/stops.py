@@ -1,0 +1,139 @@
+"""The station-approach sweep as datasets: ``stop_summary`` (one row per approach and adhesion
+level) and ``stop_samples`` (the feasible patterns sampled in time), their schemas and writer.
+
+Takes :class:`~planner.stopping.sweep.ApproachResult` s; gives Arrow tables and Parquet files
+partitioned by line, direction and train type. Railway units (km/h) only in the columns that say so.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pyarrow as pa
+
+from planner.io.parquet import declare, write_partitioned
+from planner.line.units import kmh
+from planner.stopping.sweep import DEFAULT_SAMPLE_DT_S, ApproachResult
+
+
+STOP_SUMMARY_SCHEMA = declare(
+    [
+        ("station_id", pa.string(), "station of the stop (arrival of the interstation)"),
+        ("origin", pa.string(), "departure station of the interstation"),
+        ("tasc_beacon_id", pa.string(), "TASC beacon the approach starts at; empty when a fixed distance is used"),
+        ("approach_start_m", pa.float64(), "chainage of the approach (pattern) start [m]"),
+        ("stop_m", pa.float64(), "chainage of the stop marker [m]"),
+        ("approach_length_m", pa.float64(), "distance from the approach start to the stop marker [m]"),
+        ("v_start_kmh", pa.float64(), "speed of the minimum-time run (ratio 1.0, load 0) at the approach start [km/h]"),
+        ("run_phase", pa.string(), "phase of that run at the approach start (power, hold, coast, brake, stop)"),
+        ("jerk_max_kmh_s2", pa.float64(), "jerk limit of the train type [km/h/s²]"),
+        ("comfort_kmh_s", pa.float64(), "comfort deceleration limit of the train type [km/h/s]"),
+        ("adhesion_kmh_s", pa.float64(), "adhesion-limited braking deceleration of this sweep level [km/h/s]"),
+        ("feasible", pa.bool_(), "true when a pattern meeting every limit exists"),
+        ("reason", pa.string(), "why there is no pattern (empty when feasible)"),
+        ("duration_s", pa.float64(), "pattern duration from the approach start to standstill at the marker [s]"),
+        ("brake_start_m", pa.float64(), "chainage where deceleration first begins [m] (null when infeasible)"),
+        ("brake_start_distance_m", pa.float64(),
+         "distance from the brake start to the stop marker [m]; when infeasible, the distance the limits "
+         "would need (longer than the approach), null if unknown"),
+        ("time_lost_s", pa.float64(),
+         "duration minus the shortest feasible duration of the approach's sweep (the best adhesion) [s]"),
+    ],
+    name="stop_summary",
+    description="Minimum-time jerk-limited stopping patterns: one row per station approach and adhesion level "
+                "(DESIGN §5).",
+)
+
+
+STOP_SAMPLES_SCHEMA = declare(
+    [
+        ("station_id", pa.string(), "station of the stop"),
+        ("adhesion_kmh_s", pa.float64(), "adhesion level of the pattern [km/h/s]"),
+        ("t_s", pa.float64(), "time from the approach start [s]"),
+        ("position_m", pa.float64(), "chainage of the train front [m]"),
+        ("distance_to_stop_m", pa.float64(), "distance from the front to the stop marker [m]"),
+        ("speed_kmh", pa.float64(), "speed [km/h]"),
+        ("accel_ms2", pa.float64(), "acceleration [m/s²], negative when braking"),
+        ("jerk_ms3", pa.float64(), "jerk of the constant-jerk piece the sample lies in [m/s³]"),
+    ],
+    name="stop_samples",
+    description="Feasible stopping patterns sampled in time (exact values of the cubic pieces) (DESIGN §5).",
+)
+SCHEMAS = {"stop_summary": STOP_SUMMARY_SCHEMA, "stop_samples": STOP_SAMPLES_SCHEMA}
+SORT_BY = {"stop_summary": ("station_id", "adhesion_kmh_s"), "stop_samples": ("station_id", "adhesion_kmh_s", "t_s")}
+
+
+def _nan_to_none(x: float):
+    return None if x is None or (isinstance(x, float) and math.isnan(x)) else x
+
+
+def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_DT_S) -> dict[str, pa.Table]:
+    """The ``stop_summary`` and ``stop_samples`` rows (with partition columns line/direction/train_type).
+
+    Parameters
+    ----------
+    results : sequence of ApproachResult
+    dt_s : float
+        Sampling step of the patterns [s].
+    """
+    summ: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SUMMARY_SCHEMA.names)}
+    samp: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SAMPLES_SCHEMA.names)}
+    for r in results:
+        lost = r.time_lost_s
+        for a, p, tl in zip(r.adhesion_kmh_s, r.patterns, lost):
+            row = {
+                "line": r.line_id, "direction": r.direction, "train_type": r.train_type,
+                "station_id": r.station_id, "origin": r.origin, "tasc_beacon_id": r.tasc_beacon_id,
+                "approach_start_m": r.approach_start_m, "stop_m": r.stop_m,
+                "approach_length_m": r.approach_length_m,
+                "v_start_kmh": _nan_to_none(kmh(r.v_start_ms)), "run_phase": r.run_phase,
+                "jerk_max_kmh_s2": kmh(r.jerk_max_ms3), "comfort_kmh_s": kmh(r.comfort_ms2),
+                "adhesion_kmh_s": a, "feasible": p.feasible, "reason": p.reason,
+                "duration_s": _nan_to_none(p.duration_s),
+                "brake_start_m": float(r.chainage_m(p.brake_start_m)) if p.feasible else None,
+                "brake_start_distance_m": _nan_to_none(p.braking_distance_m),
+                "time_lost_s": _nan_to_none(tl),
+            }
+            for k, v in row.items():
+                summ[k].append(v)
+            if not p.feasible:
+                continue
+            s = p.sample(dt_s)
+            n = s.t_s.size
+            samp["line"] += [r.line_id] * n
+            samp["direction"] += [r.direction] * n
+            samp["train_type"] += [r.train_type] * n
+            samp["station_id"] += [r.station_id] * n
+            samp["adhesion_kmh_s"] += [a] * n
+            samp["t_s"].append(s.t_s)
+            samp["position_m"].append(r.chainage_m(s.x_m))
+            samp["distance_to_stop_m"].append(r.approach_length_m - s.x_m)
+            samp["speed_kmh"].append(kmh(s.v_ms))
+            samp["accel_ms2"].append(s.a_ms2)
+            samp["jerk_ms3"].append(s.j_ms3)
+    for k in ("t_s", "position_m", "distance_to_stop_m", "speed_kmh", "accel_ms2", "jerk_ms3"):
+        samp[k] = np.concatenate(samp[k]) if samp[k] else np.zeros(0)
+    summary = pa.table({k: pa.array(v, type=_type(k, STOP_SUMMARY_SCHEMA)) for k, v in summ.items()})
+    samples = pa.table({k: pa.array(v, type=_type(k, STOP_SAMPLES_SCHEMA)) for k, v in samp.items()})
+    return {"stop_summary": summary, "stop_samples": samples}
+
+
+def _type(name: str, schema: pa.Schema) -> pa.DataType:
+    return schema.field(name).type if name in schema.names else pa.string()
+
+
+def write_stops(results: Sequence[ApproachResult], out_dir: str | Path, *,
+                dt_s: float = DEFAULT_SAMPLE_DT_S) -> list[Path]:
+    """Write ``stop_summary`` and ``stop_samples`` under ``out_dir`` (atomic per file, deterministic).
+
+    Returns
+    -------
+    list of Path
+        Files written.
+    """
+    written: list[Path] = []
+    for name, table in datasets(results, dt_s=dt_s).items():
+        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=SORT_BY[name])
+    return written

@@ -1,0 +1,323 @@
+"""The running-time tables as datasets: schemas of ``eval_points`` and tables (a)–(d), the writer
+(one row per table entry, hive-partitioned by line, direction and train type) and the reader the
+closed loop, the margins and the bundles use to get :class:`~planner.tables.onboard.RunningTimeTables`
+back from disk.
+
+Takes :class:`~planner.tables.build.InterstationTables`; gives Arrow tables and Parquet files (and back).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pyarrow as pa
+
+from planner.errors import InputError
+from planner.io.parquet import declare, read_dataset, write_partitioned
+from planner.line.units import kmh, ms
+from planner.tables.build import InterstationTables
+from planner.tables.onboard import ApproachTable, RunningTimeTables
+
+
+EVAL_POINTS_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id of the interstation"),
+        ("destination", pa.string(), "arrival station id of the interstation"),
+        ("eval_point_id", pa.string(), "'dep', 'dep+<m>' (odometer point <m> metres after departure) "
+                                       "or the beacon_id"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("eval_distance_m", pa.float64(), "running distance from the departure stop marker [m]"),
+        ("eval_point_kind", pa.string(), "'departure', 'after_departure', 'interval' (odometer point at "
+                                         "the regular interval) or 'beacon'"),
+    ],
+    name="eval_points",
+    description="Evaluation points per interstation, in running order (DESIGN §3).",
+)
+
+
+TABLE_A_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("ratio", pa.float64(), "target-speed ratio (target = ratio x on-board maximum speed), 0..1"),
+        ("running_time_s", pa.float64(), "running time stop marker to stop marker at constant ratio [s]"),
+        ("energy_kwh", pa.float64(), "traction energy at the wheel over the run [kWh]"),
+    ],
+    name="table_a",
+    description="Table (a): running time per ratio, tables at load 0 and nominal traction (DESIGN §3).",
+)
+
+
+TABLE_B_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "evaluation point id (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("ratio_before", pa.float64(), "ratio run from departure up to the evaluation point"),
+        ("ratio_after", pa.float64(), "ratio run from the evaluation point to arrival"),
+        ("remaining_time_s", pa.float64(), "running time from the evaluation point to arrival [s]"),
+        ("elapsed_time_s", pa.float64(), "running time from departure to the evaluation point at ratio_before [s]"),
+    ],
+    name="table_b",
+    description="Table (b): remaining running time per evaluation point and ratio pair (DESIGN §3).",
+)
+
+
+TABLE_C_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "evaluation point id (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("ratio", pa.float64(), "ratio run from departure to arrival"),
+        ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
+        ("remaining_time_ref_s", pa.float64(),
+         "the same for the reference train (load ref_load, traction x ref_traction_factor) [s]"),
+        ("ref_load", pa.float64(), "load factor of the reference train"),
+        ("ref_traction_factor", pa.float64(), "traction factor of the reference train"),
+        ("speed_kmh", pa.float64(), "speed of the table train at the point at constant ratio [km/h]"),
+    ],
+    name="table_c",
+    description="Table (c): remaining time at constant ratio for the table train and a reference "
+                "(full-load, weak-traction) train; lets the on-board 'adaptive' mode learn how far the "
+                "real train is from the tables.",
+)
+
+
+TABLE_D_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure station id"),
+        ("destination", pa.string(), "arrival station id"),
+        ("eval_point_id", pa.string(), "the last evaluation point of the interstation (see eval_points)"),
+        ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
+        ("speed_kmh", pa.float64(), "speed of the train as it passes the point [km/h] (2 km/h grid)"),
+        ("powering", pa.bool_(), "the train passes the point powering (notch on); false: coasting, "
+                                 "holding or braking (only sawtooth vehicles have both)"),
+        ("ratio_after", pa.float64(), "ratio run from the point to arrival (1 % grid plus table_a's ratios)"),
+        ("vmax_kmh", pa.float64(), "on-board maximum speed just after the point [km/h]; the target "
+                                   "there is ratio_after x vmax_kmh"),
+        ("coast_band_kmh", pa.float64(), "the vehicle's coasting band [km/h] (sawtooth cruise)"),
+        ("remaining_time_s", pa.float64(), "running time from the point to arrival, table conditions [s]"),
+        ("remaining_time_ref_s", pa.float64(), "the same for the reference train of table_c [s]"),
+    ],
+    name="table_d",
+    description="Table (d): remaining time from the last evaluation point by the train's own state "
+                "(speed, powering) and a fine grid of ratios; the 'adaptive' mode's last decision.",
+)
+
+
+def _keys(t: InterstationTables, n: int) -> dict[str, list]:
+    return {
+        "line": [t.line_id] * n,
+        "direction": [t.direction] * n,
+        "train_type": [t.train_type] * n,
+        "origin": [t.origin] * n,
+        "destination": [t.destination] * n,
+    }
+
+
+def _concat(cols: list[dict[str, list]]) -> dict[str, list]:
+    out: dict[str, list] = {}
+    for c in cols:
+        for k, v in c.items():
+            out.setdefault(k, []).extend(list(v))
+    return out
+
+
+def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
+    """The ``eval_points`` and ``table_a`` … ``table_d`` rows, with partition columns, in task order."""
+    ep, ta, tb, tc, td = [], [], [], [], []
+    for t in results:
+        n_r, n_x = len(t.ratios), len(t.points)
+        ep.append(_keys(t, n_x) | {
+            "eval_point_id": [p.eval_point_id for p in t.points],
+            "eval_position_m": [p.position_m for p in t.points],
+            "eval_distance_m": [p.s_m for p in t.points],
+            "eval_point_kind": [p.kind for p in t.points],
+        })
+        ta.append(_keys(t, n_r) | {
+            "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
+        })
+        k, i, j = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), np.arange(n_r), indexing="ij"))
+        tb.append(_keys(t, len(k)) | {
+            "eval_point_id": [t.points[x].eval_point_id for x in k],
+            "eval_position_m": np.array([p.position_m for p in t.points])[k],
+            "ratio_before": t.ratios[i],
+            "ratio_after": t.ratios[j],
+            "remaining_time_s": t.remaining_s[k, i, j],
+            "elapsed_time_s": t.elapsed_s[i, k],
+        })
+        if t.ref_remaining_s is not None:
+            k, i = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), indexing="ij"))
+            tc.append(_keys(t, len(k)) | {
+                "eval_point_id": [t.points[x].eval_point_id for x in k],
+                "eval_position_m": np.array([p.position_m for p in t.points])[k],
+                "ratio": t.ratios[i],
+                "remaining_time_s": t.remaining_s[k, i, i],
+                "remaining_time_ref_s": t.ref_remaining_s[k, i],
+                "ref_load": [t.ref_load] * len(k),
+                "ref_traction_factor": [t.ref_traction_factor] * len(k),
+                "speed_kmh": kmh(t.speed_ms[i, k]) if t.speed_ms is not None else np.full(len(k), np.nan),
+            })
+        if t.approach is not None:
+            ap, last = t.approach, t.points[-1]
+            p, v, a = (x.ravel() for x in np.meshgrid(np.arange(len(ap.powering)), np.arange(len(ap.speeds_ms)),
+                                                      np.arange(len(ap.ratios)), indexing="ij"))
+            td.append(_keys(t, len(p)) | {
+                "eval_point_id": [last.eval_point_id] * len(p),
+                "eval_position_m": np.full(len(p), last.position_m),
+                "speed_kmh": kmh(ap.speeds_ms[v]),
+                "powering": np.asarray(ap.powering, bool)[p],
+                "ratio_after": ap.ratios[a],
+                "vmax_kmh": np.full(len(p), kmh(ap.vmax_ms)),
+                "coast_band_kmh": np.full(len(p), kmh(ap.coast_band_ms)),
+                "remaining_time_s": ap.time_s[p, v, a],
+                "remaining_time_ref_s": ap.ref_time_s[p, v, a],
+            })
+    out = {"eval_points": pa.table(_concat(ep)), "table_a": pa.table(_concat(ta)), "table_b": pa.table(_concat(tb))}
+    if tc:
+        out["table_c"] = pa.table(_concat(tc))
+    if td:
+        out["table_d"] = pa.table(_concat(td))
+    return out
+
+
+SCHEMAS = {"eval_points": EVAL_POINTS_SCHEMA, "table_a": TABLE_A_SCHEMA, "table_b": TABLE_B_SCHEMA,
+           "table_c": TABLE_C_SCHEMA, "table_d": TABLE_D_SCHEMA}
+
+
+def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> list[Path]:
+    """Write the datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
+    written: list[Path] = []
+    for name, table in datasets(results).items():
+        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
+    return written
+
+
+def load_tables(
+    tables_dir: str | Path, line_id: str, direction: str, train_type: str
+) -> dict[tuple[str, str], RunningTimeTables]:
+    """Read the ``eval_points``, ``table_a`` and ``table_b`` datasets of one line, direction, type.
+
+    Parameters
+    ----------
+    tables_dir : path
+        The ``--out`` folder of ``planner tables`` (holding ``table_a/`` etc.).
+    line_id, direction, train_type : str
+        Partition to read.
+
+    Returns
+    -------
+    dict
+        ``(origin, destination) -> RunningTimeTables`` in running order.
+
+    Raises
+    ------
+    InputError
+        Missing datasets or partitions, or tables that do not fit together.
+    """
+    root = Path(tables_dir)
+    out = {}
+    try:
+        ep = read_dataset(root, "eval_points", line=line_id, direction=direction, train_type=train_type).to_pandas()
+        ta = read_dataset(root, "table_a", line=line_id, direction=direction, train_type=train_type).to_pandas()
+        tb = read_dataset(root, "table_b", line=line_id, direction=direction, train_type=train_type).to_pandas()
+    except (FileNotFoundError, OSError) as e:
+        raise InputError(f"--tables {root}: cannot read the tables ({e}); run `planner tables` first") from None
+    tc = _optional(root, "table_c", line_id, direction, train_type)  # only the adaptive mode needs
+    td = _optional(root, "table_d", line_id, direction, train_type)  # tables (c) and (d)
+    if ta.empty:
+        raise InputError(
+            f"--tables {root}: no table_a rows for line={line_id} direction={direction} "
+            f"train_type={train_type}; run `planner tables` for it"
+        )
+    for (o, d), a in ta.groupby(["origin", "destination"], sort=False):
+        a = a.sort_values("ratio", ascending=False)
+        ratios = a["ratio"].to_numpy(float)
+        p = ep[(ep.origin == o) & (ep.destination == d)].sort_values("eval_distance_m")
+        b = tb[(tb.origin == o) & (tb.destination == d)]
+        n_r, n_x = len(ratios), len(p)
+        if len(b) != n_x * n_r * n_r:
+            raise InputError(
+                f"--tables {root}: table_b for {o}->{d} has {len(b)} rows, expected "
+                f"{n_x} points x {n_r}^2 ratios; rebuild the tables"
+            )
+        k = {pid: i for i, pid in enumerate(p["eval_point_id"])}
+        ri = {float(r): i for i, r in enumerate(ratios)}
+        rem = np.full((n_x, n_r, n_r), np.nan)
+        rem[b["eval_point_id"].map(k).to_numpy(), b["ratio_before"].map(ri).to_numpy(),
+            b["ratio_after"].map(ri).to_numpy()] = b["remaining_time_s"].to_numpy(float)
+        if np.isnan(rem).any():
+            raise InputError(f"--tables {root}: table_b for {o}->{d} is incomplete; rebuild the tables")
+        ref = spd = None
+        if tc is not None and not tc.empty:
+            c = tc[(tc.origin == o) & (tc.destination == d)]
+            if len(c) == n_x * n_r:
+                ref = np.full((n_x, n_r), np.nan)
+                ref[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
+                    c["remaining_time_ref_s"].to_numpy(float)
+                if np.isnan(ref).any():
+                    ref = None
+                if "speed_kmh" in c:
+                    spd = np.full((n_x, n_r), np.nan)
+                    spd[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
+                        ms(c["speed_kmh"].to_numpy(float))
+                    if np.isnan(spd).any():
+                        spd = None
+        out[(o, d)] = RunningTimeTables(
+            approach=_approach(td, o, d, p["eval_point_id"].iloc[-1], root) if td is not None and n_x > 1 else None,
+            origin=o,
+            destination=d,
+            ratios=ratios,
+            time_a_s=a["running_time_s"].to_numpy(float),
+            eval_point_ids=tuple(p["eval_point_id"]),
+            eval_distance_m=p["eval_distance_m"].to_numpy(float),
+            eval_position_m=p["eval_position_m"].to_numpy(float),
+            remaining_s=rem,
+            ref_remaining_s=ref,
+            speed_ms=spd,
+        )
+    return out
+
+
+def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str):
+    """One partition of an optional dataset as a DataFrame, or None when the dataset is absent."""
+    try:
+        df = read_dataset(root, name, line=line_id, direction=direction, train_type=train_type).to_pandas()
+    except (FileNotFoundError, OSError):
+        return None
+    return None if df.empty else df
+
+
+def _approach(td, origin: str, destination: str, last_point: str, root: Path) -> ApproachTable | None:
+    """Table (d) of one interstation from its dataset rows (None when it has none)."""
+    g = td[(td.origin == origin) & (td.destination == destination)]
+    if g.empty:
+        return None
+    if set(g["eval_point_id"]) != {last_point}:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} is not at the last "
+                         f"evaluation point {last_point!r}; rebuild the tables")
+    speeds = ms(np.sort(g["speed_kmh"].unique()))
+    ratios = np.sort(g["ratio_after"].unique())[::-1]
+    powering = tuple(sorted({bool(x) for x in g["powering"]}, reverse=True))
+    n_p, n_v, n_a = len(powering), len(speeds), len(ratios)
+    if len(g) != n_p * n_v * n_a:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} has {len(g)} rows, expected "
+                         f"{n_p} phases x {n_v} speeds x {n_a} ratios; rebuild the tables")
+    t = np.full((2, n_p, n_v, n_a), np.nan)
+    ip = g["powering"].map({p: i for i, p in enumerate(powering)}).to_numpy()
+    iv = np.searchsorted(speeds, ms(g["speed_kmh"].to_numpy(float)))
+    ia = g["ratio_after"].map({r: i for i, r in enumerate(ratios)}).to_numpy()
+    t[0, ip, iv, ia] = g["remaining_time_s"].to_numpy(float)
+    t[1, ip, iv, ia] = g["remaining_time_ref_s"].to_numpy(float)
+    if np.isnan(t).any():
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} is incomplete; rebuild the tables")
+    vmax = ms(g["vmax_kmh"].unique()) if "vmax_kmh" in g else np.array([np.inf])
+    if len(vmax) != 1:
+        raise InputError(f"--tables {root}: table_d for {origin}->{destination} has several vmax_kmh; "
+                         "rebuild the tables")
+    band = ms(g["coast_band_kmh"].unique()) if "coast_band_kmh" in g else np.array([0.0])
+    return ApproachTable(speeds_ms=speeds, powering=powering, ratios=ratios, time_s=t[0], ref_time_s=t[1],
+                         vmax_ms=float(vmax[0]), coast_band_ms=float(band[0]))
