@@ -153,7 +153,8 @@ def test_summary_lists_every_default_used(imported):
 def test_a_copy_of_a_line_under_another_id_is_not_a_cache_hit(imported):
     """Found running the hand-written line and its railjson twin in one job: the stops cache (keyed by
     interstation inputs) handed line 'rj' rows to line 'hand', and margins found no rows for 'hand'."""
-    from planner.job.pipeline import digest, interstation_inputs
+    from planner.job.pipeline import digest
+    from planner.job.units import interstation_inputs
 
     a = interstation_inputs(load_line(imported["hand"]), "EMU", "W", "M")
     b = interstation_inputs(load_line(imported["railjson"][1]), "EMU", "W", "M")

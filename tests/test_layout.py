@@ -155,3 +155,12 @@ def test_algorithm_floors_import_without_frames(floor):
             "print(','.join(sorted(k for k in ('pandas', 'pyarrow', 'matplotlib') if k in sys.modules)))")
     out = subprocess.run([sys.executable, "-c", code.format(f=floor)], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "", f"importing planner.{floor} loads {out.stdout.strip()}"
+
+
+def test_the_code_digest_covers_every_floor():
+    """The cache key's code digest reads the whole package: a change on any floor recomputes."""
+    from planner.job.units import code_files
+
+    seen = {module_name(p) for p in code_files()}
+    assert seen == {m for _, m in modules()}
+    assert {floor_of(m) for m in seen} >= set(FLOORS) - {"api"} | {"planner"}

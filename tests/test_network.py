@@ -22,7 +22,13 @@ from planner.line.model import Call, Edge, Network, Node, Train
 from planner.datasets.conflicts import check_conflicts, write_conflicts
 from planner.network.arrivals import build_trajectory, stretched_curve
 from planner.network.priority import would_deadlock
-from planner.network.routes import RouteNotFoundError, TrackGraph, overtaken_calls, plan_routes, track_direction
+from planner.network.routes import (
+    RouteNotFoundError,
+    TrackGraph,
+    overtaken_calls,
+    plan_routes,
+    track_direction,
+)
 from planner.network.windows import BlockingParams, find_overlaps
 
 NAN = float("nan")

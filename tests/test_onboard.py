@@ -10,7 +10,16 @@ import pytest
 from hypothesis import given, strategies as st
 
 from planner.tables.eval_points import EvalPoint
-from planner.tables.onboard import CHOOSERS, InterpolateRule, NearestRule, RunningTimeTables, chooser, make_controller, row_at, solve_ratio
+from planner.tables.onboard import (
+    CHOOSERS,
+    InterpolateRule,
+    NearestRule,
+    RunningTimeTables,
+    chooser,
+    make_controller,
+    row_at,
+    solve_ratio,
+)
 from planner.datasets.tables import load_tables
 from planner.errors import InputError
 from planner.tables.ratios import ratio_grid

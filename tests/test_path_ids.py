@@ -1,4 +1,4 @@
-"""Ids that become file names or partition values: one rule (planner.line.schema.PATH_ID_RE), refused by
+"""Ids that become file names or partition values: one rule (planner.io.paths.PATH_ID_RE), refused by
 `validate` up front and checked again where paths are built; and a station beyond the line's end."""
 from __future__ import annotations
 

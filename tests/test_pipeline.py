@@ -277,7 +277,7 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     """
     import shutil
 
-    from planner.job.pipeline import KILL_ENV
+    from planner.job.units import KILL_ENV
 
     job = _job(project)
     first = _run(job)

@@ -22,7 +22,14 @@ from typer.testing import CliRunner
 from planner.line import testing
 from planner.errors import InputError, UnknownNameError
 from planner.line.model import Beacon
-from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, InfeasibleStopWarning, adhesion_levels, approach_patterns, plot_approach, stop_sweep
+from planner.stopping.sweep import (
+    DEFAULT_ADHESION_KMH_S,
+    InfeasibleStopWarning,
+    adhesion_levels,
+    approach_patterns,
+    plot_approach,
+    stop_sweep,
+)
 from planner.datasets.stops import STOP_SAMPLES_SCHEMA, STOP_SUMMARY_SCHEMA, datasets, write_stops
 from planner.line.units import KMH, KMH_S
 

@@ -29,7 +29,7 @@ from typing import Mapping
 from planner import __version__
 from planner.errors import BundleError
 from planner.line.model import DIRECTIONS
-from planner.line.schema import PATH_ID_RE, PATH_ID_RULE, is_path_id
+from planner.io.paths import PATH_ID_RE, PATH_ID_RULE, is_path_id
 
 # --- format constants ----------------------------------------------------------
 FORMAT = "planner-onboard-db"

@@ -44,7 +44,7 @@ from planner.bundle.manifest import (MANIFEST, SIGNATURE, BundleInfo, check_mani
                                      manifest_info, parse_manifest, parse_time)
 from planner.errors import BundleError
 from planner.line.model import DIRECTIONS
-from planner.line.schema import PATH_ID_RE
+from planner.io.paths import PATH_ID_RE
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,11 +16,6 @@ app.add_typer(keys_app, name="keys")
 app.add_typer(bundle_app, name="bundle")
 
 
-def _fail(e: PlannerError) -> typer.Exit:
-    typer.echo(f"error: {e}", err=True)
-    return typer.Exit(e.exit_code)
-
-
 @keys_app.command("generate")
 def keys_generate(
     directory: Path = typer.Argument(..., help="Folder for signing_key.pem (mode 0600) and signing_key.pub.pem."),
@@ -29,11 +24,8 @@ def keys_generate(
     from planner.bundle.signing import generate_keypair
     from .checks import check_out_dir
 
-    try:
-        check_out_dir(directory, "keys generate", "key pair")
-        priv, pub = generate_keypair(directory)
-    except PlannerError as e:
-        raise _fail(e)
+    check_out_dir(directory, "keys generate", "key pair")
+    priv, pub = generate_keypair(directory)
     typer.echo(f"private key: {priv} (keep it secret; mode 0600)")
     typer.echo(f"public key:  {pub} (give it to the vehicles)")
 
@@ -68,22 +60,19 @@ def bundle_build(
 
     from .checks import check_out_dir, train_type_codes
 
-    try:
-        check_out_dir(out, "--out", "bundles")
-        if key is None:
-            raise PlannerError(f"no signing key: give --key FILE or set {ENV_SIGNING_KEY} to its path")
-        release = Release.issue(None if built_at is None else parse_time(built_at, "--built-at"),
-                                valid_days=valid_days, development=development_key, version=bundle_version)
-        line = load_line(line_dir)
-        train_type = train_type_codes(line, train_type)
-        n = len(direction or ("down", "up")) * len(train_type or line.train_types)
-        with Progress(transient=True) as progress:
-            task = progress.add_task("building bundles", total=n)
-            infos = build_line(line, out, key, release=release, tables_dir=tables, stops_dir=stops,
-                               directions=direction,
-                               train_types=train_type, on_built=lambda _: progress.advance(task))
-    except PlannerError as e:
-        raise _fail(e)
+    check_out_dir(out, "--out", "bundles")
+    if key is None:
+        raise PlannerError(f"no signing key: give --key FILE or set {ENV_SIGNING_KEY} to its path")
+    release = Release.issue(None if built_at is None else parse_time(built_at, "--built-at"),
+                            valid_days=valid_days, development=development_key, version=bundle_version)
+    line = load_line(line_dir)
+    train_type = train_type_codes(line, train_type)
+    n = len(direction or ("down", "up")) * len(train_type or line.train_types)
+    with Progress(transient=True) as progress:
+        task = progress.add_task("building bundles", total=n)
+        infos = build_line(line, out, key, release=release, tables_dir=tables, stops_dir=stops,
+                           directions=direction,
+                           train_types=train_type, on_built=lambda _: progress.advance(task))
     for info in infos:
         state = "complete" if info.complete else "PARTIAL, missing " + ", ".join(info.missing)
         typer.echo(f"{info.path}: {info.size_bytes} bytes, {len(info.files)} tables, {state}")
@@ -122,14 +111,11 @@ def bundle_verify(
     from planner.bundle.verify import verify_bundle
     from ..errors import BundleError
 
-    try:
-        info = verify_bundle(bundle, public_key, expect=expect, min_version=min_version, at=at,
-                             allow_dev=allow_dev)
-        if require_complete and not info.complete:
-            raise BundleError(f"bundle {bundle}: incomplete, missing {', '.join(info.missing)}; "
-                              + rebuild_advice(info.missing))
-    except PlannerError as e:
-        raise _fail(e)
+    info = verify_bundle(bundle, public_key, expect=expect, min_version=min_version, at=at,
+                         allow_dev=allow_dev)
+    if require_complete and not info.complete:
+        raise BundleError(f"bundle {bundle}: incomplete, missing {', '.join(info.missing)}; "
+                          + rebuild_advice(info.missing))
     typer.echo(f"OK: {info.target} version {info.bundle_version}: signature, key id, target, freshness, hashes, "
                "schema and consistency verified")
     for line in info.summary():

@@ -52,7 +52,7 @@ def margins(
         write_margins,
     )
     from planner.report.html import write_html
-    from .tables import _fail, _progress
+    from .tables import _progress
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_code, train_type_codes
 
@@ -92,8 +92,8 @@ def margins(
                 conflict_params=conflict_params, n_jobs=jobs, progress=update)
         files = write_margins(report, out)
         page = write_html(report, line, out / "margins.html")
-    except PlannerError as e:
-        raise _fail(e) from None
+    except PlannerError:
+        raise  # the root command prints it as one line (cli.main)
     rows = report.rows
     s = rows[rows.scheduled_running_time_s.notna()]
     typer.echo(f"{line.line_id}: {len(rows)} legs x train type ({len(s)} timetabled, "

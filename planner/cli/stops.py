@@ -8,14 +8,8 @@ from typing import Optional
 
 import typer
 
-from ..errors import InputError, PlannerError
+from ..errors import InputError
 from . import app
-
-
-def _fail(e: PlannerError) -> typer.Exit:
-    """One line on stderr, no traceback, the error's exit code."""
-    typer.echo(f"error: {e}", err=True)
-    return typer.Exit(e.exit_code)
 
 
 @app.command()
@@ -42,42 +36,39 @@ def stops(
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_codes
 
-    try:
-        check_out_dir(out, "--out", "stopping-pattern datasets")
-        check_jobs(jobs)
-        levels = adhesion_levels(adhesion)
-        if direction is not None and direction not in ("down", "up"):
-            raise InputError(f"--direction {direction!r}: use down or up")
-        line = load_line(line_dir)
-        train_type = train_type_codes(line, train_type)
-        plot_dir = direction or "down"
-        if plot is not None:
-            plot = station_code(line, plot, "--plot")
-            st = line.station(plot)
-            arrivals = [b.station_id for _, b in line.interstations(plot_dir)]
-            if st.station_id not in arrivals:
-                raise InputError(f"--plot {plot}: no train arrives at {plot} running {plot_dir}; "
-                                 f"choose the other --direction")
-        with Progress(TextColumn("stops"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                      transient=True) as bar:
-            task = bar.add_task("stops", total=None)
-            with warnings.catch_warnings():
-                # reported below, one line per approach, instead of one warning per level
-                warnings.simplefilter("ignore", InfeasibleStopWarning)
-                results = stop_sweep(line, train_types=train_type or None, adhesion_kmh_s=levels,
-                                     approach_m=approach_m, directions=[direction] if direction else None,
-                                     n_jobs=jobs,
-                                     progress=lambda done, total: bar.update(task, completed=done, total=total))
-        files = write_stops(results, out)
-        png = None
-        if plot is not None:
-            types = train_type or [line.train_types[0].train_type]
-            pick = next(r for r in results
-                        if r.station_id == plot and r.direction == plot_dir and r.train_type == types[0])
-            png = plot_approach(pick, Path(out) / "plots" / f"stop_{pick.station_id}_{pick.direction}_"
-                                f"{pick.train_type}.png")
-    except PlannerError as e:
-        raise _fail(e) from None
+    check_out_dir(out, "--out", "stopping-pattern datasets")
+    check_jobs(jobs)
+    levels = adhesion_levels(adhesion)
+    if direction is not None and direction not in ("down", "up"):
+        raise InputError(f"--direction {direction!r}: use down or up")
+    line = load_line(line_dir)
+    train_type = train_type_codes(line, train_type)
+    plot_dir = direction or "down"
+    if plot is not None:
+        plot = station_code(line, plot, "--plot")
+        st = line.station(plot)
+        arrivals = [b.station_id for _, b in line.interstations(plot_dir)]
+        if st.station_id not in arrivals:
+            raise InputError(f"--plot {plot}: no train arrives at {plot} running {plot_dir}; "
+                             f"choose the other --direction")
+    with Progress(TextColumn("stops"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  transient=True) as bar:
+        task = bar.add_task("stops", total=None)
+        with warnings.catch_warnings():
+            # reported below, one line per approach, instead of one warning per level
+            warnings.simplefilter("ignore", InfeasibleStopWarning)
+            results = stop_sweep(line, train_types=train_type or None, adhesion_kmh_s=levels,
+                                 approach_m=approach_m, directions=[direction] if direction else None,
+                                 n_jobs=jobs,
+                                 progress=lambda done, total: bar.update(task, completed=done, total=total))
+    files = write_stops(results, out)
+    png = None
+    if plot is not None:
+        types = train_type or [line.train_types[0].train_type]
+        pick = next(r for r in results
+                    if r.station_id == plot and r.direction == plot_dir and r.train_type == types[0])
+        png = plot_approach(pick, Path(out) / "plots" / f"stop_{pick.station_id}_{pick.direction}_"
+                            f"{pick.train_type}.png")
 
     n_pat = sum(len(r.patterns) for r in results)
     n_inf = n_pat - sum(r.n_feasible for r in results)

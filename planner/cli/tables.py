@@ -11,12 +11,6 @@ from ..errors import PlannerError
 from . import app
 
 
-def _fail(e: PlannerError) -> typer.Exit:
-    """One line on stderr, no traceback, the error's exit code."""
-    typer.echo(f"error: {e}", err=True)
-    return typer.Exit(e.exit_code)
-
-
 BUILTIN_MODES = ("nearest", "interpolate", "adaptive", "timekeeping")
 """The on-board modes `planner simulate --mode` knows without registration (its help lists them)."""
 
@@ -74,18 +68,15 @@ def tables(
     from planner.datasets.tables import write_tables
     from .checks import check_jobs, check_out_dir, train_type_codes
 
-    try:
-        check_out_dir(out, "--out", "tables")
-        check_jobs(jobs)
-        line = load_line(line_dir)
-        train_type = train_type_codes(line, train_type)
-        with _progress("tables") as update:
-            results = build_tables(line, train_types=train_type or None, ratios=ratios,
-                                   after_departure_m=after_departure_m or None,
-                                   eval_interval_m=eval_interval_m or None, n_jobs=jobs, progress=update)
-        files = write_tables(results, out)
-    except PlannerError as e:
-        raise _fail(e) from None
+    check_out_dir(out, "--out", "tables")
+    check_jobs(jobs)
+    line = load_line(line_dir)
+    train_type = train_type_codes(line, train_type)
+    with _progress("tables") as update:
+        results = build_tables(line, train_types=train_type or None, ratios=ratios,
+                               after_departure_m=after_departure_m or None,
+                               eval_interval_m=eval_interval_m or None, n_jobs=jobs, progress=update)
+    files = write_tables(results, out)
     n_b = sum(r.remaining_s.size for r in results)
     grid = results[0].ratios if results else []
     typer.echo(f"{line.line_id}: tables for {len(results)} interstation x direction x train type, "
@@ -128,24 +119,18 @@ def simulate(
 
     known = all_modes()
     if mode not in known:
-        raise _fail(PlannerError(f"--mode {mode!r} is unknown; use one of {', '.join(known)}"))
-    try:
-        check_jobs(jobs)
-        check_out_dir(out, "--out", "closed-loop datasets")
-    except PlannerError as e:
-        raise _fail(e) from None
+        raise PlannerError(f"--mode {mode!r} is unknown; use one of {', '.join(known)}")
+    check_jobs(jobs)
+    check_out_dir(out, "--out", "closed-loop datasets")
     if tables_dir is None or out is None:
-        raise _fail(PlannerError(f"--mode {mode} needs --tables DIR (from `planner tables`: the sweep starts "
-                                 "at their minimum) and --out DIR"))
-    try:
-        line = load_line(line_dir)
-        train_type = train_type_codes(line, train_type)
-        with _progress(f"simulate {scenario}/{mode}") as update:
-            results = run_closed_loop(line, tables_dir, train_types=train_type or None, scenario=scenario,
-                                      mode=mode, extra_s=extra_s, n_jobs=jobs, progress=update)
-        files = write_closed_loop(results, out)
-    except PlannerError as e:
-        raise _fail(e) from None
+        raise PlannerError(f"--mode {mode} needs --tables DIR (from `planner tables`: the sweep starts "
+                           "at their minimum) and --out DIR")
+    line = load_line(line_dir)
+    train_type = train_type_codes(line, train_type)
+    with _progress(f"simulate {scenario}/{mode}") as update:
+        results = run_closed_loop(line, tables_dir, train_types=train_type or None, scenario=scenario,
+                                  mode=mode, extra_s=extra_s, n_jobs=jobs, progress=update)
+    files = write_closed_loop(results, out)
     o = overall(results)
     typer.echo(f"{line.line_id}: closed loop {scenario}/{mode}, {o['n_runs']} runs over "
                f"{len(results)} interstation x direction x train type")

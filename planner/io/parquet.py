@@ -9,7 +9,7 @@ so analysts can filter by partition without reading everything
 ``read_parquet('.../**/*.parquet', hive_partitioning=true)``). Partition
 columns are not stored inside the files (hive style); each file carries the
 schema's field descriptions and the dataset's schema version as metadata.
-Partition values must be path ids (:data:`planner.line.schema.PATH_ID_RE`); any
+Partition values must be path ids (:data:`planner.io.paths.PATH_ID_RE`); any
 other value is refused here, before a folder is made.
 
 Writes are deterministic (same table, same bytes: no timestamps, fixed
@@ -26,7 +26,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from planner.io.atomic import atomic_path
-from planner.line.schema import check_path_id
+from planner.io.paths import check_path_id
 
 PARTITION_COLS = ("line", "direction", "train_type")
 

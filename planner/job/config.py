@@ -260,7 +260,7 @@ def _scenarios(where: str, value: Any) -> tuple[Scenario, ...]:
             raise JobError(f"{w}: unknown key {sorted(extra)[0]!r}; known keys: name, load, traction")
         if "name" not in item or not isinstance(item["name"], str):
             raise JobError(f"{w}: needs a string `name`")
-        from planner.line.schema import PATH_ID_RULE, is_path_id
+        from planner.io.paths import PATH_ID_RULE, is_path_id
 
         if not is_path_id(item["name"]):  # a partition value of the closed-loop datasets
             raise JobError(f"{w}: name {item['name']!r} cannot name a partition; {PATH_ID_RULE}")

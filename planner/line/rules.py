@@ -25,11 +25,10 @@ from planner.line.schema import (
     MAX_GRADIENT_PERMIL,
     NODE_KINDS,
     PATH_ID_COLUMNS,
-    PATH_ID_RULE,
     SCHEMA_VERSION,
     TABLES,
-    is_path_id,
 )
+from planner.io.paths import PATH_ID_RULE, is_path_id
 from planner.line.conform import TableView, fmt
 
 
@@ -183,7 +182,7 @@ def line_rules(db: Db) -> Iterator[Violation]:
     yield from positive(t, "max_speed_kmh")
 
 
-# ---- ids that become file names or partition values: one rule (schema.PATH_ID_RE)
+# ---- ids that become file names or partition values: one rule (planner.io.paths.PATH_ID_RE)
 @rule()
 def path_ids(db: Db) -> Iterator[Violation]:
     for table, columns in PATH_ID_COLUMNS.items():

@@ -16,13 +16,13 @@ Ids that become file names or partition values
 ``line.line_id`` and ``rolling_stock.train_type`` become folder and file
 names (``line=<line_id>/``, ``train_type=<train_type>/`` partitions,
 ``<line_id>_<direction>_<train_type>.pdb`` bundles, ``<line_id>_margins.html``).
-One rule, :data:`PATH_ID_RE`, holds for each of them (:data:`PATH_ID_COLUMNS`)
+One rule, :data:`planner.io.paths.PATH_ID_RE`, holds for each of them (:data:`PATH_ID_COLUMNS`)
 and for the job file's closed-loop scenario names (a partition too): **1 to 64
 characters, letters A-Z a-z, digits, ``.``, ``_`` or ``-``, the first a letter
 or digit**. So an id can never be ``..``, hold a ``/``, a ``=`` or a ``%``
 (hive partition syntax), a space or a control character. The validator
 refuses other values up front and the writers check again where they build a
-path (:func:`check_path_id`).
+path (:func:`planner.io.paths.check_path_id`).
 
 Examples
 --------
@@ -32,7 +32,6 @@ DataType(double)
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import pyarrow as pa
@@ -46,30 +45,8 @@ LIMIT_DIRECTIONS = ("both", "down", "up")
 BEACON_KINDS = ("signal", "pattern_update", "tasc", "other")
 CRUISE_MODES = ("constant", "sawtooth")
 NODE_KINDS = ("switch", "stop", "boundary", "end")
-PATH_ID_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
-"""Ids that become file names or partition values (module doc): 1-64 of A-Z a-z 0-9 . _ -, first alphanumeric."""
-PATH_ID_RULE = "use 1-64 letters, digits, '.', '_' or '-', starting with a letter or digit"
-"""The rule in words, for messages."""
 PATH_ID_COLUMNS = {"line": ("line_id",), "rolling_stock": ("train_type",)}
 """The line-database columns whose values become file names or partition values."""
-
-
-def is_path_id(value: object) -> bool:
-    """True when ``value`` can name a file or partition (:data:`PATH_ID_RE`)."""
-    return isinstance(value, str) and PATH_ID_RE.fullmatch(value) is not None
-
-
-def check_path_id(value: object, what: str) -> str:
-    """``value`` if it can name a file or partition, else an :class:`~planner.errors.InputError` line.
-
-    Writers call it where they build a path, even though validation refused bad
-    ids already: a line built in memory does not pass the validator.
-    """
-    if not is_path_id(value):
-        from planner.errors import InputError
-
-        raise InputError(f"{what} {value!r} cannot name a file or partition: {PATH_ID_RULE}")
-    return value  # type: ignore[return-value]
 
 
 MAX_GRADIENT_PERMIL = 40.0

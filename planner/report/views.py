@@ -22,7 +22,7 @@ import shutil
 from pathlib import Path
 
 from planner.errors import JobError, PlannerError
-from planner.line.schema import check_path_id
+from planner.io.paths import check_path_id
 
 
 def copy_inputs(line, stage: Path) -> Path:
@@ -61,7 +61,7 @@ def line_views(job, line, stage: Path, runner, summary) -> None:
     """Inputs copy and train graph page of one line (module doc)."""
     from planner.report.changes import read_line_dataset, path_id
     from planner.report.train_graph import graph_data, write_page, TOL_T_S, TOL_X_M
-    from planner.job.pipeline import code_digest
+    from planner.job.units import code_digest
     from planner.job.publish import digest
 
     copy_inputs(line, stage)
@@ -79,7 +79,7 @@ def line_views(job, line, stage: Path, runner, summary) -> None:
 
 
 def _unit(step, key, fn, args):
-    from planner.job.pipeline import Unit
+    from planner.job.units import Unit
 
     return Unit(step, key, step, fn, args)
 

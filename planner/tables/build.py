@@ -167,6 +167,63 @@ def _snapshot(snapshots: dict, s_m: float):
     return snapshots[list(snapshots)[int(np.argmin(np.abs(keys - s_m)))]]
 
 
+def _table_b(track, train, r: np.ndarray, s_pts: list[float], full: "_Half", kw: dict):
+    """Table (b) of one interstation from the constant-ratio runs ``full`` (module doc, step 2).
+
+    Returns
+    -------
+    elapsed_s, speed_ms : ndarray (n_r, n_x)
+        Time and speed at each evaluation point at each ratio run from departure.
+    remaining_s : ndarray (n_x, n_r, n_r)
+        Remaining time from point k, ratio before i, ratio after j.
+    """
+    from planner.physics.run_curve import RunState, simulate
+
+    n_r, n_x = len(r), len(s_pts)
+    elapsed = np.zeros((n_r, n_x))
+    speed = np.zeros((n_r, n_x))
+    remaining = np.empty((n_x, n_r, n_r))
+    remaining[0] = full.time_s[None, :]  # at departure every row is table (a)
+    # One lock-step batch for every point after departure: group k holds, for each distinct
+    # state at X_k, the runs (r_before -> every r_after). Every run starts from the prefix's
+    # snapshot at the first point X_1 at its r_before and switches to r_after at X_k, so the
+    # batch advances over L - s(X_1) once instead of once per point; the integrator is
+    # per-run arithmetic, so a run's state at X_k equals the prefix's snapshot there.
+    groups = []  # (k, representative r_before index per distinct state, inverse map)
+    for k in range(1, n_x):
+        snap = _snapshot(full.snapshots, s_pts[k])
+        t_x = np.asarray(snap.t_s, float)
+        elapsed[:, k] = t_x
+        speed[:, k] = snap.v_ms
+        # ratios whose runs are still identical at X (e.g. all still powering below their
+        # targets just after departure) reach X in the same state: their rows are equal,
+        # so one start state per distinct (t, v, phase) is enough
+        key = np.column_stack([t_x, np.asarray(snap.v_ms, float), np.asarray(snap.phase, float)])
+        _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        groups.append((k, first, inv.reshape(-1)))
+    if groups:
+        b_idx = np.concatenate([np.repeat(first, n_r) for _, first, _ in groups])
+        a_idx = np.concatenate([np.tile(np.arange(n_r), len(first)) for _, first, _ in groups])
+        g_of = np.concatenate([np.full(len(first) * n_r, k) for k, first, _ in groups])
+        snap1 = _snapshot(full.snapshots, s_pts[1])
+        start = RunState(
+            s_m=np.asarray(snap1.s_m, float)[b_idx],
+            t_s=np.asarray(snap1.t_s, float)[b_idx],
+            v_ms=np.asarray(snap1.v_ms, float)[b_idx],
+            phase=np.asarray(snap1.phase)[b_idx],
+            ratio=np.asarray(snap1.ratio, float)[b_idx],
+        )
+        ratio0 = np.where(g_of == 1, r[a_idx], r[b_idx])
+        changes = [(s_pts[k], np.where(g_of <= k, r[a_idx], r[b_idx])) for k in range(2, n_x)]
+        res = simulate(track, train, ratio0, start=start, changes=changes, snapshots_m=s_pts[1:], **kw)
+        total = np.asarray(res.time_s, float)
+        for k, first, inv in groups:
+            sel = g_of == k
+            t_k = np.asarray(_snapshot(res.snapshots, s_pts[k]).t_s, float)[sel]
+            remaining[k] = (total[sel] - t_k).reshape(len(first), n_r)[inv]
+    return elapsed, speed, remaining
+
+
 def interstation_tables(
     line: Line,
     train_type: str,
@@ -206,7 +263,7 @@ def interstation_tables(
     -------
     InterstationTables
     """
-    from planner.physics.run_curve import RunState, simulate
+    from planner.physics.run_curve import simulate
     from planner.physics.track import SimSettings, make_track
 
     settings = settings or SimSettings()
@@ -239,47 +296,7 @@ def interstation_tables(
         full = _Half(simulate(track, train, r, snapshots_m=s_pts[1:], **kw), slice(None))
         ref_rem = None
     time_a = full.time_s
-    elapsed = np.zeros((n_r, n_x))
-    speed = np.zeros((n_r, n_x))
-    remaining = np.empty((n_x, n_r, n_r))
-    remaining[0] = time_a[None, :]  # at departure every row is table (a)
-    # One lock-step batch for every point after departure: group k holds, for each distinct
-    # state at X_k, the runs (r_before -> every r_after). Every run starts from the prefix's
-    # snapshot at the first point X_1 at its r_before and switches to r_after at X_k, so the
-    # batch advances over L - s(X_1) once instead of once per point; the integrator is
-    # per-run arithmetic, so a run's state at X_k equals the prefix's snapshot there.
-    groups = []  # (k, representative r_before index per distinct state, inverse map)
-    for k in range(1, n_x):
-        snap = _snapshot(full.snapshots, s_pts[k])
-        t_x = np.asarray(snap.t_s, float)
-        elapsed[:, k] = t_x
-        speed[:, k] = snap.v_ms
-        # ratios whose runs are still identical at X (e.g. all still powering below their
-        # targets just after departure) reach X in the same state: their rows are equal,
-        # so one start state per distinct (t, v, phase) is enough
-        key = np.column_stack([t_x, np.asarray(snap.v_ms, float), np.asarray(snap.phase, float)])
-        _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
-        groups.append((k, first, inv.reshape(-1)))
-    if groups:
-        b_idx = np.concatenate([np.repeat(first, n_r) for _, first, _ in groups])
-        a_idx = np.concatenate([np.tile(np.arange(n_r), len(first)) for _, first, _ in groups])
-        g_of = np.concatenate([np.full(len(first) * n_r, k) for k, first, _ in groups])
-        snap1 = _snapshot(full.snapshots, s_pts[1])
-        start = RunState(
-            s_m=np.asarray(snap1.s_m, float)[b_idx],
-            t_s=np.asarray(snap1.t_s, float)[b_idx],
-            v_ms=np.asarray(snap1.v_ms, float)[b_idx],
-            phase=np.asarray(snap1.phase)[b_idx],
-            ratio=np.asarray(snap1.ratio, float)[b_idx],
-        )
-        ratio0 = np.where(g_of == 1, r[a_idx], r[b_idx])
-        changes = [(s_pts[k], np.where(g_of <= k, r[a_idx], r[b_idx])) for k in range(2, n_x)]
-        res = simulate(track, train, ratio0, start=start, changes=changes, snapshots_m=s_pts[1:], **kw)
-        total = np.asarray(res.time_s, float)
-        for k, first, inv in groups:
-            sel = g_of == k
-            t_k = np.asarray(_snapshot(res.snapshots, s_pts[k]).t_s, float)[sel]
-            remaining[k] = (total[sel] - t_k).reshape(len(first), n_r)[inv]
+    elapsed, speed, remaining = _table_b(track, train, r, s_pts, full, kw)
     approach = None
     # table (d) only where the state at the last point is not a function of the ratio run before
     # it: a constant-speed vehicle there is at r_b x maximum (or on a braking curve), a sawtooth

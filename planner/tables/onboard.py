@@ -91,7 +91,9 @@ from typing import Callable, Protocol
 import numpy as np
 
 from planner.errors import InputError
-from planner.physics.run_curve import PHASE_POWER  # the run state's phase code (a constant; no simulation here)
+from planner.physics.run_curve import (  # the run state's phase code (a constant; no simulation here)
+    PHASE_POWER,
+)
 
 SAME_POINT_M = 1e-3
 """A decision within this distance [m] of an evaluation point is that point (grid round-off)."""

@@ -1,0 +1,245 @@
+"""Units of work of the nightly job and the digests that key them in the cache.
+
+A unit is one call of a step's library function (an interstation × direction ×
+train type for tables and the closed loop, a station approach for stopping
+patterns, a line for margins and conflicts) with the key of exactly the inputs
+it depends on: the slice of the line it can see (:func:`interstation_inputs`),
+its step's parameters and the planner's code (:func:`code_digest`). The
+:class:`Runner` takes a step's units, reads the cached ones and computes the
+rest in parallel; :class:`Progress` shows it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+import signal
+import time
+import warnings
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import planner
+from planner import __version__
+from planner.job.cache import Cache
+from planner.job.config import Job
+from planner.line.model import Line
+
+
+# --- digests of exactly what a unit depends on -----------------------------------
+_CODE_DIGEST: str | None = None
+
+
+def code_files() -> list[Path]:
+    """Every source file of the planner package, every floor (sorted)."""
+    return sorted(Path(planner.__file__).resolve().parent.rglob("*.py"))
+
+
+def code_digest() -> str:
+    """SHA-256 over the planner package's source files (names and bytes) and its version."""
+    global _CODE_DIGEST
+    if _CODE_DIGEST is None:
+        h = hashlib.sha256(__version__.encode())
+        pkg = Path(planner.__file__).resolve().parent
+        for p in code_files():
+            h.update(p.relative_to(pkg).as_posix().encode() + b"\0")
+            h.update(p.read_bytes())
+        _CODE_DIGEST = h.hexdigest()
+    return _CODE_DIGEST
+
+
+def _segments_in(seg, lo: float, hi: float) -> list:
+    m = (seg.end_m > lo) & (seg.start_m < hi)  # vectorised: gradient tables may have millions of rows
+    return [(float(a), float(b), float(v)) for a, b, v in zip(seg.start_m[m], seg.end_m[m], seg.value[m])]
+
+
+def interstation_inputs(line: Line, train_type: str, origin: str, destination: str) -> dict[str, Any]:
+    """Everything of the line database that a run from ``origin`` to ``destination`` can see.
+
+    The window is the stretch between the two stop markers widened by one
+    train length on both sides: restrictions are held until the tail clears
+    them and gradients/curves are averaged over the train's length, so
+    anything within a train length behind the departure can matter.
+    """
+    ext = line.run_between(origin, destination)
+    direction, a, b = ext.direction, ext.start_m, ext.end_m
+    tt = line.train_type(train_type)
+    lo, hi = min(a, b) - tt.length_m - 1.0, max(a, b) + tt.length_m + 1.0
+    return {
+        "line_id": line.line_id,  # results carry it (partition line=): a copy under another id is not a hit
+        "direction": direction,
+        "origin": [origin, a],
+        "destination": [destination, b],
+        "line_max_ms": line.max_speed_ms,
+        "train": dataclasses.asdict(tt),
+        "gradients": _segments_in(line.gradients, lo, hi),
+        "curves": _segments_in(line.curves, lo, hi),
+        "limits": [
+            dataclasses.astuple(s) for s in line.limits_for(direction, train_type) if s.end_m > lo and s.start_m < hi
+        ],
+        "beacons": [
+            dataclasses.astuple(x) for x in line.beacons_for(direction) if lo < x.position_m < hi
+        ],
+    }
+
+
+# --- units of work -----------------------------------------------------------------
+@dataclass(frozen=True)
+class Unit:
+    """One cacheable piece of work: ``fn(*args)`` whose result is keyed by ``key``."""
+
+    step: str
+    key: str
+    label: str
+    fn: Callable
+    args: tuple
+
+
+def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m, eval_interval_m=0.0):
+    from planner.physics.track import SimSettings
+    from planner.tables.build import interstation_tables
+
+    return interstation_tables(line, tt, o, d, grid, after_departure_m=eval_offset_m,
+                               eval_interval_m=eval_interval_m or None, settings=SimSettings(ds_m=ds_m))
+
+
+def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):
+    from planner.physics.track import SimSettings
+    from planner.stopping.sweep import approach_patterns
+
+    return approach_patterns(line, tt, o, d, adhesions_ms2, approach_m, settings=SimSettings(ds_m=ds_m))
+
+
+def _closed_loop_unit(line, tt, tables, scenarios, modes, horizon_s, step_s, ds_m):
+    from planner.tables.closed_loop import Scenario, closed_loop_batch
+    from planner.physics.track import SimSettings
+
+    return closed_loop_batch(line, tt, tables, scenarios=[Scenario(s.name, s.load, s.traction) for s in scenarios],
+                             modes=modes, extra_s=horizon_s, step_s=step_s, settings=SimSettings(ds_m=ds_m))
+
+
+def _call(fn, args):
+    """joblib worker: module level, so it pickles to local processes and Dask workers alike."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fn(*args)
+
+
+class Runner:
+    """Runs units through the cache and the parallel backend, counting what it computed."""
+
+    def __init__(self, job: Job, cache: Cache, progress: "Progress"):
+        self.job = job
+        self.cache = cache
+        self.progress = progress
+        self.computed: dict[str, int] = {}
+        self.reused: dict[str, int] = {}
+
+    def run(self, step: str, units: Sequence[Unit]) -> list:
+        """Results of ``units`` in order; cached ones loaded, the rest computed in parallel.
+
+        Each result is cached as soon as it arrives, so a run that fails part
+        way (e.g. :class:`planner.io.parallel.ClusterLostError`) leaves the
+        finished units for the next run.
+        """
+        from planner.io.parallel import backend
+
+        results: list = [None] * len(units)
+        todo = []
+        for i, u in enumerate(units):
+            obj = self.cache.get(step, u.key)
+            if obj is None:
+                todo.append(i)
+            else:
+                results[i] = obj
+        self.reused[step] = self.reused.get(step, 0) + len(units) - len(todo)
+        self.computed[step] = self.computed.get(step, 0) + len(todo)
+        self.progress.start(step, len(units), done=len(units) - len(todo))
+        if todo:
+            p = self.job.parallel
+            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
+                         lost_timeout_s=p.dask_lost_timeout_s) as pool:
+                if pool.n_jobs == 1 or len(todo) == 1:
+                    gen = (_call(units[i].fn, units[i].args) for i in todo)
+                else:
+                    gen = pool.imap(_call, [(units[i].fn, units[i].args) for i in todo])
+                for i, res in zip(todo, gen):
+                    self.cache.put(step, units[i].key, res)  # survives a later failure
+                    _kill_point()
+                    results[i] = res
+                    self.progress.advance(step)
+        self.progress.finish(step)
+        return results
+
+
+# --- test hook -----------------------------------------------------------------------
+KILL_ENV = "PLANNER_TEST_KILL_AT"
+"""Tests only: with ``N`` in this environment variable a run SIGKILLs its own process at its N-th
+kill point (each unit just stored in the cache, then the staged run just before publishing), so
+tests kill runs at deterministic moments instead of after a wall-clock delay. Unset normally."""
+
+
+_kill_points = 0
+
+
+def _kill_point() -> None:
+    global _kill_points
+    _kill_points += 1
+    if os.environ.get(KILL_ENV) == str(_kill_points):
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
+# --- progress ------------------------------------------------------------------------
+class Progress:
+    """A rich progress bar per step (counts and time left) plus the per-step timings."""
+
+    def __init__(self, enabled: bool = True):
+        self.timings: dict[str, float] = {}
+        self._t0: dict[str, float] = {}
+        self._ids: dict[str, Any] = {}
+        self._bar = None
+        if enabled:
+            from rich.progress import (
+                BarColumn, MofNCompleteColumn, Progress as RichProgress, TextColumn, TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self._bar = RichProgress(
+                TextColumn("{task.description:<12}"), BarColumn(), MofNCompleteColumn(),
+                TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(), transient=False,
+            )
+
+    def __enter__(self):
+        if self._bar:
+            self._bar.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self._bar:
+            self._bar.stop()
+
+    def start(self, step: str, total: int, done: int = 0) -> None:
+        self._t0.setdefault(step, time.perf_counter())
+        if self._bar is not None:
+            if step in self._ids:
+                self._bar.update(self._ids[step], total=total, completed=done)
+            else:
+                self._ids[step] = self._bar.add_task(step, total=total, completed=done)
+
+    def advance(self, step: str, n: int = 1) -> None:
+        if self._bar is not None and step in self._ids:
+            self._bar.advance(self._ids[step], n)
+
+    def finish(self, step: str) -> None:
+        self.timings[step] = round(time.perf_counter() - self._t0.get(step, time.perf_counter()), 3)
+        if self._bar is not None and step in self._ids:
+            t = self._bar.tasks[[x.id for x in self._bar.tasks].index(self._ids[step])]
+            self._bar.update(self._ids[step], completed=t.total)
+
+    @contextmanager
+    def step(self, name: str, total: int = 1):
+        self.start(name, total)
+        yield
+        self.finish(name)
