@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def sample_graph():
     from planner import load_line
-    from planner.report.changes import read_line_dataset, read_manifest
+    from planner.report.published_run import read_line_dataset, read_manifest
     from planner.report.train_graph import graph_data
 
     line = load_line(ROOT / "lines" / "sample")
@@ -118,7 +118,7 @@ def main() -> None:
     a = ap.parse_args()
     from browser import find_chromium
 
-    from planner.report.train_graph import write_page
+    from planner.report.train_graph_page import write_page
 
     if find_chromium() is None:
         print("chromium not found: install Debian's chromium package")

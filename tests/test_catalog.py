@@ -1,7 +1,7 @@
 """The analysts' README is generated from the declared schemas and must match them."""
 from pathlib import Path
 
-from planner.datasets.catalog import datasets, readme
+from planner.report.catalog import datasets, readme
 
 ROOT = Path(__file__).resolve().parents[1]
 

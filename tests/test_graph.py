@@ -9,17 +9,16 @@ import pytest
 
 from linedb import write_line_db
 from planner.errors import InputError
+from planner.report.plots import train_graph_chart as draw_chart
 from planner.report.train_graph import (
     TOL_T_S,
     TOL_X_M,
-    draw_chart,
     graph_data,
-    page_payload,
     parse_hhmm,
-    render_page,
     service_of,
     simplify,
 )
+from planner.report.train_graph_page import page_payload, render_page
 
 
 @pytest.fixture(scope="module")

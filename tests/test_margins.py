@@ -31,16 +31,9 @@ from hypothesis import given, strategies as st
 from planner.line import testing
 from planner.io.parquet import read_dataset
 from planner.errors import InputError
-from planner.report.margins import (
-    MARGIN_TOTALS_SCHEMA,
-    MARGINS_SCHEMA,
-    MarginRule,
-    compute_margins,
-    margin_columns,
-    round_up_s,
-    timetable_legs,
-    write_margins,
-)
+from planner.report.margin_datasets import MARGIN_TOTALS_SCHEMA, MARGINS_SCHEMA, write_margins
+from planner.report.margin_rule import MarginRule, margin_columns, round_up_s
+from planner.report.margins import compute_margins, timetable_legs
 from planner.line.model import Call, Train
 
 V = 100 / 3.6          # on-board maximum [m/s]

@@ -9,7 +9,8 @@ from __future__ import annotations
 import pytest
 
 from planner.errors import InputError
-from planner.report.margins import MarginRule, leg_result
+from planner.report.leg_margin import leg_result
+from planner.report.margin_rule import MarginRule
 from test_margins import A_DEG, APPROACH, SMALL_GRID, TOL_S, V, closed_form_line, t_degraded
 
 A_LOAD = 300e3 / 400e3  # full load, nominal traction
@@ -36,6 +37,20 @@ def test_each_effect_has_its_share_and_they_add_up(full):
     nominal_same_model = full.min_time_s - ((APPROACH - V * V / 2) / V + V) + full.stop_time_nominal_s
     assert total == pytest.approx(full.degraded_min_s - nominal_same_model, abs=TOL_S)
     assert full.degraded_min_s == pytest.approx(t_degraded(L), abs=TOL_S)
+    # the fourth share is that swap of stop model: the nominal pattern against cruising at V to the brake
+    # point and braking at 1 m/s² (the table minimum's last APPROACH metres)
+    assert full.degraded_loss_stop_model_s == pytest.approx(
+        full.stop_time_nominal_s - ((APPROACH - V * V / 2) / V + V), abs=TOL_S)
+    assert full.degraded_loss_stop_model_s > 0.5  # the jerk-limited pattern is slower: the old three did not add up
+
+
+@pytest.mark.parametrize("rule", [{}, {"bad_day_adhesion": False}, {"bad_day_load": False},
+                                  {"degraded_adhesion_kmh_s": 2.5}])
+def test_four_shares_add_up_to_the_bad_day_cost(rule):
+    r = _leg(**rule)
+    shares = (r.degraded_loss_load_s + r.degraded_loss_traction_s + r.degraded_loss_stop_s
+              + r.degraded_loss_stop_model_s)
+    assert shares == pytest.approx(r.degraded_min_s - r.min_time_s, abs=1e-9)
 
 
 def test_effects_switch_off():

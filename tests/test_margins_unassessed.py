@@ -18,7 +18,9 @@ import pytest
 
 from planner.io.parquet import read_dataset
 from planner.errors import LineValidationError
-from planner.report.margins import MarginRule, compute_margins, margin_columns, write_margins
+from planner.report.margin_datasets import write_margins
+from planner.report.margin_rule import MarginRule, margin_columns
+from planner.report.margins import compute_margins
 from planner.report.html import render_html
 from test_margins import APPROACH, SMALL_GRID, closed_form_line
 

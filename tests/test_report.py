@@ -93,3 +93,40 @@ def test_write_html_atomic_readable(report, line, tmp_path):
     assert p.read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
     assert stat.S_IMODE(p.stat().st_mode) == 0o644
     assert [x.name for x in p.parent.iterdir()] == ["margins.html"]  # no temp file left
+
+
+def _shown_cost(cell: str) -> tuple[float, list[float]]:
+    """``14.8 = 6.9 + 3.0 + 5.5 − 0.6`` → (14.8, [6.9, 3.0, 5.5, -0.6])."""
+    total, rhs = cell.split(" = ")
+    terms = re.findall(r"([+−]?)\s*(\d+\.\d)", rhs)
+    return float(total), [(-1 if sign == "−" else 1) * float(x) for sign, x in terms]
+
+
+def flagged_costs(page: str) -> list[tuple[float, list[float]]]:
+    """The bad-day cost cells of the page's flagged-legs table."""
+    table = page.split("<h3>Flagged legs", 1)[1].split("</table>", 1)[0]
+    return [_shown_cost(c) for c in re.findall(r"<td>(-?\d+\.\d = [^<]+)</td>", table)]
+
+
+def test_flagged_bad_day_cost_adds_up_as_shown(report, page):
+    """Issue 17: the shown shares (load + traction + stop + stop model) add up to the shown cost, every flagged leg."""
+    assert "load + traction + stop + stop model" in page
+    costs = flagged_costs(page)
+    assert len(costs) == 4  # two infeasible, one tight, one unreachable
+    for total, terms in costs:
+        assert len(terms) == 4
+        assert round(sum(terms), 6) == total
+    assert any(t[3] != 0.0 for _, t in costs)  # the stop model share is there to be seen
+
+
+def test_shares_add_up_after_rounding():
+    """Rounding each share on its own would show 0.1 + 0.1 + 0.1 = 0.2 (or 0.3 = 0.2)."""
+    from planner.report.html import added_up
+
+    rng = __import__("numpy").random.default_rng(17)
+    for _ in range(2000):
+        parts = list(rng.uniform(-3.0, 9.0, size=4))
+        total, shown = added_up(float(sum(parts)), parts)
+        assert round(sum(shown), 6) == total
+        assert all(abs(a - b) < 0.1 + 1e-9 for a, b in zip(shown, parts))
+    assert added_up(0.15, [0.05, 0.05, 0.05]) == (0.1, [0.1, 0.0, 0.0])

@@ -4,6 +4,7 @@ Every expected value is derived here from the physics, never copied from the
 integrator's output.
 """
 import math
+import re
 
 import numpy as np
 import pytest
@@ -325,6 +326,24 @@ def test_stall_on_a_rise_is_infeasible():
     line = testing.line(length_m=3000, gradients=[(1000, 2000, 25)], train_types=[tt])
     with pytest.raises(InfeasibleError, match="stalls"):
         run(line, tt)
+
+
+def test_stall_names_the_first_stalled_run_and_stretch_wherever_the_event_nodes_lie():
+    """The stall check runs every 64 steps whatever the events; a run that stalled before an event node
+    is still found after it (the kernel runs from event node to event node)."""
+    tt = testing.train_type(traction=((0, 30), (200, 30)))  # 30 kN cannot lift 300 t up 25 ‰; 300 kN can
+    line = testing.line(length_m=3000, gradients=[(1000, 2000, 25)], train_types=[tt])
+    tr = make_track(line, "T", "S0", "S1")
+    msgs = []
+    for snaps in ((), np.arange(10.0, 2900.0, 10.0)):
+        with pytest.raises(InfeasibleError) as err:
+            simulate(tr, tt, 1.0, traction_factor=np.array([10.0, 1.0, 1.0]), snapshots_m=snaps)
+        msgs.append(str(err.value))
+    assert msgs[0] == msgs[1]
+    assert "(run 1: load 0, traction factor 1)" in msgs[0]
+    a, b = (float(x) for x in re.search(r"between chainage (\d+) and (\d+) m", msgs[0]).groups())
+    x0 = tr.x0_m
+    assert 1000 <= b - x0 and a - x0 <= 2000 and b - a <= 64  # one stretch between two checks, on the rise
 
 
 def test_bad_inputs_name_the_fix():

@@ -27,7 +27,6 @@ from planner.stopping.sweep import (
     InfeasibleStopWarning,
     adhesion_levels,
     approach_patterns,
-    plot_approach,
     stop_sweep,
 )
 from planner.datasets.stops import STOP_SAMPLES_SCHEMA, STOP_SUMMARY_SCHEMA, datasets, write_stops
@@ -359,7 +358,9 @@ def test_sample_line_takadai_down(sample_sweep, tmp_path):
     for p in r.patterns:
         s = p.sample(0.01)
         assert np.max(s.v_ms[s.x_m >= 450.0]) <= 37.0 * KMH + TOL_V
-    png = plot_approach(r, tmp_path / "tkd.png")
+    from planner.report.plots import approach_chart
+
+    png = approach_chart(r, tmp_path / "tkd.png")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -432,7 +433,7 @@ def test_one_approach_start_for_stops_and_margins():
     """Issue 14, defect 6: the stopping sweep and the margin report start the approach at the
     same place, also where the fixed approach reaches back beyond the middle of the leg
     (900 m leg, 550 m approach: 350 m after the departure marker)."""
-    from planner.report.margins import leg_result
+    from planner.report.leg_margin import leg_result
 
     line = line_a()
     r = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2[:1])

@@ -45,7 +45,8 @@ def _clean(page) -> None:
 
 
 def test_graph_page_draws_hovers_selects_and_zooms(browser, tiny, tmp_path):
-    from planner.report.train_graph import graph_data, write_page
+    from planner.report.train_graph import graph_data
+    from planner.report.train_graph_page import write_page
 
     data = graph_data(tiny)
     path = write_page(data, tmp_path / "g.html", train="202")
@@ -75,7 +76,7 @@ def _fake_run(tmp_path: Path, line) -> Path:
     """A run folder with what the overview reads: manifest, inputs copy, one dataset, signed bundles, pages."""
     from planner.bundle.container import build_line
     from planner.bundle.signing import generate_keypair, load_private_key
-    from planner.report.views import copy_inputs
+    from planner.job.views import copy_inputs
 
     run = tmp_path / "r0002-0123456789"
     copy_inputs(line, run)
@@ -129,7 +130,8 @@ def test_overview_page_lists_inputs_datasets_and_bundle_status(browser, tiny, tm
 
 
 def test_changes_section_renders_in_the_report_page(browser, tmp_path):
-    from planner.report.changes import LineChanges, changes_html
+    from planner.report.changes import LineChanges
+    from planner.report.changes_html import changes_html
 
     ch = LineChanges("tiny", "r0001-aaaaaaaaaa", "r0002-bbbbbbbbbb")
     cid = ch.add("line_table", "speed_limits", "speed restriction 4000–4200 m up civil: limit_kmh 70 → 65",

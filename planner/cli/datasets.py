@@ -14,7 +14,7 @@ def datasets_cmd(
                                                      "instead of printing it."),
 ) -> None:
     """Print the catalogue of published datasets with their columns, units and partitioning."""
-    from planner.datasets.catalog import readme
+    from planner.report.catalog import readme
     from planner.io.atomic import write_bytes_atomic
 
     from .checks import check_out_file

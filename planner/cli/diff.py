@@ -18,7 +18,8 @@ def diff(
 ) -> None:
     """Compare two runs line by line: changed inputs, and legs, flags, conflicts and bundles they changed."""
     from planner.io.atomic import write_bytes_atomic
-    from planner.report.changes import changes_html, compare_runs, write_changes
+    from planner.report.changes import compare_runs, write_changes
+    from planner.report.changes_html import changes_html
 
     result = compare_runs(run_a, run_b, threshold_s=threshold_s)
     for ch in result:

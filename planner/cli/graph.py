@@ -22,9 +22,11 @@ def graph(
 ) -> None:
     """Draw every train from its predicted run: charts per direction and both, and a page to zoom and hover."""
     from .. import load_line
-    from planner.report.changes import read_line_dataset, path_id, read_manifest
+    from planner.report.published_run import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
-    from planner.report.train_graph import draw_chart, graph_data, parse_hhmm, write_page
+    from planner.report.plots import train_graph_chart
+    from planner.report.train_graph import graph_data, parse_hhmm
+    from planner.report.train_graph_page import write_page
 
     if fmt not in ("svg", "png"):
         raise InputError(f"--format must be svg or png, not {fmt!r}")
@@ -47,7 +49,7 @@ def graph(
     name = path_id(line.line_id)  # becomes a file name: checked again here
     files = [write_page(data, out / f"{name}_graph.html", t0=t0, t1=t1, train=train)]
     for d in ("both", "down", "up"):
-        files.append(draw_chart(data, out / f"{name}_{d}.{fmt}", direction=d, t0=t0, t1=t1, train=train))
+        files.append(train_graph_chart(data, out / f"{name}_{d}.{fmt}", direction=d, t0=t0, t1=t1, train=train))
     nc = int(data.conflicts.conflict_id.nunique()) if data.conflicts is not None and len(data.conflicts) else 0
     typer.echo(f"line {line.line_id}: {len(data.trains)} trains, {nc} conflicts")
     for n in data.notes:

@@ -33,7 +33,7 @@ def margins(
     closed_loop_dir: Optional[Path] = typer.Option(
         None, "--closed-loop", help="Folder written by `planner simulate` (nominal and perturbed, mode nearest)."),
     job: Optional[Path] = typer.Option(
-        None, "--job", help="Job file: [margins], [stops] and [tables] give the rule, sweep and ratio grid."),
+        None, "--job", help="Job file: the configuration the nightly job uses ([margins], [stops], [tables], [conflicts])."),
     train_type: Optional[list[str]] = typer.Option(None, "--train-type", help="Train type (repeatable); default all."),
     adhesion: Optional[str] = typer.Option(None, "--adhesion", help="Adhesion sweep START:STOP:STEP in km/h/s "
                                            "(default 2.5:3.5:0.1); the lowest level is the bad day's."),
@@ -44,14 +44,9 @@ def margins(
 ) -> None:
     """Margin-time report: minimum, scheduled and bad-day running time of every leg, flags, totals, HTML page."""
     from planner.line.loader import load_line
-    from planner.report.margins import (
-        DEFAULT_ADHESION_KMH_S,
-        DEFAULT_APPROACH_M,
-        MarginRule,
-        compute_margins,
-        write_margins,
-    )
     from planner.report.html import write_html
+    from planner.report.margin_datasets import write_margins
+    from planner.report.margins import compute_margins, margin_options
     from .tables import _progress
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_code, train_type_codes
@@ -59,25 +54,21 @@ def margins(
     try:
         check_jobs(jobs)
         check_out_dir(out, "--out", "margin report")
-        rule, sweep, approach, ratios, after, conflict_params = MarginRule(), DEFAULT_ADHESION_KMH_S, \
-            DEFAULT_APPROACH_M, None, 200.0, None
-        interval = 0.0
+        j = None
         if job is not None:
             from planner.job.config import load_job
 
             j = load_job(job)
-            rule = MarginRule.from_section(j.margins)
-            sweep, approach = j.stops.adhesion_kmh_s, j.stops.approach_m
-            ratios, after, interval = j.tables.ratios, j.tables.eval_offset_m, j.tables.eval_interval_m
-            conflict_params = {"setting_s": j.conflicts.setting_s, "approach_s": j.conflicts.approach_s,
-                               "release_s": j.conflicts.release_s}
-            no_conflicts = no_conflicts or not j.conflicts.enabled
-        if adhesion is not None:
-            sweep = adhesion
         for name, p in (("--tables", tables_dir), ("--stops", stops_dir), ("--closed-loop", closed_loop_dir)):
             if p is not None and not p.is_dir():
                 raise InputError(f"{name} {p}: no such folder")
         line = load_line(line_dir)
+        # with --job, the configuration the nightly job uses (the same library call); else the defaults
+        options = margin_options(j, line) if j is not None else {}
+        if adhesion is not None:
+            options["adhesion_kmh_s"] = adhesion
+        if no_conflicts:
+            options["conflicts"] = False
         train_type = train_type_codes(line, train_type)
         chosen = _curves_leg(curves)
         if chosen is not None:
@@ -85,11 +76,8 @@ def margins(
                       station_code(line, chosen[2], "--curves"))
         with _progress("margins") as update:
             report = compute_margins(
-                line, rule=rule, train_types=train_type or None, tables_dir=tables_dir, stops_dir=stops_dir,
-                closed_loop_dir=closed_loop_dir, ratios=ratios, adhesion_kmh_s=sweep, approach_m=approach,
-                after_departure_m=after or None, eval_interval_m=interval or None, chosen=chosen,
-                conflicts=not no_conflicts,
-                conflict_params=conflict_params, n_jobs=jobs, progress=update)
+                line, **options, train_types=train_type or None, tables_dir=tables_dir, stops_dir=stops_dir,
+                closed_loop_dir=closed_loop_dir, chosen=chosen, n_jobs=jobs, progress=update)
         files = write_margins(report, out)
         page = write_html(report, line, out / "margins.html")
     except PlannerError:

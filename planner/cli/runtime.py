@@ -10,54 +10,6 @@ from ..errors import InputError
 from . import app
 
 
-def plot_run_curve(result, path: Path) -> None:
-    """Draw a railway run-curve chart of ``result`` (a RunResult) to a PNG, atomically.
-
-    Speed, on-board maximum and target (km/h) against chainage (km), running
-    left to right in the running direction; elapsed time on a second axis; the
-    two stations marked.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    c = result.curve
-    km = c["position_m"].to_numpy() / 1000.0
-    fig, ax = plt.subplots(figsize=(10, 5.2), dpi=110)
-    ax.step(km, c["vmax_kmh"], where="mid", color="0.55", lw=1.2, label="on-board maximum")
-    ax.step(km, c["target_kmh"], where="mid", color="tab:orange", lw=1.0, ls="--", label="target (ratio × max)")
-    ax.plot(km, c["speed_kmh"], color="tab:blue", lw=1.8, label="speed")
-    ax.set_xlabel("chainage [km]")
-    ax.set_ylabel("speed [km/h]")
-    ax.set_ylim(0, max(float(c["vmax_kmh"].max()), float(c["speed_kmh"].max())) * 1.15)
-    if result.direction == "up":
-        ax.invert_xaxis()  # run left to right
-    ax.grid(True, alpha=0.3)
-    top = ax.get_ylim()[1]
-    for x, name in ((km[0], result.origin), (km[-1], result.destination)):
-        ax.axvline(x, color="k", lw=1.0)
-        ax.text(x, top * 0.97, f" {name} ", ha="center", va="top", fontsize=9,
-                bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="k", lw=0.6))
-    ax2 = ax.twinx()
-    ax2.plot(km, c["time_s"], color="tab:green", lw=1.0, ls=":", label="time")
-    ax2.set_ylabel("time since departure [s]", color="tab:green")
-    ax2.set_ylim(0, result.time_s * 1.15)
-    h1, l1 = ax.get_legend_handles_labels()
-    h2, l2 = ax2.get_legend_handles_labels()
-    # below the axes, never over the curves
-    ax.legend(h1 + h2, l1 + l2, loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize=8, ncol=4,
-              frameon=False)
-    ax.set_title(
-        f"{result.line_id} {result.direction}: {result.origin} → {result.destination}, type {result.train_type}, "
-        f"ratio {result.ratio:.0%}, load {result.load:.0%}, traction ×{result.traction_factor:g}\n"
-        f"running time {result.time_s:.1f} s, traction energy {result.energy_kwh:.1f} kWh", fontsize=10)
-    fig.subplots_adjust(left=0.08, right=0.91, top=0.88, bottom=0.22)
-    from planner.io.atomic import save_png
-
-    save_png(fig, path)
-
-
 @app.command()
 def runtime(
     line_dir: Path = typer.Argument(..., help="Line database folder."),
@@ -89,7 +41,9 @@ def runtime(
     res = running_time(line, train_type, origin, destination, ratio=ratio, load=load,
                        traction_factor=traction, settings=SimSettings(ds))
     if plot is not None:
-        plot_run_curve(res, plot)
+        from planner.report.plots import run_curve_chart
+
+        run_curve_chart(res, plot)
     if as_json:
         typer.echo(json.dumps({
             "line": res.line_id, "train_type": res.train_type, "origin": res.origin,

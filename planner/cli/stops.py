@@ -31,7 +31,7 @@ def stops(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from planner.line.loader import load_line
-    from planner.stopping.sweep import InfeasibleStopWarning, adhesion_levels, plot_approach, stop_sweep
+    from planner.stopping.sweep import InfeasibleStopWarning, adhesion_levels, stop_sweep
     from planner.datasets.stops import write_stops
 
     from .checks import check_jobs, check_out_dir, station_code, train_type_codes
@@ -67,7 +67,9 @@ def stops(
         types = train_type or [line.train_types[0].train_type]
         pick = next(r for r in results
                     if r.station_id == plot and r.direction == plot_dir and r.train_type == types[0])
-        png = plot_approach(pick, Path(out) / "plots" / f"stop_{pick.station_id}_{pick.direction}_"
+        from planner.report.plots import approach_chart
+
+        png = approach_chart(pick, Path(out) / "plots" / f"stop_{pick.station_id}_{pick.direction}_"
                             f"{pick.train_type}.png")
 
     n_pat = sum(len(r.patterns) for r in results)

@@ -80,37 +80,6 @@ def summary(result, *, line_id: str, train_type: str, origin: str, destination: 
     }
 
 
-def write_plot(result, path: Path, title: str) -> Path:
-    """Speed, target and advice against distance, as a PNG written atomically."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    path = Path(path)
-    if path.suffix.lower() != ".png":
-        raise InputError(f"--plot {path}: the plot is a PNG; give a file name ending in .png")
-    c = result.curve
-    colours = {"power": "tab:red", "hold": "tab:green", "coast": "tab:blue", "brake": "tab:orange"}
-    fig, ax = plt.subplots(figsize=(9, 4.5), dpi=100)
-    ax.plot(c["distance_m"], c["target_kmh"], color="0.6", lw=1.0, ls="--", label="target")
-    ax.plot(c["distance_m"], c["speed_kmh"], color="k", lw=1.3, label="speed")
-    for seg in advice_segments(c):
-        ax.axvspan(seg["from_m"], seg["to_m"], ymin=0, ymax=0.04, color=colours[seg["advice"]], lw=0)
-    for name, col in colours.items():
-        ax.plot([], [], color=col, lw=6, label=name)
-    ax.set_xlabel("distance from departure marker [m]")
-    ax.set_ylabel("speed [km/h]")
-    ax.set_title(title)
-    # below the axes, never over the curves
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=8, ncol=6, frameon=False)
-    ax.grid(True, alpha=0.3)
-    fig.subplots_adjust(left=0.09, right=0.98, top=0.92, bottom=0.24)
-    from planner.io.atomic import save_png
-
-    return save_png(fig, path)
-
-
 def simulate_timekeeping_cli(line, train_type: str, origin: str, destination: str, arrival_s: float,
                              changes: Sequence = (), load: float = 0.0, traction: float = 1.0,
                              json: bool = False, plot: Optional[Path] = None):
@@ -155,7 +124,9 @@ def simulate_timekeeping_cli(line, train_type: str, origin: str, destination: st
                           load=load, traction_factor=traction)
     info = summary(res, line_id=ln.line_id, train_type=train_type, origin=origin, destination=destination)
     if plot is not None:
-        write_plot(res, Path(plot), f"{ln.line_id} {train_type} {origin}->{destination} (time-keeping)")
+        from planner.report.plots import timekeeping_chart
+
+        timekeeping_chart(res, advice_segments(res.curve), Path(plot), f"{ln.line_id} {train_type} {origin}->{destination} (time-keeping)")
 
     def verdict():
         # the run is printed either way (what the train did at the limit); an arrival that cannot be

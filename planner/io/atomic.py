@@ -80,18 +80,3 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, mode: int = 0o64
                 view = view[os.write(fd, view[:_CHUNK]):]
         finally:
             os.close(fd)
-
-
-def save_png(fig, path: str | os.PathLike, *, dpi: float | None = None) -> Path:
-    """Save a matplotlib figure as a PNG atomically and close it.
-
-    No software/time metadata is written, so the same figure gives the same bytes.
-    """
-    import matplotlib.pyplot as plt
-
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=dpi, metadata={"Software": None})
-    finally:
-        plt.close(fig)
-    return Path(path)

@@ -80,7 +80,7 @@ class RunSummary:
     release: Any = None
     """The :class:`planner.bundle.container.Release` the run's bundles were issued with."""
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
-    """Margin report of each line (kept for :func:`planner.report.views.run_views`, which puts the changes on top)."""
+    """Margin report of each line (kept for :func:`planner.job.views.run_views`, which puts the changes on top)."""
 
 
 def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
@@ -232,10 +232,10 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             if cache.rejected:  # once per run, with the count
                 summary.warnings.append(cache.rejected_note())
             _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
-            from planner.report.views import run_views  # changes since the last run, overview page
+            from planner.job.views import run_views  # changes since the last run, overview page
 
             run_views(job, lines, stage, root, prog, summary)
-            from planner.datasets.catalog import datasets as catalog
+            from planner.report.catalog import datasets as catalog
 
             stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
             _kill_point()
@@ -260,12 +260,15 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     types = _types(job, line)
     tasks = [(t, d, a.station_id, b.station_id) for t in types for d in DIRECTIONS for a, b in line.interstations(d)]
     unit_in = {k: digest(interstation_inputs(line, k[0], k[2], k[3])) for k in tasks}
+    # each unit ships only the slice of the line it can see (the slice its key digests), so what a
+    # parallel task costs to send does not grow with the line
+    windows = {k: line.window(k[2], k[3], k[0]) for k in tasks}
 
     # tables
     t_units = [
         Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grid))]),
              f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
-             (line, k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
+             (windows[k], k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
         for k in tasks
     ]
     tables = runner.run("tables", t_units)
@@ -279,7 +282,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     adh_ms2 = [a * KMH_S for a in levels]
     s_units = [
         Unit("stops", digest(["stops", code, unit_in[k], dataclasses.asdict(sp), tp.ds_m]),
-             f"{k[0]} {k[3]}", _stops_unit, (line, k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
+             f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
         for k in tasks
     ]
     stops = runner.run("stops", s_units)
@@ -304,8 +307,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
              digest(["closed_loop", code, u.key, [dataclasses.asdict(sc) for sc in cp.scenarios], list(cp.modes),
                      cp.horizon_s, cp.step_s]),
              u.label, _closed_loop_unit,
-             (line, tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s, tp.ds_m))
-        for u, tab in zip(t_units, tables)
+             (windows[k], tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s,
+              tp.ds_m))
+        for k, u, tab in zip(tasks, t_units, tables)
     ]
     loops = [r for batch in runner.run("closed_loop", c_units) for r in batch]
     from planner.datasets.closed_loop import write_closed_loop
@@ -318,7 +322,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], grid, conflicts)
     _bundles_step(job, line, stage, runner, summary, key)
-    from planner.report.views import line_views  # inputs copy, train graph page
+    from planner.job.views import line_views  # inputs copy, train graph page
 
     line_views(job, line, stage, runner, summary)
 
@@ -338,29 +342,24 @@ def _line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
     return runner.run(step, [Unit(step, key, step, fn, args)])[0]
 
 
-def _margins_unit(line, job_margins, types, stage, stops_levels, approach_m, ratios, eval_offset_m, ds_m, n_jobs,
-                  eval_interval_m=0.0):
-    from planner.report.margins import MarginRule, compute_margins
-    from planner.physics.track import SimSettings
+def _margins_unit(line, options, types, stage, n_jobs):
+    from planner.report.margins import compute_margins
 
-    return compute_margins(
-        line, rule=MarginRule.from_section(job_margins), train_types=types, tables_dir=stage, stops_dir=stage,
-        closed_loop_dir=stage, ratios=ratios, adhesion_kmh_s=stops_levels, approach_m=approach_m,
-        after_departure_m=eval_offset_m, eval_interval_m=eval_interval_m or None, conflicts=False,
-        settings=SimSettings(ds_m=ds_m), n_jobs=n_jobs,
-    )
+    # conflicts come from their own step (_conflicts_step)
+    return compute_margins(line, **(options | {"conflicts": False}), train_types=types, tables_dir=stage,
+                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs)
 
 
 def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
                   unit_keys: list[str], grid, conflicts) -> None:
-    from planner.report.margins import write_margins
     from planner.report.html import write_html
+    from planner.report.margin_datasets import write_margins
+    from planner.report.margins import margin_options
 
     key = digest(["margins", code_digest(), line.source_digest, unit_keys, _result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
-    report = _line_unit(runner, "margins", key, _margins_unit, line, job.margins, _types(job, line), stage,
-                        job.stops.adhesion_kmh_s, job.stops.approach_m, list(map(float, grid)),
-                        job.tables.eval_offset_m, job.tables.ds_m, n_jobs, job.tables.eval_interval_m)
+    report = _line_unit(runner, "margins", key, _margins_unit, line, margin_options(job, line), _types(job, line),
+                        stage, n_jobs)
     if conflicts is not None:
         report.conflicts, report.conflicts_note = conflicts, ""
     elif not job.conflicts.enabled:
@@ -447,7 +446,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "bundles_release": _release_record(summary.release),
     }
     write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
-    from planner.datasets.catalog import readme
+    from planner.report.catalog import readme
 
     write_bytes_atomic(stage / "README.md", readme().encode())
 

@@ -58,15 +58,14 @@ def _segments_in(seg, lo: float, hi: float) -> list:
 def interstation_inputs(line: Line, train_type: str, origin: str, destination: str) -> dict[str, Any]:
     """Everything of the line database that a run from ``origin`` to ``destination`` can see.
 
-    The window is the stretch between the two stop markers widened by one
-    train length on both sides: restrictions are held until the tail clears
-    them and gradients/curves are averaged over the train's length, so
-    anything within a train length behind the departure can matter.
+    The window is :meth:`planner.line.model.Line.window_m` (the stretch between
+    the two stop markers widened by one train length on both sides), the same
+    slice :meth:`~planner.line.model.Line.window` gives the unit to compute with.
     """
     ext = line.run_between(origin, destination)
     direction, a, b = ext.direction, ext.start_m, ext.end_m
     tt = line.train_type(train_type)
-    lo, hi = min(a, b) - tt.length_m - 1.0, max(a, b) + tt.length_m + 1.0
+    lo, hi = line.window_m(origin, destination, train_type)
     return {
         "line_id": line.line_id,  # results carry it (partition line=): a copy under another id is not a hit
         "direction": direction,

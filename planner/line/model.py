@@ -14,7 +14,7 @@ decreasing chainage. ``sign(direction)`` is +1 for down, -1 for up.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -284,6 +284,44 @@ class Line:
     def limits_for(self, direction: str, train_type: str) -> list[SpeedLimit]:
         """Speed restrictions that apply to ``direction`` and ``train_type``."""
         return [s for s in self.speed_limits if s.applies(direction, train_type)]
+
+    # --- the slice one run can see --------------------------------------------
+    def window_m(self, origin: str, destination: str, train_type: str) -> tuple[float, float]:
+        """Chainage range [m] a run ``origin`` → ``destination`` of ``train_type`` can see.
+
+        The stretch between the two stop markers widened by one train length
+        (and 1 m) on both sides: restrictions hold until the tail clears them and
+        gradients and curves are averaged over the train, so anything within a
+        train length behind the departure can matter.
+        """
+        ext = self.run_between(origin, destination)
+        length = self.train_type(train_type).length_m
+        return min(ext.start_m, ext.end_m) - length - 1.0, max(ext.start_m, ext.end_m) + length + 1.0
+
+    def window(self, origin: str, destination: str, train_type: str) -> "Line":
+        """The line as one run ``origin`` → ``destination`` of ``train_type`` sees it (:meth:`window_m`).
+
+        The two stations, the gradient and curve segments, restrictions and
+        beacons that reach into the window (whole, not clipped), this train
+        type; no other station, train type, signal, timetable or network. A
+        parallel unit of work gets this instead of the whole line, so what it
+        ships does not grow with the line; every result of the run is the same
+        as on the whole line (the job's cache key is this same slice).
+        """
+        lo, hi = self.window_m(origin, destination, train_type)
+        tt = self.train_type(train_type)
+        two = sorted((self.station(origin), self.station(destination)), key=lambda st: st.position_m)
+
+        def seg(x: Segments) -> Segments:
+            m = (x.end_m > lo) & (x.start_m < hi)
+            return Segments(x.start_m[m], x.end_m[m], x.value[m])
+
+        return replace(
+            self, stations=tuple(two), gradients=seg(self.gradients), curves=seg(self.curves),
+            speed_limits=tuple(s for s in self.speed_limits if s.end_m > lo and s.start_m < hi),
+            beacons=tuple(b for b in self.beacons if lo < b.position_m < hi),
+            signals=(), train_types=(tt,), trains=(), network=None,
+        )
 
 
 def _lookup(items, attr: str, text: str, what: str, line_id: str):

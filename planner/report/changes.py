@@ -20,12 +20,11 @@
   their own run's public key.
 
 The result is one table (the ``changes`` dataset, :data:`CHANGES_SCHEMA`) and
-an HTML section (:func:`changes_html`) that the nightly job puts at the top of
-the margin report. ``planner diff RUN_A RUN_B`` prints the same.
+an HTML section (:func:`planner.report.changes_html.changes_html`) that the nightly
+job puts at the top of the margin report. ``planner diff RUN_A RUN_B`` prints the same.
 """
 from __future__ import annotations
 
-import html
 import json
 import math
 from dataclasses import dataclass, field
@@ -35,14 +34,12 @@ from typing import Any, Iterable
 import numpy as np
 import pyarrow as pa
 
-from planner.io.parquet import declare
 from planner.errors import InputError
+from planner.io.parquet import declare
+from planner.report.published_run import line_inputs, path_id, read_line_dataset, read_manifest
 
 THRESHOLD_S = 0.5
 """A leg's minimum or margin must move by more than this to be listed [s] (tables are exact to ~0.05 s)."""
-
-INPUTS_DIR = "inputs"
-"""Folder of a run that holds the copy of each line database it planned (``inputs/<line_id>/*.parquet``)."""
 
 TABLE_KEYS: dict[str, tuple[str, ...]] = {
     "line": ("line_id",),
@@ -152,52 +149,6 @@ def _num(v) -> float:
     except (TypeError, ValueError):
         return float("nan")
     return f
-
-
-# ---------------------------------------------------------------------------
-# Reading runs
-# ---------------------------------------------------------------------------
-def read_manifest(run_dir: Path) -> dict[str, Any]:
-    p = Path(run_dir) / "manifest.json"
-    if not p.is_file():
-        raise InputError(f"{run_dir}: not a published run (no manifest.json); give a folder like outputs/r0007-…")
-    try:
-        m = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        raise InputError(f"{p}: unreadable manifest ({e}); the run is damaged, compare another one") from None
-    if not isinstance(m, dict) or "run_id" not in m:
-        raise InputError(f"{p}: not a planner run manifest (no run_id)")
-    return m
-
-
-def line_inputs(run_dir: Path, manifest: dict[str, Any], line_id: str) -> Path | None:
-    """The run's copy of a line database, when present and matching the manifest's ``source_digest``."""
-    from planner.line.loader import source_digest
-
-    rec = next((x for x in manifest.get("lines", []) if x.get("line_id") == line_id), None)
-    if rec is None:
-        return None
-    folder = Path(run_dir) / INPUTS_DIR / line_id
-    if not folder.is_dir():
-        return None
-    if source_digest(folder) != rec.get("source_digest"):
-        raise InputError(f"{folder}: its tables do not match the run manifest's source_digest; "
-                         "the run's input copy was altered, compare another run")
-    return folder
-
-
-def read_line_dataset(run_dir: Path, dataset: str, line_id: str):
-    """A dataset of one line as pandas (partition columns as strings), or None when the run has none."""
-    import pyarrow.compute as pc
-
-    from planner.io.parquet import read_dataset
-
-    if not (Path(run_dir) / dataset).is_dir():
-        return None
-    t = read_dataset(run_dir, dataset)
-    if "line" in t.column_names:
-        t = t.filter(pc.equal(t.column("line"), line_id))
-    return t.to_pandas()
 
 
 # ---------------------------------------------------------------------------
@@ -593,85 +544,3 @@ def write_changes(changes: LineChanges, out_dir: str | Path) -> list[Path]:
     t = changes.table().drop_columns(["line"])
     write_parquet_atomic(t.cast(CHANGES_SCHEMA), path)
     return [path]
-
-
-def path_id(line_id: str) -> str:
-    from planner.bundle.manifest import check_id
-
-    return check_id(line_id, "line id")
-
-
-# ---------------------------------------------------------------------------
-# HTML
-# ---------------------------------------------------------------------------
-CSS = """
-.changes{background:#fff;border:1px solid #d5d9de;border-left:6px solid #5a7da8;border-radius:8px;padding:8px 16px;margin:12px 0}
-.changes h2{margin:4px 0 6px;border:0;font-size:18px}.changes h3{margin:10px 0 4px;font-size:14px}
-.changes ul{margin:2px 0 6px;padding-left:20px}.changes li{font-size:13px;line-height:1.4}
-.changes .up{color:#c62828;font-weight:600}.changes .down{color:#2e7d32;font-weight:600}
-.changes table{width:auto;margin:4px 0}
-"""
-
-
-def changes_html(ch: LineChanges | None, *, first_run_note: str = "") -> str:
-    """The "what changed since the last run" section (self-contained HTML fragment with its own CSS)."""
-    e = lambda x: html.escape(str(x), quote=True)  # noqa: E731
-    if ch is None:
-        return (f"<style>{CSS}</style><section class='changes' id='changes'><h2>What changed since the last run</h2>"
-                f"<p>{e(first_run_note or 'No earlier run to compare with.')}</p></section>")
-    head = (f"<style>{CSS}</style><section class='changes' id='changes'><h2>What changed since the last run</h2>"
-            f"<p class='sub'>Run <code>{e(ch.run)}</code> compared with <code>{e(ch.base_run)}</code>; legs listed when "
-            f"their minimum or margin moved by more than {ch.threshold_s:g} s. Dataset <code>changes</code> holds every row.</p>")
-    if not ch.rows:
-        return head + "<p>Nothing changed in the inputs or the outputs.</p>" + "".join(
-            f"<p>{e(n)}</p>" for n in ch.notes) + "</section>"
-    parts = [head]
-    inputs = ch.of("code", "parameter", "line_table")
-    legs = ch.of("leg")
-    parts.append("<h3>Inputs</h3><ul>" + ("".join(f"<li>{e(r['detail'])}" + _effect(r, legs, e) + "</li>"
-                                                    for r in inputs) or "<li>none</li>") + "</ul>")
-    explained = {r["change_id"] for r in legs if r["caused_by"]}
-    other = [r for r in legs if r["change_id"] not in explained]
-    if other:
-        groups: dict[str, list] = {}
-        for x in other:
-            groups.setdefault(x["subject"], []).append(x)
-        items = [f"<li>{_leg_group(k, v, e)}</li>" for k, v in groups.items()]
-        parts.append("<h3>Legs that moved without a line-table change reaching them</h3><ul>" + "".join(items[:60])
-                     + (f"<li>… {len(items) - 60} more</li>" if len(items) > 60 else "") + "</ul>")
-    for cat, title in (("flag", "Flags that appeared or cleared"), ("conflict", "Conflicts that appeared or cleared"),
-                       ("bundle", "Bundles whose content changed")):
-        rows = ch.of(cat)
-        if rows:
-            parts.append(f"<h3>{title}</h3><ul>" + "".join(f"<li>{e(r['detail'])}</li>" for r in rows[:60])
-                         + (f"<li>… {len(rows) - 60} more</li>" if len(rows) > 60 else "") + "</ul>")
-    parts += [f"<p>{e(n)}</p>" for n in ch.notes]
-    return "".join(parts) + "</section>"
-
-
-MEASURE_WORDS = {"min_running_time_s": "minimum", "margin_s": "margin", "remaining_margin_s": "bad-day margin"}
-
-
-def _leg_group(subject: str, rows, e) -> str:
-    """One leg, every measure that moved: ``minimum 125.3 → 151.1 s (+25.8 s), margin …``."""
-    bits = []
-    for x in rows:
-        if x["field"] in MEASURE_WORDS and x["delta"] is not None:
-            worse = (x["delta"] > 0) == (x["field"] == "min_running_time_s")
-            bits.append(f"{MEASURE_WORDS[x['field']]} {_num(x['before']):.1f} → {_num(x['after']):.1f} s "
-                        f"<span class='{'up' if worse else 'down'}'>({x['delta']:+.1f} s)</span>")
-        else:
-            bits.append(e(x["detail"]))
-    return f"<b>{e(subject)}</b>: " + ", ".join(bits)
-
-
-def _effect(r, legs, e) -> str:
-    hit = [x for x in legs if r["change_id"] in x["caused_by"]]
-    if not hit:
-        return " — <i>no leg moved by more than the threshold</i>" if r["category"] == "line_table" else ""
-    groups: dict[str, list] = {}
-    for x in hit:
-        groups.setdefault(x["subject"], []).append(x)
-    items = [f"<li>{_leg_group(k, v, e)}</li>" for k, v in groups.items()]
-    return (f" — affects {len(groups)} leg{'s' if len(groups) != 1 else ''}:<ul>" + "".join(items[:40])
-            + (f"<li>… {len(items) - 40} more</li>" if len(items) > 40 else "") + "</ul>")

@@ -214,7 +214,7 @@ def run_setting(
         Only these interstations (a subset of the line); default all. Bundle bytes are only
         computed for the whole line (0 otherwise).
     n_jobs : int
-        joblib processes (-1 = all cores).
+        Worker processes (-1 = all cores, 1 = this process).
     explain : bool
         Replay the worst run of each mode and scenario (:func:`replay`).
     work_dir : path, optional
@@ -222,7 +222,7 @@ def run_setting(
     """
     import tempfile
 
-    from joblib import Parallel, delayed
+    from planner.io.parallel import map_tasks
 
     interval = check_interval(setting.interval_m, "interval")
     grid = ratio_grid(setting.ratios, line_max_speed_ms=line.max_speed_ms)
@@ -232,9 +232,9 @@ def run_setting(
         tasks = [t for t in tasks if (t[2], t[3]) in want]
     order = sorted(range(len(tasks)), key=lambda i: -line.run_between(tasks[i][2], tasks[i][3]).length_m)
     w0 = time.perf_counter()
-    jobs = [delayed(_task)(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, interval, list(scenarios),
-                           list(modes), settings) for i in order]
-    got = [f(*a, **kw) for f, a, kw in jobs] if n_jobs == 1 else Parallel(n_jobs=n_jobs)(jobs)
+    # the longest interstations first, so the workers finish together; results come back in this order
+    got = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, interval, list(scenarios),
+                             list(modes), settings) for i in order], n_jobs)
     wall = time.perf_counter() - w0
     res: list = [None] * len(tasks)
     for i, g in zip(order, got):
@@ -368,7 +368,8 @@ def format_worst(w: Worst, last: int = 4) -> str:
 def render_html(results: Sequence[SettingResult], *, line_name: str, base_bytes: int | None = None,
                 note: str = "") -> str:
     """The study as one self-contained HTML page (inline CSS and SVG, no scripts), deterministic."""
-    from planner.report.html import CSS, _e, _mpl, _svg
+    from planner.report.html import CSS, _e
+    from planner.report.plots import interval_study_chart
 
     rows = study_rows(results, base_bytes)
     cases = list(dict.fromkeys(k.rsplit("/", 1)[0] for k in rows[0] if "/" in k)) if rows else []
@@ -387,20 +388,8 @@ def render_html(results: Sequence[SettingResult], *, line_name: str, base_bytes:
         parts.append(f"<p class='note'>{_e(note)}</p>")
     # chart: max error against interval, one panel per case, a line per grid
     if rows:
-        plt = _mpl()
-        fig, axes = plt.subplots(1, len(cases), figsize=(3.2 * len(cases), 2.8), squeeze=False)
-        labels = list(dict.fromkeys(w["interval"] for w in rows))
-        for ax, c in zip(axes[0], cases):
-            for g in dict.fromkeys(w["grid"] for w in rows):
-                pts = [(labels.index(w["interval"]), w[c + "/max"]) for w in rows if w["grid"] == g]
-                ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", label=g)
-            ax.set_xticks(range(len(labels)), labels, fontsize=8)
-            ax.set_title(c)
-            ax.set_ylabel("max |error| [s]")
-            ax.grid(alpha=0.3)
-        axes[0][0].legend(fontsize=8, title="grid", title_fontsize=8)
-        fig.tight_layout()
-        parts.append(f"<div class='fig'>{_svg(fig)}<div class='caption'>Maximum |arrival error| against the "
+        svg = interval_study_chart(rows, cases)
+        parts.append(f"<div class='fig'>{svg}<div class='caption'>Maximum |arrival error| against the "
                      "evaluation interval, per ratio grid.</div></div>")
     head = ("<tr><th class='l' rowspan=2>grid</th><th class='l' rowspan=2>interval</th><th rowspan=2>ratios</th>"
             "<th rowspan=2>points</th><th rowspan=2>table (b) rows</th><th rowspan=2>all table rows</th>"

@@ -2,7 +2,7 @@
 
 :func:`render_html` turns a :class:`planner.report.margins.MarginReport` into a
 single HTML document that needs no network: inline CSS, charts as inline SVG
-drawn with matplotlib's SVG backend, no scripts. It is deterministic
+drawn by :mod:`planner.report.plots` (matplotlib's SVG backend), no scripts. It is deterministic
 (same report, same bytes): no timestamps, SVG ids from a fixed hash salt, no
 date in the SVG metadata.
 
@@ -26,19 +26,13 @@ Sections, in the order a timetable planner reads them:
 from __future__ import annotations
 
 import html
-import io
 import math
 from pathlib import Path
 
 import numpy as np
 
-FLAG_COLOURS = {"unassessed": "#37474f", "infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a",
-                "ok": "#2e7d32"}
-"""Colour of a leg by its worst flag (also used in the table)."""
-MARGIN_COLOUR = "#b0c4de"
-"""Bar colour of the nominal margin."""
-SVG_SALT = "planner-margins"
-"""Fixed ``svg.hashsalt``: matplotlib's SVG ids become deterministic."""
+from planner.report.margin_rule import flag_of
+from planner.report.plots import adhesion_chart, curves_chart, margin_chart
 
 CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;color:#1d2327;background:#f6f7f9}
@@ -98,237 +92,48 @@ def _leg(r) -> str:
     return f"{_e(r.origin)} → {_e(r.destination)}{via}"
 
 
-def _flag_of(r) -> str:
-    for f in ("unassessed", "infeasible", "unreachable", "tight"):
-        if bool(getattr(r, f)):
-            return f
-    return "ok"
-
-
-# --- figures ------------------------------------------------------------------------
-
-def _svg(fig) -> str:
-    """A matplotlib figure as an inline <svg> element (deterministic)."""
-    import matplotlib.pyplot as plt
-
-    buf = io.StringIO()
-    fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": "planner"})
-    plt.close(fig)
-    s = buf.getvalue()
-    return s[s.index("<svg"):]
-
-
-def _mpl():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update({"svg.hashsalt": SVG_SALT, "svg.fonttype": "none", "font.size": 9,
-                         "axes.titlesize": 10, "figure.dpi": 72})
-    return plt
-
-
-def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
-    """Bar chart of the margin per leg along the line for one direction (inline SVG).
-
-    One row of axes per train type (legs passing stations in their own row);
-    bars span the leg from stop marker to stop marker, running left to right.
-    """
-    plt = _mpl()
-    rows = report.rows[(report.rows.direction == direction) & report.rows.scheduled_running_time_s.notna()]
-    if rows.empty:
-        return ""
-    groups = []
-    for t in sorted(rows.train_type.unique()):
-        sub = rows[rows.train_type == t]
-        plain, passing = sub[sub.passes.map(len) == 0], sub[sub.passes.map(len) > 0]
-        if len(plain):
-            groups.append((f"{t}: stop to next station", plain))
-        if len(passing):
-            groups.append((f"{t}: legs passing stations", passing))
-    fig, axes = plt.subplots(len(groups), 1, figsize=(13.5, 2.6 * len(groups) + 1.7), sharex=True,
-                             squeeze=False)
-    lo = min(min(stations.values()), 0.0) / 1000.0
-    hi = max(stations.values()) / 1000.0
-    ymin = min(0.0, float(np.nanmin(rows.remaining_margin_s))) - 3
-    ymax = max(float(np.nanmax(rows.margin_s)), float(np.nanmax(rows.supplement_required_s))) + 4
-    for ax, (title, sub) in zip(axes[:, 0], groups):
-        # several scheduled times on one leg: draw the one with the least remaining margin
-        sub = sub.sort_values("remaining_margin_s", kind="stable").drop_duplicates(["origin", "destination"])
-        for r in sub.itertuples(index=False):
-            a = stations[r.origin] / 1000.0
-            b = stations[r.destination] / 1000.0
-            x0, x1 = min(a, b), max(a, b)
-            pad = 0.04 * (x1 - x0)
-            w = x1 - x0 - 2 * pad
-            ax.bar(x0 + pad, r.margin_s, width=w, align="edge", color=MARGIN_COLOUR, edgecolor="#7d93ad", lw=0.6)
-            col = FLAG_COLOURS[_flag_of(r)]
-            ax.bar(x0 + pad + 0.25 * w, r.remaining_margin_s, width=0.5 * w, align="edge", color=col, alpha=0.9)
-            ax.plot([x0 + pad, x0 + pad + w], [r.supplement_required_s] * 2, color="k", lw=1.4)
-            y = r.remaining_margin_s
-            ax.text(x0 + pad + 0.5 * w, y + (0.6 if y >= 0 else -0.6), f"{y:+.1f}", ha="center",
-                    va="bottom" if y >= 0 else "top", fontsize=7.5, fontweight="bold",
-                    color="#8e1b1b" if y < 0 else "#1d2327")
-        ax.axhline(0, color="k", lw=0.8)
-        ax.set_ylim(ymin, ymax)
-        ax.set_ylabel("seconds")
-        ax.set_title(title, loc="left", fontsize=9.5, fontweight="bold", pad=16)
-        ax.grid(axis="y", alpha=0.3)
-        for sid, x in stations.items():
-            ax.axvline(x / 1000.0, color="0.85", lw=0.6, zorder=0)
-    order = sorted(stations.items(), key=lambda kv: kv[1])
-    for ax in axes[:, 0]:  # station codes above every panel, not only the first
-        top = ax.secondary_xaxis("top")
-        top.set_xticks([x / 1000.0 for _, x in order], [s for s, _ in order], fontsize=8)
-    axes[-1, 0].set_xlabel("chainage [km] (stop markers of this direction)")
-    axes[-1, 0].set_xlim(lo - 0.3, hi + 0.3)
-    if direction == "up":
-        axes[-1, 0].invert_xaxis()  # run left to right
-    from matplotlib.patches import Patch
-    from matplotlib.lines import Line2D
-
-    handles = [Patch(color=MARGIN_COLOUR, label="margin = scheduled − minimum"),
-               Patch(color=FLAG_COLOURS["ok"], label="remaining on a bad day (≥ tight threshold)"),
-               Patch(color=FLAG_COLOURS["tight"], label="remaining < tight threshold"),
-               Patch(color=FLAG_COLOURS["infeasible"], label="negative: infeasible"),
-               Line2D([], [], color="k", lw=1.4, label="supplement the rule asks for")]
-    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=8.5, frameon=False)
-    first, last = order[0][0], order[-1][0]
-    if direction == "up":
-        first, last = last, first
-    fig.suptitle(f"{direction}: {first} → {last}, running left to right", x=0.01, y=1 - 0.12 / fig.get_figheight(),
-                 ha="left", va="top", fontsize=11, fontweight="bold")
-    h = fig.get_figheight()  # fixed margins in inches: tight_layout costs seconds per chart
-    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 1.05 / h, bottom=0.95 / h, hspace=0.62)
-    return _svg(fig)
-
-
-def curves_chart(report) -> str:
-    """Run curves of the chosen leg and where along it the time goes (inline SVG)."""
-    c, k = report.curves, report.chosen
-    if not c or not k:
-        return ""
-    plt = _mpl()
-    row = report.rows[(report.rows.direction == k["direction"]) & (report.rows.train_type == k["train_type"])
-                      & (report.rows.origin == k["origin"]) & (report.rows.destination == k["destination"])]
-    row = row.iloc[0]
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(15.5, 7.4), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
-    km = c["position_m"] / 1000.0
-    ax.step(km, c["vmax_kmh"], where="mid", color="0.55", lw=1.1, label="on-board maximum (limit − margin)")
-    ax.plot(km, c["min_speed_kmh"], color="#1f5fa8", lw=1.8,
-            label=f"minimum: ratio 100 %, nominal — {row.min_running_time_s:.1f} s")
-    if "sched_speed_kmh" in c:
-        ax.plot(km, c["sched_speed_kmh"], color="#2e7d32", lw=1.5,
-                label=f"as scheduled: on-board logic, departs at ratio {row.ratio_on_time:.0%}\n  "
-                      f"{row.scheduled_running_time_s:.0f} s scheduled, arrives {row.arrival_error_s:+.1f} s")
-    dkm = c["degraded_position_m"] / 1000.0
-    ax.plot(dkm, c["degraded_speed_kmh"], color="#c62828", lw=1.5,
-            label=f"bad day: load {report.rule.bad_load:.0%}, traction ×{report.rule.bad_traction:g},\n  "
-                  f"ratio 100 % — {row.degraded_min_running_time_s:.1f} s")
-    if "pattern_position_m" in c:
-        ax.plot(c["pattern_position_m"] / 1000.0, c["pattern_speed_kmh"], color="#c62828", lw=1.5, ls="--",
-                label=f"stopping pattern at adhesion {row.adhesion_min_kmh_s:g} km/h/s\n  — {row.stop_time_degraded_s:.1f} s")
-    ps = c["pattern_start_m"] / 1000.0
-    ax.axvline(ps, color="#c62828", lw=0.8, ls=":")
-    ax.text(ps, 3, " pattern start", color="#c62828", fontsize=8, ha="left", va="bottom")
-    ax.set_ylabel("speed [km/h]")
-    ax.set_ylim(0, float(np.nanmax(c["vmax_kmh"])) * 1.12)
-    ax.grid(alpha=0.3)
-    # legends beside the axes, never over the curves
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, ncol=1, frameon=False,
-              borderaxespad=0.0)
-    for x, name in ((km[0], row.origin), (km[-1], row.destination)):
-        ax.axvline(x, color="k", lw=1.0)
-        ax.text(x, ax.get_ylim()[1] * 0.985, f" {name} ", ha="center", va="top", fontsize=9,
-                bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="k", lw=0.6))
-    # where the time goes: time behind the minimum run at each point
-    tmin = c["min_time_s"]
-    if "sched_time_s" in c:
-        ax2.plot(km, c["sched_time_s"] - tmin, color="#2e7d32", lw=1.5, label="as scheduled − minimum")
-    dt = c["degraded_time_s"] - tmin[: len(c["degraded_time_s"])]
-    ax2.plot(dkm, dt, color="#c62828", lw=1.5, label="degraded − minimum")
-    if "pattern_position_m" in c:
-        x_p = c["pattern_position_m"]
-        order = np.argsort(c["position_m"])
-        tm_p = np.interp(x_p, c["position_m"][order], tmin[order])
-        ax2.plot(x_p / 1000.0, c["pattern_time_s"] - tm_p, color="#c62828", lw=1.5, ls="--")
-    ax2.axhline(row.margin_s, color="#1f5fa8", lw=1.0, ls="--")
-    ax2.text(km[0], row.margin_s, f"  scheduled margin {row.margin_s:.1f} s", color="#1f5fa8", fontsize=8,
-             va="bottom", ha="left")
-    ax2.axvline(ps, color="#c62828", lw=0.8, ls=":")
-    ax2.set_ylabel("time behind the\nminimum run [s]")
-    ax2.set_xlabel("chainage [km]")
-    ax2.grid(alpha=0.3)
-    ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, frameon=False, borderaxespad=0.0)
-    if k["direction"] == "up":
-        ax.invert_xaxis()
-    fig.suptitle(f"{k['train_type']} {k['direction']} {row.origin} → {row.destination} "
-                 f"({row.length_m / 1000:.2f} km): scheduled {row.scheduled_running_time_s:.0f} s, "
-                 f"remaining margin on a bad day {row.remaining_margin_s:+.1f} s",
-                 x=0.01, ha="left", fontsize=11, fontweight="bold")
-    fig.subplots_adjust(left=0.055, right=0.71, top=0.93, bottom=0.08, hspace=0.08)
-    return _svg(fig)
-
-
-def adhesion_chart(report) -> tuple[str, str]:
-    """Stopping-pattern time against adhesion for every approach of the chosen leg's train type.
-
-    Returns the SVG and the hardest approach's description.
-    """
-    k = report.chosen
-    sw = report.sweep
-    if sw is None or len(sw) == 0 or not k:
-        return "", ""
-    plt = _mpl()
-    tt = k["train_type"]
-    rows = report.rows
-    plain = rows[(rows.train_type == tt) & (rows.passes.map(len) == 0)][
-        ["direction", "origin", "destination"]].drop_duplicates()
-    sw = sw.merge(plain, on=["direction", "origin", "destination"])
-    sw = sw[sw.train_type == tt]
-    fig, axes = plt.subplots(1, 2, figsize=(13.5, 4.4), sharey=True)
-    hardest = ""
-    worst = (-1.0, None)
-    for ax, d in zip(axes, ("down", "up")):
-        sub = sw[sw.direction == d]
-        losses = []
-        for (o, de), g in sub.groupby(["origin", "destination"], sort=True):
-            g = g.sort_values("adhesion_kmh_s")
-            a = g.adhesion_kmh_s.to_numpy()
-            t = g.stop_time_s.to_numpy()
-            if not np.isfinite(t[-1]):
-                continue
-            losses.append((float(np.nanmax(t - t[-1])), o, de, a, t))
-        losses.sort(key=lambda x: -x[0])
-        for i, (loss, o, de, a, t) in enumerate(losses):
-            is_chosen = (d, o, de) == (k["direction"], k["origin"], k["destination"])
-            hard = i == 0
-            col = "#c62828" if hard else ("#1f5fa8" if is_chosen else "0.7")
-            lw = 2.0 if (hard or is_chosen) else 1.0
-            ax.plot(a, t - t[-1], color=col, lw=lw, marker="o" if (hard or is_chosen) else None, ms=3,
-                    zorder=3 if (hard or is_chosen) else 2)
-            if hard or is_chosen:
-                # described in a corner (the flat, good-adhesion side), not at the crowded line ends
-                ax.text(0.02, 0.95 - 0.07 * (0 if hard else 1), f"{o} → {de}: {t[-1]:.1f} s at {a[-1]:g}, "
-                        f"{t[0]:.1f} s at {a[0]:g} km/h/s", transform=ax.transAxes, fontsize=8.5, color=col,
-                        va="top", ha="left", fontweight="bold")
-            if loss > worst[0]:
-                worst = (loss, (d, o, de, t[0], t[-1], a[0], a[-1]))
-        ax.set_title(f"{tt} {d}: every approach (grey), hardest (red), the leg above (blue)", fontsize=9.5)
-        ax.set_xlabel("adhesion-limited deceleration [km/h/s]")
-        ax.grid(alpha=0.3)
-        ax.invert_xaxis()  # worse adhesion to the right
-    axes[0].set_ylabel("stopping time lost against\nthe best adhesion [s]")
-    fig.tight_layout()
-    if worst[1] is not None:
-        d, o, de, t0, t1, a0, a1 = worst[1]
-        hardest = (f"The hardest approach for {tt} is {d} {o} → {de}: the stopping pattern takes {t1:.1f} s "
-                   f"at {a1:g} km/h/s and {t0:.1f} s at {a0:g} km/h/s (+{t0 - t1:.1f} s).")
-    return _svg(fig), hardest
-
-
 # --- tables ------------------------------------------------------------------------
+
+LOSS_COLUMNS = ("degraded_loss_load_s", "degraded_loss_traction_s", "degraded_loss_stop_s", "degraded_loss_stop_model_s")
+"""The shares of the bad day's cost (degraded − minimum) in the ``margins`` dataset: load, traction, stop, stop model."""
+
+
+def added_up(total: float, parts, nd: int = 1) -> tuple[float, list[float]]:
+    """``total`` and its ``parts`` rounded to ``nd`` decimals so that the rounded parts add up to the rounded total.
+
+    Each part is rounded down to the unit, then the units the rounded total still lacks go to the
+    parts with the largest remainders (the largest-remainder method), so a row never shows
+    ``14.8 = 7.0 + 3.0 + 5.5 − 0.6`` off by a unit. The parts must add up to the total (to round-off).
+
+    Examples
+    --------
+    >>> added_up(0.15, [0.05, 0.05, 0.05])
+    (0.1, [0.1, 0.0, 0.0])
+    >>> added_up(14.830341, [6.953380, 2.989338, 5.464473, -0.576850])
+    (14.8, [6.9, 3.0, 5.5, -0.6])
+    """
+    unit = 10.0 ** -nd
+    t = round(float(f"{total:.{nd}f}") / unit)
+    raw = [p / unit for p in parts]
+    low = [math.floor(x) for x in raw]
+    order = sorted(range(len(raw)), key=lambda i: -(raw[i] - low[i]))  # stable: ties go to the first part
+    for i in order[:max(t - sum(low), 0)]:
+        low[i] += 1
+    return round(t * unit, nd), [round(k * unit, nd) for k in low]
+
+
+def cost_breakdown(r, nd: int = 1) -> str:
+    """``cost = load + traction + stop ± stop model`` of a margin row [s], the shown parts adding up to the shown cost."""
+    cost = r.degraded_min_running_time_s - r.min_running_time_s
+    parts = [getattr(r, c) for c in LOSS_COLUMNS]
+    if not all(math.isfinite(x) for x in [cost] + parts):
+        return f"{_f(cost, nd)} = " + " + ".join(_f(x, nd) for x in parts)
+    t, shown = added_up(cost, parts, nd)
+    text = f"{t:.{nd}f} = {shown[0]:.{nd}f}"
+    for x in shown[1:]:
+        text += f" − {abs(x):.{nd}f}" if x < 0 else f" + {x:.{nd}f}"
+    return text
+
 
 def flagged_summary(sched) -> str:
     """The flagged legs on the first screen: what each lacks and where the bad day's time goes."""
@@ -341,10 +146,10 @@ def flagged_summary(sched) -> str:
     med = float(sched.margin_percent.median())
     out = [f"<h3>Flagged legs ({len(f)} of {len(sched)})</h3><div class='tw'><table><tr><th class='l'>flag</th>"
            "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
-           "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop</th>"
+           "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop + stop model</th>"
            "<th>remaining on a bad day [s]</th><th class='l'>why</th></tr>"]
     for r in f.itertuples(index=False):
-        flag = _flag_of(r)
+        flag = flag_of(r)
         cost = r.degraded_min_running_time_s - r.min_running_time_s
         if flag == "unreachable":
             why = "scheduled longer than the slowest table ratio: the vehicle arrives early"
@@ -356,8 +161,7 @@ def flagged_summary(sched) -> str:
             f"<td class='l'>{_e(r.direction)}</td><td class='l'>{_e(r.train_type)}</td><td class='l'>{_leg(r)}</td>"
             f"<td>{r.n_trains}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
             f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
-            f"<td>{_f(cost)} = {_f(r.degraded_loss_load_s)} + {_f(r.degraded_loss_traction_s)} + "
-            f"{_f(r.degraded_loss_stop_s)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td>"
+            f"<td>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td>"
             f"<td class='l'>{_e(why)}</td></tr>")
     out.append("</table></div>")
     return "\n".join(out)
@@ -373,7 +177,9 @@ def bad_day_shares(sched, rule, adh) -> str:
              ("traction", "degraded_loss_traction_s", rule.bad_day_traction,
               f"traction ×{rule.degraded_traction:g}"),
              ("adhesion (the stop)", "degraded_loss_stop_s", rule.bad_day_adhesion,
-              f"adhesion {rule.bad_adhesion_kmh_s(adh):g} km/h/s" if rule.bad_day_adhesion else "stopping brake")]
+              f"adhesion {rule.bad_adhesion_kmh_s(adh):g} km/h/s" if rule.bad_day_adhesion else "stopping brake"),
+             ("stop model", "degraded_loss_stop_model_s", True,
+              "stopping pattern against the tables' stopping brake, not a bad-day effect")]
     vals = [float(np.nansum(sched[c].to_numpy(float) * w)) for _, c, _, _ in parts]
     tot = sum(vals)
     cells = []
@@ -382,20 +188,21 @@ def bad_day_shares(sched, rule, adh) -> str:
         state = what if on else "off"
         cells.append(f"<b>{_e(name)}</b> ({_e(state)}): {v / 3600:.2f} h, {share}")
     return ("<p class='sub'>Where a bad day's time goes, summed over every train run of the day: "
-            + " · ".join(cells) + ". Each effect is switched on or off and valued in the job file "
-            "(<code>[margins]</code> <code>bad_day_*</code>, <code>degraded_*</code>).</p>")
+            + " · ".join(cells) + f" (together {tot / 3600:.2f} h, the whole bad-day cost). Each effect is switched "
+            "on or off and valued in the job file (<code>[margins]</code> <code>bad_day_*</code>, "
+            "<code>degraded_*</code>).</p>")
 
 
 ROW_HEAD = ("<tr><th class='l'>flags</th><th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th>"
             "<th>trains</th><th>km</th><th>minimum [s]</th><th>min ↑10 s</th><th>scheduled [s]</th>"
             "<th>margin [s] (%)</th><th>rule asks [s]</th><th>bad-day minimum [s]</th>"
-            "<th>remaining on a bad day [s]</th><th>bad-day loss: load + traction + stop [s]</th>"
+            "<th>remaining on a bad day [s]</th><th>bad-day cost: load + traction + stop + stop model [s]</th>"
             "<th>ratio at on-time departure</th><th>arrival error nominal / bad day [s]</th>"
             "<th>energy at that ratio vs 100 %</th></tr>")
 
 
 def _row_html(r) -> str:
-    flag = _flag_of(r)
+    flag = flag_of(r)
     badges = "".join(f"<span class='badge b-{f}'>{f}</span>"
                      for f in ("unassessed", "infeasible", "tight", "unreachable") if bool(getattr(r, f)))
     if np.isfinite(r.scheduled_running_time_s) and not bool(r.supplement_met):
@@ -414,8 +221,7 @@ def _row_html(r) -> str:
         f"<td>{_f(r.min_running_time_rounded_s, 0)}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
         f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
         f"<td>{_f(r.supplement_required_s)}</td><td>{_f(r.degraded_min_running_time_s)}</td>"
-        f"<td>{rem_s}</td><td>{_f(r.degraded_loss_load_s)} + {_f(r.degraded_loss_traction_s)} + "
-        f"{_f(r.degraded_loss_stop_s)}</td>"
+        f"<td>{rem_s}</td><td>{cost_breakdown(r)}</td>"
         f"<td>{'–' if not math.isfinite(r.ratio_on_time) else f'{r.ratio_on_time:.0%}'}</td>"
         f"<td>{_f(r.arrival_error_s, 1, True)} / {_f(r.arrival_error_degraded_s, 1, True)}</td>"
         f"<td>{energy_change(r.energy_saved_percent)}</td></tr>"
@@ -567,14 +373,45 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         ``margin_totals`` datasets (``..`` in a published run, ``.`` for ``planner margins --out``).
     top : str
         An HTML section put first, under the title (the nightly job's "what
-        changed since the last run", :func:`planner.report.changes.changes_html`).
+        changed since the last run", :func:`planner.report.changes_html.changes_html`).
     """
+    rows = report.rows
+    sched = rows[rows.scheduled_running_time_s.notna()]
+    trains = report.totals[report.totals.level == "train"]
+    rule, adh = report.rule, report.adhesion_kmh_s
+    parts = _headline(report, sched, trains, top)
+    parts.append("<ul>" + "".join(f"<li>{x}</li>" for x in _findings(sched, trains)) + "</ul>")
+    parts.append(flagged_summary(sched))
+    parts.append(bad_day_shares(sched, rule, adh))
+    parts.append("<h3>Totals per direction and train type (every timetabled train run, the whole day)</h3>")
+    parts.append(totals_table(report.totals))
+    parts += _chart_sections(report, markers)
+    parts.append("<h2>Every leg</h2>")
+    parts.append(
+        "<p class='caption'>One row per leg and scheduled time (trains with the same leg and time share a row). "
+        "<i>min ↑10 s</i>: the minimum rounded up to the 10-second timetable unit. <i>bad-day cost</i>: bad-day "
+        "minimum − minimum, and its four shares: what the degraded load and traction cost up to the pattern start, "
+        "what the low-adhesion stop costs against the best adhesion, and the stop model (the nominal run's stopping "
+        "pattern against the tables' constant stopping brake; negative when the pattern stops sooner). "
+        "<i>ratio</i>: the target-speed ratio the vehicle picks at an on-time "
+        "departure. <i>arrival error</i>: closed loop of the on-board logic, positive = late. <i>energy saved</i>: "
+        "traction energy at that ratio against ratio 100 %. Hover a row for notes.</p>")
+    parts.append(rows_table(rows))
+    parts.append(f"<details><summary>Totals per train ({len(trains)} trains; with infeasible legs first)</summary>"
+                 f"{train_table(report.totals)}</details>")
+    parts.append(conflicts_section(report))
+    parts.append(_method(report, datasets_href))
+    parts.append("</main></body></html>\n")
+    return "\n".join(parts)
+
+
+def _headline(report, sched, trains, top: str) -> list[str]:
+    """The page's head, title, conditions, the ``top`` section and the flag cards."""
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
     n_inf, n_tight, n_unr = int(sched.infeasible.sum()), int(sched.tight.sum()), int(sched.unreachable.sum())
     n_short = int((~sched.supplement_met).sum())
     n_una = int(rows.unassessed.sum())
-    trains = report.totals[report.totals.level == "train"]
     rule = report.rule
     adh = report.adhesion_kmh_s
     types = ", ".join(sorted(rows.train_type.unique()))
@@ -606,6 +443,12 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     parts.append("<div class='cards'>" + "".join(
         f"<div class='card {c}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></div>" for c, n, l in cards)
         + "</div>")
+    return parts
+
+
+def _findings(sched, trains) -> list[str]:
+    """What stands out among the legs that could be assessed, as list items (HTML)."""
+    n_inf = int(sched.infeasible.sum())
     # what stands out (among the legs that could be assessed)
     find = []
     if (~sched.unassessed.astype(bool)).any():
@@ -643,12 +486,13 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         find.append(f"The on-board logic (nearest ratio) arrives within {cl.max():.1f} s of the scheduled time "
                     f"on every leg under nominal conditions (median {cl.median():.1f} s); under the bad-day load "
                     f"and traction (stopping brake as planned) it is up to {sched.arrival_error_degraded_s.max():.1f} s late.")
-    parts.append("<ul>" + "".join(f"<li>{x}</li>" for x in find) + "</ul>")
-    parts.append(flagged_summary(sched))
-    parts.append(bad_day_shares(sched, rule, adh))
-    parts.append("<h3>Totals per direction and train type (every timetabled train run, the whole day)</h3>")
-    parts.append(totals_table(report.totals))
+    return find
 
+
+def _chart_sections(report, markers: dict[str, dict[str, float]]) -> list[str]:
+    """Margin per interstation, the run curves of the chosen leg and stopping time against adhesion."""
+    rule = report.rule
+    parts = []
     parts.append("<h2>Margin per interstation along the line</h2>")
     parts.append(
         "<p class='caption'>Each bar spans one leg from stop marker to stop marker. Light bar: margin the timetable "
@@ -684,19 +528,13 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
                 f"braking. {_e(hardest)}</p>")
             parts.append(f"<div class='fig'>{svg}</div>")
 
-    parts.append("<h2>Every leg</h2>")
-    parts.append(
-        "<p class='caption'>One row per leg and scheduled time (trains with the same leg and time share a row). "
-        "<i>min ↑10 s</i>: the minimum rounded up to the 10-second timetable unit. <i>bad-day loss</i>: what the "
-        "degraded load and traction cost up to the pattern start, and what the low-adhesion stop costs against "
-        "the planned stopping brake. <i>ratio</i>: the target-speed ratio the vehicle picks at an on-time "
-        "departure. <i>arrival error</i>: closed loop of the on-board logic, positive = late. <i>energy saved</i>: "
-        "traction energy at that ratio against ratio 100 %. Hover a row for notes.</p>")
-    parts.append(rows_table(rows))
-    parts.append(f"<details><summary>Totals per train ({len(trains)} trains; with infeasible legs first)</summary>"
-                 f"{train_table(report.totals)}</details>")
-    parts.append(conflicts_section(report))
-    parts.append(
+    return parts
+
+
+def _method(report, datasets_href: str) -> str:
+    """How the numbers are made, with links to the datasets."""
+    rule, adh = report.rule, report.adhesion_kmh_s
+    return (
         "<h2>How the numbers are made</h2><div class='note'><ul>"
         "<li><b>Minimum</b>: table (a) at ratio 100 % — full notch to the on-board maximum, constant-speed "
         "hold, service-brake curves to lower limits and the stopping brake to the marker; empty train, nominal "
@@ -709,7 +547,12 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
            "limit, the vehicle's jerk limit)." if rule.bad_day_adhesion else
            "the stopping brake of the running-time tables (the adhesion effect is off in the job file).")
         + " Each effect (load, traction, adhesion) is switched and valued in the job file's <code>[margins]</code>; "
-        "its share is the load alone against the nominal run, then the traction on top of it, then the stop.</li>"
+        "its share is the load alone against the nominal run, then the traction on top of it, then the stop at "
+        "the bad day's adhesion against the best of the sweep. The fourth share, the <i>stop model</i>, is no "
+        "effect of the bad day: the minimum (table (a)) stops with the constant stopping brake, the bad day with "
+        "the jerk-limited stopping pattern, so it is the nominal run with that pattern (best adhesion) − the "
+        "minimum. The four add up to the bad-day cost; each row's shares are rounded so that the shown "
+        "numbers add up too.</li>"
         "<li><b>Flags</b>: <i>unassessed</i> — the bad-day minimum could not be computed (the row says why, e.g. "
         "no stopping pattern at the lowest adhesion); its infeasible and tight are unknown (null in the dataset); "
         "<i>infeasible</i> — scheduled below the bad-day minimum; <i>tight</i> — not infeasible "
@@ -722,8 +565,6 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         f"<a href='{_e(datasets_href)}/margin_totals/'><code>margin_totals</code></a> "
         f"({'in this folder' if datasets_href == '.' else 'in the run folder, one level up from this page'}) "
         "hold every number with its unit in the column name.</li></ul></div>")
-    parts.append("</main></body></html>\n")
-    return "\n".join(parts)
 
 
 def stop_markers(line) -> dict[str, dict[str, float]]:

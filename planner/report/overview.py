@@ -85,10 +85,42 @@ def _bundles(run_dir: Path) -> list[list[str]]:
     return out
 
 
+def _inputs(run_dir: Path, manifest: dict[str, Any]) -> list[str]:
+    """The inputs section: each line's source, digest and table copy, and the job parameters."""
+    from planner.report.published_run import INPUTS_DIR
+
+    parts = []
+    parts.append("<h2 id='inputs'>Inputs</h2>")
+    for rec in manifest.get("lines", []):
+        lid = rec["line_id"]
+        folder = run_dir / INPUTS_DIR / lid
+        parts.append(f"<h3>Line {_e(lid)}</h3><p class='sub'>from <code>{_e(rec.get('path', ''))}</code> · source digest "
+                     f"<code>{_e(rec.get('source_digest', ''))}</code>"
+                     + (f" · a copy of its tables is in <a href='{INPUTS_DIR}/{_e(lid)}/'><code>{INPUTS_DIR}/{_e(lid)}/</code></a>"
+                        if folder.is_dir() else "") + "</p>")
+        if folder.is_dir():
+            import pyarrow.parquet as pq
+
+            rows = [[f"<code>{_e(f.name)}</code>", f"{pq.ParquetFile(f).metadata.num_rows:,}", f"{f.stat().st_size:,}",
+                     f"<code>{_sha(f)}</code>"] for f in sorted(folder.glob("*.parquet"))]
+            parts.append(_table(["table", "rows", "bytes", "SHA-256"], rows, num=(1, 2)))
+    params = manifest.get("parameters", {})
+    prow = []
+    for sec in sorted(params):
+        val = params[sec]
+        if isinstance(val, dict):
+            prow += [[f"<code>[{_e(sec)}] {_e(k)}</code>", f"<code>{_e(json.dumps(v, ensure_ascii=False))}</code>"]
+                     for k, v in sorted(val.items())]
+        else:
+            prow.append([f"<code>{_e(sec)}</code>", f"<code>{_e(json.dumps(val, ensure_ascii=False))}</code>"])
+    parts.append("<details><summary>Job parameters (" + str(len(prow)) + ")</summary>" + _table(["key", "value"], prow)
+                 + "</details>")
+    return parts
+
+
 def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = ()) -> str:
     """The overview page of a run folder as HTML (module doc for the sections)."""
-    from planner.datasets.catalog import datasets
-    from planner.report.changes import INPUTS_DIR
+    from planner.report.catalog import datasets
 
     run_dir = Path(run_dir)
     run_id = manifest.get("run_id", run_dir.name)
@@ -141,32 +173,7 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
             if (run_dir / rel).is_file():
                 links.append(f"<a href='{_e(rel)}'>{_e(label)}</a>")
         parts.append(f"<p class='links'><b>{_e(lid)}</b>: " + ("".join(links) or "none") + "</p>")
-    # inputs
-    parts.append("<h2 id='inputs'>Inputs</h2>")
-    for rec in manifest.get("lines", []):
-        lid = rec["line_id"]
-        folder = run_dir / INPUTS_DIR / lid
-        parts.append(f"<h3>Line {_e(lid)}</h3><p class='sub'>from <code>{_e(rec.get('path', ''))}</code> · source digest "
-                     f"<code>{_e(rec.get('source_digest', ''))}</code>"
-                     + (f" · a copy of its tables is in <a href='{INPUTS_DIR}/{_e(lid)}/'><code>{INPUTS_DIR}/{_e(lid)}/</code></a>"
-                        if folder.is_dir() else "") + "</p>")
-        if folder.is_dir():
-            import pyarrow.parquet as pq
-
-            rows = [[f"<code>{_e(f.name)}</code>", f"{pq.ParquetFile(f).metadata.num_rows:,}", f"{f.stat().st_size:,}",
-                     f"<code>{_sha(f)}</code>"] for f in sorted(folder.glob("*.parquet"))]
-            parts.append(_table(["table", "rows", "bytes", "SHA-256"], rows, num=(1, 2)))
-    params = manifest.get("parameters", {})
-    prow = []
-    for sec in sorted(params):
-        val = params[sec]
-        if isinstance(val, dict):
-            prow += [[f"<code>[{_e(sec)}] {_e(k)}</code>", f"<code>{_e(json.dumps(v, ensure_ascii=False))}</code>"]
-                     for k, v in sorted(val.items())]
-        else:
-            prow.append([f"<code>{_e(sec)}</code>", f"<code>{_e(json.dumps(val, ensure_ascii=False))}</code>"])
-    parts.append("<details><summary>Job parameters (" + str(len(prow)) + ")</summary>" + _table(["key", "value"], prow)
-                 + "</details>")
+    parts += _inputs(run_dir, manifest)
     # steps
     tim, comp, reu = manifest.get("timings_s", {}), manifest.get("units_computed", {}), manifest.get("units_reused", {})
     steps = list(tim) + [s for s in list(comp) + list(reu) if s not in tim]
@@ -218,7 +225,7 @@ def write_overview(run_dir: str | Path, manifest: dict[str, Any] | None = None, 
 
     run_dir = Path(run_dir)
     if manifest is None:
-        from planner.report.changes import read_manifest
+        from planner.report.published_run import read_manifest
 
         manifest = read_manifest(run_dir)
     path = run_dir / "index.html"

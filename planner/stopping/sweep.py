@@ -43,7 +43,6 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
@@ -65,7 +64,6 @@ __all__ = [
     "adhesion_levels",
     "approach_patterns",
     "approach_tasks",
-    "plot_approach",
     "stop_sweep",
 ]
 
@@ -440,110 +438,3 @@ def stop_sweep(
         for msg in r.warnings:  # issued here: warnings raised in worker processes are lost
             warnings.warn(msg, InfeasibleStopWarning, stacklevel=2)
     return out
-
-
-# --------------------------------------------------------------------------------------
-# Figure
-# --------------------------------------------------------------------------------------
-
-
-def plot_approach(result: ApproachResult, path: str | Path) -> Path:
-    """Speed, acceleration and jerk against distance to the stop marker, one curve per adhesion level.
-
-    Three stacked axes sharing the distance to the marker (decreasing to the
-    right, as the train runs). Drawn limits: the on-board maximum speed
-    (black steps), the deceleration limit of each adhesion level (dashed, in
-    the level's colour) and ±jerk limit (grey dashed). Brake starts are marked
-    on the speed axis. Infeasible levels are listed in the title. The PNG is
-    written atomically (temp file, rename).
-
-    Returns
-    -------
-    Path
-        The file written.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib import cm, colors
-
-    path = Path(path)
-    X = result.approach_length_m
-    levels = result.adhesion_kmh_s
-    norm = colors.Normalize(vmin=min(levels), vmax=max(levels) if max(levels) > min(levels) else min(levels) + 1)
-    cmap = matplotlib.colormaps["viridis"]
-    fig, (ax_v, ax_a, ax_j) = plt.subplots(3, 1, sharex=True, figsize=(10, 8.5), layout="constrained",
-                                           gridspec_kw={"height_ratios": [3, 2, 1.4]})
-
-    def steps(pairs, scale):
-        """Step function over [0, X] as distance-to-go arrays for plotting."""
-        xs = [p[0] for p in pairs] + [X]
-        d, y = [], []
-        for k, (x, val) in enumerate(pairs):
-            d += [X - xs[k], X - xs[k + 1]]
-            y += [val * scale, val * scale]
-        return np.array(d), np.array(y)
-
-    if result.speed_limits:
-        d, y = steps(result.speed_limits, 3.6)
-        ax_v.plot(d, y, color="black", lw=1.4, label="on-board maximum speed")
-    J = result.jerk_max_ms3 * 3.6
-    for sgn in (1, -1):
-        ax_j.axhline(sgn * J, color="0.45", ls="--", lw=1.0, label="jerk limit" if sgn > 0 else None)
-    infeasible = []
-    for a, p, dl in zip(levels, result.patterns, result.decel_limits):
-        col = cmap(norm(a))
-        if dl:
-            d, y = steps(dl, -3.6)
-            ax_a.plot(d, y, color=col, ls="--", lw=0.9, alpha=0.9)
-        if not p.feasible:
-            infeasible.append(f"{a:g}")
-            continue
-        s = p.sample(max(p.duration_s / 2000.0, 1e-3))
-        dist = X - s.x_m
-        ax_v.plot(dist, s.v_ms * 3.6, color=col, lw=1.2)
-        ax_a.plot(dist, s.a_ms2 * 3.6, color=col, lw=1.2)
-        # jerk is piecewise constant: draw it from the breakpoints, not from samples
-        jd, jy = [], []
-        for k, j in enumerate(p.j_ms3):
-            jd += [X - p.x_m[k], X - p.x_m[k + 1]]
-            jy += [j * 3.6, j * 3.6]
-        ax_j.plot(jd, jy, color=col, lw=1.1, alpha=0.8)
-        ax_v.plot([X - p.brake_start_m], [p.v_start_ms * 3.6], marker="o", ms=4, color=col)
-    ax_v.set_ylabel("speed [km/h]")
-    ax_a.set_ylabel("acceleration [km/h/s]")
-    ax_j.set_ylabel("jerk [km/h/s²]")
-    ax_j.set_xlabel("distance to the stop marker [m]")
-    ax_v.set_ylim(bottom=0.0)
-    ax_a.plot([], [], color="0.3", ls="--", lw=0.9, label="deceleration limit (per adhesion)")
-    ax_a.plot([], [], color="0.3", lw=1.2, label="pattern (colour: adhesion)")
-    ax_v.plot([], [], color="0.3", marker="o", ls="none", ms=4, label="brake start")
-    for ax in (ax_v, ax_a, ax_j):
-        ax.grid(True, lw=0.4, alpha=0.6)
-        ax.legend(loc="center left" if ax is ax_a else "lower left", fontsize=8, framealpha=0.85)
-    ax_j.set_ylim(-1.6 * J, 1.6 * J)
-    lo, _ = ax_a.get_ylim()
-    ax_a.set_ylim(lo, -0.18 * lo)  # headroom above a = 0 for the gradient labels
-    # the gradient (over the train, safe-side steps) explains the steps of the deceleration limits
-    gx = [g[0] for g in result.gradients_permil] + [X]
-    for k, (x, g) in enumerate(result.gradients_permil):
-        mid = X - 0.5 * (x + gx[k + 1])
-        ax_a.text(mid, 0.97, f"{g:+g} ‰" if g else "level", transform=ax_a.get_xaxis_transform(),
-                  ha="center", va="top", fontsize=8, color="0.3")
-        if k:
-            ax_a.axvline(X - x, color="0.6", lw=0.6, ls=":")
-    ax_j.set_xlim(X, 0.0)  # the train runs left to right, towards the marker at 0
-    start = f"TASC beacon {result.tasc_beacon_id}" if result.tasc_beacon_id else "fixed approach start"
-    title = (f"{result.line_id}: stop at {result.station_id} ({result.direction}, {result.train_type}, from "
-             f"{result.origin}) — {start} {X:.0f} m before the marker, "
-             f"v_start {result.v_start_ms * 3.6:.1f} km/h")
-    if infeasible:
-        title += f"\nno pattern at adhesion {', '.join(infeasible)} km/h/s"
-    fig.suptitle(title, fontsize=10)
-    sm = cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(sm, ax=[ax_v, ax_a, ax_j], label="adhesion limit [km/h/s]", shrink=0.6, pad=0.02)
-    from planner.io.atomic import save_png
-
-    save_png(fig, path, dpi=110)
-    return path

@@ -27,7 +27,7 @@ class DatasetDoc:
 
 def datasets() -> list[DatasetDoc]:
     """Every dataset a nightly run publishes, in pipeline order."""
-    from planner.report import changes, margins
+    from planner.report import changes, margin_datasets as margins
     from planner.datasets import closed_loop, conflicts, stops, tables
 
     occ, con = conflicts.OCCUPATION_SCHEMA, conflicts.CONFLICTS_SCHEMA

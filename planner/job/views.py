@@ -27,7 +27,7 @@ from planner.io.paths import check_path_id
 
 def copy_inputs(line, stage: Path) -> Path:
     """Copy the line database's Parquet tables into ``stage/inputs/<line_id>/`` and check the copy's digest."""
-    from planner.report.changes import INPUTS_DIR, path_id
+    from planner.report.published_run import INPUTS_DIR, path_id
     from planner.line.loader import source_digest
 
     src = Path(line.source_path)
@@ -59,8 +59,9 @@ def _graph_unit(line, check: bool):
 
 def line_views(job, line, stage: Path, runner, summary) -> None:
     """Inputs copy and train graph page of one line (module doc)."""
-    from planner.report.changes import read_line_dataset, path_id
-    from planner.report.train_graph import graph_data, write_page, TOL_T_S, TOL_X_M
+    from planner.report.published_run import read_line_dataset, path_id
+    from planner.report.train_graph import graph_data, TOL_T_S, TOL_X_M
+    from planner.report.train_graph_page import write_page
     from planner.job.units import code_digest
     from planner.job.publish import digest
 
@@ -87,7 +88,8 @@ def _unit(step, key, fn, args):
 def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     """Changes since the previous run, report sections, manifest additions and the overview page (module doc)."""
     from planner.io.atomic import write_bytes_atomic
-    from planner.report.changes import changes_html, compare_runs, write_changes
+    from planner.report.changes import compare_runs, write_changes
+    from planner.report.changes_html import changes_html
     from planner.report.overview import write_overview
     from planner.job.publish import canonical_json, latest_run
     from planner.report.html import write_html

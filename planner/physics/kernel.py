@@ -1,0 +1,320 @@
+"""The compiled inner loop of the one integrator (:mod:`planner.physics.run_curve`).
+
+:class:`planner.physics.run_curve._Integrator` keeps everything that happens at
+a grid node where something can change (snapshots, ratio changes, the
+on-board controller, the ceiling's segment table ``E``); :func:`advance` does
+every grid step between two such nodes for the whole batch, compiled with
+numba. The arithmetic is the module doc's method, written per run and in the
+same order of operations as the former numpy step, so results are the same to
+the bit (the bit-identity battery in ``benchmarks/bench_kernel.py`` checks it).
+
+Two batch-wide switches of the numpy step are kept as they were, because they
+pick between two roundings of the same formula: whether any run may be above
+its ceiling (after a lowered target; then the crossing fraction is clipped and
+the traction work is summed piece by piece), and the stall check every 64
+steps (its window names the stretch in the error message).
+
+Layout of the arrays (row constants below): ``trk`` (7, m) per node of the
+track, ``seg`` (m,) the ceiling segment of each node, ``par`` (9, n) per run
+and constant between events, ``st`` (7, n) the runs' state, ``lane`` (2, n)
+int8 phase code and sawtooth coasting flag, ``e`` (segments, n) the
+ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
+``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves.
+
+Compiled lazily on first use, in memory only: no ``cache=True``, because
+numba's cache index is a pickle read back from disk, which the project does
+not trust. The compile costs about 3 s of CPU once per process
+(``benchmarks/bench_kernel.py`` prints it); every argument type is fixed, so
+there is one compilation per process.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+PHASE_POWER, PHASE_HOLD, PHASE_COAST, PHASE_BRAKE, PHASE_STOP = 0, 1, 2, 3, 4
+SAWTOOTH_MIN_FRACTION = 0.5
+"""A sawtooth vehicle coasts down to ``max(target − band, 0.5 × target)``: at low
+targets a full band would coast to a crawl (or a standstill on a rise)."""
+
+# rows of trk (per node): running distance, on-board maximum², 2b × distance to the
+# segment end, stopping curve², track acceleration, on-board maximum of the interval k → k+1,
+# 1.0 where a_track ≥ a_max (the cap may bind below coasting there)
+T_S, T_VN2, T_AHEAD, T_STOP2, T_AG, T_VINT, T_STEEP = range(7)
+# rows of par (per run): Davis A, B, C and traction factor, all / M_e; ratio², cruise cap², ratio,
+# cruise cap, shedding deceleration
+P_RAM, P_RBM, P_RCM, P_TFI, P_R2, P_CAP2, P_RATIO, P_CAPV, P_SHED = range(9)
+# rows of st (per run): time, speed, speed², traction work / M_e, ceiling² at the node, speed² entering
+# the last step, the first step after which its time was not finite (+inf: none)
+S_T, S_V, S_W, S_WORK, S_C0, S_WLAST, S_BAD = range(7)
+L_PHASE, L_COAST = range(2)
+# flags: any run may be above its ceiling; last node the stall check passed; stall window (from, to)
+# and the first run found stalled there
+F_MAYBE_OVER, F_K_OK, F_STALL_FROM, F_STALL_TO, F_STALL_RUN = range(5)
+# rows of rec (record=True): time, speed, acceleration, ratio, cruise cap at each node
+R_T, R_V, R_A, R_RATIO, R_CAP = range(5)
+
+_JIT = dict(nogil=True, error_model="numpy")
+
+
+@njit(**_JIT)
+def _mn(a, b):
+    """``np.minimum`` on two floats (NaN propagates)."""
+    return a if (a <= b or a != a) else b
+
+
+@njit(**_JIT)
+def _mx(a, b):
+    """``np.maximum`` on two floats (NaN propagates)."""
+    return a if (a >= b or a != a) else b
+
+
+@njit(**_JIT)
+def _interp(x, tab):
+    """``np.interp(x, xp, fp)`` for one x, with numpy's formula, end values and NaN fall-backs.
+
+    ``tab`` rows: ``xp``, ``fp`` and the slopes ``(fp[j+1] − fp[j]) / (xp[j+1] − xp[j])``, which
+    numpy also computes once for a call on as many x as table points.
+    """
+    n = tab.shape[1]
+    lo, hi = 0, n - 1
+    while hi - lo > 1:  # xp[lo] ≤ x < xp[hi] for x inside the table
+        mid = (lo + hi) >> 1
+        if tab[0, mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return _lin(x, tab[0, lo], tab[0, hi], tab[1, lo], tab[1, hi], tab[2, lo],
+                tab[0, 0], tab[0, n - 1], tab[1, 0], tab[1, n - 1])
+
+
+@njit(**_JIT)
+def _lin(x, x0, x1, f0, f1, slope, x_first, x_last, f_first, f_last):
+    """numpy's interpolation between (x0, f0) and (x1, f1), its end values and NaN fall-backs."""
+    if x != x:
+        return x
+    if x < x_first:
+        return f_first
+    if x >= x_last:
+        return f_last
+    if x0 == x:
+        return f0
+    r = slope * (x - x0) + f0
+    if r != r:
+        r = slope * (x - x1) + f1
+        if r != r and f0 == f1:
+            r = f0
+    return r
+
+
+@njit(**_JIT)
+def _accel(vv, ag, steep, amax, ram, rbm, rcm, tfi, effort):
+    """Full-notch acceleration at speed vv with tractive effort ``effort`` (capped at a_max, not below
+    coasting on a steep fall) and the coasting acceleration ``a_track − R/M_e``."""
+    coast = ag - (ram + vv * (rbm + rcm * vv))
+    cap = _mx(amax, coast) if steep != 0.0 else amax
+    return _mn(coast + effort * tfi, cap), coast
+
+
+@njit(**_JIT)
+def _guided(w, c0, c1, st1, a0, a1, shed, ds, use_over):
+    """Free running capped by the ceiling, or braking at ``shed`` onto it from above (a lowered target).
+
+    Returns the slope dw/ds before the crossing, the end without the ceiling, whether and where
+    (fraction of the step) it crosses, the end value and whether the run was above its ceiling.
+    """
+    if not use_over:
+        slope = a0 + a1
+        wend = w + slope * ds
+        cross = wend > c1
+        w1 = _mn(wend, c1)
+        gap0 = w - c0
+        frac = gap0 / (gap0 - (wend - c1)) if cross else 1.0
+        return slope, wend, cross, frac, w1, False
+    over = w > c0 * (1.0 + 1e-12) + 1e-9
+    slope = -2.0 * shed if over else a0 + a1
+    wend = w + slope * ds
+    cross = (wend < c1) if over else (wend > c1)
+    # braked down onto a ceiling that rises inside the step (a restriction's tail clears): from
+    # the crossing the train runs free, capped by the ceiling
+    fc = _mn(_mx((w - c0) / ((w - c0 - (wend - c1)) if cross else 1.0), 0.0), 1.0)
+    free = w + slope * fc * ds + (a0 + a1) * (1.0 - fc) * ds
+    w1 = _mn((_mn(c1, free) if over else c1) if cross else wend, st1)
+    gap0 = w - c0
+    frac = _mn(_mx(gap0 / (gap0 - (wend - c1)), 0.0), 1.0) if cross else 1.0
+    return slope, wend, cross, frac, w1, over
+
+
+@njit(**_JIT)
+def _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth):
+    """Phase code of the step (what the run did arriving at the node)."""
+    ph = PHASE_COAST if (sawtooth and coasting_step) else PHASE_POWER
+    if over:
+        ph = PHASE_BRAKE
+    if cross:
+        if c1 < c0 * (1 - 1e-12):
+            ph = PHASE_BRAKE
+        elif c1 > c0 * (1 + 1e-12):
+            ph = PHASE_POWER
+        else:
+            ph = PHASE_HOLD
+        if sawtooth and w1 < c1 * (1 - 1e-12):
+            ph = PHASE_COAST
+    if band_x:
+        ph = PHASE_POWER
+    if w1 >= st1:
+        ph = PHASE_STOP
+    return ph
+
+
+@njit(**_JIT)
+def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec, rec_p, record):
+    """Every run on its own from node k_from to k_to, its state in registers, with the batch-wide
+    ``use_over`` switch fixed. Returns whether any run ended still above its ceiling (having been
+    above it and not met it on the last step) and the first step after which a run's time is not
+    finite (k_to if none)."""
+    n, m = st.shape[1], trk.shape[1]
+    amax, band, sawtooth = cst[0], cst[1], cst[2] != 0.0
+    first_bad = k_to
+    still_over = False
+    for i in range(n):
+        ram, rbm, rcm, tfi = par[P_RAM, i], par[P_RBM, i], par[P_RCM, i], par[P_TFI, i]
+        r2, cap2, ratio, capv, shed = par[P_R2, i], par[P_CAP2, i], par[P_RATIO, i], par[P_CAPV, i], par[P_SHED, i]
+        w, v, c0, t, work = st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i]
+        co, ph = lane[L_COAST, i] != 0, lane[L_PHASE, i]
+        bad_at = st[S_BAD, i]
+        above = False
+        for k in range(k_from, k_to):
+            ds = trk[T_S, k + 1] - trk[T_S, k]
+            st1 = trk[T_STOP2, k + 1]
+            c1 = _mn(_mn(_mn(r2 * trk[T_VN2, k + 1], cap2), e[seg[k + 1], i] + trk[T_AHEAD, k + 1]), st1)
+            lb = 0.0
+            if sawtooth:
+                tgt = _mn(ratio * trk[T_VINT, k], capv)
+                lb = _mx(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
+                co = co and w > lb * lb
+            coasting_step = co
+            # free running: Heun's step in w = v² (predictor ṽ₁)
+            a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, _interp(v, tab))
+            if co:
+                a0 = cs0
+            vp = math.sqrt(_mx(w + (2.0 * ds) * a0, 0.0))
+            a1, cs1 = _accel(vp, trk[T_AG, k + 1], trk[T_STEEP, k + 1], amax, ram, rbm, rcm, tfi,
+                             _interp(vp, tab))
+            if co:
+                a1 = cs1
+            slope, wend, cross, frac, w1, over = _guided(w, c0, c1, st1, a0, a1, shed, ds, use_over)
+            # split at the crossing: time Δt = 2Δs/(v₀ + v₁) and traction work / M_e of each piece
+            xc = frac * ds
+            wc = w + slope * xc
+            vc = math.sqrt(wc)
+            # no crossing and no run above its ceiling: the step ends where it would free, w1 = wc
+            v1 = vc if not (cross or use_over) else math.sqrt(w1)
+            rest = ds - xc
+            dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
+            cb = 0.5 * (cs0 + cs1)
+            if not use_over:
+                dwork = xc * (0.5 * slope - cb) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
+            else:
+                dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
+            band_x = False
+            if sawtooth:
+                hit = cross and c1 <= c0 * (1 + 1e-12)
+                if hit:  # meets a level or falling ceiling: coasts from there, still capped by it
+                    wco = _mn(wc + 2.0 * cs1 * rest, c1)
+                    vco = math.sqrt(wco)
+                    dt = 2.0 * (xc / (v + vc) + rest / (vc + vco))
+                    dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (wco - wc) - rest * cb, 0.0)
+                    w1, v1 = wco, vco
+                band_x = co and not cross and wend < lb * lb
+                if band_x:  # below the band's lower edge: coast to it, power the rest of the step
+                    co = False
+                    lb2 = lb * lb
+                    xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
+                    sub = ds - xb
+                    aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, _interp(lb, tab))
+                    vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
+                    ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, _interp(vq, tab))
+                    w1 = _mn(lb2 + (aa + ab) * sub, c1)
+                    v1 = math.sqrt(w1)
+                    dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
+                    dwork = _mx(0.5 * (w1 - lb2) - sub * 0.5 * (cbl + cq), 0.0)
+                co = co or hit
+            ph = _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth)
+            above = over and not cross
+            if record:
+                jr = k + 1 - k0
+                rec[R_T, i, jr], rec[R_V, i, jr], rec[R_A, i, jr] = t + dt, v1, (w1 - w) / (2.0 * ds)
+                rec[R_RATIO, i, jr], rec[R_CAP, i, jr] = ratio, capv
+                rec_p[i, jr] = ph
+            if k + 2 == m:
+                st[S_WLAST, i] = w  # entering the last step, onto the marker
+            w, v, c0, t = w1, v1, c1, t + dt
+            work += dwork
+            if not math.isfinite(t) and k < bad_at:
+                bad_at = k
+        st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i], st[S_BAD, i] = w, v, c0, t, work, bad_at
+        if bad_at < k_to:  # a time once not finite stays so: stalled from bad_at, or before this sweep
+            first_bad = min(first_bad, max(int(bad_at), k_from))
+        lane[L_PHASE, i], lane[L_COAST, i] = ph, 1 if co else 0
+        still_over = still_over or above
+    return still_over, first_bad
+
+
+@njit(**_JIT)
+def set_targets(k, trk, seg, bounds, par, st, e):
+    """From the ratios and cruise caps in ``par``: ratio² into ``par``, the ceiling's segment table
+    ``e`` (the service-brake ceiling at each segment's end node, ``bounds``), and the ceiling² at
+    node k into ``st``. ``c²_k = min(r² V_k², cap², E_seg(k) + 2 b (s_end − s_k), stopping curve²)``."""
+    nb = bounds.shape[0]
+    for i in range(par.shape[1]):
+        r2 = par[P_RATIO, i] * par[P_RATIO, i]
+        cap2 = par[P_CAP2, i]
+        par[P_R2, i] = r2
+        e[nb - 1, i] = np.inf
+        e[nb - 2, i] = _mn(r2 * trk[T_VN2, bounds[nb - 1]], cap2)
+        for j in range(nb - 3, -1, -1):
+            kb = bounds[j + 1]
+            e[j, i] = _mn(_mn(r2 * trk[T_VN2, kb], cap2), e[j + 1, i] + trk[T_AHEAD, kb])
+        st[S_C0, i] = _mn(_mn(_mn(r2 * trk[T_VN2, k], cap2), e[seg[k], i] + trk[T_AHEAD, k]), trk[T_STOP2, k])
+
+
+@njit(**_JIT)
+def _any_over(st):
+    for i in range(st.shape[1]):
+        if st[S_W, i] > st[S_C0, i] * (1.0 + 1e-12) + 1e-9:
+            return True
+    return False
+
+
+@njit(**_JIT)
+def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, rec_p, record):
+    """Advance every run from node ``k_from`` to node ``k_to`` (no event strictly between).
+
+    While some run may be above its ceiling (after a lowered target) the batch-wide switch is
+    decided node by node, as the numpy step did; from the first node where no run is above it,
+    every run goes on to k_to on its own. Stops early (``flags[F_STALL_TO] ≥ 0``) at the first
+    stall check (every 64 steps and at the end, as the numpy step) that finds a run whose time is
+    no longer finite.
+    """
+    m = trk.shape[1]
+    k = k_from
+    while k < k_to:
+        over_mode = flags[F_MAYBE_OVER] != 0 and _any_over(st)
+        k_end = k + 1 if over_mode else k_to
+        still_over, first_bad = _sweep(k, k_end, k0, over_mode, trk, seg, par, st, lane, e, cst, tab,
+                                       rec, rec_p, record)
+        flags[F_MAYBE_OVER] = 1 if over_mode and still_over else 0
+        for kc in range(k, k_end):  # the stall checks of the steps just made
+            if (kc & 63) == 0 or kc + 2 >= m - 1:
+                if kc >= first_bad:
+                    flags[F_STALL_FROM], flags[F_STALL_TO] = flags[F_K_OK], kc + 1
+                    for i in range(st.shape[1]):  # the first run stalled by then
+                        if st[S_BAD, i] <= kc:
+                            flags[F_STALL_RUN] = i
+                            break
+                    return
+                flags[F_K_OK] = kc + 1
+        k = k_end

@@ -1,0 +1,214 @@
+"""The margin report's datasets: ``margins`` and ``margin_totals`` (schemas, rows, writer), and its inputs.
+
+Takes a :class:`planner.report.margins.MarginReport` and gives Arrow tables with
+their declared schemas (units in the column names), written as partitioned
+Parquet (:func:`write_margins`). Also reads what the report takes from other
+steps' folders: table (a) energy (``planner tables``), the closed-loop errors
+(``planner simulate``) and the adhesion levels of the stopping sweep
+(``planner stops``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+
+from planner.errors import InputError
+from planner.io.parquet import declare, read_dataset, write_partitioned
+
+MARGINS_SCHEMA = declare(
+    [
+        ("origin", pa.string(), "departure stop (station id) of the leg"),
+        ("destination", pa.string(), "next stop (station id); stations in between are passed"),
+        ("passes", pa.list_(pa.string()), "stations passed between the two stops, running order (empty: an interstation)"),
+        ("length_m", pa.float64(), "leg length, stop marker to stop marker [m]"),
+        ("scheduled_running_time_s", pa.float64(),
+         "scheduled running time, arrival at the next stop - departure [s]; null: no train of this type runs the leg"),
+        ("n_trains", pa.int32(), "timetabled trains with this leg and scheduled time"),
+        ("train_ids", pa.list_(pa.string()), "those trains, sorted"),
+        ("min_running_time_s", pa.float64(), "minimum running time: ratio 1.0, load 0, traction x 1.0 (table (a)) [s]"),
+        ("min_running_time_rounded_s", pa.float64(), "minimum running time rounded up to the 10 s timetable unit [s]"),
+        ("margin_s", pa.float64(), "scheduled - minimum running time [s]"),
+        ("margin_percent", pa.float64(), "margin as a percentage of the minimum running time [%]"),
+        ("degraded_min_running_time_s", pa.float64(),
+         "minimum under degraded conditions: full load, weak traction to the pattern start, then the stopping "
+         "pattern at the lowest adhesion [s]"),
+        ("remaining_margin_s", pa.float64(), "scheduled - degraded minimum: the margin left on a bad day [s]"),
+        ("degraded_loss_running_s", pa.float64(),
+         "part of degraded - minimum due to load and traction: degraded run's time to the pattern start - nominal run's [s]"),
+        ("degraded_loss_stop_s", pa.float64(),
+         "part due to the stop at the bad day's adhesion: stop_time_degraded_s - stop_time_nominal_s (the "
+         "adhesion effect; with adhesion off, the stopping brake from the degraded approach speed) [s]"),
+        ("degraded_loss_load_s", pa.float64(),
+         "share of degraded_loss_running_s due to the load: the bad day's load alone, nominal traction [s]"),
+        ("degraded_loss_traction_s", pa.float64(),
+         "share of degraded_loss_running_s due to weak traction, on top of the load: running - load share [s]"),
+        ("degraded_loss_stop_model_s", pa.float64(),
+         "part due to the stop model, not to the bad day: the nominal run to the pattern start plus stop_time_nominal_s "
+         "(the stopping pattern) - min_running_time_s (table (a): the constant stopping brake) [s]. load + traction + "
+         "stop + stop model = degraded_min_running_time_s - min_running_time_s"),
+        ("supplement_required_s", pa.float64(), "supplement the rule asks for: percent of the minimum + minutes per 100 km [s]"),
+        ("supplement_met", pa.bool_(), "margin >= required supplement"),
+        ("supplement_shortfall_s", pa.float64(), "required supplement - margin, at least 0 [s]"),
+        ("ratio_on_time", pa.float64(), "target-speed ratio the vehicle picks at an on-time departure (nearest table (a) time)"),
+        ("arrival_error_s", pa.float64(), "closed-loop arrival error at the scheduled time, nominal; positive = late [s]"),
+        ("arrival_error_degraded_s", pa.float64(),
+         "closed-loop arrival error at the scheduled time under the degraded load and traction; positive = late [s]"),
+        ("energy_at_ratio_kwh", pa.float64(), "table (a) traction energy at ratio_on_time [kWh]"),
+        ("energy_at_full_ratio_kwh", pa.float64(), "table (a) traction energy at ratio 1.0 [kWh]"),
+        ("energy_saved_kwh", pa.float64(), "energy the margin saves: at ratio 1.0 - at ratio_on_time [kWh]"),
+        ("energy_saved_percent", pa.float64(), "energy saved as a percentage of the energy at ratio 1.0 [%]"),
+        ("slowest_running_time_s", pa.float64(), "slowest table time (lowest ratio of table (a)) [s]"),
+        ("pattern_start_m", pa.float64(), "chainage where the stopping pattern starts in the degraded run [m]"),
+        ("pattern_start_source", pa.string(),
+         "where that is: 'tasc' beacon, 'approach' distance; '+moved' when the lowest adhesion needed an earlier start"),
+        ("pattern_start_speed_degraded_kmh", pa.float64(), "degraded run's speed at the pattern start [km/h]"),
+        ("stop_time_degraded_s", pa.float64(), "stopping-pattern duration at the lowest adhesion from that speed [s]"),
+        ("stop_time_nominal_s", pa.float64(),
+         "nominal stop over the same approach with the bad day's stop model: the stopping pattern from the nominal "
+         "minimum run's speed at the highest adhesion of the sweep, or the stopping brake when the adhesion effect "
+         "is off [s]"),
+        ("adhesion_min_kmh_s", pa.float64(),
+         "adhesion of the bad day's stop: [margins] degraded_adhesion_kmh_s, else the sweep's lowest level [km/h/s]"),
+        ("adhesion_loss_s", pa.float64(),
+         "stopping-pattern duration at the lowest minus at the highest adhesion, nominal approach speed [s]"),
+        ("infeasible", pa.bool_(), "flag: scheduled < degraded minimum"),
+        ("tight", pa.bool_(), "flag: not infeasible, but remaining margin < tight_threshold_s"),
+        ("unreachable", pa.bool_(), "flag: scheduled > slowest table time: the vehicle cannot stretch the run that long"),
+        ("unassessed", pa.bool_(),
+         "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; infeasible and "
+         "tight are then null (unknown), remaining_margin_s null"),
+        ("unassessed_reason", pa.string(), "why the leg could not be assessed; empty when assessed"),
+        ("tables_source", pa.string(), "'dataset' (--tables) or 'computed'"),
+        ("note", pa.string(), "anything unusual about the row, else empty"),
+    ],
+    name="margins",
+    description="Margin-time report: minimum, scheduled and degraded running times per leg and scheduled time (DESIGN §6).",
+)
+
+MARGIN_TOTALS_SCHEMA = declare(
+    [
+        ("level", pa.string(),
+         "what the row sums: 'train' (one train's legs), 'type' (every train of a direction x train type), "
+         "'line' (every train of a direction; train_type partition 'all'). The levels repeat the same train runs, "
+         "so sum within one level only (e.g. where level = 'train')"),
+        ("train_id", pa.string(), "the train (level 'train'), else null"),
+        ("origin", pa.string(), "the train's first stop (level 'train'), else null"),
+        ("destination", pa.string(), "the train's last stop (level 'train'), else null"),
+        ("first_departure_s", pa.float64(), "earliest departure of the legs summed [s after midnight]"),
+        ("n_trains", pa.int32(), "trains summed"),
+        ("n_legs", pa.int32(), "train runs of a leg summed (each train x stop to next stop once)"),
+        ("min_running_time_s", pa.float64(), "sum of minimum running times [s]"),
+        ("min_running_time_rounded_s", pa.float64(), "sum of the minimum running times rounded up to 10 s each [s]"),
+        ("scheduled_running_time_s", pa.float64(), "sum of scheduled running times (dwells excluded) [s]"),
+        ("margin_s", pa.float64(), "sum of margins [s]"),
+        ("degraded_min_running_time_s", pa.float64(), "sum of degraded minimum running times [s]"),
+        ("remaining_margin_s", pa.float64(), "sum of remaining margins under degraded conditions [s]"),
+        ("supplement_required_s", pa.float64(), "sum of required supplements [s]"),
+        ("energy_at_ratio_kwh", pa.float64(), "sum of traction energy at the on-time ratio [kWh]"),
+        ("energy_at_full_ratio_kwh", pa.float64(), "sum of traction energy at ratio 1.0 [kWh]"),
+        ("energy_saved_kwh", pa.float64(), "sum of energy saved by the margins [kWh]"),
+        ("margin_percent", pa.float64(), "total margin / total minimum running time [%]"),
+        ("min_remaining_margin_s", pa.float64(), "smallest remaining margin of any leg summed [s]"),
+        ("bad_day_shortfall_s", pa.float64(),
+         "sum over the legs of what each lacks on a bad day, max(0, -remaining margin): the time to add [s]"),
+        ("n_supplement_short", pa.int32(), "train runs of a leg whose margin is below the required supplement"),
+        ("n_infeasible", pa.int32(), "train runs of a leg flagged infeasible"),
+        ("n_tight", pa.int32(), "train runs of a leg flagged tight"),
+        ("n_unreachable", pa.int32(), "train runs of a leg flagged unreachable"),
+        ("n_unassessed", pa.int32(),
+         "train runs of a leg flagged unassessed; when > 0 the degraded and remaining sums, worst margin and "
+         "shortfall are null"),
+    ],
+    name="margin_totals",
+    description="Margin totals at three levels, told apart by `level`: per train, per direction x train type "
+                "and per direction (DESIGN §6). Each level counts every train run once; filter on one level "
+                "before summing.",
+)
+SCHEMAS = {"margins": MARGINS_SCHEMA, "margin_totals": MARGIN_TOTALS_SCHEMA}
+
+
+def datasets(report) -> dict[str, pa.Table]:
+    """The ``margins`` and ``margin_totals`` rows with partition columns."""
+    import pandas as pd
+
+    rows = report.rows.copy()
+    rows["n_trains"] = rows["n_trains"].astype("int32")
+    unknown = rows["unassessed"].to_numpy(bool)
+    for c in ("infeasible", "tight"):  # undecidable on an unassessed leg: null, never a false "all clear"
+        rows[c] = rows[c].astype("boolean")
+        rows.loc[unknown, c] = pd.NA
+    t = report.totals.copy()
+    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed"):
+        t[c] = t[c].astype("int32")
+    return {
+        "margins": pa.Table.from_pandas(rows, preserve_index=False),
+        "margin_totals": pa.Table.from_pandas(t, preserve_index=False),
+    }
+
+
+def write_margins(report, out_dir: str | Path) -> list[Path]:
+    """Write the ``margins`` and ``margin_totals`` datasets under ``out_dir`` (atomic per file, deterministic)."""
+    sort = {"margins": ("origin", "destination", "scheduled_running_time_s"),
+            "margin_totals": ("level", "train_id")}
+    written: list[Path] = []
+    for name, table in datasets(report).items():
+        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=sort[name])
+    return written
+
+
+# --- inputs from other steps' folders ---------------------------------------------------
+
+def read_energy(tables_dir: Path, line_id: str, direction: str, train_type: str) -> dict:
+    """Table (a) energy per (origin, destination), ratios descending (load_tables does not carry it)."""
+    ta = read_dataset(tables_dir, "table_a", line=line_id, direction=direction, train_type=train_type).to_pandas()
+    out = {}
+    for (o, d), a in ta.groupby(["origin", "destination"], sort=False):
+        out[(o, d)] = a.sort_values("ratio", ascending=False)["energy_kwh"].to_numpy(float)
+    return out
+
+
+def closed_loop_index(closed_loop_dir: Path, line_id: str, rule) -> dict:
+    """Closed-loop errors (nearest rule) from a ``planner simulate`` folder, by leg, scenario, designated time.
+
+    ``perturbed`` runs stand for the degraded scenario only when their load and
+    traction equal the rule's degraded ones.
+    """
+    from planner.tables.closed_loop import SCENARIOS
+
+    try:
+        t = read_dataset(closed_loop_dir, "closed_loop", line=line_id).to_pandas()
+    except (FileNotFoundError, OSError) as e:
+        raise InputError(f"--closed-loop {closed_loop_dir}: cannot read the closed_loop dataset ({e}); "
+                         "run `planner simulate` first or leave the option out") from None
+    for c in ("scenario", "mode"):
+        if c not in t.columns:
+            raise InputError(f"--closed-loop {closed_loop_dir}: closed_loop has no {c!r} partition; "
+                             "rebuild it with `planner simulate`")
+        t[c] = t[c].astype(str)
+    t = t[t["mode"] == "nearest"]
+    p = SCENARIOS["perturbed"]
+    names = {"nominal": "nominal"}
+    if (p.load, p.traction_factor) == (rule.bad_load, rule.bad_traction):
+        names["perturbed"] = "degraded"
+    out = {}
+    for r in t.itertuples(index=False):
+        if r.scenario in names:
+            out[(r.direction, r.train_type, r.origin, r.destination, names[r.scenario],
+                 round(float(r.designated_s), 6))] = float(r.error_s)
+    return out
+
+
+def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:
+    """Adhesion levels [km/h/s] of the ``stop_summary`` dataset of a ``planner stops --out`` folder."""
+    try:
+        t = read_dataset(stops_dir, "stop_summary", line=line_id)
+    except (FileNotFoundError, OSError, pa.ArrowInvalid) as e:
+        raise InputError(f"--stops {stops_dir}: cannot read the stop_summary dataset ({e}); run "
+                         "`planner stops LINE --out DIR` first or leave --stops out") from None
+    if "adhesion_kmh_s" not in t.column_names or t.num_rows == 0:
+        raise InputError(f"--stops {stops_dir}: stop_summary has no adhesion_kmh_s rows for line {line_id}; "
+                         "rebuild it with `planner stops`")
+    vals = np.asarray(t.column("adhesion_kmh_s").to_numpy(zero_copy_only=False), dtype=float)
+    return np.unique(np.round(vals[np.isfinite(vals)], 9))

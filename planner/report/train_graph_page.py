@@ -1,0 +1,394 @@
+"""The interactive train-graph page: one self-contained HTML file (inline data, CSS and script).
+
+Takes the :class:`planner.report.train_graph.GraphData` of a line and a day and
+gives the page (:func:`render_page`, :func:`write_page`): zoom to an hour, hover
+a train for number, type, times and margin, click it for its blocking-time
+stairway. The data is compact JSON (:func:`page_payload`): trajectories thinned
+and delta-coded in whole decisecond and metre steps (module doc of
+:mod:`planner.report.train_graph` for the sizes).
+"""
+from __future__ import annotations
+
+import html
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from planner.report.train_graph import COLOURS, CONFLICT_COLOUR, GraphData, time_window
+
+__all__ = ["page_payload", "render_page", "write_page"]
+
+
+def _delta(values: np.ndarray, scale: float) -> list[int]:
+    """Integers of values × scale, delta-coded (first value absolute)."""
+    q = np.round(np.asarray(values, dtype=float) * scale).astype(np.int64)
+    if len(q) == 0:
+        return []
+    return np.concatenate([q[:1], np.diff(q)]).tolist()
+
+
+def _num(x: float, nd: int = 1):
+    if x is None or not math.isfinite(float(x)):
+        return None
+    r = round(float(x), nd)
+    return int(r) if r == int(r) else r
+
+
+def page_payload(data: GraphData) -> dict[str, Any]:
+    """The compact JSON the page script draws from (times in 0.1 s, chainages in m, delta-coded)."""
+    lo, hi = data.day_s
+    trains = []
+    order = {tp.train_id: k for k, tp in enumerate(data.trains)}
+    for tp in data.trains:
+        calls = [[sid, _num(a), _num(d), int(s)] for sid, a, d, s in tp.calls]
+        m = data.margins.get(tp.train_id)
+        trains.append({
+            "id": tp.train_id, "type": tp.train_type, "dir": tp.direction, "svc": tp.service,
+            "t": _delta(tp.t_s, 10.0), "x": _delta(tp.x_m, 1.0), "calls": calls,
+            "loops": list(tp.loop_stations),
+            "m": None if m is None else {k: _num(v) for k, v in m.items()},
+        })
+    win: dict[str, list] = {}
+    res: dict[str, int] = {}
+    w = data.windows
+    if w is not None and len(w):
+        w = w.sort_values(["train_id", "start_s"], kind="stable")
+        for tid, g in w.groupby("train_id", sort=True):
+            if tid not in order:
+                continue
+            a = np.column_stack([g.start_s.to_numpy(), g.end_s.to_numpy(),
+                                 np.minimum(g.from_m, g.to_m).to_numpy(), np.maximum(g.from_m, g.to_m).to_numpy()])
+            win[str(tid)] = [_delta(a[:, 0], 10.0), np.round((a[:, 1] - a[:, 0]) * 10).astype(int).tolist(),
+                             _delta(a[:, 2], 1.0), np.round(a[:, 3] - a[:, 2]).astype(int).tolist(),
+                             [res.setdefault(r, len(res)) for r in g.resource_id.astype(str)]]
+    cons = []
+    c = data.conflicts
+    if c is not None and len(c):
+        for r in c.itertuples(index=False):
+            cons.append([int(r.conflict_id), str(r.train_a), str(r.train_b), _num(r.from_m, 0), _num(r.to_m, 0),
+                         _num(r.overlap_start_s), _num(r.overlap_end_s), _num(r.delay_s), str(r.rule),
+                         str(r.resource_id), str(r.decision)])
+    return {
+        "line": {"id": data.line_id, "name": data.line_name, "start_m": data.start_m, "end_m": data.end_m},
+        "day": [math.floor(lo / 3600) * 3600, math.ceil(hi / 3600) * 3600],
+        "stations": [[sid, name, x] for sid, name, x in data.stations],
+        "colours": {f"{d} {s}": c for (d, s), c in COLOURS.items()},
+        "trains": trains, "windows": win, "resources": list(res), "conflicts": cons, "notes": data.notes,
+    }
+
+
+PAGE_CSS = """
+*{box-sizing:border-box}
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;color:#1d2327;background:#f6f7f9}
+header{padding:10px 18px 6px}h1{font-size:20px;margin:0 0 4px}.sub{color:#555;font-size:13px;margin:0}
+.bar{display:flex;flex-wrap:wrap;gap:6px 14px;align-items:center;padding:6px 18px;font-size:13px;border-bottom:1px solid #d5d9de;background:#fff}
+.bar button{font:inherit;font-size:12px;padding:2px 7px;border:1px solid #b9bec4;background:#f6f7f9;border-radius:4px;cursor:pointer}
+.bar button.on{background:#1f5fa8;color:#fff;border-color:#1f5fa8}
+.bar input[type=text]{font:inherit;font-size:12px;width:90px;padding:2px 4px}
+.key{display:inline-block;width:18px;height:0;border-top:3px solid;vertical-align:middle;margin-right:3px}
+#wrap{position:relative;margin:8px 18px;background:#fff;border:1px solid #d5d9de;border-radius:6px}
+#graph{display:block;width:100%;user-select:none;cursor:crosshair}
+#tip{position:absolute;pointer-events:none;background:rgba(255,255,255,.97);border:1px solid #8a9199;border-radius:5px;
+ padding:6px 9px;font-size:12px;line-height:1.35;box-shadow:0 2px 8px rgba(0,0,0,.18);display:none;max-width:360px;z-index:5}
+#tip b{font-size:13px}#tip table{border-collapse:collapse;margin-top:3px}#tip td{padding:0 6px 0 0;white-space:nowrap}
+#info{margin:0 18px 20px;font-size:13px}#info code{font-size:12px}
+.flag{color:#c62828;font-weight:600}
+"""
+
+PAGE_JS = r"""
+"use strict";
+const D = JSON.parse(document.getElementById("graph-data").textContent);
+const NS = "http://www.w3.org/2000/svg";
+const svg = document.getElementById("graph");
+const tip = document.getElementById("tip");
+const M = {l: 150, r: 16, t: 14, b: 30};
+const H = 640;
+const st = {t0: D.view[0], t1: D.view[1], sel: null, hover: null, show: {down: true, up: true, conflicts: true}};
+function el(name, attrs, parent) {
+  const e = document.createElementNS(NS, name);
+  for (const k in attrs) e.setAttribute(k, attrs[k]);
+  if (parent) parent.appendChild(e);
+  return e;
+}
+function undelta(a, s) { const o = new Float64Array(a.length); let v = 0; for (let i = 0; i < a.length; i++) { v += a[i]; o[i] = v / s; } return o; }
+function hhmm(t, sec) {
+  if (t === null || !isFinite(t)) return "–";
+  t = Math.round(t); const h = Math.floor(t / 3600), m = Math.floor(t / 60) % 60, s = t % 60;
+  const p = n => String(n).padStart(2, "0");
+  return p(h) + ":" + p(m) + (sec ? ":" + p(s) : "");
+}
+for (const tr of D.trains) {
+  tr.T = undelta(tr.t, 10); tr.X = undelta(tr.x, 1);
+  tr.t0 = tr.T[0]; tr.t1 = tr.T[tr.T.length - 1];
+}
+const byId = new Map(D.trains.map(t => [t.id, t]));
+const W = () => svg.clientWidth || 1200;
+const PW = () => W() - M.l - M.r, PH = H - M.t - M.b;
+const y0 = D.line.start_m, y1 = D.line.end_m;
+svg.setAttribute("height", H);
+// layers: axes, stairway, trains (one viewBox-scaled group), conflicts, highlight, ticks
+const gGrid = el("g", {id: "grid"}, svg);
+const inner = el("svg", {id: "plot", x: M.l, y: M.t, preserveAspectRatio: "none", overflow: "hidden"}, svg);
+const gStair = el("g", {id: "stair"}, inner);
+const gTrains = el("g", {id: "trains", fill: "none"}, inner);
+const gLoops = el("g", {id: "loops"}, inner);
+const gCon = el("g", {id: "conflicts"}, inner);
+const gHi = el("g", {id: "highlight", fill: "none"}, inner);
+const gAxis = el("g", {id: "axis"}, svg);
+const paths = [];
+for (const tr of D.trains) {
+  let d = "M" + tr.T[0].toFixed(1) + " " + tr.X[0].toFixed(0);
+  for (let i = 1; i < tr.T.length; i++) d += "L" + tr.T[i].toFixed(1) + " " + tr.X[i].toFixed(0);
+  const rapid = tr.svc === "rapid";
+  const p = el("path", {d: d, stroke: D.colours[tr.dir + " " + tr.svc], "stroke-width": rapid ? 1.6 : 1.0,
+    "vector-effect": "non-scaling-stroke", "data-train": tr.id, class: "train " + tr.dir + " " + tr.svc}, gTrains);
+  tr.path = p; paths.push(p);
+}
+const pos = new Map(D.stations.map(s => [s[0], s[2]]));
+for (const tr of D.trains) for (const c of tr.calls) if (tr.loops.includes(c[0]) && c[1] !== null && c[2] !== null) {
+  const r = el("rect", {x: c[1], y: pos.get(c[0]) - 60, width: Math.max(c[2] - c[1], 1), height: 120,
+    fill: "none", stroke: "#333", "stroke-width": 1, "vector-effect": "non-scaling-stroke", class: "loop " + tr.dir}, gLoops);
+  r.dataset.train = tr.id;
+}
+for (const c of D.conflicts) {
+  const r = el("rect", {x: c[5], y: c[3], width: Math.max(c[6] - c[5], 0.5), height: Math.max(c[4] - c[3], 30),
+    fill: "#e00000", "fill-opacity": 0.55, stroke: "#e00000", "stroke-width": 3, "vector-effect": "non-scaling-stroke",
+    class: "conflict"}, gCon);
+  r.dataset.a = c[1]; r.dataset.b = c[2];
+}
+function sx(t) { return M.l + (t - st.t0) / (st.t1 - st.t0) * PW(); }
+function sy(x) { return M.t + (x - y0) / (y1 - y0) * PH; }
+function layout() {
+  const w = W();
+  svg.setAttribute("viewBox", "0 0 " + w + " " + H);
+  inner.setAttribute("width", PW()); inner.setAttribute("height", PH);
+  inner.setAttribute("viewBox", st.t0 + " " + y0 + " " + (st.t1 - st.t0) + " " + (y1 - y0));
+  gGrid.textContent = ""; gAxis.textContent = "";
+  for (const s of D.stations) {
+    el("line", {x1: M.l, x2: w - M.r, y1: sy(s[2]), y2: sy(s[2]), stroke: "#d5d9de"}, gGrid);
+    const t = el("text", {x: M.l - 6, y: sy(s[2]) + 4, "text-anchor": "end", "font-size": 12}, gAxis);
+    t.textContent = s[1] + " (" + s[0] + ")";
+  }
+  const span = st.t1 - st.t0;
+  const step = span > 6 * 3600 ? 3600 : span > 2 * 3600 ? 1800 : span > 3600 ? 600 : span > 1200 ? 300 : 60;
+  for (let t = Math.ceil(st.t0 / step) * step; t <= st.t1; t += step) {
+    const hour = t % 3600 === 0;
+    el("line", {x1: sx(t), x2: sx(t), y1: M.t, y2: H - M.b, stroke: hour ? "#b9bec4" : "#eceef1"}, gGrid);
+    const lab = el("text", {x: sx(t), y: H - M.b + 16, "text-anchor": "middle", "font-size": 11, class: "tick"}, gAxis);
+    lab.textContent = hhmm(t);
+  }
+  el("rect", {x: M.l, y: M.t, width: PW(), height: PH, fill: "none", stroke: "#8a9199"}, gAxis);
+  document.getElementById("range").textContent = hhmm(st.t0) + " – " + hhmm(st.t1);
+  for (const b of document.querySelectorAll("button.hour")) b.classList.toggle("on", +b.dataset.t0 === st.t0 && +b.dataset.t1 === st.t1);
+}
+function visible() {
+  for (const tr of D.trains) tr.path.style.display = st.show[tr.dir] ? "" : "none";
+  for (const r of gLoops.children) r.style.display = st.show[byId.get(r.dataset.train).dir] ? "" : "none";
+  gCon.style.display = st.show.conflicts ? "" : "none";
+}
+function setView(t0, t1) {
+  const full = D.day[1] - D.day[0];
+  const span = Math.min(Math.max(t1 - t0, 300), full);
+  t0 = Math.min(Math.max(t0, D.day[0]), D.day[1] - span);
+  st.t0 = t0; st.t1 = t0 + span; layout();
+}
+function xAt(tr, t) {
+  const T = tr.T; let lo = 0, hi = T.length - 1;
+  if (t < T[0] || t > T[hi]) return null;
+  while (hi - lo > 1) { const m = (lo + hi) >> 1; if (T[m] <= t) lo = m; else hi = m; }
+  const f = T[hi] > T[lo] ? (t - T[lo]) / (T[hi] - T[lo]) : 0;
+  return tr.X[lo] + f * (tr.X[hi] - tr.X[lo]);
+}
+function nearest(px, py) {
+  // pixel distance from the pointer to each drawn train's polyline near the pointer's time
+  const kt = PW() / (st.t1 - st.t0), kx = PH / (y1 - y0);
+  const t = st.t0 + (px - M.l) / kt, tol = 8;
+  let best = null, bd = tol;
+  for (const tr of D.trains) {
+    if (!st.show[tr.dir] || tr.t1 < t - tol / kt - 600 || tr.t0 > t + tol / kt + 600) continue;
+    const T = tr.T, X = tr.X;
+    let lo = 0, hi = T.length - 1;
+    const ta = t - tol / kt - 1;
+    while (hi - lo > 1) { const m = (lo + hi) >> 1; if (T[m] <= ta) lo = m; else hi = m; }
+    for (let i = lo; i < T.length - 1 && T[i] <= t + tol / kt + 1; i++) {
+      const ax = M.l + (T[i] - st.t0) * kt, ay = M.t + (X[i] - y0) * kx;
+      const bx = M.l + (T[i + 1] - st.t0) * kt, by = M.t + (X[i + 1] - y0) * kx;
+      const dx = bx - ax, dy = by - ay, L = dx * dx + dy * dy;
+      const u = L > 0 ? Math.max(0, Math.min(1, ((px - ax) * dx + (py - ay) * dy) / L)) : 0;
+      const d = Math.hypot(px - ax - u * dx, py - ay - u * dy);
+      if (d < bd) { bd = d; best = tr; }
+    }
+  }
+  return best;
+}
+function calls(tr) {
+  const first = tr.calls[0], last = tr.calls[tr.calls.length - 1];
+  return [first[0], first[2], last[0], last[1]];
+}
+function tipHtml(tr, t) {
+  const [o, dep, d, arr] = calls(tr);
+  const stops = tr.calls.filter(c => c[3]).length;
+  let h = "<b>" + tr.id + "</b> · " + tr.type + " · " + tr.svc + " · " + tr.dir + "<br>" +
+    o + " " + hhmm(dep) + " → " + d + " " + hhmm(arr) + " · " + stops + " of " + tr.calls.length + " calls stop";
+  const x = xAt(tr, t);
+  if (x !== null) {
+    let near = D.stations[0]; for (const s of D.stations) if (Math.abs(s[2] - x) < Math.abs(near[2] - x)) near = s;
+    h += "<br>at " + hhmm(t, true) + ": " + (x / 1000).toFixed(2) + " km (" + (Math.abs(near[2] - x) < 150 ? "at " : "near ") + near[0] + ")";
+  }
+  if (tr.m) {
+    h += "<table><tr><td>margin</td><td>" + tr.m.margin_s + " s</td><td>bad day</td><td>" + tr.m.remaining_margin_s +
+      " s</td></tr><tr><td>least on a leg</td><td>" + tr.m.min_remaining_margin_s + " s</td><td>legs</td><td>" + tr.m.n_legs + "</td></tr></table>";
+    const f = []; if (tr.m.n_infeasible) f.push(tr.m.n_infeasible + " infeasible"); if (tr.m.n_tight) f.push(tr.m.n_tight + " tight");
+    if (tr.m.n_unreachable) f.push(tr.m.n_unreachable + " unreachable");
+    if (f.length) h += "<span class='flag'>" + f.join(", ") + "</span><br>";
+  } else h += "<br>margin: not given";
+  if (tr.loops.length) h += "<br>stands on the loop at " + tr.loops.join(", ");
+  const cs = D.conflicts.filter(c => c[1] === tr.id || c[2] === tr.id);
+  if (cs.length) {
+    const ids = [...new Set(cs.map(c => c[0]))];
+    h += "<br><span class='flag'>" + ids.length + " conflict" + (ids.length > 1 ? "s" : "") + "</span>: " +
+      ids.slice(0, 3).map(i => { const c = cs.find(z => z[0] === i); return "#" + i + " with " + (c[1] === tr.id ? c[2] : c[1]) + " at " + c[9] + " (delay " + c[7] + " s)"; }).join("; ");
+  }
+  return h + "<br><i>click: blocking-time stairway</i>";
+}
+function highlight(tr, cls) {
+  for (const p of gHi.querySelectorAll("." + cls)) p.remove();
+  if (!tr) return;
+  const p = tr.path.cloneNode(); p.setAttribute("stroke", cls === "sel" ? "#000" : tr.path.getAttribute("stroke"));
+  p.setAttribute("stroke-width", cls === "sel" ? 2.6 : 3); p.setAttribute("class", cls); gHi.appendChild(p);
+}
+function select(id) {
+  const tr = id ? byId.get(id) : null;
+  st.sel = tr; gStair.textContent = "";
+  highlight(tr, "sel");
+  const info = document.getElementById("selinfo");
+  if (!tr) { info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
+  const w = D.windows[tr.id];
+  if (w) {
+    const s = undelta(w[0], 10), lo = undelta(w[2], 1);
+    for (let i = 0; i < s.length; i++) {
+      const r = el("rect", {x: s[i], y: lo[i], width: w[1][i] / 10, height: Math.max(w[3][i], 25), fill: "#f2b705",
+        "fill-opacity": 0.45, stroke: "#8a6500", "stroke-width": 0.6, "vector-effect": "non-scaling-stroke", class: "window"}, gStair);
+      const ti = el("title", {}, r); ti.textContent = D.resources[w[4][i]] + ": " + hhmm(s[i], true) + "–" + hhmm(s[i] + w[1][i] / 10, true);
+    }
+  }
+  info.textContent = tr.id + " (" + (w ? w[0].length : 0) + " blocking windows)";
+  history.replaceState(null, "", "#train=" + encodeURIComponent(tr.id));
+}
+svg.addEventListener("mousemove", ev => {
+  const r = svg.getBoundingClientRect(), px = ev.clientX - r.left, py = ev.clientY - r.top;
+  const tr = (px > M.l && py > M.t && py < H - M.b) ? nearest(px, py) : null;
+  if (tr !== st.hover) { st.hover = tr; highlight(tr, "hov"); }
+  if (!tr) { tip.style.display = "none"; return; }
+  const t = st.t0 + (px - M.l) / PW() * (st.t1 - st.t0);
+  tip.innerHTML = tipHtml(tr, t); tip.style.display = "block";
+  const left = px + 16 + 360 > W() ? px - 16 - tip.offsetWidth : px + 16;
+  tip.style.left = left + "px"; tip.style.top = Math.min(py + 12, H - tip.offsetHeight) + "px";
+});
+svg.addEventListener("mouseleave", () => { tip.style.display = "none"; st.hover = null; highlight(null, "hov"); });
+svg.addEventListener("click", () => select(st.hover ? st.hover.id : null));
+svg.addEventListener("wheel", ev => {
+  ev.preventDefault();
+  const r = svg.getBoundingClientRect(), px = ev.clientX - r.left;
+  const f = Math.exp(ev.deltaY * 0.0015), t = st.t0 + (px - M.l) / PW() * (st.t1 - st.t0);
+  setView(t - (t - st.t0) * f, t + (st.t1 - t) * f);
+}, {passive: false});
+let drag = null;
+svg.addEventListener("mousedown", ev => { drag = {x: ev.clientX, t0: st.t0, t1: st.t1}; });
+window.addEventListener("mouseup", () => { drag = null; });
+window.addEventListener("mousemove", ev => {
+  if (!drag) return; const dt = (ev.clientX - drag.x) / PW() * (drag.t1 - drag.t0);
+  if (Math.abs(ev.clientX - drag.x) > 2) setView(drag.t0 - dt, drag.t1 - dt);
+});
+svg.addEventListener("dblclick", () => setView(D.day[0], D.day[1]));
+const hours = document.getElementById("hours");
+const all = document.createElement("button"); all.textContent = "day"; all.className = "hour";
+all.dataset.t0 = D.day[0]; all.dataset.t1 = D.day[1]; hours.appendChild(all);
+for (let t = D.day[0]; t < D.day[1]; t += 3600) {
+  const b = document.createElement("button"); b.textContent = hhmm(t).slice(0, 2); b.className = "hour";
+  b.dataset.t0 = t; b.dataset.t1 = t + 3600; b.title = hhmm(t) + "–" + hhmm(t + 3600); hours.appendChild(b);
+}
+hours.addEventListener("click", ev => { const b = ev.target.closest("button"); if (b) setView(+b.dataset.t0, +b.dataset.t1); });
+for (const k of ["down", "up", "conflicts"]) document.getElementById("show-" + k).addEventListener("change", ev => { st.show[k] = ev.target.checked; visible(); });
+document.getElementById("find").addEventListener("change", ev => {
+  const tr = byId.get(ev.target.value.trim());
+  ev.target.style.background = tr || !ev.target.value ? "" : "#fdecea";
+  if (tr) { select(tr.id); setView(tr.t0 - 600, tr.t1 + 600); }
+});
+window.addEventListener("resize", layout);
+layout(); visible();
+const m = /train=([^&]+)/.exec(location.hash);
+const want = m ? decodeURIComponent(m[1]) : D.select;
+if (want && byId.has(want)) select(want);
+document.body.dataset.ready = "1";
+"""
+
+
+def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = None,
+                train: str | None = None, title_note: str = "") -> str:
+    """The interactive train graph as one self-contained HTML page (inline data, CSS and script).
+
+    Parameters
+    ----------
+    t0, t1 : float, optional
+        Initial time window [s after midnight] (default: the whole day).
+    train : str, optional
+        Train selected when the page opens (its stairway shown).
+    title_note : str
+        Extra text for the subtitle (e.g. the run id).
+    """
+    payload = page_payload(data)
+    lo, hi = time_window(data, t0, t1)
+    if train:
+        data.train(train)
+    payload["view"] = [lo, hi]
+    payload["select"] = train
+    js = json.dumps(payload, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    js = js.replace("</", "<\\/")  # never closes the script element
+    n = len(data.trains)
+    svc = {k: sum(1 for t in data.trains if (t.direction, t.service) == k) for k in COLOURS}
+    nc = int(data.conflicts.conflict_id.nunique()) if data.conflicts is not None and len(data.conflicts) else 0
+    e = html.escape
+    keys = " ".join(f"<span><span class='key' style='border-color:{c}'></span>{e(d)} {e(s)} ({svc[(d, s)]})</span>"
+                    for (d, s), c in COLOURS.items())
+    notes = "".join(f"<li>{e(x)}</li>" for x in data.notes)
+    return (
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+        f"<title>Train graph — {e(data.line_name)}</title><style>{PAGE_CSS}</style></head><body>"
+        f"<header><h1>Train graph — {e(data.line_name)} <span style='color:#777;font-weight:400'>({e(data.line_id)})</span></h1>"
+        f"<p class='sub'>{n} trains · {nc} conflicts · stations at their chainage, time along the axis; "
+        f"each line is the train front's predicted run{(' · ' + e(title_note)) if title_note else ''}</p></header>"
+        "<div class='bar'><span>zoom: <span id='hours'></span></span>"
+        "<span>view <b id='range'></b></span></div>"
+        "<div class='bar'>"
+        f"{keys} <span><span class='key' style='border-color:{CONFLICT_COLOUR};border-top-width:8px'></span>conflict</span>"
+        "<span>▭ loop stop</span>"
+        "<label><input type='checkbox' id='show-down' checked> down</label>"
+        "<label><input type='checkbox' id='show-up' checked> up</label>"
+        "<label><input type='checkbox' id='show-conflicts' checked> conflicts</label>"
+        "<label>train <input type='text' id='find' placeholder='e.g. 1001D' list='train-ids'></label>"
+        "<span>selected: <b id='selinfo'>none</b></span></div>"
+        "<datalist id='train-ids'>" + "".join(f"<option value='{e(t.train_id)}'>" for t in data.trains) + "</datalist>"
+        "<div id='wrap'><svg id='graph' xmlns='http://www.w3.org/2000/svg' role='img' "
+        "aria-label='time-distance train graph'></svg><div id='tip'></div></div>"
+        "<div id='info'><p>Hover a train for its number, type, times and margin; click it (or type its number) for its "
+        "blocking-time stairway: one box per section or switch from the window's opening (entry − route setting − "
+        "approach) to its closing (tail clear + release). Red boxes: two trains' windows overlap (a conflict). "
+        "Mouse wheel zooms the time axis, drag pans, double-click shows the whole day. "
+        "A <i>rapid</i> passes at least one station; a <i>local</i> stops at every one.</p>"
+        f"{('<ul>' + notes + '</ul>') if notes else ''}</div>"
+        f"<script type='application/json' id='graph-data'>{js}</script>"
+        f"<script>{PAGE_JS}</script></body></html>\n"
+    )
+
+
+def write_page(data: GraphData, path: str | Path, **kw) -> Path:
+    """Write :func:`render_page` to ``path`` atomically."""
+    from planner.io.atomic import write_bytes_atomic
+
+    write_bytes_atomic(path, render_page(data, **kw).encode("utf-8"))
+    return Path(path)
