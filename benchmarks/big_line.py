@@ -17,10 +17,11 @@ follow. The track network is joined: the two buffer stops at each junction becom
 
 Timetable: every sample train runs the whole big line, so there are as many trains
 as on the sample and ``N`` times the calls. A train's calls in copy ``k`` (counted in
-its direction) are its sample calls shifted by ``k * P``, with ``P`` the train's own
-sample run time plus ``DWELL_S`` at the copy's last station, ``GAP_RUN_S`` over the
-junction and ``DWELL_S`` at the next copy's first station (two calls that were
-termini become ordinary stops).
+its direction) are its sample calls shifted by ``k * P``, with ``P`` the longest
+sample run time of any train plus ``DWELL_S`` at the copy's last station,
+``GAP_RUN_S`` over the junction and ``DWELL_S`` at the next copy's first station
+(two calls that were termini become ordinary stops; a faster train waits longer
+over the junction). One ``P`` for all keeps the sample's spacing in every copy.
 """
 from __future__ import annotations
 
@@ -105,12 +106,14 @@ def _network(n: int, offset_m: float, L: float) -> tuple[pd.DataFrame, pd.DataFr
 def _timetable(n: int, order: list[str]) -> pd.DataFrame:
     """Every sample train over all copies (module docstring)."""
     tt, _ = _read("timetable")
+    trains = [(train, calls.to_dict("records"))
+              for train, calls in tt.sort_values(["train_id", "seq"]).groupby("train_id", sort=True)]
+    # one period for every train, so the trains keep the sample's spacing in every copy (a period per
+    # train would let the faster ones catch up the slower ones copy after copy)
+    period = max(c[-1]["arrival_s"] - c[0]["departure_s"] for _, c in trains) + 2 * DWELL_S + GAP_RUN_S
     rows = []
-    for train, calls in tt.sort_values(["train_id", "seq"]).groupby("train_id", sort=True):
-        calls = calls.to_dict("records")
+    for train, calls in trains:
         down = calls[0]["direction"] == "down"
-        span = calls[-1]["arrival_s"] - calls[0]["departure_s"]
-        period = span + 2 * DWELL_S + GAP_RUN_S
         seq = 0
         for j in range(n):
             k = j if down else n - 1 - j  # copies in the train's direction
