@@ -1,14 +1,23 @@
-"""Benchmark: solve time of one minimum-time stopping pattern (DESIGN §5, issue 5).
+"""Benchmark: solve time of one minimum-time stopping pattern (DESIGN §5, issues 5 and 20).
 
 Prints the median (and 90th percentile) wall time per ``solve_stop`` call over a few
 thousand seeded random station approaches with up to six event points (positions
 where a deceleration or speed limit changes), split by the number of event points,
-against the 0.5 ms target. Run: ``.venv/bin/python benchmarks/bench_stopping.py``.
+against the 5 µs target of issue 20; the same for position-independent approaches
+next to Ruckig's ``calculate`` on the same problems (runs alternated, one machine);
+the solver before it was compiled (``planner/stopping/pattern.py`` at
+:data:`BEFORE`, read from git) on the same approaches, with the largest duration
+difference; and the compile time of the kernel in a fresh process (numba compiles
+it on the first solve of every process: ``cache=False``, see
+:mod:`planner.stopping.pieces`). Run: ``.venv/bin/python benchmarks/bench_stopping.py``.
 """
 from __future__ import annotations
 
+import importlib.util
+import math
 import random
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -17,8 +26,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from planner.stopping.pattern import decel_limit_profile, solve_stop  # noqa: E402
 
-TARGET_MS = 0.5
+TARGET_US = 5.0
+RUCKIG_US = 0.58  # issue 20's reference figure for Ruckig on this problem
 N_CASES = 4000
+BEFORE = "104b7df"  # the last commit with the pure-Python solver (planner/stopping/pattern.py)
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def random_approach(rng: random.Random):
@@ -93,43 +105,153 @@ def safe_side_cost(step_m: float = 0.25) -> dict:
     return {"n": int(ex.size), "sum_s": float(ex.sum()), "median_s": float(np.median(ex)), "max_s": float(ex.max())}
 
 
+
+def position_independent(rng: random.Random):
+    """One deceleration limit, the start speed the only speed limit: the problem Ruckig solves too."""
+    v0 = rng.uniform(40.0, 110.0) / 3.6
+    return v0, rng.uniform(300.0, 900.0), rng.uniform(0.4, 1.0), [(0.0, rng.uniform(0.6, 1.0))], [(0.0, v0)]
+
+
+def ruckig_solver():
+    """A callable solving one position-independent case with Ruckig (offline ``calculate``), or None."""
+    try:
+        import ruckig
+    except ImportError:
+        return None
+    otg, inp, traj = ruckig.Ruckig(1), ruckig.InputParameter(1), ruckig.Trajectory(1)
+    inp.current_position, inp.current_acceleration = [0.0], [0.0]
+    inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
+
+    def solve(v0, X, J, dl, sl):
+        inp.current_velocity, inp.target_position = [v0], [X]
+        inp.max_velocity, inp.max_acceleration, inp.min_acceleration = [sl[0][1]], [dl[0][1]], [-dl[0][1]]
+        inp.max_jerk = [J]
+        otg.calculate(inp, traj)
+        return traj.duration
+    return solve
+
+
+def solver_before():
+    """``solve_stop`` as it was at :data:`BEFORE` (pure Python), loaded from git; None without git."""
+    try:
+        src = subprocess.run(["git", "show", f"{BEFORE}:planner/stopping/pattern.py"], cwd=ROOT,
+                             capture_output=True, text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    spec = importlib.util.spec_from_loader("_stopping_before", loader=None)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # dataclasses look their module up
+    exec(compile(src, f"{BEFORE}:planner/stopping/pattern.py", "exec"), mod.__dict__)
+    return mod.solve_stop
+
+
+def timed(solve, cases, **kw) -> list[float]:
+    """Wall time of every call [s]."""
+    out = []
+    for v0, X, J, dl, sl in cases:
+        t0 = time.perf_counter()
+        solve(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl, **kw)
+        out.append(time.perf_counter() - t0)
+    return out
+
+
+def compile_time() -> tuple[float, float, float]:
+    """(numba import, kernel compile) CPU seconds and the wall seconds of both, in a fresh process."""
+    code = ("import time; w = time.perf_counter(); t = time.process_time(); import numba; "
+            "t1 = time.process_time(); import planner.stopping.kernel; "
+            "print(t1 - t, time.process_time() - t1, time.perf_counter() - w)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
+    a, b, c = (float(x) for x in out.stdout.split())
+    return a, b, c
+
+
+def compare_before(cases) -> None:
+    """Median per solve before and after, and the largest difference of the results."""
+    before = solver_before()
+    if before is None:
+        print(f"  before ({BEFORE}): not available (no git history)")
+        return
+    worst, n, differ = 0.0, 0, 0
+    t_old, t_new = [], []
+    for rule in ("min-time", "paper"):
+        for case in cases:
+            v0, X, J, dl, sl = case
+            t0 = time.perf_counter()
+            a = before(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl, rule=rule)
+            t1 = time.perf_counter()
+            b = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl, rule=rule)
+            t2 = time.perf_counter()
+            if rule == "min-time":
+                t_old.append(t1 - t0)
+                t_new.append(t2 - t1)
+            if a.feasible != b.feasible or a.reason != b.reason or a.n_pieces != b.n_pieces:
+                differ += 1
+                continue
+            if a.feasible:
+                n += 1
+                worst = max(worst, abs(a.duration_s - b.duration_s),
+                            max(abs(p - q) for p, q in zip(a.t_s, b.t_s)))
+            elif not (a.braking_distance_m == b.braking_distance_m
+                      or math.isnan(a.braking_distance_m) and math.isnan(b.braking_distance_m)):
+                differ += 1
+    print(f"  before ({BEFORE}, pure Python) median {statistics.median(t_old) * 1e6:.1f} µs, "
+          f"after {statistics.median(t_new) * 1e6:.2f} µs per solve (same approaches, alternated): "
+          f"{statistics.median(t_old) / statistics.median(t_new):.0f}x")
+    print(f"  same results: {n} feasible patterns x both rules, max |dT| {worst:.1e} s over durations and "
+          f"breakpoint times; {differ} verdicts or piece counts differ")
+
+
 def main() -> None:
+    cpu_import, cpu_compile, wall = compile_time()
+    print(f"bench_stopping: kernel compile in a fresh process: numba import {cpu_import:.2f} s CPU, "
+          f"compile {cpu_compile:.2f} s CPU ({wall:.2f} s wall for both)")
     rng = random.Random(12345)
     cases = [random_approach(rng) for _ in range(N_CASES)]
     by_events: dict[int, list[float]] = {}
-    all_t: list[float] = []
-    n_feasible = 0
-    # warm-up (imports, caches)
-    for c in cases[:50]:
+    for c in cases[:50]:  # warm-up (the compile, caches)
         solve_stop(c[0], c[1], jerk_max=c[2], decel_limits=c[3], speed_limits=c[4])
-    for v0, X, J, dl, sl in cases:
-        t0 = time.perf_counter()
-        p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
-        dt = time.perf_counter() - t0
-        n_ev = len({x for x, _ in dl[1:] + sl[1:] if x < X})
-        by_events.setdefault(n_ev, []).append(dt)
-        all_t.append(dt)
-        n_feasible += p.feasible
-    paper_t: list[float] = []
+    all_t = timed(solve_stop, cases)
+    n_feasible = 0
+    for (v0, X, J, dl, sl), dt in zip(cases, all_t):
+        by_events.setdefault(len({x for x, _ in dl[1:] + sl[1:] if x < X}), []).append(dt)
+    paper_t = timed(solve_stop, cases, rule="paper")
     gain: list[float] = []
     for v0, X, J, dl, sl in cases:
-        t0 = time.perf_counter()
         q = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl, rule="paper")
-        paper_t.append(time.perf_counter() - t0)
+        p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+        n_feasible += p.feasible
         if q.feasible:
-            p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
             gain.append(q.duration_s - p.duration_s)
-    med = statistics.median(all_t) * 1e3
-    p90 = statistics.quantiles(all_t, n=10)[-1] * 1e3
-    print(f"bench_stopping: {N_CASES} random approaches ({n_feasible} feasible), up to 6 event points")
-    print(f"  solve_stop median {med:.3f} ms, p90 {p90:.3f} ms per pattern (target <= {TARGET_MS} ms); "
-          f"rule='paper' median {statistics.median(paper_t) * 1e3:.3f} ms")
+    med = statistics.median(all_t) * 1e6
+    p90 = statistics.quantiles(all_t, n=10)[-1] * 1e6
+    print(f"  {N_CASES} random approaches ({n_feasible} feasible), up to 6 event points")
+    print(f"  solve_stop median {med:.2f} µs, p90 {p90:.2f} µs per pattern (target <= {TARGET_US:g} µs); "
+          f"rule='paper' median {statistics.median(paper_t) * 1e6:.2f} µs")
     g = sorted(gain)
     print(f"  true minimum vs the paper's rule: faster on {sum(x > 1e-9 for x in g)} of {len(g)} patterns, "
           f"by up to {g[-1]:.3f} s (never slower: min {g[0]:+.2e} s)")
     for k in sorted(by_events):
         ts = by_events[k]
-        print(f"    {k} event points: n={len(ts):4d}  median {statistics.median(ts) * 1e3:.3f} ms")
+        print(f"    {k} event points: n={len(ts):4d}  median {statistics.median(ts) * 1e6:.2f} µs")
+    pi = [position_independent(rng) for _ in range(N_CASES)]
+    rk = ruckig_solver()
+    ours, theirs = [], []
+    for v0, X, J, dl, sl in pi:  # alternated, so both see the same machine load
+        t0 = time.perf_counter()
+        solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+        t1 = time.perf_counter()
+        if rk is not None:
+            rk(v0, X, J, dl, sl)
+        theirs.append(time.perf_counter() - t1)
+        ours.append(t1 - t0)
+    mo = statistics.median(ours) * 1e6
+    if rk is None:
+        print(f"  position-independent: solve_stop median {mo:.2f} µs (ruckig not installed)")
+    else:
+        mt = statistics.median(theirs) * 1e6
+        print(f"  position-independent: solve_stop median {mo:.2f} µs, Ruckig calculate {mt:.2f} µs (incl. setting "
+              f"its inputs from Python; issue's figure {RUCKIG_US} µs): ratio {mo / mt:.1f}")
+    compare_before(cases[:1000])
     safe_side_cost()
 
 

@@ -337,3 +337,46 @@ def test_brake_start_is_where_deceleration_begins_after_non_binding_steps(dl, sl
     assert p.duration_s == pytest.approx((X - d) / v0 + stop_time(v0, A, J), abs=ROUNDOFF_S)
     s = p.sample(0.01)
     assert np.all(s.a_ms2[s.x_m < p.brake_start_m - 1e-6] == 0.0)
+
+
+def test_step_functions_as_tuples_or_arrays_solve_the_same_as_lists():
+    """The fast path converts two lists in one call; other sequences take the checked path. Two
+    numpy arrays must never be added elementwise (``a + b``) on the way in."""
+    dl = [(0.0, 0.9), (150.0, 0.7)]
+    sl = [(0.0, 25.0), (300.0, 15.0)]
+    ref = solve_stop(22.0, 600.0, jerk_max=0.6, decel_limits=dl, speed_limits=sl)
+    assert ref.feasible
+    for conv in (tuple, np.array, lambda s: [list(p) for p in s], lambda s: iter(s)):
+        p = solve_stop(22.0, 600.0, jerk_max=0.6, decel_limits=conv(dl), speed_limits=conv(sl))
+        assert p == ref, conv
+    # integers and numpy scalars are numbers like any other
+    q = solve_stop(np.float64(22.0), 600, jerk_max=0.6, decel_limits=[(0, 0.9), (150, 0.7)],
+                   speed_limits=[(0, 25), (300, 15)])
+    assert q == ref
+    with pytest.raises(InputError, match="x_stop must be >= 0"):
+        solve_stop(22.0, -1.0, jerk_max=0.6, decel_limits=[(0.0,)], speed_limits=sl)  # order: x_stop first
+    with pytest.raises(InputError, match=r"decel_limits\[1\] x_from=0.0 m is not after"):
+        solve_stop(22.0, 600.0, jerk_max=0.6, decel_limits=((0.0, 0.9), (0.0, 0.8)), speed_limits=[(0.0,)])
+
+
+def test_the_kernel_compiles_on_the_first_solve_only_and_once_per_function():
+    """Importing the solver must not compile it (some seconds: CLI commands that never solve a stop
+    would pay it), and every compiled function has its one signature: a constant argument used to
+    compile one copy per value, which tripled the compile time."""
+    import subprocess
+    import sys
+
+    code = "import sys, planner.stopping.pattern; print('planner.stopping.kernel' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False"]
+
+    from numba.core.registry import CPUDispatcher
+
+    from planner.stopping import construct, kernel, pieces
+
+    solve1(20.0, 500.0, 0.8, 1.0)
+    solve_stop(22.0, 600.0, jerk_max=0.6, decel_limits=[(0.0, 0.9), (300.0, 0.7)],
+               speed_limits=[(0.0, 25.0), (200.0, 15.0), (450.0, 20.0)])
+    compiled = [f for m in (pieces, construct, kernel) for f in vars(m).values() if isinstance(f, CPUDispatcher)]
+    assert len(compiled) >= 20
+    assert {f.py_func.__name__: len(f.signatures) for f in compiled if len(f.signatures) != 1} == {}

@@ -78,7 +78,7 @@ not the minimum: the optimum enters the restriction still braking with some
 ``b_s``, eases off inside it and cruises slightly below the limit
 (``C - b_s²/2J``); the time lost inside is paid back by braking later before
 it. The construction takes ``b_s`` by a one-dimensional minimisation of the
-duration (:meth:`_Builder._best_entry`, Brent's method; each trial finishes the
+duration (:func:`planner.stopping.construct._best_entry`, Brent's method; each trial finishes the
 construction), and with several step-downs runs once more so that each choice
 sees the others'. The choice also shortens the braking distance, so approaches
 that the paper's rule declares infeasible by less than an easing-off distance
@@ -88,12 +88,20 @@ time-discretised MILP: no slower, and within 0.01 s. Not covered: a step-down
 met without a cruise (the ease-off would end past the restriction start) is
 still entered at exactly the limit speed with the deceleration that gives.
 
+Code. This module is the public face (the result, input checks, the
+deceleration rule, :func:`solve_stop`); the construction runs compiled with
+numba: :mod:`planner.stopping.kernel` (the request, regions, forward
+breakpoints), :mod:`planner.stopping.construct` (the motions, the fixes, the
+entry choice) and :mod:`planner.stopping.pieces` (closed forms and roots of a
+piece). It is compiled on the first solve of a process, some seconds
+(``benchmarks/bench_stopping.py`` prints it); a solve then costs microseconds.
+
 References: DESIGN §5 (event-point constant-jerk stopping pattern method).
 """
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
+import threading
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
@@ -109,8 +117,6 @@ __all__ = [
     "solve_stop",
 ]
 
-_INF = math.inf
-_MAX_STEPS = 10_000  # guard against a construction that fails to make progress (never hit in tests)
 
 
 # --------------------------------------------------------------------------------------
@@ -228,6 +234,7 @@ class StopPattern:
         return PatternSamples(t, x, v, a, j)
 
 
+
 # --------------------------------------------------------------------------------------
 # Input checking
 # --------------------------------------------------------------------------------------
@@ -247,33 +254,50 @@ def _check_number(name: str, value, *, positive: bool = False) -> float:
     return f
 
 
+def _rows(name: str, steps, what: str) -> np.ndarray:
+    """A step function given as ``[(x_from_m, value), ...]`` as an ``(n, 2)`` float array (unchecked)."""
+    try:
+        return np.array([(p[0], p[1]) for p in steps], dtype=np.float64).reshape(-1, 2)
+    except (TypeError, ValueError, IndexError, KeyError):
+        raise InputError(f"{name} must be a sequence of (x_from_m, {what}) pairs") from None
+
+
+_POSITIVE = {True: 1, False: 0, None: -1}
+
+
+def _step_fault(name: str, rows: np.ndarray, code: int, i: int, *, what: str, noun: str = "step") -> str:
+    """The one-line message for fault ``code`` of :func:`planner.stopping.kernel.check_steps` at row ``i``."""
+    from planner.stopping import kernel as k
+
+    if code == k.EMPTY:
+        return f"{name} is empty; give at least one (0.0, {what}) pair"
+    x, val = rows[i].tolist()
+    if code == k.FIRST_NOT_ZERO:
+        return f"{name}[0] starts at x_from={x!r} m; the first {noun} must start at 0.0"
+    if code == k.NOT_FINITE:
+        return f"{name}[{i}] = ({x!r}, {val!r}) is not finite"
+    if code == k.NOT_SORTED:
+        prev = float(rows[i - 1, 0])
+        return (f"{name}[{i}] x_from={x!r} m is not after {name}[{i - 1}] x_from={prev!r} m; "
+                f"sort the {noun}s by strictly increasing x_from")
+    sign = ">" if code == k.NOT_POSITIVE else ">="
+    return f"{name}[{i}] at x_from={x!r} m: {what} must be {sign} 0, got {val!r}"
+
+
 def _check_steps(name: str, steps, *, what: str, positive: bool | None,
                  noun: str = "step") -> list[tuple[float, float]]:
     """Validate a step function given as ``[(x_from_m, value), ...]`` sorted, first at 0.
 
     ``positive``: True = values > 0, False = values >= 0, None = any finite value.
+    The checks are :func:`planner.stopping.kernel.check_steps`, the ones :func:`solve_stop` runs.
     """
-    try:
-        pairs = [(float(p[0]), float(p[1])) for p in steps]
-    except (TypeError, ValueError, IndexError):
-        raise InputError(f"{name} must be a sequence of (x_from_m, {what}) pairs") from None
-    if not pairs:
-        raise InputError(f"{name} is empty; give at least one (0.0, {what}) pair")
-    if pairs[0][0] != 0.0:
-        raise InputError(f"{name}[0] starts at x_from={pairs[0][0]!r} m; the first {noun} must start at 0.0")
-    for i, (x, val) in enumerate(pairs):
-        if not (math.isfinite(x) and math.isfinite(val)):
-            raise InputError(f"{name}[{i}] = ({x!r}, {val!r}) is not finite")
-        if i and not x > pairs[i - 1][0]:
-            raise InputError(
-                f"{name}[{i}] x_from={x!r} m is not after {name}[{i - 1}] x_from={pairs[i - 1][0]!r} m; "
-                f"sort the {noun}s by strictly increasing x_from"
-            )
-        if positive and not val > 0.0:
-            raise InputError(f"{name}[{i}] at x_from={x!r} m: {what} must be > 0, got {val!r}")
-        if positive is False and val < 0.0:
-            raise InputError(f"{name}[{i}] at x_from={x!r} m: {what} must be >= 0, got {val!r}")
-    return pairs
+    from planner.stopping import kernel as k
+
+    rows = _rows(name, steps, what)
+    code, i = k.check_steps(rows, 0, rows.shape[0], _POSITIVE[positive])
+    if code:
+        raise InputError(_step_fault(name, rows, code, i, what=what, noun=noun))
+    return [tuple(r) for r in rows.tolist()]
 
 
 # --------------------------------------------------------------------------------------
@@ -353,464 +377,22 @@ def decel_limit_profile(
     return out
 
 
-# --------------------------------------------------------------------------------------
-# Backward construction (pure floats; numpy per-call overhead would dominate here)
-# --------------------------------------------------------------------------------------
-
-
-def _adv(y: float, v: float, b: float, u: float, s: float) -> tuple[float, float, float]:
-    """Backward state after time ``s`` on a piece of jerk ``u`` (db/dtau = u)."""
-    return (
-        y + s * (v + s * (b / 2.0 + u * s / 6.0)),
-        v + s * (b + u * s / 2.0),
-        b + u * s,
-    )
-
-
-def _time_to_speed(v: float, b: float, u: float, C: float) -> float:
-    """Time until ``v + b s + u s²/2`` reaches ``C`` on a piece with ``u >= 0`` (inf if never)."""
-    dv = C - v
-    if dv <= 0.0:
-        return 0.0
-    if u > 0.0:
-        return 2.0 * dv / (b + math.sqrt(b * b + 2.0 * u * dv))
-    if b > 0.0:
-        return dv / b
-    return _INF
-
-
-def _time_to_y(y: float, v: float, b: float, u: float, Y: float, s_up: float = _INF) -> float:
-    """Time until the position ``y(s)`` reaches ``Y`` (>= y); ``s_up`` an upper bound when u < 0.
-
-    y(s) is increasing and convex on every piece (v >= 0, b >= 0 throughout), so
-    Newton from an upper bound converges monotonically to the root of the cubic.
-    """
-    D = Y - y
-    if D <= 0.0:
-        return 0.0
-    if D == _INF:
-        return _INF
-    if u == 0.0:
-        if b > 0.0:
-            return 2.0 * D / (v + math.sqrt(v * v + 2.0 * b * D))
-        return D / v if v > 0.0 else _INF
-    if u > 0.0:
-        # each term of v s + b s²/2 + u s³/6 alone reaching D bounds s from above
-        s = (6.0 * D / u) ** (1.0 / 3.0)
-        if v > 0.0:
-            s = min(s, D / v)
-        if b > 0.0:
-            s = min(s, math.sqrt(2.0 * D / b))
-    else:
-        s = s_up
-    for _ in range(60):
-        f = s * (v + s * (b / 2.0 + u * s / 6.0)) - D
-        df = v + s * (b + u * s / 2.0)
-        if df <= 0.0:
-            break
-        step = f / df
-        s -= step
-        if abs(step) <= 1e-15 * s + 1e-300:
-            break
-    return max(s, 0.0)
-
-
-def _illinois(f, lo: float, hi: float, flo: float, fhi: float, ftol: float) -> float:
-    """Root of an increasing ``f`` on ``[lo, hi]`` with ``flo <= 0 < fhi`` (Illinois false position)."""
-    side = 0
-    s = lo
-    for _ in range(200):
-        if fhi - flo <= 0.0:
-            return lo
-        s = (lo * fhi - hi * flo) / (fhi - flo)
-        if not lo <= s <= hi:
-            s = 0.5 * (lo + hi)
-        fs = f(s)
-        if abs(fs) <= ftol or hi - lo <= 4e-16 * max(1.0, abs(hi)):
-            return s
-        if fs > 0.0:
-            hi, fhi = s, fs
-            if side == 1:
-                flo *= 0.5
-            side = 1
-        else:
-            lo, flo = s, fs
-            if side == -1:
-                fhi *= 0.5
-            side = -1
-    return s
-
-
-def _brent_min(f, a: float, b: float, xtol: float, maxiter: int = 60) -> tuple[float, float]:
-    """Minimum of ``f`` on ``[a, b]`` (Brent: golden section with parabolic steps); ``(x, f(x))``."""
-    g = 0.5 * (3.0 - math.sqrt(5.0))
-    x = w = v = a + g * (b - a)
-    fx = fw = fv = f(x)
-    d = e = 0.0
-    for _ in range(maxiter):
-        m = 0.5 * (a + b)
-        tol = xtol + 1e-10 * abs(x)
-        if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):
-            break
-        para = False
-        if abs(e) > tol and fx < _INF and fw < _INF and fv < _INF:
-            r = (x - w) * (fx - fv)
-            q = (x - v) * (fx - fw)
-            p = (x - v) * q - (x - w) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                p = -p
-            q = abs(q)
-            if abs(p) < abs(0.5 * q * e) and a * q < p + q * x - 0.0 and p < q * (b - x):
-                e, d = d, p / q
-                u = x + d
-                if u - a < 2.0 * tol or b - u < 2.0 * tol:
-                    d = tol if m >= x else -tol
-                para = True
-        if not para:
-            e = (a - x) if x >= m else (b - x)
-            d = g * e
-        u = x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
-        fu = f(u)
-        if fu <= fx:
-            if u >= x:
-                a = x
-            else:
-                b = x
-            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
-        else:
-            if u < x:
-                a = u
-            else:
-                b = u
-            if fu <= fw or w == x:
-                v, fv, w, fw = w, fw, u, fu
-            elif fu <= fv or v == x or v == w:
-                v, fv = u, fu
-    return x, fx
-
-
-class _Builder:
-    """The backward event-point construction over one approach (all floats, backward frame)."""
-
-    __slots__ = ("J", "Yb", "A", "C", "capnext", "tau", "y", "v", "b", "u", "reg", "X", "optimize", "entry")
-
-    def __init__(self, J: float, Yb: list[float], A: list[float], C: list[float], X: float = _INF,
-                 optimize: bool = False, entry: dict | None = None):
-        self.J = J
-        self.X = X  # approach length: the objective of the entry choice at a speed step-down
-        self.optimize = optimize  # True: choose the entry at speed step-downs; False: take self.entry
-        self.entry = dict(entry or {})  # region of a step-down -> deceleration on entry (0: the paper's rule)
-        self.Yb = Yb  # region r spans y in [Yb[r], Yb[r+1]]; Yb[0] = 0, Yb[-1] = inf
-        self.A = A
-        self.C = C
-        n = len(A)
-        cn = [_INF] * n  # y where the speed cap next rises (backwards), per region
-        nxt = _INF
-        for r in range(n - 1, -1, -1):
-            cn[r] = nxt
-            if r and C[r - 1] != C[r]:
-                nxt = Yb[r]
-        self.capnext = cn
-        # nodes: start of each piece; the last node's piece is the open (current) motion
-        self.tau = [0.0]
-        self.y = [0.0]
-        self.v = [0.0]
-        self.b = [0.0]
-        self.u = [J]
-        self.reg = [0]
-
-    # -- helpers ----------------------------------------------------------------------
-
-    def _state(self, i: int, s: float) -> tuple[float, float, float]:
-        return _adv(self.y[i], self.v[i], self.b[i], self.u[i], s)
-
-    def _region_of(self, y: float) -> int:
-        """Region an open motion starting at ``y`` runs in (a boundary belongs to the far side)."""
-        return bisect_right(self.Yb, y) - 1
-
-    def _cut(self, i: int, s: float) -> None:
-        """Keep nodes 0..i with piece i cut at ``s``; the last node then starts the easing-off piece."""
-        del self.tau[i + 1 :], self.y[i + 1 :], self.v[i + 1 :], self.b[i + 1 :], self.u[i + 1 :], self.reg[i + 1 :]
-        if s > 0.0:
-            y, v, b = self._state(i, s)
-            self._push(self.tau[i] + s, y, v, b, 0.0, -1)
-        self.u[-1] = -self.J
-
-    def _push(self, t, y, v, b, u, r):
-        self.tau.append(t)
-        self.y.append(y)
-        self.v.append(v)
-        self.b.append(b)
-        self.u.append(u)
-        self.reg.append(r)
-
-    def _motion(self, v: float, b: float, r: int) -> float:
-        """Jerk of the motion from state (v, b) in region r: motion 1, 2 or 3."""
-        if b >= self.A[r] * (1.0 - 1e-13):
-            return 0.0  # 2: hold the deceleration limit
-        if b <= 0.0 and v >= self.C[r] * (1.0 - 1e-13):
-            return 0.0  # 3: hold the speed limit
-        return self.J  # 1: maximum jerk
-
-    def _search(self, f, i_hi: int, s_hi: float, i_lo: int = 0, s_lo: float = 0.0, ftol: float = 1e-12):
-        """Latest point (i, s) on the built part, between (i_lo, s_lo) and (i_hi, s_hi), where the
-        increasing residual ``f(y, v, b)`` crosses zero; ``f > 0`` at (i_hi, s_hi), ``f <= 0`` at (i_lo, s_lo).
-
-        Walking back piece by piece is "drop the previous point and backtrack further".
-        """
-        i = i_hi
-        hi = s_hi
-        fhi = f(*self._state(i, hi))
-        while True:
-            lo = s_lo if i == i_lo else 0.0
-            flo = f(*self._state(i, lo))
-            if flo <= 0.0 or i <= i_lo:
-                if flo > 0.0:  # numerical corner: treat the lower limit as the root
-                    return i, lo
-                y0, v0, b0, u0 = self.y[i], self.v[i], self.b[i], self.u[i]
-
-                def g(s, y0=y0, v0=v0, b0=b0, u0=u0):
-                    return f(*_adv(y0, v0, b0, u0, s))
-
-                return i, _illinois(g, lo, hi, flo, fhi, ftol)
-            fhi = flo
-            i -= 1
-            hi = self.tau[i + 1] - self.tau[i]
-
-    # -- the four motions and the fixes -----------------------------------------------
-
-    def run(self) -> float:
-        """Build backwards until cruising at the last cap; return that position (braking distance)."""
-        A, C, Yb = self.A, self.C, self.Yb
-        last = len(A) - 1
-        for _ in range(_MAX_STEPS):
-            i = len(self.tau) - 1
-            y0, v0, b0, u, r = self.y[i], self.v[i], self.b[i], self.u[i], self.reg[i]
-            y_hi = Yb[r + 1]
-            if u == 0.0 and b0 <= 0.0:  # motion 3: cruise at the cap
-                if r == last or C[r] >= C[last]:
-                    # cruising at the start speed (the last, highest cap): every region further back
-                    # has the same cap and a = 0 meets any deceleration limit, so braking starts here
-                    return y0
-                s = (y_hi - y0) / v0
-                r2 = r + 1
-                self._push(self.tau[i] + s, y_hi, v0, 0.0, self._motion(v0, 0.0, r2), r2)
-                continue
-            s_lim = (A[r] - b0) / u if u > 0.0 else _INF
-            s_v = _time_to_speed(v0, b0, u, C[r])
-            s_ev = _time_to_y(y0, v0, b0, u, y_hi)
-            if s_v < s_ev and s_v <= s_lim:
-                self._fix_speed(i, s_v, r)
-            elif s_lim < s_ev:
-                y1, v1, _ = _adv(y0, v0, b0, u, s_lim)
-                self._push(self.tau[i] + s_lim, y1, v1, A[r], 0.0, r)
-            else:
-                y1, v1, b1 = _adv(y0, v0, b0, u, s_ev)
-                y1 = y_hi
-                r2 = r + 1
-                if b1 > A[r2] * (1.0 + 1e-13):
-                    self._fix_decel(r2, i, s_ev)
-                else:
-                    b1 = min(b1, A[r2])
-                    self._push(self.tau[i] + s_ev, y1, v1, b1, self._motion(v1, b1, r2), r2)
-        raise RuntimeError("stopping pattern construction made no progress (internal error)")
-
-    def _fix_decel(self, r2: int, i_hi: int, s_hi: float) -> None:
-        """Motion 4 for a deceleration limit that drops to A[r2] at the event point Yb[r2]."""
-        J = self.J
-        A_new = self.A[r2]
-        ye = self.Yb[r2]
-
-        def reach(y, v, b):  # where easing off from here meets b = A_new, minus the event point
-            if b <= A_new:
-                return y - ye
-            rr = (b - A_new) / J
-            return y + rr * (v + rr * (b / 2.0 - J * rr / 6.0)) - ye
-
-        i, s = self._search(reach, i_hi, s_hi, ftol=1e-11 * max(1.0, ye))
-        y, v, b = self._state(i, s)
-        rr = max(b - A_new, 0.0) / J
-        v_e = v + rr * (b - J * rr / 2.0)
-        self._cut(i, s)
-        self._push(self.tau[-1] + rr, ye, v_e, A_new, self._motion(v_e, A_new, r2), r2)
-
-    def _fix_speed(self, i_v: int, s_v: float, r: int) -> None:
-        """Motion 4 for the speed cap C[r], first exceeded at (i_v, s_v)."""
-        J, C = self.J, self.C[r]
-
-        def energy(y, v, b):  # E - C: speed reached by easing off now, minus the cap
-            return v + b * b / (2.0 * J) - C
-
-        iq, sq = self._search(energy, i_v, s_v, ftol=1e-13 * max(1.0, C))
-        yq, vq, bq = self._state(iq, sq)
-        rr = bq / J
-        y_end = yq + rr * (vq + rr * (bq / 2.0 - J * rr / 6.0))
-        y_cap = self.capnext[r]
-        touch = y_end > y_cap
-        if touch:
-            # meet v = C exactly at the event point where the cap rises (a free there)
-            def at_cap(y, v, b):
-                dv = C - v
-                if dv <= 0.0:
-                    return y_cap - y
-                disc = b * b - 2.0 * J * dv
-                if disc < 0.0:
-                    disc = 0.0
-                rr = 2.0 * dv / (b + math.sqrt(disc))
-                return y_cap - (y + rr * (v + rr * (b / 2.0 - J * rr / 6.0)))
-
-            iq, sq = self._search(at_cap, i_v, s_v, iq, sq, ftol=1e-11 * max(1.0, y_cap))
-            yq, vq, bq = self._state(iq, sq)
-            dv = C - vq
-            disc = max(bq * bq - 2.0 * J * dv, 0.0)
-            rr = 2.0 * dv / (bq + math.sqrt(disc)) if dv > 0.0 else 0.0
-            y_end = y_cap
-        # the easing-off piece may cross points where the deceleration limit falls below it
-        r_q = self._region_of(yq)
-        r_end = self._region_of(y_end) if not touch else self._region_of(y_cap)
-        for r2 in range(r_q + 1, min(r_end, len(self.A) - 1) + 1):
-            ye = self.Yb[r2]
-            if ye > y_end:
-                break
-            if self.A[r2] >= bq:
-                continue
-            s_e = _time_to_y(yq, vq, bq, -J, ye, rr)
-            if bq - J * s_e > self.A[r2] * (1.0 + 1e-13):
-                self._fix_decel(r2, iq, sq)
-                return
-        b_end = bq - J * rr if touch else 0.0
-        v_end = C
-        step_down = not touch and self.optimize and y_cap < _INF and C < self.C[-1]
-        if step_down or (not touch and self.entry.get(r, 0.0) > 0.0):
-            before = before_entry = self._save()
-        self._cut(iq, sq)
-        r_next = self._region_of(y_end)
-        b_end = max(b_end, 0.0)
-        self._push(self.tau[-1] + rr, y_end, v_end, b_end, self._motion(v_end, b_end, r_next), r_next)
-        if step_down:
-            self._best_entry(before, i_v, s_v, r)
-        elif not touch and self.entry.get(r, 0.0) > 0.0 and y_cap < _INF:
-            paper = self._save()
-            self._load(before_entry)
-            if not self._enter_braking(i_v, s_v, r, self.entry[r]):
-                self._load(paper)
-
-    # -- the true minimum at a speed step-down ----------------------------------------
-
-    def _save(self):
-        return (self.tau[:], self.y[:], self.v[:], self.b[:], self.u[:], self.reg[:])
-
-    def _load(self, st) -> None:
-        self.tau, self.y, self.v, self.b, self.u, self.reg = (x[:] for x in st)
-
-    def _objective(self) -> float:
-        """Finish the construction with the entries chosen so far; the pattern duration minus X/v0.
-
-        ``tau_end - y_r / v0``: the duration up to a constant when the braking fits
-        (``y_r <= X``); past that, the needed distance counts first.
-        """
-        opt = self.optimize
-        self.optimize = False
-        try:
-            y_r = self.run()
-        except RuntimeError:
-            return _INF
-        finally:
-            self.optimize = opt
-        v0 = self.C[-1]
-        t = self.tau[-1] - y_r / v0
-        return t if y_r <= self.X else 1e9 + (y_r - self.X)
-
-    def _enter_braking(self, i_v: int, s_v: float, r: int, b_s: float) -> bool:
-        """Replace the part after the step-down: ease off to the lower cruise ``C - b_s²/(2J)``, cruise,
-        then brake on with full jerk so that ``v = C`` exactly at the restriction start, still braking
-        with ``b_s`` there. False when that needs more room than there is or breaks a limit."""
-        J, C, A, Yb = self.J, self.C[r], self.A, self.Yb
-        y_cap = self.capnext[r]
-        Cp = C - b_s * b_s / (2.0 * J)
-        if not Cp > 0.0:
-            return False
-
-        def energy(y, v, b):
-            return v + b * b / (2.0 * J) - Cp
-
-        iq, sq = self._search(energy, i_v, s_v, ftol=1e-13 * max(1.0, C))
-        yq, vq, bq = self._state(iq, sq)
-        rr = bq / J
-        y_end = yq + rr * (vq + rr * (bq / 2.0 - J * rr / 6.0))
-        s_r = b_s / J
-        y0 = y_cap - (Cp * s_r + J * s_r ** 3 / 6.0)
-        if y0 < y_end:
-            return False
-        # speed: at most Cp while easing off and cruising, at most C on the arc; the caps nearer the
-        # stop are lower, so every region the new part runs in is checked (conservatively)
-        k = self._region_of(yq)
-        while k < len(A) and Yb[k] < y_cap:
-            if self.C[k] < (C if Yb[k + 1] > y0 else Cp):
-                return False
-            k += 1
-        # easing off (b falls from bq): the deceleration limit at every event point it passes
-        k = self._region_of(yq) + 1
-        while k < len(A) and Yb[k] < y_end:
-            if A[k] < bq:
-                s_e = _time_to_y(yq, vq, bq, -J, Yb[k], rr)
-                if bq - J * s_e > A[k] * (1.0 + 1e-13):
-                    return False
-            k += 1
-        # braking on from y0 (b grows to b_s at y_cap): the limit of every region it runs in
-        r_c = self._region_of(y_cap)
-        if b_s > A[r_c]:
-            return False
-        k = self._region_of(y0)
-        while k < r_c:
-            y_hi = min(Yb[k + 1], y_cap)
-            if J * _time_to_y(y0, Cp, 0.0, J, y_hi) > A[k] * (1.0 + 1e-13):
-                return False
-            k += 1
-        self._cut(iq, sq)
-        t = self.tau[-1] + rr
-        if y0 > y_end:
-            self._push(t, y_end, Cp, 0.0, 0.0, self._region_of(y_end))
-            t += (y0 - y_end) / Cp
-        self._push(t, y0, Cp, 0.0, J, self._region_of(y0))
-        self._push(t + s_r, y_cap, C, b_s, self._motion(C, b_s, r_c), r_c)
-        return True
-
-    def _best_entry(self, before, i_v: int, s_v: float, r: int) -> None:
-        """Choose the deceleration ``b_s`` at the restriction start that minimises the duration.
-
-        The paper's rule is ``b_s = 0`` (the state on entry to this call). The
-        optimum enters still braking: one-dimensional minimisation of the
-        duration over ``b_s`` (Brent's method, to 0.5 % of its range, a few 1e-3 m/s²;
-        the duration is flat at the optimum, so its error is some 1e-4 s), each trial finishing
-        the construction with the entries already chosen (``self.entry``, else
-        the paper's rule) at the step-downs further back; :func:`solve_stop`
-        repeats the whole construction once when there are several step-downs,
-        so each choice sees the others' (coordinate descent).
-        """
-        paper = self._save()
-        f0 = self._objective()
-
-        def f(b_s: float) -> float:
-            self._load(before)
-            if not self._enter_braking(i_v, s_v, r, b_s):
-                return _INF
-            return self._objective()
-
-        hi = min(self.A[self._region_of(self.capnext[r])], math.sqrt(2.0 * self.J * self.C[r]) * 0.999)
-        best, fb = _brent_min(f, 0.0, hi, xtol=5e-3 * hi, maxiter=12)
-        self._load(before)
-        if fb < f0 and self._enter_braking(i_v, s_v, r, best):
-            self.entry[r] = best
-            return
-        self.entry[r] = 0.0
-        self._load(paper)
-
 
 # --------------------------------------------------------------------------------------
-# Public solver
+# Public solver (the construction itself is compiled: planner.stopping.kernel)
 # --------------------------------------------------------------------------------------
+
+_new = object.__new__
+_local = threading.local()
+_k = None  # planner.stopping.kernel, imported (and so compiled) on the first solve
+
+
+def _compiled():
+    global _k
+    from planner.stopping import kernel
+
+    _k = kernel
+    return kernel
 
 
 def solve_stop(
@@ -874,128 +456,81 @@ def solve_stop(
     """
     if rule not in ("min-time", "paper"):
         raise InputError(f"rule must be 'min-time' or 'paper', got {rule!r}")
+    k = _k or _compiled()
+    steps = None
+    if type(decel_limits) is list and type(speed_limits) is list:  # the common case, in one conversion
+        try:
+            v0, X, J = float(v_start), float(x_stop), float(jerk_max)
+            steps = np.array(decel_limits + speed_limits, dtype=np.float64)
+        except (TypeError, ValueError):
+            steps = None
+    if steps is None or steps.ndim != 2 or steps.shape[1] != 2:
+        v0, X, J, steps, n_dl = _request(v_start, x_stop, jerk_max, decel_limits, speed_limits)
+    else:
+        n_dl = len(decel_limits)
+    out = _out_buffer(k.out_size(steps.shape[0]))
+    n = k.kernel(v0, X, J, steps, n_dl, rule == "min-time", out)
+    if n < 0:
+        return _not_solved(-n, out, v0, X, J, steps, n_dl)
+    vals = out[:k.HEAD + 5 * n + 4].tolist()  # head, then t, x, v, a (n + 1 each) and j (n)
+    b = k.HEAD
+    m = n + 1
+    p = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
+    p.__dict__.update(
+        feasible=True, reason="", v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J, duration_s=vals[2],
+        brake_start_m=vals[3], braking_distance_m=vals[4], t_s=tuple(vals[b:b + m]),
+        x_m=tuple(vals[b + m:b + 2 * m]), v_ms=tuple(vals[b + 2 * m:b + 3 * m]),
+        a_ms2=tuple(vals[b + 3 * m:b + 4 * m]), j_ms3=tuple(vals[b + 4 * m:]))
+    return p
+
+
+def _out_buffer(size: int) -> np.ndarray:
+    """This thread's output array for the kernel, at least ``size`` long (the kernel runs without the GIL)."""
+    buf = getattr(_local, "out", None)
+    if buf is None or buf.size < size:
+        buf = _local.out = np.empty(max(size, 4096))
+    return buf
+
+
+def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
+    """The checked request when the fast conversion failed: the first fault raised, in argument order."""
     v0 = _check_number("v_start", v_start)
     X = _check_number("x_stop", x_stop)
     J = _check_number("jerk_max", jerk_max, positive=True)
     dl = _check_steps("decel_limits", decel_limits, what="decel_ms2", positive=True)
     sl = _check_steps("speed_limits", speed_limits, what="speed_ms", positive=False)
+    return v0, X, J, np.array(dl + sl, dtype=np.float64).reshape(-1, 2), len(dl)
+
+
+def _not_solved(code: int, out: np.ndarray, v0: float, X: float, J: float, steps: np.ndarray,
+                n_dl: int) -> StopPattern:
+    """The kernel's verdict other than a pattern: an infeasible StopPattern, or the InputError raised."""
+    from planner.stopping import kernel as k
+
     base = dict(v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J)
-
-    if v0 > sl[0][1]:
-        return StopPattern(
-            False,
-            f"start speed {v0:.2f} m/s is above the speed limit {sl[0][1]:.2f} m/s at the pattern start",
-            **base,
-        )
-    # the running minimum of the speed limit over [0, x) for x < x_stop (a <= 0: speed never rises)
-    cap = v0
-    for x, val in sl:
-        if x >= X:
-            break
-        if val < cap:
-            cap = val
-        if cap <= 0.0 and v0 > 0.0:
-            return StopPattern(
-                False, f"speed limit 0 m/s from x={x:.1f} m, before the stop at {X:.1f} m", **base
-            )
-    if v0 == 0.0:
-        if X == 0.0:
-            return StopPattern(True, "", **base, duration_s=0.0, brake_start_m=0.0, braking_distance_m=0.0,
-                               t_s=(0.0,), x_m=(0.0,), v_ms=(0.0,), a_ms2=(0.0,), j_ms3=())
-        return StopPattern(False, f"standing at the start and no re-acceleration allowed, cannot reach x_stop={X:.1f} m",
+    if code == k.BAD_V_START:
+        _check_number("v_start", v0)
+    if code == k.BAD_X_STOP:
+        _check_number("x_stop", X)
+    if code == k.BAD_JERK:
+        _check_number("jerk_max", J, positive=True)
+    if k.BAD_DECEL < code < k.BAD_SPEED:
+        raise InputError(_step_fault("decel_limits", steps[:n_dl], code - k.BAD_DECEL, int(out[1]),
+                                     what="decel_ms2"))
+    if code > k.BAD_SPEED:
+        raise InputError(_step_fault("speed_limits", steps[n_dl:], code - k.BAD_SPEED, int(out[1]),
+                                     what="speed_ms"))
+    if code == k.START_ABOVE_LIMIT:
+        return StopPattern(False, f"start speed {v0:.2f} m/s is above the speed limit "
+                                  f"{float(steps[n_dl, 1]):.2f} m/s at the pattern start", **base)
+    if code == k.ZERO_LIMIT:
+        return StopPattern(False, f"speed limit 0 m/s from x={float(out[1]):.1f} m, before the stop at {X:.1f} m",
                            **base)
-
-    # regions in the backward frame y = X - x: breakpoints of both step functions inside (0, X)
-    xs = sorted({x for x, _ in dl if 0.0 < x < X} | {x for x, _ in sl if 0.0 < x < X})
-    bounds = [0.0] + xs  # forward region starts
-    A_f: list[float] = []
-    C_f: list[float] = []
-    ia = isl = 0
-    cap = v0
-    for x in bounds:
-        while ia + 1 < len(dl) and dl[ia + 1][0] <= x:
-            ia += 1
-        while isl + 1 < len(sl) and sl[isl + 1][0] <= x:
-            isl += 1
-        cap = min(cap, sl[isl][1])
-        A_f.append(dl[ia][1])
-        C_f.append(cap)
-    # merge equal neighbours, then reverse into the backward frame
-    mb, mA, mC = [bounds[0]], [A_f[0]], [C_f[0]]
-    for x, a_, c_ in zip(bounds[1:], A_f[1:], C_f[1:]):
-        if a_ == mA[-1] and c_ == mC[-1]:
-            continue
-        mb.append(x)
-        mA.append(a_)
-        mC.append(c_)
-    n = len(mb)
-    Yb = [0.0] + [X - mb[k] for k in range(n - 1, 0, -1)] + [_INF]
-    A = mA[::-1]
-    C = mC[::-1]
-
-    builder = _Builder(J, Yb, A, C, X, optimize=(rule == "min-time"))
-    y_r = builder.run()
-    if len(builder.entry) > 1 and 0.0 in builder.entry.values():
-        # several step-downs and one kept the paper's rule, maybe because the others were still at it:
-        # choose each again, knowing the others' choice
-        builder = _Builder(J, Yb, A, C, X, optimize=True, entry=builder.entry)
-        y_r = builder.run()
-    if y_r > X * (1.0 + 1e-12) + 1e-9:
-        return StopPattern(
-            False,
-            f"needs {y_r:.1f} m to stop from {v0:.2f} m/s under these limits, only {X:.1f} m available",
-            **base,
-            braking_distance_m=y_r,
-        )
-    y_r = min(y_r, X)
-    return _forward(builder, v0, X, J, y_r, base)
-
-
-def _forward(builder: _Builder, v0: float, X: float, J: float, y_r: float, base: dict) -> StopPattern:
-    """Turn the backward node list into forward breakpoints (merging equal-jerk neighbours)."""
-    tau, ys, vs, bs, us = builder.tau, builder.y, builder.v, builder.b, builder.u
-    m = len(tau) - 1  # closed backward pieces 0..m-1; node m is the cruise at v_start
-    t_cruise = (X - y_r) / v0
-    T = t_cruise + tau[m]
-    ts: list[float] = [0.0]
-    xs: list[float] = [0.0]
-    vv: list[float] = [v0]
-    aa: list[float] = [0.0]
-    jj: list[float] = []
-    if t_cruise > 1e-12 * max(1.0, T):  # a round-off sliver of cruise is not a piece
-        jj.append(0.0)
-        ts.append(t_cruise)
-        xs.append(X - y_r)
-        vv.append(v0)
-        aa.append(0.0)
-    for k in range(m - 1, -1, -1):
-        dur = tau[k + 1] - tau[k]
-        if dur <= 1e-14 * max(1.0, T):
-            continue
-        j = us[k]
-        if jj and jj[-1] == j:  # same cubic continues: merge
-            ts[-1] = T - tau[k]
-            xs[-1] = X - ys[k]
-            vv[-1] = vs[k]
-            aa[-1] = -bs[k]
-            continue
-        jj.append(j)
-        ts.append(T - tau[k])
-        xs.append(X - ys[k])
-        vv.append(vs[k])
-        aa.append(-bs[k])
-    # the end point is exact by construction
-    ts[-1], xs[-1], vv[-1], aa[-1] = T, X, 0.0, 0.0
-    return StopPattern(
-        True,
-        "",
-        **base,
-        duration_s=T,
-        brake_start_m=X - y_r,
-        braking_distance_m=y_r,
-        t_s=tuple(ts),
-        x_m=tuple(xs),
-        v_ms=tuple(vv),
-        a_ms2=tuple(aa),
-        j_ms3=tuple(jj),
-    )
+    if code == k.STANDING:
+        return StopPattern(False, f"standing at the start and no re-acceleration allowed, cannot reach "
+                                  f"x_stop={X:.1f} m", **base)
+    if code == k.NEEDS_MORE:
+        y_r = float(out[4])
+        return StopPattern(False, f"needs {y_r:.1f} m to stop from {v0:.2f} m/s under these limits, only "
+                                  f"{X:.1f} m available", **base, braking_distance_m=y_r)
+    raise RuntimeError("stopping pattern construction made no progress (internal error)")

@@ -1,0 +1,226 @@
+"""One stop solved in compiled code: checks, regions, construction, forward breakpoints (DESIGN §5).
+
+:func:`kernel` is what :func:`planner.stopping.pattern.solve_stop` calls: it
+checks the request, builds the regions of the backward frame, runs the
+construction (:mod:`planner.stopping.construct`) and writes the forward
+breakpoints, or a code saying why there is no pattern; the caller turns the
+code into a :class:`~planner.stopping.pattern.StopPattern` or a one-line error.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planner.stopping.construct import DONE, N_SLOTS, TAU, U, V_, W, Y, B, _construct
+from planner.stopping.pieces import STEPS, ST, NS, V, _pmax, _pmin, b1, f8, i8, jit, nt
+
+_INF = math.inf
+
+
+# --------------------------------------------------------------------------------------
+# The request: checks, regions, forward breakpoints
+# --------------------------------------------------------------------------------------
+
+# codes of kernel(); the caller turns them into a StopPattern or an error message
+OK = 0
+START_ABOVE_LIMIT, ZERO_LIMIT, STANDING, NEEDS_MORE, INTERNAL = 1, 2, 3, 4, 5
+BAD_V_START, BAD_X_STOP, BAD_JERK = 10, 11, 12
+BAD_DECEL, BAD_SPEED = 20, 30  # + a step-function code below
+EMPTY, FIRST_NOT_ZERO, NOT_FINITE, NOT_SORTED, NOT_POSITIVE, NEGATIVE = 1, 2, 3, 4, 5, 6
+HEAD = 8  # out[:HEAD]: code, index/value, T, brake start, braking distance, number of pieces
+
+
+@jit(nt.UniTuple(i8, 2)(STEPS, i8, i8, i8), public=True)
+def check_steps(steps, lo, hi, positive):
+    """First fault of the step function ``steps[lo:hi]`` (rows ``x_from, value``): ``(code, row - lo)``,
+    ``(0, 0)`` when none. ``positive``: 1 values > 0, 0 values >= 0, -1 any finite value."""
+    if hi <= lo:
+        return EMPTY, 0
+    if steps[lo, 0] != 0.0:
+        return FIRST_NOT_ZERO, 0
+    for i in range(lo, hi):
+        x, val = steps[i, 0], steps[i, 1]
+        if not (math.isfinite(x) and math.isfinite(val)):
+            return NOT_FINITE, i - lo
+        if i > lo and not x > steps[i - 1, 0]:
+            return NOT_SORTED, i - lo
+        if positive == 1 and not val > 0.0:
+            return NOT_POSITIVE, i - lo
+        if positive == 0 and val < 0.0:
+            return NEGATIVE, i - lo
+    return 0, 0
+
+
+@jit(nt.UniTuple(V, 3)(f8, f8, STEPS, i8))
+def _regions(v0, X, steps, n_dl):
+    """Regions of the backward frame ``y = X - x``: breakpoints of both step functions inside (0, X),
+    equal neighbours merged; ``(Yb, A, C)`` with ``C`` the running minimum of the speed limit.
+    ``steps``: the deceleration limits (rows ``:n_dl``) then the speed limits."""
+    n = steps.shape[0]
+    xs = np.empty(n)
+    nx = 0
+    for row in range(n):
+        x = steps[row, 0]
+        if 0.0 < x < X:  # insertion into the sorted distinct positions so far
+            k = nx
+            while k and xs[k - 1] > x:
+                k -= 1
+            if k and xs[k - 1] == x:
+                continue
+            for j in range(nx, k, -1):
+                xs[j] = xs[j - 1]
+            xs[k] = x
+            nx += 1
+    nb = nx + 1
+    mb = np.empty(nb)
+    mA = np.empty(nb)
+    mC = np.empty(nb)
+    ia, isl = 0, n_dl
+    cap = v0
+    k = 0
+    for j in range(nb):
+        x = 0.0 if j == 0 else xs[j - 1]
+        while ia + 1 < n_dl and steps[ia + 1, 0] <= x:
+            ia += 1
+        while isl + 1 < n and steps[isl + 1, 0] <= x:
+            isl += 1
+        cap = _pmin(cap, steps[isl, 1])
+        if k and steps[ia, 1] == mA[k - 1] and cap == mC[k - 1]:
+            continue
+        mb[k] = x
+        mA[k] = steps[ia, 1]
+        mC[k] = cap
+        k += 1
+    Yb = np.empty(k + 1)
+    A = np.empty(k)
+    C = np.empty(k)
+    Yb[0] = 0.0
+    for j in range(k):
+        if j:
+            Yb[j] = X - mb[k - j]
+        A[j] = mA[k - 1 - j]
+        C[j] = mC[k - 1 - j]
+    Yb[k] = _INF
+    return Yb, A, C
+
+
+@jit(nt.none(ST, NS, f8, f8, f8, V))
+def _forward(st, ns, v0, X, y_r, out):
+    """The backward nodes as forward breakpoints into ``out`` (merging equal-jerk neighbours)."""
+    m = ns[W] - 1  # closed backward pieces 0..m-1; node m is the cruise at v_start
+    P = m + 2  # room for every piece plus the cruise
+    ts = out[HEAD: HEAD + P]
+    xs = out[HEAD + P: HEAD + 2 * P]
+    vv = out[HEAD + 2 * P: HEAD + 3 * P]
+    aa = out[HEAD + 3 * P: HEAD + 4 * P]
+    jj = out[HEAD + 4 * P: HEAD + 5 * P]
+    t_cruise = (X - y_r) / v0
+    T = t_cruise + st[W, TAU, m]
+    ts[0], xs[0], vv[0], aa[0] = 0.0, 0.0, v0, 0.0
+    n = 0  # pieces so far
+    if t_cruise > 1e-12 * _pmax(1.0, T):  # a round-off sliver of cruise is not a piece
+        jj[0] = 0.0
+        n = 1
+        ts[1], xs[1], vv[1], aa[1] = t_cruise, X - y_r, v0, 0.0
+    for k in range(m - 1, -1, -1):
+        dur = st[W, TAU, k + 1] - st[W, TAU, k]
+        if dur <= 1e-14 * _pmax(1.0, T):
+            continue
+        j = st[W, U, k]
+        if not (n and jj[n - 1] == j):  # else the same cubic continues: merge
+            jj[n] = j
+            n += 1
+        ts[n], xs[n], vv[n], aa[n] = T - st[W, TAU, k], X - st[W, Y, k], st[W, V_, k], -st[W, B, k]
+    # the end point is exact by construction
+    ts[n], xs[n], vv[n], aa[n] = T, X, 0.0, 0.0
+    # compact: t, x, v, a (n + 1 each) then j (n) from out[HEAD]
+    for f in range(1, 5):
+        for k in range(n + 1):
+            out[HEAD + f * (n + 1) + k] = out[HEAD + f * P + k]
+    out[2], out[3], out[4], out[5] = T, X - y_r, y_r, n
+
+
+@jit(i8(f8, f8, f8, STEPS, i8, b1, V), public=True)
+def kernel(v0, X, J, steps, n_dl, optimize, out):
+    """Solve one stop: ``steps`` holds the decel limits (first ``n_dl`` rows) then the speed limits.
+
+    Returns the number of pieces ``n`` of the pattern, or minus a code (an infeasibility or a bad
+    input). Writes ``out[0]`` the code (OK or that code), ``out[1]`` an index or position for the
+    message, and for OK: ``out[2:5]`` the duration, brake start and braking distance, ``out[5]``
+    ``n`` and from ``out[HEAD]`` the breakpoints t, x, v, a (``n + 1`` each) then the jerks (``n``);
+    for NEEDS_MORE the braking distance needed in ``out[4]``.
+    """
+    out[1] = 0.0
+    if not (math.isfinite(v0) and v0 >= 0.0):
+        out[0] = BAD_V_START
+        return -int(out[0])
+    if not (math.isfinite(X) and X >= 0.0):
+        out[0] = BAD_X_STOP
+        return -int(out[0])
+    if not (math.isfinite(J) and J > 0.0):
+        out[0] = BAD_JERK
+        return -int(out[0])
+    n = steps.shape[0]
+    code, i = check_steps(steps, 0, n_dl, 1)
+    if code:
+        out[0], out[1] = BAD_DECEL + code, i
+        return -int(out[0])
+    code, i = check_steps(steps, n_dl, n, 0)
+    if code:
+        out[0], out[1] = BAD_SPEED + code, i
+        return -int(out[0])
+    if v0 > steps[n_dl, 1]:
+        out[0] = START_ABOVE_LIMIT
+        return -int(out[0])
+    # the running minimum of the speed limit over [0, x) for x < x_stop (a <= 0: speed never rises)
+    cap = v0
+    for i in range(n_dl, n):
+        if steps[i, 0] >= X:
+            break
+        if steps[i, 1] < cap:
+            cap = steps[i, 1]
+        if cap <= 0.0 and v0 > 0.0:
+            out[0], out[1] = ZERO_LIMIT, steps[i, 0]
+            return -int(out[0])
+    if v0 == 0.0:
+        if X == 0.0:
+            out[0], out[2], out[3], out[4], out[5] = OK, 0.0, 0.0, 0.0, 0.0
+            for k in range(4):
+                out[HEAD + k] = 0.0
+            return 0
+        out[0] = STANDING
+        return -int(out[0])
+    Yb, A, C = _regions(v0, X, steps, n_dl)
+    cap_nodes = 8 * A.size + 64
+    st = np.empty((N_SLOTS, 6, cap_nodes))
+    ns = np.zeros(N_SLOTS + 1, dtype=np.int64)
+    entry = np.empty(A.size)
+    entry[:] = math.nan  # no entry chosen at that region's step-down
+    status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, optimize)
+    if status == DONE:
+        chosen = 0
+        paper = False
+        for e in entry:
+            if not math.isnan(e):
+                chosen += 1
+            if e == 0.0:
+                paper = True
+        if chosen > 1 and paper:
+            # several step-downs and one kept the paper's rule, maybe because the others were still
+            # at it: choose each again, knowing the others' choice
+            status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, True)
+    if status != DONE:
+        out[0] = INTERNAL
+        return -int(out[0])
+    if y_r > X * (1.0 + 1e-12) + 1e-9:
+        out[0], out[4] = NEEDS_MORE, y_r
+        return -int(out[0])
+    out[0] = OK
+    _forward(st, ns, v0, X, _pmin(y_r, X), out)
+    return int(out[5])
+
+
+def out_size(n_steps: int) -> int:
+    """Length of the ``out`` array :func:`kernel` needs for ``n_steps`` step rows in all."""
+    return HEAD + 5 * (8 * (n_steps + 1) + 64 + 2)
