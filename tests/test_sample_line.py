@@ -455,6 +455,6 @@ def test_every_sample_approach_has_a_pattern_at_the_nightly_adhesion_levels():
         warnings.simplefilter("ignore", InfeasibleStopWarning)
         results = stop_sweep(planner.load_line(SAMPLE), adhesion_kmh_s=spec, n_jobs=1)
     assert len(results) == 66  # 11 stops per direction x 2 directions x 3 train types
-    bad = [f"{r.train_type} {r.direction} {r.origin}->{r.station_id} at {a} km/h/s: {p.reason}"
-           for r in results for a, p in zip(r.adhesion_kmh_s, r.patterns) if not p.feasible]
+    bad = [f"{r.train_type} {r.direction} {r.origin}->{r.station_id} at {a} m/s²: {p.reason}"
+           for r in results for a, p in zip(r.adhesion_ms2, r.patterns) if not p.feasible]
     assert not bad, "\n".join(bad)
