@@ -164,3 +164,17 @@ def test_the_code_digest_covers_every_floor():
     seen = {module_name(p) for p in code_files()}
     assert seen == {m for _, m in modules()}
     assert {floor_of(m) for m in seen} >= set(FLOORS) - {"api"} | {"planner"}
+
+
+def test_the_code_digest_names_the_compilers(monkeypatch):
+    """A new numba (or llvmlite, numpy) compiles different machine code: cached units must not be reused."""
+    import importlib.metadata
+
+    from planner.job import units
+
+    monkeypatch.setattr(units, "_CODE_DIGEST", None)
+    before = units.code_digest()
+    real = importlib.metadata.version
+    monkeypatch.setattr(importlib.metadata, "version", lambda d: "0.0-test" if d == "numba" else real(d))
+    monkeypatch.setattr(units, "_CODE_DIGEST", None)
+    assert units.code_digest() != before

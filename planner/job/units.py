@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import importlib.metadata
 import os
 import signal
 import time
@@ -32,16 +33,22 @@ from planner.line.model import Line
 _CODE_DIGEST: str | None = None
 
 
+COMPILERS = ("numba", "llvmlite", "numpy")
+"""Packages whose versions are part of the code digest: they compile or run the kernels."""
+
+
 def code_files() -> list[Path]:
     """Every source file of the planner package, every floor (sorted)."""
     return sorted(Path(planner.__file__).resolve().parent.rglob("*.py"))
 
 
 def code_digest() -> str:
-    """SHA-256 over the planner package's source files (names and bytes) and its version."""
+    """SHA-256 over the planner package's source files (names and bytes), its version and its compilers'."""
     global _CODE_DIGEST
     if _CODE_DIGEST is None:
         h = hashlib.sha256(__version__.encode())
+        for dist in COMPILERS:  # the kernels' machine code comes from these: a new compiler recomputes
+            h.update(f"{dist}={importlib.metadata.version(dist)}".encode() + b"\0")
         pkg = Path(planner.__file__).resolve().parent
         for p in code_files():
             h.update(p.relative_to(pkg).as_posix().encode() + b"\0")
