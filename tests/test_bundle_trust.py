@@ -278,3 +278,25 @@ def test_cli_build_stamps_version_expiry_and_key_kind(tmp_path):
     assert (info.bundle_version, info.key_kind) == (7, "development")
     r = run_cli("bundle", "build", line_dir, "--out", tmp_path / "out", "--key", priv, "--built-at", "yesterday")
     assert r.exit_code != 0 and "not an ISO 8601 time" in r.output
+
+
+def test_run_overview_says_development_key_instead_of_failed(tmp_path, keys, small_line):
+    """The run overview shows a development-signed bundle as verified but not for service (amber), a
+    production one as verified, and a tampered one as FAILED."""
+    import re
+
+    from planner.report.overview import _bundles
+
+    run = tmp_path / "run"
+    folder = run / "bundles"
+    dev = build(small_line, folder, keys[0], development=True)
+    prod = build(small_line, folder, keys[0], direction="up")
+    shutil.copy(keys[1], folder / "signing_key.pub.pem")
+    bad = folder / "tl_bad.pdb"
+    data = bytearray(prod.read_bytes())
+    data[600] ^= 1
+    bad.write_bytes(bytes(data))
+    status = {re.sub("<[^>]+>", "", row[0]): re.sub("<[^>]+>", "", row[1]) for row in _bundles(run)}
+    assert status[dev.name].startswith("verified, development key: not for service")
+    assert status[prod.name].startswith("verified (partial") and "development" not in status[prod.name]
+    assert status[bad.name].startswith("FAILED")

@@ -43,7 +43,7 @@ h3{font-size:15px;margin:14px 0 4px}p,li{font-size:14px;line-height:1.45}.sub{co
 table{border-collapse:collapse;background:#fff;font-size:12.5px;margin:4px 0 10px}
 th,td{border:1px solid #dde1e5;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#eef1f4;font-weight:600}td.n{text-align:right;font-variant-numeric:tabular-nums}
-code{font-size:12px}.ok{color:#2e7d32;font-weight:600}.bad{color:#c62828;font-weight:600}
+code{font-size:12px}.ok{color:#2e7d32;font-weight:600}.bad{color:#c62828;font-weight:600}.dev{color:#b26a00;font-weight:600}
 a{color:#1f5fa8}details{margin:6px 0}summary{cursor:pointer;font-weight:600;font-size:14px}
 .links a{display:inline-block;margin:2px 12px 2px 0;font-size:14px}
 """
@@ -73,9 +73,12 @@ def _bundles(run_dir: Path) -> list[list[str]]:
     out = []
     for b in sorted(folder.glob("*.pdb")) if folder.is_dir() else []:
         try:
-            info = verify_bundle(b, pub)
-            status = "<span class='ok'>verified</span>" + ("" if info.complete else
-                                                           f" (partial: missing {_e(', '.join(info.missing))})")
+            # a development-signed bundle verifies in full (signature, hashes, schema); it says so instead of
+            # failing: vehicles refuse it, and `planner bundle verify` without --allow-dev does too
+            info = verify_bundle(b, pub, allow_dev=True)
+            status = ("<span class='ok'>verified</span>" if info.key_kind == "production" else
+                      "<span class='dev'>verified, development key</span>: not for service (vehicles refuse it)")
+            status += "" if info.complete else f" (partial: missing {_e(', '.join(info.missing))})"
             tables = ", ".join(f"{f.name.removesuffix('.parquet')} {f.rows}" for f in info.files)
             out.append([f"<code>{_e(b.name)}</code>", status, f"{info.size_bytes:,}", f"<code>{info.sha256[:16]}</code>",
                         f"{_e(info.line_id)} {_e(info.direction)} {_e(info.train_type)}", _e(tables)])
