@@ -208,7 +208,8 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     parts.append("<h2 id='bundles'>Bundles</h2>" + (_table(["bundle", "verify", "bytes", "SHA-256", "for", "tables (rows)"],
                                                            brows, num=(2,)) if brows else "<p>none</p>")
                  + "<p class='sub'>Verified with <code>bundles/signing_key.pub.pem</code> of this run, as "
-                 "<code>planner bundle verify</code> does: signature, hashes, schema and consistency.</p>")
+                 "<code>planner bundle verify --allow-dev</code> does: signature, hashes, schema and consistency; a "
+                 "development key is named, since vehicles in service refuse it.</p>")
     # schemas
     parts.append("<h2 id='schemas'>Dataset schemas</h2>")
     for name, d in docs.items():
