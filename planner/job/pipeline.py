@@ -320,7 +320,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     if job.conflicts.enabled and line.network is not None:
         conflicts = _conflicts_step(job, line, stage, runner, summary)
     _margins_step(job, line, stage, runner, summary,
-                  [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], grid, conflicts)
+                  [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts)
     _bundles_step(job, line, stage, runner, summary, key)
     from planner.job.views import line_views  # inputs copy, train graph page
 
@@ -351,7 +351,7 @@ def _margins_unit(line, options, types, stage, n_jobs):
 
 
 def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
-                  unit_keys: list[str], grid, conflicts) -> None:
+                  unit_keys: list[str], conflicts) -> None:
     from planner.report.html import write_html
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import margin_options

@@ -57,37 +57,31 @@ def code_digest() -> str:
     return _CODE_DIGEST
 
 
-def _segments_in(seg, lo: float, hi: float) -> list:
-    m = (seg.end_m > lo) & (seg.start_m < hi)  # vectorised: gradient tables may have millions of rows
-    return [(float(a), float(b), float(v)) for a, b, v in zip(seg.start_m[m], seg.end_m[m], seg.value[m])]
+def _segments(seg) -> list:
+    return [(float(a), float(b), float(v)) for a, b, v in zip(seg.start_m, seg.end_m, seg.value)]
 
 
 def interstation_inputs(line: Line, train_type: str, origin: str, destination: str) -> dict[str, Any]:
     """Everything of the line database that a run from ``origin`` to ``destination`` can see.
 
-    The window is :meth:`planner.line.model.Line.window_m` (the stretch between
-    the two stop markers widened by one train length on both sides), the same
-    slice :meth:`~planner.line.model.Line.window` gives the unit to compute with.
+    Read from :meth:`planner.line.model.Line.window` (the stretch between the two
+    stop markers widened by one train length on both sides), the same slice the
+    unit is given to compute with, so the key digests exactly what the unit sees.
     """
-    ext = line.run_between(origin, destination)
-    direction, a, b = ext.direction, ext.start_m, ext.end_m
-    tt = line.train_type(train_type)
-    lo, hi = line.window_m(origin, destination, train_type)
+    w = line.window(origin, destination, train_type)
+    ext = w.run_between(origin, destination)
+    direction = ext.direction
     return {
-        "line_id": line.line_id,  # results carry it (partition line=): a copy under another id is not a hit
+        "line_id": w.line_id,  # results carry it (partition line=): a copy under another id is not a hit
         "direction": direction,
-        "origin": [origin, a],
-        "destination": [destination, b],
-        "line_max_ms": line.max_speed_ms,
-        "train": dataclasses.asdict(tt),
-        "gradients": _segments_in(line.gradients, lo, hi),
-        "curves": _segments_in(line.curves, lo, hi),
-        "limits": [
-            dataclasses.astuple(s) for s in line.limits_for(direction, train_type) if s.end_m > lo and s.start_m < hi
-        ],
-        "beacons": [
-            dataclasses.astuple(x) for x in line.beacons_for(direction) if lo < x.position_m < hi
-        ],
+        "origin": [origin, ext.start_m],
+        "destination": [destination, ext.end_m],
+        "line_max_ms": w.max_speed_ms,
+        "train": dataclasses.asdict(w.train_type(train_type)),
+        "gradients": _segments(w.gradients),
+        "curves": _segments(w.curves),
+        "limits": [dataclasses.astuple(s) for s in w.limits_for(direction, train_type)],
+        "beacons": [dataclasses.astuple(x) for x in w.beacons_for(direction)],
     }
 
 
