@@ -345,11 +345,13 @@ class _Integrator:
         # above the ceiling only after a lowered target (or a start state); the stall check's last node
         self.flags = np.array([1, k0, -1, -1, -1], dtype=np.int64)
         self.e = np.empty((len(self.prep.bounds), n))  # the ceiling's segment table (kernel.set_targets)
-        K.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
-        st[K.S_WLAST] = st[K.S_W]
         self.record = record
         mr = self.m - k0 if record else 1
         self.rec, self.rec_p = np.zeros((5, n if record else 1, mr)), np.empty((n if record else 1, mr), np.int8)
+        K.check_layout(trk=self.prep.trk, seg=self.prep.seg, bounds=self.prep.bounds, par=par, st=st, lane=lane,
+                       e=self.e, cst=self.cst, tab=tab, flags=self.flags, rec=self.rec, rec_p=self.rec_p)
+        K.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
+        st[K.S_WLAST] = st[K.S_W]
         if record:
             self.rec[K.R_T, :, 0], self.rec[K.R_V, :, 0] = st[K.S_T], st[K.S_V]
             self.rec[K.R_RATIO, :, 0], self.rec[K.R_CAP, :, 0] = par[K.P_RATIO], par[K.P_CAPV]
