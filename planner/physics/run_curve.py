@@ -80,7 +80,11 @@ class RunState:
     ----------
     s_m : running distance [m]; t_s : time since departure [s]; v_ms : speed [m/s];
     phase : int8 phase code of the step that arrived here (``PHASE_*``);
-    ratio : target-speed ratio in force on that step.
+    ratio : target-speed ratio in force on that step;
+    w_ms2 : the integrator's own speed² [m²/s²] and coasting : a sawtooth vehicle in its
+    coasting band (bool), both set in the snapshots of :func:`simulate`. A run started from
+    a snapshot then goes on exactly, to the bit, as the run it was taken from would; left
+    None (a state made by hand), they follow from ``v_ms`` and ``phase``.
     """
 
     s_m: np.ndarray
@@ -88,6 +92,8 @@ class RunState:
     v_ms: np.ndarray
     phase: np.ndarray
     ratio: np.ndarray
+    w_ms2: np.ndarray | None = None
+    coasting: np.ndarray | None = None
 
 
 class Command(NamedTuple):
@@ -288,7 +294,9 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
         if phase.shape != (n,):
             phase = np.full(n, phase.reshape(-1)[0] if phase.size else PHASE_POWER, dtype=np.int8)
         state = RunState(np.zeros(n), _as_batch(start.t_s, n, "start.t_s"), _as_batch(start.v_ms, n, "start.v_ms"),
-                         phase, ratio)
+                         phase, ratio,
+                         None if start.w_ms2 is None else _as_batch(start.w_ms2, n, "start.w_ms2"),
+                         None if start.coasting is None else np.asarray(start.coasting, bool).reshape(-1))
     run = _Integrator(track, train, load, tf, state, k0, record)
     run.schedule(changes, controller, decision_m, snapshots_m)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -330,13 +338,13 @@ class _Integrator:
         par[K.P_SHED] = float(train.service_brake_ms2)  # deceleration onto a lowered target
         st = self.st = np.empty((7, n))
         st[K.S_T], st[K.S_V] = state.t_s, state.v_ms
-        st[K.S_W] = st[K.S_V] * st[K.S_V]
+        st[K.S_W] = st[K.S_V] * st[K.S_V] if state.w_ms2 is None else state.w_ms2
         st[K.S_WORK] = 0.0  # traction work / M_e [J/kg]
         st[K.S_BAD] = np.inf
         lane = self.lane = np.empty((2, n), dtype=np.int8)
         lane[K.L_PHASE] = state.phase
         # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
-        lane[K.L_COAST] = (state.phase != PHASE_POWER) & sawtooth
+        lane[K.L_COAST] = ((state.phase != PHASE_POWER) if state.coasting is None else state.coasting) & sawtooth
         self.cst = np.array([train.max_accel_ms2, train.coast_band_ms, float(sawtooth)])
         # the tractive-effort table (speed, effort, slope of each piece) for the kernel's np.interp
         tab = self.tab = np.zeros((3, len(train.traction_speed_ms)))
@@ -377,7 +385,8 @@ class _Integrator:
     def state(self, k: int) -> RunState:
         st = self.st
         return RunState(np.full(self.n, self.s[k]), st[K.S_T].copy(), st[K.S_V].copy(),
-                        self.lane[K.L_PHASE].copy(), self.par[K.P_RATIO].copy())
+                        self.lane[K.L_PHASE].copy(), self.par[K.P_RATIO].copy(), st[K.S_W].copy(),
+                        self.lane[K.L_COAST] != 0)
 
     def _events(self, k: int) -> None:
         changed = False
