@@ -137,6 +137,9 @@ def test_cold_run_publishes_everything_and_reads_back(project):
     import json
 
     manifest = json.loads((out / "latest" / "manifest.json").read_text())
+    # which machine code ran: the kernels built at install (make test builds them)
+    assert manifest["software"]["kernels"] == {"integrator": "aot", "stopping": "aot"}
+    assert "kernels built at install" in (out / "latest" / "index.html").read_text()
     assert manifest["run_date"] == datetime.datetime.now(datetime.timezone.utc).date().isoformat() or \
         manifest["run_date"] == (datetime.datetime.now(datetime.timezone.utc).date()
                                  - datetime.timedelta(days=1)).isoformat()  # a run across midnight

@@ -21,6 +21,7 @@ restriction recomputes only the interstations (and approaches) it reaches.
 from __future__ import annotations
 
 import dataclasses
+import importlib.metadata
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +43,7 @@ from planner.job.units import (
     _stops_unit,
     _tables_unit,
     code_digest,
+    kernel_backends,
     interstation_inputs,
 )
 from planner.job.publish import (
@@ -430,7 +432,8 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "inputs_digest": inputs,
         "code_digest": code_digest(),
         "software": {"planner": __version__, "python": platform.python_version(),
-                     "numpy": numpy.__version__, "pyarrow": pyarrow.__version__},
+                     "numpy": numpy.__version__, "pyarrow": pyarrow.__version__,
+                     "numba": importlib.metadata.version("numba"), "kernels": kernel_backends()},
         "lines": [{"line_id": ln.line_id, "path": Path(p).as_posix(), "source_digest": ln.source_digest}
                   for ln, p in zip(lines, job.job.lines)],
         "parameters": job.parameters(),

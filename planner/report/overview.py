@@ -121,6 +121,17 @@ def _inputs(run_dir: Path, manifest: dict[str, Any]) -> list[str]:
     return parts
 
 
+def _kernels(sw: dict) -> str:
+    """", numba 0.x (kernels built at install)" or which ran just in time; empty for older manifests."""
+    k = sw.get("kernels") or {}
+    if not k:
+        return ""
+    how = ("kernels built at install" if set(k.values()) == {"aot"} else
+           "kernels " + ", ".join(f"{n} {'built at install' if b == 'aot' else 'compiled just in time'}"
+                                  for n, b in sorted(k.items())))
+    return f", numba {_e(sw.get('numba', '?'))} ({_e(how)})"
+
+
 def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = ()) -> str:
     """The overview page of a run folder as HTML (module doc for the sections)."""
     from planner.report.catalog import datasets
@@ -135,7 +146,8 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
         f"<h1>Run <code>{_e(run_id)}</code> <span style='color:#777;font-weight:400'>job {_e(manifest.get('job', ''))}</span></h1>",
         f"<p class='sub'>inputs digest <code>{_e(manifest.get('inputs_digest', ''))}</code> · code digest "
         f"<code>{_e(str(manifest.get('code_digest', ''))[:16])}</code> · planner {_e(sw.get('planner', '?'))}, "
-        f"Python {_e(sw.get('python', '?'))}, numpy {_e(sw.get('numpy', '?'))}, pyarrow {_e(sw.get('pyarrow', '?'))}</p>",
+        f"Python {_e(sw.get('python', '?'))}, numpy {_e(sw.get('numpy', '?'))}, pyarrow {_e(sw.get('pyarrow', '?'))}"
+        + _kernels(sw) + "</p>",
     ]
     # flags
     flags = manifest.get("flags", {})
