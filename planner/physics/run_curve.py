@@ -80,7 +80,14 @@ class RunState:
     ----------
     s_m : running distance [m]; t_s : time since departure [s]; v_ms : speed [m/s];
     phase : int8 phase code of the step that arrived here (``PHASE_*``);
-    ratio : target-speed ratio in force on that step.
+    ratio : target-speed ratio in force on that step;
+    coasting : bool, whether a sawtooth vehicle is in its coasting band (it coasts down to the
+    band's lower edge before it powers again; always False for a constant-speed vehicle), or
+    None where not known. The integrator fills it at every node; it is the vehicle's own
+    cruise-control state, which the phase does not give: a run braking onto a restriction
+    below its band has left the band (it powers when a higher target lets it), one that
+    meets a falling ceiling from a coast has not. A start state ignores it (its phase
+    decides, :func:`simulate`).
     """
 
     s_m: np.ndarray
@@ -88,6 +95,7 @@ class RunState:
     v_ms: np.ndarray
     phase: np.ndarray
     ratio: np.ndarray
+    coasting: np.ndarray | None = None
 
 
 class Command(NamedTuple):
@@ -375,7 +383,7 @@ class _Integrator:
     def state(self, k: int) -> RunState:
         st = self.st
         return RunState(np.full(self.n, self.s[k]), st[K.S_T].copy(), st[K.S_V].copy(),
-                        self.lane[K.L_PHASE].copy(), self.par[K.P_RATIO].copy())
+                        self.lane[K.L_PHASE].copy(), self.par[K.P_RATIO].copy(), self.lane[K.L_COAST] != 0)
 
     def _events(self, k: int) -> None:
         changed = False

@@ -71,7 +71,11 @@ smooth (not even a monotone) function of the ratio:
   can correct the choice, the row of table (b) is replaced by table (d)
   (:class:`ApproachTable`, built for sawtooth vehicles only): the
   remaining time from the train's *own* state there — its measured speed,
-  interpolated on a 2 km/h grid, and whether it is powering — at every ratio
+  interpolated on a 2 km/h grid, and whether it is in its coasting band
+  (:func:`out_of_band`: the vehicle's cruise-control state, not the phase of
+  its last step; a train that arrives braking onto a restriction below its
+  band powers up to a raised target, and taking it for a coasting one cost
+  1.1 s 200 m before the stop) — at every ratio
   of a 1 % grid, for the table and the reference train, so
   T = T_d(v, phase, r_a) + θ · (T_d,ref − T_d). A sawtooth train's place in
   its coasting band is part of that state, which a row indexed by the ratio
@@ -106,16 +110,20 @@ class ApproachTable:
     Tables (b) and (c) index the state at a point by the ratio the train ran before it. At the
     last point nothing later can correct the choice, and a sawtooth train's state there (where
     in its coasting band it is) is not a function of that ratio. Table (d) instead holds, for
-    a grid of speeds at the point and both phases (powering, or coasting / holding / braking),
-    the remaining time at each ratio of a fine grid, for the table train and the reference
-    train; the vehicle interpolates at its measured speed in its actual phase.
+    a grid of speeds at the point and both band states (out of the coasting band: powers when
+    below its target; in it: coasts to the band's lower edge first), the remaining time at
+    each ratio of a fine grid, for the table train and the reference train; the vehicle
+    interpolates at its measured speed in its actual band state.
 
     Attributes
     ----------
     speeds_ms : ndarray, shape (n_v,)
         Start speeds, ascending [m/s].
     powering : tuple of bool, length n_p
-        Phase of each slice: True = powering (notch on), False = not powering.
+        Band state of each slice: True = out of the coasting band (the train powers whenever it
+        is below its target; a start in phase power), False = in its coasting band (it coasts
+        down to the band's lower edge first; a start in any other phase). Look it up with
+        :func:`out_of_band`.
     ratios : ndarray, shape (n_ra,)
         Ratios after the point, descending.
     time_s, ref_time_s : ndarray, shape (n_p, n_v, n_ra)
@@ -228,7 +236,7 @@ class RatioChooser(Protocol):
     ) -> np.ndarray:
         """New ratio per run at evaluation point ``k`` from the current ratio, remaining time [s]
         and, for modes that use them, the measured speed [m/s] and whether the train is
-        powering (notch on) as it passes the point."""
+        out of its coasting band (:func:`out_of_band`) as it passes the point."""
 
 
 def _nearest_index(values: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -489,6 +497,23 @@ def chooser(mode: str) -> RatioChooser:
         raise InputError(f"--mode {mode!r} is not a table mode; known: {', '.join(CHOOSERS)}") from None
 
 
+def out_of_band(state) -> np.ndarray:
+    """Per run: True when the vehicle is *not* in a sawtooth coasting band, i.e. it powers
+    whenever it is below its target — table (d)'s ``powering`` slice.
+
+    That is the vehicle's cruise-control state (:attr:`planner.physics.run_curve.RunState.coasting`),
+    not the phase of the last step: a sawtooth train that arrives *braking* may be in its band
+    (riding a falling ceiling it met from a coast) or out of it (braked onto a restriction
+    below its band: given a higher target it powers up to it). Table (d) starts its runs
+    from the two band states, so the look-up must use the same one. Without the state
+    (a start state, an older caller), the phase decides: powering = out of the band.
+    """
+    coasting = getattr(state, "coasting", None)
+    if coasting is None:
+        return np.asarray(state.phase) == PHASE_POWER
+    return ~np.asarray(coasting, bool)
+
+
 def make_controller(
     tables: RunningTimeTables, mode: str | RatioChooser, arrival_s: np.ndarray
 ) -> tuple[Callable, list[float], list[list[float]]]:
@@ -525,8 +550,7 @@ def make_controller(
         k = int(np.argmin(np.abs(pts - float(s_m))))
         if k not in ks or abs(pts[k] - float(s_m)) > SAME_POINT_M:
             return state.ratio  # a decision we did not ask for: keep the ratio
-        new = ch.at_point(tables, k, state.ratio, arrival - state.t_s, state.v_ms,
-                          np.asarray(state.phase) == PHASE_POWER)
+        new = ch.at_point(tables, k, state.ratio, arrival - state.t_s, state.v_ms, out_of_band(state))
         chosen.append(np.asarray(new, float))
         return new
 
