@@ -75,3 +75,28 @@ def test_adaptive_last_point_on_the_approach_of_a_braking_sawtooth_train(line):
     r = closed_loop_interstation(line, "E6", tabs, scenario="nominal", mode="adaptive")
     e = np.abs(r.error_s[r.feasible])
     assert e.size > 50 and e.max() <= 0.5, e.max()
+
+
+def test_adaptive_keeps_a_one_ratio_feature_of_the_reference_train():
+    """Hand-made tables, grid 1.0 / 0.95 / 0.9, points dep, P1, P2. The reference train (table
+    (c)) is slower at 0.95 than at both neighbours (Δ = 10, 12, 10 s from departure; 6, 8, 6 s
+    from P1), as the perturbed E6 is on NKN->YMT. The train runs the reference: its leg to P1
+    at 0.9 takes 48 s (table 44 s), so θ = 1, and 71 s remain at P1, exactly the reference's
+    time from P1 at 0.95; the answer is 0.95. A median across neighbouring ratios made Δ(0.95)
+    6 s and chose about 0.92 (2 s late)."""
+    from planner.tables.onboard import AdaptiveRule, RunningTimeTables
+
+    r = np.array([1.0, 0.95, 0.9])
+    table = np.array([[100.0, 105.0, 110.0], [60.0, 63.0, 66.0], [20.0, 21.0, 22.0]])  # from dep, P1, P2
+    delta = np.array([[10.0, 12.0, 10.0], [6.0, 8.0, 6.0], [2.0, 3.0, 2.0]])
+    tabs = RunningTimeTables(
+        origin="A", destination="B", ratios=r, time_a_s=table[0], eval_point_ids=("dep", "P1", "P2"),
+        eval_distance_m=np.array([0.0, 1000.0, 2000.0]), eval_position_m=np.array([0.0, 1000.0, 2000.0]),
+        remaining_s=np.repeat(table[:, None, :], 3, axis=1),  # the state at a point: not the ratio before
+        ref_remaining_s=table + delta)
+    rule = AdaptiveRule()
+    designated = 119.0
+    assert rule.depart(tabs, np.array([designated]))[0] == 0.9  # beyond table (a): lowest ratio
+    leg = (table + delta)[0, 2] - (table + delta)[1, 2]  # the reference's leg at 0.9: 48 s
+    ra = rule.at_point(tabs, 1, np.array([0.9]), np.array([designated - leg]))[0]
+    assert ra == pytest.approx(0.95, abs=1e-9)

@@ -9,7 +9,8 @@ two interstations per direction —
 * HGO→MDR down, where the sawtooth E6 had its largest error in the adaptive mode (the coasting
   band's phase at the home-signal beacon 325 m before the stop, until table (d));
 * KWB→SKM up, where the E6 adaptive mode once chose the lowest ratio 325 m before the stop
-  (5 s late, perturbed) before table (c) was smoothed: a regression case.
+  (5 s late, perturbed) from a coasting-band spike of table (c): a regression case (table (d)
+  now predicts there from the train's own state; table (c) is no longer smoothed).
 
 Tables are built as the nightly job builds them (load 0, nominal traction, default ratio grid);
 the perturbed scenario runs a heavier, weaker train against those same tables. Bounds are the

@@ -54,15 +54,22 @@ clock between beacons, which it has anyway; nothing but the tables and the
 clock is used. θ is clipped to ``AdaptiveRule.THETA_RANGE`` (never below 0:
 the table train is the fastest).
 
-Two details make it robust for sawtooth vehicles, whose running time is not a
+Three details make it robust for sawtooth vehicles, whose running time is not a
 smooth (not even a monotone) function of the ratio:
 
-* Δ(X, ·) is smoothed across the ratio grid (median of each ratio and its two
-  neighbours, clipped at 0). Table (c) compares two constant-ratio runs from
+* Δ(X, ·) is used as table (c) gives it, only clipped at 0 (a heavier, weaker
+  train is never faster). Table (c) compares two constant-ratio runs from
   departure, so Δ also holds the difference of the two trains' coasting-band
-  phases at X, which flips sign from one ratio to the next (±5 s at low ratios
-  on the sample line); multiplied by θ it once sent a train that was on time
-  to the lowest ratio 325 m before the stop (5 s late).
+  phases at X, which can flip sign from one ratio to the next. It was once
+  smoothed across the grid (median of each ratio and its two neighbours)
+  because such a spike, multiplied by θ, sent an on-time train to the lowest
+  ratio 325 m before the stop; that was the last point, where sawtooth
+  vehicles now use table (d), and the crossing nearest the current ratio (next
+  item) keeps spikes at far ratios out of the choice. The median also removed
+  real single-ratio features: E6 NKN→YMT, the reference train at ratio 0.95 is
+  0.6–1.1 s slower than at both neighbours from every point up to 700 m
+  before the stop; smoothed away, the perturbed train trusted 0.94 and arrived
+  1.2 s late at ratio 1.0 (study: 5 % steps, points every 200–1000 m).
 * T(X, r_b, ·; θ) is piecewise linear in 1/r between grid ratios and need not
   be monotone, so every crossing with the remaining time is found exactly
   (:func:`solve_piecewise`) and the one nearest the current ratio wins: the
@@ -408,12 +415,11 @@ class AdaptiveRule:
         """Reference − table remaining time from point k at constant ratio, per grid ratio [s].
 
         Table (c) compares two constant-ratio runs from departure, so besides the reference
-        train's own loss after X it holds the difference of the two trains' states at X. For a
-        sawtooth train that part is the phase of the coast band and flips sign from one ratio to
-        the next (±5 s on the sample line at low ratios). The vehicle wants the smooth part:
-        a median over each ratio and its two grid neighbours (which leaves any monotone
-        sequence unchanged and removes one-ratio spikes), clipped at 0 because a heavier,
-        weaker train is never faster than the table train from the same state.
+        train's own loss after X it holds the difference of the two trains' states at X (for a
+        sawtooth train, the phase of the coasting band). It is clipped at 0, because a heavier,
+        weaker train is never faster than the table train from the same state, and otherwise
+        used as it is: a median across neighbouring ratios also removes real one-ratio features
+        (module doc).
         """
         key = (id(tables), k)
         if key not in self._dcache:
@@ -422,13 +428,11 @@ class AdaptiveRule:
                 raise InputError("mode adaptive needs table (c) (table_c dataset); rebuild the tables with "
                                  "`planner tables`")
             d = ref[k] - np.diagonal(tables.remaining_s[k])
-            pad = np.concatenate([d[:1], d, d[-1:]])
-            med = np.median(np.stack([pad[:-2], pad[1:-1], pad[2:]]), axis=0)
-            self._dcache[key] = (tables, np.maximum(med, 0.0))  # keep tables alive: id stays unique
+            self._dcache[key] = (tables, np.maximum(d, 0.0))  # keep tables alive: id stays unique
         return self._dcache[key][1]
 
     def _delta(self, tables: RunningTimeTables, k: int, r: float) -> float:
-        """Smoothed reference − table remaining time from point k at ratio r [s]."""
+        """Reference − table remaining time from point k at ratio r, clipped at 0 [s]."""
         return _interp_u(tables.ratios, self._delta_row(tables, k), r)
 
     def depart(self, tables, designated_s):
