@@ -69,6 +69,7 @@ from . import schema  # noqa: E402,F401
 from . import importer  # noqa: E402,F401
 from . import graph  # noqa: E402,F401
 from . import diff  # noqa: E402,F401
+from . import kernels  # noqa: E402,F401
 
 
 def main() -> None:

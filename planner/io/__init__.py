@@ -1,5 +1,6 @@
 """Machinery with no railway knowledge: atomic file writes, the Parquet dataset
-writer/reader, and the one parallel map (``map_tasks``) with its backends.
+writer/reader, the one parallel map (``map_tasks``) with its backends, and the
+loader of the kernels' machine code built at install (``compiled``).
 
 Takes bytes, Arrow tables and plain callables; gives files and results. Every
 other sub-package may import from here; nothing here imports them.

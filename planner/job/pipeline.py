@@ -32,7 +32,6 @@ from planner.io.parquet import stamp_run
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
 from planner.line.model import DIRECTIONS, Line
-from planner.io.paths import check_path_id
 from planner.job.cache import Cache
 from planner.job.units import (
     Progress,
@@ -352,7 +351,6 @@ def _margins_unit(line, options, types, stage, n_jobs):
 
 def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
                   unit_keys: list[str], conflicts) -> None:
-    from planner.report.html import write_html
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import margin_options
 
@@ -367,8 +365,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
-    write_html(report, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
-               datasets_root=stage)
+    # the page itself is written once, by job.views.run_views, with what changed since the last run on top
     summary.reports[line.line_id] = report
     for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)

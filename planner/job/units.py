@@ -24,6 +24,7 @@ from typing import Any, Callable, Sequence
 
 import planner
 from planner import __version__
+from planner.io.compiled import COMPILERS  # their versions are part of the code digest
 from planner.job.cache import Cache
 from planner.job.config import Job
 from planner.line.model import Line
@@ -33,8 +34,14 @@ from planner.line.model import Line
 _CODE_DIGEST: str | None = None
 
 
-COMPILERS = ("numba", "llvmlite", "numpy")
-"""Packages whose versions are part of the code digest: they compile or run the kernels."""
+def kernel_backends() -> dict[str, str]:
+    """Per compiled kernel, where its machine code comes from: ``aot`` (built at install) or ``jit``."""
+    from planner.io import compiled
+    from planner.physics import kernel
+    from planner.stopping import codes
+
+    stop = compiled.status("stopping", codes.SOURCES)["state"] == "built"
+    return {"integrator": kernel.BACKEND, "stopping": "aot" if stop else "jit"}
 
 
 def code_files() -> list[Path]:
@@ -49,6 +56,8 @@ def code_digest() -> str:
         h = hashlib.sha256(__version__.encode())
         for dist in COMPILERS:  # the kernels' machine code comes from these: a new compiler recomputes
             h.update(f"{dist}={importlib.metadata.version(dist)}".encode() + b"\0")
+        for kind, backend in sorted(kernel_backends().items()):  # built at install or just in time: same
+            h.update(f"{kind}={backend}".encode() + b"\0")  # bits (tests/test_compiled.py), kept apart anyway
         pkg = Path(planner.__file__).resolve().parent
         for p in code_files():
             h.update(p.relative_to(pkg).as_posix().encode() + b"\0")

@@ -21,11 +21,15 @@ int8 phase code and sawtooth coasting flag, ``e`` (segments, n) the
 ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
 ``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves.
 
-Compiled lazily on first use, in memory only: no ``cache=True``, because
-numba's cache index is a pickle read back from disk, which the project does
-not trust. The compile costs about 3 s of CPU once per process
-(``benchmarks/bench_kernel.py`` prints it); every argument type is fixed, so
-there is one compilation per process.
+Built ahead of time at install (:mod:`planner.io.compiled`: ``planner
+kernels build``, which ``make install`` runs), so a process loads machine code
+instead of compiling; :data:`BACKEND` says which it got. Without a build for
+these exact sources it compiles lazily on first use, in memory only (no
+``cache=True``: numba's cache index is a pickle read back from disk, which the
+project does not trust): about 3 s of CPU once per process
+(``benchmarks/bench_kernel.py`` prints it). Every argument type is fixed
+(:data:`SIGNATURES`; the built functions do not check their arguments, so
+:func:`check_layout` does, once per integrator).
 """
 from __future__ import annotations
 
@@ -33,6 +37,9 @@ import math
 
 import numpy as np
 from numba import njit
+from numba import types as nt
+
+from planner.io import compiled
 
 PHASE_POWER, PHASE_HOLD, PHASE_COAST, PHASE_BRAKE, PHASE_STOP = 0, 1, 2, 3, 4
 SAWTOOTH_MIN_FRACTION = 0.5
@@ -318,3 +325,36 @@ def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, 
                     return
                 flags[F_K_OK] = kc + 1
         k = k_end
+
+
+_F1, _F2, _F3 = nt.float64[::1], nt.float64[:, ::1], nt.float64[:, :, ::1]
+_I1, _B2 = nt.int64[::1], nt.int8[:, ::1]
+SIGNATURES = {
+    "advance": nt.void(nt.int64, nt.int64, nt.int64, _F2, _I1, _F2, _F2, _B2, _F2, _F1, _F2, _I1, _F3, _B2,
+                       nt.boolean),
+    "set_targets": nt.void(nt.int64, _F2, _I1, _I1, _F2, _F2, _F2),
+}
+"""The one signature of each entry point (the arrays C-contiguous, as :func:`check_layout` requires)."""
+_LAYOUT = {"trk": (np.float64, 2), "seg": (np.int64, 1), "bounds": (np.int64, 1), "par": (np.float64, 2),
+           "st": (np.float64, 2), "lane": (np.int8, 2), "e": (np.float64, 2), "cst": (np.float64, 1),
+           "tab": (np.float64, 2), "flags": (np.int64, 1), "rec": (np.float64, 3), "rec_p": (np.int8, 2)}
+
+
+def check_layout(**arrays: np.ndarray) -> None:
+    """Raise if an array for the kernel is not of its dtype, rank and C order (:data:`SIGNATURES`)."""
+    for name, a in arrays.items():
+        dtype, ndim = _LAYOUT[name]
+        if not (type(a) is np.ndarray and a.dtype == dtype and a.ndim == ndim and a.flags.c_contiguous):
+            raise TypeError(f"kernel array {name}: expected C-contiguous {np.dtype(dtype)} of rank {ndim}, got "
+                            f"{getattr(a, 'dtype', type(a))} of rank {getattr(a, 'ndim', '?')}")
+
+
+SOURCES = (__name__, compiled.__name__)
+"""What a build of this kernel is made of (its digest names the built module)."""
+JIT = {name: (globals()[name], sig) for name, sig in SIGNATURES.items()}
+"""The just-in-time entry points with their signatures: what ``planner kernels build`` compiles."""
+_built = compiled.load("integrator", SOURCES)
+BACKEND = "aot" if _built is not None else "jit"
+"""``"aot"``: the entry points below are the module built at install; ``"jit"``: numba compiles them on first use."""
+if _built is not None:
+    advance, set_targets = _built.advance, _built.set_targets

@@ -81,13 +81,10 @@ class RunState:
     s_m : running distance [m]; t_s : time since departure [s]; v_ms : speed [m/s];
     phase : int8 phase code of the step that arrived here (``PHASE_*``);
     ratio : target-speed ratio in force on that step;
-    coasting : bool, whether a sawtooth vehicle is in its coasting band (it coasts down to the
-    band's lower edge before it powers again; always False for a constant-speed vehicle), or
-    None where not known. The integrator fills it at every node; it is the vehicle's own
-    cruise-control state, which the phase does not give: a run braking onto a restriction
-    below its band has left the band (it powers when a higher target lets it), one that
-    meets a falling ceiling from a coast has not. A start state ignores it (its phase
-    decides, :func:`simulate`).
+    w_ms2 : the integrator's own speed² [m²/s²] and coasting : a sawtooth vehicle in its
+    coasting band (bool), both set in the snapshots of :func:`simulate`. A run started from
+    a snapshot then goes on exactly, to the bit, as the run it was taken from would; left
+    None (a state made by hand), they follow from ``v_ms`` and ``phase``.
     """
 
     s_m: np.ndarray
@@ -95,6 +92,7 @@ class RunState:
     v_ms: np.ndarray
     phase: np.ndarray
     ratio: np.ndarray
+    w_ms2: np.ndarray | None = None
     coasting: np.ndarray | None = None
 
 
@@ -296,7 +294,9 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
         if phase.shape != (n,):
             phase = np.full(n, phase.reshape(-1)[0] if phase.size else PHASE_POWER, dtype=np.int8)
         state = RunState(np.zeros(n), _as_batch(start.t_s, n, "start.t_s"), _as_batch(start.v_ms, n, "start.v_ms"),
-                         phase, ratio)
+                         phase, ratio,
+                         None if start.w_ms2 is None else _as_batch(start.w_ms2, n, "start.w_ms2"),
+                         None if start.coasting is None else np.asarray(start.coasting, bool).reshape(-1))
     run = _Integrator(track, train, load, tf, state, k0, record)
     run.schedule(changes, controller, decision_m, snapshots_m)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -338,13 +338,13 @@ class _Integrator:
         par[K.P_SHED] = float(train.service_brake_ms2)  # deceleration onto a lowered target
         st = self.st = np.empty((7, n))
         st[K.S_T], st[K.S_V] = state.t_s, state.v_ms
-        st[K.S_W] = st[K.S_V] * st[K.S_V]
+        st[K.S_W] = st[K.S_V] * st[K.S_V] if state.w_ms2 is None else state.w_ms2
         st[K.S_WORK] = 0.0  # traction work / M_e [J/kg]
         st[K.S_BAD] = np.inf
         lane = self.lane = np.empty((2, n), dtype=np.int8)
         lane[K.L_PHASE] = state.phase
         # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
-        lane[K.L_COAST] = (state.phase != PHASE_POWER) & sawtooth
+        lane[K.L_COAST] = ((state.phase != PHASE_POWER) if state.coasting is None else state.coasting) & sawtooth
         self.cst = np.array([train.max_accel_ms2, train.coast_band_ms, float(sawtooth)])
         # the tractive-effort table (speed, effort, slope of each piece) for the kernel's np.interp
         tab = self.tab = np.zeros((3, len(train.traction_speed_ms)))
@@ -353,11 +353,13 @@ class _Integrator:
         # above the ceiling only after a lowered target (or a start state); the stall check's last node
         self.flags = np.array([1, k0, -1, -1, -1], dtype=np.int64)
         self.e = np.empty((len(self.prep.bounds), n))  # the ceiling's segment table (kernel.set_targets)
-        K.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
-        st[K.S_WLAST] = st[K.S_W]
         self.record = record
         mr = self.m - k0 if record else 1
         self.rec, self.rec_p = np.zeros((5, n if record else 1, mr)), np.empty((n if record else 1, mr), np.int8)
+        K.check_layout(trk=self.prep.trk, seg=self.prep.seg, bounds=self.prep.bounds, par=par, st=st, lane=lane,
+                       e=self.e, cst=self.cst, tab=tab, flags=self.flags, rec=self.rec, rec_p=self.rec_p)
+        K.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
+        st[K.S_WLAST] = st[K.S_W]
         if record:
             self.rec[K.R_T, :, 0], self.rec[K.R_V, :, 0] = st[K.S_T], st[K.S_V]
             self.rec[K.R_RATIO, :, 0], self.rec[K.R_CAP, :, 0] = par[K.P_RATIO], par[K.P_CAPV]
@@ -383,7 +385,8 @@ class _Integrator:
     def state(self, k: int) -> RunState:
         st = self.st
         return RunState(np.full(self.n, self.s[k]), st[K.S_T].copy(), st[K.S_V].copy(),
-                        self.lane[K.L_PHASE].copy(), self.par[K.P_RATIO].copy(), self.lane[K.L_COAST] != 0)
+                        self.lane[K.L_PHASE].copy(), self.par[K.P_RATIO].copy(), st[K.S_W].copy(),
+                        self.lane[K.L_COAST] != 0)
 
     def _events(self, k: int) -> None:
         changed = False

@@ -13,6 +13,9 @@ import math
 import numpy as np
 
 from planner.stopping.construct import DONE, N_SLOTS, TAU, U, V_, W, Y, B, _construct
+from planner.stopping.codes import (  # noqa: F401  (the codes are read through this module too)
+    BAD_DECEL, BAD_JERK, BAD_SPEED, BAD_V_START, BAD_X_STOP, EMPTY, FIRST_NOT_ZERO, HEAD, INTERNAL, NEEDS_MORE,
+    NEGATIVE, NOT_FINITE, NOT_POSITIVE, NOT_SORTED, OK, SOURCES, STANDING, START_ABOVE_LIMIT, ZERO_LIMIT, out_size)
 from planner.stopping.pieces import STEPS, ST, NS, V, _pmax, _pmin, b1, f8, i8, jit, nt
 
 _INF = math.inf
@@ -22,16 +25,11 @@ _INF = math.inf
 # The request: checks, regions, forward breakpoints
 # --------------------------------------------------------------------------------------
 
-# codes of kernel(); the caller turns them into a StopPattern or an error message
-OK = 0
-START_ABOVE_LIMIT, ZERO_LIMIT, STANDING, NEEDS_MORE, INTERNAL = 1, 2, 3, 4, 5
-BAD_V_START, BAD_X_STOP, BAD_JERK = 10, 11, 12
-BAD_DECEL, BAD_SPEED = 20, 30  # + a step-function code below
-EMPTY, FIRST_NOT_ZERO, NOT_FINITE, NOT_SORTED, NOT_POSITIVE, NEGATIVE = 1, 2, 3, 4, 5, 6
-HEAD = 8  # out[:HEAD]: code, index/value, T, brake start, braking distance, number of pieces
+CHECK_STEPS = nt.UniTuple(i8, 2)(STEPS, i8, i8, i8)
+KERNEL = i8(f8, f8, f8, STEPS, i8, b1, V)
 
 
-@jit(nt.UniTuple(i8, 2)(STEPS, i8, i8, i8), public=True)
+@jit(CHECK_STEPS, public=True)
 def check_steps(steps, lo, hi, positive):
     """First fault of the step function ``steps[lo:hi]`` (rows ``x_from, value``): ``(code, row - lo)``,
     ``(0, 0)`` when none. ``positive``: 1 values > 0, 0 values >= 0, -1 any finite value."""
@@ -141,7 +139,7 @@ def _forward(st, ns, v0, X, y_r, out):
     out[2], out[3], out[4], out[5] = T, X - y_r, y_r, n
 
 
-@jit(i8(f8, f8, f8, STEPS, i8, b1, V), public=True)
+@jit(KERNEL, public=True)
 def kernel(v0, X, J, steps, n_dl, optimize, out):
     """Solve one stop: ``steps`` holds the decel limits (first ``n_dl`` rows) then the speed limits.
 
@@ -221,6 +219,5 @@ def kernel(v0, X, J, steps, n_dl, optimize, out):
     return int(out[5])
 
 
-def out_size(n_steps: int) -> int:
-    """Length of the ``out`` array :func:`kernel` needs for ``n_steps`` step rows in all."""
-    return HEAD + 5 * (8 * (n_steps + 1) + 64 + 2)
+JIT = {"kernel": (kernel, KERNEL), "check_steps": (check_steps, CHECK_STEPS)}
+"""The entry points with their one signature each: what ``planner kernels build`` compiles ahead of time."""

@@ -93,7 +93,9 @@ deceleration rule, :func:`solve_stop`); the construction runs compiled with
 numba: :mod:`planner.stopping.kernel` (the request, regions, forward
 breakpoints), :mod:`planner.stopping.construct` (the motions, the fixes, the
 entry choice) and :mod:`planner.stopping.pieces` (closed forms and roots of a
-piece). It is compiled on the first solve of a process, some seconds
+piece). They are built ahead of time at install (``planner kernels build``,
+:mod:`planner.io.compiled`); without a build for these sources they
+compile on the first solve of a process, some seconds
 (``benchmarks/bench_stopping.py`` prints it); a solve then costs microseconds.
 
 References: DESIGN §5 (event-point constant-jerk stopping pattern method).
@@ -107,8 +109,10 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from planner.io import compiled
 from planner.physics.dynamics import track_accel_ms2
 from planner.errors import InfeasibleError, InputError
+from planner.stopping import codes
 
 __all__ = [
     "PatternSamples",
@@ -267,8 +271,7 @@ _POSITIVE = {True: 1, False: 0, None: -1}
 
 def _step_fault(name: str, rows: np.ndarray, code: int, i: int, *, what: str, noun: str = "step") -> str:
     """The one-line message for fault ``code`` of :func:`planner.stopping.kernel.check_steps` at row ``i``."""
-    from planner.stopping import kernel as k
-
+    k = codes
     if code == k.EMPTY:
         return f"{name} is empty; give at least one (0.0, {what}) pair"
     x, val = rows[i].tolist()
@@ -291,10 +294,8 @@ def _check_steps(name: str, steps, *, what: str, positive: bool | None,
     ``positive``: True = values > 0, False = values >= 0, None = any finite value.
     The checks are :func:`planner.stopping.kernel.check_steps`, the ones :func:`solve_stop` runs.
     """
-    from planner.stopping import kernel as k
-
     rows = _rows(name, steps, what)
-    code, i = k.check_steps(rows, 0, rows.shape[0], _POSITIVE[positive])
+    code, i = (_k or _compiled()).check_steps(rows, 0, rows.shape[0], _POSITIVE[positive])
     if code:
         raise InputError(_step_fault(name, rows, code, i, what=what, noun=noun))
     return [tuple(r) for r in rows.tolist()]
@@ -384,15 +385,17 @@ def decel_limit_profile(
 
 _new = object.__new__
 _local = threading.local()
-_k = None  # planner.stopping.kernel, imported (and so compiled) on the first solve
+_k = None  # the solver: its build (planner.io.compiled) or planner.stopping.kernel, chosen on the first solve
 
 
 def _compiled():
+    """The solver's entry points: the module built at install for these sources, else the just-in-time kernel."""
     global _k
-    from planner.stopping import kernel
-
-    _k = kernel
-    return kernel
+    built = compiled.load("stopping", codes.SOURCES)
+    if built is None:
+        from planner.stopping import kernel as built
+    _k = built
+    return built
 
 
 def solve_stop(
@@ -468,12 +471,12 @@ def solve_stop(
         v0, X, J, steps, n_dl = _request(v_start, x_stop, jerk_max, decel_limits, speed_limits)
     else:
         n_dl = len(decel_limits)
-    out = _out_buffer(k.out_size(steps.shape[0]))
+    out = _out_buffer(codes.out_size(steps.shape[0]))
     n = k.kernel(v0, X, J, steps, n_dl, rule == "min-time", out)
     if n < 0:
         return _not_solved(-n, out, v0, X, J, steps, n_dl)
-    vals = out[:k.HEAD + 5 * n + 4].tolist()  # head, then t, x, v, a (n + 1 each) and j (n)
-    b = k.HEAD
+    vals = out[:codes.HEAD + 5 * n + 4].tolist()  # head, then t, x, v, a (n + 1 each) and j (n)
+    b = codes.HEAD
     m = n + 1
     p = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
     p.__dict__.update(
@@ -505,7 +508,7 @@ def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
 def _not_solved(code: int, out: np.ndarray, v0: float, X: float, J: float, steps: np.ndarray,
                 n_dl: int) -> StopPattern:
     """The kernel's verdict other than a pattern: an infeasible StopPattern, or the InputError raised."""
-    from planner.stopping import kernel as k
+    k = codes
 
     base = dict(v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J)
     if code == k.BAD_V_START:

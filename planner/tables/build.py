@@ -23,8 +23,9 @@ How it is computed (per interstation, direction and train type)
    r_before (standing at s = 0), so every row of table (b) there is table (a).
 
 Work: n_r full runs plus n_x · n_r² suffix runs, each batch lock-stepped on
-the same distance grid (evaluation points are grid nodes, so snapshots are
-exact). Interstations × directions × train types are spread over processes
+the same distance grid (evaluation points are grid nodes, and a snapshot holds
+the integrator's whole state, speed² and coasting flag included, so a suffix run
+goes on as the run switched at X would, to the bit). Interstations × directions × train types are spread over processes
 with joblib; each task gets the (small, picklable) Line and names, and the
 results are assembled in the fixed task order, so the output does not depend
 on ``n_jobs`` or scheduling.
@@ -50,6 +51,7 @@ reads them back with :func:`planner.datasets.tables.load_tables`.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -154,7 +156,8 @@ class _Half:
         self.time_s = np.asarray(res.time_s, float)[sl]
         self.energy_kwh = np.asarray(res.energy_kwh, float)[sl]
         self.snapshots = {
-            key: RunState(*(np.asarray(getattr(st, f))[sl] for f in ("s_m", "t_s", "v_ms", "phase", "ratio")))
+            key: RunState(*(None if getattr(st, f.name) is None else np.asarray(getattr(st, f.name))[sl]
+                            for f in dataclasses.fields(RunState)))
             for key, st in res.snapshots.items()
         }
 
@@ -184,43 +187,24 @@ def _table_b(track, train, r: np.ndarray, s_pts: list[float], full: "_Half", kw:
     speed = np.zeros((n_r, n_x))
     remaining = np.empty((n_x, n_r, n_r))
     remaining[0] = full.time_s[None, :]  # at departure every row is table (a)
-    # One lock-step batch for every point after departure: group k holds, for each distinct
-    # state at X_k, the runs (r_before -> every r_after). Every run starts from the prefix's
-    # snapshot at the first point X_1 at its r_before and switches to r_after at X_k, so the
-    # batch advances over L - s(X_1) once instead of once per point; the integrator is
-    # per-run arithmetic, so a run's state at X_k equals the prefix's snapshot there.
-    groups = []  # (k, representative r_before index per distinct state, inverse map)
+    # For every point X_k after departure, one batch from X_k: for each distinct state the
+    # constant-ratio runs reach there (runs still identical at X_k, e.g. all still powering
+    # just after departure, reach it in the same state and so have equal rows), a run at every
+    # ratio after. Each starts from the exact state of the prefix's snapshot at X_k (speed²,
+    # coasting flag and all, RunState), so it goes on as the run switched at X_k would, and
+    # the batch covers only L - s(X_k).
     for k in range(1, n_x):
         snap = _snapshot(full.snapshots, s_pts[k])
         t_x = np.asarray(snap.t_s, float)
         elapsed[:, k] = t_x
         speed[:, k] = snap.v_ms
-        # ratios whose runs are still identical at X (e.g. all still powering below their
-        # targets just after departure) reach X in the same state: their rows are equal,
-        # so one start state per distinct (t, v, phase) is enough
-        key = np.column_stack([t_x, np.asarray(snap.v_ms, float), np.asarray(snap.phase, float)])
+        key = np.column_stack([t_x, np.asarray(snap.v_ms, float), np.asarray(snap.phase, float),
+                               np.asarray(snap.w_ms2, float), np.asarray(snap.coasting, float)])
         _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
-        groups.append((k, first, inv.reshape(-1)))
-    if groups:
-        b_idx = np.concatenate([np.repeat(first, n_r) for _, first, _ in groups])
-        a_idx = np.concatenate([np.tile(np.arange(n_r), len(first)) for _, first, _ in groups])
-        g_of = np.concatenate([np.full(len(first) * n_r, k) for k, first, _ in groups])
-        snap1 = _snapshot(full.snapshots, s_pts[1])
-        start = RunState(
-            s_m=np.asarray(snap1.s_m, float)[b_idx],
-            t_s=np.asarray(snap1.t_s, float)[b_idx],
-            v_ms=np.asarray(snap1.v_ms, float)[b_idx],
-            phase=np.asarray(snap1.phase)[b_idx],
-            ratio=np.asarray(snap1.ratio, float)[b_idx],
-        )
-        ratio0 = np.where(g_of == 1, r[a_idx], r[b_idx])
-        changes = [(s_pts[k], np.where(g_of <= k, r[a_idx], r[b_idx])) for k in range(2, n_x)]
-        res = simulate(track, train, ratio0, start=start, changes=changes, snapshots_m=s_pts[1:], **kw)
-        total = np.asarray(res.time_s, float)
-        for k, first, inv in groups:
-            sel = g_of == k
-            t_k = np.asarray(_snapshot(res.snapshots, s_pts[k]).t_s, float)[sel]
-            remaining[k] = (total[sel] - t_k).reshape(len(first), n_r)[inv]
+        b_idx = np.repeat(first, n_r)
+        start = RunState(*(np.asarray(getattr(snap, f.name))[b_idx] for f in dataclasses.fields(RunState)))
+        res = simulate(track, train, r[np.tile(np.arange(n_r), len(first))], start=start, **kw)
+        remaining[k] = (np.asarray(res.time_s, float) - t_x[b_idx]).reshape(len(first), n_r)[inv.reshape(-1)]
     return elapsed, speed, remaining
 
 

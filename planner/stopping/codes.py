@@ -1,0 +1,27 @@
+"""The compiled stopping solver's interface, importable without compiling it.
+
+The codes :func:`planner.stopping.kernel.kernel` returns and writes, the layout
+of its ``out`` array, and the modules a build of it is made of. The solver is
+either the module built at install (:mod:`planner.io.compiled`) or, where
+there is none for these sources, :mod:`planner.stopping.kernel` compiled just
+in time; :func:`planner.stopping.pattern.solve_stop` picks on its first call and
+reads both through the names here.
+"""
+from __future__ import annotations
+
+# codes of kernel(); the caller turns them into a StopPattern or an error message
+OK = 0
+START_ABOVE_LIMIT, ZERO_LIMIT, STANDING, NEEDS_MORE, INTERNAL = 1, 2, 3, 4, 5
+BAD_V_START, BAD_X_STOP, BAD_JERK = 10, 11, 12
+BAD_DECEL, BAD_SPEED = 20, 30  # + a step-function code below
+EMPTY, FIRST_NOT_ZERO, NOT_FINITE, NOT_SORTED, NOT_POSITIVE, NEGATIVE = 1, 2, 3, 4, 5, 6
+HEAD = 8  # out[:HEAD]: code, index/value, T, brake start, braking distance, number of pieces
+
+SOURCES = ("planner.stopping.pieces", "planner.stopping.construct", "planner.stopping.kernel", __name__,
+           "planner.io.compiled")
+"""What a build of the solver is made of: its digest names the built module (``planner kernels build``)."""
+
+
+def out_size(n_steps: int) -> int:
+    """Length of the ``out`` array the kernel needs for ``n_steps`` step rows in all."""
+    return HEAD + 5 * (8 * (n_steps + 1) + 64 + 2)
