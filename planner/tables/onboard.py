@@ -84,11 +84,23 @@ smooth (not even a monotone) function of the ratio:
   band powers up to a raised target, and taking it for a coasting one cost
   1.1 s 200 m before the stop) — at every ratio
   of a 1 % grid, for the table and the reference train, so
-  T = T_d(v, phase, r_a) + θ · (T_d,ref − T_d). A sawtooth train's place in
+  T = T_d(v, band, r_a) + θ · (T_d,ref − T_d). A sawtooth train's place in
   its coasting band is part of that state, which a row indexed by the ratio
   run before cannot know (it cost up to 1.5 s on the sample line). Here the
   reference difference is not clipped: from the same state a heavier train
   really does coast further.
+
+Limit: table (d) is at the last point. Where that point has no authority left,
+the decision that counts is made one point earlier from table (b), which cannot
+see the train's place in its band. E6 KWB→HGO, 2.5 % steps, beacons only: the
+home signal 325 m before the stop changes nothing (table (d): 28.3–29.0 s at
+every ratio from 58–68 km/h); at D-SIG-009, 1,213 m before it, the train's
+remaining time jumps from 78.8 s (ratio 0.6855) to 81.0 s (0.6841: the coasting
+train bottoms out 0.1 km/h above its band's lower edge and coasts the last
+900 m instead of powering back up), the tables interpolate 79.2 s at 0.6841,
+and the run with designated time 209 s arrives 1.27 s late (the one run of that
+interstation's 61 above 0.42 s). A state-indexed table at the last point with
+authority would be needed there.
 
 A new mode is a :class:`RatioChooser` factory registered in :data:`CHOOSERS`
 (``register_mode``); modes that do not use the tables (e.g. time-keeping) are
