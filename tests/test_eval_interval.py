@@ -4,6 +4,7 @@ the stop and so a smaller arrival error."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
@@ -211,3 +212,17 @@ def test_study_page_states_the_issue_checks():
     assert "last point with authority B9 (1167 m before the stop" in best and "5.50 s apart" in best
     adaptive = page.split("Adaptive mode: max")[1]
     assert "1.20 s: <b>not met</b> at 5 % / 200 m perturbed 1.20 s." in adaptive
+
+
+def test_study_counts_bundle_bytes(flat, tmp_path):
+    """The study's bundle bytes are those of the bundle the job builds from the same tables (the
+    signed release has a fixed size); it once failed outright when bundles gained a release."""
+    from planner.report.eval_study import bundle_sizes
+
+    ln, t = flat
+    write_tables([t], tmp_path / "tables")
+    priv, _ = signing.generate_keypair(tmp_path / "keys")
+    info = build_line(ln, tmp_path / "out", priv, tables_dir=tmp_path / "tables", directions=["down"],
+                      release=release())[0]
+    sizes = bundle_sizes(ln, tmp_path / "tables", None)
+    assert Path(info.path).stat().st_size in sizes

@@ -127,16 +127,18 @@ def bundle_sizes(line: Line, tables_dir: Path, stops_dir: Path | None,
 
     from planner.bundle.assemble import assemble
     from planner.bundle.container import bundle_bytes
+    from planner.bundle.manifest import Release
     from planner.line.model import DIRECTIONS
 
     key = Ed25519PrivateKey.generate()  # signatures have a fixed size: the bytes do not depend on it
+    release = Release.issue(0)  # a fixed build time: the version's digits, so the bytes, do not vary
     types = list(train_types) if train_types else [t.train_type for t in line.train_types]
     out = []
     for d in DIRECTIONS:
         for tt in types:
             tabs = assemble(line, d, tt, tables_dir=tables_dir, stops_dir=stops_dir)
             out.append(len(bundle_bytes(tabs, line_id=line.line_id, direction=d, train_type=tt, private_key=key,
-                                        line_digest=line.source_digest or "")))
+                                        release=release, line_digest=line.source_digest or "")))
     return out
 
 
