@@ -226,3 +226,17 @@ def test_study_counts_bundle_bytes(flat, tmp_path):
                       release=release())[0]
     sizes = bundle_sizes(ln, tmp_path / "tables", None)
     assert Path(info.path).stat().st_size in sizes
+
+
+def test_worst_run_text_separates_the_grid_gap_from_a_wrong_row():
+    """Half the gap between neighbouring entries is all the grid can explain; when the error is
+    larger, the text says the rest came from the row itself (the state indexed by the ratio
+    run before), instead of leaving a 0.08 s gap next to a 1.55 s error unexplained."""
+    from planner.report.eval_study import Worst, format_worst
+
+    p = {"eval_point_id": "dep+2700", "before_stop_m": 300.0, "ratio_before": 1.0, "ratio_after": 0.55,
+         "wanted_s": 27.2, "row_min_s": 26.8, "row_max_s": 31.7, "row_span_s": 4.9, "gap_s": 0.08}
+    txt = format_worst(Worst("E6", "KWB", "HGO", 204.0, 1.55, [p], p))
+    assert "0.08 s apart" in txt and "at most 0.04 s of it, the other 1.51 s is the row" in txt
+    small = format_worst(Worst("E6", "KWB", "HGO", 204.0, 0.03, [p], p))
+    assert "the other" not in small

@@ -361,6 +361,11 @@ def format_worst(w: Worst, last: int = 4) -> str:
             txt += f"wanted {a['wanted_s']:.1f} s: above the slowest entry by {a['wanted_s'] - a['row_max_s']:.2f} s)"
         else:
             txt += f"wanted {a['wanted_s']:.1f} s between neighbouring entries {a['gap_s']:.2f} s apart)"
+            miss = abs(w.error_s) - a["gap_s"] / 2.0
+            if miss > 0.1:  # the grid explains at most half the gap: the rest is the row itself
+                txt += (f"; the grid explains at most {a['gap_s'] / 2.0:.2f} s of it, the other {miss:.2f} s is "
+                        f"the row not describing the train there (table (b) indexes its state by the ratio "
+                        f"run before, {a['ratio_before']:.3g})")
     tail = "; ".join(f"{p['eval_point_id']}@{p['before_stop_m']:.0f}m r {p['ratio_before']:.3g}->{p['ratio_after']:.3g}"
                      f" want {p['wanted_s']:.1f} row {p['row_min_s']:.1f}-{p['row_max_s']:.1f} gap {p['gap_s']:.2f}"
                      for p in w.points[-last:])
