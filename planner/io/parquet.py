@@ -107,12 +107,17 @@ def write_partitioned(
     written: list[Path] = []
     if table.num_rows == 0:
         return written
-    keys = table.select(parts).to_pylist()
-    groups: dict[tuple, list[int]] = {}
-    for i, k in enumerate(keys):
-        groups.setdefault(tuple(str(k[c]) for c in parts), []).append(i)
-    for key in sorted(groups):
-        sub = table.take(pa.array(groups[key], type=pa.int64())).drop_columns(parts)
+    # the partition values as text (as the folder names will be), grouped in Arrow: one Python
+    # object per partition, not per row
+    text = {c: pc.fill_null(pc.cast(table[c], pa.string()), "None") for c in parts}
+    distinct = pa.table(text).group_by(parts).aggregate([]).to_pylist()
+    for key in sorted(tuple(d[c] for c in parts) for d in distinct):
+        sub = table
+        if parts:
+            mask = pc.equal(text[parts[0]], key[0])
+            for c, v in zip(parts[1:], key[1:]):
+                mask = pc.and_(mask, pc.equal(text[c], v))
+            sub = table.filter(mask).drop_columns(parts)  # rows keep their order
         if sort_by:
             sub = sub.sort_by([(c, "ascending") for c in sort_by])
         if schema is not None:

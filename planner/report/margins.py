@@ -118,7 +118,7 @@ from planner.errors import InputError
 from planner.io.parallel import map_tasks
 from planner.line.model import DIRECTIONS, Line, sign
 from planner.line.units import KMH, KMH_S, kmh
-from planner.report.leg_margin import LegResult, leg_result
+from planner.report.leg_margin import LegResult, leg_result, passed_stations
 from planner.report.margin_datasets import MARGINS_SCHEMA, closed_loop_index, read_energy, stops_adhesion
 from planner.report.margin_rule import TOTALS_COLUMNS, MarginRule, margin_columns, margin_totals
 from planner.stopping.approach import DEFAULT_APPROACH_M
@@ -339,9 +339,13 @@ def compute_margins(
     keys = sorted(sched, key=lambda k: (DIRECTIONS.index(k[0]), k[1],
                                         sign(k[0]) * line.station(k[2]).position_m,
                                         sign(k[0]) * line.station(k[3]).position_m))
-    tasks = [(line, k[1], k[2], k[3], sorted(sched[k]), tabs.get(k), energy.get(k),
+    # each task ships the slice of the line its leg can see (Line.window), not the whole line and
+    # timetable: on a 10x line pickling the whole line per leg made this step quadratic
+    tasks = [(line.window(k[2], k[3], k[1]), k[1], k[2], k[3], sorted(sched[k]), tabs.get(k), energy.get(k),
               kw | {"closed_loop_errors": known_errors(k)}) for k in keys]
     results: list[LegResult] = map_tasks(_leg_task, tasks, n_jobs, progress)
+    for r in results:  # the window holds only the leg's two stations: the ones it passes come from the line
+        r.passes = passed_stations(line, r.origin, r.destination)
 
     rows, sweep = _rows(line, results, legs, rule)
     tl = pd.DataFrame.from_records(
