@@ -49,7 +49,7 @@ def main() -> None:
           f"closed loop from dataset: {rep.sources['closed_loop_dataset']}")
     print(f"  compute: {t1 - t0:6.1f} s wall, {c1 - c0:6.1f} s CPU (this process; {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.1f})")
-    print(f"  HTML:    {t2 - t1:6.1f} s wall, {len(page) / 1e3:.0f} kB")
+    print(f"  HTML:    {t2 - t1:6.1f} s wall, {c2 - c1:6.1f} s CPU, {len(page) / 1e3:.0f} kB")
     print(f"  flags: {int(rows.infeasible.sum())} infeasible, {int(rows.tight.sum())} tight, "
           f"{int(rows.unreachable.sum())} unreachable, {int((~rows.supplement_met).sum())} below the rule")
 

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from planner.io import compiled
-from planner.physics import kernel as K
+from planner.physics import kernel_abi as K
 from planner.stopping import codes
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -44,11 +44,18 @@ def test_both_kernels_are_built_for_these_sources():
     for kind, sources in (("integrator", K.SOURCES), ("stopping", codes.SOURCES)):
         st = compiled.status(kind, sources)
         assert st["state"] == "built", f"{kind}: {st['state']}; run `planner kernels build` (make test does)"
-    assert K.BACKEND == "aot"
-    assert type(K.advance).__name__ == "builtin_function_or_method"  # not a numba dispatcher
+    assert K.backend() == "aot"
+    assert type(K.load().advance).__name__ == "builtin_function_or_method"  # not a numba dispatcher
     pattern.solve_stop(20.0, 400.0, jerk_max=0.8, decel_limits=[(0.0, 1.0)], speed_limits=[(0.0, 25.0)])
     assert pattern._k.__name__.startswith("_aot_stopping_")
-    assert "planner.stopping.kernel" not in sys.modules or os.environ.get("PLANNER_JIT")
+    code = ("import sys, planner.api, planner.stopping.pattern as p; "
+            "p.solve_stop(20.0, 400.0, jerk_max=0.8, decel_limits=[(0.0, 1.0)], speed_limits=[(0.0, 25.0)]); "
+            "from planner.physics import run_curve; "
+            "print(sorted(m for m in ('numba', 'planner.physics.kernel', 'planner.stopping.kernel') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                         env={k: v for k, v in os.environ.items() if k != "PLANNER_JIT"})
+    assert out.returncode == 0 and out.stdout.strip() == "[]", out.stdout + out.stderr[-1500:]  # no compiler loaded
 
 
 def test_the_built_integrator_reproduces_the_numpy_integrator_to_the_bit():
@@ -62,7 +69,7 @@ def test_the_built_integrator_reproduces_the_numpy_integrator_to_the_bit():
     assert differ == [], f"{len(differ)} arrays differ, first {differ[:3]}"
 
     code = ("import json, sys; sys.path.insert(0, {b!r}); import bench_kernel as b; "
-            "from planner.physics import kernel as K; assert K.BACKEND == 'jit', K.BACKEND; "
+            "from planner.physics import kernel_abi as K; assert K.backend() == 'jit', K.backend(); "
             "print(json.dumps({{k: b.digest(v) for k, v in b.battery().items()}}))").format(b=str(BENCH))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
                          env={**os.environ, "PLANNER_JIT": "1"})

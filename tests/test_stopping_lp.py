@@ -60,7 +60,7 @@ def lp_feasible(T, N, v0, X, J, decel_limits, speed_limits):
     ix, iv, ia, ij = 0, n, 2 * n, 3 * n
     iz = 3 * n + N
     nvar = iz + n * K
-    rows, lo, hi = [], [], []
+    lo, hi = [], []
     M = lil_matrix((8 * N + 3 * n * K + n * K + 16, nvar))
     r = 0
 

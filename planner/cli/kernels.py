@@ -22,7 +22,7 @@ _KINDS = ("integrator", "stopping")
 
 def _sources(kind: str) -> tuple[str, ...]:
     if kind == "integrator":
-        from planner.physics.kernel import SOURCES
+        from planner.physics.kernel_abi import SOURCES
     else:
         from planner.stopping.codes import SOURCES
     return SOURCES

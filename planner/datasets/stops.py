@@ -13,7 +13,7 @@ from typing import Sequence
 import numpy as np
 import pyarrow as pa
 
-from planner.io.parquet import declare, write_partitioned
+from planner.io.parquet import by_partition, declare, write_partitioned
 from planner.line.units import kmh
 from planner.stopping.sweep import DEFAULT_SAMPLE_DT_S, ApproachResult
 
@@ -135,6 +135,7 @@ def write_stops(results: Sequence[ApproachResult], out_dir: str | Path, *,
         Files written.
     """
     written: list[Path] = []
-    for name, table in datasets(results, dt_s=dt_s).items():
-        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=SORT_BY[name])
+    for part in by_partition(results):  # one partition's rows in memory at a time
+        for name, table in datasets(part, dt_s=dt_s).items():
+            written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=SORT_BY[name])
     return written

@@ -14,7 +14,7 @@ import numpy as np
 import pyarrow as pa
 
 from planner.errors import InputError
-from planner.io.parquet import declare, read_dataset, write_partitioned
+from planner.io.parquet import by_partition, declare, read_dataset, write_partitioned
 from planner.line.units import kmh, ms
 from planner.tables.build import InterstationTables
 from planner.tables.onboard import ApproachTable, RunningTimeTables
@@ -195,8 +195,9 @@ SCHEMAS = {"eval_points": EVAL_POINTS_SCHEMA, "table_a": TABLE_A_SCHEMA, "table_
 def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> list[Path]:
     """Write the datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
     written: list[Path] = []
-    for name, table in datasets(results).items():
-        written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
+    for part in by_partition(results):  # one partition's rows in memory at a time
+        for name, table in datasets(part).items():
+            written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
     return written
 
 

@@ -70,6 +70,16 @@ def write_parquet_atomic(table: pa.Table, path: Path) -> None:
         )
 
 
+def by_partition(results: Iterable, key=lambda r: (r.line_id, r.direction, r.train_type)) -> list[list]:
+    """``results`` grouped by the partition they are written to (default line, direction, train type),
+    each group in its original order, the groups in sorted key order: a writer that builds one group's
+    table at a time holds one partition in memory, and writes the same files as from all at once."""
+    groups: dict = {}
+    for r in results:
+        groups.setdefault(key(r), []).append(r)
+    return [groups[k] for k in sorted(groups)]
+
+
 def write_partitioned(
     table: pa.Table,
     root: Path,

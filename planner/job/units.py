@@ -37,11 +37,11 @@ _CODE_DIGEST: str | None = None
 def kernel_backends() -> dict[str, str]:
     """Per compiled kernel, where its machine code comes from: ``aot`` (built at install) or ``jit``."""
     from planner.io import compiled
-    from planner.physics import kernel
+    from planner.physics import kernel_abi
     from planner.stopping import codes
 
     stop = compiled.status("stopping", codes.SOURCES)["state"] == "built"
-    return {"integrator": kernel.BACKEND, "stopping": "aot" if stop else "jit"}
+    return {"integrator": kernel_abi.backend(), "stopping": "aot" if stop else "jit"}
 
 
 def code_files() -> list[Path]:

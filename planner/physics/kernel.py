@@ -14,7 +14,7 @@ its ceiling (after a lowered target; then the crossing fraction is clipped and
 the traction work is summed piece by piece), and the stall check every 64
 steps (its window names the stretch in the error message).
 
-Layout of the arrays (row constants below): ``trk`` (7, m) per node of the
+Layout of the arrays (row constants in :mod:`~planner.physics.kernel_abi`): ``trk`` (7, m) per node of the
 track, ``seg`` (m,) the ceiling segment of each node, ``par`` (9, n) per run
 and constant between events, ``st`` (7, n) the runs' state, ``lane`` (2, n)
 int8 phase code and sawtooth coasting flag, ``e`` (segments, n) the
@@ -23,13 +23,12 @@ ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
 
 Built ahead of time at install (:mod:`planner.io.compiled`: ``planner
 kernels build``, which ``make install`` runs), so a process loads machine code
-instead of compiling; :data:`BACKEND` says which it got. Without a build for
-these exact sources it compiles lazily on first use, in memory only (no
-``cache=True``: numba's cache index is a pickle read back from disk, which the
-project does not trust): about 3 s of CPU once per process
-(``benchmarks/bench_kernel.py`` prints it). Every argument type is fixed
-(:data:`SIGNATURES`; the built functions do not check their arguments, so
-:func:`check_layout` does, once per integrator).
+instead of compiling: :func:`planner.physics.kernel_abi.load` picks, and this
+module (and numba) is imported only without a build for these exact sources.
+It then compiles lazily on first use, in memory only (no ``cache=True``:
+numba's cache index is a pickle read back from disk, which the project does
+not trust): about 3 s of CPU once per process (``benchmarks/bench_kernel.py``
+prints it). Every argument type is fixed (:data:`SIGNATURES`).
 """
 from __future__ import annotations
 
@@ -39,29 +38,12 @@ import numpy as np
 from numba import njit
 from numba import types as nt
 
-from planner.io import compiled
-
-PHASE_POWER, PHASE_HOLD, PHASE_COAST, PHASE_BRAKE, PHASE_STOP = 0, 1, 2, 3, 4
-SAWTOOTH_MIN_FRACTION = 0.5
-"""A sawtooth vehicle coasts down to ``max(target − band, 0.5 × target)``: at low
-targets a full band would coast to a crawl (or a standstill on a rise)."""
-
-# rows of trk (per node): running distance, on-board maximum², 2b × distance to the
-# segment end, stopping curve², track acceleration, on-board maximum of the interval k → k+1,
-# 1.0 where a_track ≥ a_max (the cap may bind below coasting there)
-T_S, T_VN2, T_AHEAD, T_STOP2, T_AG, T_VINT, T_STEEP = range(7)
-# rows of par (per run): Davis A, B, C and traction factor, all / M_e; ratio², cruise cap², ratio,
-# cruise cap, shedding deceleration
-P_RAM, P_RBM, P_RCM, P_TFI, P_R2, P_CAP2, P_RATIO, P_CAPV, P_SHED = range(9)
-# rows of st (per run): time, speed, speed², traction work / M_e, ceiling² at the node, speed² entering
-# the last step, the first step after which its time was not finite (+inf: none)
-S_T, S_V, S_W, S_WORK, S_C0, S_WLAST, S_BAD = range(7)
-L_PHASE, L_COAST = range(2)
-# flags: any run may be above its ceiling; last node the stall check passed; stall window (from, to)
-# and the first run found stalled there
-F_MAYBE_OVER, F_K_OK, F_STALL_FROM, F_STALL_TO, F_STALL_RUN = range(5)
-# rows of rec (record=True): time, speed, acceleration, ratio, cruise cap at each node
-R_T, R_V, R_A, R_RATIO, R_CAP = range(5)
+from planner.physics.kernel_abi import (  # noqa: F401  (the rows are read through this module too)
+    F_K_OK, F_MAYBE_OVER, F_STALL_FROM, F_STALL_RUN, F_STALL_TO, L_COAST, L_PHASE, P_CAP2, P_CAPV, P_R2,
+    P_RAM, P_RATIO, P_RBM, P_RCM, P_SHED, P_TFI, PHASE_BRAKE, PHASE_COAST, PHASE_HOLD, PHASE_POWER, PHASE_STOP,
+    R_A, R_CAP, R_RATIO, R_T, R_V, S_BAD, S_C0, S_T, S_V, S_W, S_WLAST, S_WORK, SAWTOOTH_MIN_FRACTION, SOURCES,
+    T_AG, T_AHEAD, T_S, T_STEEP, T_STOP2, T_VINT, T_VN2,
+)
 
 _JIT = dict(nogil=True, error_model="numpy")
 
@@ -334,27 +316,7 @@ SIGNATURES = {
                        nt.boolean),
     "set_targets": nt.void(nt.int64, _F2, _I1, _I1, _F2, _F2, _F2),
 }
-"""The one signature of each entry point (the arrays C-contiguous, as :func:`check_layout` requires)."""
-_LAYOUT = {"trk": (np.float64, 2), "seg": (np.int64, 1), "bounds": (np.int64, 1), "par": (np.float64, 2),
-           "st": (np.float64, 2), "lane": (np.int8, 2), "e": (np.float64, 2), "cst": (np.float64, 1),
-           "tab": (np.float64, 2), "flags": (np.int64, 1), "rec": (np.float64, 3), "rec_p": (np.int8, 2)}
-
-
-def check_layout(**arrays: np.ndarray) -> None:
-    """Raise if an array for the kernel is not of its dtype, rank and C order (:data:`SIGNATURES`)."""
-    for name, a in arrays.items():
-        dtype, ndim = _LAYOUT[name]
-        if not (type(a) is np.ndarray and a.dtype == dtype and a.ndim == ndim and a.flags.c_contiguous):
-            raise TypeError(f"kernel array {name}: expected C-contiguous {np.dtype(dtype)} of rank {ndim}, got "
-                            f"{getattr(a, 'dtype', type(a))} of rank {getattr(a, 'ndim', '?')}")
-
-
-SOURCES = (__name__, compiled.__name__)
-"""What a build of this kernel is made of (its digest names the built module)."""
+"""The one signature of each entry point (the arrays C-contiguous, as
+:func:`planner.physics.kernel_abi.check_layout` requires)."""
 JIT = {name: (globals()[name], sig) for name, sig in SIGNATURES.items()}
 """The just-in-time entry points with their signatures: what ``planner kernels build`` compiles."""
-_built = compiled.load("integrator", SOURCES)
-BACKEND = "aot" if _built is not None else "jit"
-"""``"aot"``: the entry points below are the module built at install; ``"jit"``: numba compiles them on first use."""
-if _built is not None:
-    advance, set_targets = _built.advance, _built.set_targets

@@ -63,13 +63,15 @@ import numpy as np
 from planner.errors import InfeasibleError, InputError
 from planner.line.model import TrainType
 from planner.line.units import KWH
-from planner.physics import dynamics, kernel as K, speed_profile
-from planner.physics.kernel import (  # noqa: F401  (the phase codes and the band's floor are part of this API)
+from planner.physics import dynamics, kernel_abi as K, speed_profile
+from planner.physics.kernel_abi import (  # noqa: F401  (the phase codes and the band's floor are part of this API)
     PHASE_BRAKE, PHASE_COAST, PHASE_HOLD, PHASE_POWER, PHASE_STOP, SAWTOOTH_MIN_FRACTION,
 )
 from planner.physics.track import NODE_TOL_M, Track
 
 PHASE_NAMES = ("power", "hold", "coast", "brake", "stop")
+_KERNEL = K.load()
+"""The kernel's entry points: its build from install, else numba's just-in-time compile (kernel_abi)."""
 
 
 @dataclass(frozen=True)
@@ -312,7 +314,7 @@ class _Integrator:
     grid step up to the next event node in the compiled kernel
     (:func:`planner.physics.kernel.advance`: free running, ceiling and service
     brake, sawtooth band, phase codes, recording). The batch lives in a few
-    arrays the kernel updates in place (row constants in :mod:`~planner.physics.kernel`):
+    arrays the kernel updates in place (row constants in :mod:`~planner.physics.kernel_abi`):
     ``par`` per-run constants, ``st`` the state, ``lane`` phase and coasting flag,
     ``e`` the ceiling's segment table, ``flags`` the batch-wide switches.
     """
@@ -358,7 +360,7 @@ class _Integrator:
         self.rec, self.rec_p = np.zeros((5, n if record else 1, mr)), np.empty((n if record else 1, mr), np.int8)
         K.check_layout(trk=self.prep.trk, seg=self.prep.seg, bounds=self.prep.bounds, par=par, st=st, lane=lane,
                        e=self.e, cst=self.cst, tab=tab, flags=self.flags, rec=self.rec, rec_p=self.rec_p)
-        K.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
+        _KERNEL.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
         st[K.S_WLAST] = st[K.S_W]
         if record:
             self.rec[K.R_T, :, 0], self.rec[K.R_V, :, 0] = st[K.S_T], st[K.S_V]
@@ -421,7 +423,7 @@ class _Integrator:
             par[K.P_RATIO] = new
             changed = True
         if changed:
-            K.set_targets(k, self.prep.trk, self.prep.seg, self.prep.bounds, par, self.st, self.e)
+            _KERNEL.set_targets(k, self.prep.trk, self.prep.seg, self.prep.bounds, par, self.st, self.e)
             self.flags[K.F_MAYBE_OVER] = 1
 
     # -- the loop -------------------------------------------------------------------------
@@ -430,7 +432,7 @@ class _Integrator:
         for k_next in sorted(j for j in self.events if k < j < m - 1) + [m - 1]:
             if k in self.events:
                 self._events(k)
-            K.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane, self.e,
+            _KERNEL.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane, self.e,
                       self.cst, self.tab, self.flags, self.rec, self.rec_p, self.record)
             if self.flags[K.F_STALL_TO] >= 0:
                 f = self.flags
