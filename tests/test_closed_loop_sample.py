@@ -9,7 +9,8 @@ two interstations per direction —
 * HGO→MDR down, where the sawtooth E6 had its largest error in the adaptive mode (the coasting
   band's phase at the home-signal beacon 325 m before the stop, until table (d));
 * KWB→SKM up, where the E6 adaptive mode once chose the lowest ratio 325 m before the stop
-  (5 s late, perturbed) before table (c) was smoothed: a regression case.
+  (5 s late, perturbed) from a coasting-band spike of table (c): a regression case (table (d)
+  now predicts there from the train's own state; table (c) is no longer smoothed).
 
 Tables are built as the nightly job builds them (load 0, nominal traction, default ratio grid);
 the perturbed scenario runs a heavier, weaker train against those same tables. Bounds are the
@@ -44,8 +45,9 @@ NEAREST_REASON = (
     "the arrival any more (the train is about to brake, its row spans < 1 s at ratios >= 0.7), so "
     "half that gap, 2.5-4 s, remains (measured max 3.7 s nominal, 5.3 s perturbed on the line). "
     "Issue 22: no setting with bundles under 2x today's meets it on the whole line either: best "
-    "measured 2.5 % steps, beacons only (bundle 1.38x): 1.67 s nominal, 3.74 s perturbed; 5 % steps "
-    "with points every 200 m (1.10x): 2.83 s / 4.04 s. The perturbed worst (E6 TKD->OHS) is already "
+    "measured 2.5 % steps, points every 500 m (bundle 1.59x): 1.55 s nominal, 3.43 s perturbed; 2.5 % "
+    "beacons only (1.35x): 1.67 s / 3.74 s; 5 % steps, points every 200 m (1.18x): 2.83 s / 4.04 s "
+    "(bench_eval_interval.py). The perturbed worst (E6 TKD->OHS) is already "
     "late at the last points with authority (1167 m and 335 m before the stop: the remaining time "
     "wanted is below the row's fastest entry), because the nominal tables overrate the heavy train; "
     "the nominal worst comes from table (b) indexing the state by the ratio run before, which no "

@@ -93,8 +93,9 @@ TABLE_D_SCHEMA = declare(
         ("eval_point_id", pa.string(), "the last evaluation point of the interstation (see eval_points)"),
         ("eval_position_m", pa.float64(), "chainage of the evaluation point [m]"),
         ("speed_kmh", pa.float64(), "speed of the train as it passes the point [km/h] (2 km/h grid)"),
-        ("powering", pa.bool_(), "the train passes the point powering (notch on); false: coasting, "
-                                 "holding or braking (only sawtooth vehicles have both)"),
+        ("powering", pa.bool_(), "the train passes the point out of its coasting band (it powers "
+                                 "whenever below its target); false: in its coasting band, coasting down "
+                                 "to the band's lower edge first (only sawtooth vehicles have both)"),
         ("ratio_after", pa.float64(), "ratio run from the point to arrival (1 % grid plus table_a's ratios)"),
         ("vmax_kmh", pa.float64(), "on-board maximum speed just after the point [km/h]; the target "
                                    "there is ratio_after x vmax_kmh"),

@@ -35,8 +35,8 @@ on ``n_jobs`` or scheduling.
    the margin report), in the same batch, giving at every point the remaining
    time at constant ratio of both trains and the table train's speed there.
 4. Table (d), also for ``adaptive``, for sawtooth vehicles at the last evaluation point only: the
-   remaining time from a grid of states there (speed every 2 km/h, powering or
-   not) at every ratio of a 1 % grid, for the table and the reference train
+   remaining time from a grid of states there (speed every 2 km/h, out of or in
+   the coasting band) at every ratio of a 1 % grid, for the table and the reference train
    (:func:`approach_table`, one batch of short runs). Tables (b) and (c) index
    the state at a point by the ratio run before it; at the last point, where no
    later decision can correct anything, the vehicle looks its own state up

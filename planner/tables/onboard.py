@@ -54,15 +54,22 @@ clock between beacons, which it has anyway; nothing but the tables and the
 clock is used. θ is clipped to ``AdaptiveRule.THETA_RANGE`` (never below 0:
 the table train is the fastest).
 
-Two details make it robust for sawtooth vehicles, whose running time is not a
+Three details make it robust for sawtooth vehicles, whose running time is not a
 smooth (not even a monotone) function of the ratio:
 
-* Δ(X, ·) is smoothed across the ratio grid (median of each ratio and its two
-  neighbours, clipped at 0). Table (c) compares two constant-ratio runs from
+* Δ(X, ·) is used as table (c) gives it, only clipped at 0 (a heavier, weaker
+  train is never faster). Table (c) compares two constant-ratio runs from
   departure, so Δ also holds the difference of the two trains' coasting-band
-  phases at X, which flips sign from one ratio to the next (±5 s at low ratios
-  on the sample line); multiplied by θ it once sent a train that was on time
-  to the lowest ratio 325 m before the stop (5 s late).
+  phases at X, which can flip sign from one ratio to the next. It was once
+  smoothed across the grid (median of each ratio and its two neighbours)
+  because such a spike, multiplied by θ, sent an on-time train to the lowest
+  ratio 325 m before the stop; that was the last point, where sawtooth
+  vehicles now use table (d), and the crossing nearest the current ratio (next
+  item) keeps spikes at far ratios out of the choice. The median also removed
+  real single-ratio features: E6 NKN→YMT, the reference train at ratio 0.95 is
+  0.6–1.1 s slower than at both neighbours from every point up to 700 m
+  before the stop; smoothed away, the perturbed train trusted 0.94 and arrived
+  1.2 s late at ratio 1.0 (study: 5 % steps, points every 200–1000 m).
 * T(X, r_b, ·; θ) is piecewise linear in 1/r between grid ratios and need not
   be monotone, so every crossing with the remaining time is found exactly
   (:func:`solve_piecewise`) and the one nearest the current ratio wins: the
@@ -71,13 +78,29 @@ smooth (not even a monotone) function of the ratio:
   can correct the choice, the row of table (b) is replaced by table (d)
   (:class:`ApproachTable`, built for sawtooth vehicles only): the
   remaining time from the train's *own* state there — its measured speed,
-  interpolated on a 2 km/h grid, and whether it is powering — at every ratio
+  interpolated on a 2 km/h grid, and whether it is in its coasting band
+  (:func:`out_of_band`: the vehicle's cruise-control state, not the phase of
+  its last step; a train that arrives braking onto a restriction below its
+  band powers up to a raised target, and taking it for a coasting one cost
+  1.1 s 200 m before the stop) — at every ratio
   of a 1 % grid, for the table and the reference train, so
-  T = T_d(v, phase, r_a) + θ · (T_d,ref − T_d). A sawtooth train's place in
+  T = T_d(v, band, r_a) + θ · (T_d,ref − T_d). A sawtooth train's place in
   its coasting band is part of that state, which a row indexed by the ratio
   run before cannot know (it cost up to 1.5 s on the sample line). Here the
   reference difference is not clipped: from the same state a heavier train
   really does coast further.
+
+Limit: table (d) is at the last point. Where that point has no authority left,
+the decision that counts is made one point earlier from table (b), which cannot
+see the train's place in its band. E6 KWB→HGO, 2.5 % steps, beacons only: the
+home signal 325 m before the stop changes nothing (table (d): 28.3–29.0 s at
+every ratio from 58–68 km/h); at D-SIG-009, 1,213 m before it, the train's
+remaining time jumps from 78.8 s (ratio 0.6855) to 81.0 s (0.6841: the coasting
+train bottoms out 0.1 km/h above its band's lower edge and coasts the last
+900 m instead of powering back up), the tables interpolate 79.2 s at 0.6841,
+and the run with designated time 209 s arrives 1.27 s late (the one run of that
+interstation's 61 above 0.42 s). A state-indexed table at the last point with
+authority would be needed there.
 
 A new mode is a :class:`RatioChooser` factory registered in :data:`CHOOSERS`
 (``register_mode``); modes that do not use the tables (e.g. time-keeping) are
@@ -106,16 +129,20 @@ class ApproachTable:
     Tables (b) and (c) index the state at a point by the ratio the train ran before it. At the
     last point nothing later can correct the choice, and a sawtooth train's state there (where
     in its coasting band it is) is not a function of that ratio. Table (d) instead holds, for
-    a grid of speeds at the point and both phases (powering, or coasting / holding / braking),
-    the remaining time at each ratio of a fine grid, for the table train and the reference
-    train; the vehicle interpolates at its measured speed in its actual phase.
+    a grid of speeds at the point and both band states (out of the coasting band: powers when
+    below its target; in it: coasts to the band's lower edge first), the remaining time at
+    each ratio of a fine grid, for the table train and the reference train; the vehicle
+    interpolates at its measured speed in its actual band state.
 
     Attributes
     ----------
     speeds_ms : ndarray, shape (n_v,)
         Start speeds, ascending [m/s].
     powering : tuple of bool, length n_p
-        Phase of each slice: True = powering (notch on), False = not powering.
+        Band state of each slice: True = out of the coasting band (the train powers whenever it
+        is below its target; a start in phase power), False = in its coasting band (it coasts
+        down to the band's lower edge first; a start in any other phase). Look it up with
+        :func:`out_of_band`.
     ratios : ndarray, shape (n_ra,)
         Ratios after the point, descending.
     time_s, ref_time_s : ndarray, shape (n_p, n_v, n_ra)
@@ -228,7 +255,7 @@ class RatioChooser(Protocol):
     ) -> np.ndarray:
         """New ratio per run at evaluation point ``k`` from the current ratio, remaining time [s]
         and, for modes that use them, the measured speed [m/s] and whether the train is
-        powering (notch on) as it passes the point."""
+        out of its coasting band (:func:`out_of_band`) as it passes the point."""
 
 
 def _nearest_index(values: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -400,12 +427,11 @@ class AdaptiveRule:
         """Reference − table remaining time from point k at constant ratio, per grid ratio [s].
 
         Table (c) compares two constant-ratio runs from departure, so besides the reference
-        train's own loss after X it holds the difference of the two trains' states at X. For a
-        sawtooth train that part is the phase of the coast band and flips sign from one ratio to
-        the next (±5 s on the sample line at low ratios). The vehicle wants the smooth part:
-        a median over each ratio and its two grid neighbours (which leaves any monotone
-        sequence unchanged and removes one-ratio spikes), clipped at 0 because a heavier,
-        weaker train is never faster than the table train from the same state.
+        train's own loss after X it holds the difference of the two trains' states at X (for a
+        sawtooth train, the phase of the coasting band). It is clipped at 0, because a heavier,
+        weaker train is never faster than the table train from the same state, and otherwise
+        used as it is: a median across neighbouring ratios also removes real one-ratio features
+        (module doc).
         """
         key = (id(tables), k)
         if key not in self._dcache:
@@ -414,13 +440,11 @@ class AdaptiveRule:
                 raise InputError("mode adaptive needs table (c) (table_c dataset); rebuild the tables with "
                                  "`planner tables`")
             d = ref[k] - np.diagonal(tables.remaining_s[k])
-            pad = np.concatenate([d[:1], d, d[-1:]])
-            med = np.median(np.stack([pad[:-2], pad[1:-1], pad[2:]]), axis=0)
-            self._dcache[key] = (tables, np.maximum(med, 0.0))  # keep tables alive: id stays unique
+            self._dcache[key] = (tables, np.maximum(d, 0.0))  # keep tables alive: id stays unique
         return self._dcache[key][1]
 
     def _delta(self, tables: RunningTimeTables, k: int, r: float) -> float:
-        """Smoothed reference − table remaining time from point k at ratio r [s]."""
+        """Reference − table remaining time from point k at ratio r, clipped at 0 [s]."""
         return _interp_u(tables.ratios, self._delta_row(tables, k), r)
 
     def depart(self, tables, designated_s):
@@ -489,6 +513,23 @@ def chooser(mode: str) -> RatioChooser:
         raise InputError(f"--mode {mode!r} is not a table mode; known: {', '.join(CHOOSERS)}") from None
 
 
+def out_of_band(state) -> np.ndarray:
+    """Per run: True when the vehicle is *not* in a sawtooth coasting band, i.e. it powers
+    whenever it is below its target — table (d)'s ``powering`` slice.
+
+    That is the vehicle's cruise-control state (:attr:`planner.physics.run_curve.RunState.coasting`),
+    not the phase of the last step: a sawtooth train that arrives *braking* may be in its band
+    (riding a falling ceiling it met from a coast) or out of it (braked onto a restriction
+    below its band: given a higher target it powers up to it). Table (d) starts its runs
+    from the two band states, so the look-up must use the same one. Without the state
+    (a start state, an older caller), the phase decides: powering = out of the band.
+    """
+    coasting = getattr(state, "coasting", None)
+    if coasting is None:
+        return np.asarray(state.phase) == PHASE_POWER
+    return ~np.asarray(coasting, bool)
+
+
 def make_controller(
     tables: RunningTimeTables, mode: str | RatioChooser, arrival_s: np.ndarray
 ) -> tuple[Callable, list[float], list[list[float]]]:
@@ -525,8 +566,7 @@ def make_controller(
         k = int(np.argmin(np.abs(pts - float(s_m))))
         if k not in ks or abs(pts[k] - float(s_m)) > SAME_POINT_M:
             return state.ratio  # a decision we did not ask for: keep the ratio
-        new = ch.at_point(tables, k, state.ratio, arrival - state.t_s, state.v_ms,
-                          np.asarray(state.phase) == PHASE_POWER)
+        new = ch.at_point(tables, k, state.ratio, arrival - state.t_s, state.v_ms, out_of_band(state))
         chosen.append(np.asarray(new, float))
         return new
 
