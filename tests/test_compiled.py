@@ -153,7 +153,8 @@ def test_a_build_that_does_not_match_its_digest_is_never_loaded(aot_dir):
 
 
 def test_an_edited_kernel_source_names_another_module(tmp_path, monkeypatch):
-    """The module's name carries the digest of its sources and compilers: a stale build is never found."""
+    """The module's name carries the digest of its sources, compilers and CPU: a stale or foreign build is
+    never found."""
     pkg = tmp_path / "aotprobe"
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
@@ -166,7 +167,11 @@ def test_an_edited_kernel_source_names_another_module(tmp_path, monkeypatch):
     assert before != after and before.startswith("_aot_probe_")
     real = importlib.metadata.version
     monkeypatch.setattr(importlib.metadata, "version", lambda d: "0.0-test" if d == "llvmlite" else real(d))
-    assert compiled.module_name("probe", ("aotprobe.k",)) != after
+    foreign = compiled.module_name("probe", ("aotprobe.k",))
+    assert foreign != after
+    monkeypatch.setattr(importlib.metadata, "version", real)
+    monkeypatch.setattr(compiled, "host_cpu", lambda: "othercpu:+sse2")  # an environment copied elsewhere
+    assert compiled.module_name("probe", ("aotprobe.k",)) not in (after, foreign)
     with pytest.raises(ValueError):
         compiled.module_name("../x", ("aotprobe.k",))
 
