@@ -71,7 +71,7 @@ class KillWorkersOnFirstTask(distributed.diagnostics.plugin.SchedulerPlugin):
 @pytest.fixture
 def cluster():
     """A LocalCluster scheduler with one external worker process, and the kill plugin installed."""
-    with distributed.LocalCluster(n_workers=0, processes=True, dashboard_address=None) as lc:
+    with distributed.LocalCluster(n_workers=0, processes=True, dashboard_address=":0") as lc:
         worker = start_worker(lc.scheduler_address)
         try:
             with distributed.Client(lc) as c:
