@@ -170,7 +170,7 @@ def main() -> int:
             if r.stats[("adaptive", sc)]["max_abs_error_s"] > ADAPTIVE_MAX_S and ("adaptive", sc) in r.worst:
                 print(f"  {r.setting.label} {sc}: {format_worst(r.worst[('adaptive', sc)])}")
     if args.html:
-        write_html(results, args.html, line_name=f"{line.name} ({line.line_id})", base_bytes=base_bytes)
+        write_html(results, args.html, line_name=line.name if line.line_id in line.name else f"{line.name} ({line.line_id})", base_bytes=base_bytes)
         print(f"\nwrote {args.html}")
     return 0
 

@@ -467,7 +467,9 @@ def render_html(results: Sequence[SettingResult], *, line_name: str, base_bytes:
                         for c in cases)
         body.append(f"<tr><td class='l'>{_e(w['grid'])}</td><td class='l'>{_e(w['interval'])}</td>"
                     f"<td>{w['ratios']}</td><td>{w['points']}</td><td>{w['table_b_rows']}</td><td>{w['table_rows']}</td>"
-                    f"<td>{w['bundle_kb']:.0f}</td><td>{w['bundle_x']:.2f}</td><td>{w['cpu_s']:.1f}</td>{cells}</tr>")
+                    + (f"<td>{w['bundle_kb']:.0f}</td>" if w["bundle_kb"] else "<td>—</td>")  # not measured
+                    + (f"<td>{w['bundle_x']:.2f}</td>" if w["bundle_x"] == w["bundle_x"] else "<td>—</td>")
+                    + f"<td>{w['cpu_s']:.1f}</td>{cells}</tr>")
     parts.append("<h2>The study</h2><div class='tw'><table>" + head + "".join(body) + "</table></div>")
     parts.extend(_checks_html(results, base_bytes))
     worst = [(r.setting.label, k, w) for r in results for k, w in r.worst.items() if k[0] == "nearest"]
