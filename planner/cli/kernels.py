@@ -32,7 +32,7 @@ def _sources(kind: str) -> tuple[str, ...]:
 def build(
     force: bool = typer.Option(False, "--force", help="Rebuild even where a build for these sources exists."),
 ) -> None:
-    """Compile the integrator and the stopping solver into extension modules (about 20 s of CPU)."""
+    """Compile the integrator and the stopping solver into extension modules (about 15 s of CPU)."""
     from planner.io import compiled
 
     for kind in _KINDS:
