@@ -323,7 +323,7 @@ def solve_ratio(ratios: np.ndarray, times_s: np.ndarray, want_s: float) -> float
 def row_at(tables: RunningTimeTables, k: int, ratio: float) -> np.ndarray:
     """Table (b) row at point ``k`` for a fractional ratio before, linear in ``1/r`` [s]."""
     r = tables.ratios
-    rb = float(np.clip(ratio, r[-1], r[0]))
+    rb = float(_clip(ratio, r[-1], r[0]))
     # ratios descend: i is the last grid ratio >= rb
     i = int(np.searchsorted(-r, -rb, side="right")) - 1
     i = min(max(i, 0), len(r) - 1)
@@ -350,10 +350,30 @@ class InterpolateRule:
         )
 
 
+def _clip(x, lo, hi):
+    """``np.clip`` of one number, the same value without numpy's call overhead (the on-board logic
+    clips a few numbers per run and point; ``np.clip`` was a third of the closed loop's time)."""
+    return min(max(x, lo), hi)
+
+
+_INVERSE: dict[int, tuple] = {}
+
+
+def _inverse(ratios) -> np.ndarray:
+    """``1 / ratios`` of a grid, computed once per grid array (the array is kept, so its id stays its own)."""
+    hit = _INVERSE.get(id(ratios))
+    if hit is not None and hit[0] is ratios:
+        return hit[1]
+    if len(_INVERSE) > 256:
+        _INVERSE.clear()
+    u = 1.0 / np.asarray(ratios, float)
+    _INVERSE[id(ratios)] = (ratios, u)
+    return u
+
+
 def _interp_u(ratios: np.ndarray, values: np.ndarray, r: float) -> float:
     """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``."""
-    u = 1.0 / ratios
-    return float(np.interp(1.0 / np.clip(r, ratios[-1], ratios[0]), u, values))
+    return float(np.interp(1.0 / _clip(r, ratios[-1], ratios[0]), _inverse(ratios), values))
 
 
 def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, prefer: float) -> float:
@@ -389,9 +409,9 @@ def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, pre
     >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 0.25), 4)
     0.3333
     """
-    u = 1.0 / np.asarray(ratios, float)
+    u = _inverse(ratios)
     f = np.asarray(values_s, float)
-    up = 1.0 / float(np.clip(prefer, ratios[-1], ratios[0]))
+    up = 1.0 / float(_clip(prefer, ratios[-1], ratios[0]))
     d0, d1 = f[:-1] - want_s, f[1:] - want_s
     cross = (d0 * d1 <= 0.0) & (f[:-1] != f[1:])
     w = np.where(cross, d0 / np.where(cross, d0 - d1, 1.0), 0.0)
@@ -479,7 +499,7 @@ class AdaptiveRule:
             st["num"][i] += (st["rem"][i] - x) - (st["pred"][i] - pred_here)
             st["den"][i] += st["delta"][i] - self._delta(tables, k, rb)
             theta = st["num"][i] / st["den"][i] if st["den"][i] > 1e-3 else 0.0
-            theta = float(np.clip(theta, *self.THETA_RANGE))
+            theta = float(_clip(theta, *self.THETA_RANGE))
             if ap is not None:
                 # the last point: predict from the train's own state (table (d), fine ratio grid)
                 t_d, ref_d = ap.rows(float(v[i]), bool(on[i]))
