@@ -432,8 +432,8 @@ class _Integrator:
         for k_next in sorted(j for j in self.events if k < j < m - 1) + [m - 1]:
             if k in self.events:
                 self._events(k)
-            _KERNEL.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane, self.e,
-                      self.cst, self.tab, self.flags, self.rec, self.rec_p, self.record)
+            _KERNEL.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane,
+                            self.e, self.cst, self.tab, self.flags, self.rec, self.rec_p, self.record)
             if self.flags[K.F_STALL_TO] >= 0:
                 f = self.flags
                 raise _stall_error(self.track, self.train, self.load, self.tf, self.s, int(f[K.F_STALL_RUN]),

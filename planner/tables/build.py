@@ -25,8 +25,9 @@ How it is computed (per interstation, direction and train type)
 Work: n_r full runs plus n_x · n_r² suffix runs, each batch lock-stepped on
 the same distance grid (evaluation points are grid nodes, and a snapshot holds
 the integrator's whole state, speed² and coasting flag included, so a suffix run
-goes on as the run switched at X would, to the bit). Interstations × directions × train types are spread over processes
-with joblib; each task gets the (small, picklable) Line and names, and the
+goes on as the run switched at X would, to the bit). Interstations × directions
+× train types are spread over processes with joblib; each task gets the (small,
+picklable) window of the Line it can see and names, and the
 results are assembled in the fixed task order, so the output does not depend
 on ``n_jobs`` or scheduling.
 
