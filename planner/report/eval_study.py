@@ -490,6 +490,6 @@ def write_html(results: Sequence[SettingResult], path: str | Path, **kw) -> Path
     return Path(path)
 
 
-__all__ = ["ADAPTIVE_MAX_S", "BUNDLE_FACTOR", "GRIDS", "INTERVALS", "NEAREST_BOUNDS_S", "Setting", "SettingResult", "Worst", "best_nearest", "bundle_sizes",
-           "default_settings", "format_table", "format_worst", "render_html", "replay", "run_setting", "run_study",
+__all__ = ["ADAPTIVE_MAX_S", "BUNDLE_FACTOR", "GRIDS", "INTERVALS", "NEAREST_BOUNDS_S", "Setting", "SettingResult",
+           "Worst", "best_nearest", "bundle_sizes", "default_settings", "format_table", "format_worst", "render_html", "replay", "run_setting", "run_study",
            "study_rows", "write_html"]
