@@ -3,6 +3,7 @@ import hashlib
 
 import pyarrow as pa
 import pyarrow.dataset as ds
+import pyarrow.parquet as pq
 
 from planner.io.parquet import declare, read_dataset, write_partitioned
 
@@ -46,3 +47,14 @@ def test_same_table_same_bytes(tmp_path):
     digest = lambda fs: [hashlib.sha256(f.read_bytes()).hexdigest() for f in fs]  # noqa: E731
     assert digest(a) == digest(b)
     assert not list((tmp_path / "a").rglob("*.tmp"))
+
+
+def test_partitions_keep_row_order_and_name_folders_by_the_values_text(tmp_path):
+    """Grouped in Arrow, not per row in Python: rows keep their order inside a partition, a folder is
+    named by str() of its value (ints included), and a missing value is a 'None' folder."""
+    t = pa.table({"line": ["b", "a", "b", None, "a"], "k": [2, 1, 2, 3, 1], "x": [5, 4, 3, 2, 1]})
+    files = write_partitioned(t, tmp_path, "ds", partition_cols=("line", "k"))
+    got = {f.relative_to(tmp_path).as_posix(): pq.read_table(f).column("x").to_pylist() for f in files}
+    assert got == {"ds/line=None/k=3/part-0.parquet": [2], "ds/line=a/k=1/part-0.parquet": [4, 1],
+                   "ds/line=b/k=2/part-0.parquet": [5, 3]}
+    assert [f.relative_to(tmp_path).as_posix() for f in files] == sorted(got)  # sorted partition order

@@ -117,16 +117,22 @@ def write_partitioned(
     written: list[Path] = []
     if table.num_rows == 0:
         return written
-    # the partition values as text (as the folder names will be), grouped in Arrow: one Python
-    # object per partition, not per row
-    text = {c: pc.fill_null(pc.cast(table[c], pa.string()), "None") for c in parts}
-    distinct = pa.table(text).group_by(parts).aggregate([]).to_pylist()
-    for key in sorted(tuple(d[c] for c in parts) for d in distinct):
+    # the distinct partition values, grouped in Arrow (one Python object per partition, not per
+    # row); a folder is named by str() of the value, as the rows' values
+    groups: dict[tuple, list[dict]] = {}
+    for d in (table.select(parts).group_by(parts).aggregate([]).to_pylist() if parts else [{}]):
+        groups.setdefault(tuple(str(d[c]) for c in parts), []).append(d)
+    for key in sorted(groups):
         sub = table
         if parts:
-            mask = pc.equal(text[parts[0]], key[0])
-            for c, v in zip(parts[1:], key[1:]):
-                mask = pc.and_(mask, pc.equal(text[c], v))
+            mask = None
+            for vals in groups[key]:  # values that print the same share a folder, as before
+                m = None
+                for c in parts:
+                    v = vals[c]
+                    e = pc.is_null(table[c]) if v is None else pc.fill_null(pc.equal(table[c], v), False)
+                    m = e if m is None else pc.and_(m, e)
+                mask = m if mask is None else pc.or_(mask, m)
             sub = table.filter(mask).drop_columns(parts)  # rows keep their order
         if sort_by:
             sub = sub.sort_by([(c, "ascending") for c in sort_by])
