@@ -453,9 +453,13 @@ def render_html(results: Sequence[SettingResult], *, line_name: str, base_bytes:
         parts.append(f"<p class='note'>{_e(note)}</p>")
     # chart: max error against interval, one panel per case, a line per grid
     if rows:
-        svg = interval_study_chart(rows, cases)
+        bounds = {f"{m}/{sc}": b for m, per in (("nearest", NEAREST_BOUNDS_S),
+                                                 ("adaptive", dict.fromkeys(NEAREST_BOUNDS_S, ADAPTIVE_MAX_S)))
+                  for sc, b in per.items()}
+        svg = interval_study_chart(rows, cases, bounds)
         parts.append(f"<div class='fig'>{svg}<div class='caption'>Maximum |arrival error| against the "
-                     "evaluation interval, per ratio grid.</div></div>")
+                     "evaluation interval, per ratio grid; dashed: the issue's bound (the nearest rule's at its "
+                     "best setting under the bundle bound, the adaptive mode's at every setting).</div></div>")
     head = ("<tr><th class='l' rowspan=2>grid</th><th class='l' rowspan=2>interval</th><th rowspan=2>ratios</th>"
             "<th rowspan=2>points</th><th rowspan=2>table (b) rows</th><th rowspan=2>all table rows</th>"
             "<th rowspan=2>bundle [kB]</th><th rowspan=2>×</th><th rowspan=2>CPU [s]</th>"

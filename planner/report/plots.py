@@ -560,8 +560,9 @@ def timekeeping_chart(result, segments: list[dict], path: Path, title: str) -> P
     return save_png(fig, path)
 
 
-def interval_study_chart(rows: list[dict], cases: list[str]) -> str:
-    """Maximum |arrival error| against the evaluation interval, a panel per case, a line per ratio grid (SVG)."""
+def interval_study_chart(rows: list[dict], cases: list[str], bounds: dict[str, float] | None = None) -> str:
+    """Maximum |arrival error| against the evaluation interval, a panel per case, a line per ratio grid (SVG);
+    ``bounds`` (case → s) draws the issue's bound of a case as a dashed line."""
     plt = pyplot()
     fig, axes = plt.subplots(1, len(cases), figsize=(3.2 * len(cases), 2.8), squeeze=False)
     labels = list(dict.fromkeys(w["interval"] for w in rows))
@@ -569,6 +570,8 @@ def interval_study_chart(rows: list[dict], cases: list[str]) -> str:
         for g in dict.fromkeys(w["grid"] for w in rows):
             pts = [(labels.index(w["interval"]), w[c + "/max"]) for w in rows if w["grid"] == g]
             ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", label=g)
+        if bounds and c in bounds:
+            ax.axhline(bounds[c], color="#8e1b1b", ls="--", lw=1.0, label="bound")
         ax.set_xticks(range(len(labels)), labels, fontsize=8)
         ax.set_title(c)
         ax.set_ylabel("max |error| [s]")
