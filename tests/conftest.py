@@ -1,7 +1,17 @@
-"""Fixtures shared by several test modules."""
+"""Fixtures shared by several test modules, and the property tests' profile."""
 from __future__ import annotations
 
+import os
+
 import pytest
+from hypothesis import settings
+
+# `make test` and CI run the property tests on a fixed sequence of examples (derandomize), so a run
+# is reproducible and a red run is never a roll of the dice; `HYPOTHESIS_PROFILE=explore make test`
+# searches new random examples (what it finds becomes an explicit test, as in test_stopping_props).
+settings.register_profile("repeatable", derandomize=True, database=None)
+settings.register_profile("explore")
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 
 
 @pytest.fixture(scope="module")
