@@ -227,7 +227,9 @@ def test_less_deceleration_never_makes_it_faster(case, factor):
     "start that cannot be met at a = 0 (jerk 0.25 m/s³) is entered still easing off the brake, and the "
     "speed it then cruises at (0.940 vs 0.942 m/s) depends on the deceleration limit although the limit "
     "never binds (peak 0.49 m/s²): with the limit halved the stop is 0.097 s faster, so at the full "
-    "limit the pattern is not the minimum-time one. Open: the entry choice of stopping/construct.py"))
+    "limit the pattern is not the minimum-time one. Likely cause: construct._best_entry minimises over an "
+    "entry deceleration range whose top is the deceleration limit, with Brent's method stopped at 0.5 % of "
+    "that range or 12 steps, and near infeasibility the duration is not flat at its optimum"))
 def test_a_halved_deceleration_limit_that_never_binds_changes_nothing():
     """The failing example, kept as a test of its own: a limit that does not bind cannot change the
     minimum time. Strict: fixing the construction turns it into a failure asking to remove the mark."""
