@@ -86,9 +86,23 @@ def _file_digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def _jit_forced() -> bool:
+    return os.environ.get("PLANNER_JIT", "") not in ("", "0")
+
+
+def _record_state(name: str, so: Path, meta: Path) -> str:
+    """``"built"`` when the record beside module file ``so`` names it and holds its SHA-256, else why not."""
+    try:
+        record = json.loads(meta.read_text(encoding="utf-8"))
+        ok = record.get("module") == name and record.get("sha256") == _file_digest(so)
+    except (OSError, ValueError, AttributeError):
+        return "jit (no readable digest record)"
+    return "built" if ok else "jit (file does not match its digest)"
+
+
 def load(kind: str, modules: tuple[str, ...]) -> ModuleType | None:
     """The built module of ``kind`` if there is one for exactly these sources and its file is intact, else None."""
-    if os.environ.get("PLANNER_JIT", "") not in ("", "0"):
+    if _jit_forced():
         return None
     try:
         name = module_name(kind, modules)
@@ -99,12 +113,7 @@ def load(kind: str, modules: tuple[str, ...]) -> ModuleType | None:
     so, meta = _paths(name)
     if not so.is_file():
         return None
-    try:
-        record = json.loads(meta.read_text(encoding="utf-8"))
-        ok = record.get("module") == name and record.get("sha256") == _file_digest(so)
-    except (OSError, ValueError, AttributeError):
-        ok = False
-    if not ok:
+    if _record_state(name, so, meta) != "built":
         warnings.warn(f"compiled kernel {so} does not match its digest record {meta.name}; ignoring it and "
                       f"compiling just in time (rebuild with: planner kernels build)", RuntimeWarning, stacklevel=2)
         return None
@@ -126,16 +135,12 @@ def status(kind: str, modules: tuple[str, ...], *, env: bool = True) -> dict[str
     ``env=False``: whether the build is there and intact, whatever ``PLANNER_JIT`` says."""
     name = module_name(kind, modules)
     so, meta = _paths(name)
-    if env and os.environ.get("PLANNER_JIT", "") not in ("", "0"):
+    if env and _jit_forced():
         state = "jit (PLANNER_JIT set)"
     elif not so.is_file():
         state = "jit (not built for these sources)"
     else:
-        try:
-            record = json.loads(meta.read_text(encoding="utf-8"))
-            state = ("built" if record.get("module") == name and record.get("sha256") == _file_digest(so) else "jit (file does not match its digest)")
-        except (OSError, ValueError, AttributeError):
-            state = "jit (no readable digest record)"
+        state = _record_state(name, so, meta)
     return {"kind": kind, "module": name, "state": state, "path": str(so)}
 
 
