@@ -400,11 +400,10 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     _copy(st, ns, PAPER, W)
 
 
-@jit(IF(ST, NS, f8, f8, V, V, V, V, b1))
-def _construct(st, ns, J, X, Yb, A, C, entry, optimize):
+@jit(IF(ST, NS, f8, f8, V, V, V, V, V, V, b1))
+def _construct(st, ns, J, X, Yb, A, C, entry, capnext, pend, optimize):
     """The whole backward construction from the stop; ``(status, braking distance)``."""
     n = A.size
-    capnext = np.empty(n)  # y where the speed cap next rises (backwards), per region
     nxt = _INF
     for r in range(n - 1, -1, -1):
         capnext[r] = nxt
@@ -413,7 +412,6 @@ def _construct(st, ns, J, X, Yb, A, C, entry, optimize):
     for k in range(ns.size):
         ns[k] = 0
     _push(st, ns, 0.0, 0.0, 0.0, 0.0, J, 0)
-    pend = np.empty(3)
     while True:
         status, y_r = _run(st, ns, J, X, Yb, A, C, capnext, entry, optimize, pend)
         if status != PENDING:

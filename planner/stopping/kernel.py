@@ -29,7 +29,7 @@ CHECK_STEPS = nt.UniTuple(i8, 2)(STEPS, i8, i8, i8)
 KERNEL = i8(f8, f8, f8, STEPS, i8, b1, V)
 
 
-@jit(CHECK_STEPS, public=True)
+@jit(CHECK_STEPS, public=True, nrt=True)
 def check_steps(steps, lo, hi, positive):
     """First fault of the step function ``steps[lo:hi]`` (rows ``x_from, value``): ``(code, row - lo)``,
     ``(0, 0)`` when none. ``positive``: 1 values > 0, 0 values >= 0, -1 any finite value."""
@@ -50,7 +50,7 @@ def check_steps(steps, lo, hi, positive):
     return 0, 0
 
 
-@jit(nt.UniTuple(V, 3)(f8, f8, STEPS, i8))
+@jit(nt.UniTuple(V, 3)(f8, f8, STEPS, i8), nrt=True)
 def _regions(v0, X, steps, n_dl):
     """Regions of the backward frame ``y = X - x``: breakpoints of both step functions inside (0, X),
     equal neighbours merged; ``(Yb, A, C)`` with ``C`` the running minimum of the speed limit.
@@ -103,7 +103,7 @@ def _regions(v0, X, steps, n_dl):
     return Yb, A, C
 
 
-@jit(nt.none(ST, NS, f8, f8, f8, V))
+@jit(nt.none(ST, NS, f8, f8, f8, V), nrt=True)
 def _forward(st, ns, v0, X, y_r, out):
     """The backward nodes as forward breakpoints into ``out`` (merging equal-jerk neighbours)."""
     m = ns[W] - 1  # closed backward pieces 0..m-1; node m is the cruise at v_start
@@ -139,7 +139,7 @@ def _forward(st, ns, v0, X, y_r, out):
     out[2], out[3], out[4], out[5] = T, X - y_r, y_r, n
 
 
-@jit(KERNEL, public=True)
+@jit(KERNEL, public=True, nrt=True)
 def kernel(v0, X, J, steps, n_dl, optimize, out):
     """Solve one stop: ``steps`` holds the decel limits (first ``n_dl`` rows) then the speed limits.
 
@@ -195,7 +195,9 @@ def kernel(v0, X, J, steps, n_dl, optimize, out):
     ns = np.zeros(N_SLOTS + 1, dtype=np.int64)
     entry = np.empty(A.size)
     entry[:] = math.nan  # no entry chosen at that region's step-down
-    status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, optimize)
+    capnext = np.empty(A.size)  # y where the speed cap next rises (backwards), per region
+    pend = np.empty(3)
+    status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, capnext, pend, optimize)
     if status == DONE:
         chosen = 0
         paper = False
@@ -207,7 +209,7 @@ def kernel(v0, X, J, steps, n_dl, optimize, out):
         if chosen > 1 and paper:
             # several step-downs and one kept the paper's rule, maybe because the others were still
             # at it: choose each again, knowing the others' choice
-            status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, True)
+            status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, capnext, pend, True)
     if status != DONE:
         out[0] = INTERNAL
         return -int(out[0])

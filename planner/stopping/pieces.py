@@ -25,11 +25,11 @@ from numba import types as nt
 _INF = math.inf
 
 
-def jit(sig, public=False):
+def jit(sig, public=False, nrt=False):
     """Compile now with the one signature ``sig``: internal calls convert their arguments to it
     and never respecialise (a constant argument would otherwise compile one copy per value)."""
     return njit(sig, cache=False, error_model="numpy", nogil=True, no_cpython_wrapper=not public,
-                no_cfunc_wrapper=True)
+                no_cfunc_wrapper=True, _nrt=nrt)
 
 
 f8, i8, b1 = nt.float64, nt.int64, nt.boolean
