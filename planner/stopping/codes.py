@@ -1,7 +1,7 @@
 """The compiled stopping solver's interface, importable without compiling it.
 
 The codes :func:`planner.stopping.kernel.kernel` returns and writes, the layout
-of its ``out`` array, and the modules a build of it is made of. The solver is
+of the one array it works in, and the modules a build of it is made of. The solver is
 either the module built at install (:mod:`planner.io.compiled`) or, where
 there is none for these sources, :mod:`planner.stopping.kernel` compiled just
 in time; :func:`planner.stopping.pattern.solve_stop` picks on its first call and
@@ -22,6 +22,19 @@ SOURCES = ("planner.stopping.pieces", "planner.stopping.construct", "planner.sto
 """What a build of the solver is made of: its digest names the built module (``planner kernels build``)."""
 
 
+N_SLOTS = 5  # saved constructions in the node store (planner.stopping.construct names them)
+
+
 def out_size(n_steps: int) -> int:
-    """Length of the ``out`` array the kernel needs for ``n_steps`` step rows in all."""
+    """Length of the result part of the kernel's array for ``n_steps`` step rows in all."""
     return HEAD + 5 * (8 * (n_steps + 1) + 64 + 2)
+
+
+def work_size(n_steps: int) -> int:
+    """Length of the one array the kernel works in for ``n_steps`` step rows in all: the rows
+    (``2 n_steps``, from 0), the result (:func:`out_size`, from ``2 n_steps``), then its scratch:
+    the regions and their temporaries, the entry choices, the node counts and the node store."""
+    n = n_steps
+    out = HEAD + 5 * (8 * (n + 1) + 64 + 2)  # out_size(n), written out: the kernel compiles this function
+    return (2 * n + out + (4 * n + 3) + (3 * n + 5) + 2 * (n + 1) + 3 + (N_SLOTS + 1)
+            + N_SLOTS * 6 * (8 * (n + 1) + 64))

@@ -25,8 +25,7 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
+from planner.stopping.codes import N_SLOTS
 from planner.stopping.pieces import (
     AT_CAP, ENERGY, F3, IF, NS, REACH, ST, V, _adv, _illinois, _pmax, _pmin, _region_of, _residual,
     _time_to_speed, _time_to_y, b1, f8, i8, jit, nt,
@@ -36,7 +35,8 @@ _INF = math.inf
 _MAX_STEPS = 10_000  # guard against a construction that fails to make progress (never hit in tests)
 
 # slots of the node store, and the field rows of a slot
-W, BEFORE, PAPER, BEFORE_E, PAPER_E, N_SLOTS = 0, 1, 2, 3, 4, 5
+W, BEFORE, PAPER, BEFORE_E, PAPER_E = 0, 1, 2, 3, 4
+assert N_SLOTS == 5
 FLAGS = N_SLOTS  # ns[FLAGS] != 0: node store overflow
 TAU, Y, V_, B, U, REG = 0, 1, 2, 3, 4, 5
 

@@ -12,10 +12,11 @@ import math
 
 import numpy as np
 
-from planner.stopping.construct import DONE, N_SLOTS, TAU, U, V_, W, Y, B, _construct
+from planner.stopping.construct import DONE, TAU, U, V_, W, Y, B, _construct
 from planner.stopping.codes import (  # noqa: F401  (the codes are read through this module too)
     BAD_DECEL, BAD_JERK, BAD_SPEED, BAD_V_START, BAD_X_STOP, EMPTY, FIRST_NOT_ZERO, HEAD, INTERNAL, NEEDS_MORE,
-    NEGATIVE, NOT_FINITE, NOT_POSITIVE, NOT_SORTED, OK, SOURCES, STANDING, START_ABOVE_LIMIT, ZERO_LIMIT, out_size)
+    NEGATIVE, NOT_FINITE, NOT_POSITIVE, NOT_SORTED, OK, SOURCES, STANDING, START_ABOVE_LIMIT, ZERO_LIMIT, N_SLOTS,
+    out_size, work_size)
 from planner.stopping.pieces import STEPS, ST, NS, V, _pmax, _pmin, b1, f8, i8, jit, nt
 
 _INF = math.inf
@@ -26,7 +27,9 @@ _INF = math.inf
 # --------------------------------------------------------------------------------------
 
 CHECK_STEPS = nt.UniTuple(i8, 2)(STEPS, i8, i8, i8)
-KERNEL = i8(f8, f8, f8, STEPS, i8, b1, V)
+KERNEL = i8(f8, f8, f8, i8, i8, b1, V)
+_out_size = jit(i8(i8))(out_size)  # the layout's one definition (planner.stopping.codes), compiled
+_work_size = jit(i8(i8))(work_size)
 
 
 @jit(CHECK_STEPS, public=True, nrt=True)
@@ -50,13 +53,14 @@ def check_steps(steps, lo, hi, positive):
     return 0, 0
 
 
-@jit(nt.UniTuple(V, 3)(f8, f8, STEPS, i8), nrt=True)
-def _regions(v0, X, steps, n_dl):
+@jit(i8(f8, f8, STEPS, i8, V, V))
+def _regions(v0, X, steps, n_dl, tmp, reg):
     """Regions of the backward frame ``y = X - x``: breakpoints of both step functions inside (0, X),
-    equal neighbours merged; ``(Yb, A, C)`` with ``C`` the running minimum of the speed limit.
-    ``steps``: the deceleration limits (rows ``:n_dl``) then the speed limits."""
+    equal neighbours merged; their number ``k``, with ``reg`` holding ``Yb`` (``k + 1``), ``A`` then
+    ``C`` (``k`` each), ``C`` the running minimum of the speed limit. ``steps``: the deceleration
+    limits (rows ``:n_dl``) then the speed limits; ``tmp``: room for ``4 n + 3`` temporaries."""
     n = steps.shape[0]
-    xs = np.empty(n)
+    xs = tmp[:n]
     nx = 0
     for row in range(n):
         x = steps[row, 0]
@@ -71,9 +75,9 @@ def _regions(v0, X, steps, n_dl):
             xs[k] = x
             nx += 1
     nb = nx + 1
-    mb = np.empty(nb)
-    mA = np.empty(nb)
-    mC = np.empty(nb)
+    mb = tmp[n:n + nb]
+    mA = tmp[n + nb:n + 2 * nb]
+    mC = tmp[n + 2 * nb:n + 3 * nb]
     ia, isl = 0, n_dl
     cap = v0
     k = 0
@@ -90,17 +94,14 @@ def _regions(v0, X, steps, n_dl):
         mA[k] = steps[ia, 1]
         mC[k] = cap
         k += 1
-    Yb = np.empty(k + 1)
-    A = np.empty(k)
-    C = np.empty(k)
-    Yb[0] = 0.0
+    reg[0] = 0.0
     for j in range(k):
         if j:
-            Yb[j] = X - mb[k - j]
-        A[j] = mA[k - 1 - j]
-        C[j] = mC[k - 1 - j]
-    Yb[k] = _INF
-    return Yb, A, C
+            reg[j] = X - mb[k - j]
+        reg[k + 1 + j] = mA[k - 1 - j]
+        reg[2 * k + 1 + j] = mC[k - 1 - j]
+    reg[k] = _INF
+    return k
 
 
 @jit(nt.none(ST, NS, f8, f8, f8, V), nrt=True)
@@ -140,15 +141,22 @@ def _forward(st, ns, v0, X, y_r, out):
 
 
 @jit(KERNEL, public=True, nrt=True)
-def kernel(v0, X, J, steps, n_dl, optimize, out):
-    """Solve one stop: ``steps`` holds the decel limits (first ``n_dl`` rows) then the speed limits.
+def kernel(v0, X, J, n_dl, n, optimize, work):
+    """Solve one stop: ``work[:2 n]`` holds the ``n`` step rows (x_from, value), the decel limits
+    (first ``n_dl`` rows) then the speed limits; ``work`` is at least ``work_size(n)`` long
+    (:mod:`planner.stopping.codes`) and the kernel allocates nothing.
 
-    Returns the number of pieces ``n`` of the pattern, or minus a code (an infeasibility or a bad
-    input). Writes ``out[0]`` the code (OK or that code), ``out[1]`` an index or position for the
-    message, and for OK: ``out[2:5]`` the duration, brake start and braking distance, ``out[5]``
-    ``n`` and from ``out[HEAD]`` the breakpoints t, x, v, a (``n + 1`` each) then the jerks (``n``);
-    for NEEDS_MORE the braking distance needed in ``out[4]``.
+    Returns the number of pieces ``p`` of the pattern, or minus a code (an infeasibility or a bad
+    input). From ``work[2 n]`` on (``out`` below) it writes ``out[0]`` the code (OK or that code),
+    ``out[1]`` an index or position for the message, and for OK: ``out[2:5]`` the duration, brake
+    start and braking distance, ``out[5]`` ``p`` and from ``out[HEAD]`` the breakpoints t, x, v, a
+    (``p + 1`` each) then the jerks (``p``); for NEEDS_MORE the braking distance needed in ``out[4]``.
     """
+    if n < 0 or not 0 <= n_dl <= n or work.size < _work_size(n):
+        return -INTERNAL  # the caller's error: nothing written
+    steps = work[:2 * n].reshape((n, 2))
+    o = 2 * n + _out_size(n)
+    out = work[2 * n:o]
     out[1] = 0.0
     if not (math.isfinite(v0) and v0 >= 0.0):
         out[0] = BAD_V_START
@@ -159,7 +167,6 @@ def kernel(v0, X, J, steps, n_dl, optimize, out):
     if not (math.isfinite(J) and J > 0.0):
         out[0] = BAD_JERK
         return -int(out[0])
-    n = steps.shape[0]
     code, i = check_steps(steps, 0, n_dl, 1)
     if code:
         out[0], out[1] = BAD_DECEL + code, i
@@ -189,14 +196,24 @@ def kernel(v0, X, J, steps, n_dl, optimize, out):
             return 0
         out[0] = STANDING
         return -int(out[0])
-    Yb, A, C = _regions(v0, X, steps, n_dl)
-    cap_nodes = 8 * A.size + 64
-    st = np.empty((N_SLOTS, 6, cap_nodes))
-    ns = np.zeros(N_SLOTS + 1, dtype=np.int64)
-    entry = np.empty(A.size)
+    # the scratch, in the order of codes.work_size
+    tmp = work[o:o + 4 * n + 3]
+    o += 4 * n + 3
+    reg = work[o:o + 3 * n + 5]
+    o += 3 * n + 5
+    k = _regions(v0, X, steps, n_dl, tmp, reg)
+    Yb, A, C = reg[:k + 1], reg[k + 1:2 * k + 1], reg[2 * k + 1:3 * k + 1]
+    entry = work[o:o + k]
     entry[:] = math.nan  # no entry chosen at that region's step-down
-    capnext = np.empty(A.size)  # y where the speed cap next rises (backwards), per region
-    pend = np.empty(3)
+    o += n + 1
+    capnext = work[o:o + k]  # y where the speed cap next rises (backwards), per region
+    o += n + 1
+    pend = work[o:o + 3]
+    o += 3
+    ns = work[o:o + N_SLOTS + 1].view(np.int64)
+    o += N_SLOTS + 1
+    cap_nodes = 8 * k + 64
+    st = work[o:o + N_SLOTS * 6 * cap_nodes].reshape((N_SLOTS, 6, cap_nodes))
     status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, capnext, pend, optimize)
     if status == DONE:
         chosen = 0

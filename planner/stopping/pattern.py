@@ -103,6 +103,7 @@ References: DESIGN §5 (event-point constant-jerk stopping pattern method).
 from __future__ import annotations
 
 import math
+import struct
 import threading
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
@@ -457,42 +458,71 @@ def solve_stop(
     >>> round(p.duration_s, 3), round(p.brake_start_m, 2)
     (30.625, 187.5)
     """
-    if rule not in ("min-time", "paper"):
+    if rule == "min-time":
+        optimize = True
+    elif rule == "paper":
+        optimize = False
+    else:
         raise InputError(f"rule must be 'min-time' or 'paper', got {rule!r}")
     k = _k or _compiled()
-    steps = None
-    if type(decel_limits) is list and type(speed_limits) is list:  # the common case, in one conversion
+    flat = None
+    if type(decel_limits) is list and type(speed_limits) is list:  # the common case, packed straight in
         try:
             v0, X, J = float(v_start), float(x_stop), float(jerk_max)
-            steps = np.array(decel_limits + speed_limits, dtype=np.float64)
-        except (TypeError, ValueError):
-            steps = None
-    if steps is None or steps.ndim != 2 or steps.shape[1] != 2:
+            flat = []
+            for row in decel_limits:
+                if type(row) is not tuple:
+                    raise TypeError
+                x, val = row  # exactly a pair
+                flat += row
+            for row in speed_limits:
+                if type(row) is not tuple:
+                    raise TypeError
+                x, val = row
+                flat += row
+            n_dl = len(decel_limits)
+            n = n_dl + len(speed_limits)
+            work = _work(n)
+            _packer(n).pack_into(work, 0, *flat)  # floats as float(...) gives them; anything else refuses
+        except (TypeError, ValueError, struct.error):
+            flat = None
+    if flat is None:  # anything else, checked (the first fault raised, in argument order) and converted
         v0, X, J, steps, n_dl = _request(v_start, x_stop, jerk_max, decel_limits, speed_limits)
-    else:
-        n_dl = len(decel_limits)
-    out = _out_buffer(codes.out_size(steps.shape[0]))
-    n = k.kernel(v0, X, J, steps, n_dl, rule == "min-time", out)
-    if n < 0:
-        return _not_solved(-n, out, v0, X, J, steps, n_dl)
-    vals = out[:codes.HEAD + 5 * n + 4].tolist()  # head, then t, x, v, a (n + 1 each) and j (n)
-    b = codes.HEAD
-    m = n + 1
-    p = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
-    p.__dict__.update(
-        feasible=True, reason="", v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J, duration_s=vals[2],
-        brake_start_m=vals[3], braking_distance_m=vals[4], t_s=tuple(vals[b:b + m]),
-        x_m=tuple(vals[b + m:b + 2 * m]), v_ms=tuple(vals[b + 2 * m:b + 3 * m]),
-        a_ms2=tuple(vals[b + 3 * m:b + 4 * m]), j_ms3=tuple(vals[b + 4 * m:]))
-    return p
+        n = steps.shape[0]
+        work = _work(n)
+        work[:2 * n] = steps.ravel()
+    p = k.kernel(v0, X, J, n_dl, n, optimize, work)
+    if p < 0:
+        return _not_solved(-p, work[2 * n:], v0, X, J, work[:2 * n].reshape(n, 2), n_dl)
+    o = 2 * n
+    vals = tuple(work[o + 2:o + codes.HEAD + 5 * p + 4].tolist())  # T, brake start, braking distance, ...
+    b = codes.HEAD - 2  # ... then t, x, v, a (p + 1 each) and j (p)
+    m = p + 1
+    r = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
+    r.__dict__.update(
+        feasible=True, reason="", v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J, duration_s=vals[0],
+        brake_start_m=vals[1], braking_distance_m=vals[2], t_s=vals[b:b + m], x_m=vals[b + m:b + 2 * m],
+        v_ms=vals[b + 2 * m:b + 3 * m], a_ms2=vals[b + 3 * m:b + 4 * m], j_ms3=vals[b + 4 * m:])
+    return r
 
 
-def _out_buffer(size: int) -> np.ndarray:
-    """This thread's output array for the kernel, at least ``size`` long (the kernel runs without the GIL)."""
-    buf = getattr(_local, "out", None)
-    if buf is None or buf.size < size:
-        buf = _local.out = np.empty(max(size, 4096))
+def _work(n_steps: int) -> np.ndarray:
+    """This thread's array for the kernel to work in (the kernel runs without the GIL), large enough."""
+    buf = getattr(_local, "work", None)
+    if buf is None or buf.size < codes.work_size(n_steps):
+        buf = _local.work = np.empty(max(codes.work_size(n_steps), codes.work_size(16)))
     return buf
+
+
+def _packer(n_steps: int) -> struct.Struct:
+    """Packs the ``2 n_steps`` floats of the step rows into the kernel's array (one per size, kept)."""
+    s = _PACKERS.get(n_steps)
+    if s is None:
+        s = _PACKERS[n_steps] = struct.Struct(f"={2 * n_steps}d")
+    return s
+
+
+_PACKERS: dict[int, struct.Struct] = {}
 
 
 def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
