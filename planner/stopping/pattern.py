@@ -482,47 +482,65 @@ def solve_stop(
                 flat += row
             n_dl = len(decel_limits)
             n = n_dl + len(speed_limits)
-            work = _work(n)
-            _packer(n).pack_into(work, 0, *flat)  # floats as float(...) gives them; anything else refuses
+            w = getattr(_local, "work", None)
+            if w is None or n > w[1]:
+                w = _work(n)
+            work, _, mem = w
+            (_PACK.get(n) or _packer(n)).pack_into(mem, 0, *flat)  # as float(...) gives them; else refused
         except (TypeError, ValueError, struct.error):
             flat = None
     if flat is None:  # anything else, checked (the first fault raised, in argument order) and converted
         v0, X, J, steps, n_dl = _request(v_start, x_stop, jerk_max, decel_limits, speed_limits)
         n = steps.shape[0]
-        work = _work(n)
+        work, _, mem = _work(n)
         work[:2 * n] = steps.ravel()
     p = k.kernel(v0, X, J, n_dl, n, optimize, work)
     if p < 0:
         return _not_solved(-p, work[2 * n:], v0, X, J, work[:2 * n].reshape(n, 2), n_dl)
-    o = 2 * n
-    vals = tuple(work[o + 2:o + codes.HEAD + 5 * p + 4].tolist())  # T, brake start, braking distance, ...
-    b = codes.HEAD - 2  # ... then t, x, v, a (p + 1 each) and j (p)
+    # T, brake start, braking distance, (3 more words), then t, x, v, a (p + 1 each) and j (p)
+    vals = (_UNPACK.get(p) or _unpacker(p)).unpack_from(mem, 16 * n + 16)
     m = p + 1
     r = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
-    r.__dict__.update(
-        feasible=True, reason="", v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J, duration_s=vals[0],
-        brake_start_m=vals[1], braking_distance_m=vals[2], t_s=vals[b:b + m], x_m=vals[b + m:b + 2 * m],
-        v_ms=vals[b + 2 * m:b + 3 * m], a_ms2=vals[b + 3 * m:b + 4 * m], j_ms3=vals[b + 4 * m:])
+    d = r.__dict__
+    d["feasible"] = True
+    d["reason"] = ""
+    d["v_start_ms"] = v0
+    d["x_stop_m"] = X
+    d["jerk_max_ms3"] = J
+    d["duration_s"] = vals[0]
+    d["brake_start_m"] = vals[1]
+    d["braking_distance_m"] = vals[2]
+    d["t_s"] = vals[6:6 + m]
+    d["x_m"] = vals[6 + m:6 + 2 * m]
+    d["v_ms"] = vals[6 + 2 * m:6 + 3 * m]
+    d["a_ms2"] = vals[6 + 3 * m:6 + 4 * m]
+    d["j_ms3"] = vals[6 + 4 * m:]
     return r
 
 
-def _work(n_steps: int) -> np.ndarray:
-    """This thread's array for the kernel to work in (the kernel runs without the GIL), large enough."""
-    buf = getattr(_local, "work", None)
-    if buf is None or buf.size < codes.work_size(n_steps):
-        buf = _local.work = np.empty(max(codes.work_size(n_steps), codes.work_size(16)))
-    return buf
+def _work(n_steps: int) -> tuple[np.ndarray, int, memoryview]:
+    """This thread's array for the kernel to work in (the kernel runs without the GIL), large enough for
+    ``n_steps`` rows: ``(array, rows it has room for, a memoryview of it)``."""
+    w = getattr(_local, "work", None)
+    if w is None or n_steps > w[1]:
+        room = max(n_steps, 2 * w[1] if w else 16)
+        buf = np.zeros(codes.work_size(room))
+        w = _local.work = (buf, room, memoryview(buf))
+    return w
 
 
 def _packer(n_steps: int) -> struct.Struct:
     """Packs the ``2 n_steps`` floats of the step rows into the kernel's array (one per size, kept)."""
-    s = _PACKERS.get(n_steps)
-    if s is None:
-        s = _PACKERS[n_steps] = struct.Struct(f"={2 * n_steps}d")
-    return s
+    return _PACK.setdefault(n_steps, struct.Struct(f"={2 * n_steps}d"))
 
 
-_PACKERS: dict[int, struct.Struct] = {}
+def _unpacker(n_pieces: int) -> struct.Struct:
+    """Reads a pattern of ``n_pieces`` from the kernel's array, from ``out[2]`` (one per size, kept)."""
+    return _UNPACK.setdefault(n_pieces, struct.Struct(f"={codes.HEAD - 2 + 5 * n_pieces + 4}d"))
+
+
+_PACK: dict[int, struct.Struct] = {}
+_UNPACK: dict[int, struct.Struct] = {}
 
 
 def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
