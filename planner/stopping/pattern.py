@@ -497,9 +497,12 @@ def solve_stop(
     p = k.kernel(v0, X, J, n_dl, n, optimize, work)
     if p < 0:
         return _not_solved(-p, work[2 * n:], v0, X, J, work[:2 * n].reshape(n, 2), n_dl)
-    # T, brake start, braking distance, (3 more words), then t, x, v, a (p + 1 each) and j (p)
-    vals = (_UNPACK.get(p) or _unpacker(p)).unpack_from(mem, 16 * n + 16)
-    m = p + 1
+    # out[2:5]: T, brake start, braking distance; from out[HEAD]: t, x, v, a (p + 1 each) and j (p)
+    o = 16 * n + 16  # byte offset of out[2] (out is work[2 n:])
+    T, brake, dist = _HEAD3.unpack_from(mem, o)
+    m_, p_ = _UNPACK.get(p) or _unpacker(p)
+    o += 8 * (codes.HEAD - 2)
+    s = 8 * (p + 1)
     r = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
     d = r.__dict__
     d["feasible"] = True
@@ -507,14 +510,14 @@ def solve_stop(
     d["v_start_ms"] = v0
     d["x_stop_m"] = X
     d["jerk_max_ms3"] = J
-    d["duration_s"] = vals[0]
-    d["brake_start_m"] = vals[1]
-    d["braking_distance_m"] = vals[2]
-    d["t_s"] = vals[6:6 + m]
-    d["x_m"] = vals[6 + m:6 + 2 * m]
-    d["v_ms"] = vals[6 + 2 * m:6 + 3 * m]
-    d["a_ms2"] = vals[6 + 3 * m:6 + 4 * m]
-    d["j_ms3"] = vals[6 + 4 * m:]
+    d["duration_s"] = T
+    d["brake_start_m"] = brake
+    d["braking_distance_m"] = dist
+    d["t_s"] = m_.unpack_from(mem, o)
+    d["x_m"] = m_.unpack_from(mem, o + s)
+    d["v_ms"] = m_.unpack_from(mem, o + 2 * s)
+    d["a_ms2"] = m_.unpack_from(mem, o + 3 * s)
+    d["j_ms3"] = p_.unpack_from(mem, o + 4 * s)
     return r
 
 
@@ -534,13 +537,15 @@ def _packer(n_steps: int) -> struct.Struct:
     return _PACK.setdefault(n_steps, struct.Struct(f"={2 * n_steps}d"))
 
 
-def _unpacker(n_pieces: int) -> struct.Struct:
-    """Reads a pattern of ``n_pieces`` from the kernel's array, from ``out[2]`` (one per size, kept)."""
-    return _UNPACK.setdefault(n_pieces, struct.Struct(f"={codes.HEAD - 2 + 5 * n_pieces + 4}d"))
+def _unpacker(n_pieces: int) -> tuple[struct.Struct, struct.Struct]:
+    """Read the breakpoints (``n_pieces + 1`` floats) and the jerks (``n_pieces``) of a pattern, as tuples
+    (kept per size)."""
+    return _UNPACK.setdefault(n_pieces, (struct.Struct(f"={n_pieces + 1}d"), struct.Struct(f"={n_pieces}d")))
 
 
 _PACK: dict[int, struct.Struct] = {}
-_UNPACK: dict[int, struct.Struct] = {}
+_UNPACK: dict[int, tuple[struct.Struct, struct.Struct]] = {}
+_HEAD3 = struct.Struct("=3d")
 
 
 def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
