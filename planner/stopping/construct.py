@@ -100,7 +100,7 @@ def _motion(A, C, J, v, b, r):
     return J  # 1: maximum jerk
 
 
-@jit(IF(ST, i8, f8, f8, f8, i8, f8, i8, f8, f8))
+@jit(IF(ST, i8, f8, f8, f8, i8, f8, i8, f8, f8), inline="always")
 def _search(st, kind, p1, p2, J, i_hi, s_hi, i_lo, s_lo, ftol):
     """Latest point (i, s) on the built part, between (i_lo, s_lo) and (i_hi, s_hi), where the
     increasing residual crosses zero; ``> 0`` at (i_hi, s_hi), ``<= 0`` at (i_lo, s_lo).

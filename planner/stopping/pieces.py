@@ -25,11 +25,11 @@ from numba import types as nt
 _INF = math.inf
 
 
-def jit(sig, public=False, nrt=False):
+def jit(sig, public=False, nrt=False, inline="never"):
     """Compile now with the one signature ``sig``: internal calls convert their arguments to it
     and never respecialise (a constant argument would otherwise compile one copy per value)."""
     return njit(sig, cache=False, error_model="numpy", nogil=True, no_cpython_wrapper=not public,
-                no_cfunc_wrapper=True, _nrt=nrt)
+                no_cfunc_wrapper=True, _nrt=nrt, inline=inline)
 
 
 f8, i8, b1 = nt.float64, nt.int64, nt.boolean
@@ -147,7 +147,7 @@ def _residual(kind, p1, p2, J, y, v, b):
     return y + rr * (v + rr * (b / 2.0 - J * rr / 6.0)) - p2
 
 
-@jit(f8(i8, f8, f8, f8, f8, f8, f8, f8, f8, f8, f8, f8, f8))
+@jit(f8(i8, f8, f8, f8, f8, f8, f8, f8, f8, f8, f8, f8, f8), inline="always")
 def _illinois(kind, p1, p2, J, y0, v0, b0, u0, lo, hi, flo, fhi, ftol):
     """Root in ``s`` of the residual along one piece, increasing, ``flo <= 0 < fhi`` (Illinois)."""
     side = 0
