@@ -309,7 +309,7 @@ def _run(st, ns, J, X, Yb, A, C, capnext, entry, optimize, pend):
     return NO_PROGRESS, _INF
 
 
-@jit(f8(ST, NS, f8, f8, V, V, V, V, V, V, i8, f8, i8, b1, f8))
+@jit(f8(ST, NS, f8, f8, V, V, V, V, V, V, i8, f8, i8, b1, f8), inline="always")
 def _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, enter, b_s):
     """Finish the construction with the entries chosen so far; the pattern duration minus X/v0.
 
