@@ -36,7 +36,7 @@ _MAX_STEPS = 10_000  # guard against a construction that fails to make progress 
 
 # slots of the node store, and the field rows of a slot
 W, BEFORE, PAPER, BEFORE_E, PAPER_E = 0, 1, 2, 3, 4
-assert N_SLOTS == 5
+assert N_SLOTS == 5  # codes.N_SLOTS sizes the kernel's work array: one slot per name above
 FLAGS = N_SLOTS  # ns[FLAGS] != 0: node store overflow
 TAU, Y, V_, B, U, REG = 0, 1, 2, 3, 4, 5
 
