@@ -14,7 +14,9 @@ nodes. Slot ``W`` is the working construction; the others hold saved ones
 (:func:`_copy`): ``BEFORE``/``PAPER`` for the choice at a step-down,
 ``BEFORE_E``/``PAPER_E`` for re-entering with a chosen deceleration while a
 trial finishes the construction. ``ns[FLAGS]`` is set if the store overflows
-(an internal error, never seen).
+(an internal error, never seen). Nothing here allocates: the store, the counts
+and the other arrays are views of the one work array the caller passes
+(:func:`planner.stopping.kernel.kernel`, :func:`planner.stopping.codes.work_size`).
 
 Regions in the backward frame: region ``r`` spans ``y`` in ``[Yb[r], Yb[r+1]]``
 with deceleration limit ``A[r]`` and speed cap ``C[r]``; ``capnext[r]`` is where
