@@ -497,11 +497,16 @@ class Cache:
                 "if this repeats, check the disk or run `planner cache verify`")
 
     def put(self, kind: str, key: str, obj: Any) -> None:
-        """Store ``obj`` (atomically: a killed run leaves the old entry or none, never half of one)."""
+        """Store ``obj`` (atomically: a killed run leaves the old entry or none, never half of one).
+
+        Not flushed to disk one by one: an entry that a power cut leaves empty or torn fails
+        its digest on the next read and is recomputed (:meth:`get`), so a flush per entry
+        would buy nothing but time.
+        """
         p = self.path(kind, key)
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)
-        write_bytes_atomic(p, pack(kind, key, obj))
+        write_bytes_atomic(p, pack(kind, key, obj), fsync=False)
 
     # --- maintenance: `planner cache verify` and `planner cache clear`
     def entries(self) -> Iterator[Path]:

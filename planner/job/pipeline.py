@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from planner import __version__
-from planner.io.atomic import write_bytes_atomic
+from planner.io.atomic import deferred_fsync, write_bytes_atomic
 from planner.io.parquet import stamp_run
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
@@ -188,7 +188,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
     from planner.line.loader import load_line
 
     run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
-    with job_lock(root):
+    # the staged run's files are flushed to disk once, by publish(), before it becomes visible
+    with job_lock(root), deferred_fsync():
         clean_stale_staging(root)
         cache = Cache(root / ".cache", enabled=use_cache)
         with Progress(show_progress) as prog:
