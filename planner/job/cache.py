@@ -168,21 +168,9 @@ class _Encoder:
         if isinstance(dt, np.dtype):  # object: any values the tree can hold
             return {"dtype": "object", "v": [self(x) for x in s.tolist()]}
         name = str(dt)
-        if name in ("str", "string"):
-            vals = [None if _isna_scalar(x) else str(x) for x in s.tolist()]
-            return {"dtype": name, "v": vals}
+        if name in ("str", "string"):  # every value a str or missing (None), in one conversion
+            return {"dtype": name, "v": s.to_numpy(dtype=object, na_value=None).tolist()}
         raise TypeError(f"cannot cache a DataFrame column of dtype {name}")
-
-
-def _isna_scalar(x: Any) -> bool:
-    if x is None:
-        return True
-    try:
-        import pandas as pd
-
-        return bool(pd.isna(x))
-    except (TypeError, ValueError):
-        return False
 
 
 def _arrow_bytes(table) -> bytes:
