@@ -80,6 +80,8 @@ class RunSummary:
     warnings: list[str] = field(default_factory=list)
     release: Any = None
     """The :class:`planner.bundle.container.Release` the run's bundles were issued with."""
+    wall_s: float = 0.0
+    """Wall time of the whole run [s]: less than the steps' sum, as some steps run beside others."""
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
     """Margin report of each line (kept for :func:`planner.job.views.run_views`, which puts the changes on top)."""
 
@@ -179,9 +181,14 @@ def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> 
     unit is recomputed, the fresh results replace the entries, and a new run is
     published even when nothing changed since ``latest``.
     """
+    import time
+
+    t0 = time.perf_counter()
     root = job.resolve(job.job.output_root)
     with output_root_errors(root):
-        return _run_job(job, root, show_progress, use_cache)
+        summary = _run_job(job, root, show_progress, use_cache)
+    summary.wall_s = round(time.perf_counter() - t0, 3)
+    return summary
 
 
 def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunSummary:
@@ -302,7 +309,14 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
                 f"{line.line_id}: no stopping pattern at {r.station_id} ({r.direction}, {r.train_type}, from "
                 f"{r.origin}) for adhesion {levels} km/h/s ({len(bad)} of {len(r.patterns)} levels): {first.reason}")
 
-    # closed loop: every scenario and mode of an interstation in one batch
+    # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts
+    # and train graph trajectories depend on the line alone, so they run beside it (first: longest)
+    from planner.job.views import graph_unit
+
+    side = [("graph", [graph_unit(job, line)])]
+    checks_conflicts = job.conflicts.enabled and line.network is not None
+    if checks_conflicts:
+        side.insert(0, ("conflicts", [_conflicts_unit_of(job, line)]))
     cp = job.closed_loop
     c_units = [
         Unit("closed_loop",
@@ -313,20 +327,22 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
               tp.ds_m))
         for k, u, tab in zip(tasks, t_units, tables)
     ]
-    loops = [r for batch in runner.run("closed_loop", c_units) for r in batch]
+    *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
+    got = {step: res[0] for (step, _), res in zip(side, side_results)}
+    loops = [r for batch in loop_batches for r in batch]
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
 
     conflicts = None
-    if job.conflicts.enabled and line.network is not None:
-        conflicts = _conflicts_step(job, line, stage, runner, summary)
+    if checks_conflicts:
+        conflicts = _conflicts_step(line, stage, summary, got["conflicts"])
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts)
     _bundles_step(job, line, stage, runner, summary, key)
     from planner.job.views import line_views  # inputs copy, train graph page
 
-    line_views(job, line, stage, runner, summary)
+    line_views(job, line, stage, runner, summary, got["graph"])
 
 
 def _count(summary: RunSummary, files: Iterable[Path]) -> None:
@@ -396,13 +412,17 @@ def _conflicts_unit(line, params):
     return check_conflicts(line, params)
 
 
-def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary):
-    """Route conflicts of the line's whole timetable; returns the conflicts table for the report."""
-    from planner.datasets.conflicts import write_conflicts
-
+def _conflicts_unit_of(job: Job, line: Line) -> Unit:
+    """The unit of the line's route conflicts (its whole timetable)."""
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
     key = digest(["conflicts", code_digest(), line.source_digest, params, job.tables.ds_m])
-    report = _line_unit(runner, "conflicts", key, _conflicts_unit, line, params)
+    return Unit("conflicts", key, "conflicts", _conflicts_unit, (line, params))
+
+
+def _conflicts_step(line: Line, stage: Path, summary: RunSummary, report):
+    """Write the route conflicts found (:func:`_conflicts_unit_of`); returns the conflicts table for the report."""
+    from planner.datasets.conflicts import write_conflicts
+
     _count(summary, write_conflicts(report, stage))
     summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
         report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0)
