@@ -84,6 +84,8 @@ class RunSummary:
     """Wall time of the whole run [s]: less than the steps' sum, as some steps run beside others."""
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
     """Margin report of each line (kept for :func:`planner.job.views.run_views`, which puts the changes on top)."""
+    charts: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    """Each margin report's chart sections, being drawn (:class:`planner.io.parallel.Background`)."""
 
 
 def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
@@ -235,15 +237,20 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             summary = RunSummary(run_id, None, False, notes=notes)
             runner = Runner(job, cache, prog)
             summary.release = release
-            for line in lines:
-                _run_line(job, line, stage, runner, summary, key)
-            summary.computed, summary.reused = runner.computed, runner.reused
-            if cache.rejected:  # once per run, with the count
-                summary.warnings.append(cache.rejected_note())
-            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
-            from planner.job.views import run_views  # changes since the last run, overview page
+            try:
+                for line in lines:
+                    _run_line(job, line, stage, runner, summary, key)
+                summary.computed, summary.reused = runner.computed, runner.reused
+                if cache.rejected:  # once per run, with the count
+                    summary.warnings.append(cache.rejected_note())
+                _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
+                from planner.job.views import run_views  # changes since the last run, overview page
 
-            run_views(job, lines, stage, root, prog, summary)
+                run_views(job, lines, stage, root, prog, summary)  # takes the charts drawn meanwhile
+            except Exception:
+                for charts in summary.charts.values():  # drawn on a worker: let it finish first
+                    charts.discard()
+                raise
             from planner.report.catalog import datasets as catalog
 
             stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
@@ -384,8 +391,14 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
-    # the page itself is written once, by job.views.run_views, with what changed since the last run on top
+    # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
+    # its charts (a few seconds of matplotlib) are drawn on a worker meanwhile
+    from planner.io.parallel import background
+    from planner.report.html import chart_sections, stop_markers
+
     summary.reports[line.line_id] = report
+    summary.charts[line.line_id] = background(chart_sections, (report, stop_markers(line)),
+                                              name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 

@@ -127,8 +127,9 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
             top = changes_html(ch, first_run_note=note)
             rep = summary.reports.get(line.line_id)
             if rep is not None:
+                charts = summary.charts.get(line.line_id)
                 write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
-                           datasets_root=stage, top=top)
+                           datasets_root=stage, top=top, charts=charts.result() if charts is not None else None)
             prog.advance("changes")
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))
