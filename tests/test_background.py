@@ -30,3 +30,16 @@ def test_its_error_reaches_result_and_discard_drops_it_quietly():
         background(_fails, ("on purpose",), n_jobs=2).result()
     b = background(_fails, ("dropped",), n_jobs=2)
     b.discard()  # a failing run drops it: waits for the worker, raises nothing
+
+
+def test_started_workers_import_beside_and_an_error_inside_waits_for_them():
+    from planner.io.parallel import started_workers
+
+    with started_workers(["json"], name="dask", n_jobs=2) as none, started_workers(["json"], n_jobs=1) as one:
+        assert none == [] and one == []
+    with started_workers(["planner.tables.build"], n_jobs=2) as warm:
+        assert len(warm) == 2
+        assert [w.result() for w in warm] == [None, None]
+    with pytest.raises(InputError, match="bad line"):
+        with started_workers(["planner.tables.build"], n_jobs=2):
+            raise InputError("bad line")  # the handles are waited for on the way out, quietly

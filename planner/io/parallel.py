@@ -182,7 +182,7 @@ class Background:
         manager thread (a KeyError there), which would leave the workers' executor broken
         for the next step of this process. The work is a few seconds at most.
         """
-        if self._gen is not None:
+        if self._gen is not None and self._value is self._UNSET:
             try:
                 next(self._gen)
             except Exception:  # noqa: BLE001 - the run is failing already; this result is not wanted
@@ -195,6 +195,30 @@ def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = 
     ``local`` backend and ``n_jobs != 1``, else later, in this process. For work of the main process
     that nothing needs until a later step (the nightly job's margin charts)."""
     return Background(fn, args, n_jobs if name == "local" else 1)
+
+
+def _import(modules: Sequence[str]) -> None:
+    import importlib
+
+    for m in modules:
+        importlib.import_module(m)
+
+
+@contextmanager
+def started_workers(modules: Sequence[str], *, name: str = "local", n_jobs: int = -1) -> Iterator[list[Background]]:
+    """Start the local workers now, each importing ``modules``, while the main process does its own
+    start (reads the line, checks the key): the first step then finds them ready instead of waiting
+    for their start and imports. Nothing with one job or the Dask backend. Yields the handles; take
+    their results before the first step; leaving the context (an error on the way) waits for them."""
+    handles: list[Background] = []
+    if name == "local" and n_jobs != 1:
+        n = joblib.cpu_count() if n_jobs < 0 else n_jobs
+        handles = [Background(_import, (tuple(modules),), n_jobs) for _ in range(n)]
+    try:
+        yield handles
+    finally:
+        for h in handles:
+            h.discard()
 
 
 def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,

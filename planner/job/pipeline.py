@@ -58,6 +58,9 @@ from planner.job.publish import (
     staging_dir,
 )
 
+UNIT_MODULES = ("planner.job.units", "planner.tables.build", "planner.stopping.sweep", "planner.tables.closed_loop")
+"""What the units' functions import in a worker (:func:`planner.io.parallel.start_workers` imports it first)."""
+
 STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
          "overview", "publish")
 
@@ -198,7 +201,11 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
 
     run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
     # the staged run's files are flushed to disk once, by publish(), before it becomes visible
-    with job_lock(root), deferred_fsync():
+    from planner.io.parallel import started_workers
+
+    # the workers start (and import what the units run) while this process reads the lines
+    with job_lock(root), deferred_fsync(), \
+            started_workers(UNIT_MODULES, name=job.parallel.backend, n_jobs=job.parallel.n_jobs) as warm:
         clean_stale_staging(root)
         cache = Cache(root / ".cache", enabled=use_cache)
         with Progress(show_progress) as prog:
@@ -217,6 +224,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or the clock now
             release = Release.issue(build_time_s(), valid_days=job.bundles.valid_days, development=development)
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
+            for w in warm:  # taken on every path: an abandoned joblib generator upsets loky's manager thread
+                w.result()
             last = latest_run(root)
             if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
