@@ -65,3 +65,27 @@ def test_cache_counts_hits_and_misses(tmp_path):
     c.put("t", key, pa.table({"x": [1.0]}))
     assert c.get("t", key).to_pydict() == {"x": [1.0]}
     assert (c.hits, c.misses) == (1, 1)
+
+
+def test_staged_files_are_flushed_once_by_publish_before_the_rename(tmp_path, monkeypatch):
+    """Inside deferred_fsync an atomic write does not flush; publish flushes every staged file, then renames."""
+    import planner.io.atomic as atomic
+    import planner.job.publish as pub
+
+    events = []
+    monkeypatch.setattr(atomic, "_fsync_file", lambda p: events.append(("fsync", os.path.basename(p))))
+    monkeypatch.setattr(pub, "_fsync_file", lambda p: events.append(("fsync", os.path.basename(p))))
+    real_rename = os.rename
+    monkeypatch.setattr(pub.os, "rename", lambda a, b: (events.append(("rename", "")), real_rename(a, b)))
+    rid = next_run_id(tmp_path, "a" * 40)
+    st = staging_dir(tmp_path, rid)
+    with atomic.deferred_fsync():
+        atomic.write_bytes_atomic(st / "x.bin", b"x")
+        atomic.write_bytes_atomic(st / "sub" / "y.bin", b"y")
+    assert events == []  # nothing flushed one by one
+    atomic.write_bytes_atomic(tmp_path / "outside.bin", b"z")  # outside the context: flushed at once
+    assert events == [("fsync", next(iter(events))[1])] and events[0][1].startswith(".outside.bin.")
+    events.clear()
+    publish(tmp_path, st, rid, keep=2)
+    assert sorted(e for e in events if e[0] == "fsync") == [("fsync", "x.bin"), ("fsync", "y.bin")]
+    assert events[-1] == ("rename", "")  # every flush before the run becomes visible

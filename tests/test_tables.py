@@ -300,3 +300,31 @@ def test_table_d_round_trip_through_the_datasets(hilly, tmp_path):
         np.testing.assert_array_equal(got.ref_time_s, t.approach.ref_time_s)
     for t in (r for r in results if r.approach is None):
         assert load_tables(tmp_path, ln.line_id, t.direction, t.train_type)[(t.origin, t.destination)].approach is None
+
+
+@pytest.mark.parametrize("damage", ["foreign_ratio", "missing_row"])
+def test_tables_that_do_not_fit_together_are_one_line_errors(flat, tmp_path, damage):
+    """load_tables: a table_b row at a ratio table (a) does not have, or a row missing, names the
+    dataset, the interstation and the fix (never an IndexError, never a silently wrong cell)."""
+    import pyarrow as pa
+
+    from planner.datasets.tables import load_tables
+    from planner.errors import InputError
+
+    ln, res = flat
+    files = write_tables([res], tmp_path)
+    f = next(p for p in map(Path, files) if "table_b" in p.parts)
+    t = pq.read_table(f)
+    if damage == "foreign_ratio":  # one row's ratio_before moved off the grid
+        col = t.column("ratio_before").to_numpy().copy()
+        col[0] = 0.123
+        t = t.set_column(t.schema.get_field_index("ratio_before"), t.schema.field("ratio_before"),
+                         pa.array(col))
+        want = "table_b for S0->S1 has a ratio_before the other tables do not have; rebuild the tables"
+    else:
+        t = t.slice(1)
+        want = "table_b for S0->S1 has"
+    pq.write_table(t, f)
+    with pytest.raises(InputError) as e:
+        load_tables(tmp_path, ln.line_id, res.direction, res.train_type)
+    assert want in str(e.value) and "\n" not in str(e.value)

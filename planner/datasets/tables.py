@@ -238,41 +238,44 @@ def load_tables(
             f"--tables {root}: no table_a rows for line={line_id} direction={direction} "
             f"train_type={train_type}; run `planner tables` for it"
         )
+    # each dataset split by interstation once (not filtered per interstation), row positions by
+    # hash lookup (not a Python dict per value): the margin report reads every table back
+    import pandas as pd
+
+    frames = (ep, tb, tc, td)
+    by_pair = [_by_pair(f) for f in frames]
     for (o, d), a in ta.groupby(["origin", "destination"], sort=False):
         a = a.sort_values("ratio", ascending=False)
         ratios = a["ratio"].to_numpy(float)
-        p = ep[(ep.origin == o) & (ep.destination == d)].sort_values("eval_distance_m")
-        b = tb[(tb.origin == o) & (tb.destination == d)]
+        p, b, c, g = (None if f is None else parts.get((o, d), f.iloc[:0]) for f, parts in zip(frames, by_pair))
+        p = p.sort_values("eval_distance_m")
         n_r, n_x = len(ratios), len(p)
         if len(b) != n_x * n_r * n_r:
             raise InputError(
                 f"--tables {root}: table_b for {o}->{d} has {len(b)} rows, expected "
                 f"{n_x} points x {n_r}^2 ratios; rebuild the tables"
             )
-        k = {pid: i for i, pid in enumerate(p["eval_point_id"])}
-        ri = {float(r): i for i, r in enumerate(ratios)}
+        k = pd.Index(p["eval_point_id"])
+        ri = pd.Index(ratios)
         rem = np.full((n_x, n_r, n_r), np.nan)
-        rem[b["eval_point_id"].map(k).to_numpy(), b["ratio_before"].map(ri).to_numpy(),
-            b["ratio_after"].map(ri).to_numpy()] = b["remaining_time_s"].to_numpy(float)
+        at = _positions(root, "table_b", o, d, (k, b["eval_point_id"]), (ri, b["ratio_before"]), (ri, b["ratio_after"]))
+        rem[at] = b["remaining_time_s"].to_numpy(float)
         if np.isnan(rem).any():
             raise InputError(f"--tables {root}: table_b for {o}->{d} is incomplete; rebuild the tables")
         ref = spd = None
-        if tc is not None and not tc.empty:
-            c = tc[(tc.origin == o) & (tc.destination == d)]
-            if len(c) == n_x * n_r:
-                ref = np.full((n_x, n_r), np.nan)
-                ref[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
-                    c["remaining_time_ref_s"].to_numpy(float)
-                if np.isnan(ref).any():
-                    ref = None
-                if "speed_kmh" in c:
-                    spd = np.full((n_x, n_r), np.nan)
-                    spd[c["eval_point_id"].map(k).to_numpy(), c["ratio"].map(ri).to_numpy()] = \
-                        ms(c["speed_kmh"].to_numpy(float))
-                    if np.isnan(spd).any():
-                        spd = None
+        if c is not None and len(c) == n_x * n_r:
+            at = _positions(root, "table_c", o, d, (k, c["eval_point_id"]), (ri, c["ratio"]))
+            ref = np.full((n_x, n_r), np.nan)
+            ref[at] = c["remaining_time_ref_s"].to_numpy(float)
+            if np.isnan(ref).any():
+                ref = None
+            if "speed_kmh" in c:
+                spd = np.full((n_x, n_r), np.nan)
+                spd[at] = ms(c["speed_kmh"].to_numpy(float))
+                if np.isnan(spd).any():
+                    spd = None
         out[(o, d)] = RunningTimeTables(
-            approach=_approach(td, o, d, p["eval_point_id"].iloc[-1], root) if td is not None and n_x > 1 else None,
+            approach=_approach(g, o, d, p["eval_point_id"].iloc[-1], root) if g is not None and n_x > 1 else None,
             origin=o,
             destination=d,
             ratios=ratios,
@@ -287,6 +290,26 @@ def load_tables(
     return out
 
 
+def _by_pair(df) -> dict | None:
+    """A DataFrame's rows by (origin, destination), in their order; None stays None."""
+    if df is None:
+        return None
+    return {key: part for key, part in df.groupby(["origin", "destination"], sort=False)}
+
+
+def _positions(root: Path, name: str, o: str, d: str, *axes) -> tuple:
+    """Index arrays of a table's rows: for each ``(index, column)`` the position of every value in
+    ``index`` (an InputError when a value is not there: the tables do not fit together)."""
+    out = []
+    for index, col in axes:
+        at = index.get_indexer(col.to_numpy())
+        if (at < 0).any():
+            raise InputError(f"--tables {root}: {name} for {o}->{d} has a {col.name} the other tables do not "
+                             "have; rebuild the tables")
+        out.append(at)
+    return tuple(out)
+
+
 def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str):
     """One partition of an optional dataset as a DataFrame, or None when the dataset is absent."""
     try:
@@ -296,25 +319,26 @@ def _optional(root: Path, name: str, line_id: str, direction: str, train_type: s
     return None if df.empty else df
 
 
-def _approach(td, origin: str, destination: str, last_point: str, root: Path) -> ApproachTable | None:
-    """Table (d) of one interstation from its dataset rows (None when it has none)."""
-    g = td[(td.origin == origin) & (td.destination == destination)]
+def _approach(g, origin: str, destination: str, last_point: str, root: Path) -> ApproachTable | None:
+    """Table (d) of one interstation from its dataset rows ``g`` (None when it has none)."""
+    import pandas as pd
+
     if g.empty:
         return None
-    if set(g["eval_point_id"]) != {last_point}:
+    if set(g["eval_point_id"].unique()) != {last_point}:
         raise InputError(f"--tables {root}: table_d for {origin}->{destination} is not at the last "
                          f"evaluation point {last_point!r}; rebuild the tables")
     speeds = ms(np.sort(g["speed_kmh"].unique()))
     ratios = np.sort(g["ratio_after"].unique())[::-1]
-    powering = tuple(sorted({bool(x) for x in g["powering"]}, reverse=True))
+    powering = tuple(sorted({bool(x) for x in g["powering"].unique()}, reverse=True))
     n_p, n_v, n_a = len(powering), len(speeds), len(ratios)
     if len(g) != n_p * n_v * n_a:
         raise InputError(f"--tables {root}: table_d for {origin}->{destination} has {len(g)} rows, expected "
                          f"{n_p} phases x {n_v} speeds x {n_a} ratios; rebuild the tables")
     t = np.full((2, n_p, n_v, n_a), np.nan)
-    ip = g["powering"].map({p: i for i, p in enumerate(powering)}).to_numpy()
+    ip = pd.Index(powering).get_indexer(g["powering"].to_numpy(bool))
     iv = np.searchsorted(speeds, ms(g["speed_kmh"].to_numpy(float)))
-    ia = g["ratio_after"].map({r: i for i, r in enumerate(ratios)}).to_numpy()
+    ia = pd.Index(ratios).get_indexer(g["ratio_after"].to_numpy(float))
     t[0, ip, iv, ia] = g["remaining_time_s"].to_numpy(float)
     t[1, ip, iv, ia] = g["remaining_time_ref_s"].to_numpy(float)
     if np.isnan(t).any():

@@ -5,10 +5,14 @@ entries) is written through :func:`atomic_path`: the content goes to a hidden
 temporary file in the same folder, is flushed to disk, made readable (0644:
 outputs are for every analyst, not secrets) and renamed over the final name
 with ``os.replace``, which is atomic on POSIX. A failure or interruption
-leaves the previous file (or none), never a half-written one.
+leaves the previous file (or none), never a half-written one. Two writers
+flush differently: a staged run's files are flushed all at once before the
+run is published (:func:`deferred_fsync`), and cache entries not at all (a
+torn entry fails its digest and is recomputed).
 """
 from __future__ import annotations
 
+import contextvars
 import os
 import tempfile
 from contextlib import contextmanager
@@ -37,15 +41,39 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
+_DEFERRED = contextvars.ContextVar("planner_fsync_deferred", default=False)
+
+
 @contextmanager
-def atomic_path(path: str | os.PathLike, *, mode: int = 0o644, fsync: bool = True) -> Iterator[Path]:
+def deferred_fsync() -> Iterator[None]:
+    """Within this context, atomic writes are not flushed one by one: the caller flushes them all at once.
+
+    For a tree that becomes visible only through one later rename (the nightly job's
+    staged run: :func:`planner.job.publish.publish` fsyncs the whole tree before it
+    renames it). Each write is still atomic (temporary file, ``os.replace``); only the
+    flush to disk moves to the barrier, so a few hundred files pay for one flush.
+    """
+    token = _DEFERRED.set(True)
+    try:
+        yield
+    finally:
+        _DEFERRED.reset(token)
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike, *, mode: int = 0o644, fsync: bool | None = None) -> Iterator[Path]:
     """Yield a temporary path to write; on success it replaces ``path``, on error it is removed.
+
+    ``fsync``: flush the file and its folder to disk before and after the rename; the
+    default is to, except inside :func:`deferred_fsync`.
 
     The temporary name ends in ``.tmp`` (so ``*.png`` or ``*.pdb`` globs never see
     it): writers that infer a format from the name must be told it (``savefig(format="png")``).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    if fsync is None:
+        fsync = not _DEFERRED.get()
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     try:
@@ -70,9 +98,10 @@ _CHUNK = 1 << 20
 """Bytes per ``os.write`` call (tests shrink it to widen the window a kill can hit)."""
 
 
-def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, mode: int = 0o644) -> None:
+def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, mode: int = 0o644,
+                       fsync: bool | None = None) -> None:
     """Write ``data`` to ``path`` atomically (see :func:`atomic_path`)."""
-    with atomic_path(path, mode=mode) as tmp:
+    with atomic_path(path, mode=mode, fsync=fsync) as tmp:
         fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC)
         try:
             view = memoryview(data)

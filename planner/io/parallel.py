@@ -151,6 +151,76 @@ class DaskPool(Pool):
                     pass
 
 
+class Background:
+    """``fn(*args)`` started on a local worker now, its result taken later with :meth:`result`.
+
+    Made by :func:`background`. Without a local worker pool (one job, or the Dask
+    backend, whose workers are for the units) the call runs in this process, in
+    :meth:`result`. Either way the result is the same: the worker runs the same function.
+    """
+
+    _UNSET = object()
+
+    def __init__(self, fn: Callable, args: tuple, n_jobs: int):
+        self._fn, self._args, self._gen, self._value = fn, args, None, self._UNSET
+        if n_jobs != 1:
+            # the same loky configuration as LocalPool's steps, so its workers are reused
+            with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent):
+                self._gen = joblib.Parallel(return_as="generator")([joblib.delayed(fn)(*args)])
+
+    def result(self) -> Any:
+        """The result (waits for the worker; raises what the call raised)."""
+        if self._value is self._UNSET:
+            gen, self._gen = self._gen, None
+            self._value = self._fn(*self._args) if gen is None else next(gen)
+        return self._value
+
+    def discard(self) -> None:
+        """Wait for the result and drop it, errors included (a run that failed before it needed it).
+
+        Waiting, not aborting: closing joblib's generator while its task runs races loky's
+        manager thread (a KeyError there), which would leave the workers' executor broken
+        for the next step of this process. The work is a few seconds at most.
+        """
+        if self._gen is not None and self._value is self._UNSET:
+            try:
+                next(self._gen)
+            except Exception:  # noqa: BLE001 - the run is failing already; this result is not wanted
+                pass
+            self._gen = None
+
+
+def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = -1) -> Background:
+    """Start ``fn(*args)`` beside the main process (:class:`Background`): on a local worker with the
+    ``local`` backend and ``n_jobs != 1``, else later, in this process. For work of the main process
+    that nothing needs until a later step (the nightly job's margin charts)."""
+    return Background(fn, args, n_jobs if name == "local" else 1)
+
+
+def _import(modules: Sequence[str]) -> None:
+    import importlib
+
+    for m in modules:
+        importlib.import_module(m)
+
+
+@contextmanager
+def started_workers(modules: Sequence[str], *, name: str = "local", n_jobs: int = -1) -> Iterator[list[Background]]:
+    """Start the local workers now, each importing ``modules``, while the main process does its own
+    start (reads the line, checks the key): the first step then finds them ready instead of waiting
+    for their start and imports. Nothing with one job or the Dask backend. Yields the handles; take
+    their results before the first step; leaving the context (an error on the way) waits for them."""
+    handles: list[Background] = []
+    if name == "local" and n_jobs != 1:
+        n = joblib.cpu_count() if n_jobs < 0 else n_jobs
+        handles = [Background(_import, (tuple(modules),), n_jobs) for _ in range(n)]
+    try:
+        yield handles
+    finally:
+        for h in handles:
+            h.discard()
+
+
 def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
               progress: Callable[[int, int], None] | None = None) -> list:
     """``[fn(*t) for t in tasks]``, in parallel: the one parallel map of the planner.

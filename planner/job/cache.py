@@ -168,21 +168,9 @@ class _Encoder:
         if isinstance(dt, np.dtype):  # object: any values the tree can hold
             return {"dtype": "object", "v": [self(x) for x in s.tolist()]}
         name = str(dt)
-        if name in ("str", "string"):
-            vals = [None if _isna_scalar(x) else str(x) for x in s.tolist()]
-            return {"dtype": name, "v": vals}
+        if name in ("str", "string"):  # every value a str or missing (None), in one conversion
+            return {"dtype": name, "v": s.to_numpy(dtype=object, na_value=None).tolist()}
         raise TypeError(f"cannot cache a DataFrame column of dtype {name}")
-
-
-def _isna_scalar(x: Any) -> bool:
-    if x is None:
-        return True
-    try:
-        import pandas as pd
-
-        return bool(pd.isna(x))
-    except (TypeError, ValueError):
-        return False
 
 
 def _arrow_bytes(table) -> bytes:
@@ -497,11 +485,16 @@ class Cache:
                 "if this repeats, check the disk or run `planner cache verify`")
 
     def put(self, kind: str, key: str, obj: Any) -> None:
-        """Store ``obj`` (atomically: a killed run leaves the old entry or none, never half of one)."""
+        """Store ``obj`` (atomically: a killed run leaves the old entry or none, never half of one).
+
+        Not flushed to disk one by one: an entry that a power cut leaves empty or torn fails
+        its digest on the next read and is recomputed (:meth:`get`), so a flush per entry
+        would buy nothing but time.
+        """
         p = self.path(kind, key)
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)
-        write_bytes_atomic(p, pack(kind, key, obj))
+        write_bytes_atomic(p, pack(kind, key, obj), fsync=False)
 
     # --- maintenance: `planner cache verify` and `planner cache clear`
     def entries(self) -> Iterator[Path]:

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from planner import __version__
-from planner.io.atomic import write_bytes_atomic
+from planner.io.atomic import deferred_fsync, write_bytes_atomic
 from planner.io.parquet import stamp_run
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
@@ -58,6 +58,9 @@ from planner.job.publish import (
     staging_dir,
 )
 
+UNIT_MODULES = ("planner.job.units", "planner.tables.build", "planner.stopping.sweep", "planner.tables.closed_loop")
+"""What the units' functions import in a worker (:func:`planner.io.parallel.start_workers` imports it first)."""
+
 STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
          "overview", "publish")
 
@@ -80,8 +83,12 @@ class RunSummary:
     warnings: list[str] = field(default_factory=list)
     release: Any = None
     """The :class:`planner.bundle.container.Release` the run's bundles were issued with."""
+    wall_s: float = 0.0
+    """Wall time of the whole run [s]: less than the steps' sum, as some steps run beside others."""
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
     """Margin report of each line (kept for :func:`planner.job.views.run_views`, which puts the changes on top)."""
+    charts: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    """Each margin report's chart sections, being drawn (:class:`planner.io.parallel.Background`)."""
 
 
 def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
@@ -179,16 +186,26 @@ def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> 
     unit is recomputed, the fresh results replace the entries, and a new run is
     published even when nothing changed since ``latest``.
     """
+    import time
+
+    t0 = time.perf_counter()
     root = job.resolve(job.job.output_root)
     with output_root_errors(root):
-        return _run_job(job, root, show_progress, use_cache)
+        summary = _run_job(job, root, show_progress, use_cache)
+    summary.wall_s = round(time.perf_counter() - t0, 3)
+    return summary
 
 
 def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunSummary:
     from planner.line.loader import load_line
 
     run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
-    with job_lock(root):
+    # the staged run's files are flushed to disk once, by publish(), before it becomes visible
+    from planner.io.parallel import started_workers
+
+    # the workers start (and import what the units run) while this process reads the lines
+    with job_lock(root), deferred_fsync(), \
+            started_workers(UNIT_MODULES, name=job.parallel.backend, n_jobs=job.parallel.n_jobs) as warm:
         clean_stale_staging(root)
         cache = Cache(root / ".cache", enabled=use_cache)
         with Progress(show_progress) as prog:
@@ -207,6 +224,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or the clock now
             release = Release.issue(build_time_s(), valid_days=job.bundles.valid_days, development=development)
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
+            for w in warm:  # taken on every path: an abandoned joblib generator upsets loky's manager thread
+                w.result()
             last = latest_run(root)
             if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
                 import json
@@ -227,15 +246,20 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             summary = RunSummary(run_id, None, False, notes=notes)
             runner = Runner(job, cache, prog)
             summary.release = release
-            for line in lines:
-                _run_line(job, line, stage, runner, summary, key)
-            summary.computed, summary.reused = runner.computed, runner.reused
-            if cache.rejected:  # once per run, with the count
-                summary.warnings.append(cache.rejected_note())
-            _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
-            from planner.job.views import run_views  # changes since the last run, overview page
+            try:
+                for line in lines:
+                    _run_line(job, line, stage, runner, summary, key)
+                summary.computed, summary.reused = runner.computed, runner.reused
+                if cache.rejected:  # once per run, with the count
+                    summary.warnings.append(cache.rejected_note())
+                _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
+                from planner.job.views import run_views  # changes since the last run, overview page
 
-            run_views(job, lines, stage, root, prog, summary)
+                run_views(job, lines, stage, root, prog, summary)  # takes the charts drawn meanwhile
+            except Exception:
+                for charts in summary.charts.values():  # drawn on a worker: let it finish first
+                    charts.discard()
+                raise
             from planner.report.catalog import datasets as catalog
 
             stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
@@ -301,7 +325,14 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
                 f"{line.line_id}: no stopping pattern at {r.station_id} ({r.direction}, {r.train_type}, from "
                 f"{r.origin}) for adhesion {levels} km/h/s ({len(bad)} of {len(r.patterns)} levels): {first.reason}")
 
-    # closed loop: every scenario and mode of an interstation in one batch
+    # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts
+    # and train graph trajectories depend on the line alone, so they run beside it (first: longest)
+    from planner.job.views import graph_unit
+
+    side = [("graph", [graph_unit(job, line)])]
+    checks_conflicts = job.conflicts.enabled and line.network is not None
+    if checks_conflicts:
+        side.insert(0, ("conflicts", [_conflicts_unit_of(job, line)]))
     cp = job.closed_loop
     c_units = [
         Unit("closed_loop",
@@ -312,20 +343,22 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
               tp.ds_m))
         for k, u, tab in zip(tasks, t_units, tables)
     ]
-    loops = [r for batch in runner.run("closed_loop", c_units) for r in batch]
+    *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
+    got = {step: res[0] for (step, _), res in zip(side, side_results)}
+    loops = [r for batch in loop_batches for r in batch]
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
 
     conflicts = None
-    if job.conflicts.enabled and line.network is not None:
-        conflicts = _conflicts_step(job, line, stage, runner, summary)
+    if checks_conflicts:
+        conflicts = _conflicts_step(line, stage, summary, got["conflicts"])
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts)
     _bundles_step(job, line, stage, runner, summary, key)
     from planner.job.views import line_views  # inputs copy, train graph page
 
-    line_views(job, line, stage, runner, summary)
+    line_views(job, line, stage, runner, summary, got["graph"])
 
 
 def _count(summary: RunSummary, files: Iterable[Path]) -> None:
@@ -367,8 +400,14 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
-    # the page itself is written once, by job.views.run_views, with what changed since the last run on top
+    # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
+    # its charts (a few seconds of matplotlib) are drawn on a worker meanwhile
+    from planner.io.parallel import background
+    from planner.report.html import chart_sections, stop_markers
+
     summary.reports[line.line_id] = report
+    summary.charts[line.line_id] = background(chart_sections, (report, stop_markers(line)),
+                                              name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
@@ -395,13 +434,17 @@ def _conflicts_unit(line, params):
     return check_conflicts(line, params)
 
 
-def _conflicts_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary):
-    """Route conflicts of the line's whole timetable; returns the conflicts table for the report."""
-    from planner.datasets.conflicts import write_conflicts
-
+def _conflicts_unit_of(job: Job, line: Line) -> Unit:
+    """The unit of the line's route conflicts (its whole timetable)."""
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
     key = digest(["conflicts", code_digest(), line.source_digest, params, job.tables.ds_m])
-    report = _line_unit(runner, "conflicts", key, _conflicts_unit, line, params)
+    return Unit("conflicts", key, "conflicts", _conflicts_unit, (line, params))
+
+
+def _conflicts_step(line: Line, stage: Path, summary: RunSummary, report):
+    """Write the route conflicts found (:func:`_conflicts_unit_of`); returns the conflicts table for the report."""
+    from planner.datasets.conflicts import write_conflicts
+
     _count(summary, write_conflicts(report, stage))
     summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
         report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0)

@@ -153,33 +153,55 @@ class Runner:
         way (e.g. :class:`planner.io.parallel.ClusterLostError`) leaves the
         finished units for the next run.
         """
+        return self.run_steps([(step, units)])[0]
+
+    def run_steps(self, groups: Sequence[tuple[str, Sequence[Unit]]]) -> list[list]:
+        """:meth:`run` for several steps' units in one pass of the workers; a result list per step.
+
+        For units that do not depend on each other: a step of one long unit (a
+        line's conflicts or train graph) then runs on one worker while the
+        other works through a step of many, instead of alone on a core after
+        it. Each step's progress bar and timing run from the common start to
+        its own last unit.
+        """
         from planner.io.parallel import backend
 
-        results: list = [None] * len(units)
-        todo = []
-        for i, u in enumerate(units):
-            obj = self.cache.get(step, u.key)
-            if obj is None:
-                todo.append(i)
-            else:
-                results[i] = obj
-        self.reused[step] = self.reused.get(step, 0) + len(units) - len(todo)
-        self.computed[step] = self.computed.get(step, 0) + len(todo)
-        self.progress.start(step, len(units), done=len(units) - len(todo))
+        results: list[list] = [[None] * len(units) for _, units in groups]
+        todo: list[tuple[int, int]] = []
+        for g, (step, units) in enumerate(groups):
+            missing = 0
+            for i, u in enumerate(units):
+                obj = self.cache.get(step, u.key)
+                if obj is None:
+                    todo.append((g, i))
+                    missing += 1
+                else:
+                    results[g][i] = obj
+            self.reused[step] = self.reused.get(step, 0) + len(units) - missing
+            self.computed[step] = self.computed.get(step, 0) + missing
+            self.progress.start(step, len(units), done=len(units) - missing)
+        left = [sum(1 for t in todo if t[0] == g) for g in range(len(groups))]
+        for g, (step, _) in enumerate(groups):
+            if not left[g]:
+                self.progress.finish(step)
         if todo:
             p = self.job.parallel
             with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
                          lost_timeout_s=p.dask_lost_timeout_s) as pool:
+                unit = lambda t: groups[t[0]][1][t[1]]  # noqa: E731
                 if pool.n_jobs == 1 or len(todo) == 1:
-                    gen = (_call(units[i].fn, units[i].args) for i in todo)
+                    gen = (_call(unit(t).fn, unit(t).args) for t in todo)
                 else:
-                    gen = pool.imap(_call, [(units[i].fn, units[i].args) for i in todo])
-                for i, res in zip(todo, gen):
-                    self.cache.put(step, units[i].key, res)  # survives a later failure
+                    gen = pool.imap(_call, [(unit(t).fn, unit(t).args) for t in todo])
+                for (g, i), res in zip(todo, gen):
+                    step = groups[g][0]
+                    self.cache.put(step, unit((g, i)).key, res)  # survives a later failure
                     _kill_point()
-                    results[i] = res
+                    results[g][i] = res
                     self.progress.advance(step)
-        self.progress.finish(step)
+                    left[g] -= 1
+                    if not left[g]:
+                        self.progress.finish(step)
         return results
 
 
@@ -230,7 +252,7 @@ class Progress:
             self._bar.stop()
 
     def start(self, step: str, total: int, done: int = 0) -> None:
-        self._t0.setdefault(step, time.perf_counter())
+        self._t0[step] = time.perf_counter()
         if self._bar is not None:
             if step in self._ids:
                 self._bar.update(self._ids[step], total=total, completed=done)
@@ -242,7 +264,11 @@ class Progress:
             self._bar.advance(self._ids[step], n)
 
     def finish(self, step: str) -> None:
-        self.timings[step] = round(time.perf_counter() - self._t0.get(step, time.perf_counter()), 3)
+        """End the step's current interval; a step's timing is the sum of its intervals (a step may
+        compute its units in one and write its page in another)."""
+        t0 = self._t0.pop(step, None)
+        if t0 is not None:
+            self.timings[step] = round(self.timings.get(step, 0.0) + time.perf_counter() - t0, 3)
         if self._bar is not None and step in self._ids:
             t = self._bar.tasks[[x.id for x in self._bar.tasks].index(self._ids[step])]
             self._bar.update(self._ids[step], completed=t.total)

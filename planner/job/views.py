@@ -6,8 +6,8 @@ Two hooks called by :mod:`planner.job.pipeline`:
   in the run (``inputs/<line_id>/``, so a later run can name the rows that
   changed), and write its interactive train graph
   (``graph/<line_id>_graph.html``). The trajectories are a cached unit keyed by
-  the line database, the code and the run-curve step, so an unchanged line
-  reuses them; windows, conflicts and margins come from the run's own
+  the line database, the code and the run-curve step (:func:`graph_unit`, run
+  beside the closed loop), so an unchanged line reuses them; windows, conflicts and margins come from the run's own
   ``occupation``, ``conflicts`` and ``margin_totals`` datasets.
 * :func:`run_views`, after the manifest: compare the run with the previous
   published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
@@ -57,18 +57,25 @@ def _graph_unit(line, check: bool):
     return train_paths(line, loops=loops)
 
 
-def line_views(job, line, stage: Path, runner, summary) -> None:
-    """Inputs copy and train graph page of one line (module doc)."""
-    from planner.report.published_run import read_line_dataset, path_id
-    from planner.report.train_graph import graph_data, TOL_T_S, TOL_X_M
-    from planner.report.train_graph_page import write_page
+def graph_unit(job, line):
+    """The unit of a line's train graph trajectories (:func:`_graph_unit`), keyed by the line and the code."""
+    from planner.report.train_graph import TOL_T_S, TOL_X_M
     from planner.job.units import code_digest
     from planner.job.publish import digest
 
-    copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
     key = digest(["graph", code_digest(), line.source_digest, check, TOL_T_S, TOL_X_M])
-    paths = runner.run("graph", [_unit("graph", key, _graph_unit, (line, check))])[0]
+    return _unit("graph", key, _graph_unit, (line, check))
+
+
+def line_views(job, line, stage: Path, runner, summary, paths) -> None:
+    """Inputs copy and train graph page of one line (module doc); ``paths``: the result of :func:`graph_unit`."""
+    from planner.report.published_run import read_line_dataset, path_id
+    from planner.report.train_graph import graph_data
+    from planner.report.train_graph_page import write_page
+
+    copy_inputs(line, stage)
+    check = bool(job.conflicts.enabled)
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
         con = read_line_dataset(stage, "conflicts", line.line_id)
@@ -120,8 +127,9 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
             top = changes_html(ch, first_run_note=note)
             rep = summary.reports.get(line.line_id)
             if rep is not None:
+                charts = summary.charts.get(line.line_id)
                 write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
-                           datasets_root=stage, top=top)
+                           datasets_root=stage, top=top, charts=charts.result() if charts is not None else None)
             prog.advance("changes")
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))

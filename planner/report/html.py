@@ -359,7 +359,8 @@ def energy_change(saved_percent: float) -> str:
     return f"{saved_percent:.0f} % saved" if saved_percent > 0 else f"{-saved_percent:.0f} % more"
 
 
-def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str = ".", top: str = "") -> str:
+def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str = ".", top: str = "",
+                charts: list[str] | None = None) -> str:
     """The whole report page as one HTML string (module doc for the sections).
 
     Parameters
@@ -374,6 +375,9 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     top : str
         An HTML section put first, under the title (the nightly job's "what
         changed since the last run", :func:`planner.report.changes_html.changes_html`).
+    charts : list of str, optional
+        The chart sections, :func:`chart_sections` of the same report and markers, when
+        they were drawn beforehand (the nightly job draws them on a worker); else drawn here.
     """
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
@@ -385,7 +389,7 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     parts.append(bad_day_shares(sched, rule, adh))
     parts.append("<h3>Totals per direction and train type (every timetabled train run, the whole day)</h3>")
     parts.append(totals_table(report.totals))
-    parts += _chart_sections(report, markers)
+    parts += chart_sections(report, markers) if charts is None else charts
     parts.append("<h2>Every leg</h2>")
     parts.append(
         "<p class='caption'>One row per leg and scheduled time (trains with the same leg and time share a row). "
@@ -489,8 +493,9 @@ def _findings(sched, trains) -> list[str]:
     return find
 
 
-def _chart_sections(report, markers: dict[str, dict[str, float]]) -> list[str]:
-    """Margin per interstation, the run curves of the chosen leg and stopping time against adhesion."""
+def chart_sections(report, markers: dict[str, dict[str, float]]) -> list[str]:
+    """Margin per interstation, the run curves of the chosen leg and stopping time against adhesion:
+    the page's chart sections (HTML with inline SVG), the slow part of :func:`render_html`."""
     rule = report.rule
     parts = []
     parts.append("<h2>Margin per interstation along the line</h2>")
@@ -572,11 +577,12 @@ def stop_markers(line) -> dict[str, dict[str, float]]:
     return {d: {s.station_id: s.stop_m(d) for s in line.stations} for d in ("down", "up")}
 
 
-def write_html(report, line, path: str | Path, datasets_root: str | Path | None = None, top: str = "") -> Path:
+def write_html(report, line, path: str | Path, datasets_root: str | Path | None = None, top: str = "",
+               charts: list[str] | None = None) -> Path:
     """Write the page to ``path`` atomically (temp file in the same folder, then rename).
 
     ``datasets_root``: the folder holding the ``margins`` datasets (default: the page's folder);
-    the page links to it by a relative path. ``top`` as in :func:`render_html`.
+    the page links to it by a relative path. ``top`` and ``charts`` as in :func:`render_html`.
     """
     import os
 
@@ -584,5 +590,6 @@ def write_html(report, line, path: str | Path, datasets_root: str | Path | None 
 
     path = Path(path)
     href = "." if datasets_root is None else Path(os.path.relpath(Path(datasets_root), path.parent)).as_posix()
-    write_bytes_atomic(path, render_html(report, stop_markers(line), datasets_href=href, top=top).encode("utf-8"))
+    write_bytes_atomic(path, render_html(report, stop_markers(line), datasets_href=href, top=top,
+                                               charts=charts).encode("utf-8"))
     return path

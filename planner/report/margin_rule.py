@@ -253,33 +253,49 @@ def margin_totals(rows, train_legs):
                        n_unr=legs["unreachable"].astype(int), n_una=legs["unassessed"].astype(int))
     legs = legs.sort_values(["train_id", "leg_seq"], kind="stable")
 
-    def agg(g: pd.DataFrame) -> dict:
-        out = {c: float(g[c].sum()) for c in TOTAL_SUM_COLS}
+    # each column once as an array, each group as row positions: the sums are numpy's over the same
+    # values in the same order as pandas' per-group Series.sum (NaN skipped as zeros), so the same bits
+    f = {c: legs[c].to_numpy(float) for c in (*TOTAL_SUM_COLS, "departure_s")}
+    n = {c: legs[c].to_numpy(int) for c in ("short", "n_inf", "n_tight", "n_unr", "n_una")}
+    ids, dirs, types = (legs[c].to_numpy(object) for c in ("train_id", "direction", "train_type"))
+    origins, destinations = legs["origin"].to_numpy(object), legs["destination"].to_numpy(object)
+
+    def agg(at: np.ndarray) -> dict:
+        out = {}
+        for c in TOTAL_SUM_COLS:
+            x = f[c][at]
+            out[c] = float(np.where(np.isnan(x), 0.0, x).sum())
         for c in UNKNOWN_WHEN_UNASSESSED:  # a partial sum would pass for the whole: unknown instead
-            out[c] = float(g[c].sum(skipna=False))
+            out[c] = float(f[c][at].sum())
         out["margin_percent"] = 100.0 * out["margin_s"] / out["min_running_time_s"]
-        out["min_remaining_margin_s"] = float(g["remaining_margin_s"].min(skipna=False))
-        out["bad_day_shortfall_s"] = float(np.maximum(-g["remaining_margin_s"].to_numpy(float), 0.0).sum())
-        out["n_legs"] = int(len(g))
-        out["n_supplement_short"] = int(g["short"].sum())
-        out["n_infeasible"] = int(g["n_inf"].sum())
-        out["n_tight"] = int(g["n_tight"].sum())
-        out["n_unreachable"] = int(g["n_unr"].sum())
-        out["n_unassessed"] = int(g["n_una"].sum())
-        out["first_departure_s"] = float(g["departure_s"].min())
+        rm = f["remaining_margin_s"][at]
+        out["min_remaining_margin_s"] = float(rm.min())  # NaN when one is unknown
+        out["bad_day_shortfall_s"] = float(np.maximum(-rm, 0.0).sum())
+        out["n_legs"] = int(len(at))
+        out["n_supplement_short"] = int(n["short"][at].sum())
+        out["n_infeasible"] = int(n["n_inf"][at].sum())
+        out["n_tight"] = int(n["n_tight"][at].sum())
+        out["n_unreachable"] = int(n["n_unr"][at].sum())
+        out["n_unassessed"] = int(n["n_una"][at].sum())
+        out["first_departure_s"] = float(np.fmin.reduce(f["departure_s"][at]))
         return out
 
+    def groups(by) -> list:
+        """(key, row positions in ``legs`` order) of each group, keys sorted (as groupby's)."""
+        idx = legs.groupby(by, sort=True).indices
+        return [(k, idx[k]) for k in sorted(idx)]
+
     recs = []
-    for tid, g in legs.groupby("train_id", sort=True):
-        recs.append({"level": "train", "train_id": tid, "direction": g["direction"].iloc[0],
-                     "train_type": g["train_type"].iloc[0], "origin": g["origin"].iloc[0],
-                     "destination": g["destination"].iloc[-1], "n_trains": 1} | agg(g))
-    for (d, t), g in legs.groupby(["direction", "train_type"], sort=True):
+    for tid, at in groups("train_id"):
+        recs.append({"level": "train", "train_id": tid, "direction": dirs[at[0]],
+                     "train_type": types[at[0]], "origin": origins[at[0]],
+                     "destination": destinations[at[-1]], "n_trains": 1} | agg(at))
+    for (d, t), at in groups(["direction", "train_type"]):
         recs.append({"level": "type", "train_id": None, "direction": d, "train_type": t, "origin": None,
-                     "destination": None, "n_trains": int(g["train_id"].nunique())} | agg(g))
-    for d, g in legs.groupby("direction", sort=True):
+                     "destination": None, "n_trains": len(set(ids[at]))} | agg(at))
+    for d, at in groups("direction"):
         recs.append({"level": "line", "train_id": None, "direction": d, "train_type": ALL_TYPES,
-                     "origin": None, "destination": None, "n_trains": int(g["train_id"].nunique())} | agg(g))
+                     "origin": None, "destination": None, "n_trains": len(set(ids[at]))} | agg(at))
     out = pd.DataFrame.from_records(recs, columns=TOTALS_COLUMNS)
     return out
 

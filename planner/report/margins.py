@@ -333,8 +333,12 @@ def compute_margins(
     kw = dict(ratios=ratios, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
               after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings)
 
+    by_leg: dict[tuple, dict] = {}  # the closed-loop errors of each leg, in one pass (not one per leg)
+    for k, v in cl_index.items():
+        by_leg.setdefault(k[:4], {})[k[4:]] = v
+
     def known_errors(key) -> dict:
-        return {k[4:]: v for k, v in cl_index.items() if k[:4] == key}
+        return dict(by_leg.get(key, {}))
 
     keys = sorted(sched, key=lambda k: (DIRECTIONS.index(k[0]), k[1],
                                         sign(k[0]) * line.station(k[2]).position_m,
