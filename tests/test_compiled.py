@@ -105,6 +105,12 @@ def test_the_built_stopping_solver_equals_the_jit_one_to_the_bit():
         nb = jit_kernel.kernel(v0, X, J, n_dl, n, opt, b)
         assert na == nb and a.tobytes() == b.tobytes(), (v0, X, J, steps.tolist(), n_dl, opt)
         verdicts.add(min(na, 1))
+    # an array too small for the request's work is refused before anything is written (no bounds checks)
+    small = np.zeros(codes.work_size(2) - 1)
+    small[:4] = 0.0, 1.0, 0.0, 25.0
+    for k in (built, jit_kernel):
+        assert k.kernel(20.0, 400.0, 0.8, 1, 2, True, small) == -codes.INTERNAL
+        assert small[:4].tolist() == [0.0, 1.0, 0.0, 25.0] and not small[4:].any()
     bad = np.array([[0.0, 1.0], [5.0, 1.0], [4.0, 2.0]])
     assert built.check_steps(bad, 0, 3, 1) == jit_kernel.check_steps(bad, 0, 3, 1) == (codes.NOT_SORTED, 2)
     assert 1 in verdicts and min(verdicts) < 0  # both solved and refused requests were compared

@@ -349,6 +349,13 @@ def test_step_functions_as_tuples_or_arrays_solve_the_same_as_lists():
     for conv in (tuple, np.array, lambda s: [list(p) for p in s], lambda s: iter(s)):
         p = solve_stop(22.0, 600.0, jerk_max=0.6, decel_limits=conv(dl), speed_limits=conv(sl))
         assert p == ref, conv
+    # rows the fast path packs no floats from (it takes tuples of two floats' worth) read as the
+    # checked path reads them: the first two items of each row, numbers given as text
+    for rows in ([(0.0, 0.9, 99.0), (150.0, 0.7, -1.0)], [{0: 0.0, 1: 0.9}, (150.0, 0.7)],
+                 [("0", "0.9"), (150.0, "0.7")]):
+        assert solve_stop(22.0, 600.0, jerk_max=0.6, decel_limits=rows, speed_limits=sl) == ref, rows
+    with pytest.raises(InputError, match="pairs"):  # a set has no first item: never read in some order
+        solve_stop(22.0, 600.0, jerk_max=0.6, decel_limits=[{0.0, 0.9}], speed_limits=sl)
     # integers and numpy scalars are numbers like any other
     q = solve_stop(np.float64(22.0), 600, jerk_max=0.6, decel_limits=[(0, 0.9), (150, 0.7)],
                    speed_limits=[(0, 25), (300, 15)])
