@@ -108,6 +108,8 @@ dispatched by :mod:`planner.tables.closed_loop` instead.
 """
 from __future__ import annotations
 
+import bisect
+import math
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
@@ -356,39 +358,49 @@ def _clip(x, lo, hi):
     return min(max(x, lo), hi)
 
 
-_INVERSE: dict[int, tuple] = {}
-
-
-def _inverse(ratios) -> np.ndarray:
-    """``1 / ratios`` of a grid, computed once per grid array (the array is kept, so its id stays its own)."""
-    hit = _INVERSE.get(id(ratios))
-    if hit is not None and hit[0] is ratios:
-        return hit[1]
-    if len(_INVERSE) > 256:
-        _INVERSE.clear()
-    u = 1.0 / np.asarray(ratios, float)
-    _INVERSE[id(ratios)] = (ratios, u)
-    return u
-
-
 _INVERSE_LIST: dict[int, tuple] = {}
 
 
 def _inverse_list(ratios) -> list[float]:
-    """:func:`_inverse` as a list of Python floats (kept per grid array, as there)."""
+    """``1 / ratios`` of a grid as Python floats, computed once per grid array (the array is kept, so
+    its id stays its own)."""
     hit = _INVERSE_LIST.get(id(ratios))
     if hit is not None and hit[0] is ratios:
         return hit[1]
     if len(_INVERSE_LIST) > 256:
         _INVERSE_LIST.clear()
-    u = _inverse(ratios).tolist()
+    u = (1.0 / np.asarray(ratios, float)).tolist()
     _INVERSE_LIST[id(ratios)] = (ratios, u)
     return u
 
 
 def _interp_u(ratios: np.ndarray, values: np.ndarray, r: float) -> float:
-    """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``."""
-    return float(np.interp(1.0 / _clip(r, ratios[-1], ratios[0]), _inverse(ratios), values))
+    """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``.
+
+    ``np.interp`` of one number, written out in Python floats with numpy's own special cases
+    and operations (the same bits: tested against it), without its call overhead.
+    """
+    u = _inverse_list(ratios)
+    x = float(1.0 / _clip(r, ratios[-1], ratios[0]))
+    n = len(u)
+    if x > u[-1]:
+        return float(values[n - 1])
+    if x < u[0]:
+        return float(values[0])
+    if x == u[-1]:
+        return float(values[n - 1])
+    j = bisect.bisect_right(u, x) - 1  # u[j] <= x < u[j + 1]
+    y0 = float(values[j])
+    if u[j] == x:
+        return y0
+    y1 = float(values[j + 1])
+    slope = (y1 - y0) / (u[j + 1] - u[j])
+    out = slope * (x - u[j]) + y0
+    if math.isnan(out):  # as numpy: from the other end, then the flat value
+        out = slope * (x - u[j + 1]) + y1
+        if math.isnan(out) and y0 == y1:
+            out = y0
+    return out
 
 
 def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, prefer: float) -> float:
