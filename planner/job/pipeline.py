@@ -96,7 +96,8 @@ class RunSummary:
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
     """Margin report of each line (kept for :func:`planner.job.views.run_views`, which puts the changes on top)."""
     charts: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
-    """Each margin report's chart sections, being drawn (:class:`planner.io.parallel.Background`)."""
+    """Each margin report's charts, being drawn (:class:`planner.io.parallel.Background` s giving parts of
+    :func:`planner.report.html.chart_svgs`)."""
     pending: list = field(default_factory=list, repr=False, compare=False)
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
 
@@ -414,14 +415,16 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
     # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
-    # its charts (a few seconds of matplotlib) are drawn on a worker meanwhile
+    # its charts (a few seconds of matplotlib) are drawn meanwhile, half on each of two workers
     from planner.io.parallel import background
-    from planner.report.html import chart_sections, stop_markers
+    from planner.report.html import chart_svgs, stop_markers
 
     summary.reports[line.line_id] = report
-    summary.charts[line.line_id] = background(chart_sections, (report, stop_markers(line)),
-                                              name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
-    summary.pending.append(summary.charts[line.line_id])
+    halves = (("margin:down", "curves"), ("margin:up", "adhesion"))
+    summary.charts[line.line_id] = [background(chart_svgs, (report, stop_markers(line), names),
+                                               name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+                                    for names in halves]
+    summary.pending += summary.charts[line.line_id]
     for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
