@@ -174,3 +174,59 @@ def test_adaptive_learns_the_train_and_arrives_exactly(theta, frac):
     if r1 in (RATIOS[0], RATIOS[-1]):
         return  # clamped: the designated time is outside what the real train can do
     assert true_remaining(1, r0, r1) == pytest.approx(rem1, abs=1e-6)
+
+
+def test_solve_piecewise_equals_its_array_formulation_to_the_bit():
+    """The segment loop of solve_piecewise against the array expressions of the same rule (crossings by
+    linear interpolation in 1/r, whole segments on the wanted time, else the nearest grid value), on
+    random rows with repeated values, plateaus and exact hits."""
+    from planner.tables.onboard import solve_piecewise
+
+    def by_arrays(ratios, f, want, prefer):
+        u = 1.0 / ratios
+        up = 1.0 / min(max(prefer, ratios[-1]), ratios[0])
+        d0, d1 = f[:-1] - want, f[1:] - want
+        cross = (d0 * d1 <= 0.0) & (f[:-1] != f[1:])
+        w = np.where(cross, d0 / np.where(cross, d0 - d1, 1.0), 0.0)
+        cand = list(u[:-1][cross] + w[cross] * np.diff(u)[cross])
+        flat = (d0 == 0.0) & (d1 == 0.0)
+        cand += list(np.clip(up, u[:-1][flat], u[1:][flat]))
+        if cand:
+            c = np.asarray(cand)
+            return float(1.0 / c[np.argmin(np.abs(c - up))])
+        err = np.abs(f - want)
+        best = np.flatnonzero(err <= err.min() + 1e-12)
+        return float(1.0 / u[best[np.argmin(np.abs(u[best] - up))]])
+
+    rng = np.random.default_rng(7)
+    ratios = np.array([1.0, 0.9, 0.8, 0.7, 0.65, 0.6, 0.55, 0.5, 0.45, 0.4, 0.35, 0.3])
+    n = 0
+    for _ in range(3000):
+        f = np.round(rng.uniform(100.0, 140.0, ratios.size), int(rng.integers(0, 3)))  # ties and plateaus
+        if rng.random() < 0.3:
+            f = np.sort(f)
+        want = float(rng.choice(f)) if rng.random() < 0.3 else float(rng.uniform(90.0, 150.0))
+        prefer = float(rng.uniform(0.2, 1.1))
+        got, ref = solve_piecewise(ratios, f, want, prefer), by_arrays(ratios, f, want, prefer)
+        assert got == ref, (f.tolist(), want, prefer, got, ref)
+        n += 1
+    assert n == 3000
+
+
+def test_interp_u_equals_np_interp_to_the_bit():
+    """The one-number interpolation of the on-board logic against np.interp in 1/r (what it replaces),
+    at random ratios, at every grid ratio exactly, outside the grid and on infinite values."""
+    from planner.tables.onboard import _interp_u
+
+    rng = np.random.default_rng(11)
+    ratios = np.array([1.0, 0.9, 0.8, 0.7, 0.65, 0.6, 0.55, 0.5, 0.45, 0.4, 0.35, 0.3])
+    u = 1.0 / ratios
+    rs = np.concatenate([rng.uniform(0.25, 1.05, 4000), ratios, [0.1, 2.0]])
+    for k in range(60):
+        vals = rng.uniform(50.0, 300.0, ratios.size)
+        if k % 3 == 0:
+            vals[rng.integers(0, ratios.size, 2)] = np.inf  # a stalled entry
+        for r in rs:
+            ref = float(np.interp(1.0 / min(max(r, ratios[-1]), ratios[0]), u, vals))
+            got = _interp_u(ratios, vals, r)
+            assert got == ref or (np.isnan(got) and np.isnan(ref)), (vals.tolist(), r, got, ref)

@@ -33,7 +33,7 @@ def run(
     typer.echo("  step          time [s]  computed  reused")
     for step, secs in s.timings.items():
         typer.echo(f"  {step:<12} {secs:9.1f} {s.computed.get(step, ''):>9} {s.reused.get(step, ''):>7}")
-    typer.echo(f"  total        {s.wall_s:9.1f}   (wall; conflicts and graph compute beside closed_loop)")
+    typer.echo(f"  total        {s.wall_s:9.1f}   (wall: conflicts, graph and bundles run beside other steps)")
     typer.echo("  rows: " + ", ".join(f"{k} {v}" for k, v in sorted(s.rows.items())))
     typer.echo("  flags: " + ", ".join(f"{k} {v}" for k, v in sorted(s.flags.items())))
     typer.echo(f"  bundles: {len(s.bundles)} in {s.run_dir / 'bundles'}")

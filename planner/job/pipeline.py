@@ -17,6 +17,14 @@ every unit is keyed by the digest of exactly the inputs it depends on:
 A unit whose key is in the cache (``OUTPUT_ROOT/.cache``) is not recomputed;
 so a re-run with nothing changed computes nothing, and editing one speed
 restriction recomputes only the interstations (and approaches) it reaches.
+
+What does not depend on a step runs beside it, so that both cores stay busy:
+the workers start while the lines are read; the line's conflicts and train
+graph trajectories share the closed loop's pass of the workers; the bundles
+are built on a worker once the tables and stops are written; the margin
+report's charts are drawn on a worker while the main process writes the rest.
+A step's time in the summary is the sum of its intervals, so the steps add up
+to more than the run's wall time.
 """
 from __future__ import annotations
 
@@ -88,7 +96,10 @@ class RunSummary:
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
     """Margin report of each line (kept for :func:`planner.job.views.run_views`, which puts the changes on top)."""
     charts: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
-    """Each margin report's chart sections, being drawn (:class:`planner.io.parallel.Background`)."""
+    """Each margin report's charts, being drawn (:class:`planner.io.parallel.Background` s giving parts of
+    :func:`planner.report.html.chart_svgs`)."""
+    pending: list = field(default_factory=list, repr=False, compare=False)
+    """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
 
 
 def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
@@ -248,7 +259,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             summary.release = release
             try:
                 for line in lines:
-                    _run_line(job, line, stage, runner, summary, key)
+                    _run_line(job, line, stage, runner, summary, key, key_path)
                 summary.computed, summary.reused = runner.computed, runner.reused
                 if cache.rejected:  # once per run, with the count
                     summary.warnings.append(cache.rejected_note())
@@ -257,8 +268,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
 
                 run_views(job, lines, stage, root, prog, summary)  # takes the charts drawn meanwhile
             except Exception:
-                for charts in summary.charts.values():  # drawn on a worker: let it finish first
-                    charts.discard()
+                for pending in summary.pending:  # work on a worker: let it finish first
+                    pending.discard()
                 raise
             from planner.report.catalog import datasets as catalog
 
@@ -274,7 +285,7 @@ def _types(job: Job, line: Line) -> list[str]:
     return list(job.job.train_types) or [t.train_type for t in line.train_types]
 
 
-def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key) -> None:
+def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path) -> None:
     from planner.tables.ratios import ratio_grid
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
@@ -314,6 +325,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.datasets.stops import write_stops
 
     _count(summary, write_stops(stops, stage))
+    # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
+    # closed loop and the margins (the worker loads the key from its file)
+    bundles = _start_bundles(job, line, stage, runner, summary, key_path)
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
     for r in stops:  # one line per approach, not per adhesion level
@@ -355,7 +369,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         conflicts = _conflicts_step(line, stage, summary, got["conflicts"])
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts)
-    _bundles_step(job, line, stage, runner, summary, key)
+    _bundles_step(job, line, stage, runner, summary, key, bundles)
     from planner.job.views import line_views  # inputs copy, train graph page
 
     line_views(job, line, stage, runner, summary, got["graph"])
@@ -401,28 +415,47 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
     # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
-    # its charts (a few seconds of matplotlib) are drawn on a worker meanwhile
+    # its charts (a few seconds of matplotlib) are drawn meanwhile, half on each of two workers
     from planner.io.parallel import background
-    from planner.report.html import chart_sections, stop_markers
+    from planner.report.html import chart_svgs, stop_markers
 
     summary.reports[line.line_id] = report
-    summary.charts[line.line_id] = background(chart_sections, (report, stop_markers(line)),
-                                              name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+    halves = (("margin:down", "curves"), ("margin:up", "adhesion"))
+    summary.charts[line.line_id] = [background(chart_svgs, (report, stop_markers(line), names),
+                                               name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+                                    for names in halves]
+    summary.pending += summary.charts[line.line_id]
     for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
 
-def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key) -> None:
-    """Signed bundles for every direction × train type, and the public key that verifies them."""
-    from cryptography.hazmat.primitives import serialization
-
+def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str]) -> list:
+    """Every bundle of the line (runs on a worker: module level, the key read from its file there)."""
     from planner.bundle.container import build_line
 
+    return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage, train_types=types)
+
+
+def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path):
+    """Start the line's bundles on a worker; the step's time runs from here to when they are written."""
+    from planner.io.parallel import background
+
+    runner.progress.start("bundles", 2 * len(_types(job, line)))
+    b = background(_build_bundles, (line, stage / "bundles", key_path, summary.release, stage, _types(job, line)),
+                   name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+    summary.pending.append(b)
+    return b
+
+
+def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, bundles) -> None:
+    """Signed bundles for every direction × train type (:func:`_start_bundles`), and the public key that
+    verifies them."""
+    from cryptography.hazmat.primitives import serialization
+
     out = stage / "bundles"
-    with runner.progress.step("bundles", 2 * len(_types(job, line))):
-        infos = build_line(line, out, key, release=summary.release, tables_dir=stage, stops_dir=stage,
-                           train_types=_types(job, line),
-                           on_built=lambda info: runner.progress.advance("bundles"))
+    infos = bundles.result()
+    runner.progress.advance("bundles", len(infos))
+    runner.progress.finish("bundles")
     pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
     write_bytes_atomic(out / "signing_key.pub.pem", pem)
     summary.bundles += [Path(i.path).name for i in infos]

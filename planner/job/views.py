@@ -99,7 +99,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     from planner.report.changes_html import changes_html
     from planner.report.overview import write_overview
     from planner.job.publish import canonical_json, latest_run
-    from planner.report.html import write_html
+    from planner.report.html import chart_sections, stop_markers, write_html
 
     manifest_path = stage / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
@@ -127,9 +127,14 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
             top = changes_html(ch, first_run_note=note)
             rep = summary.reports.get(line.line_id)
             if rep is not None:
-                charts = summary.charts.get(line.line_id)
+                charts = None
+                if line.line_id in summary.charts:  # drawn on workers meanwhile
+                    svgs: dict = {}
+                    for part in summary.charts[line.line_id]:
+                        svgs.update(part.result())
+                    charts = chart_sections(rep, stop_markers(line), svgs)
                 write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
-                           datasets_root=stage, top=top, charts=charts.result() if charts is not None else None)
+                           datasets_root=stage, top=top, charts=charts)
             prog.advance("changes")
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))

@@ -493,9 +493,33 @@ def _findings(sched, trains) -> list[str]:
     return find
 
 
-def chart_sections(report, markers: dict[str, dict[str, float]]) -> list[str]:
+CHARTS = ("margin:down", "margin:up", "curves", "adhesion")
+"""The report's charts, by name: what :func:`chart_svgs` draws."""
+
+
+def chart_svgs(report, markers: dict[str, dict[str, float]], names=CHARTS) -> dict:
+    """The charts ``names`` (of :data:`CHARTS`) of a report as inline SVG: ``margin:<direction>`` the
+    margin per leg ("" when the direction has none), ``curves`` the run curves of the chosen leg,
+    ``adhesion`` (SVG, the sentence naming the hardest leg). Each is drawn on its own, so they
+    can be drawn on several workers; a chart a report has no data for is left out."""
+    out: dict = {}
+    for name in names:
+        kind, _, d = name.partition(":")
+        if kind == "margin" and d in markers:
+            out[name] = margin_chart(report, d, markers[d])
+        elif kind == "curves" and report.chosen:
+            out[name] = curves_chart(report)
+        elif kind == "adhesion" and report.chosen:
+            out[name] = adhesion_chart(report)
+    return out
+
+
+def chart_sections(report, markers: dict[str, dict[str, float]], svgs: dict | None = None) -> list[str]:
     """Margin per interstation, the run curves of the chosen leg and stopping time against adhesion:
-    the page's chart sections (HTML with inline SVG), the slow part of :func:`render_html`."""
+    the page's chart sections (HTML with inline SVG), the slow part of :func:`render_html`.
+    ``svgs``: the charts drawn beforehand (:func:`chart_svgs`); else they are drawn here."""
+    if svgs is None:
+        svgs = chart_svgs(report, markers)
     rule = report.rule
     parts = []
     parts.append("<h2>Margin per interstation along the line</h2>")
@@ -507,7 +531,7 @@ def chart_sections(report, markers: dict[str, dict[str, float]]) -> list[str]:
         "Where a leg has several scheduled times, the one with the least remaining margin is drawn.</p>")
     for d in ("down", "up"):
         if d in markers:
-            svg = margin_chart(report, d, markers[d])
+            svg = svgs[f"margin:{d}"]
             if svg:
                 parts.append(f"<div class='fig'>{svg}</div>")
 
@@ -522,8 +546,8 @@ def chart_sections(report, markers: dict[str, dict[str, float]]) -> list[str]:
             "run, which hands over to the stopping pattern at the pattern start. Bottom: how far each run is "
             "behind the minimum run at each point; the dashed blue line is the margin the timetable grants, so "
             "a red curve that ends above it cannot be kept.</p>")
-        parts.append(f"<div class='fig'>{curves_chart(report)}</div>")
-        svg, hardest = adhesion_chart(report)
+        parts.append(f"<div class='fig'>{svgs['curves']}</div>")
+        svg, hardest = svgs["adhesion"]
         if svg:
             parts.append("<h2>Stopping time against adhesion</h2>")
             parts.append(

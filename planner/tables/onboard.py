@@ -108,6 +108,8 @@ dispatched by :mod:`planner.tables.closed_loop` instead.
 """
 from __future__ import annotations
 
+import bisect
+import math
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
@@ -356,24 +358,49 @@ def _clip(x, lo, hi):
     return min(max(x, lo), hi)
 
 
-_INVERSE: dict[int, tuple] = {}
+_INVERSE_LIST: dict[int, tuple] = {}
 
 
-def _inverse(ratios) -> np.ndarray:
-    """``1 / ratios`` of a grid, computed once per grid array (the array is kept, so its id stays its own)."""
-    hit = _INVERSE.get(id(ratios))
+def _inverse_list(ratios) -> list[float]:
+    """``1 / ratios`` of a grid as Python floats, computed once per grid array (the array is kept, so
+    its id stays its own)."""
+    hit = _INVERSE_LIST.get(id(ratios))
     if hit is not None and hit[0] is ratios:
         return hit[1]
-    if len(_INVERSE) > 256:
-        _INVERSE.clear()
-    u = 1.0 / np.asarray(ratios, float)
-    _INVERSE[id(ratios)] = (ratios, u)
+    if len(_INVERSE_LIST) > 256:
+        _INVERSE_LIST.clear()
+    u = (1.0 / np.asarray(ratios, float)).tolist()
+    _INVERSE_LIST[id(ratios)] = (ratios, u)
     return u
 
 
 def _interp_u(ratios: np.ndarray, values: np.ndarray, r: float) -> float:
-    """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``."""
-    return float(np.interp(1.0 / _clip(r, ratios[-1], ratios[0]), _inverse(ratios), values))
+    """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``.
+
+    ``np.interp`` of one number, written out in Python floats with numpy's own special cases
+    and operations (the same bits: tested against it), without its call overhead.
+    """
+    u = _inverse_list(ratios)
+    x = float(1.0 / _clip(r, ratios[-1], ratios[0]))
+    n = len(u)
+    if x > u[-1]:
+        return float(values[n - 1])
+    if x < u[0]:
+        return float(values[0])
+    if x == u[-1]:
+        return float(values[n - 1])
+    j = bisect.bisect_right(u, x) - 1  # u[j] <= x < u[j + 1]
+    y0 = float(values[j])
+    if u[j] == x:
+        return y0
+    y1 = float(values[j + 1])
+    slope = (y1 - y0) / (u[j + 1] - u[j])
+    out = slope * (x - u[j]) + y0
+    if math.isnan(out):  # as numpy: from the other end, then the flat value
+        out = slope * (x - u[j + 1]) + y1
+        if math.isnan(out) and y0 == y1:
+            out = y0
+    return out
 
 
 def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, prefer: float) -> float:
@@ -409,21 +436,34 @@ def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, pre
     >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 0.25), 4)
     0.3333
     """
-    u = _inverse(ratios)
-    f = np.asarray(values_s, float)
+    # one pass over the segments in Python floats: the same IEEE operations, in the same order, as
+    # the array expressions this replaced (arrays of a few dozen values cost more to set up than to use)
+    u = _inverse_list(ratios)
+    f = np.asarray(values_s, float).tolist()
     up = 1.0 / float(_clip(prefer, ratios[-1], ratios[0]))
-    d0, d1 = f[:-1] - want_s, f[1:] - want_s
-    cross = (d0 * d1 <= 0.0) & (f[:-1] != f[1:])
-    w = np.where(cross, d0 / np.where(cross, d0 - d1, 1.0), 0.0)
-    cand = list(u[:-1][cross] + w[cross] * np.diff(u)[cross])
-    flat = (d0 == 0.0) & (d1 == 0.0)  # a whole segment on the wanted time: its point nearest prefer
-    cand += list(np.clip(up, u[:-1][flat], u[1:][flat]))
+    cand: list[float] = []
+    flat: list[float] = []
+    for i in range(len(f) - 1):
+        d0, d1 = f[i] - want_s, f[i + 1] - want_s
+        if d0 * d1 <= 0.0 and f[i] != f[i + 1]:
+            cand.append(u[i] + d0 / (d0 - d1) * (u[i + 1] - u[i]))
+        elif d0 == 0.0 and d1 == 0.0:  # a whole segment on the wanted time: its point nearest prefer
+            flat.append(min(max(up, u[i]), u[i + 1]))
+    cand += flat
     if cand:
-        c = np.asarray(cand)
-        return float(1.0 / c[np.argmin(np.abs(c - up))])
-    err = np.abs(f - want_s)
-    best = np.flatnonzero(err <= err.min() + 1e-12)
-    return float(1.0 / u[best[np.argmin(np.abs(u[best] - up))]])
+        best_c, best_d = cand[0], abs(cand[0] - up)
+        for c in cand[1:]:
+            if abs(c - up) < best_d:  # the first of equal distances, as argmin
+                best_c, best_d = c, abs(c - up)
+        return float(1.0 / best_c)
+    err = [abs(x - want_s) for x in f]
+    lim = min(err) + 1e-12
+    best = [i for i, e in enumerate(err) if e <= lim]
+    j = best[0]
+    for i in best[1:]:
+        if abs(u[i] - up) < abs(u[j] - up):
+            j = i
+    return float(1.0 / u[j])
 
 
 class AdaptiveRule:
