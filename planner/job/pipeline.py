@@ -28,9 +28,11 @@ to more than the run's wall time.
 """
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import importlib.metadata
 import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
@@ -258,8 +260,10 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             runner = Runner(job, cache, prog)
             summary.release = release
             try:
-                for line in lines:
-                    _run_line(job, line, stage, runner, summary, key, key_path)
+                # a writer thread: a step's datasets are written while the workers compute the next
+                with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
+                    for line in lines:
+                        _run_line(job, line, stage, runner, summary, key, key_path, writes)
                 summary.computed, summary.reused = runner.computed, runner.reused
                 if cache.rejected:  # once per run, with the count
                     summary.warnings.append(cache.rejected_note())
@@ -285,7 +289,15 @@ def _types(job: Job, line: Line) -> list[str]:
     return list(job.job.train_types) or [t.train_type for t in line.train_types]
 
 
-def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path) -> None:
+def _write_beside(writes: ThreadPoolExecutor, write, results, stage: Path):
+    """Start writing a step's datasets on the run's writer thread (Arrow writes without the GIL) while
+    the workers compute the next step; the future gives the files. In this thread's context, so the
+    staged run's deferred flush holds there too."""
+    return writes.submit(contextvars.copy_context().run, write, results, stage)
+
+
+def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
+              writes: ThreadPoolExecutor) -> None:
     from planner.tables.ratios import ratio_grid
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
@@ -310,7 +322,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     tables = runner.run("tables", t_units)
     from planner.datasets.tables import write_tables
 
-    _count(summary, write_tables(tables, stage))
+    tables_written = _write_beside(writes, write_tables, tables, stage)
 
     # stopping patterns, one unit per arrival
     sp = job.stops
@@ -324,10 +336,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     stops = runner.run("stops", s_units)
     from planner.datasets.stops import write_stops
 
-    _count(summary, write_stops(stops, stage))
-    # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
-    # closed loop and the margins (the worker loads the key from its file)
-    bundles = _start_bundles(job, line, stage, runner, summary, key_path)
+    stops_written = _write_beside(writes, write_stops, stops, stage)
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
     for r in stops:  # one line per approach, not per adhesion level
@@ -360,6 +369,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
+    _count(summary, tables_written.result())
+    _count(summary, stops_written.result())
+    # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
+    # margins (the worker loads the key from its file)
+    bundles = _start_bundles(job, line, stage, runner, summary, key_path)
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
