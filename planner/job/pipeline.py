@@ -337,6 +337,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.datasets.stops import write_stops
 
     stops_written = _write_beside(writes, write_stops, stops, stage)
+    from planner.report.margins import given_tables
+
+    # the margin report's tables, read back on the writer thread (after they are written) meanwhile
+    given = writes.submit(contextvars.copy_context().run, given_tables, line, _types(job, line), stage)
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
     for r in stops:  # one line per approach, not per adhesion level
@@ -382,7 +386,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     if checks_conflicts:
         conflicts = _conflicts_step(line, stage, summary, got["conflicts"])
     _margins_step(job, line, stage, runner, summary,
-                  [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts)
+                  [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts,
+                  given.result())
     _bundles_step(job, line, stage, runner, summary, key, bundles)
     from planner.job.views import line_views  # inputs copy, train graph page
 
@@ -404,23 +409,23 @@ def _line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
     return runner.run(step, [Unit(step, key, step, fn, args)])[0]
 
 
-def _margins_unit(line, options, types, stage, n_jobs):
+def _margins_unit(line, options, types, stage, n_jobs, given=None):
     from planner.report.margins import compute_margins
 
-    # conflicts come from their own step (_conflicts_step)
+    # conflicts come from their own step (_conflicts_step); ``given``: the tables read beforehand
     return compute_margins(line, **(options | {"conflicts": False}), train_types=types, tables_dir=stage,
-                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs)
+                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given)
 
 
 def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
-                  unit_keys: list[str], conflicts) -> None:
+                  unit_keys: list[str], conflicts, given=None) -> None:
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import margin_options
 
     key = digest(["margins", code_digest(), line.source_digest, unit_keys, _result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     report = _line_unit(runner, "margins", key, _margins_unit, line, margin_options(job, line), _types(job, line),
-                        stage, n_jobs)
+                        stage, n_jobs, given)
     if conflicts is not None:
         report.conflicts, report.conflicts_note = conflicts, ""
     elif not job.conflicts.enabled:

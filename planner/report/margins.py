@@ -276,6 +276,7 @@ def compute_margins(
     settings=None,
     n_jobs: int = 1,
     progress: Callable[[int, int], None] | None = None,
+    given: tuple[dict, dict] | None = None,
 ) -> MarginReport:
     """The margin report of a whole line (module doc for every column).
 
@@ -314,6 +315,9 @@ def compute_margins(
     n_jobs : int
         Worker processes over legs (1 = this process, -1 = all cores).
     progress : callable ``(done, total)``, optional
+    given : (tables, energy), optional
+        :func:`given_tables` of the same line, types and ``tables_dir``, read beforehand
+        (the nightly job reads them while the closed loop runs); else read here.
 
     Returns
     -------
@@ -328,7 +332,7 @@ def compute_margins(
         else np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float)
     legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
     sched = _scheduled_times(line, types, legs)
-    tabs, energy = _given_tables(line, types, tables_dir)
+    tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
     cl_index = closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
     kw = dict(ratios=ratios, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
               after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings)
@@ -386,8 +390,9 @@ def _scheduled_times(line: Line, types: Sequence[str], legs: Sequence[TrainLeg])
     return sched
 
 
-def _given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, dict]:
-    """The tables and table (a) energy of a ``--tables`` folder, by (direction, type, origin, destination)."""
+def given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, dict]:
+    """The tables and table (a) energy of a ``--tables`` folder, by (direction, type, origin, destination)
+    (:func:`compute_margins` reads them, unless given them read beforehand)."""
     from planner.datasets.tables import load_tables
 
     tabs: dict = {}

@@ -56,14 +56,18 @@ def page_payload(data: GraphData) -> dict[str, Any]:
     w = data.windows
     if w is not None and len(w):
         w = w.sort_values(["train_id", "start_s"], kind="stable")
-        for tid, g in w.groupby("train_id", sort=True):
+        # every column once as an array, each train's windows by row positions (not a frame per train)
+        a = np.column_stack([w.start_s.to_numpy(), w.end_s.to_numpy(),
+                             np.minimum(w.from_m, w.to_m).to_numpy(), np.maximum(w.from_m, w.to_m).to_numpy()])
+        rid = w.resource_id.astype(str).to_numpy(object)
+        rows = w.groupby("train_id", sort=True).indices
+        for tid in sorted(rows):
             if tid not in order:
                 continue
-            a = np.column_stack([g.start_s.to_numpy(), g.end_s.to_numpy(),
-                                 np.minimum(g.from_m, g.to_m).to_numpy(), np.maximum(g.from_m, g.to_m).to_numpy()])
-            win[str(tid)] = [_delta(a[:, 0], 10.0), np.round((a[:, 1] - a[:, 0]) * 10).astype(int).tolist(),
-                             _delta(a[:, 2], 1.0), np.round(a[:, 3] - a[:, 2]).astype(int).tolist(),
-                             [res.setdefault(r, len(res)) for r in g.resource_id.astype(str)]]
+            g = a[rows[tid]]
+            win[str(tid)] = [_delta(g[:, 0], 10.0), np.round((g[:, 1] - g[:, 0]) * 10).astype(int).tolist(),
+                             _delta(g[:, 2], 1.0), np.round(g[:, 3] - g[:, 2]).astype(int).tolist(),
+                             [res.setdefault(r, len(res)) for r in rid[rows[tid]].tolist()]]
     cons = []
     c = data.conflicts
     if c is not None and len(c):
