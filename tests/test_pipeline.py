@@ -352,3 +352,33 @@ def test_a_new_signing_key_at_the_same_path_is_a_change(project):
     b = project / "out" / "latest" / "bundles"
     assert (b / "signing_key.pub.pem").read_bytes() == pub.read_bytes()
     verify_bundle(b / s.bundles[0], load_public_key(pub))
+
+
+def test_an_up_to_date_run_starts_no_workers_and_any_change_does(project, monkeypatch):
+    """The cheap check made before the workers start agrees with the full one: true only when the latest
+    run has exactly these inputs (line bytes, parameters, key, date) and its bundles need no renewal."""
+    import planner.job.pipeline as pl
+    from planner.io import parallel
+
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")
+    job_path = _job(project)
+    job, root = load_job(job_path), project / "out"
+
+    def current() -> bool:
+        return pl._probably_current(job, root, pl.resolve_run_date(job), 1767225600, True)
+
+    assert not current()  # no run yet (and no development key)
+    _run(job_path)
+    assert current()
+    assert not pl._probably_current(job, root, pl.resolve_run_date(job), 1767225600, False)  # --no-cache
+    assert not pl._probably_current(job, root, "2000-01-01", 1767225600, True)  # another date
+    assert not pl._probably_current(job, root, pl.resolve_run_date(job), 1767225600 + 20 * 86400, True)  # renewal
+    started = []
+    real = parallel.Background.__init__
+    monkeypatch.setattr(parallel.Background, "__init__",
+                        lambda self, fn, args, n_jobs: (started.append(n_jobs), real(self, fn, args, n_jobs))[1])
+    assert _run(job_path).up_to_date and started == []  # nothing to do: no worker started
+    _edit_restriction(project, 65.0)
+    assert not current()
+    s = _run(job_path)
+    assert not s.up_to_date and started and all(n != 1 for n in started)

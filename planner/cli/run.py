@@ -20,8 +20,13 @@ def run(
     from planner.job.config import load_job
     from planner.job.pipeline import run_job
 
+    from planner.io.parallel import stop_workers
+
     job = load_job(job_file)
-    s = run_job(job, show_progress=progress, use_cache=not no_cache)
+    try:
+        s = run_job(job, show_progress=progress, use_cache=not no_cache)
+    finally:
+        stop_workers()  # the command ends here: its idle workers need not wind down on their own
     for note in s.notes:
         typer.echo(f"note: {note}", err=True)
     for warning in s.warnings:

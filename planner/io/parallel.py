@@ -197,28 +197,34 @@ def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = 
     return Background(fn, args, n_jobs if name == "local" else 1)
 
 
-def _import(modules: Sequence[str]) -> None:
-    import importlib
-
-    for m in modules:
-        importlib.import_module(m)
-
-
 @contextmanager
-def started_workers(modules: Sequence[str], *, name: str = "local", n_jobs: int = -1) -> Iterator[list[Background]]:
-    """Start the local workers now, each importing ``modules``, while the main process does its own
-    start (reads the line, checks the key): the first step then finds them ready instead of waiting
-    for their start and imports. Nothing with one job or the Dask backend. Yields the handles; take
-    their results before the first step; leaving the context (an error on the way) waits for them."""
+def started_workers(warm: Callable[[], Any], *, name: str = "local", n_jobs: int = -1) -> Iterator[list[Background]]:
+    """Start the local workers now, each running ``warm()`` (a module-level function importing what the
+    work will need), while the main process does its own start (reads the line, checks the key): the
+    first step then finds them ready instead of waiting for their start and imports. Nothing with one
+    job or the Dask backend. Yields the handles; take their results before the first step; leaving
+    the context (an error on the way) waits for them."""
     handles: list[Background] = []
     if name == "local" and n_jobs != 1:
         n = joblib.cpu_count() if n_jobs < 0 else n_jobs
-        handles = [Background(_import, (tuple(modules),), n_jobs) for _ in range(n)]
+        handles = [Background(warm, (), n_jobs) for _ in range(n)]
     try:
         yield handles
     finally:
         for h in handles:
             h.discard()
+
+
+def stop_workers() -> None:
+    """End the idle local workers now (a command that is about to exit: otherwise the interpreter's exit
+    waits ~0.3 s for each to wind down on its own). Nothing when there are none."""
+    try:
+        from joblib.externals.loky import reusable_executor
+    except ImportError:  # pragma: no cover - joblib without loky
+        return
+    executor = getattr(reusable_executor, "_executor", None)  # loky's one reusable executor, if made
+    if executor is not None:
+        executor.shutdown(wait=True, kill_workers=True)
 
 
 def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,

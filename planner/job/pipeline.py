@@ -68,8 +68,16 @@ from planner.job.publish import (
     staging_dir,
 )
 
-UNIT_MODULES = ("planner.job.units", "planner.tables.build", "planner.stopping.sweep", "planner.tables.closed_loop")
-"""What the units' functions import in a worker (:func:`planner.io.parallel.start_workers` imports it first)."""
+def warm_worker() -> None:
+    """What a worker imports for the job's units and background work, done first
+    (:func:`planner.io.parallel.started_workers`), while the main process reads the lines."""
+    import planner.job.units  # noqa: F401
+    import planner.stopping.sweep  # noqa: F401
+    import planner.tables.build  # noqa: F401
+    import planner.tables.closed_loop  # noqa: F401
+    from planner.report.plots import pyplot
+
+    pyplot()  # matplotlib, for the margin report's charts (drawn on the workers at the end)
 
 STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
          "overview", "publish")
@@ -166,11 +174,50 @@ def _result_params(job: Job) -> dict[str, Any]:
     return params
 
 
-def _inputs_digest(job: Job, lines: Sequence[Line], key_id: str, run_date: str = "") -> str:
-    """Digest of everything a run depends on: code, parameters, line databases, signing key (its public id),
-    and the run's date (stamped on every dataset row, so one run id always has one date)."""
-    return digest({"code": code_digest(), "params": _result_params(job), "lines": [ln.source_digest for ln in lines],
+def _inputs_digest(job: Job, lines: Sequence[Line | str], key_id: str, run_date: str = "") -> str:
+    """Digest of everything a run depends on: code, parameters, line databases (each a Line or its
+    :func:`planner.line.loader.source_digest`), signing key (its public id), and the run's date (stamped
+    on every dataset row, so one run id always has one date)."""
+    return digest({"code": code_digest(), "params": _result_params(job),
+                   "lines": [ln if isinstance(ln, str) else ln.source_digest for ln in lines],
                    "key": key_id, "run_date": run_date})
+
+
+def _current_run(root: Path, inputs: str, built_at_s: int) -> tuple[str, dict] | None:
+    """The latest run and its manifest when it was made from exactly ``inputs`` (its bundles may be due
+    for renewal: the caller checks), else None."""
+    last = latest_run(root)
+    if not (last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file()):
+        return None
+    import json
+
+    try:
+        m = json.loads((root / last / "manifest.json").read_text())
+    except ValueError:  # a damaged manifest proves nothing: run again
+        return None
+    return (last, m) if isinstance(m, dict) and m.get("inputs_digest") == inputs else None
+
+
+def _probably_current(job: Job, root: Path, run_date: str, built_at_s: int, use_cache: bool) -> bool:
+    """Whether the latest run already has this job's inputs and needs no renewal, judged from the line
+    folders' bytes alone (no validation, no key made): cheap, and asked before the workers start, so
+    that a run with nothing to do starts none. False when unsure; the check after validation decides."""
+    from planner.bundle.signing import load_private_key, public_key_id
+    from planner.line.loader import source_digest
+
+    if not use_cache:
+        return False
+    configured = job.bundles.signing_key or os.environ.get("PLANNER_SIGNING_KEY")
+    if not configured and not (root / ".dev-key" / "signing_key.pem").is_file():
+        return False  # a development key would be made: a first run
+    try:
+        key = load_private_key(signing_key_path(job, [])[0])
+        inputs = _inputs_digest(job, [source_digest(job.resolve(p)) for p in job.job.lines],
+                                public_key_id(key.public_key()), run_date)
+    except (PlannerError, OSError, ValueError):
+        return False
+    found = _current_run(root, inputs, built_at_s)
+    return found is not None and not _renewal_due(found[1], built_at_s)
 
 
 def resolve_run_date(job: Job) -> str:
@@ -216,9 +263,14 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
     # the staged run's files are flushed to disk once, by publish(), before it becomes visible
     from planner.io.parallel import started_workers
 
-    # the workers start (and import what the units run) while this process reads the lines
+    from planner.bundle.manifest import build_time_s
+
+    built_at_s = build_time_s()  # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or now
     with job_lock(root), deferred_fsync(), \
-            started_workers(UNIT_MODULES, name=job.parallel.backend, n_jobs=job.parallel.n_jobs) as warm:
+            started_workers(warm_worker, name=job.parallel.backend,
+                            n_jobs=1 if _probably_current(job, root, run_date, built_at_s, use_cache)
+                            else job.parallel.n_jobs) as warm:
+        # the workers start (and import what the units and charts need) while this process reads the lines
         clean_stale_staging(root)
         cache = Cache(root / ".cache", enabled=use_cache)
         with Progress(show_progress) as prog:
@@ -228,32 +280,24 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 for line in lines:
                     for t in job.job.train_types:
                         line.train_type(t)
-            from planner.bundle.manifest import Release, build_time_s
+            from planner.bundle.manifest import Release
             from planner.bundle.signing import load_private_key, public_key_id
 
             notes: list[str] = []
             key_path, development = signing_key_path(job, notes)
             key = load_private_key(key_path)
-            # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or the clock now
-            release = Release.issue(build_time_s(), valid_days=job.bundles.valid_days, development=development)
+            release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
             for w in warm:  # taken on every path: an abandoned joblib generator upsets loky's manager thread
                 w.result()
-            last = latest_run(root)
-            if use_cache and last and last.endswith(inputs[:10]) and (root / last / "manifest.json").is_file():
-                import json
-
-                try:
-                    m = json.loads((root / last / "manifest.json").read_text())
-                except ValueError:  # a damaged manifest proves nothing: run again
-                    m = {}
-                if isinstance(m, dict) and m.get("inputs_digest") == inputs \
-                        and not _renewal_due(m, release.built_at_s):
+            found = _current_run(root, inputs, release.built_at_s) if use_cache else None
+            if found is not None:
+                last, m = found
+                if not _renewal_due(m, release.built_at_s):
                     return RunSummary(last, root / last, True, timings=prog.timings,
                                       notes=notes + [f"nothing changed since run {last}: it stays the latest"])
-                if m.get("inputs_digest") == inputs:
-                    notes.append(f"nothing changed since run {last}, but its bundles are past half their validity: "
-                                 "re-issued")
+                notes.append(f"nothing changed since run {last}, but its bundles are past half their validity: "
+                             "re-issued")
             run_id = next_run_id(root, inputs)
             stage = staging_dir(root, run_id)
             summary = RunSummary(run_id, None, False, notes=notes)
