@@ -216,7 +216,7 @@ def test_solve_piecewise_equals_its_array_formulation_to_the_bit():
 def test_interp_u_equals_np_interp_to_the_bit():
     """The one-number interpolation of the on-board logic against np.interp in 1/r (what it replaces),
     at random ratios, at every grid ratio exactly, outside the grid and on infinite values."""
-    from planner.tables.onboard import _interp_u
+    from planner.tables.piecewise import interp_u
 
     rng = np.random.default_rng(11)
     ratios = np.array([1.0, 0.9, 0.8, 0.7, 0.65, 0.6, 0.55, 0.5, 0.45, 0.4, 0.35, 0.3])
@@ -228,5 +228,5 @@ def test_interp_u_equals_np_interp_to_the_bit():
             vals[rng.integers(0, ratios.size, 2)] = np.inf  # a stalled entry
         for r in rs:
             ref = float(np.interp(1.0 / min(max(r, ratios[-1]), ratios[0]), u, vals))
-            got = _interp_u(ratios, vals, r)
+            got = interp_u(ratios, vals, r)
             assert got == ref or (np.isnan(got) and np.isnan(ref)), (vals.tolist(), r, got, ref)

@@ -480,7 +480,8 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
     # its charts (a few seconds of matplotlib) are drawn meanwhile, half on each of two workers
     from planner.io.parallel import background
-    from planner.report.html import chart_svgs, stop_markers
+    from planner.report.html import stop_markers
+    from planner.report.html_charts import chart_svgs
 
     summary.reports[line.line_id] = report
     halves = (("margin:down", "curves"), ("margin:up", "adhesion"))

@@ -99,7 +99,8 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     from planner.report.changes_html import changes_html
     from planner.report.overview import write_overview
     from planner.job.publish import canonical_json, latest_run
-    from planner.report.html import chart_sections, stop_markers, write_html
+    from planner.report.html import stop_markers, write_html
+    from planner.report.html_charts import chart_sections
 
     manifest_path = stage / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))

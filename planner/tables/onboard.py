@@ -108,14 +108,13 @@ dispatched by :mod:`planner.tables.closed_loop` instead.
 """
 from __future__ import annotations
 
-import bisect
-import math
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
 import numpy as np
 
 from planner.errors import InputError
+from planner.tables.piecewise import clip_number, interp_u, solve_piecewise
 from planner.physics.run_curve import (  # the run state's phase code (a constant; no simulation here)
     PHASE_POWER,
 )
@@ -325,7 +324,7 @@ def solve_ratio(ratios: np.ndarray, times_s: np.ndarray, want_s: float) -> float
 def row_at(tables: RunningTimeTables, k: int, ratio: float) -> np.ndarray:
     """Table (b) row at point ``k`` for a fractional ratio before, linear in ``1/r`` [s]."""
     r = tables.ratios
-    rb = float(_clip(ratio, r[-1], r[0]))
+    rb = float(clip_number(ratio, r[-1], r[0]))
     # ratios descend: i is the last grid ratio >= rb
     i = int(np.searchsorted(-r, -rb, side="right")) - 1
     i = min(max(i, 0), len(r) - 1)
@@ -350,120 +349,6 @@ class InterpolateRule:
         return np.array(
             [solve_ratio(tables.ratios, row_at(tables, k, rb), x) for rb, x in zip(ratio, rem)]
         )
-
-
-def _clip(x, lo, hi):
-    """``np.clip`` of one number, the same value without numpy's call overhead (the on-board logic
-    clips a few numbers per run and point; ``np.clip`` was a third of the closed loop's time)."""
-    return min(max(x, lo), hi)
-
-
-_INVERSE_LIST: dict[int, tuple] = {}
-
-
-def _inverse_list(ratios) -> list[float]:
-    """``1 / ratios`` of a grid as Python floats, computed once per grid array (the array is kept, so
-    its id stays its own)."""
-    hit = _INVERSE_LIST.get(id(ratios))
-    if hit is not None and hit[0] is ratios:
-        return hit[1]
-    if len(_INVERSE_LIST) > 256:
-        _INVERSE_LIST.clear()
-    u = (1.0 / np.asarray(ratios, float)).tolist()
-    _INVERSE_LIST[id(ratios)] = (ratios, u)
-    return u
-
-
-def _interp_u(ratios: np.ndarray, values: np.ndarray, r: float) -> float:
-    """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``.
-
-    ``np.interp`` of one number, written out in Python floats with numpy's own special cases
-    and operations (the same bits: tested against it), without its call overhead.
-    """
-    u = _inverse_list(ratios)
-    x = float(1.0 / _clip(r, ratios[-1], ratios[0]))
-    n = len(u)
-    if x > u[-1]:
-        return float(values[n - 1])
-    if x < u[0]:
-        return float(values[0])
-    if x == u[-1]:
-        return float(values[n - 1])
-    j = bisect.bisect_right(u, x) - 1  # u[j] <= x < u[j + 1]
-    y0 = float(values[j])
-    if u[j] == x:
-        return y0
-    y1 = float(values[j + 1])
-    slope = (y1 - y0) / (u[j + 1] - u[j])
-    out = slope * (x - u[j]) + y0
-    if math.isnan(out):  # as numpy: from the other end, then the flat value
-        out = slope * (x - u[j + 1]) + y1
-        if math.isnan(out) and y0 == y1:
-            out = y0
-    return out
-
-
-def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, prefer: float) -> float:
-    """Ratio where the piecewise-linear-in-``1/r`` function through ``values_s`` equals ``want_s``.
-
-    Unlike :func:`solve_ratio` the function need not be monotone (a sawtooth train's times are
-    not, and a learned correction can add noise): every crossing is found exactly, segment by
-    segment, and the one nearest the ratio ``prefer`` (the current ratio) in ``u = 1/r`` wins —
-    the smallest change of driving that the tables say arrives on time. Without a crossing, the
-    grid ratio whose value is nearest ``want_s`` (ties: nearest ``prefer``).
-
-    Parameters
-    ----------
-    ratios : ndarray
-        Grid ratios, descending.
-    values_s : ndarray
-        Predicted time at each grid ratio [s].
-    want_s : float
-        Wanted time [s].
-    prefer : float
-        Current ratio.
-
-    Returns
-    -------
-    float
-        Ratio in [ratios[-1], ratios[0]].
-
-    Examples
-    --------
-    >>> r = np.array([1.0, 0.5, 0.25])
-    >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 1.0), 4)   # two crossings
-    0.5714
-    >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 0.25), 4)
-    0.3333
-    """
-    # one pass over the segments in Python floats: the same IEEE operations, in the same order, as
-    # the array expressions this replaced (arrays of a few dozen values cost more to set up than to use)
-    u = _inverse_list(ratios)
-    f = np.asarray(values_s, float).tolist()
-    up = 1.0 / float(_clip(prefer, ratios[-1], ratios[0]))
-    cand: list[float] = []
-    flat: list[float] = []
-    for i in range(len(f) - 1):
-        d0, d1 = f[i] - want_s, f[i + 1] - want_s
-        if d0 * d1 <= 0.0 and f[i] != f[i + 1]:
-            cand.append(u[i] + d0 / (d0 - d1) * (u[i + 1] - u[i]))
-        elif d0 == 0.0 and d1 == 0.0:  # a whole segment on the wanted time: its point nearest prefer
-            flat.append(min(max(up, u[i]), u[i + 1]))
-    cand += flat
-    if cand:
-        best_c, best_d = cand[0], abs(cand[0] - up)
-        for c in cand[1:]:
-            if abs(c - up) < best_d:  # the first of equal distances, as argmin
-                best_c, best_d = c, abs(c - up)
-        return float(1.0 / best_c)
-    err = [abs(x - want_s) for x in f]
-    lim = min(err) + 1e-12
-    best = [i for i, e in enumerate(err) if e <= lim]
-    j = best[0]
-    for i in best[1:]:
-        if abs(u[i] - up) < abs(u[j] - up):
-            j = i
-    return float(1.0 / u[j])
 
 
 class AdaptiveRule:
@@ -505,7 +390,7 @@ class AdaptiveRule:
 
     def _delta(self, tables: RunningTimeTables, k: int, r: float) -> float:
         """Reference − table remaining time from point k at ratio r, clipped at 0 [s]."""
-        return _interp_u(tables.ratios, self._delta_row(tables, k), r)
+        return interp_u(tables.ratios, self._delta_row(tables, k), r)
 
     def depart(self, tables, designated_s):
         d = np.atleast_1d(np.asarray(designated_s, float))
@@ -513,7 +398,7 @@ class AdaptiveRule:
         self._s = {
             "k": np.zeros(d.size, int),
             "rem": d.copy(),  # actual remaining time at the last point
-            "pred": np.array([_interp_u(tables.ratios, tables.time_a_s, r) for r in r0]),
+            "pred": np.array([interp_u(tables.ratios, tables.time_a_s, r) for r in r0]),
             "delta": np.array([self._delta(tables, 0, r) for r in r0]),
             "num": np.zeros(d.size),
             "den": np.zeros(d.size),
@@ -535,11 +420,11 @@ class AdaptiveRule:
         for i, (rb, x) in enumerate(zip(ratio, rem)):
             row = row_at(tables, k, rb)
             # the leg just run, at ratio rb: observed vs. table time, and the reference's extra
-            pred_here = float(_interp_u(tables.ratios, row, rb))
+            pred_here = float(interp_u(tables.ratios, row, rb))
             st["num"][i] += (st["rem"][i] - x) - (st["pred"][i] - pred_here)
             st["den"][i] += st["delta"][i] - self._delta(tables, k, rb)
             theta = st["num"][i] / st["den"][i] if st["den"][i] > 1e-3 else 0.0
-            theta = float(_clip(theta, *self.THETA_RANGE))
+            theta = float(clip_number(theta, *self.THETA_RANGE))
             if ap is not None:
                 # the last point: predict from the train's own state (table (d), fine ratio grid)
                 t_d, ref_d = ap.rows(float(v[i]), bool(on[i]))
@@ -549,7 +434,7 @@ class AdaptiveRule:
                 ra = solve_piecewise(tables.ratios, row + theta * dk, x, rb)
             out[i] = ra
             st["rem"][i] = x
-            st["pred"][i] = _interp_u(tables.ratios, row, ra)
+            st["pred"][i] = interp_u(tables.ratios, row, ra)
             st["delta"][i] = self._delta(tables, k, ra)
         return out
 
