@@ -269,8 +269,9 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
     with job_lock(root), deferred_fsync(), \
             started_workers(warm_worker, name=job.parallel.backend,
                             n_jobs=1 if _probably_current(job, root, run_date, built_at_s, use_cache)
-                            else job.parallel.n_jobs) as warm:
-        # the workers start (and import what the units and charts need) while this process reads the lines
+                            else job.parallel.n_jobs):
+        # the workers start (and import what the units and charts need) while this process reads the lines;
+        # the first step's units queue behind that, and leaving the context takes the handles
         clean_stale_staging(root)
         cache = Cache(root / ".cache", enabled=use_cache)
         with Progress(show_progress) as prog:
@@ -288,8 +289,6 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             key = load_private_key(key_path)
             release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
-            for w in warm:  # taken on every path: an abandoned joblib generator upsets loky's manager thread
-                w.result()
             found = _current_run(root, inputs, release.built_at_s) if use_cache else None
             if found is not None:
                 last, m = found

@@ -279,20 +279,57 @@ def _any_over(st):
 
 
 @njit(**_JIT)
+def _over_until(k_from, k_to, trk, seg, par, st, lane, e, cst):
+    """The first node from ``k_from`` (at most ``k_to``) where no run is above its ceiling.
+
+    Each run above its ceiling brakes at its shed rate (the over-mode step of :func:`_guided`, the
+    same expressions) until the step that meets the ceiling or drops below the coasting band; a run
+    not above it never rises above it again (every step ends at or below the ceiling). So each run
+    is followed alone, only while it is above, and the batch-wide switch ends at the latest of
+    them: the node the node-by-node test of :func:`advance` would reach, without its passes over
+    the whole batch at every node.
+    """
+    band, sawtooth = cst[1], cst[2] != 0.0
+    k_end = k_from
+    for i in range(st.shape[1]):
+        w, c0 = st[S_W, i], st[S_C0, i]
+        r2, cap2, ratio, capv, shed = par[P_R2, i], par[P_CAP2, i], par[P_RATIO, i], par[P_CAPV, i], par[P_SHED, i]
+        co = lane[L_COAST, i] != 0
+        k = k_from
+        while k < k_to and w > c0 * (1.0 + 1e-12) + 1e-9:
+            ds = trk[T_S, k + 1] - trk[T_S, k]
+            st1 = trk[T_STOP2, k + 1]
+            c1 = _mn(_mn(_mn(r2 * trk[T_VN2, k + 1], cap2), e[seg[k + 1], i] + trk[T_AHEAD, k + 1]), st1)
+            lb = 0.0
+            if sawtooth:
+                tgt = _mn(ratio * trk[T_VINT, k], capv)
+                lb = _mx(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
+                co = co and w > lb * lb
+            wend = w + (-2.0 * shed) * ds
+            k += 1
+            if wend < c1 or (sawtooth and co and wend < lb * lb):
+                break  # meets the ceiling, or below the band: at or below the ceiling from node k
+            w, c0 = _mn(wend, st1), c1
+        if k > k_end:
+            k_end = k
+    return k_end
+
+
+@njit(**_JIT)
 def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, rec_p, record):
     """Advance every run from node ``k_from`` to node ``k_to`` (no event strictly between).
 
-    While some run may be above its ceiling (after a lowered target) the batch-wide switch is
-    decided node by node, as the numpy step did; from the first node where no run is above it,
-    every run goes on to k_to on its own. Stops early (``flags[F_STALL_TO] ≥ 0``) at the first
-    stall check (every 64 steps and at the end, as the numpy step) that finds a run whose time is
-    no longer finite.
+    While some run may be above its ceiling (after a lowered target) every run steps in the
+    batch-wide above-ceiling mode, as the numpy step did, up to the first node where no run is
+    above it (:func:`_over_until`); from there every run goes on to k_to on its own. Stops early
+    (``flags[F_STALL_TO] ≥ 0``) at the first stall check (every 64 steps and at the end, as the
+    numpy step) that finds a run whose time is no longer finite.
     """
     m = trk.shape[1]
     k = k_from
     while k < k_to:
         over_mode = flags[F_MAYBE_OVER] != 0 and _any_over(st)
-        k_end = k + 1 if over_mode else k_to
+        k_end = _over_until(k, k_to, trk, seg, par, st, lane, e, cst) if over_mode else k_to
         still_over, first_bad = _sweep(k, k_end, k0, over_mode, trk, seg, par, st, lane, e, cst, tab,
                                        rec, rec_p, record)
         flags[F_MAYBE_OVER] = 1 if over_mode and still_over else 0
