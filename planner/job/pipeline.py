@@ -20,9 +20,10 @@ restriction recomputes only the interstations (and approaches) it reaches.
 
 What does not depend on a step runs beside it, so that both cores stay busy:
 the workers start while the lines are read; the line's conflicts and train
-graph trajectories share the closed loop's pass of the workers; the bundles
-are built on a worker once the tables and stops are written; the margin
-report's charts are drawn on a worker while the main process writes the rest.
+graph trajectories share the closed loop's pass of the workers; the tables and
+stops datasets are written on a thread while the workers compute the next
+steps; the bundles are built on a worker beside the margins; the margin
+report's charts are drawn on two workers while the main process writes the rest.
 A step's time in the summary is the sum of its intervals, so the steps add up
 to more than the run's wall time.
 """

@@ -201,7 +201,9 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     parts.append("<h2 id='steps'>Steps</h2>" + _table(["step", "time [s]", "units computed", "units reused", ""], srows,
                                                        num=(1, 2, 3))
                  + "<p class='sub'>A unit is reused when its key (digest of exactly the inputs it depends on) is in "
-                 "the work cache; the publish step runs after this page is written.</p>")
+                 "the work cache; the publish step runs after this page is written. Some steps run beside others "
+                 "(the conflicts and the train graph's trajectories beside the closed loop, the bundles and the "
+                 "margin report's charts beside the margins), so the times add up to more than the run took.</p>")
     # datasets
     docs = {d.name: d for d in datasets()}
     counts = manifest.get("rows", {})
