@@ -159,6 +159,21 @@ def _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth):
 
 
 @njit(**_JIT)
+def _ceiling2(k, i, trk, seg, e, r2, cap2, st2):
+    """Run ``i``'s ceiling² at node k: its target ratio² × the line maximum², its cruise cap², its
+    service-brake curve and the stopping curve² ``st2`` (the one copy: the step, :func:`_over_until` and
+    :func:`set_targets`)."""
+    return _mn(_mn(_mn(r2 * trk[T_VN2, k], cap2), e[seg[k], i] + trk[T_AHEAD, k]), st2)
+
+
+@njit(**_JIT)
+def _band_edge(k, trk, ratio, capv, band):
+    """A sawtooth run's coasting-band lower edge on the step from node k [m/s]."""
+    tgt = _mn(ratio * trk[T_VINT, k], capv)
+    return _mx(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
+
+
+@njit(**_JIT)
 def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec, rec_p, record):
     """Every run on its own from node k_from to k_to, its state in registers, with the batch-wide
     ``use_over`` switch fixed. Returns whether any run ended still above its ceiling (having been
@@ -178,12 +193,9 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
         for k in range(k_from, k_to):
             ds = trk[T_S, k + 1] - trk[T_S, k]
             st1 = trk[T_STOP2, k + 1]
-            c1 = _mn(_mn(_mn(r2 * trk[T_VN2, k + 1], cap2), e[seg[k + 1], i] + trk[T_AHEAD, k + 1]), st1)
-            lb = 0.0
-            if sawtooth:
-                tgt = _mn(ratio * trk[T_VINT, k], capv)
-                lb = _mx(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
-                co = co and w > lb * lb
+            c1 = _ceiling2(k + 1, i, trk, seg, e, r2, cap2, st1)
+            lb = _band_edge(k, trk, ratio, capv, band) if sawtooth else 0.0
+            co = co and (not sawtooth or w > lb * lb)  # a coasting run powers again at the band's edge
             coasting_step = co
             # free running: Heun's step in w = v² (predictor ṽ₁)
             a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, _interp(v, tab))
@@ -267,7 +279,7 @@ def set_targets(k, trk, seg, bounds, par, st, e):
         for j in range(nb - 3, -1, -1):
             kb = bounds[j + 1]
             e[j, i] = _mn(_mn(r2 * trk[T_VN2, kb], cap2), e[j + 1, i] + trk[T_AHEAD, kb])
-        st[S_C0, i] = _mn(_mn(_mn(r2 * trk[T_VN2, k], cap2), e[seg[k], i] + trk[T_AHEAD, k]), trk[T_STOP2, k])
+        st[S_C0, i] = _ceiling2(k, i, trk, seg, e, r2, cap2, trk[T_STOP2, k])
 
 
 @njit(**_JIT)
@@ -299,12 +311,9 @@ def _over_until(k_from, k_to, trk, seg, par, st, lane, e, cst):
         while k < k_to and w > c0 * (1.0 + 1e-12) + 1e-9:
             ds = trk[T_S, k + 1] - trk[T_S, k]
             st1 = trk[T_STOP2, k + 1]
-            c1 = _mn(_mn(_mn(r2 * trk[T_VN2, k + 1], cap2), e[seg[k + 1], i] + trk[T_AHEAD, k + 1]), st1)
-            lb = 0.0
-            if sawtooth:
-                tgt = _mn(ratio * trk[T_VINT, k], capv)
-                lb = _mx(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
-                co = co and w > lb * lb
+            c1 = _ceiling2(k + 1, i, trk, seg, e, r2, cap2, st1)
+            lb = _band_edge(k, trk, ratio, capv, band) if sawtooth else 0.0
+            co = co and (not sawtooth or w > lb * lb)
             wend = w + (-2.0 * shed) * ds
             k += 1
             if wend < c1 or (sawtooth and co and wend < lb * lb):
