@@ -182,7 +182,7 @@ class Background:
         manager thread (a KeyError there), which would leave the workers' executor broken
         for the next step of this process. The work is a few seconds at most.
         """
-        if self._gen is not None and self._value is self._UNSET:
+        if self._gen is not None:
             try:
                 next(self._gen)
             except Exception:  # noqa: BLE001 - the run is failing already; this result is not wanted
@@ -193,7 +193,7 @@ class Background:
 def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = -1) -> Background:
     """Start ``fn(*args)`` beside the main process (:class:`Background`): on a local worker with the
     ``local`` backend and ``n_jobs != 1``, else later, in this process. For work of the main process
-    that nothing needs until a later step (the nightly job's margin charts)."""
+    that nothing needs until a later step (the nightly job's bundles and margin charts)."""
     return Background(fn, args, n_jobs if name == "local" else 1)
 
 
@@ -201,9 +201,9 @@ def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = 
 def started_workers(warm: Callable[[], Any], *, name: str = "local", n_jobs: int = -1) -> Iterator[list[Background]]:
     """Start the local workers now, each running ``warm()`` (a module-level function importing what the
     work will need), while the main process does its own start (reads the line, checks the key): the
-    first step then finds them ready instead of waiting for their start and imports. Nothing with one
-    job or the Dask backend. Yields the handles; take their results before the first step; leaving
-    the context (an error on the way) waits for them."""
+    first step then finds them ready instead of waiting for their start and imports (its units queue
+    behind them). Nothing with one job or the Dask backend. Yields the handles; leaving the context
+    waits for them (never abandoned mid-task: see :meth:`Background.discard`)."""
     handles: list[Background] = []
     if name == "local" and n_jobs != 1:
         n = joblib.cpu_count() if n_jobs < 0 else n_jobs

@@ -184,7 +184,7 @@ def _inputs_digest(job: Job, lines: Sequence[Line | str], key_id: str, run_date:
                    "key": key_id, "run_date": run_date})
 
 
-def _current_run(root: Path, inputs: str, built_at_s: int) -> tuple[str, dict] | None:
+def _current_run(root: Path, inputs: str) -> tuple[str, dict] | None:
     """The latest run and its manifest when it was made from exactly ``inputs`` (its bundles may be due
     for renewal: the caller checks), else None."""
     last = latest_run(root)
@@ -217,7 +217,7 @@ def _probably_current(job: Job, root: Path, run_date: str, built_at_s: int, use_
                                 public_key_id(key.public_key()), run_date)
     except (PlannerError, OSError, ValueError):
         return False
-    found = _current_run(root, inputs, built_at_s)
+    found = _current_run(root, inputs)
     return found is not None and not _renewal_due(found[1], built_at_s)
 
 
@@ -260,13 +260,12 @@ def run_job(job: Job, *, show_progress: bool = True, use_cache: bool = True) -> 
 def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunSummary:
     from planner.line.loader import load_line
 
-    run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
-    # the staged run's files are flushed to disk once, by publish(), before it becomes visible
+    from planner.bundle.manifest import build_time_s
     from planner.io.parallel import started_workers
 
-    from planner.bundle.manifest import build_time_s
-
+    run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
     built_at_s = build_time_s()  # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or now
+    # the staged run's files are flushed to disk once, by publish(), before it becomes visible
     with job_lock(root), deferred_fsync(), \
             started_workers(warm_worker, name=job.parallel.backend,
                             n_jobs=1 if _probably_current(job, root, run_date, built_at_s, use_cache)
@@ -290,7 +289,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             key = load_private_key(key_path)
             release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
-            found = _current_run(root, inputs, release.built_at_s) if use_cache else None
+            found = _current_run(root, inputs) if use_cache else None
             if found is not None:
                 last, m = found
                 if not _renewal_due(m, release.built_at_s):
@@ -333,11 +332,11 @@ def _types(job: Job, line: Line) -> list[str]:
     return list(job.job.train_types) or [t.train_type for t in line.train_types]
 
 
-def _write_beside(writes: ThreadPoolExecutor, write, results, stage: Path):
-    """Start writing a step's datasets on the run's writer thread (Arrow writes without the GIL) while
-    the workers compute the next step; the future gives the files. In this thread's context, so the
-    staged run's deferred flush holds there too."""
-    return writes.submit(contextvars.copy_context().run, write, results, stage)
+def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
+    """Start ``fn(*args)`` on the run's writer thread (a step's datasets written, or read back, while
+    the workers compute the next step: Arrow works without the GIL); the future gives the result. In
+    this thread's context, so the staged run's deferred flush holds there too."""
+    return writes.submit(contextvars.copy_context().run, fn, *args)
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
@@ -366,7 +365,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     tables = runner.run("tables", t_units)
     from planner.datasets.tables import write_tables
 
-    tables_written = _write_beside(writes, write_tables, tables, stage)
+    tables_written = _on_writer(writes, write_tables, tables, stage)
 
     # stopping patterns, one unit per arrival
     sp = job.stops
@@ -380,11 +379,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     stops = runner.run("stops", s_units)
     from planner.datasets.stops import write_stops
 
-    stops_written = _write_beside(writes, write_stops, stops, stage)
+    stops_written = _on_writer(writes, write_stops, stops, stage)
     from planner.report.margins import given_tables
 
     # the margin report's tables, read back on the writer thread (after they are written) meanwhile
-    given = writes.submit(contextvars.copy_context().run, given_tables, line, _types(job, line), stage)
+    given = _on_writer(writes, given_tables, line, _types(job, line), stage)
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
     for r in stops:  # one line per approach, not per adhesion level
@@ -432,7 +431,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts,
                   given.result())
-    _bundles_step(job, line, stage, runner, summary, key, bundles)
+    _bundles_step(stage, runner, summary, key, bundles)
     from planner.job.views import line_views  # inputs copy, train graph page
 
     line_views(job, line, stage, runner, summary, got["graph"])
@@ -511,7 +510,7 @@ def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: R
     return b
 
 
-def _bundles_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, bundles) -> None:
+def _bundles_step(stage: Path, runner: Runner, summary: RunSummary, key, bundles) -> None:
     """Signed bundles for every direction × train type (:func:`_start_bundles`), and the public key that
     verifies them."""
     from cryptography.hazmat.primitives import serialization

@@ -7,7 +7,8 @@ Two hooks called by :mod:`planner.job.pipeline`:
   changed), and write its interactive train graph
   (``graph/<line_id>_graph.html``). The trajectories are a cached unit keyed by
   the line database, the code and the run-curve step (:func:`graph_unit`, run
-  beside the closed loop), so an unchanged line reuses them; windows, conflicts and margins come from the run's own
+  beside the closed loop), so an unchanged line reuses them; windows,
+  conflicts and margins come from the run's own
   ``occupation``, ``conflicts`` and ``margin_totals`` datasets.
 * :func:`run_views`, after the manifest: compare the run with the previous
   published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
