@@ -89,3 +89,21 @@ def test_staged_files_are_flushed_once_by_publish_before_the_rename(tmp_path, mo
     publish(tmp_path, st, rid, keep=2)
     assert sorted(e for e in events if e[0] == "fsync") == [("fsync", "x.bin"), ("fsync", "y.bin")]
     assert events[-1] == ("rename", "")  # every flush before the run becomes visible
+
+
+def test_stamping_on_threads_keeps_the_deferred_flush(tmp_path, monkeypatch):
+    """stamp_run writes on threads; inside deferred_fsync those writes must not flush one by one either."""
+    import pyarrow.parquet as pq
+
+    import planner.io.atomic as atomic
+    from planner.io.parquet import stamp_run
+
+    for i in range(4):
+        (tmp_path / "ds" / f"p={i}").mkdir(parents=True)
+        pq.write_table(pa.table({"x": [1.0, 2.0]}), tmp_path / "ds" / f"p={i}" / "part.parquet")
+    flushed = []
+    monkeypatch.setattr(atomic, "_fsync_file", flushed.append)
+    with atomic.deferred_fsync():
+        assert stamp_run(tmp_path, ["ds"], "r0001-0123456789", "2026-11-23") == 4
+    assert flushed == []
+    assert pq.read_table(tmp_path / "ds" / "p=0" / "part.parquet").column("run_id").to_pylist() == ["r0001-0123456789"] * 2

@@ -13,6 +13,7 @@ torn entry fails its digest and is recomputed).
 from __future__ import annotations
 
 import contextvars
+import functools
 import os
 import tempfile
 from contextlib import contextmanager
@@ -58,6 +59,12 @@ def deferred_fsync() -> Iterator[None]:
         yield
     finally:
         _DEFERRED.reset(token)
+
+
+def in_this_context(fn):
+    """``fn`` bound to a copy of the calling thread's context, to hand to another thread: a thread
+    starts with an empty context, so without this its writes would not see :func:`deferred_fsync`."""
+    return functools.partial(contextvars.copy_context().run, fn)
 
 
 @contextmanager

@@ -18,7 +18,6 @@ writer settings) and atomic per file (temp file in the same folder, then
 """
 from __future__ import annotations
 
-import contextvars
 import os
 from pathlib import Path
 from typing import Iterable, Sequence
@@ -27,7 +26,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from planner.io.atomic import atomic_path
+from planner.io.atomic import atomic_path, in_this_context
 from planner.io.paths import check_path_id
 
 PARTITION_COLS = ("line", "direction", "train_type")
@@ -217,9 +216,8 @@ def stamp_run(root: Path, datasets: Iterable[str], run_id: str, run_date) -> int
 
     # Arrow reads, compresses and writes without the GIL: two threads keep two cores busy; each file
     # is its own, so the bytes do not depend on the order
-    # (each call in a copy of this thread's context: the staged run's deferred flush holds there too)
-    calls = [(contextvars.copy_context(), f) for f in files]
     with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
-        for _ in pool.map(lambda call: call[0].run(stamp, call[1]), calls):
+        # bound here, one copy per call (a context is entered by one thread at a time)
+        for _ in pool.map(lambda call, f: call(f), [in_this_context(stamp) for _ in files], files):
             pass
     return len(files)

@@ -29,7 +29,6 @@ to more than the run's wall time.
 """
 from __future__ import annotations
 
-import contextvars
 import dataclasses
 import importlib.metadata
 import os
@@ -39,7 +38,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from planner import __version__
-from planner.io.atomic import deferred_fsync, write_bytes_atomic
+from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomic
 from planner.io.parquet import stamp_run
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
@@ -335,8 +334,9 @@ def _types(job: Job, line: Line) -> list[str]:
 def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
     """Start ``fn(*args)`` on the run's writer thread (a step's datasets written, or read back, while
     the workers compute the next step: Arrow works without the GIL); the future gives the result. In
-    this thread's context, so the staged run's deferred flush holds there too."""
-    return writes.submit(contextvars.copy_context().run, fn, *args)
+    this thread's context (:func:`planner.io.atomic.in_this_context`), so the staged run's deferred flush
+    holds there too."""
+    return writes.submit(in_this_context(fn), *args)
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
