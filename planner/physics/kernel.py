@@ -61,22 +61,42 @@ def _mx(a, b):
 
 
 @njit(**_JIT)
-def _interp(x, tab):
-    """``np.interp(x, xp, fp)`` for one x, with numpy's formula, end values and NaN fall-backs.
-
-    ``tab`` rows: ``xp``, ``fp`` and the slopes ``(fp[j+1] − fp[j]) / (xp[j+1] − xp[j])``, which
-    numpy also computes once for a call on as many x as table points.
-    """
-    n = tab.shape[1]
-    lo, hi = 0, n - 1
+def _bracket(x, tab):
+    """The piece of the table x falls in, by binary search: ``xp[j] ≤ x < xp[j+1]`` for x inside it."""
+    lo, hi = 0, tab.shape[1] - 1
     while hi - lo > 1:  # xp[lo] ≤ x < xp[hi] for x inside the table
         mid = (lo + hi) >> 1
         if tab[0, mid] <= x:
             lo = mid
         else:
             hi = mid
-    return _lin(x, tab[0, lo], tab[0, hi], tab[1, lo], tab[1, hi], tab[2, lo],
-                tab[0, 0], tab[0, n - 1], tab[1, 0], tab[1, n - 1])
+    return lo
+
+
+@njit(**_JIT)
+def _interp(x, tab, j):
+    """``np.interp(x, xp, fp)`` for one x, with numpy's formula, end values and NaN fall-backs; and
+    the piece it used, the guess ``j`` for the next call.
+
+    ``tab`` rows: ``xp``, ``fp`` and the slopes ``(fp[j+1] − fp[j]) / (xp[j+1] − xp[j])``, which
+    numpy also computes once for a call on as many x as table points. The piece is hunted from
+    ``j`` (a run's speed changes little from call to call): for x inside the table and xp not
+    decreasing (the line's validation: strictly increasing) the one ``j`` with ``xp[j] ≤ x <
+    xp[j+1]`` is what :func:`_bracket` finds, ties included; outside the table or NaN no piece is used.
+    """
+    n = tab.shape[1]
+    if x != x:
+        return x, j
+    if x < tab[0, 0]:
+        return tab[1, 0], j
+    if x >= tab[0, n - 1]:
+        return tab[1, n - 1], j
+    while x < tab[0, j]:  # stops at j = 0 at the latest: xp[0] ≤ x (or NaN)
+        j -= 1
+    while x >= tab[0, j + 1]:  # stops at j = n − 2 at the latest: x < xp[n−1] (or NaN)
+        j += 1
+    return _lin(x, tab[0, j], tab[0, j + 1], tab[1, j], tab[1, j + 1], tab[2, j],
+                tab[0, 0], tab[0, n - 1], tab[1, 0], tab[1, n - 1]), j
 
 
 @njit(**_JIT)
@@ -190,6 +210,7 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
         co, ph = lane[L_COAST, i] != 0, lane[L_PHASE, i]
         bad_at = st[S_BAD, i]
         above = False
+        j = _bracket(v, tab)  # the tractive-effort piece of the run's speed, then hunted step by step
         for k in range(k_from, k_to):
             ds = trk[T_S, k + 1] - trk[T_S, k]
             st1 = trk[T_STOP2, k + 1]
@@ -198,12 +219,13 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
             co = co and (not sawtooth or w > lb * lb)  # a coasting run powers again at the band's edge
             coasting_step = co
             # free running: Heun's step in w = v² (predictor ṽ₁)
-            a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, _interp(v, tab))
+            ef, j = _interp(v, tab, j)
+            a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, ef)
             if co:
                 a0 = cs0
             vp = math.sqrt(_mx(w + (2.0 * ds) * a0, 0.0))
-            a1, cs1 = _accel(vp, trk[T_AG, k + 1], trk[T_STEEP, k + 1], amax, ram, rbm, rcm, tfi,
-                             _interp(vp, tab))
+            ef, j = _interp(vp, tab, j)
+            a1, cs1 = _accel(vp, trk[T_AG, k + 1], trk[T_STEEP, k + 1], amax, ram, rbm, rcm, tfi, ef)
             if co:
                 a1 = cs1
             slope, wend, cross, frac, w1, over = _guided(w, c0, c1, st1, a0, a1, shed, ds, use_over)
@@ -235,9 +257,11 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
                     lb2 = lb * lb
                     xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
                     sub = ds - xb
-                    aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, _interp(lb, tab))
+                    ef, j = _interp(lb, tab, j)
+                    aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
                     vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
-                    ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, _interp(vq, tab))
+                    ef, j = _interp(vq, tab, j)
+                    ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
                     w1 = _mn(lb2 + (aa + ab) * sub, c1)
                     v1 = math.sqrt(w1)
                     dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
