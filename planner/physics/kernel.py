@@ -127,7 +127,7 @@ def _accel(vv, ag, steep, amax, ram, rbm, rcm, tfi, effort):
     return _mn(coast + effort * tfi, cap), coast
 
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def _guided(w, c0, c1, st1, a0, a1, shed, ds, use_over):
     """Free running capped by the ceiling, or braking at ``shed`` onto it from above (a lowered target).
 
