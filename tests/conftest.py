@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -22,3 +23,17 @@ def keys(tmp_path_factory):
     d = tmp_path_factory.mktemp("keys")
     priv, pub = signing.generate_keypair(d)
     return priv, pub, signing.load_private_key(priv)
+
+
+SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
+"""The bundled sample line (committed, with lines/sample/build.py that makes it)."""
+
+
+@pytest.fixture(scope="session")
+def sample_line():
+    """The sample line, loaded once per test session."""
+    import planner
+
+    if not (SAMPLE / "line.parquet").exists():
+        pytest.skip("lines/sample is not built yet (python lines/sample/build.py)")
+    return planner.load_line(SAMPLE)

@@ -12,24 +12,19 @@ every 600 m (one falls there) the adaptive mode arrived up to 1.07 s early (tabl
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-import planner
 from planner.physics.run_curve import PHASE_BRAKE, PHASE_COAST, PHASE_POWER, RunState, simulate
 from planner.physics.track import SimSettings, make_track
 from planner.tables.onboard import out_of_band
 
-SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 
 
 @pytest.fixture(scope="module")
-def line():
-    if not (SAMPLE / "line.parquet").exists():
-        pytest.skip("lines/sample is not built yet (python lines/sample/build.py)")
-    return planner.load_line(SAMPLE)
+def line(sample_line):
+    return sample_line
 
 
 def test_band_state_given_to_the_logic_is_the_one_that_continues_the_run(line):

@@ -21,17 +21,14 @@ improvement that meets them turns into a failure asking to remove the mark.
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-import planner
 from planner.tables.closed_loop import closed_loop_interstation
 from planner.tables.ratios import ratio_grid
 from planner.tables.build import interstation_tables
 
-SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 SUBSET = (("TKD", "OHS"), ("HGO", "MDR"), ("OHS", "TKD"), ("KWB", "SKM"))
 TYPES = ("E10", "E8", "E6")
 SCENARIOS = ("nominal", "perturbed")
@@ -56,10 +53,8 @@ NEAREST_REASON = (
 
 
 @pytest.fixture(scope="module")
-def results():
-    if not (SAMPLE / "line.parquet").exists():
-        pytest.skip("lines/sample is not built yet (python lines/sample/build.py)")
-    line = planner.load_line(SAMPLE)
+def results(sample_line):
+    line = sample_line
     grid = ratio_grid(None, line_max_speed_ms=line.max_speed_ms)
     out = {}
     for tt in TYPES:
@@ -93,7 +88,7 @@ def test_adaptive_meets_the_issue_bounds(results, tt, sc):
     assert np.median(e) <= BETTER_MEDIAN_S and e.max() <= BETTER_MAX_S, (np.median(e), e.max())
 
 
-def test_adaptive_is_not_tuned_to_the_perturbed_train():
+def test_adaptive_is_not_tuned_to_the_perturbed_train(sample_line):
     """The reference train of tables (c)/(d) is the perturbed scenario's train (full load,
     traction x 0.9), so the perturbed figures could flatter the mode: a train between the two
     (load 0.5, traction x 0.95) on the sawtooth E6's worst interstation of the plain adaptive
@@ -101,7 +96,7 @@ def test_adaptive_is_not_tuned_to_the_perturbed_train():
     `make bench`, scenario 'half')."""
     from planner.tables.closed_loop import Scenario
 
-    line = planner.load_line(SAMPLE)
+    line = sample_line
     grid = ratio_grid(None, line_max_speed_ms=line.max_speed_ms)
     half = Scenario("half", 0.5, 0.95)
     for tt, (o, d) in (("E6", ("HGO", "MDR")), ("E10", ("TKD", "OHS"))):

@@ -146,19 +146,26 @@ def test_tables_round_trip_through_parquet(tmp_path):
         load_tables(tmp_path / "nowhere", "L", "down", "EMU")
 
 
-@given(theta=st.floats(0.0, 2.0), frac=st.floats(0.05, 0.6))
-def test_adaptive_learns_the_train_and_arrives_exactly(theta, frac):
+@given(theta=st.floats(0.0, 2.0), frac=st.floats(0.05, 0.6), sawtooth=st.booleans())
+def test_adaptive_learns_the_train_and_arrives_exactly(theta, frac, sawtooth):
     """A train slower than the tables by exactly theta x (reference - table), everything affine in
-    1/r: after one leg the rule knows theta and its choice at the next point arrives on time."""
-    from planner.tables.onboard import AdaptiveRule
+    1/r: after one leg the rule knows theta, and its choice at the next point (p1, not the last)
+    arrives on time, or exactly ``AIM_EARLY_S`` early for a sawtooth vehicle (one whose tables
+    hold table (d)); at the last point (p2) both arrive on time."""
+    from planner.tables.onboard import AdaptiveRule, ApproachTable
 
     c = 30.0
     t = synthetic()
     f = np.array([1.0 - s / 1000.0 for s in t.eval_distance_m])
     delta = f[:, None] * c / RATIOS[None, :]  # reference - table, at constant ratio
     diag = np.stack([np.diagonal(t.remaining_s[k]) for k in range(3)])
+    # table (d) marks a sawtooth vehicle; the look-up itself needs the measured speed, not given here
+    ap = ApproachTable(np.array([0.0, 1.0]), (True,), RATIOS, np.zeros((1, 2, len(RATIOS))),
+                       np.zeros((1, 2, len(RATIOS)))) if sawtooth else None
     t = RunningTimeTables(t.origin, t.destination, t.ratios, t.time_a_s, t.eval_point_ids, t.eval_distance_m,
-                          t.eval_position_m, t.remaining_s, ref_remaining_s=diag + delta)
+                          t.eval_position_m, t.remaining_s, ref_remaining_s=diag + delta, approach=ap)
+    early = AdaptiveRule.AIM_EARLY_S if sawtooth else 0.0
+    assert AdaptiveRule.AIM_EARLY_S > 0.0
     lo, hi = t.time_a_s[0] + theta * delta[0, 0], t.time_a_s[-1]
     designated = lo + frac * (hi - lo)
 
@@ -173,7 +180,13 @@ def test_adaptive_learns_the_train_and_arrives_exactly(theta, frac):
     r1 = rule.at_point(t, 1, np.array([r0]), np.array([rem1]))[0]
     if r1 in (RATIOS[0], RATIOS[-1]):
         return  # clamped: the designated time is outside what the real train can do
-    assert true_remaining(1, r0, r1) == pytest.approx(rem1, abs=1e-6)
+    assert true_remaining(1, r0, r1) == pytest.approx(rem1 - early, abs=1e-6)
+    # the last point aims on time, and the early running so far is not mistaken for a faster train
+    rem2 = rem1 - (true_remaining(1, r0, r1) - true_remaining(2, r1, r1))
+    r2 = rule.at_point(t, 2, np.array([r1]), np.array([rem2]))[0]
+    if r2 in (RATIOS[0], RATIOS[-1]):
+        return
+    assert true_remaining(2, r1, r2) == pytest.approx(rem2, abs=1e-6)
 
 
 def test_solve_piecewise_equals_its_array_formulation_to_the_bit():

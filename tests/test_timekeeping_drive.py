@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,7 +22,6 @@ STOP_TOL_M = 0.2
 CLOSED_FORM_TOL_S = 0.05
 """DESIGN §2: running times within 0.05 s of closed-form answers at the 1 m step."""
 
-SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 
 # Straight level 1 km, one limit: 60 km/h over [400, 600] m. Default test train:
 # constant 300 kN on 300 t, no resistance -> a = 1 m/s²; service and stop brake 1 m/s²;
@@ -261,12 +259,6 @@ def test_public_api_and_curve_columns(line1k):
 
 
 # --- every interstation of the sample line ------------------------------------------
-@pytest.fixture(scope="module")
-def sample_line():
-    if not (SAMPLE / "stations.parquet").exists():
-        pytest.skip("lines/sample is not built yet (python lines/sample/build.py)")
-    return planner.load_line(SAMPLE)
-
 
 @pytest.mark.parametrize("direction", ["down", "up"])
 def test_sample_line_every_interstation(sample_line, direction):

@@ -90,17 +90,30 @@ smooth (not even a monotone) function of the ratio:
   reference difference is not clipped: from the same state a heavier train
   really does coast further.
 
-Limit: table (d) is at the last point. Where that point has no authority left,
-the decision that counts is made one point earlier from table (b), which cannot
-see the train's place in its band. E6 KWB→HGO, 2.5 % steps, beacons only: the
-home signal 325 m before the stop changes nothing (table (d): 28.3–29.0 s at
-every ratio from 58–68 km/h); at D-SIG-009, 1,213 m before it, the train's
-remaining time jumps from 78.8 s (ratio 0.6855) to 81.0 s (0.6841: the coasting
-train bottoms out 0.1 km/h above its band's lower edge and coasts the last
-900 m instead of powering back up), the tables interpolate 79.2 s at 0.6841,
-and the run with designated time 209 s arrives 1.27 s late (the one run of that
-interstation's 61 above 0.42 s). A state-indexed table at the last point with
-authority would be needed there.
+A **sawtooth vehicle aims early**: every decision after departure and before
+the last point aims ``AdaptiveRule.AIM_EARLY_S`` (0.5 s) early; the last point
+aims on time. The reason is an asymmetry near the stop: the last point (a home
+signal some 300 m out, or an odometer point closer still) can nearly always
+*lose* time (a lower ratio, an earlier brake) but seldom *gain* any (no room is
+left to accelerate), so an error of the tables at the last point with authority
+is final when it makes the train late and corrected when it makes it early.
+For a sawtooth vehicle such errors reach a second or more, because the remaining
+time from a point is not even continuous in the ratio chosen there. E6 KWB→HGO,
+2.5 % steps, beacons only, designated 209 s: at D-SIG-009, 1,213 m before the
+stop, the train's remaining time is 80.97 s at every ratio from 0.667 to 0.685
+(it coasts all the way to its braking point) and 78.79 s at 0.6855 (its band's
+lower edge now lies above the speed it coasts down to, so it powers again). The
+tables, whose row indexes the state by the ratio run before, said 79.2 s at
+0.6841; the wanted time fell in the gap, and aiming on time the train arrived
+1.27 s late (the home signal 325 m out could not gain it back); aiming early,
+the worst run of that setting is 0.36 s late, and the worst of the whole
+evaluation-interval study (16 settings, both scenarios) 0.91 s. A state-indexed
+table at every point would be the thorough fix, at several times the tables'
+CPU. A constant-speed vehicle's rows describe its state exactly (r_b × maximum
+speed, or a braking curve), its errors are the small, two-sided ones of
+interpolation, and aiming early only left it early where the last point could
+not shed the 0.5 s, so it aims on time throughout. The vehicle tells which kind
+it is by the tables it holds: table (d) exists for sawtooth vehicles only.
 
 A new mode is a :class:`RatioChooser` factory registered in :data:`CHOOSERS`
 (``register_mode``); modes that do not use the tables (e.g. time-keeping) are
@@ -363,6 +376,12 @@ class AdaptiveRule:
     table train is the empty train at nominal traction, so a real train is never systematically
     faster: a negative estimate is noise (sawtooth cycles, legs of a few metres) and is not
     acted on. Above 4 the train is broken, not slow; extrapolating further would amplify noise."""
+    AIM_EARLY_S = 0.5
+    """How early a sawtooth vehicle's decisions after departure and before the last evaluation
+    point aim [s]: the last point can lose time but seldom gain it, so a late error of the tables
+    before it is final and an early one is corrected there (module doc). The learner still
+    compares what the train did with what the tables said for the ratio chosen, so aiming early
+    does not bias it."""
 
     def __init__(self):
         self._s: dict | None = None
@@ -413,7 +432,11 @@ class AdaptiveRule:
             raise RuntimeError("AdaptiveRule.at_point before depart")
         out = np.empty_like(ratio)
         dk = self._delta_row(tables, k)
-        ap = tables.approach if k == len(tables.eval_distance_m) - 1 and speed_ms is not None else None
+        last = k == len(tables.eval_distance_m) - 1
+        ap = tables.approach if last and speed_ms is not None else None
+        # aim early before the last point where the tables cannot see the train's state (sawtooth
+        # vehicles: the ones with table (d)); a constant-speed vehicle's rows describe it exactly
+        early = self.AIM_EARLY_S if tables.approach is not None and not last else 0.0
         if ap is not None:
             v = np.broadcast_to(np.asarray(speed_ms, float), ratio.shape)
             on = np.broadcast_to(True if powering is None else np.asarray(powering, bool), ratio.shape)
@@ -431,7 +454,7 @@ class AdaptiveRule:
                 ra = solve_piecewise(ap.ratios, t_d + theta * (ref_d - t_d), x, rb)
             else:
                 # predicted remaining time per grid ratio after X; piecewise linear in 1/r between them
-                ra = solve_piecewise(tables.ratios, row + theta * dk, x, rb)
+                ra = solve_piecewise(tables.ratios, row + theta * dk, x - early, rb)
             out[i] = ra
             st["rem"][i] = x
             st["pred"][i] = interp_u(tables.ratios, row, ra)
