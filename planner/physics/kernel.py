@@ -4,12 +4,9 @@
 a grid node where something can change (snapshots, ratio changes, the
 on-board controller, the ceiling's segment table ``E``); :func:`advance` does
 every grid step between two such nodes for the whole batch, compiled with
-numba. The arithmetic is the module doc's method, written per run (:func:`_step`)
-and in the same order of operations as the former numpy step, so results are the
-same to the bit (the bit-identity battery in ``benchmarks/bench_kernel.py`` checks
-it); runs are stepped two at a time so the processor overlaps their independent
-chains of operations, and the tractive-effort lookup starts from the run's last
-piece (:func:`_interp`), neither changing an operation on a float.
+numba. The arithmetic is the module doc's method, written per run and in the
+same order of operations as the former numpy step, so results are the same to
+the bit (the bit-identity battery in ``benchmarks/bench_kernel.py`` checks it).
 
 Two batch-wide switches of the numpy step are kept as they were, because they
 pick between two roundings of the same formula: whether any run may be above
@@ -48,10 +45,7 @@ from planner.physics.kernel_abi import (  # noqa: F401  (the rows are read throu
     T_AG, T_AHEAD, T_S, T_STEEP, T_STOP2, T_VINT, T_VN2,
 )
 
-_JIT = dict(nogil=True, error_model="numpy", _nrt=False)
-"""No reference-counted memory (nothing here allocates): without it numba counts no references to
-the array arguments of a call, atomically, at every step of every run (:func:`_step` inlined or not:
-it would cost 80 % more CPU). It changes no operation on a float."""
+_JIT = dict(nogil=True, error_model="numpy")
 
 
 @njit(**_JIT)
@@ -199,145 +193,98 @@ def _band_edge(k, trk, ratio, capv, band):
     return _mx(tgt - band, SAWTOOTH_MIN_FRACTION * tgt)
 
 
-@njit(inline="always", **_JIT)
-def _step(k, i, w, v, c0, t, work, co, bad_at, j, p, trk, seg, e, amax, band, sawtooth, tab, use_over, k0, st,
-          rec, rec_p, record):
-    """Run ``i``'s step from node k to k+1: its state (speed², speed, ceiling², time, work, coasting,
-    first bad step, tractive-effort piece) after the step, its phase and whether it is above its ceiling.
-    ``p``: its constants (Davis A, B, C and traction factor / M_e, ratio², cap², ratio, cap, shed)."""
-    ram, rbm, rcm, tfi, r2, cap2, ratio, capv, shed = p
-    ds = trk[T_S, k + 1] - trk[T_S, k]
-    st1 = trk[T_STOP2, k + 1]
-    c1 = _ceiling2(k + 1, i, trk, seg, e, r2, cap2, st1)
-    lb = _band_edge(k, trk, ratio, capv, band) if sawtooth else 0.0
-    co = co and (not sawtooth or w > lb * lb)  # a coasting run powers again at the band's edge
-    coasting_step = co
-    # free running: Heun's step in w = v² (predictor ṽ₁)
-    ef, j = _interp(v, tab, j)
-    a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, ef)
-    if co:
-        a0 = cs0
-    vp = math.sqrt(_mx(w + (2.0 * ds) * a0, 0.0))
-    ef, j = _interp(vp, tab, j)
-    a1, cs1 = _accel(vp, trk[T_AG, k + 1], trk[T_STEEP, k + 1], amax, ram, rbm, rcm, tfi, ef)
-    if co:
-        a1 = cs1
-    slope, wend, cross, frac, w1, over = _guided(w, c0, c1, st1, a0, a1, shed, ds, use_over)
-    # split at the crossing: time Δt = 2Δs/(v₀ + v₁) and traction work / M_e of each piece
-    xc = frac * ds
-    wc = w + slope * xc
-    vc = math.sqrt(wc)
-    # no crossing and no run above its ceiling: the step ends where it would free, w1 = wc
-    v1 = vc if not (cross or use_over) else math.sqrt(w1)
-    rest = ds - xc
-    dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
-    cb = 0.5 * (cs0 + cs1)
-    if not use_over:
-        dwork = xc * (0.5 * slope - cb) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
-    else:
-        dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
-    band_x = False
-    if sawtooth:
-        hit = cross and c1 <= c0 * (1 + 1e-12)
-        if hit:  # meets a level or falling ceiling: coasts from there, still capped by it
-            wco = _mn(wc + 2.0 * cs1 * rest, c1)
-            vco = math.sqrt(wco)
-            dt = 2.0 * (xc / (v + vc) + rest / (vc + vco))
-            dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (wco - wc) - rest * cb, 0.0)
-            w1, v1 = wco, vco
-        band_x = co and not cross and wend < lb * lb
-        if band_x:  # below the band's lower edge: coast to it, power the rest of the step
-            co = False
-            lb2 = lb * lb
-            xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
-            sub = ds - xb
-            ef, j = _interp(lb, tab, j)
-            aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
-            vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
-            ef, j = _interp(vq, tab, j)
-            ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
-            w1 = _mn(lb2 + (aa + ab) * sub, c1)
-            v1 = math.sqrt(w1)
-            dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
-            dwork = _mx(0.5 * (w1 - lb2) - sub * 0.5 * (cbl + cq), 0.0)
-        co = co or hit
-    ph = _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth)
-    above = over and not cross
-    if record:
-        jr = k + 1 - k0
-        rec[R_T, i, jr], rec[R_V, i, jr], rec[R_A, i, jr] = t + dt, v1, (w1 - w) / (2.0 * ds)
-        rec[R_RATIO, i, jr], rec[R_CAP, i, jr] = ratio, capv
-        rec_p[i, jr] = ph
-    if k + 2 == trk.shape[1]:
-        st[S_WLAST, i] = w  # entering the last step, onto the marker
-    t += dt
-    work += dwork
-    if not math.isfinite(t) and k < bad_at:
-        bad_at = k
-    return w1, v1, c1, t, work, co, bad_at, j, ph, above
-
-
-@njit(inline="always", **_JIT)
-def _params(i, par):
-    """Run ``i``'s constants as :func:`_step` takes them."""
-    return (par[P_RAM, i], par[P_RBM, i], par[P_RCM, i], par[P_TFI, i], par[P_R2, i], par[P_CAP2, i],
-            par[P_RATIO, i], par[P_CAPV, i], par[P_SHED, i])
-
-
-@njit(inline="always", **_JIT)
-def _state(i, st, lane, tab):
-    """Run ``i``'s state as :func:`_step` takes and returns it (its phase, and not above its ceiling, last)."""
-    v = st[S_V, i]
-    # the tractive-effort piece of the run's speed, then hunted step by step
-    return (st[S_W, i], v, st[S_C0, i], st[S_T, i], st[S_WORK, i], lane[L_COAST, i] != 0, st[S_BAD, i],
-            _bracket(v, tab), np.int64(lane[L_PHASE, i]), False)
-
-
-@njit(inline="always", **_JIT)
-def _put(i, st, lane, w, v, c0, t, work, co, bad_at, ph):
-    """Run ``i``'s state after a sweep back into ``st`` and ``lane``."""
-    st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i], st[S_BAD, i] = w, v, c0, t, work, bad_at
-    lane[L_PHASE, i], lane[L_COAST, i] = ph, 1 if co else 0
-
-
 @njit(**_JIT)
 def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec, rec_p, record):
     """Every run on its own from node k_from to k_to, its state in registers, with the batch-wide
     ``use_over`` switch fixed. Returns whether any run ended still above its ceiling (having been
     above it and not met it on the last step) and the first step after which a run's time is not
-    finite (k_to if none).
-
-    Runs go two at a time (a and b), their steps interleaved: each run's arithmetic is its own and
-    unchanged, but the processor overlaps the two runs' chains of dependent operations (about 5 %
-    less CPU than one run at a time). The state is carried in scalars, not a tuple (a tuple carried
-    round the loop was not kept in registers: 50 % more CPU).
-    """
-    n = st.shape[1]
+    finite (k_to if none)."""
+    n, m = st.shape[1], trk.shape[1]
     amax, band, sawtooth = cst[0], cst[1], cst[2] != 0.0
-    still_over = False
-    for a in range(0, n, 2):
-        b = min(a + 1, n - 1)  # an odd batch's last run goes alone (b = a, stepped once)
-        pa, pb = _params(a, par), _params(b, par)
-        wa, va, c0a, ta, worka, coa, bada, ja, pha, abovea = _state(a, st, lane, tab)
-        wb, vb, c0b, tb, workb, cob, badb, jb, phb, aboveb = _state(b, st, lane, tab)
-        for k in range(k_from, k_to):
-            wa, va, c0a, ta, worka, coa, bada, ja, pha, abovea = _step(
-                k, a, wa, va, c0a, ta, worka, coa, bada, ja, pa, trk, seg, e, amax, band, sawtooth, tab, use_over,
-                k0, st, rec, rec_p, record)
-            if b != a:
-                wb, vb, c0b, tb, workb, cob, badb, jb, phb, aboveb = _step(
-                    k, b, wb, vb, c0b, tb, workb, cob, badb, jb, pb, trk, seg, e, amax, band, sawtooth, tab,
-                    use_over, k0, st, rec, rec_p, record)
-        _put(a, st, lane, wa, va, c0a, ta, worka, coa, bada, pha)
-        still_over = still_over or abovea
-        if b != a:
-            _put(b, st, lane, wb, vb, c0b, tb, workb, cob, badb, phb)
-            still_over = still_over or aboveb
     first_bad = k_to
+    still_over = False
     for i in range(n):
+        ram, rbm, rcm, tfi = par[P_RAM, i], par[P_RBM, i], par[P_RCM, i], par[P_TFI, i]
+        r2, cap2, ratio, capv, shed = par[P_R2, i], par[P_CAP2, i], par[P_RATIO, i], par[P_CAPV, i], par[P_SHED, i]
+        w, v, c0, t, work = st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i]
+        co, ph = lane[L_COAST, i] != 0, lane[L_PHASE, i]
         bad_at = st[S_BAD, i]
+        above = False
+        j = _bracket(v, tab)  # the tractive-effort piece of the run's speed, then hunted step by step
+        for k in range(k_from, k_to):
+            ds = trk[T_S, k + 1] - trk[T_S, k]
+            st1 = trk[T_STOP2, k + 1]
+            c1 = _ceiling2(k + 1, i, trk, seg, e, r2, cap2, st1)
+            lb = _band_edge(k, trk, ratio, capv, band) if sawtooth else 0.0
+            co = co and (not sawtooth or w > lb * lb)  # a coasting run powers again at the band's edge
+            coasting_step = co
+            # free running: Heun's step in w = v² (predictor ṽ₁)
+            ef, j = _interp(v, tab, j)
+            a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, ef)
+            if co:
+                a0 = cs0
+            vp = math.sqrt(_mx(w + (2.0 * ds) * a0, 0.0))
+            ef, j = _interp(vp, tab, j)
+            a1, cs1 = _accel(vp, trk[T_AG, k + 1], trk[T_STEEP, k + 1], amax, ram, rbm, rcm, tfi, ef)
+            if co:
+                a1 = cs1
+            slope, wend, cross, frac, w1, over = _guided(w, c0, c1, st1, a0, a1, shed, ds, use_over)
+            # split at the crossing: time Δt = 2Δs/(v₀ + v₁) and traction work / M_e of each piece
+            xc = frac * ds
+            wc = w + slope * xc
+            vc = math.sqrt(wc)
+            # no crossing and no run above its ceiling: the step ends where it would free, w1 = wc
+            v1 = vc if not (cross or use_over) else math.sqrt(w1)
+            rest = ds - xc
+            dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
+            cb = 0.5 * (cs0 + cs1)
+            if not use_over:
+                dwork = xc * (0.5 * slope - cb) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
+            else:
+                dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
+            band_x = False
+            if sawtooth:
+                hit = cross and c1 <= c0 * (1 + 1e-12)
+                if hit:  # meets a level or falling ceiling: coasts from there, still capped by it
+                    wco = _mn(wc + 2.0 * cs1 * rest, c1)
+                    vco = math.sqrt(wco)
+                    dt = 2.0 * (xc / (v + vc) + rest / (vc + vco))
+                    dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (wco - wc) - rest * cb, 0.0)
+                    w1, v1 = wco, vco
+                band_x = co and not cross and wend < lb * lb
+                if band_x:  # below the band's lower edge: coast to it, power the rest of the step
+                    co = False
+                    lb2 = lb * lb
+                    xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
+                    sub = ds - xb
+                    ef, j = _interp(lb, tab, j)
+                    aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
+                    vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
+                    ef, j = _interp(vq, tab, j)
+                    ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
+                    w1 = _mn(lb2 + (aa + ab) * sub, c1)
+                    v1 = math.sqrt(w1)
+                    dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
+                    dwork = _mx(0.5 * (w1 - lb2) - sub * 0.5 * (cbl + cq), 0.0)
+                co = co or hit
+            ph = _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth)
+            above = over and not cross
+            if record:
+                jr = k + 1 - k0
+                rec[R_T, i, jr], rec[R_V, i, jr], rec[R_A, i, jr] = t + dt, v1, (w1 - w) / (2.0 * ds)
+                rec[R_RATIO, i, jr], rec[R_CAP, i, jr] = ratio, capv
+                rec_p[i, jr] = ph
+            if k + 2 == m:
+                st[S_WLAST, i] = w  # entering the last step, onto the marker
+            w, v, c0, t = w1, v1, c1, t + dt
+            work += dwork
+            if not math.isfinite(t) and k < bad_at:
+                bad_at = k
+        st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i], st[S_BAD, i] = w, v, c0, t, work, bad_at
         if bad_at < k_to:  # a time once not finite stays so: stalled from bad_at, or before this sweep
             first_bad = min(first_bad, max(int(bad_at), k_from))
+        lane[L_PHASE, i], lane[L_COAST, i] = ph, 1 if co else 0
+        still_over = still_over or above
     return still_over, first_bad
 
 
