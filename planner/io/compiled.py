@@ -2,7 +2,7 @@
 
 The compiled kernels (:mod:`planner.physics.kernel`, the integrator's inner loop,
 and :mod:`planner.stopping.kernel`, the stopping solver) are numba functions.
-Compiled just in time they cost about 3 s (integrator) and 8 s (solver) of CPU in
+Compiled just in time they cost about 5 s (integrator) and 8 s (solver) of CPU in
 every process that uses them: the main process and each parallel worker, every
 night. :func:`build` compiles them ahead of time with ``numba.pycc`` into an
 ordinary CPython extension module under ``planner/_aot/`` (``make install`` runs

@@ -27,7 +27,7 @@ instead of compiling: :func:`planner.physics.kernel_abi.load` picks, and this
 module (and numba) is imported only without a build for these exact sources.
 It then compiles lazily on first use, in memory only (no ``cache=True``:
 numba's cache index is a pickle read back from disk, which the project does
-not trust): about 3 s of CPU once per process (``benchmarks/bench_kernel.py``
+not trust): about 5 s of CPU once per process (``benchmarks/bench_kernel.py``
 prints it). Every argument type is fixed (:data:`SIGNATURES`).
 """
 from __future__ import annotations

@@ -3,7 +3,7 @@
 :mod:`planner.physics.kernel` is the kernel's source (numba). A process runs
 either its build from install time (:mod:`planner.io.compiled`, ``planner
 kernels build``) or, where there is none for these exact sources, the source
-compiled just in time on first use (about 3 s of CPU per process). :func:`load`
+compiled just in time on first use (about 5 s of CPU per process). :func:`load`
 picks once per process; numba itself is imported only in the second case.
 :func:`check_layout` guards the built functions, which do not check their
 arguments.
