@@ -9,7 +9,8 @@ from planner.physics import kernel
 def _table(xp, fp):
     tab = np.zeros((3, len(xp)))
     tab[0], tab[1] = xp, fp
-    tab[2, :-1] = np.diff(tab[1]) / np.diff(tab[0])  # as planner.physics.run_curve builds it
+    with np.errstate(divide="ignore", invalid="ignore"):  # a tied speed's slope is ±inf/NaN, as numpy's
+        tab[2, :-1] = np.diff(tab[1]) / np.diff(tab[0])  # as planner.physics.run_curve builds it
     return tab
 
 
