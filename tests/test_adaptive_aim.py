@@ -14,8 +14,7 @@ import pytest
 
 from planner.physics.run_curve import RunState, simulate
 from planner.physics.track import SimSettings, make_track
-
-GRID_2_5 = "1.0:floor:0.025"
+from planner.report.eval_study import GRIDS
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +23,7 @@ def kwb_hgo(sample_line):
     from planner.tables.ratios import ratio_grid
 
     line = sample_line
-    grid = ratio_grid(GRID_2_5, line_max_speed_ms=line.max_speed_ms)
+    grid = ratio_grid(GRIDS["2.5 %"], line_max_speed_ms=line.max_speed_ms)
     tabs = interstation_tables(line, "E6", "KWB", "HGO", grid, eval_interval_m=None).onboard()
     return line, tabs
 
