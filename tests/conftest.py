@@ -30,10 +30,16 @@ SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 
 
 @pytest.fixture(scope="session")
-def sample_line():
+def sample_dir():
+    """The sample line's folder (the test is skipped when it is not built)."""
+    if not (SAMPLE / "line.parquet").exists():
+        pytest.skip("lines/sample is not built yet (python lines/sample/build.py)")
+    return SAMPLE
+
+
+@pytest.fixture(scope="session")
+def sample_line(sample_dir):
     """The sample line, loaded once per test session."""
     import planner
 
-    if not (SAMPLE / "line.parquet").exists():
-        pytest.skip("lines/sample is not built yet (python lines/sample/build.py)")
-    return planner.load_line(SAMPLE)
+    return planner.load_line(sample_dir)

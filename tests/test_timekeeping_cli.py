@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -12,13 +11,7 @@ from planner.cli import app
 from planner.cli.timekeeping import parse_change, simulate_timekeeping_cli
 from planner.errors import InputError
 
-SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 runner = CliRunner()
-
-
-def _need_sample():
-    if not (SAMPLE / "stations.parquet").exists():
-        pytest.skip("lines/sample is not built yet (python lines/sample/build.py)")
 
 
 def test_parse_change():
@@ -40,26 +33,24 @@ def test_function_on_an_in_memory_line(capsys):
     assert {s["advice"] for s in out["advice"]} <= {"power", "hold", "coast", "brake"}
 
 
-def test_cli_text_json_and_plot(tmp_path):
-    _need_sample()
+def test_cli_text_json_and_plot(tmp_path, sample_dir):
     png = tmp_path / "tk.png"
-    r = runner.invoke(app, ["timekeeping", str(SAMPLE), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
+    r = runner.invoke(app, ["timekeeping", str(sample_dir), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
                             "--arrival", "140", "--change", "40:170", "--plot", str(png)])
     assert r.exit_code == 0, r.output
     assert "arrival error" in r.output and "advice:" in r.output
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    r1 = runner.invoke(app, ["timekeeping", str(SAMPLE), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
+    r1 = runner.invoke(app, ["timekeeping", str(sample_dir), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
                              "--arrival", "140", "--change", "40:170", "--json"])
-    r2 = runner.invoke(app, ["timekeeping", str(SAMPLE), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
+    r2 = runner.invoke(app, ["timekeeping", str(sample_dir), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
                              "--arrival", "140", "--change", "40:170", "--json"])
     assert r1.exit_code == 0 and r1.stdout == r2.stdout  # deterministic
     assert abs(json.loads(r1.stdout)["arrival_error_s"]) <= 0.2
 
 
-def test_cli_fails_on_shortfall():
+def test_cli_fails_on_shortfall(sample_dir):
     """An arrival that cannot be met prints the run, then one error line, and exits 1 (issue 17)."""
-    _need_sample()
-    r = runner.invoke(app, ["timekeeping", str(SAMPLE), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
+    r = runner.invoke(app, ["timekeeping", str(sample_dir), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
                             "--arrival", "140", "--change", "40:60", "--json"])
     assert r.exit_code == 1
     assert r.stderr.startswith("error: scheduled arrival") and "shortfall" in r.stderr
@@ -68,18 +59,17 @@ def test_cli_fails_on_shortfall():
     assert out["arrival_error_s"] == pytest.approx(out["shortfall_s"], abs=0.2)
 
 
-def test_cli_bad_input_is_one_line():
-    _need_sample()
-    r = runner.invoke(app, ["timekeeping", str(SAMPLE), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
+def test_cli_bad_input_is_one_line(sample_dir):
+    r = runner.invoke(app, ["timekeeping", str(sample_dir), "--train-type", "E10", "--from", "MNT", "--to", "SKM",
                             "--arrival", "140", "--change", "40-60"])
     assert r.exit_code != 0
     assert r.stderr.strip().startswith("error: --change") and "Traceback" not in r.output
-    r = runner.invoke(app, ["timekeeping", str(SAMPLE), "--train-type", "NOPE", "--from", "MNT", "--to", "SKM",
+    r = runner.invoke(app, ["timekeeping", str(sample_dir), "--train-type", "NOPE", "--from", "MNT", "--to", "SKM",
                             "--arrival", "140"])
     assert r.exit_code != 0 and "unknown train type" in r.stderr
 
 
-def test_planner_simulate_mode_timekeeping(tmp_path):
+def test_planner_simulate_mode_timekeeping(tmp_path, sample_dir):
     """`planner simulate --mode timekeeping` sweeps designated times like the table modes and writes
     the same closed_loop rows, with the plant's stop error (issue 14)."""
     import pyarrow.dataset as ds
@@ -103,5 +93,5 @@ def test_planner_simulate_mode_timekeeping(tmp_path):
     assert len(feas) >= 4 * 6
     assert feas.error_s.abs().max() <= 0.5
     assert rows.stop_error_m.abs().max() <= 0.2
-    no_tables = runner.invoke(app, ["simulate", str(SAMPLE), "--mode", "timekeeping"])
+    no_tables = runner.invoke(app, ["simulate", str(sample_dir), "--mode", "timekeeping"])
     assert no_tables.exit_code == 1 and "--tables" in no_tables.output
