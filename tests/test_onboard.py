@@ -85,7 +85,7 @@ def test_interpolate_at_point_exact(rb, frac):
     row = lambda ra: f * 20.0 + 2.0 * (1 / rb - 1) + f * 100.0 / ra
     lo, hi = row(1.0), row(RATIOS[-1])
     want = lo + frac * (hi - lo)
-    np.testing.assert_allclose(row_at(t, k, rb), row(RATIOS), atol=1e-9)
+    np.testing.assert_allclose(row_at(t, k, rb)[0], row(RATIOS), atol=1e-9)
     ra = InterpolateRule().at_point(t, k, np.array([rb]), np.array([want]))[0]
     assert row(ra) == pytest.approx(want, abs=1e-9)
 
@@ -189,10 +189,10 @@ def test_adaptive_learns_the_train_and_arrives_exactly(theta, frac, sawtooth):
     assert true_remaining(2, r1, r2) == pytest.approx(rem2, abs=1e-6)
 
 
-def test_solve_piecewise_equals_its_array_formulation_to_the_bit():
-    """The segment loop of solve_piecewise against the array expressions of the same rule (crossings by
+def test_solve_piecewise_equals_the_one_run_rule_to_the_bit():
+    """The batch form of solve_piecewise against the same rule written for one run (crossings by
     linear interpolation in 1/r, whole segments on the wanted time, else the nearest grid value), on
-    random rows with repeated values, plateaus and exact hits."""
+    random rows with repeated values, plateaus and exact hits, all solved in one batch."""
     from planner.tables.onboard import solve_piecewise
 
     def by_arrays(ratios, f, want, prefer):
@@ -213,22 +213,25 @@ def test_solve_piecewise_equals_its_array_formulation_to_the_bit():
 
     rng = np.random.default_rng(7)
     ratios = np.array([1.0, 0.9, 0.8, 0.7, 0.65, 0.6, 0.55, 0.5, 0.45, 0.4, 0.35, 0.3])
-    n = 0
+    rows, wants, prefers = [], [], []
     for _ in range(3000):
         f = np.round(rng.uniform(100.0, 140.0, ratios.size), int(rng.integers(0, 3)))  # ties and plateaus
         if rng.random() < 0.3:
             f = np.sort(f)
-        want = float(rng.choice(f)) if rng.random() < 0.3 else float(rng.uniform(90.0, 150.0))
-        prefer = float(rng.uniform(0.2, 1.1))
-        got, ref = solve_piecewise(ratios, f, want, prefer), by_arrays(ratios, f, want, prefer)
-        assert got == ref, (f.tolist(), want, prefer, got, ref)
-        n += 1
-    assert n == 3000
+        rows.append(f)
+        wants.append(float(rng.choice(f)) if rng.random() < 0.3 else float(rng.uniform(90.0, 150.0)))
+        prefers.append(float(rng.uniform(0.2, 1.1)))
+    got = solve_piecewise(ratios, np.array(rows), np.array(wants), np.array(prefers))
+    assert got.shape == (3000,)
+    for f, want, prefer, g in zip(rows, wants, prefers, got):
+        ref = by_arrays(ratios, f, want, prefer)
+        assert g == ref, (f.tolist(), want, prefer, g, ref)
 
 
 def test_interp_u_equals_np_interp_to_the_bit():
-    """The one-number interpolation of the on-board logic against np.interp in 1/r (what it replaces),
-    at random ratios, at every grid ratio exactly, outside the grid and on infinite values."""
+    """The batch interpolation of the on-board logic against np.interp in 1/r run by run, at random
+    ratios, at every grid ratio exactly, outside the grid and on infinite values; with one row for
+    every run and with a row per run."""
     from planner.tables.piecewise import interp_u
 
     rng = np.random.default_rng(11)
@@ -239,7 +242,9 @@ def test_interp_u_equals_np_interp_to_the_bit():
         vals = rng.uniform(50.0, 300.0, ratios.size)
         if k % 3 == 0:
             vals[rng.integers(0, ratios.size, 2)] = np.inf  # a stalled entry
-        for r in rs:
+        shared = interp_u(ratios, vals, rs)
+        per_run = interp_u(ratios, np.tile(vals, (rs.size, 1)), rs)
+        for r, got, got_row in zip(rs, shared, per_run):
             ref = float(np.interp(1.0 / min(max(r, ratios[-1]), ratios[0]), u, vals))
-            got = interp_u(ratios, vals, r)
             assert got == ref or (np.isnan(got) and np.isnan(ref)), (vals.tolist(), r, got, ref)
+            assert got_row == got or (np.isnan(got) and np.isnan(got_row))

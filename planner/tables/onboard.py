@@ -127,7 +127,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from planner.errors import InputError
-from planner.tables.piecewise import clip_number, interp_u, solve_piecewise
+from planner.tables.piecewise import interp_u, row_at_ratio, solve_piecewise
 from planner.physics.run_curve import (  # the run state's phase code (a constant; no simulation here)
     PHASE_POWER,
 )
@@ -185,19 +185,24 @@ class ApproachTable:
     vmax_ms: float = float("inf")
     coast_band_ms: float = 0.0
 
-    def rows(self, speed_ms: float, powering: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Table and reference remaining time per ratio at a speed and phase, linear in speed [s].
+    def rows(self, speed_ms, powering) -> tuple[np.ndarray, np.ndarray]:
+        """Table and reference remaining time per ratio at each run's speed and band state, linear in
+        speed, shape (n, n_ra) each [s].
 
-        Speeds outside the grid are clamped to its ends; a phase the table does not hold (e.g.
-        coasting for a constant-speed vehicle, whose phase does not change its future) uses
-        the one it does.
+        ``speed_ms`` and ``powering`` hold one value per run (or one for all). Speeds outside the
+        grid are clamped to its ends; a band state the table does not hold (e.g. coasting for a
+        constant-speed vehicle, whose phase does not change its future) uses the one it does.
         """
-        p = self.powering.index(bool(powering)) if bool(powering) in self.powering else 0
-        if len(self.speeds_ms) == 1:
+        v = np.atleast_1d(np.asarray(speed_ms, float))
+        on = np.broadcast_to(np.asarray(powering, bool), v.shape)
+        slot = {b: self.powering.index(b) if b in self.powering else 0 for b in (True, False)}
+        p = np.where(on, slot[True], slot[False])
+        s = self.speeds_ms
+        if len(s) == 1:
             return self.time_s[p, 0], self.ref_time_s[p, 0]
-        v = float(np.clip(speed_ms, self.speeds_ms[0], self.speeds_ms[-1]))
-        j = int(np.clip(np.searchsorted(self.speeds_ms, v, side="right") - 1, 0, len(self.speeds_ms) - 2))
-        f = (v - self.speeds_ms[j]) / (self.speeds_ms[j + 1] - self.speeds_ms[j])
+        v = np.minimum(np.maximum(v, s[0]), s[-1])
+        j = np.clip(np.searchsorted(s, v, side="right") - 1, 0, len(s) - 2)
+        f = ((v - s[j]) / (s[j + 1] - s[j]))[:, None]
         t = (1.0 - f) * self.time_s[p, j] + f * self.time_s[p, j + 1]
         ref = (1.0 - f) * self.ref_time_s[p, j] + f * self.ref_time_s[p, j + 1]
         return t, ref
@@ -334,17 +339,10 @@ def solve_ratio(ratios: np.ndarray, times_s: np.ndarray, want_s: float) -> float
     return float(1.0 / (u[j - 1] + f * (u[j] - u[j - 1])))
 
 
-def row_at(tables: RunningTimeTables, k: int, ratio: float) -> np.ndarray:
-    """Table (b) row at point ``k`` for a fractional ratio before, linear in ``1/r`` [s]."""
-    r = tables.ratios
-    rb = float(clip_number(ratio, r[-1], r[0]))
-    # ratios descend: i is the last grid ratio >= rb
-    i = int(np.searchsorted(-r, -rb, side="right")) - 1
-    i = min(max(i, 0), len(r) - 1)
-    if i == len(r) - 1 or r[i] == rb:
-        return tables.remaining_s[k, i]
-    f = (1.0 / rb - 1.0 / r[i]) / (1.0 / r[i + 1] - 1.0 / r[i])
-    return (1.0 - f) * tables.remaining_s[k, i] + f * tables.remaining_s[k, i + 1]
+def row_at(tables: RunningTimeTables, k: int, ratio) -> np.ndarray:
+    """Table (b) rows at point ``k`` for a fractional ratio before per run, linear in ``1/r``,
+    shape (n, n_r) [s]."""
+    return row_at_ratio(tables.ratios, tables.remaining_s[k], ratio)
 
 
 class InterpolateRule:
@@ -359,9 +357,8 @@ class InterpolateRule:
     def at_point(self, tables, k, ratio, remaining_s, speed_ms=None, powering=None):
         ratio = np.atleast_1d(np.asarray(ratio, float))
         rem = np.broadcast_to(np.asarray(remaining_s, float), ratio.shape)
-        return np.array(
-            [solve_ratio(tables.ratios, row_at(tables, k, rb), x) for rb, x in zip(ratio, rem)]
-        )
+        rows = row_at(tables, k, ratio)
+        return np.array([solve_ratio(tables.ratios, row, x) for row, x in zip(rows, rem)])
 
 
 class AdaptiveRule:
@@ -407,8 +404,8 @@ class AdaptiveRule:
             self._dcache[key] = (tables, np.maximum(d, 0.0))  # keep tables alive: id stays unique
         return self._dcache[key][1]
 
-    def _delta(self, tables: RunningTimeTables, k: int, r: float) -> float:
-        """Reference − table remaining time from point k at ratio r, clipped at 0 [s]."""
+    def _delta(self, tables: RunningTimeTables, k: int, r: np.ndarray) -> np.ndarray:
+        """Reference − table remaining time from point k at ratio r (per run), clipped at 0 [s]."""
         return interp_u(tables.ratios, self._delta_row(tables, k), r)
 
     def depart(self, tables, designated_s):
@@ -417,8 +414,8 @@ class AdaptiveRule:
         self._s = {
             "k": np.zeros(d.size, int),
             "rem": d.copy(),  # actual remaining time at the last point
-            "pred": np.array([interp_u(tables.ratios, tables.time_a_s, r) for r in r0]),
-            "delta": np.array([self._delta(tables, 0, r) for r in r0]),
+            "pred": interp_u(tables.ratios, tables.time_a_s, r0),
+            "delta": self._delta(tables, 0, r0),
             "num": np.zeros(d.size),
             "den": np.zeros(d.size),
         }
@@ -430,36 +427,31 @@ class AdaptiveRule:
         st = self._s
         if st is None:
             raise RuntimeError("AdaptiveRule.at_point before depart")
-        out = np.empty_like(ratio)
         dk = self._delta_row(tables, k)
         last = k == len(tables.eval_distance_m) - 1
         ap = tables.approach if last and speed_ms is not None else None
         # aim early before the last point where the tables cannot see the train's state (sawtooth
         # vehicles: the ones with table (d)); a constant-speed vehicle's rows describe it exactly
         early = self.AIM_EARLY_S if tables.approach is not None and not last else 0.0
+        row = row_at(tables, k, ratio)
+        # the leg just run, at ratio rb: observed vs. table time, and the reference's extra
+        st["num"] += (st["rem"] - rem) - (st["pred"] - interp_u(tables.ratios, row, ratio))
+        st["den"] += st["delta"] - self._delta(tables, k, ratio)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            theta = np.where(st["den"] > 1e-3, st["num"] / st["den"], 0.0)
+        theta = np.minimum(np.maximum(theta, self.THETA_RANGE[0]), self.THETA_RANGE[1])[:, None]
         if ap is not None:
-            v = np.broadcast_to(np.asarray(speed_ms, float), ratio.shape)
-            on = np.broadcast_to(True if powering is None else np.asarray(powering, bool), ratio.shape)
-        for i, (rb, x) in enumerate(zip(ratio, rem)):
-            row = row_at(tables, k, rb)
-            # the leg just run, at ratio rb: observed vs. table time, and the reference's extra
-            pred_here = float(interp_u(tables.ratios, row, rb))
-            st["num"][i] += (st["rem"][i] - x) - (st["pred"][i] - pred_here)
-            st["den"][i] += st["delta"][i] - self._delta(tables, k, rb)
-            theta = st["num"][i] / st["den"][i] if st["den"][i] > 1e-3 else 0.0
-            theta = float(clip_number(theta, *self.THETA_RANGE))
-            if ap is not None:
-                # the last point: predict from the train's own state (table (d), fine ratio grid)
-                t_d, ref_d = ap.rows(float(v[i]), bool(on[i]))
-                ra = solve_piecewise(ap.ratios, t_d + theta * (ref_d - t_d), x, rb)
-            else:
-                # predicted remaining time per grid ratio after X; piecewise linear in 1/r between them
-                ra = solve_piecewise(tables.ratios, row + theta * dk, x - early, rb)
-            out[i] = ra
-            st["rem"][i] = x
-            st["pred"][i] = interp_u(tables.ratios, row, ra)
-            st["delta"][i] = self._delta(tables, k, ra)
-        return out
+            # the last point: predict from the train's own state (table (d), fine ratio grid)
+            on = True if powering is None else powering
+            t_d, ref_d = ap.rows(np.broadcast_to(np.asarray(speed_ms, float), ratio.shape), on)
+            ra = solve_piecewise(ap.ratios, t_d + theta * (ref_d - t_d), rem, ratio)
+        else:
+            # predicted remaining time per grid ratio after X; piecewise linear in 1/r between them
+            ra = solve_piecewise(tables.ratios, row + theta * dk, rem - early, ratio)
+        st["rem"] = np.array(rem, float)
+        st["pred"] = interp_u(tables.ratios, row, ra)
+        st["delta"] = self._delta(tables, k, ra)
+        return ra
 
 
 CHOOSERS: dict[str, Callable[[], RatioChooser]] = {

@@ -1,131 +1,151 @@
-"""One-number interpolation and ratio solving of the on-board logic, in Python floats.
+"""Interpolation and ratio solving of the on-board logic, vectorised over the runs of a batch.
 
-The on-board logic (:mod:`planner.tables.onboard`) asks a few numbers per run
-and evaluation point: a table row at a fractional ratio, the ratio that meets a
-wanted time. On arrays of a few dozen values numpy's calls cost more to set up
-than to use, so these walk the values in Python floats, with the same IEEE
-operations in the same order as the array expressions they replaced (the tests
-check them to the bit against ``np.interp`` and the array form).
+The on-board logic (:mod:`planner.tables.onboard`) asks a few numbers per run and evaluation point:
+a table row at a fractional ratio, a row's value at a ratio, the ratio that meets a wanted time.
+Each function here answers them for every run of a batch at once: one row of values per run (or
+one row shared by all), one ratio per run. The arithmetic is elementwise and in the order of the
+one-run rule it states (the tests check it to the bit against ``np.interp`` and against that rule
+run by run), so a run's answer does not depend on the batch it is in.
 """
 from __future__ import annotations
 
-import bisect
-import math
-
 import numpy as np
 
-__all__ = ["clip_number", "interp_u", "solve_piecewise"]
+__all__ = ["interp_u", "row_at_ratio", "solve_piecewise"]
 
 
-def clip_number(x, lo, hi):
-    """``np.clip`` of one number, the same value without numpy's call overhead (the on-board logic
-    clips a few numbers per run and point; ``np.clip`` was a third of the closed loop's time)."""
-    return min(max(x, lo), hi)
+def _clip_ratio(ratios: np.ndarray, r) -> np.ndarray:
+    """``r`` clipped to the descending grid's range, as an array of shape (n,)."""
+    return np.minimum(np.maximum(np.atleast_1d(np.asarray(r, float)), ratios[-1]), ratios[0])
 
 
-_INVERSE_LIST: dict[int, tuple] = {}
-
-
-def _inverse_list(ratios) -> list[float]:
-    """``1 / ratios`` of a grid as Python floats, computed once per grid array (the array is kept, so
-    its id stays its own)."""
-    hit = _INVERSE_LIST.get(id(ratios))
-    if hit is not None and hit[0] is ratios:
-        return hit[1]
-    if len(_INVERSE_LIST) > 256:
-        _INVERSE_LIST.clear()
-    u = (1.0 / np.asarray(ratios, float)).tolist()
-    _INVERSE_LIST[id(ratios)] = (ratios, u)
-    return u
-
-
-def interp_u(ratios: np.ndarray, values: np.ndarray, r: float) -> float:
+def interp_u(ratios: np.ndarray, values: np.ndarray, r) -> np.ndarray:
     """``values`` (given at the descending grid ``ratios``) at ratio ``r``, linear in ``1/r``.
-
-    ``np.interp`` of one number, written out in Python floats with numpy's own special cases
-    and operations (the same bits: tested against it), without its call overhead.
-    """
-    u = _inverse_list(ratios)
-    x = float(1.0 / clip_number(r, ratios[-1], ratios[0]))
-    n = len(u)
-    if x > u[-1]:
-        return float(values[n - 1])
-    if x < u[0]:
-        return float(values[0])
-    if x == u[-1]:
-        return float(values[n - 1])
-    j = bisect.bisect_right(u, x) - 1  # u[j] <= x < u[j + 1]
-    y0 = float(values[j])
-    if u[j] == x:
-        return y0
-    y1 = float(values[j + 1])
-    slope = (y1 - y0) / (u[j + 1] - u[j])
-    out = slope * (x - u[j]) + y0
-    if math.isnan(out):  # as numpy: from the other end, then the flat value
-        out = slope * (x - u[j + 1]) + y1
-        if math.isnan(out) and y0 == y1:
-            out = y0
-    return out
-
-
-def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s: float, prefer: float) -> float:
-    """Ratio where the piecewise-linear-in-``1/r`` function through ``values_s`` equals ``want_s``.
-
-    Unlike :func:`solve_ratio` the function need not be monotone (a sawtooth train's times are
-    not, and a learned correction can add noise): every crossing is found exactly, segment by
-    segment, and the one nearest the ratio ``prefer`` (the current ratio) in ``u = 1/r`` wins —
-    the smallest change of driving that the tables say arrives on time. Without a crossing, the
-    grid ratio whose value is nearest ``want_s`` (ties: nearest ``prefer``).
 
     Parameters
     ----------
-    ratios : ndarray
+    ratios : ndarray, shape (n_r,)
         Grid ratios, descending.
-    values_s : ndarray
-        Predicted time at each grid ratio [s].
-    want_s : float
-        Wanted time [s].
-    prefer : float
-        Current ratio.
+    values : ndarray, shape (n_r,) or (n, n_r)
+        One row shared by every run, or one row per run.
+    r : float or ndarray, shape (n,)
+        Ratio per run; clipped to the grid's range.
 
     Returns
     -------
-    float
-        Ratio in [ratios[-1], ratios[0]].
+    ndarray, shape (n,)
+        Per run, what ``np.interp(1 / r, 1 / ratios, row)`` gives, with its special cases (an
+        infinite value, e.g. a stalled entry) and its operations.
+    """
+    ratios = np.asarray(ratios, float)
+    u = 1.0 / ratios
+    x = 1.0 / _clip_ratio(ratios, r)
+    v = np.broadcast_to(np.asarray(values, float), x.shape + u.shape)
+    n_r = u.size
+    j = np.clip(np.searchsorted(u, x, side="right") - 1, 0, max(n_r - 2, 0))
+    j1 = np.minimum(j + 1, n_r - 1)
+    runs = np.arange(x.size)
+    y0, y1 = v[runs, j], v[runs, j1]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        slope = (y1 - y0) / (u[j1] - u[j])
+        out = slope * (x - u[j]) + y0
+        nan = np.isnan(out)
+        if nan.any():  # as numpy: from the other end, then the flat value
+            other = slope * (x - u[j1]) + y1
+            other = np.where(np.isnan(other) & (y0 == y1), y0, other)
+            out = np.where(nan, other, out)
+    out = np.where(u[j] == x, y0, out)
+    out = np.where(x >= u[-1], v[:, -1], out)
+    return np.where(x < u[0], v[:, 0], out)
+
+
+def row_at_ratio(ratios: np.ndarray, table: np.ndarray, r) -> np.ndarray:
+    """Rows of ``table`` (one per grid ratio) at a fractional ratio per run, linear in ``1/r``.
+
+    Parameters
+    ----------
+    ratios : ndarray, shape (n_r,)
+        Grid ratios, descending.
+    table : ndarray, shape (n_r, m)
+        Row ``i`` belongs to ``ratios[i]``.
+    r : float or ndarray, shape (n,)
+        Ratio per run; clipped to the grid's range.
+
+    Returns
+    -------
+    ndarray, shape (n, m)
+        A grid ratio's own row where ``r`` is one (or the lowest); else ``(1 − f) row_i + f row_i+1``
+        with ``f`` the fraction of the way from ``1/ratios[i]`` to ``1/ratios[i + 1]``.
+    """
+    ratios = np.asarray(ratios, float)
+    rb = _clip_ratio(ratios, r)
+    n_r = ratios.size
+    # ratios descend: i is the last grid ratio >= rb
+    i = np.clip(np.searchsorted(-ratios, -rb, side="right") - 1, 0, n_r - 1)
+    i1 = np.minimum(i + 1, n_r - 1)
+    exact = (i == n_r - 1) | (ratios[i] == rb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = (1.0 / rb - 1.0 / ratios[i]) / (1.0 / ratios[i1] - 1.0 / ratios[i])
+        mixed = (1.0 - f)[:, None] * table[i] + f[:, None] * table[i1]
+    return np.where(exact[:, None], table[i], mixed)
+
+
+def solve_piecewise(ratios: np.ndarray, values_s: np.ndarray, want_s, prefer) -> np.ndarray:
+    """Per run, the ratio where the piecewise-linear-in-``1/r`` function through its row equals ``want_s``.
+
+    Unlike :func:`planner.tables.onboard.solve_ratio` the function need not be monotone (a sawtooth
+    train's times are not, and a learned correction can add noise): every crossing is found exactly,
+    segment by segment, and the one nearest the ratio ``prefer`` (the current ratio) in ``u = 1/r``
+    wins — the smallest change of driving that the tables say arrives on time. A whole segment on
+    the wanted time offers its point nearest ``prefer``, after the crossings. Of equal distances the
+    first candidate wins. Without a candidate, the grid ratio whose value is nearest ``want_s``
+    (within 1e-12 s; ties: nearest ``prefer``, then the first).
+
+    Parameters
+    ----------
+    ratios : ndarray, shape (n_r,)
+        Grid ratios, descending.
+    values_s : ndarray, shape (n, n_r)
+        Predicted time at each grid ratio, per run [s].
+    want_s : float or ndarray, shape (n,)
+        Wanted time per run [s].
+    prefer : float or ndarray, shape (n,)
+        Current ratio per run.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Ratio per run, in [ratios[-1], ratios[0]].
 
     Examples
     --------
     >>> r = np.array([1.0, 0.5, 0.25])
-    >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 1.0), 4)   # two crossings
-    0.5714
-    >>> round(solve_piecewise(r, np.array([100.0, 200.0, 150.0]), 175.0, 0.25), 4)
-    0.3333
+    >>> f = np.array([[100.0, 200.0, 150.0], [100.0, 200.0, 150.0]])
+    >>> np.round(solve_piecewise(r, f, 175.0, [1.0, 0.25]), 4)   # two crossings: the nearer one
+    array([0.5714, 0.3333])
     """
-    # one pass over the segments in Python floats: the same IEEE operations, in the same order, as
-    # the array expressions this replaced (arrays of a few dozen values cost more to set up than to use)
-    u = _inverse_list(ratios)
-    f = np.asarray(values_s, float).tolist()
-    up = 1.0 / float(clip_number(prefer, ratios[-1], ratios[0]))
-    cand: list[float] = []
-    flat: list[float] = []
-    for i in range(len(f) - 1):
-        d0, d1 = f[i] - want_s, f[i + 1] - want_s
-        if d0 * d1 <= 0.0 and f[i] != f[i + 1]:
-            cand.append(u[i] + d0 / (d0 - d1) * (u[i + 1] - u[i]))
-        elif d0 == 0.0 and d1 == 0.0:  # a whole segment on the wanted time: its point nearest prefer
-            flat.append(min(max(up, u[i]), u[i + 1]))
-    cand += flat
-    if cand:
-        best_c, best_d = cand[0], abs(cand[0] - up)
-        for c in cand[1:]:
-            if abs(c - up) < best_d:  # the first of equal distances, as argmin
-                best_c, best_d = c, abs(c - up)
-        return float(1.0 / best_c)
-    err = [abs(x - want_s) for x in f]
-    lim = min(err) + 1e-12
-    best = [i for i, e in enumerate(err) if e <= lim]
-    j = best[0]
-    for i in best[1:]:
-        if abs(u[i] - up) < abs(u[j] - up):
-            j = i
-    return float(1.0 / u[j])
+    ratios = np.asarray(ratios, float)
+    u = 1.0 / ratios
+    up = 1.0 / _clip_ratio(ratios, prefer)
+    f = np.asarray(values_s, float).reshape(up.size, u.size)
+    want = np.broadcast_to(np.asarray(want_s, float), up.shape)[:, None]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        d0, d1 = f[:, :-1] - want, f[:, 1:] - want
+        cross = (d0 * d1 <= 0.0) & (f[:, :-1] != f[:, 1:])
+        crossing = u[:-1] + d0 / (d0 - d1) * (u[1:] - u[:-1])
+    flat = ~cross & (d0 == 0.0) & (d1 == 0.0)
+    on_flat = np.minimum(np.maximum(up[:, None], u[:-1]), u[1:])
+    cand = np.concatenate([crossing, on_flat], axis=1)
+    valid = np.concatenate([cross, flat], axis=1)
+    dist = np.abs(cand - up[:, None])
+    runs = np.arange(up.size)
+    first = np.argmax(valid, axis=1)
+    nearest = np.argmin(np.where(valid & ~np.isnan(dist), dist, np.inf), axis=1)
+    # a scan keeps its first candidate unless a later one is strictly nearer (never one at NaN)
+    keep_first = np.isnan(dist[runs, first]) | ~np.isfinite(dist[runs, nearest]) | ~valid[runs, nearest]
+    best = np.where(keep_first, first, nearest)
+    by_crossing = 1.0 / cand[runs, best]
+    err = np.abs(f - want)
+    close = err <= err.min(axis=1, keepdims=True) + 1e-12
+    j = np.argmin(np.where(close, np.abs(u[None, :] - up[:, None]), np.inf), axis=1)
+    return np.where(valid.any(axis=1), by_crossing, 1.0 / u[j])
