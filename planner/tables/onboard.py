@@ -186,14 +186,17 @@ class ApproachTable:
     coast_band_ms: float = 0.0
 
     def rows(self, speed_ms, powering) -> tuple[np.ndarray, np.ndarray]:
-        """Table and reference remaining time per ratio at each run's speed and band state, linear in
-        speed, shape (n, n_ra) each [s].
+        """Table and reference remaining time per ratio at a speed and band state, linear in speed [s].
 
-        ``speed_ms`` and ``powering`` hold one value per run (or one for all). Speeds outside the
-        grid are clamped to its ends; a band state the table does not hold (e.g. coasting for a
+        ``speed_ms`` is one speed (rows of shape (n_ra,)) or one per run (shape (n, n_ra));
+        ``powering`` is one band state for all or one per run. Speeds outside the grid are
+        clamped to its ends; a band state the table does not hold (e.g. coasting for a
         constant-speed vehicle, whose phase does not change its future) uses the one it does.
         """
-        v = np.atleast_1d(np.asarray(speed_ms, float))
+        if np.ndim(speed_ms) == 0:
+            t, ref = self.rows(np.array([speed_ms], float), powering)
+            return t[0], ref[0]
+        v = np.asarray(speed_ms, float)
         on = np.broadcast_to(np.asarray(powering, bool), v.shape)
         slot = {b: self.powering.index(b) if b in self.powering else 0 for b in (True, False)}
         p = np.where(on, slot[True], slot[False])
