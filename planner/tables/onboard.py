@@ -437,7 +437,7 @@ class AdaptiveRule:
         # vehicles: the ones with table (d)); a constant-speed vehicle's rows describe it exactly
         early = self.AIM_EARLY_S if tables.approach is not None and not last else 0.0
         row = row_at(tables, k, ratio)
-        # the leg just run, at ratio rb: observed vs. table time, and the reference's extra
+        # the leg just run, at the ratio run before: observed vs. table time, and the reference's extra
         st["num"] += (st["rem"] - rem) - (st["pred"] - interp_u(tables.ratios, row, ratio))
         st["den"] += st["delta"] - self._delta(tables, k, ratio)
         with np.errstate(divide="ignore", invalid="ignore"):
