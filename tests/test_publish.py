@@ -91,19 +91,29 @@ def test_staged_files_are_flushed_once_by_publish_before_the_rename(tmp_path, mo
     assert events[-1] == ("rename", "")  # every flush before the run becomes visible
 
 
-def test_stamping_on_threads_keeps_the_deferred_flush(tmp_path, monkeypatch):
-    """stamp_run writes on threads; inside deferred_fsync those writes must not flush one by one either."""
+def test_stamping_on_the_writer_thread_stamps_and_keeps_the_deferred_flush(tmp_path, monkeypatch):
+    """Files written inside stamping() get the run's id and date on every row, on a thread handed the
+    context too (the run's writer thread), without flushing one by one inside deferred_fsync; a file
+    written outside it is left as it is."""
+    import datetime
+    from concurrent.futures import ThreadPoolExecutor
+
     import pyarrow.parquet as pq
 
     import planner.io.atomic as atomic
-    from planner.io.parquet import stamp_run
+    from planner.io.parquet import stamping, write_parquet_atomic
 
-    for i in range(4):
-        (tmp_path / "ds" / f"p={i}").mkdir(parents=True)
-        pq.write_table(pa.table({"x": [1.0, 2.0]}), tmp_path / "ds" / f"p={i}" / "part.parquet")
+    t = pa.table({"x": [1.0, 2.0], "run_id": ["stale", "stale"]})
     flushed = []
     monkeypatch.setattr(atomic, "_fsync_file", flushed.append)
-    with atomic.deferred_fsync():
-        assert stamp_run(tmp_path, ["ds"], "r0001-0123456789", "2026-11-23") == 4
-    assert flushed == []
-    assert pq.read_table(tmp_path / "ds" / "p=0" / "part.parquet").column("run_id").to_pylist() == ["r0001-0123456789"] * 2
+    with atomic.deferred_fsync(), stamping("r0001-0123456789", "2026-11-23"), ThreadPoolExecutor(1) as pool:
+        write_parquet_atomic(t, tmp_path / "here.parquet")
+        pool.submit(atomic.in_this_context(write_parquet_atomic), t, tmp_path / "thread.parquet").result()
+    write_parquet_atomic(t, tmp_path / "outside.parquet")
+    assert flushed and all("outside" in str(f) for f in flushed)  # only the write outside the run flushed
+    for name in ("here", "thread"):
+        got = pq.read_table(tmp_path / f"{name}.parquet")
+        assert got.column_names == ["x", "run_id", "run_date"]  # the stale column replaced, at the end
+        assert got.column("run_id").to_pylist() == ["r0001-0123456789"] * 2
+        assert got.column("run_date").to_pylist() == [datetime.date(2026, 11, 23)] * 2
+    assert pq.read_table(tmp_path / "outside.parquet").column("run_id").to_pylist() == ["stale", "stale"]

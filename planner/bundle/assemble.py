@@ -24,6 +24,7 @@ from planner.bundle import atsp
 from planner.bundle.contents import (ATSP_SCHEMA, BEACONS_SCHEMA, MAX_PROFILE_SCHEMA, RESTRICTIONS_SCHEMA,
                                      TIMETABLE_SCHEMA, check_keys)
 from planner.errors import BundleError
+from planner.io.parquet import RUN_FIELDS
 from planner.line.model import Line, sign
 from planner.line.units import kmh
 from planner.physics.speed_profile import onboard_max_ms, restriction_spans
@@ -224,6 +225,8 @@ def read_partition(root: str | os.PathLike, dataset: str, line_id: str, directio
         t = pa.concat_tables(parts) if len(parts) > 1 else parts[0]
     except (pa.ArrowInvalid, OSError) as e:
         raise BundleError(f"cannot read {folder}: {e}; rebuild the {dataset} dataset") from None
+    # a published run's files carry its id and date; a bundle's bytes do not depend on the run
+    t = t.drop_columns([c for c, _, _ in RUN_FIELDS if c in t.column_names])
     for col, val in zip(_PARTITION_COLS, (line_id, direction, train_type)):
         if col in t.column_names:  # hive files normally leave it out; if stored, it must agree
             check_keys(dataset, t.select([col]), line_id, direction, train_type, str(folder))

@@ -18,15 +18,16 @@ writer settings) and atomic per file (temp file in the same folder, then
 """
 from __future__ import annotations
 
-import os
+import contextvars
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Iterator, Sequence
 
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from planner.io.atomic import atomic_path, in_this_context
+from planner.io.atomic import atomic_path
 from planner.io.paths import check_path_id
 
 PARTITION_COLS = ("line", "direction", "train_type")
@@ -59,7 +60,11 @@ def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
 
 
 def write_parquet_atomic(table: pa.Table, path: Path) -> None:
-    """Write ``table`` to ``path`` deterministically; the final name appears only when complete."""
+    """Write ``table`` to ``path`` deterministically; the final name appears only when complete.
+
+    Inside :func:`stamping` (a run's datasets), every row also gets the run's :data:`RUN_FIELDS`.
+    """
+    table = _stamped(table)
     with atomic_path(path) as tmp:
         pq.write_table(
             table,
@@ -188,36 +193,37 @@ def with_run_fields(schema: pa.Schema) -> pa.Schema:
     return out
 
 
-def stamp_run(root: Path, datasets: Iterable[str], run_id: str, run_date) -> int:
-    """Append ``run_id`` and ``run_date`` to every row of every Parquet file of ``datasets`` under ``root``.
+_STAMP = contextvars.ContextVar("planner_run_stamp", default=None)
 
-    Done once, on the staged run, after every step has read what it needs (the bundles are built
-    before, so their bytes do not depend on the run). Each file is rewritten atomically with the
-    same writer settings; the schema metadata (descriptions) is kept. Returns the files stamped.
+
+@contextmanager
+def stamping(run_id: str, run_date) -> Iterator[None]:
+    """Within this context (and the threads given it by :func:`planner.io.atomic.in_this_context`),
+    every Parquet file written gets ``run_id`` and ``run_date`` appended to every row.
+
+    `planner run` writes its datasets in it, so a published file holds its run's columns from its
+    first write and nothing is rewritten at the end.
     """
     import datetime
 
-    from concurrent.futures import ThreadPoolExecutor
-
     if not isinstance(run_date, datetime.date):
         run_date = datetime.date.fromisoformat(str(run_date))
-    files = [f for name in datasets if (Path(root) / name).is_dir()
-             for f in sorted((Path(root) / name).rglob("*.parquet"))]
+    token = _STAMP.set((run_id, run_date))
+    try:
+        yield
+    finally:
+        _STAMP.reset(token)
 
-    def stamp(f: Path) -> None:
-        t = pq.read_table(f, partitioning=None)
-        for col, typ, desc in RUN_FIELDS:
-            if col in t.column_names:
-                t = t.drop_columns([col])
-            val = run_id if col == "run_id" else run_date
-            t = t.append_column(pa.field(col, typ, metadata={"description": desc}),
-                                pa.array([val] * t.num_rows, type=typ))
-        write_parquet_atomic(t, f)
 
-    # Arrow reads, compresses and writes without the GIL: two threads keep two cores busy; each file
-    # is its own, so the bytes do not depend on the order
-    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
-        # bound here, one copy per call (a context is entered by one thread at a time)
-        for _ in pool.map(lambda call, f: call(f), [in_this_context(stamp) for _ in files], files):
-            pass
-    return len(files)
+def _stamped(table: pa.Table) -> pa.Table:
+    """``table`` with the :data:`RUN_FIELDS` of the current :func:`stamping` appended (replacing any
+    it has), or as it is outside one."""
+    stamp = _STAMP.get()
+    if stamp is None:
+        return table
+    for (col, typ, desc), val in zip(RUN_FIELDS, stamp):
+        if col in table.column_names:
+            table = table.drop_columns([col])
+        table = table.append_column(pa.field(col, typ, metadata={"description": desc}),
+                                    pa.array([val] * table.num_rows, type=typ))
+    return table

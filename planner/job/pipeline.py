@@ -39,7 +39,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from planner import __version__
 from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomic
-from planner.io.parquet import stamp_run
+from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
 from planner.line.model import DIRECTIONS, Line
@@ -301,25 +301,24 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             summary = RunSummary(run_id, None, False, notes=notes)
             runner = Runner(job, cache, prog)
             summary.release = release
-            try:
-                # a writer thread: a step's datasets are written while the workers compute the next
-                with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
-                    for line in lines:
-                        _run_line(job, line, stage, runner, summary, key, key_path, writes)
-                summary.computed, summary.reused = runner.computed, runner.reused
-                if cache.rejected:  # once per run, with the count
-                    summary.warnings.append(cache.rejected_note())
-                _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
-                from planner.job.views import run_views  # changes since the last run, overview page
+            # every dataset file carries the run's id and date from its first write (nothing is rewritten)
+            with stamping(run_id, run_date):
+                try:
+                    # a writer thread: a step's datasets are written while the workers compute the next
+                    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
+                        for line in lines:
+                            _run_line(job, line, stage, runner, summary, key, key_path, writes)
+                    summary.computed, summary.reused = runner.computed, runner.reused
+                    if cache.rejected:  # once per run, with the count
+                        summary.warnings.append(cache.rejected_note())
+                    _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
+                    from planner.job.views import run_views  # changes since the last run, overview page
 
-                run_views(job, lines, stage, root, prog, summary)  # takes the charts drawn meanwhile
-            except Exception:
-                for pending in summary.pending:  # work on a worker: let it finish first
-                    pending.discard()
-                raise
-            from planner.report.catalog import datasets as catalog
-
-            stamp_run(stage, [d.name for d in catalog()], run_id, run_date)  # after every step read its inputs
+                    run_views(job, lines, stage, root, prog, summary)  # takes the charts drawn meanwhile
+                except Exception:
+                    for pending in summary.pending:  # work on a worker: let it finish first
+                        pending.discard()
+                    raise
             _kill_point()
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
