@@ -60,6 +60,52 @@ def test_simplify_keeps_every_point_within_tolerance_and_the_steps():
     assert simplify(np.arange(100.0), 3 * np.arange(100.0)).tolist() == [0, 99]
 
 
+def _textbook_rdp(t, x, tol_t, tol_x):
+    """Ramer–Douglas–Peucker as the 1973 paper recurses it, one chord at a time (with simplify's fixed
+    points: the ends and both ends of every stand): the reference simplify must equal."""
+    t, x = np.asarray(t, float) / tol_t, np.asarray(x, float) / tol_x
+    keep = {0, len(t) - 1}
+    for i in range(len(t) - 1):
+        if x[i + 1] == x[i] and t[i + 1] > t[i]:
+            keep |= {i, i + 1}
+
+    def split(a, b):
+        if b - a < 2:
+            return
+        dt, dx = t[b] - t[a], x[b] - x[a]
+        seg = math.hypot(dt, dx)
+        d = [math.hypot(t[i] - t[a], x[i] - x[a]) if seg == 0.0
+             else abs((t[i] - t[a]) * dx - (x[i] - x[a]) * dt) / seg for i in range(a + 1, b)]
+        k = max(range(len(d)), key=d.__getitem__)  # the first of equal maxima
+        if d[k] > 1.0:
+            keep.add(a + 1 + k)
+            split(a, a + 1 + k)
+            split(a + 1 + k, b)
+
+    fixed = sorted(keep)
+    for a, b in zip(fixed[:-1], fixed[1:]):
+        split(a, b)
+    return sorted(keep)
+
+
+@pytest.mark.parametrize("kind", ["smooth", "grid", "stands", "crowded"])
+def test_simplify_keeps_the_points_the_textbook_recursion_keeps(kind):
+    """simplify splits every chord of one depth at once; the kept points must be the recursion's exactly,
+    ties (the first farthest point), closed chords (a train back where it was) and stands included."""
+    rng = np.random.default_rng(7)
+    for _ in range(150):
+        n = int(rng.integers(0, 200))
+        if kind == "smooth":
+            t, x = np.cumsum(rng.uniform(0, 3, n)), np.cumsum(rng.normal(0, 10, n))
+        elif kind == "grid":  # many equal distances
+            t, x = np.cumsum(rng.integers(0, 3, n)) * 1.0, np.cumsum(rng.integers(-2, 3, n)) * 5.0
+        elif kind == "stands":
+            t, x = np.round(np.cumsum(rng.uniform(0, 2, n))), np.round(np.cumsum(rng.uniform(0, 30, n)), -1)
+        else:  # few distinct points: closed chords everywhere
+            t, x = rng.integers(0, 5, n) * 1.0, rng.integers(0, 5, n) * 5.0
+        assert simplify(t, x, 1.0, 5.0).tolist() == (_textbook_rdp(t, x, 1.0, 5.0) if n > 2 else list(range(n)))
+
+
 def test_locals_and_rapids(tiny):
     services = {t.train_id: service_of(t) for t in tiny.trains}
     assert services == {"101": "local", "202": "rapid"}  # 202 passes B

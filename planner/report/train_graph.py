@@ -103,24 +103,38 @@ def simplify(t_s: np.ndarray, x_m: np.ndarray, tol_t_s: float = TOL_T_S, tol_x_m
     flat = np.flatnonzero((np.diff(x) == 0) & (np.diff(t) > 0))
     keep[flat] = keep[flat + 1] = True
     fixed = np.flatnonzero(keep)
-    stack = list(zip(fixed[:-1].tolist(), fixed[1:].tolist()))
-    while stack:
-        a, b = stack.pop()
-        if b - a < 2:
-            continue
+    # Every chord is split on its own, so the kept set does not depend on the order the chords are
+    # taken in: all chords of one depth are split at once (numpy over their points, one pass per
+    # depth, not a Python pass per chord), with the per-chord arithmetic of the textbook recursion.
+    a, b = fixed[:-1], fixed[1:]
+    while True:
+        open_ = b - a >= 2
+        a, b = a[open_], b[open_]
+        if a.size == 0:
+            break
         dt, dx = t[b] - t[a], x[b] - x[a]
-        seg = math.hypot(dt, dx)
-        tt, xx = t[a + 1:b] - t[a], x[a + 1:b] - x[a]
-        if seg == 0.0:
-            d = np.hypot(tt, xx)
-        else:
-            d = np.abs(tt * dx - xx * dt) / seg
-        k = int(np.argmax(d))
-        if d[k] > 1.0:
-            m = a + 1 + k
-            keep[m] = True
-            stack.append((a, m))
-            stack.append((m, b))
+        seg = np.array([math.hypot(p, q) for p, q in zip(dt.tolist(), dx.tolist())])
+        n_in = b - a - 1
+        starts = np.cumsum(n_in) - n_in  # where each chord's points begin in the flat arrays
+        chord = np.repeat(np.arange(a.size), n_in)
+        i = np.arange(chord.size) - starts[chord] + a[chord] + 1  # the points strictly inside
+        tt, xx = t[i] - t[a][chord], x[i] - x[a][chord]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = np.abs(tt * dx[chord] - xx * dt[chord]) / seg[chord]
+        closed = (seg == 0.0)[chord]  # both ends at one place: the distance to that place
+        if closed.any():
+            d[closed] = np.hypot(tt[closed], xx[closed])
+        worst = np.maximum.reduceat(d, starts)
+        split = worst > 1.0
+        if not split.any():
+            break
+        # the farthest point of each chord split (the first of equals, as argmax takes it)
+        first = np.flatnonzero(d == worst[chord])
+        hit = first[split[chord[first]]]
+        hit = hit[np.r_[True, chord[hit][1:] != chord[hit][:-1]]]
+        m = i[hit]
+        keep[m] = True
+        a, b = np.concatenate([a[split], m]), np.concatenate([m, b[split]])
     return np.flatnonzero(keep)
 
 
