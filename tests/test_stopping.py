@@ -186,6 +186,26 @@ def test_zero_speed_limit_before_the_stop():
     assert not p.feasible and "0 m/s" in p.reason
 
 
+@pytest.mark.parametrize("v0, X, sl", [
+    (22.2, 100.0, [(0.0, 25.0)]),                 # needs more room
+    (20.0, 1000.0, [(0.0, 19.0)]),                # start above the first limit
+    (10.0, 500.0, [(0.0, 10.0), (200.0, 0.0)]),   # a zero limit before the stop
+    (0.0, 500.0, [(0.0, 10.0)]),                  # standing, no re-acceleration
+])
+def test_an_infeasible_verdict_is_the_constructors_own(v0, X, sl):
+    """solve_stop fills an infeasible StopPattern without its constructor (speed): it must be the object the
+    constructor makes from the same values, field for field and in field order, frozen, equal and hashable
+    alike."""
+    p = solve_stop(v0, X, jerk_max=0.6, decel_limits=[(0.0, 0.8)], speed_limits=sl)
+    q = StopPattern(False, p.reason, v_start_ms=v0, x_stop_m=X, jerk_max_ms3=0.6,
+                    **({"braking_distance_m": p.braking_distance_m} if "needs" in p.reason else {}))
+    assert not p.feasible and p.reason
+    assert list(vars(p).items()) == list(vars(q).items())
+    assert p == q and hash(p) == hash(q)
+    with pytest.raises(Exception):
+        p.reason = ""  # type: ignore[misc]
+
+
 # --------------------------------------------------------------------------------------
 # input checks
 # --------------------------------------------------------------------------------------

@@ -105,7 +105,7 @@ from __future__ import annotations
 import math
 import struct
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import NamedTuple, Sequence
 
 import numpy as np
@@ -385,6 +385,7 @@ def decel_limit_profile(
 # --------------------------------------------------------------------------------------
 
 _new = object.__new__
+_FIELDS = tuple(f.name for f in fields(StopPattern))
 _local = threading.local()
 _k = None  # the solver: its build (planner.io.compiled) or planner.stopping.kernel, chosen on the first solve
 
@@ -496,7 +497,7 @@ def solve_stop(
         work[:2 * n] = steps.ravel()
     p = k.kernel(v0, X, J, n_dl, n, optimize, work)
     if p < 0:
-        return _not_solved(-p, work[2 * n:], v0, X, J, work[:2 * n].reshape(n, 2), n_dl)
+        return _not_solved(-p, work, n, v0, X, J, n_dl)
     # out[2:5]: T, brake start, braking distance; from out[HEAD]: t, x, v, a (p + 1 each) and j (p)
     o = 16 * n + 16  # byte offset of out[2] (out is work[2 n:])
     T, brake, dist = _HEAD3.unpack_from(mem, o)
@@ -558,35 +559,44 @@ def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
     return v0, X, J, np.array(dl + sl, dtype=np.float64).reshape(-1, 2), len(dl)
 
 
-def _not_solved(code: int, out: np.ndarray, v0: float, X: float, J: float, steps: np.ndarray,
-                n_dl: int) -> StopPattern:
-    """The kernel's verdict other than a pattern: an infeasible StopPattern, or the InputError raised."""
-    k = codes
+def _infeasible(reason: str, v0: float, X: float, J: float, braking_distance_m: float = math.nan) -> StopPattern:
+    """``StopPattern(False, reason, ...)`` as the constructor makes it, minus its frozen per-field setattr
+    (an infeasible verdict is a third of the sweep's solves)."""
+    r = _new(StopPattern)
+    r.__dict__.update(zip(_FIELDS, (False, reason, v0, X, J, math.nan, math.nan, braking_distance_m,
+                                    (), (), (), (), ())))
+    return r
 
-    base = dict(v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J)
+
+def _not_solved(code: int, work: np.ndarray, n: int, v0: float, X: float, J: float, n_dl: int) -> StopPattern:
+    """The kernel's verdict other than a pattern (``work``: its array, ``n`` step rows): an infeasible
+    StopPattern, or the InputError raised."""
+    k = codes
+    out = 2 * n  # where the kernel's result starts in work
+    if code == k.NEEDS_MORE:  # the common verdict first
+        y_r = float(work[out + 4])
+        return _infeasible(f"needs {y_r:.1f} m to stop from {v0:.2f} m/s under these limits, only "
+                           f"{X:.1f} m available", v0, X, J, y_r)
+    if code == k.START_ABOVE_LIMIT:
+        return _infeasible(f"start speed {v0:.2f} m/s is above the speed limit "
+                           f"{float(work[2 * n_dl + 1]):.2f} m/s at the pattern start", v0, X, J)
+    if code == k.ZERO_LIMIT:
+        return _infeasible(f"speed limit 0 m/s from x={float(work[out + 1]):.1f} m, before the stop at {X:.1f} m",
+                           v0, X, J)
+    if code == k.STANDING:
+        return _infeasible(f"standing at the start and no re-acceleration allowed, cannot reach "
+                           f"x_stop={X:.1f} m", v0, X, J)
     if code == k.BAD_V_START:
         _check_number("v_start", v0)
     if code == k.BAD_X_STOP:
         _check_number("x_stop", X)
     if code == k.BAD_JERK:
         _check_number("jerk_max", J, positive=True)
+    steps = work[:2 * n].reshape(n, 2)
     if k.BAD_DECEL < code < k.BAD_SPEED:
-        raise InputError(_step_fault("decel_limits", steps[:n_dl], code - k.BAD_DECEL, int(out[1]),
+        raise InputError(_step_fault("decel_limits", steps[:n_dl], code - k.BAD_DECEL, int(work[out + 1]),
                                      what="decel_ms2"))
     if code > k.BAD_SPEED:
-        raise InputError(_step_fault("speed_limits", steps[n_dl:], code - k.BAD_SPEED, int(out[1]),
+        raise InputError(_step_fault("speed_limits", steps[n_dl:], code - k.BAD_SPEED, int(work[out + 1]),
                                      what="speed_ms"))
-    if code == k.START_ABOVE_LIMIT:
-        return StopPattern(False, f"start speed {v0:.2f} m/s is above the speed limit "
-                                  f"{float(steps[n_dl, 1]):.2f} m/s at the pattern start", **base)
-    if code == k.ZERO_LIMIT:
-        return StopPattern(False, f"speed limit 0 m/s from x={float(out[1]):.1f} m, before the stop at {X:.1f} m",
-                           **base)
-    if code == k.STANDING:
-        return StopPattern(False, f"standing at the start and no re-acceleration allowed, cannot reach "
-                                  f"x_stop={X:.1f} m", **base)
-    if code == k.NEEDS_MORE:
-        y_r = float(out[4])
-        return StopPattern(False, f"needs {y_r:.1f} m to stop from {v0:.2f} m/s under these limits, only "
-                                  f"{X:.1f} m available", **base, braking_distance_m=y_r)
     raise RuntimeError("stopping pattern construction made no progress (internal error)")
