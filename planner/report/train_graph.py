@@ -113,6 +113,7 @@ def simplify(t_s: np.ndarray, x_m: np.ndarray, tol_t_s: float = TOL_T_S, tol_x_m
         if a.size == 0:
             break
         dt, dx = t[b] - t[a], x[b] - x[a]
+        # math.hypot per chord, as the recursion had it (np.hypot may differ in the last bit)
         seg = np.array([math.hypot(p, q) for p, q in zip(dt.tolist(), dx.tolist())])
         n_in = b - a - 1
         starts = np.cumsum(n_in) - n_in  # where each chord's points begin in the flat arrays
