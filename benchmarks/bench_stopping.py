@@ -2,9 +2,10 @@
 
 Prints the median (and 90th percentile) wall time per ``solve_stop`` call over a few
 thousand seeded random station approaches with up to six event points (positions
-where a deceleration or speed limit changes), split by the number of event points,
-against the 5 µs target of issue 20; the same for position-independent approaches
-next to Ruckig's ``calculate`` on the same problems (runs alternated, one machine);
+where a deceleration or speed limit changes), split by the number of event points;
+the same for position-independent approaches next to Ruckig's ``calculate`` on the
+same problems (runs alternated, one machine), against issue 20's 5 µs target (set
+on that problem: its table measured 51 µs there, against Ruckig's 0.58 µs);
 the solver before it was compiled (``planner/stopping/pattern.py`` at
 :data:`BEFORE`, read from git) on the same approaches, with the largest duration
 difference; and what compiling the kernel just in time costs a fresh process (what
@@ -255,7 +256,8 @@ def main() -> None:
     med = statistics.median(all_t) * 1e6
     p90 = statistics.quantiles(all_t, n=10)[-1] * 1e6
     print(f"  {N_CASES} random approaches ({n_feasible} feasible), up to 6 event points")
-    print(f"  solve_stop median {med:.2f} µs, p90 {p90:.2f} µs per pattern (target <= {TARGET_US:g} µs); "
+    print(f"  solve_stop median {med:.2f} µs, p90 {p90:.2f} µs per pattern (over {TARGET_US:g} µs: "
+          f"{sum(t * 1e6 > TARGET_US for t in all_t) / len(all_t):.0%}); "
           f"rule='paper' median {statistics.median(paper_t) * 1e6:.2f} µs")
     g = sorted(gain)
     print(f"  true minimum vs the paper's rule: faster on {sum(x > 1e-9 for x in g)} of {len(g)} patterns, "
@@ -276,12 +278,13 @@ def main() -> None:
         theirs.append(time.perf_counter() - t1)
         ours.append(t1 - t0)
     mo = statistics.median(ours) * 1e6
+    verdict = f"issue 20's target <= {TARGET_US:g} µs here: {'met' if mo <= TARGET_US else 'NOT met'}"
     if rk is None:
-        print(f"  position-independent: solve_stop median {mo:.2f} µs (ruckig not installed)")
+        print(f"  position-independent: solve_stop median {mo:.2f} µs (ruckig not installed); {verdict}")
     else:
         mt = statistics.median(theirs) * 1e6
         print(f"  position-independent: solve_stop median {mo:.2f} µs, Ruckig calculate {mt:.2f} µs (incl. setting "
-              f"its inputs from Python; issue's figure {RUCKIG_US} µs): ratio {mo / mt:.1f}")
+              f"its inputs from Python; issue's figure {RUCKIG_US} µs): ratio {mo / mt:.1f}; {verdict}")
     compare_before(cases[:1000])
     safe_side_cost()
 
