@@ -382,7 +382,7 @@ def decel_limit_profile(
 # --------------------------------------------------------------------------------------
 
 _new = object.__new__
-_FIELDS = tuple(f.name for f in fields(StopPattern))
+_UNSOLVED = {f.name: f.default for f in fields(StopPattern)} | {"feasible": False}  # every field, in order
 _local = threading.local()
 _k = None  # the solver: its build (planner.io.compiled) or planner.stopping.kernel, chosen on the first solve
 
@@ -557,11 +557,12 @@ def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
 
 
 def _infeasible(reason: str, v0: float, X: float, J: float, braking_distance_m: float = math.nan) -> StopPattern:
-    """``StopPattern(False, reason, ...)`` as the constructor makes it, minus its frozen per-field setattr
-    (an infeasible verdict is a third of the sweep's solves)."""
+    """``StopPattern(False, reason, ...)`` as the constructor makes it (the fields in their order, the
+    dataclass's own defaults), minus its frozen per-field setattr: a third of the random approaches of
+    ``benchmarks/bench_stopping.py`` end here."""
     r = _new(StopPattern)
-    r.__dict__.update(zip(_FIELDS, (False, reason, v0, X, J, math.nan, math.nan, braking_distance_m,
-                                    (), (), (), (), ())))
+    r.__dict__.update(_UNSOLVED, reason=reason, v_start_ms=v0, x_stop_m=X, jerk_max_ms3=J,
+                      braking_distance_m=braking_distance_m)
     return r
 
 
