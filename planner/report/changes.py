@@ -138,8 +138,13 @@ def _text(v: Any) -> str:
 
 
 def _plain(x):
-    if isinstance(x, (np.generic,)):
+    """A dataset value as plain Python: numpy scalars become numbers and list columns (numpy arrays
+    after ``to_pandas``) become lists, so a row's values can be tested for truth, compared and
+    joined like any other (an array's truth value is ambiguous)."""
+    if isinstance(x, np.generic):
         return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
     return x
 
 
