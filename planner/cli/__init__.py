@@ -73,7 +73,8 @@ from . import kernels  # noqa: E402,F401
 
 
 def main() -> None:
-    """Console entry point: domain errors become one line on stderr, never a traceback."""
+    """Console entry point: domain errors become one line on stderr, never a traceback; so does a bug
+    (exit 70), its traceback saved to a temporary file that the line names."""
     try:
         app()
     except PlannerError as e:
@@ -82,3 +83,25 @@ def main() -> None:
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
         sys.exit(130)
+    except Exception as e:  # noqa: BLE001 - a bug, not bad input: one line, the traceback kept in a file
+        typer.echo(f"error: internal error in planner ({_one_line(e)}). This is a bug: "
+                   f"please report it with the traceback saved in {_save_traceback()}", err=True)
+        sys.exit(70)  # EX_SOFTWARE
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(f"{type(e).__name__}: {e}".split())[:300]
+
+
+def _save_traceback() -> str:
+    """Write the current exception's traceback to a fresh temporary file; its path (or why it could not)."""
+    import tempfile
+    import traceback
+
+    try:
+        fd, path = tempfile.mkstemp(prefix="planner-traceback-", suffix=".txt")
+        with open(fd, "w", encoding="utf-8") as f:
+            traceback.print_exc(file=f)
+        return path
+    except OSError as err:
+        return f"(no file: {err.strerror or err})"

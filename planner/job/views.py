@@ -93,10 +93,50 @@ def _unit(step, key, fn, args):
     return Unit(step, key, step, fn, args)
 
 
+def _comparison_failed(base: str, e: BaseException, summary) -> str:
+    """One line for a comparison that failed; the run says it and publishes without the changes."""
+    what = f"{type(e).__name__}: {e}" if not isinstance(e, PlannerError) else str(e)
+    what = " ".join(what.split())[:300]
+    summary.warnings.append(f"changes: comparing with run {base} failed ({what}); "
+                            "this run is published without its list of changes")
+    return what
+
+
+def _compare_with(base: str | None, root: Path, stage: Path, lines, summary) -> tuple[dict, str]:
+    """Each line's changes against the previous published run, and the failure (empty when none).
+
+    Whatever goes wrong in the comparison (a damaged old run, a bug in the comparison itself) is
+    reported in one line and marks the comparison as failed: the run's own outputs are complete,
+    so it still publishes (the changes step can never block a night).
+    """
+    from planner.report.changes import compare_runs
+
+    if base is None:
+        return {}, ""
+    try:
+        return {c.line_id: c for c in compare_runs(root / base, stage, lines=[ln.line_id for ln in lines])}, ""
+    except Exception as e:  # noqa: BLE001 - see the docstring
+        return {}, _comparison_failed(base, e, summary)
+
+
+def _write_line_changes(ch, stage: Path) -> int:
+    """Write one line's ``changes`` dataset; its row count. A failed write leaves no part file behind."""
+    import pyarrow.parquet as pq
+
+    from planner.report.changes import write_changes
+    from planner.report.published_run import path_id
+
+    try:
+        return sum(pq.ParquetFile(f).metadata.num_rows for f in write_changes(ch, stage))
+    except BaseException:
+        shutil.rmtree(stage / "changes" / f"line={path_id(ch.line_id)}", ignore_errors=True)
+        raise
+
+
 def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     """Changes since the previous run, report sections, manifest additions and the overview page (module doc)."""
     from planner.io.atomic import write_bytes_atomic
-    from planner.report.changes import compare_runs, write_changes
+    from planner.report.changes import CATEGORIES
     from planner.report.changes_html import changes_html
     from planner.report.overview import write_overview
     from planner.job.publish import canonical_json, latest_run
@@ -109,23 +149,24 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     rows: dict[str, int] = {}
     counts: dict[str, dict[str, int]] = {}
     with prog.step("changes", len(lines)):
-        found = {}
-        if base is not None:
-            try:
-                found = {c.line_id: c for c in compare_runs(root / base, stage, lines=[ln.line_id for ln in lines])}
-            except PlannerError as e:  # a damaged old run must not stop tonight's run
-                summary.notes.append(f"changes: could not compare with run {base}: {e}")
+        found, failure = _compare_with(base, root, stage, lines, summary)
         for line in lines:
             ch = found.get(line.line_id)
             if ch is not None:
-                for f in write_changes(ch, stage):
-                    import pyarrow.parquet as pq
-
-                    rows["changes"] = rows.get("changes", 0) + pq.ParquetFile(f).metadata.num_rows
-                counts[line.line_id] = {c: len(ch.of(c)) for c in
-                                        ("code", "parameter", "line_table", "leg", "flag", "conflict", "bundle")}
-            note = "This is the first run in this output folder: nothing to compare with." if base is None else \
-                f"Line {line.line_id} could not be compared with run {base}."
+                try:
+                    n = _write_line_changes(ch, stage)
+                except Exception as e:  # noqa: BLE001 - the comparison must never block publishing
+                    failure = failure or _comparison_failed(base, e, summary)
+                    ch = None
+                else:
+                    rows["changes"] = rows.get("changes", 0) + n
+                    counts[line.line_id] = {c: len(ch.of(c)) for c in CATEGORIES}
+            if base is None:
+                note = "This is the first run in this output folder: nothing to compare with."
+            elif failure:
+                note = f"Comparing with run {base} failed, so this run lists no changes: {failure}"
+            else:
+                note = f"Line {line.line_id} could not be compared with run {base}."
             top = changes_html(ch, first_run_note=note)
             rep = summary.reports.get(line.line_id)
             if rep is not None:
@@ -140,14 +181,17 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
             prog.advance("changes")
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))
-    manifest["changes"] = {"base_run": base, "lines": counts}
+    manifest["changes"] = {"base_run": base, "lines": counts,
+                           "status": "first run" if base is None else "failed" if failure else "compared"}
+    if failure:
+        manifest["changes"]["error"] = failure
     manifest["timings_s"] = dict(prog.timings)
     manifest["units_computed"] = dict(summary.computed)
     manifest["units_reused"] = dict(summary.reused)
     write_bytes_atomic(manifest_path, canonical_json(manifest) + b"\n")
     with prog.step("overview"):
         # notes name the development key by its path: keep the page free of absolute paths
-        notes = [n.replace(str(root), job.job.output_root) for n in summary.notes]
+        notes = [n.replace(str(root), job.job.output_root) for n in summary.warnings + summary.notes]
         write_overview(stage, manifest, notes=notes)
 
 

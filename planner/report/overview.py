@@ -40,6 +40,7 @@ h3{font-size:15px;margin:14px 0 4px}p,li{font-size:14px;line-height:1.45}.sub{co
 .card .n{font-size:24px;font-weight:700}.card .l{font-size:12px;color:#555}
 .card.bad{border-left:6px solid #c62828}.card.warn{border-left:6px solid #ef8f00}.card.ok{border-left:6px solid #2e7d32}
 .card.info{border-left:6px solid #5a7da8}
+p.warn{border-left:6px solid #ef8f00;background:#fff;padding:6px 10px}
 table{border-collapse:collapse;background:#fff;font-size:12.5px;margin:4px 0 10px}
 th,td{border:1px solid #dde1e5;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#eef1f4;font-weight:600}td.n{text-align:right;font-variant-numeric:tabular-nums}
@@ -169,6 +170,9 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     parts.append("<h2 id='changes'>What changed since the last run</h2>")
     if not ch.get("base_run"):
         parts.append("<p>First run in this output folder: nothing to compare with.</p>")
+    elif ch.get("status") == "failed":
+        parts.append(f"<p class='warn'>Comparing with run <code>{_e(ch['base_run'])}</code> failed, so this run lists "
+                     f"no changes (its own outputs are complete and published): {_e(ch.get('error', ''))}</p>")
     else:
         rows = []
         for lid in lines:

@@ -1,0 +1,156 @@
+"""A night that never blocks: ordinary edits of the inputs between two runs, and a comparison that fails.
+
+Every test starts from one published run of the tiny line (tests/linedb.py) on an output root that
+holds its cache, copied per test, so the run after an edit is the incremental run a production
+night makes. The comparison with the previous run (the ``changes`` step) must name the edit and
+must never stop the run from publishing.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import textwrap
+from pathlib import Path
+
+import pyarrow.dataset as ds
+import pytest
+
+from linedb import default_tables, write_line_db
+from planner.job.config import load_job
+from planner.job.publish import latest_run, list_runs
+
+JOB = """
+[job]
+lines = ["lines/tiny"]
+output_root = "out"
+keep_runs = 3
+[stops]
+adhesion_kmh_s = "2.5:3.5:0.5"
+[closed_loop]
+modes = ["nearest"]
+horizon_s = 6.0
+step_s = 3.0
+[bundles]
+allow_development_key = true
+[parallel]
+n_jobs = 1
+"""
+
+
+def write_tiny(folder: Path, tables: dict | None = None) -> None:
+    """The tiny line without its network (its network lacks a stop node at B), tables replaced by ``tables``."""
+    write_line_db(folder, **({"nodes": None, "edges": None} | (tables or {})))
+
+
+def run(project: Path):
+    from planner.job.pipeline import run_job
+
+    return run_job(load_job(project / "jobs" / "job.toml"), show_progress=False)
+
+
+@pytest.fixture(scope="module")
+def published(tmp_path_factory) -> Path:
+    """A project folder (line, job, output root with cache) after one published run."""
+    p = tmp_path_factory.mktemp("published")
+    write_tiny(p / "lines" / "tiny")
+    (p / "jobs").mkdir()
+    (p / "jobs" / "job.toml").write_text(textwrap.dedent(JOB))
+    run(p)
+    return p
+
+
+@pytest.fixture
+def project(published, tmp_path) -> Path:
+    dst = tmp_path / "project"
+    shutil.copytree(published, dst, symlinks=True)
+    return dst
+
+
+def changes_of(run_dir: Path):
+    return ds.dataset(run_dir / "changes", format="parquet", partitioning="hive").to_table().to_pandas()
+
+
+def test_timetable_edit_publishes_and_the_changes_name_it(project):
+    tt = default_tables()["timetable"]
+    tt.loc[tt.train_id == "101", ["arrival_s", "departure_s"]] += 60.0  # train 101 a minute later
+    write_tiny(project / "lines" / "tiny", {"timetable": tt})
+    s = run(project)
+    assert latest_run(project / "out") == s.run_id and len(list_runs(project / "out")) == 2
+    ch = changes_of(s.run_dir)
+    edits = ch[ch.category == "line_table"]
+    # train 101's four times, each 60 s later, named by train and stop
+    assert sorted(edits.field) == ["arrival_s", "arrival_s", "departure_s", "departure_s"]
+    assert set(edits.delta) == {60.0} and all(d.startswith("timetable 101 ") for d in edits.detail)
+    assert json.loads((s.run_dir / "manifest.json").read_text())["changes"]["status"] == "compared"
+
+
+def test_station_rename_publishes_and_the_changes_name_it(project):
+    t = default_tables()
+    t["stations"].loc[t["stations"].station_id == "B", "station_id"] = "X"
+    t["timetable"].loc[t["timetable"].station_id == "B", "station_id"] = "X"
+    write_tiny(project / "lines" / "tiny", {"stations": t["stations"], "timetable": t["timetable"]})
+    s = run(project)
+    assert latest_run(project / "out") == s.run_id
+    ch = changes_of(s.run_dir)
+    renamed = ch[(ch.category == "line_table") & (ch.subject == "stations")]
+    assert sorted(renamed.detail.str.contains("row added")) == [False, True]  # B removed, X added
+    legs = ch[ch.category == "leg"]
+    # the legs into and out of B disappear, those into and out of X appear (101 stops at both)
+    assert any("A→X" in d and "appeared" in d for d in legs.detail)
+    assert any("A→B" in d and "disappeared" in d for d in legs.detail)
+
+
+def test_a_broken_comparison_still_publishes_and_says_so(project, monkeypatch):
+    import planner.report.changes as changes
+
+    def broken(*a, **k):
+        raise RuntimeError("comparison exploded on purpose")
+
+    monkeypatch.setattr(changes, "compare_runs", broken)
+    write_tiny(project / "lines" / "tiny", {"gradients": default_tables()["gradients"].iloc[:2]})
+    s = run(project)
+    assert latest_run(project / "out") == s.run_id  # published
+    m = json.loads((s.run_dir / "manifest.json").read_text())
+    assert m["changes"]["status"] == "failed" and "exploded on purpose" in m["changes"]["error"]
+    assert not (s.run_dir / "changes").exists()  # no list rather than a wrong one
+    assert [w for w in s.warnings if w.startswith("changes: comparing with run r0001")] and \
+        all("\n" not in w for w in s.warnings)
+    for page in ("index.html", "report/tiny_margins.html"):
+        assert "exploded on purpose" in (s.run_dir / page).read_text()
+    assert (s.run_dir / "bundles").is_dir() and (s.run_dir / "margins").is_dir()  # the run's own outputs
+
+
+def test_a_changes_write_that_fails_half_way_leaves_no_part_file(project, monkeypatch):
+    import planner.report.changes as changes
+
+    real = changes.write_changes
+
+    def half(ch, out_dir):
+        paths = real(ch, out_dir)  # the file is there ...
+        raise OSError(28, "No space left on device (simulated after the write)")  # ... then the write fails
+
+    monkeypatch.setattr(changes, "write_changes", half)
+    write_tiny(project / "lines" / "tiny", {"gradients": default_tables()["gradients"].iloc[:2]})
+    s = run(project)
+    assert latest_run(project / "out") == s.run_id
+    assert not list((s.run_dir).glob("changes/**/*.parquet"))
+    assert json.loads((s.run_dir / "manifest.json").read_text())["changes"]["status"] == "failed"
+
+
+def test_an_internal_error_is_one_line_with_the_traceback_in_a_file(monkeypatch, capsys):
+    import planner.cli as cli
+
+    def bug(*a, **k):
+        raise ValueError("The truth value of an array\nwith more than one element is ambiguous")
+
+    monkeypatch.setattr(cli, "app", bug)
+    with pytest.raises(SystemExit) as e:
+        cli.main()
+    assert e.value.code == 70
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: internal error in planner (ValueError: The truth value")
+    saved = Path(err.rsplit(" ", 1)[1].strip())
+    try:
+        assert "Traceback" in saved.read_text() and "ambiguous" in saved.read_text()
+    finally:
+        saved.unlink()
