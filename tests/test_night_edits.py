@@ -82,6 +82,11 @@ def test_timetable_edit_publishes_and_the_changes_name_it(project):
     assert sorted(edits.field) == ["arrival_s", "arrival_s", "departure_s", "departure_s"]
     assert set(edits.delta) == {60.0} and all(d.startswith("timetable 101 ") for d in edits.detail)
     assert json.loads((s.run_dir / "manifest.json").read_text())["changes"]["status"] == "compared"
+    # the bundles are compared by content although a development key signs them: 101 runs down as EMU10
+    bundles = ch[ch.category == "bundle"]
+    assert not bundles.detail.str.contains("could not be compared").any()
+    assert bundles[bundles.subject == "tiny_down_EMU10.pdb"].detail.str.contains("timetable").all()
+    assert not bundles.detail.str.contains(str(project)).any()  # no absolute paths in a dataset
 
 
 def test_station_rename_publishes_and_the_changes_name_it(project):
