@@ -159,3 +159,19 @@ def test_an_internal_error_is_one_line_with_the_traceback_in_a_file(monkeypatch,
         assert "Traceback" in saved.read_text() and "ambiguous" in saved.read_text()
     finally:
         saved.unlink()
+
+
+def test_two_runs_of_identical_inputs_differ_in_nothing(project):
+    """A re-run of the same inputs re-issues every bundle (new version, build time and expiry in the signed
+    manifest), but holds the same content: the comparison lists no change at all."""
+    from planner.job.pipeline import run_job
+    from planner.report.changes import compare_runs
+
+    before = latest_run(project / "out")
+    s = run_job(load_job(project / "jobs" / "job.toml"), show_progress=False, use_cache=False)
+    assert s.run_id != before
+    old, new = (sorted((project / "out" / r / "bundles").glob("*.pdb")) for r in (before, s.run_id))
+    assert [p.name for p in old] == [p.name for p in new]
+    assert all(p.read_bytes() != q.read_bytes() for p, q in zip(old, new))  # re-issued: other bytes ...
+    (ch,) = compare_runs(project / "out" / before, s.run_dir)
+    assert ch.rows == [] and len(changes_of(s.run_dir)) == 0  # ... and no change

@@ -416,6 +416,13 @@ def _conflict_changes(ch: LineChanges, old, new) -> None:
                direction=r.get("direction_b"), from_m=r.get("from_m"), to_m=r.get("to_m"))
 
 
+MANIFEST_CONTENT = (("line_digest", "line database digest"), ("software_version", "software version"),
+                    ("schema_version", "bundle format version"), ("key_id", "signing key"),
+                    ("missing", "list of missing tables"))
+"""Manifest fields that say something about a bundle's content; the release fields (version, build time,
+expiry) change at every build, so two bundles that differ only there hold the same content."""
+
+
 def _bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
     from planner.bundle.verify import read_bundle
     from planner.errors import PlannerError
@@ -456,9 +463,13 @@ def _bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
             bytes_changed += abs((y.size if y else 0) - (x.size if x else 0))
             parts.append(f"{tname} {nd} rows")
         key_note = " (signed with another key)" if a.info.key_id != b.info.key_id else ""
-        what = (f"{len(parts)} table{'s' if len(parts) != 1 else ''} changed: {', '.join(parts)}" if parts else
-                "no table changed, only the signed manifest (it names the line database digest"
-                + (" and the software version" if a.info.software_version != b.info.software_version else "") + ")")
+        if parts:
+            what = f"{len(parts)} table{'s' if len(parts) != 1 else ''} changed: {', '.join(parts)}"
+        else:
+            fields = [label for f, label in MANIFEST_CONTENT if getattr(a.info, f) != getattr(b.info, f)]
+            if not fields:  # the same content re-issued (build time, version, expiry): no change
+                continue
+            what = "no table changed, only the signed manifest's " + " and ".join(fields)
         ch.add("bundle", name, f"bundle {name}: {what}; {a.info.size_bytes} → {b.info.size_bytes} bytes{key_note}",
                field_="rows_differing", before=a.info.sha256, after=b.info.sha256, delta=float(rows_changed),
                direction=d, train_type=t)
