@@ -101,11 +101,12 @@ class _Doc:
             line, col = e.position
             raise SourceError(f"{p.name} line {line} column {col + 1}: not well-formed XML ({e.msg if hasattr(e, 'msg') else e})") \
                 from None
+        ns = self.root.tag[1:].split("}")[0] if self.root.tag.startswith("{") else ""
+        if _local(self.root.tag).lower() == "railml" and ("railml.org/schemas/3" in ns
+                                                          or self.root.get("version", "").startswith("3")):
+            raise SourceError(f"{p.name}: railML 3.x is not supported (netElements); export railML 2.x")
         if _local(self.root.tag) != "railml":
             raise SourceError(f"{p.name}: root element <{_local(self.root.tag)}> is not <railml>")
-        ns = self.root.tag[1:].split("}")[0] if self.root.tag.startswith("{") else ""
-        if "railml.org/schemas/3" in ns or self.root.get("version", "").startswith("3"):
-            raise SourceError(f"{p.name}: railML 3.x is not supported (netElements); export railML 2.x")
         infra = _children(self.root, "infrastructure")
         if not infra:
             raise SourceError(f"{p.name}: <infrastructure> is missing")
