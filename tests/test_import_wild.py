@@ -261,3 +261,24 @@ def test_a_short_effort_curve_is_extended_at_constant_power(tmp_path):
     assert "effort curve ends at 20 m/s, below max_speed 30.5556 m/s: extended at the constant power" in text
     for field in ("startup_time = 5.0", "startup_acceleration = 0.05", "energy_sources", "gamma.type = 'MAX'"):
         assert field in text, field
+
+
+def test_cli_lists_every_problem_on_its_own_line(tmp_path, monkeypatch, capsys):
+    import sys
+
+    from planner.cli import main
+
+    b_ocs = '<signals><signal id="S1" pos="2.8km" dir="up"/><signal id="S2" pos="100" dir="sideways"/></signals>'
+    f = tmp_path / "wild.xml"
+    f.write_text(_three(b_ocs=b_ocs))
+    r = tmp_path / "emu.json"
+    r.write_text(json.dumps(src.rolling_stock()))
+    monkeypatch.setattr(sys, "argv", ["planner", "import", "railml", str(f), "--line", "L", "--rolling-stock", str(r),
+                                      "--out", str(tmp_path / "x")])
+    with pytest.raises(SystemExit) as e:
+        main()
+    err = capsys.readouterr().err.splitlines()
+    assert e.value.code == 1 and len(err) == 4, err  # two problems, the missing stations, then the error
+    assert err[0].startswith("  - wild.xml: <signal id='S1'> @pos") and "'sideways'" in err[1]
+    assert "this file has no OCPs" in err[2]
+    assert err[3] == "error: wild.xml: 3 problems in the source (each listed above); fix them and import again"
