@@ -282,3 +282,10 @@ def test_cli_lists_every_problem_on_its_own_line(tmp_path, monkeypatch, capsys):
     assert err[0].startswith("  - wild.xml: <signal id='S1'> @pos") and "'sideways'" in err[1]
     assert "this file has no OCPs" in err[2]
     assert err[3] == "error: wild.xml: 3 problems in the source (each listed above); fix them and import again"
+
+
+def test_a_profile_ref_to_something_else_is_named_not_refused(tmp_path):
+    text = _three().replace('vMax="100"/>', 'vMax="100" profileRef="sp9"/>')
+    s, out = _run(tmp_path, text)
+    assert _col(out, "speed_limits", "limit_kmh") == [100.0]
+    assert "speed profiles sp9 named by speedChange profileRef (only infraAttrGroups" in _notes(s)

@@ -352,7 +352,7 @@ def _category_speeds(doc: _Doc) -> dict[str, dict[str, float]]:
 def _speed_limits(doc: _Doc, line: _Line, s: ImportSummary, categories: dict[str, str]) -> tuple[pd.DataFrame, set]:
     """speed_limits rows (general and per mapped train type), and the train categories the line's profiles name."""
     profiles = _category_speeds(doc)
-    changes = {"down": [], "up": []}
+    changes, unread = {"down": [], "up": []}, set()
     for t in line.tracks:
         for el in t.items("trackElements", "speedChanges", "speedChange"):
             with doc.each():
@@ -364,8 +364,7 @@ def _speed_limits(doc: _Doc, line: _Line, s: ImportSummary, categories: dict[str
                 v = None if raw.strip() in END_SPEEDS else doc.num(el, "vMax", "km/h, or 'end'", positive=True)
                 ref = el.get("profileRef")
                 if ref is not None and ref not in profiles:
-                    raise SourceError(f"{doc.where(el, 'profileRef')}: no <infraAttributes id={ref!r}> with "
-                                      f"<speeds> in <infraAttrGroups>")
+                    unread.add(ref)  # e.g. a railML <speedProfile>: its vMax is used, its details are not
                 changes[_DIRS[d]].append((t.chainage(el), v, el, profiles.get(ref, {})))
     given = [d for d, ch in changes.items() if ch]
     labels = {"down": "down", "up": "up"}
@@ -401,6 +400,9 @@ def _speed_limits(doc: _Doc, line: _Line, s: ImportSummary, categories: dict[str
                     higher += vc > v
                     continue
                 rows.append(dict(base, limit_kmh=vc, train_type=typ))
+    if unread:
+        s.unused.append(f"speed profiles {', '.join(sorted(unread)[:5])}{' …' if len(unread) > 5 else ''} named by "
+                        f"speedChange profileRef (only infraAttrGroups/infraAttributes speeds are read; vMax holds)")
     if higher:
         s.notes.append(f"{higher} category speeds above their speedChange's vMax: the lower (vMax) holds")
     if categories:
