@@ -98,3 +98,12 @@ class SourceError(InputError):
     """A source file for ``planner import`` is malformed; the message names file, element and field."""
 
     key = "input.source"
+
+
+class SourceProblems(SourceError):
+    """Every problem found in one source file, so that one run of ``planner import`` lists them all."""
+
+    def __init__(self, source: str, problems: list[str]):
+        self.problems = list(problems)
+        super().__init__(f"{source}: {len(self.problems)} problems in the source (each listed above); fix them "
+                         f"and import again")

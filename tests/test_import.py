@@ -287,9 +287,9 @@ MALFORMED = [
      ["infra.json line 1", "not valid JSON"]),
     # --- OSRD rolling stock
     ("rs_mass_in_tonnes", _rj(rs_edit=_set(["mass"], 250.0)), ["emu.json", "mass", "kg"]),
-    ("rs_curve_short", _rj(rs_edit=_set(["effort_curves", "modes", "1500V", "default_curve", "speeds"],
-                                        [0.0, 10.0, 20.0])),
-     ["emu.json", "default_curve.speeds", "below max_speed"]),
+    ("rs_curve_not_increasing", _rj(rs_edit=_set(["effort_curves", "modes", "1500V", "default_curve", "speeds"],
+                                                 [0.0, 20.0, 10.0])),
+     ["emu.json", "default_curve.speeds", "increase strictly"]),
     ("rs_no_braking", _rj(rs_edit=_set(["const_gamma"], _DELETE)), ["emu.json", "const_gamma", "missing"]),
     ("rs_inertia_as_factor", _rj(rs_edit=_set(["inertia_coefficient"], 0.08)), ["emu.json", "inertia_coefficient"]),
     # --- --extra TOML
@@ -353,6 +353,7 @@ def test_malformed_sources_are_refused_with_one_line_and_leave_nothing(tmp_path,
         run(tmp_path)
     msg = str(e.value)
     assert "\n" not in msg, msg
+    msg = " | ".join([msg, *getattr(e.value, "problems", [])])  # several problems: each its own line too
     for f in fragments:
         assert f in msg, (f, msg)
     assert not (tmp_path / "out").exists()  # not even the parent folder the import would have made

@@ -20,6 +20,9 @@ _OUT = typer.Option(None, "--out", help="Line folder to create (any name; the li
 _FORCE = typer.Option(False, "--force", help="Replace --out if it exists (atomically, after validation).")
 _EXTRA = typer.Option(None, "--extra", help="TOML with what the source cannot give (stop markers, beacons, "
                                             "timetable, comfort limits); see docs/line-database.md.")
+_CATEGORY = typer.Option([], "--category", help="TYPE=CATEGORY: train type TYPE takes the source's speed limits "
+                                                "for CATEGORY (railML trainCategory, railjson speed tag); repeat "
+                                                "per train type. See docs/importing.md.")
 
 
 def _need_out(out: Path | None) -> Path:
@@ -30,7 +33,16 @@ def _need_out(out: Path | None) -> Path:
     return out
 
 
-def _report(summary) -> None:
+def _report(run) -> None:
+    """Run an import and print its summary; every problem of a source on its own line, then the error."""
+    from ..errors import SourceProblems
+
+    try:
+        summary = run()
+    except SourceProblems as e:
+        for p in e.problems:
+            typer.echo(f"  - {p}", err=True)
+        raise
     for line in summary.lines():
         typer.echo(line)
 
@@ -54,18 +66,22 @@ def import_csv_cmd(
         from ..errors import InputError
 
         raise InputError("give the CSV folder (SRC_DIR), or --template DIR to write empty templates")
-    _report(import_csv(src, _need_out(out), force=force))
+    _report(lambda: import_csv(src, _need_out(out), force=force))
 
 
 @import_app.command("railjson")
 def import_railjson_cmd(
     infra: Path = typer.Argument(..., help="OSRD railjson infrastructure file (.json)."),
     path: str = typer.Option(..., "--path", help="Operational point ids along the line, in running order "
-                                                 "(down direction), comma-separated: OP1,OP2,..."),
+                                                 "(down direction), comma-separated: OP1,OP2,...; a track "
+                                                 "section id stands for its whole section (for infras "
+                                                 "without operational points)."),
     rolling_stock: list[Path] = typer.Option([], "--rolling-stock", help="OSRD rolling-stock JSON; repeat "
                                                                          "for several train types."),
     line_id: str = typer.Option(None, "--line-id", help="Line id (default: [line] line_id of --extra, else "
-                                                        "the infra file's stem)."),
+                                                        "the infra file's stem and the first and last point "
+                                                        "of --path)."),
+    category: list[str] = _CATEGORY,
     extra: Path = _EXTRA,
     out: Path = _OUT,
     force: bool = _FORCE,
@@ -74,8 +90,8 @@ def import_railjson_cmd(
     from planner.line.importers.railjson import import_railjson
 
     ops = [p.strip() for p in path.split(",") if p.strip()]
-    _report(import_railjson(infra, ops, rolling_stock, _need_out(out), extra=extra, line_id=line_id,
-                            force=force))
+    _report(lambda: import_railjson(infra, ops, rolling_stock, _need_out(out), extra=extra, line_id=line_id,
+                                    force=force, categories=category))
 
 
 @import_app.command("railml")
@@ -85,6 +101,9 @@ def import_railml_cmd(
                                                  "sequence, make the line."),
     rolling_stock: list[Path] = typer.Option([], "--rolling-stock", help="OSRD rolling-stock JSON; repeat "
                                                                          "for several train types."),
+    line_id: str = typer.Option(None, "--line-id", help="Line id (default: [line] line_id of --extra, else "
+                                                        "the railML line id)."),
+    category: list[str] = _CATEGORY,
     extra: Path = _EXTRA,
     out: Path = _OUT,
     force: bool = _FORCE,
@@ -92,7 +111,8 @@ def import_railml_cmd(
     """Import a railML 2.x line: tracks, gradient and speed changes, signals, balises, OCPs."""
     from planner.line.importers.railml import import_railml
 
-    _report(import_railml(file, line, rolling_stock, _need_out(out), extra=extra, force=force))
+    _report(lambda: import_railml(file, line, rolling_stock, _need_out(out), extra=extra, force=force,
+                                  new_line_id=line_id, categories=category))
 
 
 @export_app.command("csv")

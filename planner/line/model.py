@@ -326,8 +326,6 @@ class Line:
 
 def _lookup(items, attr: str, text: str, what: str, line_id: str):
     """Exact id, else the unique case-insensitive match; else UnknownNameError with a suggestion."""
-    import difflib
-
     for x in items:
         if getattr(x, attr) == text:
             return x
@@ -335,8 +333,14 @@ def _lookup(items, attr: str, text: str, what: str, line_id: str):
     folded = [x for x in items if str(getattr(x, attr)).casefold() == str(text).casefold()]
     if len(folded) == 1:
         return folded[0]
+    raise UnknownNameError(f"unknown {what} {text!r} on line {line_id}{did_you_mean(text, ids)} "
+                           f"(known: {', '.join(ids)})")
+
+
+def did_you_mean(text: str, ids) -> str:
+    """``"; did you mean X?"`` for the id closest to ``text`` (case-insensitive), or ``""`` when none is close."""
+    import difflib
+
+    ids = [str(i) for i in ids]
     close = difflib.get_close_matches(str(text).upper(), [i.upper() for i in ids], n=1, cutoff=0.5)
-    hint = ""
-    if close:
-        hint = f"; did you mean {next(i for i in ids if i.upper() == close[0])}?"
-    raise UnknownNameError(f"unknown {what} {text!r} on line {line_id}{hint} (known: {', '.join(ids)})")
+    return f"; did you mean {next(i for i in ids if i.upper() == close[0])}?" if close else ""

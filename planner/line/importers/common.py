@@ -11,8 +11,10 @@ The ``--extra`` TOML is :data:`EXTRA_EXAMPLE` (every section optional).
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import re
 import shutil
 import tempfile
 import tomllib
@@ -24,7 +26,7 @@ import pandas as pd
 import pyarrow as pa
 
 from planner.io.parquet import write_parquet_atomic
-from planner.errors import SourceError, Violation
+from planner.errors import SourceError, SourceProblems, Violation
 from planner.line.schema import TABLES
 
 EXTRA_EXAMPLE = """
@@ -42,6 +44,12 @@ name = "Coast"
 platform_length_m = 210.0
 stop_down_m = 1300.0         # chainage of the stop marker (train front), direction down
 stop_up_m = 1100.0
+
+[stations.HILL]              # a station the source does not have (no OCP / operational point there):
+position_m = 2500.0          #  give its chainage (railML: the absPos km post when every track has one)
+
+[categories]                 # train type = the source's train category (railML speed trainCategory,
+EMU10 = "passenger"          #  railjson speed_limit_by_tag); as --category EMU10=passenger
 
 [rolling_stock.NAME]         # by the source's name; any rolling_stock column, e.g.
 train_type = "EMU10"         # default: the source's name (ids become file and partition names)
@@ -75,6 +83,8 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "has_beacon": (False, "no ATS-P beacon sends an imported restriction's pattern"),
     "line_max_speed": ("highest limit", "line max_speed_kmh = the highest speed limit on the path"),
     "line_name": ("line id", "display name = the line id"),
+    "line_id": ("source and path", "line id = railML: the <line> id; railjson: the file stem and the first and "
+                                   "last point of --path (two paths of one file never share an id)"),
     "beacons": ("none", "no ATS-P beacons (add [[beacons]] to the TOML)"),
     "timetable": ("empty", "no trains (add [[timetable]] rows to the TOML)"),
     "missing_gradient": (0.0, "gradient of a railML track with no gradientChange [‰] (level)"),
@@ -95,13 +105,13 @@ DEFAULTS: dict[str, tuple[object, str]] = {
 }
 """Every default an importer may use: key → (value, what it means). ``[defaults]`` in the TOML overrides."""
 
-OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_name", "beacons", "timetable"}
+OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_name", "line_id", "beacons", "timetable"}
 """Defaults with one value that ``[defaults]`` may replace (the others describe a rule or an absence)."""
 
 _ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema)  # train_type renames
-_SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable"}
+_SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable", "categories"}
 _LINE_KEYS = {"line_id", "name", "max_speed_kmh"}
-_STATION_KEYS = {"station_id", "name", "platform_length_m", "stop_down_m", "stop_up_m"}
+_STATION_KEYS = {"station_id", "name", "platform_length_m", "stop_down_m", "stop_up_m", "position_m"}
 _BEACON_KEYS = {f.name for f in TABLES["beacons"].schema} | {"at"}
 _TIMETABLE_KEYS = {f.name for f in TABLES["timetable"].schema}
 
@@ -116,6 +126,8 @@ class ImportSummary:
     rows: dict[str, int] = field(default_factory=dict)
     defaults: dict[str, list[str]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    unused: list[str] = field(default_factory=list)
+    """What the source gives that the line database does not take (named, never dropped silently)."""
     extra: "Extras | None" = None
     describe: Callable[[Violation], str] = str
     """How a violation of the written tables is named in terms of the source (CSV: file and line)."""
@@ -141,6 +153,7 @@ class ImportSummary:
             tail = f" for {', '.join(where[:8])}{' …' if len(where) > 8 else ''}" if where else ""
             out.append(f"    - {label}{tail}")
         out += [f"  note: {n}" for n in self.notes]
+        out += [f"  not used: {n}" for n in self.unused]
         return out
 
 
@@ -156,6 +169,7 @@ class Extras:
     rolling_stock: dict = field(default_factory=dict)
     beacons: list = field(default_factory=list)
     timetable: list = field(default_factory=list)
+    categories: dict = field(default_factory=dict)
 
     def err(self, where: str, message: str) -> SourceError:
         return SourceError(f"{self.path}: {where}: {message}")
@@ -189,6 +203,9 @@ def load_extras(path: str | Path | None) -> Extras:
     ex.stations = data.get("stations", {})
     for k, v in ex.stations.items():
         _check_keys(ex, f"[stations.{k}]", v, _STATION_KEYS)
+    ex.categories = data.get("categories", {})
+    if not isinstance(ex.categories, dict) or not all(isinstance(v, str) for v in ex.categories.values()):
+        raise ex.err("[categories]", 'map train types to the source\'s category names, e.g. EMU = "passenger"')
     ex.rolling_stock = data.get("rolling_stock", {})
     for k, v in ex.rolling_stock.items():
         _check_keys(ex, f"[rolling_stock.{k}]", v, set(_ROLLING_STOCK_COLS))
@@ -239,12 +256,25 @@ def line_table(line_id: str, start_m: float, end_m: float, limits: pd.DataFrame,
 def station_table(found: list[dict], start_m: float, end_m: float, s: ImportSummary) -> pd.DataFrame:
     """stations.parquet from located stations ``{source_id, name, position_m[, platform_length_m,
     stop_down_m, stop_up_m]}``, the TOML's [stations.*] and the defaults."""
+    from planner.line.model import did_you_mean
+
     ex = s.extra or Extras()
     known = {st["source_id"] for st in found}
-    for k in ex.stations:
-        if k not in known:
-            raise ex.err(f"[stations.{k}]", f"no station {k!r} on the imported path; stations are "
-                                            f"{', '.join(sorted(known))}")
+    found = list(found)
+    for k, v in ex.stations.items():
+        if k in known:
+            continue
+        if "position_m" not in v:
+            listed = ", ".join(sorted(known)) or "none (the source has no stations on the path)"
+            raise ex.err(f"[stations.{k}]", f"no station {k!r} on the imported path{did_you_mean(k, known)}; "
+                                            f"stations are {listed}; to add a station the source does not "
+                                            f"have, give its position_m")
+        pos = number(v["position_m"], f"{ex.path}: [stations.{k}].position_m", "chainage in metres")
+        if not start_m <= pos <= end_m:
+            raise ex.err(f"[stations.{k}].position_m", f"{pos!r} is off the imported line [{start_m!r}, "
+                                                       f"{end_m!r}] m")
+        found.append(dict(source_id=k, name=k, position_m=pos))
+        s.notes.append(f"station {k} added at {pos:g} m from [stations.{k}] position_m (not in the source)")
     rows = []
     for st in sorted(found, key=lambda r: r["position_m"]):
         sid = st["source_id"]
@@ -253,7 +283,7 @@ def station_table(found: list[dict], start_m: float, end_m: float, s: ImportSumm
         if plat is None:
             plat = s.default("platform_length_m", sid)
         plat = number(plat, f"station {sid}: platform_length_m", positive=True)
-        pos = st["position_m"]
+        pos = number(over["position_m"], f"station {sid}: position_m")
         down, up = over.get("stop_down_m"), over.get("stop_up_m")
         if down is None or up is None:
             s.default("stop_markers", sid)
@@ -311,6 +341,70 @@ def timetable_table(s: ImportSummary) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=cols)
 
 
+class Problems:
+    """Every problem of one source file: element-level refusals are collected, then raised together.
+
+    ``with problems.each(): ...`` around the reading of one element keeps the
+    run going after a :class:`SourceError`; :meth:`check` raises them all at a
+    phase boundary (one problem: its own line; several: :class:`SourceProblems`).
+    """
+
+    def __init__(self, source: str):
+        self.source, self.items = source, []
+
+    @contextlib.contextmanager
+    def each(self):
+        try:
+            yield
+        except SourceProblems as e:
+            self.items += e.problems
+        except SourceError as e:
+            self.items.append(str(e))
+
+    def check(self) -> None:
+        if len(self.items) == 1:
+            raise SourceError(self.items[0])
+        if self.items:
+            raise SourceProblems(self.source, self.items)
+
+
+def category_map(s: ImportSummary, given: list[str] | None) -> dict[str, str]:
+    """Train type → the source's train category: the TOML's ``[categories]``, then ``--category TYPE=CAT``."""
+    out = dict((s.extra or Extras()).categories)
+    for g in given or []:
+        typ, sep, cat = str(g).partition("=")
+        if not sep or not typ.strip() or not cat.strip():
+            raise SourceError(f"--category: {g!r} must be TYPE=CATEGORY (a train type and the source's train "
+                              f"category / speed tag, e.g. EMU=passenger)")
+        out[typ.strip()] = cat.strip()
+    return out
+
+
+def check_categories(mapping: dict[str, str], rolling_stock: pd.DataFrame, offered: set[str], what: str,
+                     s: ImportSummary) -> None:
+    """Refuse a mapping that names an unknown train type or category; name the categories no type takes."""
+    from planner.line.model import did_you_mean
+
+    types = [str(t) for t in rolling_stock["train_type"]]
+    for typ, cat in mapping.items():
+        if typ not in types:
+            raise SourceError(f"--category / [categories]: no train type {typ!r}{did_you_mean(typ, types)} "
+                              f"(train types: {', '.join(types)})")
+        if cat not in offered:
+            raise SourceError(f"--category / [categories]: {typ}={cat}: the source has no {what} {cat!r}"
+                              f"{did_you_mean(cat, offered)} (offered: {', '.join(sorted(offered)) or 'none'})")
+    left = sorted(offered - set(mapping.values()))
+    if left:
+        s.unused.append(f"speed limits of {what} {', '.join(left)} (no train type maps to them; "
+                        f"--category TYPE=CATEGORY)")
+
+
+def path_id(text: str) -> str:
+    """``text`` made a valid line id (file and partition name): other characters become ``_``, 64 at most."""
+    t = re.sub(r"[^A-Za-z0-9._-]+", "_", str(text)).strip("._-") or "line"
+    return t[:64]
+
+
 # --------------------------------------------------------------------------- writing
 def to_arrow(name: str, df: pd.DataFrame) -> pa.Table:
     """A DataFrame of table ``name`` as a pyarrow table with the declared schema (optional columns may be absent)."""
@@ -352,10 +446,12 @@ def write_line(tables: dict[str, pd.DataFrame | pa.Table], out: str | Path, summ
             write_parquet_atomic(table, tmp / TABLES[name].file)
             summary.rows[name] = table.num_rows
         problems = check_line(tmp)
-        if problems:
-            more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
-            raise SourceError(f"{summary.source}: the imported line would be invalid: {summary.describe(problems[0])}{more}; "
+        if len(problems) == 1:
+            raise SourceError(f"{summary.source}: the imported line would be invalid: {summary.describe(problems[0])}; "
                               f"fix the source or the --extra TOML (rules: docs/line-database.md)")
+        if problems:
+            raise SourceProblems(f"{summary.source}: the imported line would be invalid (rules: "
+                                 f"docs/line-database.md)", [summary.describe(p) for p in problems])
         os.chmod(tmp, 0o755)
         if out.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))

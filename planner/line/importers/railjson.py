@@ -38,13 +38,17 @@ from planner.line.schema import MAX_GRADIENT_PERMIL, TABLES
 from planner.line.importers.common import (
     ImportSummary,
     beacon_table,
+    category_map,
+    check_categories,
     line_table,
     load_extras,
     number,
+    path_id,
     station_table,
     timetable_table,
     write_line,
 )
+from planner.line.importers.stock import extend_at_constant_power, unused_fields
 
 SWITCH_LINKS = {
     "link": [("A", "B")],
@@ -242,13 +246,27 @@ class _Path:
 
 
 def _ops(src: _Src, net: _Network, names: list[str]):
+    """The --path points: (id, name, locations, is an operational point); a track section id stands for its
+    whole section (a waypoint, not a station)."""
+    from planner.line.model import did_you_mean
+
     by_id = {}
     for i, op in enumerate(src.items("operational_points")):
         by_id[str(op.get("id"))] = (i, op)
     out = []
     for n in names:
+        if n not in by_id and n in net.tracks:
+            out.append((n, n, [(n, 0.0), (n, net.length(n))], False))
+            continue
         if n not in by_id:
-            raise SourceError(f"{src.fname}: --path: unknown operational point {n!r} (operational_points ids)")
+            if not by_id:
+                raise SourceError(f"{src.fname}: --path: {n!r}: this file has no operational points; name track "
+                                  f"sections in --path{did_you_mean(n, net.tracks)} (track_sections ids) and add "
+                                  f"stations with [stations.X] position_m in --extra")
+            ids = sorted(by_id)
+            listed = ", ".join(ids[:30]) + (f" … ({len(ids)} in all)" if len(ids) > 30 else "")
+            raise SourceError(f"{src.fname}: --path: unknown operational point {n!r}{did_you_mean(n, ids)} "
+                              f"(operational_points ids: {listed}; or a track section id)")
         i, op = by_id[n]
         parts = src.get("operational_points", i, op, "parts")
         if not isinstance(parts, list) or not parts:
@@ -260,7 +278,7 @@ def _ops(src: _Src, net: _Network, names: list[str]):
                                   f"{{\"track\", \"position\"}}")
         locs = [net.locate(f"operational_points[{i}].parts", k, p) for k, p in enumerate(parts)]
         name = ((op.get("extensions") or {}).get("identifier") or {}).get("name") or n
-        out.append((n, str(name), locs))
+        out.append((n, str(name), locs, True))
     return out
 
 
@@ -268,7 +286,7 @@ def build_path(src: _Src, net: _Network, ops) -> tuple[_Path, dict[str, float]]:
     if len(ops) < 2:
         raise SourceError(f"{src.fname}: --path: name at least two operational points, in running order")
     seen = set()
-    for n, _, _ in ops:
+    for n, *_ in ops:
         if n in seen:
             raise SourceError(f"{src.fname}: --path: operational point {n!r} appears twice")
         seen.add(n)
@@ -277,7 +295,7 @@ def build_path(src: _Src, net: _Network, ops) -> tuple[_Path, dict[str, float]]:
     starts = [(t, p, None) for t, p in first]
     at: dict[str, tuple[str, float]] = {}
     direction = None
-    for (n1, _, _), (n2, _, locs2) in zip(ops[:-1], ops[1:]):
+    for (n1, *_), (n2, _, locs2, _) in zip(ops[:-1], ops[1:]):
         found = net.route(starts, locs2)
         if found is None:
             raise SourceError(f"{src.fname}: --path: no connected route from operational point {n1!r} to "
@@ -347,10 +365,12 @@ def _segments(src: _Src, net: _Network, path: _Path, key: str, value: str, s: Im
     return rows
 
 
-def _speed_limits(src: _Src, path: _Path, s: ImportSummary) -> pd.DataFrame:
-    rows, tags = [], set()
+def _speed_limits(src: _Src, path: _Path, s: ImportSummary, categories: dict[str, str]) -> tuple[pd.DataFrame, set]:
+    """speed_limits rows (general, and per train type through ``categories`` from speed_limit_by_tag), and the
+    tags of the sections on the path."""
+    rows, tags, higher = [], set(), 0
     for i, sec in enumerate(src.items("speed_sections")):
-        tags |= set((sec.get("speed_limit_by_tag") or {}).keys())
+        by_tag = sec.get("speed_limit_by_tag") if isinstance(sec.get("speed_limit_by_tag"), dict) else {}
         v = sec.get("speed_limit")
         ranges = src.get("speed_sections", i, sec, "track_ranges")
         if not isinstance(ranges, list):
@@ -369,22 +389,28 @@ def _speed_limits(src: _Src, path: _Path, s: ImportSummary) -> pd.DataFrame:
                 on_path.append((ca, cb, dirn))
         if not on_path:
             continue
-        if v is None:
-            s.notes.append(f"speed section {sec.get('id')} has no speed_limit (only per tag): not imported")
-            continue
-        v = number(v, src.where("speed_sections", i, sec, "speed_limit"), positive=True)
-        if v > MAX_SPEED_MS:
-            raise SourceError(f"{src.where('speed_sections', i, sec, 'speed_limit')}: {v!r} m/s is "
-                              f"{v * 3.6:.0f} km/h; railjson speeds are in m/s: was it given in km/h?")
-        for ca, cb, dirn in on_path:
-            rows.append(dict(start_m=ca, end_m=cb, limit_kmh=_r(v * 3.6), direction=dirn, train_type=None,
-                             kind=s.default("speed_limit_kind", str(sec.get("id"))),
-                             has_beacon=s.default("has_beacon", str(sec.get("id")))))
-    if tags:
-        s.notes.append(f"speed_limit_by_tag not imported (tags {', '.join(sorted(tags))}); add per-train-type "
-                       f"limits to speed_limits if they matter")
-    rows.sort(key=lambda r: (r["start_m"], r["end_m"]))
-    return pd.DataFrame(rows, columns=[f.name for f in TABLES["speed_limits"].schema])
+        tags |= set(by_tag)
+        limits = {None: v} if v is not None else {}  # train type (None = every one) -> m/s
+        limits.update({typ: by_tag[tag] for typ, tag in categories.items() if tag in by_tag})
+        for typ, x in limits.items():
+            field = "speed_limit" if typ is None else f"speed_limit_by_tag.{categories[typ]}"
+            x = number(x, src.where("speed_sections", i, sec, field), positive=True)
+            if x > MAX_SPEED_MS:
+                raise SourceError(f"{src.where('speed_sections', i, sec, field)}: {x!r} m/s is "
+                                  f"{x * 3.6:.0f} km/h; railjson speeds are in m/s: was it given in km/h?")
+            if typ is not None and v is not None and x >= float(v):
+                higher += x > float(v)
+                continue
+            for ca, cb, dirn in on_path:
+                rows.append(dict(start_m=ca, end_m=cb, limit_kmh=_r(x * 3.6), direction=dirn, train_type=typ,
+                                 kind=s.default("speed_limit_kind", str(sec.get("id"))),
+                                 has_beacon=s.default("has_beacon", str(sec.get("id")))))
+    if higher:
+        s.notes.append(f"{higher} tag speeds above their section's speed_limit: the lower (speed_limit) holds")
+    pairs = ", ".join(sorted(f"{t} = {g}" for t, g in categories.items()))
+    s.notes += [f"per-train-type speed limits from speed_limit_by_tag: {pairs}"] if categories else []
+    rows.sort(key=lambda r: (r["start_m"], r["end_m"], r["train_type"] or ""))
+    return pd.DataFrame(rows, columns=[f.name for f in TABLES["speed_limits"].schema]), tags
 
 
 def _points(src: _Src, net: _Network, path: _Path, key: str, located: dict[str, float]) -> list[tuple]:
@@ -463,11 +489,14 @@ def read_rolling_stock(path: str | Path, s: ImportSummary) -> tuple[str, dict, l
     efforts = [number(x, f"{w}.max_efforts[{k}]", "newtons") for k, x in enumerate(efforts)]
     if speeds[0] != 0 or any(y <= x for x, y in zip(speeds[:-1], speeds[1:])):
         raise SourceError(f"{w}.speeds: must start at 0 and increase strictly")
-    if speeds[-1] < vmax:
-        raise SourceError(f"{w}.speeds: ends at {speeds[-1]!r} m/s, below max_speed {vmax!r} m/s; extend "
-                          f"the curve to the maximum speed")
     if min(efforts) < 0:
         raise SourceError(f"{w}.max_efforts: efforts must be >= 0 N")
+    if speeds[-1] < vmax:
+        added = extend_at_constant_power(speeds, efforts, vmax)
+        s.notes.append(f"{fname}: effort curve ends at {speeds[-1 - len(added)]:g} m/s, below max_speed {vmax:g} "
+                       f"m/s: extended at the constant power of its last point (F = F_last·v_last / v), "
+                       f"{len(added)} points up to {efforts[-1] / 1000:.3f} kN at max_speed")
+    s.unused += [f"{fname}: {u}" for u in unused_fields(rs, mode)]
     kmh = lambda v: _r(v * 3.6)  # noqa: E731
     row = dict(train_type=name, length_m=length, empty_mass_t=_r(mass / 1000),
                full_load_mass_t=None,
@@ -513,19 +542,25 @@ def rolling_stock_tables(paths: list, s: ImportSummary) -> tuple[pd.DataFrame, p
 # --------------------------------------------------------------------------- entry point
 def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list, out: str | Path, *,
                     extra: str | Path | None = None, line_id: str | None = None,
-                    force: bool = False) -> ImportSummary:
-    """Import the line along ``path_ops`` of the railjson ``infra`` into the line database ``out``."""
+                    force: bool = False, categories: list[str] | None = None) -> ImportSummary:
+    """Import the line along ``path_ops`` of the railjson ``infra`` into the line database ``out``.
+
+    ``categories`` are ``TYPE=TAG`` mappings (``--category``): train type TYPE takes the
+    ``speed_limit_by_tag`` limits of TAG.
+    """
     fname, data = load_json(infra)
     s = ImportSummary(source=str(infra), extra=load_extras(extra))
+    cats = category_map(s, categories)
     src = _Src(fname, data)
     net = _Network(src)
     ops = _ops(src, net, path_ops)
-    path, op_at = build_path(src, net, ops)
+    path, at = build_path(src, net, ops)
+    op_at = {n: at[n] for n, _, _, is_op in ops if is_op}
     located: dict[str, float] = dict(op_at)
     gradients = pd.DataFrame(_segments(src, net, path, "slopes", "gradient", s),
                              columns=["start_m", "end_m", "gradient_permil"])
     curves = pd.DataFrame(_segments(src, net, path, "curves", "radius", s), columns=["start_m", "end_m", "radius_m"])
-    limits = _speed_limits(src, path, s)
+    limits, tags = _speed_limits(src, path, s, cats)
     signals = pd.DataFrame(_points(src, net, path, "signals", located),
                            columns=["signal_id", "position_m", "direction"]).sort_values(
                                ["position_m", "signal_id"], kind="stable")
@@ -533,10 +568,18 @@ def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list,
     if detectors:
         s.notes.append(f"{len(detectors)} detectors on the path: schema v1 has no train-detection table; "
                        f"name them in [[beacons]] at = ... where an ATS-P beacon stands")
-    stations = station_table([dict(source_id=n, name=name, position_m=op_at[n]) for n, name, _ in ops],
-                             0.0, path.length, s)
+    stations = station_table([dict(source_id=n, name=name, position_m=op_at[n]) for n, name, _, is_op in ops
+                              if is_op], 0.0, path.length, s)
+    if len(stations) < 2:
+        raise SourceError(f"{src.fname}: --path: {len(stations)} operational point(s) on the path; a line needs two "
+                          f"stations: add stations with [stations.X] position_m in --extra (chainage 0 … "
+                          f"{path.length:g} m from the first track section's entry)")
     rs, traction = rolling_stock_tables(rolling_stock, s)
-    default_id = line_id or (s.extra.line.get("line_id") if s.extra else None) or Path(infra).stem
+    check_categories(cats, rs, tags, "speed tag", s)
+    default_id = line_id or (s.extra.line.get("line_id") if s.extra else None)
+    if default_id is None:  # two paths of one file never share an id
+        default_id = path_id(f"{Path(infra).stem}_{path_ops[0]}_{path_ops[-1]}")
+        s.default("line_id", default_id)
     tables = {
         "line": line_table(str(default_id), 0.0, _r(path.length), limits, s),
         "stations": stations,
