@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 
 from linedb import default_tables
@@ -89,6 +89,14 @@ def _value(draw, typ, current, nullable: bool):
     return v
 
 
+def _rename(col: str, old: str, new: str):
+    """The edit that renames id ``old`` to ``new`` in every table that names it."""
+    tables = default_tables()
+    for t in ID_COLUMNS[col]:
+        tables[t].loc[tables[t][col] == old, col] = new
+    return f"rename {col} {old!r} -> {new!r}", tables, {}
+
+
 @st.composite
 def edits(draw):
     """One edit: (description, tables, job parameter overrides)."""
@@ -101,11 +109,7 @@ def edits(draw):
     if kind == "rename":
         col = draw(st.sampled_from(sorted(ID_COLUMNS)))
         olds = sorted({v for t in ID_COLUMNS[col] for v in tables[t][col].dropna()})
-        old = draw(st.sampled_from(olds))
-        new = draw(st.one_of(st.sampled_from(ODD_TEXT), st.text(max_size=6)))
-        for t in ID_COLUMNS[col]:
-            tables[t].loc[tables[t][col] == old, col] = new
-        return f"rename {col} {old!r} -> {new!r}", tables, {}
+        return _rename(col, draw(st.sampled_from(olds)), draw(st.one_of(st.sampled_from(ODD_TEXT), st.text(max_size=6))))
     name = draw(st.sampled_from(sorted(n for n in tables if n in TABLES and n not in NO_NETWORK)))
     df = tables[name]
     if kind == "empty":
@@ -194,6 +198,11 @@ def root(tmp_path_factory) -> Path:
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
                                  HealthCheck.data_too_large])
 @given(edit=edits())
+# the probes that crashed the changes step (issue 32): unicode, path-like and HTML-like station ids, no timetable
+@example(edit=_rename("station_id", "B", "駅"))
+@example(edit=_rename("station_id", "B", "../x"))
+@example(edit=_rename("station_id", "B", "<b>x</b>"))
+@example(edit=("empty timetable", default_tables() | {"timetable": default_tables()["timetable"].iloc[0:0]}, {}))
 def test_any_edit_publishes_or_refuses_in_one_line_and_reverting_publishes_again(root, edit):
     what, tables, overrides = edit
     try:
