@@ -175,11 +175,12 @@ def _write(project: Path, tables: dict, overrides: dict) -> None:
 
 
 def _outcome(project: Path) -> str:
+    """``published``, ``up to date`` or ``refused: <the first line of the error>``."""
     try:
         s = run(project)
     except PlannerError as e:
         assert str(e).strip(), "a refusal must say why"
-        return "refused"
+        return "refused: " + str(e).strip().splitlines()[0]
     return "up to date" if s.up_to_date else "published"
 
 
@@ -213,4 +214,4 @@ def test_any_edit_publishes_or_refuses_in_one_line_and_reverting_publishes_again
     back = _outcome(root)
     assert back in ("published", "up to date"), f"after reverting {what}: {back}"
     if RANDOM or os.environ.get("PLANNER_EDIT_EXAMPLES"):
-        print(f"{got:10} {what}", flush=True)
+        print(f"{what}\n    {got}", flush=True)
