@@ -63,6 +63,33 @@ def test_every_out_folder_is_checked(tmp_path, cmd):
     one_line_error(run(*args), "--out", str(f))
 
 
+@pytest.mark.parametrize("where", ["{f}/sub", "/proc/x"])  # below a regular file; a pseudo file system
+@pytest.mark.parametrize("cmd", [
+    ["graph", SAMPLE, "--out", "{out}"],
+    ["export", "csv", SAMPLE, "--out", "{out}"],
+    ["import", "csv", "{d}", "--out", "{out}"],
+    ["import", "csv", "--template", "{out}"],
+    ["import", "railjson", "{d}/infra.json", "--path", "A,B", "--rolling-stock", "{d}/rs.json", "--out", "{out}"],
+    ["import", "railml", "{d}/line.xml", "--line", "L1", "--rolling-stock", "{d}/rs.json", "--out", "{out}"],
+    ["diff", "{d}", "{d}", "--out", "{out}"],
+    ["schema", "--write", "{out}/line-database.md"],
+    ["datasets", "--write", "{out}/README.md"],
+])
+def test_every_other_output_path_is_checked_before_anything_runs(tmp_path, cmd, where, monkeypatch):
+    import planner.report.changes
+    import planner.report.train_graph
+
+    _forbid(monkeypatch, planner.report.train_graph, "graph_data")
+    _forbid(monkeypatch, planner.report.changes, "compare_runs")
+    f = tmp_path / "file"
+    f.write_text("x")
+    out = where.format(f=f)
+    args = [str(a).format(out=out, d=tmp_path) for a in cmd]
+    err = one_line_error(run(*args), out)
+    assert "not a folder" in err or "cannot write" in err
+    assert f.read_text() == "x"
+
+
 def test_runtime_plot_in_proc_fails_before_computing(monkeypatch):
     import planner.api
 
@@ -238,3 +265,16 @@ def test_conflicts_command_output_has_no_plus_zero(tmp_path):
     r = run("conflicts", line, "--out", tmp_path / "out")
     assert r.exit_code == 0, r.output
     assert "#0: 101 before 202" in r.stdout and "(+" not in r.stdout
+
+
+def test_an_os_error_while_writing_is_one_line(tmp_path, monkeypatch):
+    """A fault no up-front check can see (the disk fills while writing) is one line, not a traceback."""
+    import errno
+
+    import planner.io.atomic
+
+    def full(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "x.md"))
+
+    monkeypatch.setattr(planner.io.atomic, "write_bytes_atomic", full)
+    one_line_error(run("schema", "--write", tmp_path / "x.md"), "No space left on device", str(tmp_path / "x.md"))

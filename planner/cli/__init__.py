@@ -22,6 +22,11 @@ class _Group(typer.core.TyperGroup):
         except PlannerError as e:
             typer.echo(f"error: {e}", err=True)
             raise typer.Exit(e.exit_code) from None
+        except OSError as e:  # an environment fault no up-front check could see (disk full, a folder gone meanwhile)
+            where = f" ({e.filename})" if e.filename else ""
+            typer.echo(f"error: {e.strerror or e}{where}: a fault of the machine, not of the input; free space, "
+                       "fix the permissions or choose another path, and run again", err=True)
+            raise typer.Exit(1) from None
 
 
 app = typer.Typer(

@@ -20,7 +20,9 @@ def diff(
     from planner.io.atomic import write_bytes_atomic
     from planner.report.changes import compare_runs, write_changes
     from planner.report.changes_html import changes_html
+    from .checks import check_out_dir
 
+    check_out_dir(out, "--out", "changes dataset and page")
     result = compare_runs(run_a, run_b, threshold_s=threshold_s)
     for ch in result:
         for msg in ch.summary_lines():

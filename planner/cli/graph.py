@@ -28,8 +28,11 @@ def graph(
     from planner.report.train_graph import graph_data, parse_hhmm
     from planner.report.train_graph_page import write_page
 
+    from .checks import check_out_dir
+
     if fmt not in ("svg", "png"):
         raise InputError(f"--format must be svg or png, not {fmt!r}")
+    check_out_dir(out, "--out", "train graph")
     t0 = parse_hhmm(t_from, "--from") if t_from else None
     t1 = parse_hhmm(t_to, "--to") if t_to else None
     line = load_line(line_dir)

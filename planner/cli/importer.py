@@ -6,6 +6,7 @@ from pathlib import Path
 import typer
 
 from . import app
+from .checks import check_out_dir
 
 import_app = typer.Typer(
     name="import", no_args_is_help=True, add_completion=False, rich_markup_mode=None,
@@ -30,6 +31,7 @@ def _need_out(out: Path | None) -> Path:
         from ..errors import InputError
 
         raise InputError("--out is required: name the line folder to create, e.g. --out lines/myline")
+    check_out_dir(out, "--out", "line database")
     return out
 
 
@@ -59,6 +61,7 @@ def import_csv_cmd(
     from planner.line.importers.csv import import_csv, write_templates
 
     if template is not None:
+        check_out_dir(template, "--template", "CSV templates")
         for p in write_templates(template):
             typer.echo(f"wrote {p}")
         return
@@ -123,5 +126,6 @@ def export_csv_cmd(
     """Write every table of a line database as CSV (what `planner import csv` reads back identically)."""
     from planner.line.importers.csv import export_csv
 
+    check_out_dir(out, "--out", "CSV files")
     for p in export_csv(line_dir, out):
         typer.echo(f"wrote {p}")

@@ -16,7 +16,9 @@ def schema_cmd(
     """Print the line-database schema: every table, column, unit and validation rule."""
     from planner.io.atomic import write_bytes_atomic
     from planner.line.schema_doc import line_database_doc
+    from .checks import check_out_file
 
+    check_out_file(write, "--write", ".md", "schema document")
     text = line_database_doc()
     if write is None:
         typer.echo(text, nl=False)
