@@ -300,3 +300,34 @@ def test_run_overview_says_development_key_instead_of_failed(tmp_path, keys, sma
     assert status[dev.name].startswith("verified, development key: not for service")
     assert status[prod.name].startswith("verified (partial") and "development" not in status[prod.name]
     assert status[bad.name].startswith("FAILED")
+
+
+@pytest.mark.parametrize("where", ["dev-key-folder", "marked-copy"])
+def test_a_development_key_cannot_sign_production_bundles(tmp_path, where):
+    """`bundle build --key` with the key `planner run` made for test runs (in its .dev-key folder, or copied
+    elsewhere with its mark) refuses to stamp the bundles production; --development-key builds them."""
+    import shutil
+
+    from linedb import write_line_db
+
+    line_dir = write_line_db(tmp_path / "tiny", nodes=None, edges=None)
+    priv, _ = signing.generate_keypair(tmp_path / "outputs" / ".dev-key", development=True)
+    if where == "marked-copy":
+        shutil.copytree(priv.parent, tmp_path / "keys")
+        priv = tmp_path / "keys" / priv.name
+    assert signing.is_development_key(priv)
+    args = ("bundle", "build", line_dir, "--out", tmp_path / "out", "--key", priv, "--train-type", "EMU6",
+            "--direction", "up")
+    r = run_cli(*args)
+    err = r.output.strip()
+    assert r.exit_code == 1 and err.startswith("error: --key") and "\n" not in err, r.output
+    assert "development key" in err and "--development-key" in err and not list((tmp_path / "out").glob("*"))
+    r = run_cli(*args, "--development-key")
+    assert r.exit_code == 0 and "development key" in r.output, r.output
+
+
+def test_a_production_key_beside_a_foreign_mark_is_not_development(tmp_path):
+    """The mark names its key: a production key whose folder holds another key's mark stays production."""
+    priv, _ = signing.generate_keypair(tmp_path / "k")
+    (tmp_path / "k" / signing.DEV_MARKER_NAME).write_text("0" * 64 + "\n")
+    assert not signing.is_development_key(priv)

@@ -37,11 +37,15 @@ ENV_SIGNING_KEY = "PLANNER_SIGNING_KEY"
 """Environment variable holding the *path* of the private key file (never the key itself)."""
 SIGNATURE_BYTES = 64
 """Length of an Ed25519 signature [bytes] (RFC 8032 §5.1.6)."""
+DEV_KEY_DIR = ".dev-key"
+"""Folder (under a job's output root) of the development key ``planner run`` makes for test runs."""
+DEV_MARKER_NAME = "DEVELOPMENT_KEY"
+"""A file beside a development key naming its public key id: the mark travels with the key folder."""
 _MAX_KEY_FILE_BYTES = 64 * 1024
 """A PEM Ed25519 key is ~120 bytes; anything much larger is not a key file."""
 
 
-def generate_keypair(directory: str | os.PathLike) -> tuple[Path, Path]:
+def generate_keypair(directory: str | os.PathLike, *, development: bool = False) -> tuple[Path, Path]:
     """Write a new Ed25519 key pair into ``directory``; refuse to overwrite.
 
     Parameters
@@ -50,6 +54,9 @@ def generate_keypair(directory: str | os.PathLike) -> tuple[Path, Path]:
         Folder for ``signing_key.pem`` (PKCS#8 PEM, mode 0600) and
         ``signing_key.pub.pem`` (SubjectPublicKeyInfo PEM, mode 0644). Created
         (mode 0700) if missing.
+    development : bool
+        A key for test runs: a ``DEVELOPMENT_KEY`` file beside it names its public key id, so
+        that :func:`is_development_key` recognises it wherever it is used.
 
     Returns
     -------
@@ -80,7 +87,28 @@ def generate_keypair(directory: str | os.PathLike) -> tuple[Path, Path]:
         # A private key without its public half is useless and a needless secret on disk.
         priv_path.unlink(missing_ok=True)
         raise
+    if development:
+        _write_new(d / DEV_MARKER_NAME, (public_key_id(key.public_key()) + "\n").encode(), 0o644)
     return priv_path, pub_path
+
+
+def is_development_key(private_key_path: str | os.PathLike) -> bool:
+    """Whether a private key file is a development key (made for test runs, never for service).
+
+    It is when it lies in a ``.dev-key`` folder (where ``planner run`` makes one) or when a
+    ``DEVELOPMENT_KEY`` file beside it names its public key id (:func:`generate_keypair` with
+    ``development=True``), so a development key copied elsewhere keeps its mark.
+    """
+    p = Path(private_key_path).resolve()
+    if p.parent.name == DEV_KEY_DIR:
+        return True
+    marker = p.parent / DEV_MARKER_NAME
+    if not marker.is_file():
+        return False
+    try:
+        return marker.read_text(encoding="ascii").strip() == public_key_id(load_private_key(p).public_key())
+    except (OSError, UnicodeDecodeError, BundleError):
+        return False
 
 
 def _write_new(path: Path, data: bytes, mode: int) -> None:

@@ -7,7 +7,7 @@ from typing import Optional
 import typer
 
 from ..errors import PlannerError
-from planner.bundle.signing import ENV_SIGNING_KEY
+from planner.bundle.signing import ENV_SIGNING_KEY, is_development_key
 from . import app
 
 keys_app = typer.Typer(help="Ed25519 signing keys for on-board DB bundles.", no_args_is_help=True)
@@ -63,6 +63,10 @@ def bundle_build(
     check_out_dir(out, "--out", "bundles")
     if key is None:
         raise PlannerError(f"no signing key: give --key FILE or set {ENV_SIGNING_KEY} to its path")
+    if not development_key and is_development_key(key):
+        raise PlannerError(f"--key {key}: a development key (made for test runs) cannot sign bundles for service; "
+                           "sign with a production key (`planner keys generate DIR`), or pass --development-key "
+                           "to mark the bundles development")
     release = Release.issue(None if built_at is None else parse_time(built_at, "--built-at"),
                             valid_days=valid_days, development=development_key, version=bundle_version)
     line = load_line(line_dir)

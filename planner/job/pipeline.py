@@ -118,11 +118,12 @@ def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
     The job file's ``[bundles] signing_key``, else ``$PLANNER_SIGNING_KEY``; with
     neither, a development key under ``OUTPUT_ROOT/.dev-key`` only when the job
     says ``allow_development_key = true`` (else a :class:`JobError`). A
-    configured key that lies in that folder is a development key too.
+    configured key that is a development key (:func:`planner.bundle.signing.is_development_key`:
+    in a ``.dev-key`` folder, or marked beside it) counts as one.
     """
-    from planner.bundle.signing import generate_keypair
+    from planner.bundle.signing import DEV_KEY_DIR, generate_keypair, is_development_key
 
-    dev = job.resolve(job.job.output_root) / ".dev-key"
+    dev = job.resolve(job.job.output_root) / DEV_KEY_DIR
     p = None
     if job.bundles.signing_key:
         p = job.resolve(job.bundles.signing_key)
@@ -134,7 +135,7 @@ def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
         if not p.is_file():
             raise JobError(f"PLANNER_SIGNING_KEY: {p} not found")
     if p is not None:
-        is_dev = p.resolve().parent == dev.resolve()
+        is_dev = is_development_key(p)
         if is_dev and not job.bundles.allow_development_key:
             raise JobError(f"{job.path}: [bundles] signing_key: {p} is the development key; use a production key "
                            "(`planner keys generate DIR`) or set allow_development_key = true for test runs")
@@ -148,7 +149,7 @@ def signing_key_path(job: Job, notes: list[str]) -> tuple[Path, bool]:
     key = dev / "signing_key.pem"
     made = not key.is_file()
     if made:
-        generate_keypair(dev)
+        generate_keypair(dev, development=True)
     notes.append(f"no signing key configured: bundles signed with the {'new ' if made else ''}DEVELOPMENT key {key} "
                  "(allow_development_key = true); they are marked development and vehicles refuse them")
     return key, True
