@@ -1,0 +1,367 @@
+"""The track network of an imported line: ``nodes.parquet`` and ``edges.parquet`` from a source's topology.
+
+Both railjson and railML describe tracks joined by switches, crossings and
+links, with points on the tracks (detectors, buffer stops, platforms). Each
+importer reduces its source to a :class:`Topology` (tracks with lengths, the
+joins between track positions, the points on tracks, the signals) and calls
+:func:`network_tables` with the chainage of the imported line's own tracks.
+
+What becomes what (the conflict check's model, docs/line-database.md):
+
+- a **switch**, crossing or slip (every track position it joins) → one
+  ``switch`` node, a resource claimed by one train at a time;
+- a **link** (two track ends joined end to end) → no node: the two track
+  pieces become one edge;
+- a **detector** (train-detection, block and route boundary) → a
+  ``boundary`` node, so the edges between them are the detection sections;
+- a **platform** of a station on the line (an operational-point part, a
+  railML platform edge or crossSection) → a ``stop`` node with its
+  ``station_id``;
+- an unconnected track end or a buffer stop → an ``end`` node.
+
+Positions on the imported line's own tracks take its chainage exactly. A
+track off the line (a passing loop, the second track of a double line, a
+crossover, a terminal's dead-end platform) is placed by dead reckoning
+through the joins at track ends (:func:`_orient`: a train runs through a join
+from one side to the other, so a track joined on the far side continues the
+direction of chainage and one on the near side runs back), then its points
+lie between the chainages of its two end nodes in proportion to their
+offsets: a loop of 1,040 m between switches at 2,000 m and 3,000 m puts its
+midpoint at 2,500 m, so a loop longer than the main line it bypasses stays
+monotone in chainage. Tracks that no join at a track end connects to the line,
+or that lie wholly beyond its ends, are left out with a note. A crossing is
+one node: the route search may take it from any leg to any leg on the other
+side (a diamond's straight legs are not told apart).
+
+Track names: the route search reads a track's running direction from its
+name (``D…`` down, ``U…`` up, else both; :func:`planner.network.routes.track_direction`).
+Tracks joined end to end by links form one track; the line's own tracks form
+one track. A track whose signals all face one direction (of the line's
+chainage) is named ``D:<id>`` or ``U:<id>``, any other ``B:<id>`` (both
+directions: single track, or no signals to tell).
+"""
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+
+import pandas as pd
+
+from planner.line.schema import TABLES
+
+
+@dataclass
+class Topology:
+    """A source's track network, reduced to what the conflict check needs.
+
+    Attributes
+    ----------
+    lengths : dict
+        track id → length [m]; positions run 0 … length along the track.
+    joins : list of (id, kind, members)
+        ``kind`` ``switch`` (switch, crossing, slip) or ``link``; ``members``
+        the track ends ``(track, pos, side)`` it joins into one node, ``side`` 0 or 1: a
+        train runs through the join from a member on one side to a member on the other.
+    points : list of (id, kind, track, pos, station_id)
+        ``kind`` ``stop``, ``boundary`` or ``end``; ``station_id`` for stops.
+    signals : list of (track, pos, along)
+        ``along`` True for a signal facing trains that run with increasing pos.
+    """
+
+    lengths: dict[str, float]
+    joins: list[tuple[str, str, list[tuple[str, float, int]]]] = field(default_factory=list)
+    points: list[tuple[str, str, str, float, str | None]] = field(default_factory=list)
+    signals: list[tuple[str, float, bool]] = field(default_factory=list)
+
+
+class _UF:
+    def __init__(self):
+        self.p: dict = {}
+
+    def find(self, x):
+        self.p.setdefault(x, x)
+        while self.p[x] != x:
+            self.p[x] = self.p[self.p[x]]
+            x = self.p[x]
+        return x
+
+    def union(self, a, b):
+        ra, rb = self.find(a), self.find(b)
+        if ra != rb:
+            self.p[max(ra, rb)] = min(ra, rb)
+
+
+def _key(track: str, pos: float) -> tuple[str, float]:
+    return track, round(float(pos), 6)
+
+
+def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interlocking: str,
+                   notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """nodes and edges tables of the network of ``topo`` that trains along the line can run.
+
+    Parameters
+    ----------
+    on_line : dict
+        track id → ``(offset, sign)`` for the line's own tracks: chainage = offset + sign·pos.
+    interlocking : str
+        Interlocking of every node (the sources name none).
+    notes : list of str
+        Appended: what was left out and why.
+    """
+    uf = _UF()
+    kind_of: dict = {}
+    ident: dict = {}
+    for jid, kind, members in topo.joins:
+        keys = [_key(t, p) for t, p, _ in members]
+        for k in keys:
+            uf.find(k)
+        for k in keys[1:]:
+            uf.union(keys[0], k)
+        for k in keys:
+            if kind == "switch" or kind_of.get(k) != "switch":
+                kind_of[k], ident[k] = kind, jid
+    at: dict[str, set] = defaultdict(set)
+    for t, length in topo.lengths.items():
+        at[t] |= {_key(t, 0.0), _key(t, length)}
+    for _, _, members in topo.joins:
+        for t, p, _ in members:
+            at[t].add(_key(t, p))
+    # node of each key: the group root; its kind and id
+    node_kind: dict = {}
+    node_id: dict = {}
+    station: dict = {}
+    for _, _, members in topo.joins:
+        for t, p, _ in members:
+            k = _key(t, p)
+            r = uf.find(k)
+            if kind_of[k] == "switch" or r not in node_kind:
+                node_kind[r], node_id[r] = kind_of[k], ident[k]
+    skipped = 0
+    for pid, kind, t, p, sid in topo.points:
+        k = _key(t, p)
+        r = uf.find(k)
+        if r in node_kind or k in node_kind:
+            if kind == "end" and node_kind.get(r) == "end":
+                node_id[r] = pid
+            else:
+                skipped += kind != "end"
+            continue
+        node_kind[r], node_id[r], station[r] = kind, pid, sid
+        at[t].add(k)
+    for t, length in topo.lengths.items():
+        for k in (_key(t, 0.0), _key(t, length)):
+            r = uf.find(k)
+            if r not in node_kind:
+                node_kind[r], node_id[r] = "end", f"{t}.{'BEGIN' if k[1] == 0 else 'END'}"
+    if skipped:
+        notes.append(f"track network: {skipped} detectors or platforms at a switch or track end are that node")
+    # edges along each track between consecutive positions
+    edges: list[list] = []  # [edge_id, node_a, node_b, length, track]
+    for t in sorted(at):
+        ks = sorted(at[t], key=lambda k: k[1])
+        for j, (a, b) in enumerate(zip(ks[:-1], ks[1:])):
+            if b[1] - a[1] > 1e-6:
+                edges.append([f"{t}:{j + 1}", uf.find(a), uf.find(b), b[1] - a[1], t])
+    # tracks joined end to end by links are one track; the line's own tracks are one track
+    tuf = _UF()
+    line_tracks = sorted(on_line)
+    for t in line_tracks[1:]:
+        tuf.union(line_tracks[0], t)
+    for jid, kind, members in topo.joins:
+        if kind == "link":
+            for t, _, _ in members[1:]:
+                tuf.union(members[0][0], t)
+    pos, keep = _chainage(topo, on_line, uf, notes)
+    edges = _contract_links([e for e in edges if e[4] in keep], node_kind)
+    label = _labels(topo, on_line, tuf, pos, uf)
+    used = {n for e in edges for n in e[1:3]}
+    nodes = [dict(node_id=node_id[r], kind=node_kind[r], position_m=round(pos[r], 6), interlocking=interlocking,
+                  station_id=station.get(r), track=label[r[0]] if node_kind[r] in ("stop", "boundary") else None)
+             for r in sorted(used, key=lambda r: (pos[r], node_id[r]))]
+    rows = [dict(edge_id=e[0], from_node=node_id[e[1]], to_node=node_id[e[2]], length_m=round(e[3], 6),
+                 track=label[e[4]]) for e in edges]
+    cols = lambda t: [f.name for f in TABLES[t].schema]  # noqa: E731
+    return pd.DataFrame(nodes, columns=cols("nodes")), pd.DataFrame(rows, columns=cols("edges"))
+
+
+def _contract_links(edges: list[list], node_kind: dict) -> list[list]:
+    """Merge the two edges at every link node into one (a link is no resource and no point of its own)."""
+    inc: dict = defaultdict(list)
+    for e in edges:
+        inc[e[1]].append(e)
+        inc[e[2]].append(e)
+    for r, kind in list(node_kind.items()):
+        if kind != "link" or len(inc[r]) != 2:
+            if kind == "link":
+                node_kind[r] = "end" if len(inc[r]) < 2 else "switch"
+            continue
+        e1, e2 = inc[r]
+        a = e1[1] if e1[2] == r else e1[2]
+        b = e2[1] if e2[2] == r else e2[2]
+        merged = [e1[0], a, b, e1[3] + e2[3], e1[4]]
+        for n, old in ((a, e1), (b, e2)):
+            inc[n] = [merged if x is old else x for x in inc[n]]
+        inc[r] = []
+        del node_kind[r]
+    seen, out = set(), []
+    for lst in inc.values():
+        for e in lst:
+            if id(e) not in seen:
+                seen.add(id(e))
+                out.append(e)
+    return sorted(out, key=lambda e: e[0])
+
+
+def _orient(topo: Topology, on_line: dict) -> dict[str, tuple[float, int]]:
+    """(offset, sign) of every track reachable from the line through joins at track ends: chainage = offset + sign·pos.
+
+    Dead reckoning that follows the geometry of each join: a train crosses a join from one side to
+    the other, so a track joined on the other side than the one it came from continues in the same
+    direction of chainage, a track on the same side runs back.
+    """
+    orient = dict(on_line)
+    by_track: dict = defaultdict(list)
+    for j, (_, _, members) in enumerate(topo.joins):
+        for m in members:
+            by_track[m[0]].append(j)
+    queue = sorted(on_line)
+    while queue:
+        t = queue.pop(0)
+        off, sg = orient[t]
+        length = topo.lengths[t]
+        for j in by_track[t]:
+            members = topo.joins[j][2]
+            mine = [m for m in members if m[0] == t and m[1] in (0.0, length)]
+            if not mine:
+                continue
+            _, p, side = mine[0]
+            c = off + sg * p
+            d = sg * (1 if p == length else -1)  # chainage direction of running out of t into the join
+            for t2, p2, s2 in members:
+                if t2 in orient or p2 not in (0.0, topo.lengths[t2]):
+                    continue
+                sg2 = (d if s2 != side else -d) * (1 if p2 == 0.0 else -1)
+                orient[t2] = (c - sg2 * p2, sg2)
+                queue.append(t2)
+    return orient
+
+
+def _chainage(topo: Topology, on_line: dict, uf: _UF, notes: list[str]) -> tuple[dict, set]:
+    """Chainage of every node, and the tracks kept: exact on the line, off it between the track's end nodes.
+
+    A junction takes the chainage of a member on the line, else the dead-reckoned one (:func:`_orient`);
+    a point on a track off the line lies between the chainages of the track's two end nodes in
+    proportion to its position, so a loop longer than the main line it bypasses stays monotone.
+    """
+    orient = _orient(topo, on_line)
+    line_end = max(off + sg * p for t, (off, sg) in on_line.items() for p in (0.0, topo.lengths[t]))
+    pos: dict = {}
+    for t in sorted(orient, key=lambda t: (t not in on_line, t)):
+        off, sg = orient[t]
+        for p in (0.0, topo.lengths[t]):
+            pos.setdefault(uf.find(_key(t, p)), off + sg * p)
+    keep = set()
+    for t, (off, sg) in orient.items():
+        c0, c1 = pos[uf.find(_key(t, 0.0))], pos[uf.find(_key(t, topo.lengths[t]))]
+        if t in on_line or (max(c0, c1) > 0.0 and min(c0, c1) < line_end):
+            keep.add(t)
+    for t in keep:
+        if t in on_line:
+            continue
+        c0, c1 = pos[uf.find(_key(t, 0.0))], pos[uf.find(_key(t, topo.lengths[t]))]
+        for k in _positions(topo, t):
+            r = uf.find(k)
+            if r not in pos:
+                pos[r] = c0 + (c1 - c0) * k[1] / topo.lengths[t]
+    for t in on_line:
+        off, sg = on_line[t]
+        for k in _positions(topo, t):
+            pos.setdefault(uf.find(k), off + sg * k[1])
+    left = sorted(set(topo.lengths) - keep)
+    if left:
+        notes.append(f"track network: {len(left)} track(s) not connected to the line or wholly beyond its ends "
+                     f"left out ({', '.join(left[:6])}{' …' if len(left) > 6 else ''})")
+    return pos, keep
+
+
+def _positions(topo: Topology, t: str) -> list[tuple[str, float]]:
+    out = [_key(t, p) for _, _, tt, p, _ in topo.points if tt == t]
+    out += [_key(m[0], m[1]) for _, _, ms in topo.joins for m in ms if m[0] == t]
+    return out
+
+
+def _labels(topo: Topology, on_line: dict, tuf: _UF, pos: dict, uf: _UF) -> dict[str, str]:
+    """Track name of each source track: ``D:``/``U:``/``B:`` + the first track id of its group."""
+    faces: dict = defaultdict(set)
+    for t, p, along in topo.signals:
+        if t in on_line:
+            sg = on_line[t][1]
+        else:
+            a, b = pos.get(uf.find(_key(t, 0.0))), pos.get(uf.find(_key(t, topo.lengths[t])))
+            if a is None or b is None or a == b:
+                continue
+            sg = 1 if b > a else -1
+        faces[tuf.find(t)].add("down" if (sg > 0) == along else "up")
+    out = {}
+    for t in topo.lengths:
+        g = tuf.find(t)
+        f = faces.get(g, set())
+        prefix = "D" if f == {"down"} else "U" if f == {"up"} else "B"
+        out[t] = f"{prefix}:{g}"
+    return out
+
+
+# --------------------------------------------------------------------------- railjson
+def railjson_topology(src, net, stations: dict[str, str]) -> Topology:
+    """The :class:`Topology` of a railjson infrastructure (``src``, ``net`` as the railjson importer reads them).
+
+    ``stations``: operational point id → station_id for the stations of the imported line; each of
+    their parts is a platform (a ``stop`` node).
+    """
+    topo = Topology({t: net.length(t) for t in net.tracks})
+    end = lambda tr, ep, side: (tr, 0.0 if ep == "BEGIN" else net.length(tr), side)  # noqa: E731
+    for sw in src.items("switches"):
+        ports = sorted((k, p) for k, p in (sw.get("ports") or {}).items() if isinstance(p, dict))
+        kind = "link" if sw.get("switch_type") == "link" else "switch"
+        # ports A, A1, A2 on one side, B, B1, B2 on the other (OSRD's built-in types; extended types by name)
+        topo.joins.append((str(sw.get("id")), kind,
+                           [end(p["track"], p["endpoint"], 0 if k.upper().startswith("A") else 1) for k, p in ports]))
+    for i, ln in enumerate(src.items("track_section_links")):
+        topo.joins.append((str(ln.get("id", f"link{i}")), "link",
+                           [end(ln[k]["track"], ln[k]["endpoint"], s) for s, k in enumerate(("src", "dst"))]))
+    for key, kind in (("detectors", "boundary"), ("buffer_stops", "end")):
+        for i, obj in enumerate(src.items(key)):
+            track, p = net.locate(key, i, obj)
+            topo.points.append((str(obj.get("id")), kind, track, p, None))
+    for i, op in enumerate(src.items("operational_points")):
+        sid = stations.get(str(op.get("id")))
+        if sid is None:
+            continue
+        for k, part in enumerate(op.get("parts") or []):
+            track, p = net.locate(f"operational_points[{i}].parts", k, part)
+            topo.points.append((f"STOP-{sid}-{track}", "stop", track, p, sid))
+    for i, sg in enumerate(src.items("signals")):
+        track, p = net.locate("signals", i, sg)
+        topo.signals.append((track, p, sg.get("direction") == "START_TO_STOP"))
+    return topo
+
+
+def path_chainage(pieces) -> dict[str, tuple[float, int]]:
+    """track → (offset, sign) of the railjson importer's path pieces ``(track, dir, from, to, chainage)``."""
+    out = {}
+    for t, d, a, _, c0 in pieces:
+        out[t] = (c0 - a, 1) if d == "START_TO_STOP" else (c0 + a, -1)
+    return out
+
+
+def railjson_network(src, net, pieces, op_ids: list[str], extra, line_id: str,
+                     notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """nodes and edges of a railjson import: the line's path ``pieces``, its operational points ``op_ids``."""
+    over = extra.stations if extra is not None else {}
+    stations = {n: str(over.get(n, {}).get("station_id", n)) for n in op_ids}
+    nodes, edges = network_tables(railjson_topology(src, net, stations), path_chainage(pieces), str(line_id), notes)
+    n_sw = int((nodes["kind"] == "switch").sum())
+    notes.append(f"track network: {len(nodes)} nodes ({n_sw} switches), {len(edges)} edges on "
+                 f"{edges['track'].nunique()} tracks, from the switches, links, detectors, buffer stops and "
+                 f"operational points")
+    return nodes, edges
