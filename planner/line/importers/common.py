@@ -26,6 +26,7 @@ import pyarrow as pa
 from planner.io.parquet import write_parquet_atomic
 from planner.errors import SourceError, Violation
 from planner.line.schema import TABLES
+from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
 
 EXTRA_EXAMPLE = """
 [line]
@@ -307,7 +308,10 @@ def timetable_table(s: ImportSummary) -> pd.DataFrame:
         for k in ("train_id", "train_type", "direction", "seq", "station_id", "stops"):
             if k not in r:
                 raise ex.err(f"[[timetable]] #{i + 1}", f"missing key {k!r}")
-        rows.append({c: r.get(c) for c in cols})
+        row = {c: r.get(c) for c in cols}
+        for c in CLOCK_COLUMNS:
+            row[c] = clock_seconds(row[c], f"{ex.path}: [[timetable]] #{i + 1}.{c}")
+        rows.append(row)
     return pd.DataFrame(rows, columns=cols)
 
 

@@ -43,10 +43,10 @@ from planner.line.importers.common import (
     load_extras,
     number,
     station_table,
-    timetable_table,
     write_line,
 )
 from planner.line.importers.railjson import rolling_stock_tables
+from planner.line.importers.timetable import railml_or_toml_timetable
 
 END_SPEEDS = {"end", "999.9"}
 """vMax values that end a (temporary) restriction rather than set a limit."""
@@ -319,6 +319,6 @@ def import_railml(file: str | Path, line_id: str, rolling_stock: list, out: str 
                                 columns=["signal_id", "position_m", "direction"]),
         "rolling_stock": rs,
         "traction": traction,
-        "timetable": timetable_table(s),
+        "timetable": railml_or_toml_timetable(doc.root, doc.fname, found, [str(x) for x in rs["train_type"]], s),
     }
     return write_line(tables, out, s, force=force)
