@@ -36,9 +36,10 @@ side (a diamond's straight legs are not told apart).
 Track names: the route search reads a track's running direction from its
 name (``D…`` down, ``U…`` up, else both; :func:`planner.network.routes.track_direction`).
 Tracks joined end to end by links form one track; the line's own tracks form
-one track. A track whose signals all face one direction (of the line's
-chainage) is named ``D:<id>`` or ``U:<id>``, any other ``B:<id>`` (both
-directions: single track, or no signals to tell).
+one track. A track whose signals face one direction of the line's chainage
+at least two to one is named ``D:<id>`` or ``U:<id>`` (the main tracks of a
+double line, also where both are signalled both ways), any other ``B:<id>``
+(both directions: single track, or no signals to tell).
 """
 from __future__ import annotations
 
@@ -291,8 +292,12 @@ def _positions(topo: Topology, t: str) -> list[tuple[str, float]]:
 
 
 def _labels(topo: Topology, on_line: dict, tuf: _UF, pos: dict, uf: _UF) -> dict[str, str]:
-    """Track name of each source track: ``D:``/``U:``/``B:`` + the first track id of its group."""
-    faces: dict = defaultdict(set)
+    """Track name of each source track: ``D:``/``U:``/``B:`` + the first track id of its group.
+
+    ``D`` when the group's signals facing down outnumber those facing up at least two to one, ``U``
+    the other way round, else ``B`` (single track, or signalled both ways alike, or no signals).
+    """
+    faces: dict = defaultdict(lambda: {"down": 0, "up": 0})
     for t, p, along in topo.signals:
         if t in on_line:
             sg = on_line[t][1]
@@ -301,12 +306,13 @@ def _labels(topo: Topology, on_line: dict, tuf: _UF, pos: dict, uf: _UF) -> dict
             if a is None or b is None or a == b:
                 continue
             sg = 1 if b > a else -1
-        faces[tuf.find(t)].add("down" if (sg > 0) == along else "up")
+        faces[tuf.find(t)]["down" if (sg > 0) == along else "up"] += 1
     out = {}
     for t in topo.lengths:
         g = tuf.find(t)
-        f = faces.get(g, set())
-        prefix = "D" if f == {"down"} else "U" if f == {"up"} else "B"
+        f = faces.get(g, {"down": 0, "up": 0})
+        prefix = ("D" if f["down"] > 0 and f["down"] >= 2 * f["up"] else
+                  "U" if f["up"] > 0 and f["up"] >= 2 * f["down"] else "B")
         out[t] = f"{prefix}:{g}"
     return out
 
