@@ -203,3 +203,66 @@ def test_a_link_joins_two_tracks_into_one_edge():
     assert list(nodes["node_id"]) == ["A.BEGIN", "P1", "B.END"]
     assert np.allclose(nodes["position_m"], [0.0, 600.0, 1500.0])
     assert list(edges["length_m"]) == [600.0, 900.0]    # 400 m of A + 500 m of B, no node at the link
+
+
+RAILML_LOOP = """<?xml version="1.0" encoding="UTF-8"?>
+<railml xmlns="http://www.railml.org/schemas/2013" version="2.2">
+ <infrastructure id="is">
+  <tracks>
+   <track id="trM">
+    <trackTopology>
+     <trackBegin id="bM" pos="0"><bufferStop id="BS0"/></trackBegin>
+     <trackEnd id="eM" pos="5000"><openEnd id="oM"/></trackEnd>
+     <connections>
+      <switch id="SW1" pos="2000"><connection id="cS1" ref="cLb" orientation="outgoing" course="left"/></switch>
+      <switch id="SW2" pos="3000"><connection id="cS2" ref="cLe" orientation="incoming" course="left"/></switch>
+     </connections>
+     <crossSections>
+      <crossSection id="x1" pos="500" ocpRef="WEST"/><crossSection id="x2" pos="2500" ocpRef="MID"/>
+      <crossSection id="x3" pos="4500" ocpRef="EAST"/>
+     </crossSections>
+    </trackTopology>
+    <ocsElements>
+     <trainDetectionElements><trainDetector id="DT1" pos="1800"/></trainDetectionElements>
+     <signals><signal id="S1" pos="1800" dir="up" type="main"/><signal id="S4" pos="3200" dir="down" type="main"/></signals>
+    </ocsElements>
+   </track>
+   <track id="trL">
+    <trackTopology>
+     <trackBegin id="bL" pos="0"><connection id="cLb" ref="cS1"/></trackBegin>
+     <trackEnd id="eL" pos="1040"><connection id="cLe" ref="cS2"/></trackEnd>
+     <crossSections><crossSection id="x4" pos="520" ocpRef="MID"/></crossSections>
+    </trackTopology>
+   </track>
+  </tracks>
+  <trackGroups><line id="L"><trackRef ref="trM" sequence="1"/></line></trackGroups>
+  <operationControlPoints>
+   <ocp id="WEST" name="West"/><ocp id="MID" name="Mid"/><ocp id="EAST" name="East"/>
+  </operationControlPoints>
+ </infrastructure>
+</railml>
+"""
+
+
+def test_railml_switches_and_connections_make_the_same_loop(tmp_path):
+    from planner.line.importers.railml import import_railml
+
+    (tmp_path / "loop.railml").write_text(RAILML_LOOP)
+    (tmp_path / "emu.json").write_text(json.dumps(rolling_stock()))
+    (tmp_path / "extra.toml").write_text("[line]\nmax_speed_kmh = 100.0\n" + EXTRA)
+    import_railml(tmp_path / "loop.railml", "L", [tmp_path / "emu.json"], tmp_path / "line",
+                  extra=tmp_path / "extra.toml")
+    net = load_line(tmp_path / "line").network
+    pos = {n.node_id: (n.kind, n.position_m) for n in net.nodes}
+    assert pos == {
+        "BS0": ("end", 0.0), "STOP-WEST-trM": ("stop", 500.0), "DT1": ("boundary", 1800.0),
+        "SW1": ("switch", 2000.0), "STOP-MID-trM": ("stop", 2500.0), "STOP-MID-trL": ("stop", 2500.0),
+        "SW2": ("switch", 3000.0), "STOP-EAST-trM": ("stop", 4500.0), "oM": ("end", 5000.0)}
+    loop = sorted(e.length_m for e in net.edges if e.track.endswith("trL#0"))
+    assert loop == [520.0, 520.0]
+    # the same trains conflict on the same section by the same 55 s as on the railjson line
+    from planner.network.check import check_timetable
+
+    rows = [r for r in check_timetable(load_line(tmp_path / "line")).conflicts
+            if (r["from_m"], r["to_m"]) == (500.0, 1800.0)]
+    assert [round(r["overlap_s"], 6) for r in rows] == [55.0]

@@ -1,6 +1,6 @@
 """Imported lines through the nightly job: a railjson line with switches (conflicts checked) and a railML
-line with its own <timetable> and no track network (margins computed; the overview says conflicts were
-not checked)."""
+line with its own <timetable> (margins computed), its track network removed (the overview says its
+conflicts were not checked)."""
 from __future__ import annotations
 
 import json
@@ -27,6 +27,9 @@ def run_dir(tmp_path_factory):
     f, r, x = write_railml(root / "src-railml", railml_with_timetable())
     x.write_text(EXTRA_TOML.replace('at = "D1"\n', "").split("[[timetable]]")[0])
     import_railml(f, "L1", [r], root / "lines" / "l1", extra=x)
+    assert (root / "lines" / "l1" / "nodes.parquet").exists()  # railML gives a network: taken away here, so
+    for name in ("nodes", "edges"):                            # L1 stands for a line without one (hand-made, CSV)
+        (root / "lines" / "l1" / f"{name}.parquet").unlink()
     (root / "jobs").mkdir()
     job = root / "jobs" / "job.toml"
     job.write_text(textwrap.dedent(f"""

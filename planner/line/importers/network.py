@@ -371,3 +371,152 @@ def railjson_network(src, net, pieces, op_ids: list[str], extra, line_id: str,
                  f"{edges['track'].nunique()} tracks, from the switches, links, detectors, buffer stops and "
                  f"operational points")
     return nodes, edges
+
+
+# --------------------------------------------------------------------------- railML 2.x
+def _rl(tag: str) -> str:
+    return tag.rsplit("}", 1)[-1]
+
+
+def _rl_path(el, *names):
+    level = [el]
+    for n in names:
+        level = [c for e in level for c in e if _rl(c.tag) == n]
+    return level
+
+
+def railml_topology(doc, line_tracks, stations: dict[str, str]) -> tuple[Topology, dict[str, tuple[float, int]]]:
+    """The :class:`Topology` of a railML 2.x ``<infrastructure>``, and the chainage of the line's tracks.
+
+    Every ``<track>`` is cut at its ``<switch>``/``<crossing>`` positions into pieces ``id#k``, so every
+    join lies at track ends. A switch joins the piece before it (one side), the piece after it and,
+    by its ``<connection ref>``, the branch track's end: on the far side when the connection's
+    ``orientation`` is ``outgoing`` (the branch leaves towards the trackEnd), on the near side when
+    ``incoming``. A ``<connection>`` in a trackBegin/trackEnd that names another track end is a link.
+    ``line_tracks``: the railML importer's tracks of the line (``id``, ``begin``, ``offset``).
+    ``stations``: OCP id → station_id for the stations of the line (their crossSections and
+    platformEdges on any track are platforms).
+    """
+    from planner.line.importers.common import number
+
+    tracks = _rl_path(doc.infra, "tracks", "track")
+    pos_of = lambda el: number(el.get("pos"), doc.where(el, "pos"), "metres from the track begin")  # noqa: E731
+    pieces: dict[str, list[tuple[float, float]]] = {}
+    conn_at: dict[str, tuple] = {}  # connection id → ("end", track, BEGIN|END) or ("switch", switch id, orientation)
+    conn_ref: dict[str, str] = {}
+    switches: dict[str, tuple[str, float]] = {}
+    begin_of: dict[str, float] = {}
+    topo = Topology({})
+    for tr in tracks:
+        tid = tr.get("id")
+        tb, te = _rl_path(tr, "trackTopology", "trackBegin"), _rl_path(tr, "trackTopology", "trackEnd")
+        if tid is None or not tb or not te:
+            continue
+        b, e = pos_of(tb[0]), pos_of(te[0])
+        if not e > b:
+            continue
+        begin_of[tid] = b
+        cuts = set()
+        for kind in ("switch", "crossing"):
+            for sw in _rl_path(tr, "trackTopology", "connections", kind):
+                p = pos_of(sw) - b
+                if 0 < p < e - b:
+                    cuts.add(round(p, 6))
+                switches[sw.get("id")] = (tid, p)
+                for c in _rl_path(sw, "connection"):
+                    conn_at[c.get("id")] = ("switch", sw.get("id"), c.get("orientation"))
+                    conn_ref[c.get("id")] = c.get("ref")
+        bounds = [0.0] + sorted(cuts) + [e - b]
+        pieces[tid] = list(zip(bounds[:-1], bounds[1:]))
+        for k, (lo, hi) in enumerate(pieces[tid]):
+            topo.lengths[f"{tid}#{k}"] = hi - lo
+        for end_el, which in ((tb[0], "BEGIN"), (te[0], "END")):
+            for c in _rl_path(end_el, "connection"):
+                conn_at[c.get("id")] = ("end", tid, which)
+                conn_ref[c.get("id")] = c.get("ref")
+            if not _rl_path(end_el, "connection"):  # a bufferStop, an openEnd: an end node named by it
+                named = [x.get("id") for x in _rl_path(end_el, "bufferStop") + _rl_path(end_el, "openEnd")]
+                t, p = _piece(pieces, tid, 0.0 if which == "BEGIN" else e - b)
+                topo.points.append((next((x for x in named if x), None) or end_el.get("id") or f"{tid}.{which}",
+                                    "end", t, p, None))
+
+    def track_end(tid: str, which: str) -> tuple[str, float]:
+        ps = pieces[tid]
+        return (f"{tid}#0", 0.0) if which == "BEGIN" else (f"{tid}#{len(ps) - 1}", ps[-1][1] - ps[-1][0])
+
+    branches: dict[str, list] = defaultdict(list)
+    linked = set()
+    for cid, at in conn_at.items():
+        other = conn_at.get(conn_ref.get(cid))
+        if at[0] != "end" or other is None or at[1] not in pieces:
+            continue
+        if other[0] == "end" and other[1] in pieces:
+            pair = tuple(sorted((cid, conn_ref[cid])))
+            if pair not in linked:
+                linked.add(pair)
+                (t1, p1), (t2, p2) = track_end(at[1], at[2]), track_end(other[1], other[2])
+                topo.joins.append((f"link:{pair[0]}", "link", [(t1, p1, 0), (t2, p2, 1)]))
+        elif other[0] == "switch":
+            branches[other[1]].append((track_end(at[1], at[2]), other[2]))
+    for sid, (tid, p) in switches.items():
+        if tid not in pieces:
+            continue
+        ps = pieces[tid]
+        k = next((j for j, (lo, _) in enumerate(ps) if abs(lo - p) < 1e-6), None)
+        members = []
+        if k is None:  # at the track's very begin or end: the track end itself
+            members.append((*track_end(tid, "BEGIN" if p <= 0 else "END"), 1 if p <= 0 else 0))
+        else:
+            members += [(f"{tid}#{k - 1}", ps[k - 1][1] - ps[k - 1][0], 0), (f"{tid}#{k}", 0.0, 1)]
+        for (t2, p2), orient in branches.get(sid, []):
+            members.append((t2, p2, 0 if orient == "incoming" else 1))
+        topo.joins.append((sid, "switch", members))
+    for tr in tracks:
+        tid = tr.get("id")
+        if tid not in pieces:
+            continue
+        b = begin_of[tid]
+        for el in _rl_path(tr, "ocsElements", "trainDetectionElements", "trainDetector"):
+            topo.points.append((el.get("id"), "boundary", *_piece(pieces, tid, pos_of(el) - b), None))
+        for el in _rl_path(tr, "ocsElements", "signals", "signal"):
+            if el.get("type", "main") in ("main", "combined") and el.get("dir") in ("up", "down"):
+                topo.signals.append((*_piece(pieces, tid, pos_of(el) - b), el.get("dir") == "up"))
+        seen = set()
+        for el in (_rl_path(tr, "trackTopology", "crossSections", "crossSection")
+                   + _rl_path(tr, "trackElements", "platformEdges", "platformEdge")):
+            sid = stations.get(el.get("ocpRef"))
+            if sid is None or sid in seen:
+                continue
+            seen.add(sid)
+            p = pos_of(el) - b
+            if _rl(el.tag) == "platformEdge" and el.get("length") is not None:
+                p = min(p + float(el.get("length")) / 2, pieces[tid][-1][1])
+            topo.points.append((f"STOP-{sid}-{tid}", "stop", *_piece(pieces, tid, p), sid))
+    on_line = {}
+    for t in line_tracks:
+        for k, (lo, _) in enumerate(pieces.get(t.id, [])):
+            on_line[f"{t.id}#{k}"] = (t.offset + lo, 1)
+    return topo, on_line
+
+
+def _piece(pieces: dict, tid: str, p: float) -> tuple[str, float]:
+    """(piece id, position on it) of position ``p`` from the begin of railML track ``tid``."""
+    ps = pieces[tid]
+    for k, (lo, hi) in enumerate(ps):
+        if p <= hi + 1e-9 or k == len(ps) - 1:
+            return f"{tid}#{k}", min(max(p - lo, 0.0), hi - lo)
+    raise AssertionError
+
+
+def railml_network(doc, line_tracks, found: dict, extra, line_id: str,
+                   notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """nodes and edges of a railML import: every connected track, cut at its switches."""
+    over = extra.stations if extra is not None else {}
+    stations = {k: str(over.get(k, {}).get("station_id", k)) for k in found}
+    topo, on_line = railml_topology(doc, line_tracks, stations)
+    nodes, edges = network_tables(topo, on_line, str(line_id), notes)
+    n_sw = int((nodes["kind"] == "switch").sum())
+    notes.append(f"track network: {len(nodes)} nodes ({n_sw} switches and crossings), {len(edges)} edges on "
+                 f"{edges['track'].nunique()} tracks, from the connections, switches, crossings, bufferStops, "
+                 f"trainDetectors and platforms")
+    return nodes, edges
