@@ -57,13 +57,13 @@ kind = "signal"
 telegram = "S12:G"
 evaluation_point = true
 
-[[timetable]]                # rows of timetable.parquet
-train_id = "101"
+[[timetable]]                # rows of timetable.parquet (a railML file's own <timetable> is read when
+train_id = "101"             #  the TOML has none)
 train_type = "EMU"
 direction = "down"
 seq = 0
 station_id = "CST"
-departure_s = 21600.0
+departure_s = "06:00:00"     # HH:MM[:SS], past 24:00 for after midnight ("25:10:00"), or s after midnight
 stops = true
 """
 """An ``--extra`` TOML with every section (also shown in docs/line-database.md)."""
