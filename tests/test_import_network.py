@@ -266,3 +266,38 @@ def test_railml_switches_and_connections_make_the_same_loop(tmp_path):
     rows = [r for r in check_timetable(load_line(tmp_path / "line")).conflicts
             if (r["from_m"], r["to_m"]) == (500.0, 1800.0)]
     assert [round(r["overlap_s"], 6) for r in rows] == [55.0]
+
+
+def _two_tracks(orient_b: str) -> str:
+    track = lambda tid, sw, orient, extra="": f"""
+   <track id="{tid}"><trackTopology>
+     <trackBegin id="b{tid}" pos="0"><openEnd id="{tid}-begin"/></trackBegin>
+     <trackEnd id="e{tid}" pos="3000"><openEnd id="{tid}-end"/></trackEnd>
+     <connections><switch id="{sw}" pos="{1000 if tid == 'trA' else 1100}">
+      <connection id="c{sw}" ref="c{'X2' if sw == 'X1' else 'X1'}" orientation="{orient}"/></switch></connections>
+     {extra}</trackTopology></track>"""  # noqa: E731
+    cs = '<crossSections><crossSection id="x1" pos="500" ocpRef="WEST"/><crossSection id="x2" pos="2500" ocpRef="EAST"/></crossSections>'
+    return RAILML_LOOP.split("<tracks>")[0] + "<tracks>" + track("trA", "X1", "outgoing", cs) + \
+        track("trB", "X2", orient_b) + "\n  </tracks>" + RAILML_LOOP.split("</tracks>")[1].replace(
+            'ref="trM"', 'ref="trA"').replace('<ocp id="MID" name="Mid"/>', "")
+
+
+@pytest.mark.parametrize("orient_b, begin_m, end_m", [
+    ("incoming", -100.0, 2900.0),   # trB runs the same way as trA: its switch at 1100 m of it meets trA's at 1000 m
+    ("outgoing", 2100.0, -900.0),   # both branches leave towards their trackEnd: trB runs the other way
+])
+def test_railml_switch_to_switch_crossover_orients_the_other_track(tmp_path, orient_b, begin_m, end_m):
+    from planner.line.importers.network import network_tables, railml_topology
+    from planner.line.importers.railml import _Doc
+
+    (tmp_path / "x.railml").write_text(_two_tracks(orient_b))
+    doc = _Doc(tmp_path / "x.railml")
+
+    class T:  # the importer's view of the line's one track
+        id, begin, offset = "trA", 0.0, 0.0
+
+    topo, on_line = railml_topology(doc, [T], {"WEST": "WEST", "EAST": "EAST"})
+    nodes, _ = network_tables(topo, on_line, "L", [])
+    pos = dict(zip(nodes["node_id"], nodes["position_m"]))
+    assert pos["X1"] == 1000.0 and "X2" not in pos           # one node for the two switches
+    assert (pos["trB-begin"], pos["trB-end"]) == (begin_m, end_m)

@@ -458,6 +458,10 @@ def railml_topology(doc, line_tracks, stations: dict[str, str]) -> tuple[Topolog
                 topo.joins.append((f"link:{pair[0]}", "link", [(t1, p1, 0), (t2, p2, 1)]))
         elif other[0] == "switch":
             branches[other[1]].append((track_end(at[1], at[2]), other[2]))
+    # switch to switch (a crossover without a track between): one node of both switches
+    pairs = {tuple(sorted((a[1], conn_at[conn_ref[c]][1]))): (a[2], conn_at[conn_ref[c]][2])
+             for c, a in conn_at.items() if a[0] == "switch" and conn_at.get(conn_ref.get(c), ("",))[0] == "switch"}
+    joined: dict[str, list] = {}
     for sid, (tid, p) in switches.items():
         if tid not in pieces:
             continue
@@ -470,6 +474,13 @@ def railml_topology(doc, line_tracks, stations: dict[str, str]) -> tuple[Topolog
             members += [(f"{tid}#{k - 1}", ps[k - 1][1] - ps[k - 1][0], 0), (f"{tid}#{k}", 0.0, 1)]
         for (t2, p2), orient in branches.get(sid, []):
             members.append((t2, p2, 0 if orient == "incoming" else 1))
+        joined[sid] = members
+    for (sa, sb), (oa, ob) in sorted(pairs.items()):
+        if sa in joined and sb in joined and sa != sb:
+            # the tracks run the same way when one connection is outgoing and the other incoming
+            flip = (oa == "incoming") == (ob == "incoming")
+            joined[sa] = joined[sa] + [(t, p, 1 - side if flip else side) for t, p, side in joined.pop(sb)]
+    for sid, members in joined.items():
         topo.joins.append((sid, "switch", members))
     for tr in tracks:
         tid = tr.get("id")
