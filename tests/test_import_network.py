@@ -301,3 +301,13 @@ def test_railml_switch_to_switch_crossover_orients_the_other_track(tmp_path, ori
     pos = dict(zip(nodes["node_id"], nodes["position_m"]))
     assert pos["X1"] == 1000.0 and "X2" not in pos           # one node for the two switches
     assert (pos["trB-begin"], pos["trB-end"]) == (begin_m, end_m)
+
+
+def test_a_detector_where_two_tracks_are_linked_stays_a_boundary():
+    topo = Topology({"A": 1000.0, "B": 500.0},
+                    joins=[("L", "link", [("A", 1000.0, 0), ("B", 0.0, 1)])],
+                    points=[("D", "boundary", "B", 0.0, None)])
+    nodes, edges = network_tables(topo, {"A": (0.0, 1), "B": (1000.0, 1)}, "X", [])
+    assert list(zip(nodes["node_id"], nodes["kind"], nodes["position_m"])) == [
+        ("A.BEGIN", "end", 0.0), ("D", "boundary", 1000.0), ("B.END", "end", 1500.0)]
+    assert sorted(edges["length_m"]) == [500.0, 1000.0]

@@ -141,6 +141,9 @@ def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interl
     for pid, kind, t, p, sid in topo.points:
         k = _key(t, p)
         r = uf.find(k)
+        if node_kind.get(r) == "link" and kind != "end":  # a detector or platform where two tracks meet
+            node_kind[r], node_id[r], station[r] = kind, pid, sid
+            continue
         if r in node_kind or k in node_kind:
             if kind == "end" and node_kind.get(r) == "end":
                 node_id[r] = pid
@@ -155,7 +158,7 @@ def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interl
             if r not in node_kind:
                 node_kind[r], node_id[r] = "end", f"{t}.{'BEGIN' if k[1] == 0 else 'END'}"
     if skipped:
-        notes.append(f"track network: {skipped} detectors or platforms at a switch or track end are that node")
+        notes.append(f"track network: {skipped} detectors or platforms at a switch are that switch's node")
     # edges along each track between consecutive positions
     edges: list[list] = []  # [edge_id, node_a, node_b, length, track]
     for t in sorted(at):
