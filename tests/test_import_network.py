@@ -311,3 +311,32 @@ def test_a_detector_where_two_tracks_are_linked_stays_a_boundary():
     assert list(zip(nodes["node_id"], nodes["kind"], nodes["position_m"])) == [
         ("A.BEGIN", "end", 0.0), ("D", "boundary", 1000.0), ("B.END", "end", 1500.0)]
     assert sorted(edges["length_m"]) == [500.0, 1000.0]
+
+
+def test_railml_line_tracks_without_a_connection_are_joined_with_a_note(tmp_path):
+    from planner.line.importers.network import network_tables, railml_topology
+    from planner.line.importers.railml import _Doc
+
+    text = RAILML_LOOP.replace('<trackEnd id="eL" pos="1040"><connection id="cLe" ref="cS2"/></trackEnd>',
+                               '<trackEnd id="eL" pos="1040"><openEnd id="oL"/></trackEnd>')
+    text = text.replace('<trackBegin id="bL" pos="0"><connection id="cLb" ref="cS1"/></trackBegin>',
+                        '<trackBegin id="bL" pos="0"><openEnd id="bLo"/></trackBegin>')
+    text = text.replace('<switch id="SW1" pos="2000"><connection id="cS1" ref="cLb" orientation="outgoing" '
+                        'course="left"/></switch>', "")
+    text = text.replace('<switch id="SW2" pos="3000"><connection id="cS2" ref="cLe" orientation="incoming" '
+                        'course="left"/></switch>', "")
+    (tmp_path / "x.railml").write_text(text)
+
+    class M:
+        id, begin, offset = "trM", 0.0, 0.0
+
+    class L:  # the loop track, as if the line ran on from trM's end over it
+        id, begin, offset = "trL", 0.0, 5000.0
+
+    notes: list[str] = []
+    topo, on_line = railml_topology(_Doc(tmp_path / "x.railml"), [M, L], {"WEST": "WEST"}, notes)
+    nodes, edges = network_tables(topo, on_line, "L", notes)
+    assert any("trM and trL follow each other" in n for n in notes)
+    pos = dict(zip(nodes["node_id"], nodes["position_m"]))
+    assert pos["oL"] == 6040.0 and "oM" not in pos      # one piece of track 0 … 6040 m, no end between
+    assert edges["length_m"].sum() == 6040.0

@@ -388,7 +388,8 @@ def _rl_path(el, *names):
     return level
 
 
-def railml_topology(doc, line_tracks, stations: dict[str, str]) -> tuple[Topology, dict[str, tuple[float, int]]]:
+def railml_topology(doc, line_tracks, stations: dict[str, str],
+                    notes: list[str] | None = None) -> tuple[Topology, dict[str, tuple[float, int]]]:
     """The :class:`Topology` of a railML 2.x ``<infrastructure>``, and the chainage of the line's tracks.
 
     Every ``<track>`` is cut at its ``<switch>``/``<crossing>`` positions into pieces ``id#k``, so every
@@ -402,6 +403,7 @@ def railml_topology(doc, line_tracks, stations: dict[str, str]) -> tuple[Topolog
     """
     from planner.line.importers.common import number
 
+    notes = [] if notes is None else notes
     tracks = _rl_path(doc.infra, "tracks", "track")
     pos_of = lambda el: number(el.get("pos"), doc.where(el, "pos"), "metres from the track begin")  # noqa: E731
     pieces: dict[str, list[tuple[float, float]]] = {}
@@ -443,10 +445,7 @@ def railml_topology(doc, line_tracks, stations: dict[str, str]) -> tuple[Topolog
                 topo.points.append((next((x for x in named if x), None) or end_el.get("id") or f"{tid}.{which}",
                                     "end", t, p, None))
 
-    def track_end(tid: str, which: str) -> tuple[str, float]:
-        ps = pieces[tid]
-        return (f"{tid}#0", 0.0) if which == "BEGIN" else (f"{tid}#{len(ps) - 1}", ps[-1][1] - ps[-1][0])
-
+    track_end = lambda tid, which: _track_end(pieces, tid, which)  # noqa: E731
     branches: dict[str, list] = defaultdict(list)
     linked = set()
     for cid, at in conn_at.items():
@@ -485,6 +484,23 @@ def railml_topology(doc, line_tracks, stations: dict[str, str]) -> tuple[Topolog
             joined[sa] = joined[sa] + [(t, p, 1 - side if flip else side) for t, p, side in joined.pop(sb)]
     for sid, members in joined.items():
         topo.joins.append((sid, "switch", members))
+    _railml_points(topo, tracks, pieces, begin_of, pos_of, stations)
+    on_line = {}
+    for t in line_tracks:
+        for k, (lo, _) in enumerate(pieces.get(t.id, [])):
+            on_line[f"{t.id}#{k}"] = (t.offset + lo, 1)
+    _bridge_gaps(topo, line_tracks, pieces, notes)
+    return topo, on_line
+
+
+def _track_end(pieces: dict, tid: str, which: str) -> tuple[str, float]:
+    """(piece, position) of the trackBegin or trackEnd of railML track ``tid``."""
+    ps = pieces[tid]
+    return (f"{tid}#0", 0.0) if which == "BEGIN" else (f"{tid}#{len(ps) - 1}", ps[-1][1] - ps[-1][0])
+
+
+def _railml_points(topo: Topology, tracks, pieces: dict, begin_of: dict, pos_of, stations: dict) -> None:
+    """trainDetectors, main signals and the platforms of the line's stations on every railML track."""
     for tr in tracks:
         tid = tr.get("id")
         if tid not in pieces:
@@ -506,11 +522,19 @@ def railml_topology(doc, line_tracks, stations: dict[str, str]) -> tuple[Topolog
             if _rl(el.tag) == "platformEdge" and el.get("length") is not None:
                 p = min(p + float(el.get("length")) / 2, pieces[tid][-1][1])
             topo.points.append((f"STOP-{sid}-{tid}", "stop", *_piece(pieces, tid, p), sid))
-    on_line = {}
-    for t in line_tracks:
-        for k, (lo, _) in enumerate(pieces.get(t.id, [])):
-            on_line[f"{t.id}#{k}"] = (t.offset + lo, 1)
-    return topo, on_line
+
+
+def _bridge_gaps(topo: Topology, line_tracks, pieces: dict, notes: list[str]) -> None:
+    """Consecutive tracks of the line that no connection joins (a gap the importer bridged) are joined
+    end to end, so the line's own tracks are one piece of network as its chainage is."""
+    joined_ends = {(m[0], round(m[1], 6)) for _, _, ms in topo.joins for m in ms}
+    for a, b in zip(line_tracks[:-1], line_tracks[1:]):
+        if a.id in pieces and b.id in pieces:
+            ea, eb = _track_end(pieces, a.id, "END"), _track_end(pieces, b.id, "BEGIN")
+            if (ea[0], round(ea[1], 6)) not in joined_ends and (eb[0], round(eb[1], 6)) not in joined_ends:
+                topo.joins.append((f"gap:{a.id}:{b.id}", "link", [(*ea, 0), (*eb, 1)]))
+                notes.append(f"track network: tracks {a.id} and {b.id} follow each other on the line but no "
+                             f"connection joins them: joined end to end")
 
 
 def _piece(pieces: dict, tid: str, p: float) -> tuple[str, float]:
@@ -527,7 +551,7 @@ def railml_network(doc, line_tracks, found: dict, extra, line_id: str,
     """nodes and edges of a railML import: every connected track, cut at its switches."""
     over = extra.stations if extra is not None else {}
     stations = {k: str(over.get(k, {}).get("station_id", k)) for k in found}
-    topo, on_line = railml_topology(doc, line_tracks, stations)
+    topo, on_line = railml_topology(doc, line_tracks, stations, notes)
     nodes, edges = network_tables(topo, on_line, str(line_id), notes)
     n_sw = int((nodes["kind"] == "switch").sum())
     notes.append(f"track network: {len(nodes)} nodes ({n_sw} switches and crossings), {len(edges)} edges on "
