@@ -437,6 +437,13 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     line_views(job, line, stage, runner, summary, got["graph"])
 
 
+def conflicts_status(job: Job, line: Line) -> str:
+    """Whether the run checks the line's conflicts: ``checked``, ``no track network`` or ``disabled`` (the manifest's)."""
+    if not job.conflicts.enabled:
+        return "disabled"
+    return "checked" if line.network is not None else "no track network"
+
+
 def _count(summary: RunSummary, files: Iterable[Path]) -> None:
     """Add the rows of written dataset files to the summary, per dataset (the folder above ``line=``)."""
     import pyarrow.parquet as pq
@@ -573,7 +580,8 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "software": {"planner": __version__, "python": platform.python_version(),
                      "numpy": numpy.__version__, "pyarrow": pyarrow.__version__,
                      "numba": importlib.metadata.version("numba"), "kernels": kernel_backends()},
-        "lines": [{"line_id": ln.line_id, "path": Path(p).as_posix(), "source_digest": ln.source_digest}
+        "lines": [{"line_id": ln.line_id, "path": Path(p).as_posix(), "source_digest": ln.source_digest,
+                   "conflicts": conflicts_status(job, ln)}
                   for ln, p in zip(lines, job.job.lines)],
         "parameters": job.parameters(),
         "timings_s": dict(timings),

@@ -158,6 +158,10 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
               "conflicts": "route conflicts"}
     cards = [("bad" if v and k in ("infeasible", "conflicts") else "warn" if v else "ok", v, labels.get(k, k))
              for k, v in sorted(flags.items())]
+    unchecked = {"no track network": "no track network (nodes.parquet, edges.parquet)",
+                 "disabled": "[conflicts] enabled = false"}
+    cards += [("warn", "–", f"conflicts not checked: {unchecked[x['conflicts']]} ({x['line_id']})")
+              for x in manifest.get("lines", []) if x.get("conflicts") in unchecked]
     parts.append("<h2 id='flags'>Flags</h2><div class='cards'>" + "".join(
         f"<div class='card {c}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></div>" for c, n, l in cards)
         + "</div>")

@@ -301,8 +301,10 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
             routes = plan_routes(line)
         loops = loop_stations(line, routes)
     elif line.network is None:
+        windows = conflicts = None  # not checked: the page says so, never "0 conflicts"
         notes.append("the line database has no track network: no blocking windows or conflicts to draw")
     else:
+        windows = conflicts = None
         notes.append("route conflicts not checked ([conflicts] enabled = false): no blocking windows or conflicts")
     if paths is None:
         paths = train_paths(line, src, loops=loops)

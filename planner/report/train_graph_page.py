@@ -355,6 +355,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
     n = len(data.trains)
     svc = {k: sum(1 for t in data.trains if (t.direction, t.service) == k) for k in COLOURS}
     nc = int(data.conflicts.conflict_id.nunique()) if data.conflicts is not None and len(data.conflicts) else 0
+    nc_text = f"{nc} conflicts" if data.conflicts is not None else "conflicts not checked"
     e = html.escape
     keys = " ".join(f"<span><span class='key' style='border-color:{c}'></span>{e(d)} {e(s)} ({svc[(d, s)]})</span>"
                     for (d, s), c in COLOURS.items())
@@ -364,7 +365,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "<meta name='viewport' content='width=device-width, initial-scale=1'>"
         f"<title>Train graph — {e(data.line_name)}</title><style>{PAGE_CSS}</style></head><body>"
         f"<header><h1>Train graph — {e(data.line_name)} <span style='color:#777;font-weight:400'>({e(data.line_id)})</span></h1>"
-        f"<p class='sub'>{n} trains · {nc} conflicts · stations at their chainage, time along the axis; "
+        f"<p class='sub'>{n} trains · {nc_text} · stations at their chainage, time along the axis; "
         f"each line is the train front's predicted run{(' · ' + e(title_note)) if title_note else ''}</p></header>"
         "<div class='bar'><span>zoom: <span id='hours'></span></span>"
         "<span>view <b id='range'></b></span></div>"

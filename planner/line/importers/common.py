@@ -28,6 +28,7 @@ import pyarrow as pa
 from planner.io.parquet import write_parquet_atomic
 from planner.errors import SourceError, SourceProblems, Violation
 from planner.line.schema import TABLES
+from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
 
 EXTRA_EXAMPLE = """
 [line]
@@ -64,13 +65,13 @@ kind = "signal"
 telegram = "S12:G"
 evaluation_point = true
 
-[[timetable]]                # rows of timetable.parquet
-train_id = "101"
+[[timetable]]                # rows of timetable.parquet (a railML file's own <timetable> is read when
+train_id = "101"             #  the TOML has none)
 train_type = "EMU"
 direction = "down"
 seq = 0
 station_id = "CST"
-departure_s = 21600.0
+departure_s = "06:00:00"     # HH:MM[:SS], past 24:00 for after midnight ("25:10:00"), or s after midnight
 stops = true
 """
 """An ``--extra`` TOML with every section (also shown in docs/line-database.md)."""
@@ -337,7 +338,10 @@ def timetable_table(s: ImportSummary) -> pd.DataFrame:
         for k in ("train_id", "train_type", "direction", "seq", "station_id", "stops"):
             if k not in r:
                 raise ex.err(f"[[timetable]] #{i + 1}", f"missing key {k!r}")
-        rows.append({c: r.get(c) for c in cols})
+        row = {c: r.get(c) for c in cols}
+        for c in CLOCK_COLUMNS:
+            row[c] = clock_seconds(row[c], f"{ex.path}: [[timetable]] #{i + 1}.{c}")
+        rows.append(row)
     return pd.DataFrame(rows, columns=cols)
 
 

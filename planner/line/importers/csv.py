@@ -29,6 +29,7 @@ from planner.errors import InputError, SourceError, Violation
 from planner.line.schema import TABLES
 from planner.line.schema_doc import DOC_PATH
 from planner.line.importers.common import ImportSummary, write_line
+from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
 
 _TRUE, _FALSE = {"true", "1", "yes"}, {"false", "0", "no"}
 
@@ -109,6 +110,8 @@ def _parse(value: str, f: pa.Field, where: str):
             return ""
         raise SourceError(f"{where}: empty cell; this column needs a value in every row")
     if pa.types.is_floating(f.type):
+        if f.name in CLOCK_COLUMNS:
+            return clock_seconds(value, where)
         try:
             x = float(value)
         except ValueError:

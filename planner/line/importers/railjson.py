@@ -592,4 +592,8 @@ def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list,
         "traction": traction,
         "timetable": timetable_table(s),
     }
+    from planner.line.importers.network import railjson_network
+
+    tables["nodes"], tables["edges"] = railjson_network(src, net, path.pieces, [n for n, _, _ in ops], s.extra,
+                                                        str(default_id), s.notes)
     return write_line(tables, out, s, force=force)

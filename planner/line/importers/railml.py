@@ -62,10 +62,10 @@ from planner.line.importers.common import (
     number,
     path_id,
     station_table,
-    timetable_table,
     write_line,
 )
 from planner.line.importers.railjson import rolling_stock_tables
+from planner.line.importers.timetable import railml_or_toml_timetable
 
 END_SPEEDS = {"end", "999.9"}
 """vMax values that end a (temporary) restriction rather than set a limit."""
@@ -548,6 +548,9 @@ def import_railml(file: str | Path, line_id: str, rolling_stock: list, out: str 
                                 columns=["signal_id", "position_m", "direction"]),
         "rolling_stock": rs,
         "traction": traction,
-        "timetable": timetable_table(s),
+        "timetable": railml_or_toml_timetable(doc.root, doc.fname, found, [str(x) for x in rs["train_type"]], s),
     }
+    from planner.line.importers.network import railml_network
+
+    tables["nodes"], tables["edges"] = railml_network(doc, tracks, found, s.extra, str(lid), s.notes)
     return write_line(tables, out, s, force=force)
