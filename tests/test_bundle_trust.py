@@ -238,7 +238,7 @@ def test_run_without_a_key_refuses_to_sign_with_a_development_key(tmp_path, monk
 def test_the_development_key_named_as_signing_key_still_needs_allowing(tmp_path, monkeypatch):
     from planner.errors import JobError
     from planner.job.config import load_job
-    from planner.job.pipeline import signing_key_path
+    from planner.job.keys import signing_key_path
 
     monkeypatch.delenv("PLANNER_SIGNING_KEY", raising=False)
     signing.generate_keypair(tmp_path / "out" / ".dev-key")

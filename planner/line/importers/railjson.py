@@ -594,6 +594,6 @@ def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list,
     }
     from planner.line.importers.network import railjson_network
 
-    tables["nodes"], tables["edges"] = railjson_network(src, net, path.pieces, [n for n, _, _ in ops], s.extra,
-                                                        str(default_id), s.notes)
+    tables["nodes"], tables["edges"] = railjson_network(src, net, path.pieces, [n for n, *_, is_op in ops if is_op],
+                                                        s.extra, str(default_id), s.notes)
     return write_line(tables, out, s, force=force)

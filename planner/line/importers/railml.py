@@ -552,5 +552,5 @@ def import_railml(file: str | Path, line_id: str, rolling_stock: list, out: str 
     }
     from planner.line.importers.network import railml_network
 
-    tables["nodes"], tables["edges"] = railml_network(doc, tracks, found, s.extra, str(lid), s.notes)
+    tables["nodes"], tables["edges"] = railml_network(doc, line.tracks, found, s.extra, str(lid), s.notes)
     return write_line(tables, out, s, force=force)
