@@ -20,12 +20,24 @@ Failure behaviour (issue 21):
   idle for minutes (loky's idle timeout) after a SIGKILL of the main process.
   Each worker runs :func:`_exit_with_parent` at start: a daemon thread that
   ends the worker within :data:`PARENT_POLL_S` once its parent is gone.
+
+Quiet failures (issue 32): an environment fault ends a run with the planner's
+one line on stderr and nothing else. While a Dask client is open
+(:func:`backend`), the ``distributed`` loggers are raised above ``CRITICAL``
+(:func:`quiet_loggers`): a lost scheduler otherwise logs the client's failed
+reconnect and the tracebacks of its cancelled tasks. A joblib generator left
+unfinished because the run failed (a full disk while a step's results are
+stored) is closed at once, in the thread that started it, without joblib's
+"tasks have been successfully executed but not used" warning
+(:func:`_abandon_quietly`).
 """
 from __future__ import annotations
 
+import logging
 import os
 import threading
 import time
+import warnings
 from contextlib import contextmanager
 from typing import Any, Callable, Iterator, Sequence
 
@@ -61,6 +73,45 @@ def _exit_with_parent() -> None:
     threading.Thread(target=watch, name="planner-exit-with-parent", daemon=True).start()
 
 
+@contextmanager
+def quiet_loggers(name: str) -> Iterator[None]:
+    """Drop every record of the logger ``name`` and of its children while the context lasts, then put
+    their levels back. Levels, not handlers: a record dropped by its logger's level reaches no handler,
+    neither the library's own nor logging's last-resort handler on stderr; children created meanwhile
+    inherit the level of ``name``."""
+    known = list(logging.Logger.manager.loggerDict.items())
+    names = [name] + [n for n, lg in known if n.startswith(name + ".") and isinstance(lg, logging.Logger)]
+    saved = [(lg, lg.level) for lg in map(logging.getLogger, names)]
+    for lg, _ in saved:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for lg, level in saved:
+            lg.setLevel(level)
+
+
+_UNUSED_TASKS = r"\d+ tasks (have been successfully executed|which were still being processed)"
+"""The start of joblib's warning when a ``return_as="generator"`` Parallel is closed before its end."""
+
+
+def _abandon_quietly(gen: Iterator[Any]) -> Iterator[Any]:
+    """Yield from a joblib generator; when the consumer stops early (the run failed), close it without
+    joblib's warning that the remaining tasks were cancelled: the run's error says what happened.
+
+    Not ``yield from``: that would close ``gen`` before the ``finally`` has set the filter.
+    Close the returned generator in the thread that iterates it (joblib aborts from another
+    thread with a warning of its own); :class:`planner.job.units.Runner` does.
+    """
+    try:
+        for item in gen:
+            yield item
+    finally:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=_UNUSED_TASKS, category=UserWarning, module=r"joblib\.")
+            gen.close()
+
+
 class Pool:
     """Runs ``fn(*args)`` for each args tuple, results in submission order."""
 
@@ -77,7 +128,7 @@ class LocalPool(Pool):
     def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
         from joblib import Parallel, delayed
 
-        return Parallel(n_jobs=self.n_jobs, return_as="generator")(delayed(fn)(*a) for a in arglist)
+        return _abandon_quietly(Parallel(n_jobs=self.n_jobs, return_as="generator")(delayed(fn)(*a) for a in arglist))
 
 
 class DaskPool(Pool):
@@ -256,12 +307,16 @@ def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
     if n_jobs == 1 or total <= 1:
         results = (fn(*t) for t in tasks)
     else:
-        results = joblib.Parallel(n_jobs=n_jobs, return_as="generator")(joblib.delayed(fn)(*t) for t in tasks)
+        results = _abandon_quietly(joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
+            joblib.delayed(fn)(*t) for t in tasks))
     out = []
-    for r in results:
-        out.append(r)
-        if progress:
-            progress(len(out), total)
+    try:
+        for r in results:
+            out.append(r)
+            if progress:
+                progress(len(out), total)
+    finally:
+        results.close()
     return out
 
 
@@ -297,15 +352,19 @@ def backend(name: str = "local", *, n_jobs: int = -1, scheduler: str = "",
         from dask.distributed import Client
     except ImportError:
         raise JobError("backend dask needs the dask extra: pip install 'planner[dask]'") from None
-    try:
-        client = Client(scheduler, timeout=f"{float(lost_timeout_s)}s")
-    except Exception as e:  # noqa: BLE001 - any connection failure is a user-facing setup problem
-        raise JobError(f"cannot reach the dask scheduler {scheduler!r} within {lost_timeout_s:g} s: {e}") from None
-    try:
-        yield DaskPool(client, scheduler, lost_timeout_s)
-    finally:
+    # from connect to close: a lost scheduler is the one line of ClusterLostError, not the client's log
+    # of its failed reconnect and of the tasks its close cancels (each with a traceback)
+    with quiet_loggers("distributed"):
         try:
-            client.close(timeout=min(5.0, float(lost_timeout_s)))
-        except Exception:  # noqa: BLE001 - closing a client of a dead cluster must not mask the real error
-            pass
+            client = Client(scheduler, timeout=f"{float(lost_timeout_s)}s")
+        except Exception as e:  # noqa: BLE001 - any connection failure is a user-facing setup problem
+            raise JobError(f"cannot reach the dask scheduler {scheduler!r} within {lost_timeout_s:g} s: "
+                           f"{e}") from None
+        try:
+            yield DaskPool(client, scheduler, lost_timeout_s)
+        finally:
+            try:
+                client.close(timeout=min(5.0, float(lost_timeout_s)))
+            except Exception:  # noqa: BLE001 - closing a client of a dead cluster must not mask the real error
+                pass
 
