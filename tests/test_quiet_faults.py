@@ -259,3 +259,27 @@ def test_a_pool_left_with_tasks_in_hand_closes_without_a_warning():
         assert next(gen) == 0
         gen.close()
     assert [str(w.message) for w in seen] == []
+
+
+BUNDLES_FULL = textwrap.dedent("""
+    import errno, os
+    from planner.bundle import container
+
+    def full(path, data):  # the disk fills as the first bundle is written
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    container.write_atomic = full
+""")
+
+
+def test_a_full_disk_at_the_bundles_names_the_output_root_not_a_cli_option(tmp_path):
+    """The bundle step said "check --out", an option of `planner bundle build` that `planner run` does not have."""
+    root = tmp_path / "out"
+    job = _job(tmp_path, root, """
+        [parallel]
+        n_jobs = 1
+    """)  # one job: the bundles are built in this process, where the patch is
+    code, err = _planner_run(job, before=BUNDLES_FULL)
+    line = _the_one_line(code, err, "no space left on device", f"(output root {root})",
+                         "free space there or set [job] output_root to a larger disk", "(nothing was published)")
+    assert "/bundles/tiny_down_EMU10.pdb:" in line and "--out" not in line
