@@ -283,3 +283,40 @@ def test_a_full_disk_at_the_bundles_names_the_output_root_not_a_cli_option(tmp_p
     line = _the_one_line(code, err, "no space left on device", f"(output root {root})",
                          "free space there or set [job] output_root to a larger disk", "(nothing was published)")
     assert "/bundles/tiny_down_EMU10.pdb:" in line and "--out" not in line
+
+
+KILLED_WORKER = textwrap.dedent("""
+    import planner.job.pipeline as pipeline
+
+    def killed_tables_unit(*args):  # in __main__: pickled by value to the workers
+        import os, signal
+        os.kill(os.getpid(), signal.SIGKILL)  # as the kernel's out-of-memory killer does
+
+    pipeline._tables_unit = killed_tables_unit
+""")
+
+
+def test_a_worker_killed_under_a_unit_is_one_line_on_stderr(tmp_path):
+    """loky's TerminatedWorkerError was a traceback and four lines of text."""
+    job = _job(tmp_path, tmp_path / "out", """
+        [parallel]
+        n_jobs = 2
+    """)
+    code, err = _planner_run(job, before=KILLED_WORKER)
+    line = _the_one_line(code, err, "a local worker process died under a task (exit code {SIGKILL(-9)}: ",
+                         "of 4 task(s) done", "[parallel] n_jobs")
+    print(f"\nworker killed, the whole stderr: {line}")
+
+
+def _kills_its_worker(i: int) -> int:
+    if i == 2:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return i
+
+
+def test_map_tasks_turns_a_killed_worker_into_one_error():
+    from planner.io.parallel import WorkerLostError, map_tasks
+
+    with pytest.raises(WorkerLostError, match=r"exit code \{SIGKILL\(-9\)\}.* of 3 task\(s\) done") as e:
+        map_tasks(_kills_its_worker, [(i,) for i in range(3)], n_jobs=2)
+    assert "\n" not in str(e.value)

@@ -16,6 +16,9 @@ Failure behaviour (issue 21):
   saying how many units finished: each finished unit is already in the cache,
   so the next run resumes from them. The caller's ``with`` blocks (the job
   lock among them) unwind normally, so the lock is released.
+* **Local worker killed** (mostly by the kernel's out-of-memory killer) under a
+  task: one :class:`WorkerLostError` line with the worker's exit code and how many
+  tasks were done, instead of loky's ``TerminatedWorkerError`` traceback.
 * **Main process killed.** loky workers are separate processes that would
   idle for minutes (loky's idle timeout) after a SIGKILL of the main process.
   Each worker runs :func:`_exit_with_parent` at start: a daemon thread that
@@ -53,6 +56,24 @@ class ClusterLostError(JobError):
     """The Dask cluster went away (no workers, or no scheduler) for longer than the configured bound."""
 
     key = "job.cluster_lost"
+
+
+class WorkerLostError(JobError):
+    """A local worker process died under a task (killed, mostly by the kernel for want of memory, or crashed)."""
+
+    key = "job.worker_lost"
+
+
+def _worker_lost(e: Exception, done: int, total: int | None) -> WorkerLostError:
+    """One line for loky's ``TerminatedWorkerError`` (whose text is four lines and a traceback)."""
+    import re
+
+    codes = re.search(r"exit codes of the workers are (\{[^}]*\})", str(e))
+    of = f" of {total}" if total is not None else ""
+    return WorkerLostError(f"a local worker process died under a task (exit code {codes.group(1) if codes else '?'}:"
+                           f" killed, mostly by the system for want of memory, or crashed); {done}{of} task(s) "
+                           "done; lower the number of worker processes ([parallel] n_jobs, or --jobs) or free "
+                           "memory, then run again (the nightly job's finished units are cached)")
 
 
 def _exit_with_parent() -> None:
@@ -95,16 +116,27 @@ _UNUSED_TASKS = r"\d+ tasks (have been successfully executed|which were still be
 """The start of joblib's warning when a ``return_as="generator"`` Parallel is closed before its end."""
 
 
-def _abandon_quietly(gen: Iterator[Any]) -> Iterator[Any]:
+def _abandon_quietly(gen: Iterator[Any], total: int | None = None) -> Iterator[Any]:
     """Yield from a joblib generator; when the consumer stops early (the run failed), close it without
     joblib's warning that the remaining tasks were cancelled: the run's error says what happened.
+    A worker process that died under a task is one :class:`WorkerLostError` line.
 
     Not ``yield from``: that would close ``gen`` before the ``finally`` has set the filter.
     Close the returned generator in the thread that iterates it (joblib aborts from another
     thread with a warning of its own); :class:`planner.job.units.Runner` does.
     """
+    from joblib.externals.loky.process_executor import TerminatedWorkerError
+
+    done = 0
     try:
-        for item in gen:
+        while True:
+            try:
+                item = next(gen)
+            except StopIteration:
+                return
+            except TerminatedWorkerError as e:
+                raise _worker_lost(e, done, total) from None
+            done += 1
             yield item
     finally:
         with warnings.catch_warnings():
@@ -128,7 +160,8 @@ class LocalPool(Pool):
     def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
         from joblib import Parallel, delayed
 
-        return _abandon_quietly(Parallel(n_jobs=self.n_jobs, return_as="generator")(delayed(fn)(*a) for a in arglist))
+        return _abandon_quietly(Parallel(n_jobs=self.n_jobs, return_as="generator")(delayed(fn)(*a) for a in arglist),
+                                len(arglist))
 
 
 class DaskPool(Pool):
@@ -217,7 +250,7 @@ class Background:
         if n_jobs != 1:
             # the same loky configuration as LocalPool's steps, so its workers are reused
             with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent):
-                self._gen = joblib.Parallel(return_as="generator")([joblib.delayed(fn)(*args)])
+                self._gen = _abandon_quietly(joblib.Parallel(return_as="generator")([joblib.delayed(fn)(*args)]), 1)
 
     def result(self) -> Any:
         """The result (waits for the worker; raises what the call raised)."""
@@ -308,7 +341,7 @@ def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
         results = (fn(*t) for t in tasks)
     else:
         results = _abandon_quietly(joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
-            joblib.delayed(fn)(*t) for t in tasks))
+            joblib.delayed(fn)(*t) for t in tasks), total)
     out = []
     try:
         for r in results:
