@@ -399,8 +399,9 @@ def test_failed_write_keeps_previous_bundle_and_no_temp(keys, tmp_path, line, mo
 
     monkeypatch.setattr(os, "fsync", boom)
     tables = all_tables(line, ratios=(1.0, 0.5))  # different content
-    with pytest.raises(BundleError, match="No space left on device"):
+    with pytest.raises(OSError, match="No space left on device") as e:  # each caller names its own fix
         build(tables, tmp_path, keys[0])
+    assert e.value.errno == 28 and str(e.value.filename) == str(info.path)
     monkeypatch.undo()
     assert os.listdir(tmp_path) == [Path(info.path).name]
     assert Path(info.path).read_bytes() == before
@@ -519,6 +520,23 @@ def test_cli_failures_are_one_line(tmp_path, built):
     lines = [x for x in r.output.splitlines() if x.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: bundle") and "signature" in lines[0]
     assert "Traceback" not in r.output
+
+
+def test_cli_build_on_a_full_disk_is_one_line_naming_out(tmp_path, keys, monkeypatch):
+    from linedb import write_line_db
+
+    from planner.bundle import container
+
+    def full(path, data):
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(container, "write_atomic", full)
+    line_dir = write_line_db(tmp_path / "tiny")
+    r = run_cli("bundle", "build", line_dir, "--out", tmp_path / "out", "--key", keys[0])
+    lines = [x for x in r.output.splitlines() if x.strip()]
+    assert r.exit_code != 0 and len(lines) == 1, r.output
+    assert lines[0] == (f"error: cannot write {tmp_path / 'out' / 'tiny_down_EMU10.pdb'}: No space left on device; "
+                        "check --out (space, permissions)")
 
 
 def test_table_without_required_columns_is_refused(keys, tmp_path, line):

@@ -1,4 +1,6 @@
 """Job files: defaults, strictness (unknown keys and bad values name the key), path resolution."""
+from pathlib import Path
+
 import pytest
 
 from planner.errors import JobError
@@ -47,6 +49,17 @@ def test_bad_job_names_the_key(tmp_path, text, needle):
         load_job(_write(tmp_path, text))
     msg = str(e.value)
     assert needle in msg and "j.toml" in msg and "\n" not in msg
+
+
+def test_an_unreadable_job_file_is_one_line(tmp_path, monkeypatch):
+    job = _write(tmp_path, '[job]\nlines = ["lines/x"]\n')
+
+    def denied(self, *a, **k):  # as for a user without read permission (root reads any file)
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "read_text", denied)
+    with pytest.raises(JobError, match=r"j.toml: cannot read the job file \(Permission denied\); check its "):
+        load_job(job)
 
 
 def test_missing_job_file(tmp_path):

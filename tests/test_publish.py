@@ -117,3 +117,33 @@ def test_stamping_on_the_writer_thread_stamps_and_keeps_the_deferred_flush(tmp_p
         assert got.column("run_id").to_pylist() == ["r0001-0123456789"] * 2
         assert got.column("run_date").to_pylist() == [datetime.date(2026, 11, 23)] * 2
     assert pq.read_table(tmp_path / "outside.parquet").column("run_id").to_pylist() == ["stale", "stale"]
+
+
+def test_a_copy_into_a_full_output_root_names_the_destination_not_the_input(tmp_path):
+    """shutil.copyfile's ENOSPC names its source as filename, its destination as filename2: the job's
+    copy of the line database into the run blamed the input file for the output root's full disk."""
+    import errno
+    import shutil
+    import subprocess
+
+    from planner.job.publish import output_root_errors
+
+    src = tmp_path / "lines" / "x.parquet"
+    src.parent.mkdir()
+    src.write_bytes(os.urandom(256 * 1024))
+    root = tmp_path / "out"
+    root.mkdir()
+    mounted = os.geteuid() == 0 and subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(root)],
+                                                   capture_output=True).returncode == 0
+    try:
+        with pytest.raises(JobError) as e, output_root_errors(root):
+            if mounted:
+                shutil.copyfile(src, root / "x.parquet")  # 256 KiB into 64 KiB
+            else:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(src), None, str(root / "x.parquet"))
+    finally:
+        if mounted:
+            subprocess.run(["umount", "-l", str(root)], capture_output=True)
+    assert str(e.value).startswith(f"{root / 'x.parquet'}: no space left on device (output root {root}); free space")
+    with pytest.raises(JobError, match=f"^{src}: permission denied; check that path"), output_root_errors(root):
+        raise PermissionError(errno.EACCES, "Permission denied", str(src))  # an input: still named

@@ -190,17 +190,21 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     -------
     BundleInfo
         What was written (path ``out_dir/<line>_<direction>_<train_type>.pdb``).
+
+    Raises
+    ------
+    OSError
+        The file cannot be written (a full disk, no permission), with its errno and the path that
+        failed; nothing is left under the bundle's name. Each caller names its own fix: ``planner
+        bundle build`` its ``--out``, the nightly job its output root.
     """
     out = Path(out_dir)
     data = bundle_bytes(tables, line_id=line_id, direction=direction, train_type=train_type,
                         private_key=private_key, release=release, line_digest=line_digest,
                         line_schema_version=line_schema_version, expected=expected)
     path = out / bundle_name(line_id, direction, train_type)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        write_atomic(path, data)
-    except OSError as e:
-        raise BundleError(f"cannot write {path}: {e.strerror or e}; check --out (space, permissions)") from None
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, data)
     members = unpack(io.BytesIO(data), len(data), str(path))
     return manifest_info(str(path), json.loads(members[MANIFEST]), (len(data), hashlib.sha256(data).hexdigest()))
 

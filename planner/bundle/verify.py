@@ -27,8 +27,10 @@ each check and the attack it stops.
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
+import stat
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +45,7 @@ from planner.bundle.contents import check_tables
 from planner.bundle.manifest import (MANIFEST, SIGNATURE, BundleInfo, check_manifest, fail, format_time,
                                      manifest_info, parse_manifest, parse_time)
 from planner.errors import BundleError
+from planner.io.atomic import folder_in_place
 from planner.line.model import DIRECTIONS
 from planner.io.paths import PATH_ID_RE
 
@@ -204,26 +207,66 @@ def read_bundle(path: str | os.PathLike | bytes, public_key, *, expect: str | Ex
 def open_bundle(path: str | os.PathLike, dest_dir: str | os.PathLike, public_key, *,
                 expect: str | Expect | None = None, min_version: int = 0, at: int | str | None = None,
                 allow_dev: bool = False) -> BundleInfo:
-    """Verify a bundle, then write its members into ``dest_dir`` (created if missing).
+    """Verify a bundle, then write its members as the folder ``dest_dir``: all of them or nothing.
 
-    Nothing is written unless the whole bundle verifies. Members are plain file
-    names (checked while reading), created relative to an open handle of
-    ``dest_dir`` with ``O_EXCL | O_NOFOLLOW``, so a file or symlink already in
-    ``dest_dir`` is never followed or overwritten.
+    ``dest_dir`` must be missing or an empty folder, not a symbolic link. Nothing is written unless
+    the whole bundle verifies. The members are then written into a fresh temporary folder beside
+    ``dest_dir`` (the same file system), each a plain file name created with ``O_EXCL | O_NOFOLLOW``;
+    read back and compared there with the verified bytes; and the folder becomes ``dest_dir`` by one
+    rename (:func:`planner.io.atomic.folder_in_place`). A refusal or a failure at any member (a full
+    disk) leaves ``dest_dir`` exactly as it was, and no temporary folder behind.
     """
     info, members, _ = _verified(path, public_key, _expect(expect, min_version, at, allow_dev))
     dest = Path(dest_dir)
-    dest.mkdir(parents=True, exist_ok=True)
-    dfd = os.open(dest, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    try:
+        _check_destination(dest, members)
+        with folder_in_place(dest) as tmp:
+            _write_members(tmp, members)
+    except OSError as e:
+        if e.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR):  # the rename: dest changed meanwhile
+            raise BundleError(f"{dest} is no longer missing or empty (it changed while the bundle was opened); "
+                              "nothing was written: open the bundle into a new or empty folder") from None
+        what = f"{e.strerror or e}" + (f" ({e.filename})" if e.filename else "")
+        raise BundleError(f"cannot open the bundle into {dest}: {what}; nothing was written: check the space "
+                          "and permissions there") from None
+    return info
+
+
+def _check_destination(dest: Path, members: Mapping[str, bytes]) -> None:
+    """Refuse a destination that is not a missing or empty real folder, before anything is written."""
+    try:
+        st = os.lstat(dest)
+    except FileNotFoundError:
+        return
+    if stat.S_ISLNK(st.st_mode):
+        raise BundleError(f"{dest} is a symbolic link; open the bundle into a new or empty folder")
+    if not stat.S_ISDIR(st.st_mode):
+        raise BundleError(f"{dest} is not a folder; open the bundle into a new or empty folder")
+    present = sorted(os.listdir(dest))
+    clash = [n for n in present if n in members]
+    if clash:
+        raise BundleError(f"{dest / clash[0]} already exists; open the bundle into a new or empty folder")
+    if present:
+        raise BundleError(f"{dest} is not empty (it holds {present[0]!r}); open the bundle into a new or "
+                          "empty folder")
+
+
+def _write_members(folder: Path, members: Mapping[str, bytes]) -> None:
+    """Write the members into the fresh ``folder``, then check that it holds exactly them, byte for byte."""
+    nofollow = getattr(os, "O_NOFOLLOW", 0)
+    dfd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     try:
         for name in sorted(members):
-            try:
-                fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0),
-                             0o644, dir_fd=dfd)
-            except FileExistsError:
-                raise BundleError(f"{dest / name} already exists; open the bundle into an empty folder") from None
+            fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | nofollow, 0o644, dir_fd=dfd)
             with os.fdopen(fd, "wb") as f:
                 f.write(members[name])
+        if sorted(os.listdir(dfd)) != sorted(members):
+            raise BundleError(f"{folder} holds {sorted(os.listdir(dfd))} after writing, not the bundle's "
+                              f"members {sorted(members)}; nothing was opened")
+        for name in sorted(members):
+            with os.fdopen(os.open(name, os.O_RDONLY | nofollow, dir_fd=dfd), "rb") as f:
+                if f.read() != members[name]:
+                    raise BundleError(f"{folder / name} reads back different from the verified member; "
+                                      "nothing was opened: check the disk")
     finally:
         os.close(dfd)
-    return info

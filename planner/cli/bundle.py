@@ -6,7 +6,7 @@ from typing import Optional
 
 import typer
 
-from ..errors import PlannerError
+from ..errors import BundleError, PlannerError
 from planner.bundle.signing import ENV_SIGNING_KEY, is_development_key
 from . import app
 
@@ -74,9 +74,13 @@ def bundle_build(
     n = len(direction or ("down", "up")) * len(train_type or line.train_types)
     with Progress(transient=True) as progress:
         task = progress.add_task("building bundles", total=n)
-        infos = build_line(line, out, key, release=release, tables_dir=tables, stops_dir=stops,
-                           directions=direction,
-                           train_types=train_type, on_built=lambda _: progress.advance(task))
+        try:
+            infos = build_line(line, out, key, release=release, tables_dir=tables, stops_dir=stops,
+                               directions=direction,
+                               train_types=train_type, on_built=lambda _: progress.advance(task))
+        except OSError as e:  # a bundle cannot be written (the key and the line were read before)
+            raise BundleError(f"cannot write {e.filename or out}: {e.strerror or e}; check --out (space, "
+                              "permissions)") from None
     for info in infos:
         state = "complete" if info.complete else "PARTIAL, missing " + ", ".join(info.missing)
         typer.echo(f"{info.path}: {info.size_bytes} bytes, {len(info.files)} tables, {state}")
@@ -113,7 +117,6 @@ def bundle_verify(
 ) -> None:
     """Check signature, key id, target, key kind, version, expiry, hashes, schema and consistency."""
     from planner.bundle.verify import verify_bundle
-    from ..errors import BundleError
 
     info = verify_bundle(bundle, public_key, expect=expect, min_version=min_version, at=at,
                          allow_dev=allow_dev)

@@ -9,12 +9,16 @@ leaves the previous file (or none), never a half-written one. Two writers
 flush differently: a staged run's files are flushed all at once before the
 run is published (:func:`deferred_fsync`), and cache entries not at all (a
 torn entry fails its digest and is recomputed).
+
+A folder that must appear whole (an opened bundle) is filled under a
+temporary name beside it and renamed into place once (:func:`folder_in_place`).
 """
 from __future__ import annotations
 
 import contextvars
 import functools
 import os
+import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -116,3 +120,41 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, mode: int = 0o64
                 view = view[os.write(fd, view[:_CHUNK]):]
         finally:
             os.close(fd)
+
+
+@contextmanager
+def folder_in_place(dest: str | os.PathLike, *, mode: int = 0o755) -> Iterator[Path]:
+    """Yield a fresh, empty temporary folder beside ``dest`` (the same file system) to fill; when the block
+    succeeds, its files and the folder are flushed and it becomes ``dest`` by one rename. When the block
+    or the rename fails, the temporary folder is removed, and so are the parent folders this call made:
+    ``dest`` is never seen half-filled, and a failure leaves everything as it was.
+
+    ``dest`` must be missing or an empty folder (the rename replaces an empty folder atomically); else
+    the rename raises ``OSError`` (``ENOTEMPTY`` or ``EEXIST`` for a folder with entries, ``ENOTDIR``
+    for a file or a symbolic link), after the clean-up. The temporary name is ``.<name>.*.tmp``.
+    """
+    dest = Path(dest)
+    made = [p for p in reversed(dest.parents) if not p.exists()]  # removed again on failure
+    tmp: Path | None = None
+    done = False
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent))
+        yield tmp
+        for dirpath, _dirs, files in os.walk(tmp):
+            for f in files:
+                _fsync_file(os.path.join(dirpath, f))
+            _fsync_dir(Path(dirpath))
+        os.chmod(tmp, mode)
+        os.rename(tmp, dest)
+        done = True
+        _fsync_dir(dest.parent)
+    finally:
+        if not done:
+            if tmp is not None:
+                shutil.rmtree(tmp, ignore_errors=True)
+            for p in reversed(made):
+                try:
+                    p.rmdir()
+                except OSError:
+                    break

@@ -16,16 +16,31 @@ Failure behaviour (issue 21):
   saying how many units finished: each finished unit is already in the cache,
   so the next run resumes from them. The caller's ``with`` blocks (the job
   lock among them) unwind normally, so the lock is released.
+* **Local worker killed** (mostly by the kernel's out-of-memory killer) under a
+  task: one :class:`WorkerLostError` line with the worker's exit code and how many
+  tasks were done, instead of loky's ``TerminatedWorkerError`` traceback.
 * **Main process killed.** loky workers are separate processes that would
   idle for minutes (loky's idle timeout) after a SIGKILL of the main process.
   Each worker runs :func:`_exit_with_parent` at start: a daemon thread that
   ends the worker within :data:`PARENT_POLL_S` once its parent is gone.
+
+Quiet failures (issue 32): an environment fault ends a run with the planner's
+one line on stderr and nothing else. While a Dask client is open
+(:func:`backend`), the ``distributed`` loggers are raised above ``CRITICAL``
+(:func:`quiet_loggers`): a lost scheduler otherwise logs the client's failed
+reconnect and the tracebacks of its cancelled tasks. A joblib generator left
+unfinished because the run failed (a full disk while a step's results are
+stored) is closed at once, in the thread that started it, without joblib's
+"tasks have been successfully executed but not used" warning
+(:func:`_abandon_quietly`).
 """
 from __future__ import annotations
 
+import logging
 import os
 import threading
 import time
+import warnings
 from contextlib import contextmanager
 from typing import Any, Callable, Iterator, Sequence
 
@@ -41,6 +56,24 @@ class ClusterLostError(JobError):
     """The Dask cluster went away (no workers, or no scheduler) for longer than the configured bound."""
 
     key = "job.cluster_lost"
+
+
+class WorkerLostError(JobError):
+    """A local worker process died under a task (killed, mostly by the kernel for want of memory, or crashed)."""
+
+    key = "job.worker_lost"
+
+
+def _worker_lost(e: Exception, done: int, total: int | None) -> WorkerLostError:
+    """One line for loky's ``TerminatedWorkerError`` (whose text is four lines and a traceback)."""
+    import re
+
+    codes = re.search(r"exit codes of the workers are (\{[^}]*\})", str(e))
+    of = f" of {total}" if total is not None else ""
+    return WorkerLostError(f"a local worker process died under a task (exit code {codes.group(1) if codes else '?'}:"
+                           f" killed, mostly by the system for want of memory, or crashed); {done}{of} task(s) "
+                           "done; lower the number of worker processes ([parallel] n_jobs, or --jobs) or free "
+                           "memory, then run again (the nightly job's finished units are cached)")
 
 
 def _exit_with_parent() -> None:
@@ -61,6 +94,56 @@ def _exit_with_parent() -> None:
     threading.Thread(target=watch, name="planner-exit-with-parent", daemon=True).start()
 
 
+@contextmanager
+def quiet_loggers(name: str) -> Iterator[None]:
+    """Drop every record of the logger ``name`` and of its children while the context lasts, then put
+    their levels back. Levels, not handlers: a record dropped by its logger's level reaches no handler,
+    neither the library's own nor logging's last-resort handler on stderr; children created meanwhile
+    inherit the level of ``name``."""
+    known = list(logging.Logger.manager.loggerDict.items())
+    names = [name] + [n for n, lg in known if n.startswith(name + ".") and isinstance(lg, logging.Logger)]
+    saved = [(lg, lg.level) for lg in map(logging.getLogger, names)]
+    for lg, _ in saved:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for lg, level in saved:
+            lg.setLevel(level)
+
+
+_UNUSED_TASKS = r"\d+ tasks (have been successfully executed|which were still being processed)"
+"""The start of joblib's warning when a ``return_as="generator"`` Parallel is closed before its end."""
+
+
+def _abandon_quietly(gen: Iterator[Any], total: int | None = None) -> Iterator[Any]:
+    """Yield from a joblib generator; when the consumer stops early (the run failed), close it without
+    joblib's warning that the remaining tasks were cancelled: the run's error says what happened.
+    A worker process that died under a task is one :class:`WorkerLostError` line.
+
+    Not ``yield from``: that would close ``gen`` before the ``finally`` has set the filter.
+    Close the returned generator in the thread that iterates it (joblib aborts from another
+    thread with a warning of its own); :class:`planner.job.units.Runner` does.
+    """
+    from joblib.externals.loky.process_executor import TerminatedWorkerError
+
+    done = 0
+    try:
+        while True:
+            try:
+                item = next(gen)
+            except StopIteration:
+                return
+            except TerminatedWorkerError as e:
+                raise _worker_lost(e, done, total) from None
+            done += 1
+            yield item
+    finally:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=_UNUSED_TASKS, category=UserWarning, module=r"joblib\.")
+            gen.close()
+
+
 class Pool:
     """Runs ``fn(*args)`` for each args tuple, results in submission order."""
 
@@ -77,7 +160,8 @@ class LocalPool(Pool):
     def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
         from joblib import Parallel, delayed
 
-        return Parallel(n_jobs=self.n_jobs, return_as="generator")(delayed(fn)(*a) for a in arglist)
+        return _abandon_quietly(Parallel(n_jobs=self.n_jobs, return_as="generator")(delayed(fn)(*a) for a in arglist),
+                                len(arglist))
 
 
 class DaskPool(Pool):
@@ -166,7 +250,7 @@ class Background:
         if n_jobs != 1:
             # the same loky configuration as LocalPool's steps, so its workers are reused
             with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent):
-                self._gen = joblib.Parallel(return_as="generator")([joblib.delayed(fn)(*args)])
+                self._gen = _abandon_quietly(joblib.Parallel(return_as="generator")([joblib.delayed(fn)(*args)]), 1)
 
     def result(self) -> Any:
         """The result (waits for the worker; raises what the call raised)."""
@@ -256,12 +340,16 @@ def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
     if n_jobs == 1 or total <= 1:
         results = (fn(*t) for t in tasks)
     else:
-        results = joblib.Parallel(n_jobs=n_jobs, return_as="generator")(joblib.delayed(fn)(*t) for t in tasks)
+        results = _abandon_quietly(joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
+            joblib.delayed(fn)(*t) for t in tasks), total)
     out = []
-    for r in results:
-        out.append(r)
-        if progress:
-            progress(len(out), total)
+    try:
+        for r in results:
+            out.append(r)
+            if progress:
+                progress(len(out), total)
+    finally:
+        results.close()
     return out
 
 
@@ -297,15 +385,19 @@ def backend(name: str = "local", *, n_jobs: int = -1, scheduler: str = "",
         from dask.distributed import Client
     except ImportError:
         raise JobError("backend dask needs the dask extra: pip install 'planner[dask]'") from None
-    try:
-        client = Client(scheduler, timeout=f"{float(lost_timeout_s)}s")
-    except Exception as e:  # noqa: BLE001 - any connection failure is a user-facing setup problem
-        raise JobError(f"cannot reach the dask scheduler {scheduler!r} within {lost_timeout_s:g} s: {e}") from None
-    try:
-        yield DaskPool(client, scheduler, lost_timeout_s)
-    finally:
+    # from connect to close: a lost scheduler is the one line of ClusterLostError, not the client's log
+    # of its failed reconnect and of the tasks its close cancels (each with a traceback)
+    with quiet_loggers("distributed"):
         try:
-            client.close(timeout=min(5.0, float(lost_timeout_s)))
-        except Exception:  # noqa: BLE001 - closing a client of a dead cluster must not mask the real error
-            pass
+            client = Client(scheduler, timeout=f"{float(lost_timeout_s)}s")
+        except Exception as e:  # noqa: BLE001 - any connection failure is a user-facing setup problem
+            raise JobError(f"cannot reach the dask scheduler {scheduler!r} within {lost_timeout_s:g} s: "
+                           f"{e}") from None
+        try:
+            yield DaskPool(client, scheduler, lost_timeout_s)
+        finally:
+            try:
+                client.close(timeout=min(5.0, float(lost_timeout_s)))
+            except Exception:  # noqa: BLE001 - closing a client of a dead cluster must not mask the real error
+                pass
 

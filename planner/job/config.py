@@ -353,6 +353,8 @@ def load_job(path: str | Path) -> Job:
         raise JobError(f"{file}: not valid TOML: {e}") from None
     except UnicodeDecodeError:
         raise JobError(f"{file}: not a UTF-8 text file") from None
+    except OSError as e:  # no permission to read it, an I/O error
+        raise JobError(f"{file}: cannot read the job file ({e.strerror or e}); check its permissions") from None
     kwargs: dict[str, Any] = {}
     problems = _Problems()
     for name, value in data.items():

@@ -133,7 +133,10 @@ def output_root_errors(root: Path) -> Iterator[None]:
         code = _errno_of(e)
         text = str(e).splitlines()[0] if str(e) else type(e).__name__
         why, fix = _FIXES.get(code, (e.strerror or text, "check the path and the disk"))
-        where = Path(e.filename) if e.filename else root
+        # a copy's error names its source as filename and its destination as filename2: the one in
+        # the output root is where the disk is full, not the line database the copy read
+        named = [Path(os.fsdecode(f)) for f in (e.filename2, e.filename) if f not in (None, "")]
+        where = next((f for f in named if _under(f, root)), named[-1] if named else root)
         last = latest_run(root)
         kept = f"latest still points at {last}" if last else "nothing was published"
         if not _under(where, root):  # not the output root: an input or a key file

@@ -193,15 +193,18 @@ class Runner:
                     gen = (_call(unit(t).fn, unit(t).args) for t in todo)
                 else:
                     gen = pool.imap(_call, [(unit(t).fn, unit(t).args) for t in todo])
-                for (g, i), res in zip(todo, gen):
-                    step = groups[g][0]
-                    self.cache.put(step, unit((g, i)).key, res)  # survives a later failure
-                    _kill_point()
-                    results[g][i] = res
-                    self.progress.advance(step)
-                    left[g] -= 1
-                    if not left[g]:
-                        self.progress.finish(step)
+                try:
+                    for (g, i), res in zip(todo, gen):
+                        step = groups[g][0]
+                        self.cache.put(step, unit((g, i)).key, res)  # survives a later failure
+                        _kill_point()
+                        results[g][i] = res
+                        self.progress.advance(step)
+                        left[g] -= 1
+                        if not left[g]:
+                            self.progress.finish(step)
+                finally:
+                    gen.close()  # a failed run (a full disk): stop the workers' tasks now, in this thread
         return results
 
 
