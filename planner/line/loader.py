@@ -181,7 +181,7 @@ def _train_types(rs: TableView, tr: TableView) -> tuple[TrainType, ...]:
             service_brake_ms2=_f(rs["service_brake_kmh_s"][i]) * KMH_S,
             stop_brake_ms2=_f(rs["stop_brake_kmh_s"][i]) * KMH_S,
             atsp_pattern_ms2=_f(rs["atsp_pattern_kmh_s"][i]) * KMH_S,
-            comfort_accel_ms2=_f(rs["comfort_accel_kmh_s"][i]) * KMH_S,
+            brake_comfort_ms2=_f(rs["brake_comfort_kmh_s"][i]) * KMH_S,
             jerk_limit_ms3=_f(rs["jerk_limit_kmh_s2"][i]) * KMH_S2,
             speed_margin_ms=_f(rs["speed_margin_kmh"][i]) * KMH,
             cruise=str(rs["cruise"][i]),

@@ -142,7 +142,7 @@ class TrainType:
     service_brake_ms2: float
     stop_brake_ms2: float
     atsp_pattern_ms2: float
-    comfort_accel_ms2: float
+    brake_comfort_ms2: float
     jerk_limit_ms3: float
     speed_margin_ms: float
     cruise: str  # "constant" or "sawtooth"

@@ -299,7 +299,7 @@ def rolling_stock_rules(db: Db) -> Iterator[Violation]:
     yield from unique(t, "train_type")
     yield from positive(t, "length_m", "empty_mass_t", "max_speed_kmh", "max_accel_kmh_s",
                         "service_brake_kmh_s", "stop_brake_kmh_s", "atsp_pattern_kmh_s",
-                        "comfort_accel_kmh_s", "jerk_limit_kmh_s2")
+                        "brake_comfort_kmh_s", "jerk_limit_kmh_s2")
     yield from non_negative(t, "full_load_mass_t", "rotating_mass_factor", "davis_a_kN",
                             "davis_b_kN_per_kmh", "davis_c_kN_per_kmh2", "speed_margin_kmh",
                             "coast_band_kmh")

@@ -13,15 +13,16 @@ carry the sweep's ``stop_summary``):
 * **speed limits** (:func:`speed_limits`): the on-board maximum of the
   run-curve track (every restriction held until the tail clears, minus the
   vehicle's speed margin), a step function of the distance from the start;
-* **deceleration limits** (:func:`decel_limits`): ``min(comfort, adhesion)``
-  plus what gravity adds, from the gradient averaged over the whole train
+* **deceleration limits** (:func:`decel_limits`): ``min(braking comfort,
+  adhesion, the train's stopping brake)`` plus what gravity adds, and never more
+  than the stopping brake in all (the run curves' stop: a pattern is never faster), from the gradient averaged over the whole train
   exactly as the run curves take it (:func:`planner.physics.dynamics.running_gradient`,
   :func:`planner.physics.dynamics.track_accel_ms2`: ``g ḡ / (1 + ρ)``). Averaged over
   the length, ḡ is piecewise linear in the front's position (kinks where the
   front or the tail passes a gradient change). The solver takes step
   functions, so each linear piece is bounded from the safe side by its least
   favourable value (the smaller end value): the pattern never asks the brake
-  for more than ``min(comfort, adhesion)``. Curve and running resistance,
+  for more than ``min(comfort, adhesion, stopping brake)``. Curve and running resistance,
   which only help the brake, are left out (safe side too; running resistance
   also depends on speed and load).
 """
@@ -168,8 +169,8 @@ def decel_limits(line: Line, train, direction: str, start_chainage_m: float, len
                  adhesion_ms2: float, gradients_permil=None) -> list[tuple[float, float]]:
     """Deceleration limit along an approach [m/s²], a step function from its start (module doc).
 
-    ``min(comfort, adhesion) + g ḡ / (1 + ρ)`` with ḡ bounded per piece from the
-    safe side (:func:`gradient_steps`, passed in as ``gradients_permil`` when
+    ``min(min(comfort, adhesion, brake) + g ḡ / (1 + ρ), brake)`` (the train's braking comfort
+    and stopping brake) with ḡ bounded per piece from the safe side (:func:`gradient_steps`, passed in as ``gradients_permil`` when
     already computed). Raises :class:`planner.errors.InputError` when a fall
     leaves no deceleration (as :func:`planner.stopping.pattern.decel_limit_profile`).
     """
@@ -177,8 +178,8 @@ def decel_limits(line: Line, train, direction: str, start_chainage_m: float, len
 
     if gradients_permil is None:
         gradients_permil = gradient_steps(line, train.length_m, direction, start_chainage_m, length_m)
-    return decel_limit_profile(train.comfort_accel_ms2, adhesion_ms2, gradients_permil,
-                               rotating_mass_factor=train.rotating_mass_factor)
+    return decel_limit_profile(train.brake_comfort_ms2, adhesion_ms2, gradients_permil,
+                               rotating_mass_factor=train.rotating_mass_factor, brake_ms2=train.stop_brake_ms2)
 
 
 def brake_demand_ms2(line: Line, train, direction: str, start_chainage_m: float, x_m, a_ms2):

@@ -21,7 +21,7 @@ One *approach* is set up from the line as the vehicle meets it, by
   restriction held until the tail clears, minus the vehicle's speed margin),
   which is piecewise constant on the run-curve grid, as a step function of the
   distance from the approach start;
-* **deceleration limits**: ``min(comfort, adhesion) + g s / 1000 / (1 + ρ)``
+* **deceleration limits**: ``min(comfort, adhesion, brake) + g s / 1000 / (1 + ρ)``, at most ``brake``
   for the gradient ``s`` [‰] averaged over the whole train in the running
   direction (sign flipped for ``up``), exactly as the run curves take it, each
   linear piece bounded by its least favourable value
@@ -178,7 +178,7 @@ class ApproachResult:
         ``brake`` (for a restriction) or ``stop`` (on the stopping-brake curve) means the
         run was already braking there; the pattern still starts with a = 0.
     jerk_max_ms3, comfort_ms2 : float
-        Vehicle jerk limit [m/s³] and comfort deceleration limit [m/s²].
+        Vehicle jerk limit [m/s³] and ride-comfort limit on braking [m/s²] (``brake_comfort_kmh_s``).
     speed_limits : tuple of (x_from_m, speed_ms)
         On-board maximum over the approach.
     gradients_permil : tuple of (x_from_m, gradient_permil)
@@ -284,7 +284,7 @@ def approach_patterns(
 
     Notes
     -----
-    ``A(x) = min(comfort, adhesion) + g s(x) / 1000 / (1 + ρ)`` (DESIGN §5) with
+    ``A(x) = min(min(comfort, adhesion, brake) + g s(x) / 1000 / (1 + ρ), brake)`` with
     ``s`` the gradient averaged over the train, bounded per piece from the safe
     side (:mod:`planner.stopping.approach`); ``v_lim(x)`` the on-board maximum (restriction
     held to the tail, minus the speed margin); the start speed is the
@@ -306,7 +306,7 @@ def approach_patterns(
     s_a = start.s_m
     X = length - s_a
     J = train.jerk_limit_ms3
-    comfort = train.comfort_accel_ms2
+    comfort = train.brake_comfort_ms2
     common = dict(line_id=line.line_id, train_type=train_type, direction=direction, origin=origin,
                   station_id=destination, stop_m=float(stop), approach_start_m=float(x0 + sg * s_a),
                   approach_length_m=float(X), tasc_beacon_id=start.beacon_id,

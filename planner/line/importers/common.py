@@ -82,11 +82,12 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "beacon_telegram": ("", "telegram of a beacon the TOML gives none for (empty)"),
     "evaluation_point": (False, "a beacon is not an evaluation point unless the TOML says so"),
     "full_load_mass_t": (0.0, "passenger mass at 100 % load [t]"),
-    "max_accel_kmh_s": ("comfort_acceleration", "acceleration cap = the source's comfort acceleration"),
-    "comfort_accel_kmh_s": ("comfort_acceleration", "ride-comfort acceleration = the source's comfort "
-                                                    "acceleration"),
+    "max_accel_kmh_s": ("comfort_acceleration", "acceleration cap when powering = the source's comfort "
+                                                "acceleration (OSRD: the traction comfort limit)"),
+    "brake_comfort_kmh_s": (3.3, "ride-comfort limit on stop braking [km/h/s] (0.92 m/s²); the source has none "
+                                 "(its comfort acceleration limits powering, not braking)"),
     "service_brake_kmh_s": ("braking", "restriction braking = the source's braking deceleration"),
-    "stop_brake_kmh_s": ("braking", "station stopping braking = the source's braking deceleration"),
+    "stop_brake_kmh_s": ("braking", "the train's own stopping brake = the source's braking deceleration"),
     "atsp_pattern_kmh_s": ("braking", "ATS-P pattern deceleration = the source's braking deceleration"),
     "jerk_limit_kmh_s2": (1.8, "ride-comfort jerk limit [km/h/s²] (0.5 m/s³)"),
     "speed_margin_kmh": (0.0, "on-board speed margin below the limit [km/h]"),
@@ -212,6 +213,18 @@ def number(value, where: str, fix: str = "", *, positive: bool = False) -> float
         need = "a number > 0" if positive else "a finite number"
         raise SourceError(f"{where}: {value!r} must be {need}{'; ' + fix if fix else ''}")
     return x
+
+
+def braking_note(row: dict, source: str = "") -> str:
+    """One summary line: what a train type's acceleration and braking limits are, and what a stop may ask.
+
+    ``row`` is a rolling_stock row (railway units); ``source`` says where its values came from.
+    """
+    acc, comfort, brake = (float(row[c]) for c in ("max_accel_kmh_s", "brake_comfort_kmh_s", "stop_brake_kmh_s"))
+    return (f"train type {row['train_type']}: acceleration cap {acc:.3g} km/h/s (max_accel_kmh_s), braking "
+            f"comfort {comfort:.3g} km/h/s (brake_comfort_kmh_s), own stopping brake {brake:.3g} km/h/s "
+            f"(stop_brake_kmh_s){' from ' + source if source else ''}; a stopping pattern asks for at most "
+            f"{min(comfort, brake):.3g} km/h/s and the adhesion level")
 
 
 # --------------------------------------------------------------------------- shared table builders

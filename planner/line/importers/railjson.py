@@ -23,7 +23,11 @@ OSRD rolling stock (``{"name", "length" [m], "mass" [kg], "max_speed" [m/s],
 "C" [N/(m/s)²]}, "effort_curves": {"default_mode", "modes": {mode: {"default_curve":
 {"speeds" [m/s], "max_efforts" [N]}}}}}``) becomes one rolling_stock row and its
 traction curve. Converted values are rounded to 1e-9 of the target unit (so that
-22.2222… m/s is written 80.0 km/h).
+22.2222… m/s is written 80.0 km/h). The braking mapping is explicit (and printed in the
+import summary): ``comfort_acceleration``, OSRD's traction comfort limit, caps acceleration
+(``max_accel_kmh_s``) and never braking; ``gamma`` is the train's own brake (``service_brake_kmh_s``,
+``stop_brake_kmh_s``, ``atsp_pattern_kmh_s``); OSRD has no ride-comfort limit on braking, so
+``brake_comfort_kmh_s`` takes the documented default (3.3 km/h/s) unless the TOML gives one.
 """
 from __future__ import annotations
 
@@ -38,6 +42,7 @@ from planner.line.schema import MAX_GRADIENT_PERMIL, TABLES
 from planner.line.importers.common import (
     ImportSummary,
     beacon_table,
+    braking_note,
     line_table,
     load_extras,
     number,
@@ -474,12 +479,13 @@ def read_rolling_stock(path: str | Path, s: ImportSummary) -> tuple[str, dict, l
                rotating_mass_factor=_r(inertia - 1), max_speed_kmh=kmh(vmax),
                max_accel_kmh_s=None, davis_a_kN=_r(a / 1000), davis_b_kN_per_kmh=_r(b / 1000 / 3.6),
                davis_c_kN_per_kmh2=_r(c / 1000 / 3.6**2), service_brake_kmh_s=None, stop_brake_kmh_s=None,
-               atsp_pattern_kmh_s=None, comfort_accel_kmh_s=None,
+               atsp_pattern_kmh_s=None, brake_comfort_kmh_s=None,
                jerk_limit_kmh_s2=None, speed_margin_kmh=None, cruise=None, coast_band_kmh=None)
     over = (s.extra.rolling_stock if s.extra else {}).get(name, {})
-    derived = {"max_accel_kmh_s": kmh(comfort), "comfort_accel_kmh_s": kmh(comfort),
-               "service_brake_kmh_s": kmh(gamma), "stop_brake_kmh_s": kmh(gamma), "atsp_pattern_kmh_s": kmh(gamma)}
-    for col in ("full_load_mass_t", "max_accel_kmh_s", "comfort_accel_kmh_s", "service_brake_kmh_s", "stop_brake_kmh_s",
+    # comfort_acceleration is OSRD's traction comfort limit: it caps powering, never braking; the brake is gamma
+    derived = {"max_accel_kmh_s": kmh(comfort), "service_brake_kmh_s": kmh(gamma), "stop_brake_kmh_s": kmh(gamma),
+               "atsp_pattern_kmh_s": kmh(gamma)}
+    for col in ("full_load_mass_t", "max_accel_kmh_s", "brake_comfort_kmh_s", "service_brake_kmh_s", "stop_brake_kmh_s",
                 "atsp_pattern_kmh_s", "jerk_limit_kmh_s2", "speed_margin_kmh", "cruise", "coast_band_kmh"):
         if col in over:
             continue
@@ -487,6 +493,8 @@ def read_rolling_stock(path: str | Path, s: ImportSummary) -> tuple[str, dict, l
         given = s.extra is not None and col in s.extra.defaults  # [defaults] beats the derived value
         row[col] = value if given else derived.get(col, value)
     row.update(over)
+    s.notes.append(braking_note(row, f"{fname} (comfort_acceleration {comfort:g} m/s² -> max_accel_kmh_s, "
+                                     f"gamma {gamma:g} m/s² -> service, stop and ATS-P brake)"))
     traction = [dict(train_type=row["train_type"], speed_kmh=kmh(v), effort_kN=_r(f / 1000)) for v, f in zip(speeds, efforts)]
     return name, row, traction
 

@@ -1,0 +1,103 @@
+"""Three braking limits kept apart: the traction comfort limit (acceleration), the ride-comfort limit on
+stop braking, and the train's own stopping brake; what an importer maps onto each and what a stop asks.
+
+Closed forms: g = 9.80665 m/s², a gradient of s ‰ adds g s / 1000 / (1 + ρ) to the deceleration achieved.
+"""
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+import pytest
+
+import importsrc as src
+from linedb import default_tables, write_line_db
+from planner import load_line
+from planner.errors import LineValidationError, SourceError
+from planner.line import testing
+from planner.line.importers.csv import export_csv, import_csv
+from planner.line.importers.railjson import import_railjson
+from planner.line.units import KMH_S
+from planner.stopping.pattern import decel_limit_profile, solve_stop
+from planner.stopping.sweep import approach_patterns
+
+G = 9.80665
+
+
+def test_a_folder_with_the_old_column_name_gets_one_line_saying_what_to_rename(tmp_path):
+    t = default_tables("old")
+    t["rolling_stock"] = t["rolling_stock"].rename(columns={"brake_comfort_kmh_s": "comfort_accel_kmh_s"})
+    write_line_db(tmp_path / "old", **t)
+    with pytest.raises(LineValidationError) as e:
+        load_line(tmp_path / "old")
+    assert len(e.value.violations) == 1
+    msg = str(e.value.violations[0])
+    assert "\n" not in msg
+    assert "brake_comfort_kmh_s" in msg and "found comfort_accel_kmh_s" in msg and "rename" in msg
+
+
+def test_a_csv_with_the_old_column_name_says_what_to_rename(tmp_path):
+    write_line_db(tmp_path / "a")
+    export_csv(tmp_path / "a", tmp_path / "csv")
+    p = tmp_path / "csv" / "rolling_stock.csv"
+    p.write_text(p.read_text().replace("brake_comfort_kmh_s", "comfort_accel_kmh_s"))
+    with pytest.raises(SourceError, match="brake_comfort_kmh_s is missing.*found comfort_accel_kmh_s.*rename"):
+        import_csv(tmp_path / "csv", tmp_path / "b")
+
+
+def test_the_stop_is_capped_by_the_train_brake_in_effort_and_in_what_it_achieves():
+    # comfort 1.0, adhesion 0.8, brake 0.5 m/s² (rho 0): flat 0.5; -10 ‰ leaves 0.5 - g/100;
+    # +30 ‰ would give 0.5 + 0.03 g = 0.794 but the brake caps the deceleration achieved at 0.5
+    got = decel_limit_profile(1.0, 0.8, [(0.0, 0.0), (100.0, -10.0), (250.0, 30.0)], brake_ms2=0.5)
+    assert got == [(0.0, 0.5), (100.0, pytest.approx(0.5 - G / 100)), (250.0, 0.5)]
+    # without the train's brake the old rule: min(comfort, adhesion) + gravity
+    old = decel_limit_profile(1.0, 0.8, [(0.0, 30.0)])
+    assert old == [(0.0, pytest.approx(0.8 + 0.03 * G))]
+
+
+def test_a_stop_on_a_climb_never_stops_harder_than_the_train_brake():
+    brake = 2.0  # km/h/s; comfort 3.6, adhesion 3.5: the brake binds, on the climb in what is achieved
+    tt = testing.train_type(stop_brake_kmh_s=brake, brake_comfort_kmh_s=3.6, max_speed_kmh=80.0)
+    line = testing.line(length_m=4000.0, stations=[0.0, 3900.0], gradients=[(0.0, 4000.0, 20.0)],
+                        max_speed_kmh=80.0, train_types=[tt])
+    r = approach_patterns(line, "T", "S0", "S1", [3.5 * KMH_S], approach_m=900.0)
+    p = r.patterns[0]
+    assert p.feasible
+    assert max(a for _, a in r.decel_limits[0]) == pytest.approx(brake * KMH_S)
+    smp = p.sample(0.01)
+    assert float(smp.a_ms2.min()) >= -brake * KMH_S - 1e-9
+    # and it is no faster than braking at the brake's deceleration from the same speed (v / b + jerk)
+    assert p.duration_s >= r.v_start_ms / (brake * KMH_S)
+
+
+def test_an_osrd_fast_train_brakes_with_its_brake_not_its_comfort_acceleration(tmp_path):
+    # OSRD's fast test stock: comfort_acceleration 0.25 m/s² (traction), const_gamma 0.5 m/s² (brake)
+    rs = src.edited(src.rolling_stock, lambda d: d.update(comfort_acceleration=0.25, const_gamma=0.5))
+    i, r, x = src.write_railjson(tmp_path / "rj", rs=rs)
+    s = import_railjson(i, ["W", "M", "E"], [r], tmp_path / "line", extra=x)
+    row = pd.read_parquet(tmp_path / "line" / "rolling_stock.parquet").iloc[0]
+    assert row.max_accel_kmh_s == pytest.approx(0.25 * 3.6)      # traction comfort: caps acceleration
+    assert row.stop_brake_kmh_s == pytest.approx(0.5 * 3.6)      # the train's own stopping brake
+    assert row.service_brake_kmh_s == pytest.approx(0.5 * 3.6)
+    assert row.brake_comfort_kmh_s == 3.3                        # OSRD has none: the stated default
+    text = "\n".join(s.lines())
+    assert "brake_comfort_kmh_s = 3.3 (default:" in text
+    assert "comfort_acceleration 0.25 m/s² -> max_accel_kmh_s" in text
+    assert "a stopping pattern asks for at most 1.8 km/h/s" in text
+    line = load_line(tmp_path / "line")
+    res = approach_patterns(line, "EMU", "W", "M", [3.5 * KMH_S], approach_m=1500.0)
+    assert res.patterns[0].feasible, res.patterns[0].reason
+    flat = [a for a in (d for _, d in res.decel_limits[0])]
+    assert max(flat) == pytest.approx(0.5)  # the brake, not 0.25 (nor comfort 3.3 km/h/s = 0.917)
+
+
+def test_the_min_time_pattern_at_the_brake_alone_is_the_closed_form():
+    # position-independent check of the cap: v = 20 m/s, brake 0.5, jerk J = 1: T = v/b + b/J
+    b, J, v = 0.5, 1.0, 20.0
+    dl = decel_limit_profile(0.917, 0.97, brake_ms2=b)
+    p = solve_stop(v, 1000.0, jerk_max=J, decel_limits=dl, speed_limits=[(0.0, v)])
+    braking = v / b + b / J
+    dist_braking = v * v / (2 * b) + v * b / (2 * J)
+    assert p.feasible
+    assert p.duration_s == pytest.approx((1000.0 - dist_braking) / v + braking, abs=1e-6)
+    assert math.isclose(p.braking_distance_m, dist_braking, abs_tol=1e-6)
