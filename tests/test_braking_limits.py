@@ -18,8 +18,10 @@ from planner.line import testing
 from planner.line.importers.csv import export_csv, import_csv
 from planner.line.importers.railjson import import_railjson
 from planner.line.units import KMH_S
+from planner.report.leg_margin import leg_result
+from planner.stopping.approach import train_adhesion_ms2
 from planner.stopping.pattern import decel_limit_profile, solve_stop
-from planner.stopping.sweep import approach_patterns
+from planner.stopping.sweep import adhesion_levels, approach_patterns
 
 G = 9.80665
 
@@ -101,3 +103,46 @@ def test_the_min_time_pattern_at_the_brake_alone_is_the_closed_form():
     assert p.feasible
     assert p.duration_s == pytest.approx((1000.0 - dist_braking) / v + braking, abs=1e-6)
     assert math.isclose(p.braking_distance_m, dist_braking, abs_tol=1e-6)
+
+
+# --------------------------------------------------------------------------- adhesion levels relative to the train
+def _freight(**kw):
+    """A 920 t freight braking at 0.225 m/s² (0.81 km/h/s) with its own brake, 80 km/h."""
+    return testing.train_type("FRT", empty_mass_t=920.0, full_load_mass_t=0.0, max_speed_kmh=80.0,
+                              max_accel_kmh_s=1.0, service_brake_kmh_s=0.81, stop_brake_kmh_s=0.81,
+                              brake_comfort_kmh_s=3.3, jerk_limit_kmh_s2=1.8, davis_a_kN=10.0,
+                              traction=((0.0, 300.0), (200.0, 300.0)), **kw)
+
+
+def test_levels_above_the_train_brake_become_the_brake_once():
+    lv = [a * KMH_S for a in adhesion_levels("2.5:3.5:0.1")]
+    assert train_adhesion_ms2(_freight(), lv) == (0.81 * KMH_S,)
+    e10 = testing.train_type(stop_brake_kmh_s=3.2, brake_comfort_kmh_s=3.5)
+    got = [round(a / KMH_S, 9) for a in train_adhesion_ms2(e10, lv)]
+    assert got == [2.5, 2.6, 2.7, 2.8, 2.9, 3.0, 3.1, 3.2]
+    e6 = testing.train_type(stop_brake_kmh_s=3.0, brake_comfort_kmh_s=2.8)  # comfort binds below the brake
+    assert max(train_adhesion_ms2(e6, lv)) == 2.8 * KMH_S
+
+
+def test_a_slow_braking_freight_sweeps_one_level_and_stops_at_its_brake():
+    line = testing.line(length_m=8000.0, stations=[0.0, 7500.0], max_speed_kmh=80.0, train_types=[_freight()])
+    r = approach_patterns(line, "FRT", "S0", "S1", [a * KMH_S for a in adhesion_levels("2.5:3.5:0.1")],
+                          approach_m=2000.0)
+    assert r.adhesion_ms2 == (0.81 * KMH_S,) and r.patterns[0].feasible
+    assert float(r.patterns[0].sample(0.05).a_ms2.min()) >= -0.81 * KMH_S - 1e-9
+
+
+@pytest.mark.parametrize("grad", [0.0, 10.0, -10.0])
+def test_the_bad_day_of_a_slow_braking_freight_is_never_faster_than_nominal(grad):
+    # before: the sweep 2.5 … 3.5 km/h/s stopped it at 0.69 … 0.97 m/s², three to four times its brake,
+    # and the bad day came out faster than the minimum (a negative stop-model term)
+    line = testing.line(length_m=8000.0, stations=[0.0, 7500.0], max_speed_kmh=80.0,
+                        gradients=[(5000.0, 8000.0, grad)], train_types=[_freight()])
+    r = leg_result(line, "FRT", "S0", "S1", [], approach_m=2000.0)
+    assert r.sweep_adhesion_kmh_s.tolist() == [0.81]
+    assert r.adhesion_min_kmh_s == 0.81
+    assert r.degraded_min_s >= r.min_time_s
+    assert r.degraded_loss_stop_model_s >= 0.0  # the jerk-limited stop at most at the brake: never faster
+    assert r.degraded_loss_stop_s == 0.0        # one level: low rail adhesion does not limit this train
+    if grad < 0:  # a falling approach takes g/100 from the brake: the stop is slower than the run curves'
+        assert r.degraded_loss_stop_model_s > 10.0

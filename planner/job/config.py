@@ -60,7 +60,8 @@ class TablesSection:
 @dataclass(frozen=True)
 class StopsSection:
     adhesion_kmh_s: str = "2.5:3.5:0.1"
-    """Adhesion sweep START:STOP:STEP in km/h/s."""
+    """Adhesion sweep START:STOP:STEP in km/h/s: the rail's condition, absolute. Each train type gets the levels at
+    or below min(brake_comfort_kmh_s, stop_brake_kmh_s), and that cap in place of every level above it."""
     approach_m: float = 550.0
     """Pattern start distance before the stop marker where no TASC beacon exists."""
 

@@ -19,7 +19,7 @@ from planner.errors import InputError
 from planner.line.model import Line, sign
 from planner.line.units import KMH_S, kmh
 from planner.report.margin_rule import MarginRule
-from planner.stopping.approach import DEFAULT_APPROACH_M, approach_start
+from planner.stopping.approach import DEFAULT_APPROACH_M, approach_start, brake_cap_ms2, train_adhesion_ms2
 from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, adhesion_levels
 
 PATTERN_BACKOFF_M = 25.0
@@ -127,6 +127,12 @@ def _first_pattern(line, train, track, res, run: int, cands, adhesion_ms2: float
     return first
 
 
+def train_adhesion_kmh_s(train, adhesion_kmh_s) -> np.ndarray:
+    """The sweep's levels for ``train`` [km/h/s], ascending (:func:`planner.stopping.approach.train_adhesion_ms2`)."""
+    levels = train_adhesion_ms2(train, [a * KMH_S for a in adhesion_levels(adhesion_kmh_s)])
+    return np.asarray([round(a / KMH_S, 9) for a in levels], dtype=float)
+
+
 def passed_stations(line: Line, origin: str, destination: str) -> tuple[str, ...]:
     """Stations strictly between two stops, in running order."""
     d = line.direction_between(origin, destination)
@@ -160,7 +166,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
         For computed tables (default grid).
     rule : MarginRule
     adhesion_kmh_s : spec or list
-        Adhesion sweep [km/h/s] (:func:`adhesion_levels`); the lowest is the degraded level.
+        Adhesion sweep [km/h/s] (:func:`adhesion_levels`), the rail's; the train's levels
+        (:func:`train_adhesion_kmh_s`), the lowest is the degraded level.
     approach_m : float
         Pattern start before the marker where there is no TASC beacon [m].
     after_departure_m : float or None
@@ -199,7 +206,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     else:  # a grid without 1.0: the simulated nominal run is the minimum
         min_time, e_full = float(t_end[0]), float(np.asarray(res.energy_kwh)[0])
 
-    adh = np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float)
+    adh = train_adhesion_kmh_s(train, adhesion_kmh_s)
     bad = _bad_day(line, train, track, res, cands, ext.length_m, adh, rule, src)
     sweep, loss = _adhesion_sweep(line, train, track, res, cands, adh, bad.adhesion_kmh_s)
     out = LegResult(
@@ -295,6 +302,8 @@ def _bad_day(line: Line, train, track, res, cands, length: float, adh: np.ndarra
     """
     t_end = np.asarray(res.time_s, float)
     a_bad = rule.bad_adhesion_kmh_s(adh)
+    if a_bad is not None:  # a configured level above the train's braking cap is the cap for this train
+        a_bad = min(a_bad, round(brake_cap_ms2(train) / KMH_S, 9))
     a_min = float(adh[0]) if a_bad is None else a_bad
     c, t_deg, v_deg, pat, speed, grads = _first_pattern(line, train, track, res, 1, cands, a_min * KMH_S)
     note = ""

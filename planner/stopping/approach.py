@@ -40,10 +40,12 @@ __all__ = [
     "DEFAULT_APPROACH_M",
     "ApproachStart",
     "approach_start",
+    "brake_cap_ms2",
     "brake_demand_ms2",
     "decel_limits",
     "gradient_steps",
     "speed_limits",
+    "train_adhesion_ms2",
 ]
 
 DEFAULT_APPROACH_M = 550.0
@@ -180,6 +182,31 @@ def decel_limits(line: Line, train, direction: str, start_chainage_m: float, len
         gradients_permil = gradient_steps(line, train.length_m, direction, start_chainage_m, length_m)
     return decel_limit_profile(train.brake_comfort_ms2, adhesion_ms2, gradients_permil,
                                rotating_mass_factor=train.rotating_mass_factor, brake_ms2=train.stop_brake_ms2)
+
+
+def brake_cap_ms2(train) -> float:
+    """The most a stop of ``train`` asks of its brake on the level [m/s²]: min(braking comfort, stopping brake)."""
+    return min(float(train.brake_comfort_ms2), float(train.stop_brake_ms2))
+
+
+def train_adhesion_ms2(train, levels_ms2) -> tuple[float, ...]:
+    """The adhesion levels [m/s²] that are levels for ``train``, ascending.
+
+    The job's levels are the rail's condition, in absolute terms. A level above what the train
+    asks of its brake anyway (:func:`brake_cap_ms2`) would give the same pattern as the cap: it is
+    not a level of its own for this train, so every such level becomes the cap, once. A freight
+    braking at 0.81 km/h/s has the one level 0.81 km/h/s under a 2.5 … 3.5 km/h/s sweep: rail
+    adhesion that low does not limit it, and its bad day stops no faster than its nominal day.
+
+    Examples
+    --------
+    >>> from planner.line import testing
+    >>> tt = testing.train_type(stop_brake_kmh_s=3.0, brake_comfort_kmh_s=3.5)
+    >>> [round(a * 3.6, 9) for a in train_adhesion_ms2(tt, [x / 3.6 for x in (2.5, 2.8, 3.1, 3.4)])]
+    [2.5, 2.8, 3.0]
+    """
+    cap = brake_cap_ms2(train)
+    return tuple(sorted({min(float(a), cap) for a in levels_ms2}))
 
 
 def brake_demand_ms2(line: Line, train, direction: str, start_chainage_m: float, x_m, a_ms2):

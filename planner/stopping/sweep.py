@@ -28,6 +28,12 @@ One *approach* is set up from the line as the vehicle meets it, by
   (:func:`planner.stopping.approach.decel_limits`), one profile per adhesion level;
 * **jerk**: the vehicle's ``jerk_limit_ms3``.
 
+**Adhesion levels** are the rail's condition, absolute, in km/h/s (job ``[stops]
+adhesion_kmh_s``); each train type gets those at or below what it asks of its brake anyway
+(min(braking comfort, stopping brake)) and that cap in place of every level above it
+(:func:`planner.stopping.approach.train_adhesion_ms2`), so a level is never faster than the
+train can brake and the bad day never faster than nominal.
+
 An approach with no admissible pattern at some adhesion level is kept as a row
 with ``feasible = False`` and the solver's reason, and produces a warning
 (:class:`InfeasibleStopWarning`) naming station, direction, train type and
@@ -186,7 +192,8 @@ class ApproachResult:
         direction, each linear piece at its least favourable value
         (:func:`planner.stopping.approach.gradient_steps`).
     adhesion_ms2 : tuple of float
-        The adhesion levels (adhesion-limited braking decelerations) [m/s²], ascending.
+        The train's adhesion levels (adhesion-limited braking decelerations) [m/s²], ascending: the
+        job's levels, those above the train's braking cap replaced by the cap once.
     decel_limits : tuple
         Per level, the deceleration limit step function ``((x_from_m, decel_ms2), ...)``,
         or ``()`` when the gradient leaves no deceleration.
@@ -265,7 +272,9 @@ def approach_patterns(
     train_type, origin, destination : str
         Consecutive stations; the direction follows from them.
     adhesions_ms2 : sequence of float
-        Adhesion-limited braking decelerations [m/s²], > 0 (sorted ascending in the result).
+        Adhesion-limited braking decelerations [m/s²], > 0, the rail's condition: the result has the
+        train's levels (:func:`planner.stopping.approach.train_adhesion_ms2`: every level above the
+        train's braking cap becomes the cap, once), ascending.
     approach_m : float
         Approach length where the interstation has no TASC beacon [m], > 0.
     settings : planner.physics.track.SimSettings, optional
@@ -298,8 +307,9 @@ def approach_patterns(
     levels_ms2 = sorted(float(a) for a in adhesions_ms2)
     if not levels_ms2 or not all(math.isfinite(a) and a > 0.0 for a in levels_ms2):
         raise InputError(f"adhesion levels must be positive decelerations [m/s²], got {list(adhesions_ms2)!r}")
-    levels_kmh_s = tuple(round(a / KMH_S, 9) for a in levels_ms2)
     train = line.train_type(train_type)
+    levels_ms2 = list(_approach.train_adhesion_ms2(train, levels_ms2))  # none above what the train asks anyway
+    levels_kmh_s = tuple(round(a / KMH_S, 9) for a in levels_ms2)
     ext = line.run_between(origin, destination)
     direction, sg, x0, stop, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m
     start = _approach.approach_start(line, origin, destination, float(approach_m))
