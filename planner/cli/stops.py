@@ -21,7 +21,8 @@ def stops(
     train_type: Optional[list[str]] = typer.Option(
         None, "--train-type", help="Train type (repeatable); default every type of the line."),
     direction: Optional[str] = typer.Option(None, "--direction", help="down or up; default both."),
-    approach_m: float = typer.Option(550.0, "--approach", help="Approach length where there is no TASC beacon [m]."),
+    approach_m: str = typer.Option("auto", "--approach", help="Approach length where there is no TASC beacon [m], "
+                                   "or auto: the line's approach_m, else where the train must start braking + 10 %."),
     plot: Optional[str] = typer.Option(
         None, "--plot", help="Station id: also write a PNG of its approach (speed, acceleration, jerk per "
         "adhesion level) for the first train type and --direction (default down)."),
@@ -40,6 +41,11 @@ def stops(
     check_out_dir(out, "--out", "stopping-pattern datasets")
     check_jobs(jobs)
     levels = adhesion_levels(adhesion)
+    if approach_m != "auto":
+        try:
+            approach_m = float(approach_m)
+        except ValueError:
+            raise InputError(f"--approach {approach_m!r}: give metres (e.g. 550) or auto") from None
     if direction is not None and direction not in ("down", "up"):
         raise InputError(f"--direction {direction!r}: use down or up")
     line = load_line(line_dir)

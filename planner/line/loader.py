@@ -147,6 +147,10 @@ def _f(x) -> float:
     return float(x)
 
 
+def _opt_float(x) -> float | None:
+    return None if x is None or (isinstance(x, float) and np.isnan(x)) else float(x)
+
+
 def _opt_str(x) -> str | None:
     return None if x is None else str(x)
 
@@ -259,6 +263,7 @@ def _build(views: dict[str, TableView], digest: str, source_path: str) -> Line:
         end_m=_f(ln["end_m"][0]),
         max_speed_ms=_f(ln["max_speed_kmh"][0]) * KMH,
         schema_version=int(ln["schema_version"][0]),
+        approach_m=_opt_float(ln["approach_m"][0]) if ln.has("approach_m") else None,
         stations=stations,
         gradients=_segments(views["gradients"], "gradient_permil", PERMIL),
         curves=_segments(views["curves"], "radius_m", 1.0),

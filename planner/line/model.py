@@ -228,7 +228,8 @@ class Line:
     """A validated line database, in SI.
 
     ``source_digest`` is the SHA-256 over the input files (names and bytes) it
-    was loaded from; "" for lines built in memory.
+    was loaded from; "" for lines built in memory. ``approach_m``: the line's optional
+    ``approach_m`` column (None when absent or null).
     """
 
     line_id: str
@@ -248,6 +249,8 @@ class Line:
     network: Network | None = None
     source_digest: str = ""
     source_path: str = field(default="", compare=False)
+    approach_m: float | None = None
+    """Stopping-pattern start before the marker where no TASC beacon is [m]; None: from the physics."""
 
     # --- look-ups -----------------------------------------------------------
     def station(self, station_id: str) -> Station:

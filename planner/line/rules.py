@@ -180,6 +180,11 @@ def line_rules(db: Db) -> Iterator[Violation]:
                                              f"schema version {SCHEMA_VERSION}")
     yield from start_before_end(t)
     yield from positive(t, "max_speed_kmh")
+    if t.has("approach_m"):  # null: from the physics
+        x = _num(t, "approach_m")
+        for i in _where(t, ~np.isnan(x) & ~(x > 0)):
+            yield t.err(i, "approach_m", f"must be > 0 m, or null for the start from the physics; found "
+                                         f"{fmt(t['approach_m'][i])}")
 
 
 # ---- ids that become file names or partition values: one rule (planner.io.paths.PATH_ID_RE)

@@ -108,7 +108,9 @@ _SPECS = [
         ("end_m", D, "last chainage covered by the database [m]"),
         ("max_speed_kmh", D, "line maximum speed [km/h]"),
         ("schema_version", I32, "line-database schema version; 1"),
-    ]), required=True, min_rows=1, max_rows=1, row_id=("line_id",)),
+        ("approach_m", D, "stopping-pattern start before the stop marker where no TASC beacon is [m] (optional "
+                          "column); null or absent: where the train must start braking, plus 10 %", NULLABLE),
+    ]), required=True, min_rows=1, max_rows=1, row_id=("line_id",), optional_columns=frozenset({"approach_m"})),
     TableSpec("stations", _schema("stations", [
         ("station_id", S, "unique station identifier"),
         ("name", S, "display name"),

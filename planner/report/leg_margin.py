@@ -145,7 +145,7 @@ def passed_stations(line: Line, origin: str, destination: str) -> tuple[str, ...
 
 def leg_result(line: Line, train_type: str, origin: str, destination: str, scheduled: Sequence[float], *,
                tables=None, energy_a_kwh=None, ratios=None, rule: MarginRule = MarginRule(),
-               adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float = DEFAULT_APPROACH_M,
+               adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float | str = DEFAULT_APPROACH_M,
                after_departure_m: float | None = 200.0, eval_interval_m: float | None = None, settings=None,
                closed_loop_errors: dict | None = None, record: bool = False) -> LegResult:
     """Compute one leg: minimum, slowest, degraded minimum, pattern sweep, closed loop per scheduled time.
@@ -168,8 +168,9 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     adhesion_kmh_s : spec or list
         Adhesion sweep [km/h/s] (:func:`adhesion_levels`), the rail's; the train's levels
         (:func:`train_adhesion_kmh_s`), the lowest is the degraded level.
-    approach_m : float
-        Pattern start before the marker where there is no TASC beacon [m].
+    approach_m : float or "auto"
+        Pattern start before the marker where there is no TASC beacon [m]; ``"auto"``: the line's, else
+        from the physics (:func:`planner.stopping.approach.approach_start`, the lowest level of the train).
     after_departure_m : float or None
         Evaluation point after departure for computed tables [m].
     eval_interval_m : float or None
@@ -194,8 +195,9 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     ext = line.run_between(origin, destination)
     tables, energy_a, tsource = _leg_tables(line, train_type, origin, destination, tables, energy_a_kwh, ratios,
                                             after_departure_m, eval_interval_m, settings)
+    adh = train_adhesion_kmh_s(train, adhesion_kmh_s)
     track, cands, src = _track_and_starts(line, train_type, origin, destination, ext.length_m, tables,
-                                               approach_m, settings)
+                                          approach_m, settings, float(adh[0]) * KMH_S)
     # ratio 1.0 at the tables' conditions (run 0), the bad day's load and traction (run 1) and its load
     # alone (run 2, to split the bad day's cost by effect), states at the pattern starts
     res = simulate(track, train, np.array([1.0, 1.0, 1.0]), load=np.array([0.0, rule.bad_load, rule.bad_load]),
@@ -206,7 +208,6 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     else:  # a grid without 1.0: the simulated nominal run is the minimum
         min_time, e_full = float(t_end[0]), float(np.asarray(res.energy_kwh)[0])
 
-    adh = train_adhesion_kmh_s(train, adhesion_kmh_s)
     bad = _bad_day(line, train, track, res, cands, ext.length_m, adh, rule, src)
     sweep, loss = _adhesion_sweep(line, train, track, res, cands, adh, bad.adhesion_kmh_s)
     out = LegResult(
@@ -249,7 +250,7 @@ def _leg_tables(line: Line, train_type: str, origin: str, destination: str, tabl
 
 
 def _track_and_starts(line: Line, train_type: str, origin: str, destination: str, length: float, tables,
-                      approach_m: float, settings):
+                      approach_m, settings, adhesion_ms2: float):
     """The leg's track with nodes at the evaluation points and the candidate pattern starts.
 
     Returns ``(track, candidates, source)``: the candidates [m running distance] move back
@@ -259,7 +260,8 @@ def _track_and_starts(line: Line, train_type: str, origin: str, destination: str
     from planner.physics.track import make_track
 
     pts_s = [float(x) for x in tables.eval_distance_m]
-    start = approach_start(line, origin, destination, approach_m)
+    start = approach_start(line, origin, destination, approach_m, train_type=train_type, adhesion_ms2=adhesion_ms2,
+                           settings=settings)
     # at or before the departure marker (approach not shorter than the leg): from the marker, where
     # the train stands and no pattern exists; the note then says the degraded minimum is unknown
     s_p, src = max(start.s_m, 0.0), start.source

@@ -43,13 +43,15 @@ What each row holds, and how
 
   1. the degraded run at ratio 1.0 from departure to the **pattern start**,
      where the on-board stopping control takes over: the TASC beacon of the
-     arrival stop in that direction, or ``approach_m`` (550 m) before the
-     stop marker where there is none (:func:`planner.stopping.approach.approach_start`,
+     arrival stop in that direction; where there is none, ``approach_m`` before the
+     stop marker when the job or the line sets it, else where the minimum-time run
+     must start braking at the train's lowest adhesion level, plus 10 %
+     (:func:`planner.stopping.approach.approach_start`,
      the one definition the stopping-pattern sweep uses too), simulated with
      the run-curve integrator;
   2. plus the duration of the minimum-time jerk-limited stopping pattern
      (:func:`planner.stopping.pattern.solve_stop`) from the degraded speed there, at
-     the lowest adhesion: deceleration limit ``min(comfort, adhesion)`` plus
+     the lowest adhesion: deceleration limit ``min(comfort, adhesion, brake)`` plus
      the gradient's part, the gradient averaged over the train as in the run
      curves and bounded per piece from the safe side
      (:func:`planner.stopping.approach.decel_limits`), speed limit the on-board
@@ -206,7 +208,7 @@ class MarginReport:
     line_name: str
     rule: MarginRule
     adhesion_kmh_s: np.ndarray
-    approach_m: float
+    approach_m: float | str
     rows: object
     totals: object
     sweep: object
@@ -267,7 +269,7 @@ def compute_margins(
     closed_loop_dir: str | Path | None = None,
     ratios=None,
     adhesion_kmh_s=DEFAULT_ADHESION_KMH_S,
-    approach_m: float = DEFAULT_APPROACH_M,
+    approach_m: float | str = DEFAULT_APPROACH_M,
     after_departure_m: float | None = 200.0,
     eval_interval_m: float | None = None,
     chosen: tuple[str, str, str] | None = None,
@@ -299,8 +301,9 @@ def compute_margins(
         Grid for computed tables (default grid).
     adhesion_kmh_s : spec or list
         Adhesion sweep [km/h/s]; its lowest level is the degraded one.
-    approach_m : float
-        Pattern start before the stop marker where there is no TASC beacon [m].
+    approach_m : float or "auto"
+        Pattern start before the stop marker where there is no TASC beacon [m]; ``"auto"``: the line's
+        ``approach_m``, else where the train must start braking + 10 %.
     after_departure_m : float or None
         Evaluation point after departure for computed tables [m].
     eval_interval_m : float or None

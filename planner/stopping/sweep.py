@@ -11,9 +11,10 @@ One *approach* is set up from the line as the vehicle meets it, by
 
 * **start**: the TASC beacon before the stop marker (the last ``tasc`` beacon
   read in that direction inside the interstation), where the on-board unit
-  learns its exact distance to go; without one, a fixed distance
-  ``approach_m`` (550 m by default, the usual TASC beacon spacing) before
-  the marker (:func:`planner.stopping.approach.approach_start`);
+  learns its exact distance to go; without one, ``approach_m`` before the
+  marker when the job or the line sets it, else where the minimum-time run
+  must start braking at the pattern's deceleration (the train's lowest
+  adhesion level), plus 10 % (:func:`planner.stopping.approach.approach_start`);
 * **start speed**: the speed of the minimum-time run there (ratio 1.0, load 0,
   nominal traction, :func:`planner.physics.run_curve.simulate`; the point is an exact
   grid node, read from a snapshot). The pattern takes it with acceleration 0;
@@ -176,7 +177,7 @@ class ApproachResult:
     approach_length_m : float
         Distance from the approach start to the stop marker [m] (``x_stop``).
     tasc_beacon_id : str
-        The TASC beacon the approach starts at, or ``""`` (fixed distance).
+        The TASC beacon the approach starts at, or ``""`` (``approach_m``, or the physics start).
     v_start_ms : float
         Speed of the minimum-time run at the approach start [m/s] (NaN if none).
     run_phase : str
@@ -257,7 +258,7 @@ def approach_patterns(
     origin: str,
     destination: str,
     adhesions_ms2: Sequence[float],
-    approach_m: float = DEFAULT_APPROACH_M,
+    approach_m: float | str = DEFAULT_APPROACH_M,
     *,
     settings=None,
 ) -> ApproachResult:
@@ -275,8 +276,9 @@ def approach_patterns(
         Adhesion-limited braking decelerations [m/s²], > 0, the rail's condition: the result has the
         train's levels (:func:`planner.stopping.approach.train_adhesion_ms2`: every level above the
         train's braking cap becomes the cap, once), ascending.
-    approach_m : float
-        Approach length where the interstation has no TASC beacon [m], > 0.
+    approach_m : float or "auto"
+        Approach length where the interstation has no TASC beacon [m], > 0; ``"auto"``: the line's
+        ``approach_m``, else from the physics (:func:`planner.stopping.approach.physics_start_m`).
     settings : planner.physics.track.SimSettings, optional
         Grid of the minimum-time run (default 1 m).
 
@@ -302,8 +304,7 @@ def approach_patterns(
     from planner.physics.run_curve import PHASE_NAMES, simulate
     from planner.physics.track import SimSettings, make_track
 
-    if not (isinstance(approach_m, (int, float)) and math.isfinite(approach_m) and approach_m > 0.0):
-        raise InputError(f"approach_m must be a positive number of metres, got {approach_m!r}")
+    _approach.fixed_approach_m(line, approach_m)  # a bad value is an InputError before any work
     levels_ms2 = sorted(float(a) for a in adhesions_ms2)
     if not levels_ms2 or not all(math.isfinite(a) and a > 0.0 for a in levels_ms2):
         raise InputError(f"adhesion levels must be positive decelerations [m/s²], got {list(adhesions_ms2)!r}")
@@ -312,7 +313,8 @@ def approach_patterns(
     levels_kmh_s = tuple(round(a / KMH_S, 9) for a in levels_ms2)
     ext = line.run_between(origin, destination)
     direction, sg, x0, stop, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m
-    start = _approach.approach_start(line, origin, destination, float(approach_m))
+    start = _approach.approach_start(line, origin, destination, approach_m, train_type=train_type,
+                                     adhesion_ms2=levels_ms2[0], settings=settings)
     s_a = start.s_m
     X = length - s_a
     J = train.jerk_limit_ms3
@@ -332,7 +334,7 @@ def approach_patterns(
 
     if not s_a > 0.0:
         return all_infeasible(
-            f"the approach of {approach_m:g} m is not shorter than the interstation ({length:.1f} m); "
+            f"the approach of {X:.0f} m is not shorter than the interstation ({length:.1f} m); "
             "lower approach_m or add a TASC beacon", math.nan, "")
 
     track = make_track(line, train_type, origin, destination, settings=settings or SimSettings(),
@@ -402,7 +404,7 @@ def stop_sweep(
     *,
     train_types: Sequence[str] | None = None,
     adhesion_kmh_s: str | Sequence[float] = DEFAULT_ADHESION_KMH_S,
-    approach_m: float = DEFAULT_APPROACH_M,
+    approach_m: float | str = DEFAULT_APPROACH_M,
     directions: Sequence[str] | None = None,
     n_jobs: int = -1,
     settings=None,
@@ -418,8 +420,8 @@ def stop_sweep(
     adhesion_kmh_s : str or sequence of float
         Adhesion levels [km/h/s], or a spec for :func:`adhesion_levels`
         (default 2.5 … 3.5 in 0.1 steps).
-    approach_m : float
-        Approach length where there is no TASC beacon [m].
+    approach_m : float or "auto"
+        Approach length where there is no TASC beacon [m], or ``"auto"`` (:func:`approach_patterns`).
     directions : sequence of str, optional
         Default both.
     n_jobs : int

@@ -32,6 +32,8 @@ EXTRA_EXAMPLE = """
 line_id = "coast"            # default: the source's line/path name
 name = "Coast Line"          # default: the line id
 max_speed_kmh = 120.0        # default: the highest speed limit on the path
+approach_m = 800.0           # stopping-pattern start before the marker without a TASC beacon; default:
+                             #  where the train must start braking + 10 %
 
 [defaults]                   # replace any documented default, e.g.
 platform_length_m = 180.0
@@ -101,7 +103,7 @@ OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_nam
 
 _ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema)  # train_type renames
 _SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable"}
-_LINE_KEYS = {"line_id", "name", "max_speed_kmh"}
+_LINE_KEYS = {"line_id", "name", "max_speed_kmh", "approach_m"}
 _STATION_KEYS = {"station_id", "name", "platform_length_m", "stop_down_m", "stop_up_m"}
 _BEACON_KEYS = {f.name for f in TABLES["beacons"].schema} | {"at"}
 _TIMETABLE_KEYS = {f.name for f in TABLES["timetable"].schema}
@@ -245,8 +247,11 @@ def line_table(line_id: str, start_m: float, end_m: float, limits: pd.DataFrame,
         vmax = float(limits["limit_kmh"].max())
     vmax = number(vmax, f"{ex.path}: [line] max_speed_kmh", positive=True)
     s.line_id = lid
-    return pd.DataFrame([dict(line_id=lid, name=str(name), start_m=float(start_m), end_m=float(end_m),
-                              max_speed_kmh=vmax, schema_version=1)])
+    row = dict(line_id=lid, name=str(name), start_m=float(start_m), end_m=float(end_m), max_speed_kmh=vmax,
+               schema_version=1)
+    if ex.line.get("approach_m") is not None:
+        row["approach_m"] = number(ex.line["approach_m"], f"{ex.path}: [line] approach_m", positive=True)
+    return pd.DataFrame([row])
 
 
 def station_table(found: list[dict], start_m: float, end_m: float, s: ImportSummary) -> pd.DataFrame:
