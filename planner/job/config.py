@@ -46,9 +46,9 @@ class JobSection:
 @dataclass(frozen=True)
 class TablesSection:
     ratios: str = "1.0:0.7:0.1,0.7:floor:0.05"
-    """Ratio grid SPEC: comma-separated START:STOP:STEP ranges or plain ratios; `floor` is the ratio where ratio × line maximum = min_target_kmh."""
+    """Ratio grid SPEC: comma-separated START:STOP:STEP ranges or plain ratios; `floor` is the ratio where ratio × the leg's maximum = min_target_kmh."""
     min_target_kmh: float = 20.0
-    """The grid stops where ratio × line maximum reaches this speed."""
+    """Each leg's grid stops where ratio × the train's highest on-board maximum on that leg reaches this speed."""
     eval_offset_m: float = 200.0
     """Evaluation point this far after departure."""
     eval_interval_m: float = 0.0

@@ -17,7 +17,7 @@ import numpy as np
 
 from planner.errors import InputError
 from planner.line.model import Line, sign
-from planner.line.units import KMH_S, kmh
+from planner.line.units import KMH, KMH_S, kmh
 from planner.report.margin_rule import MarginRule
 from planner.stopping.approach import DEFAULT_APPROACH_M, approach_start, brake_cap_ms2, train_adhesion_ms2
 from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, adhesion_levels
@@ -147,7 +147,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
                tables=None, energy_a_kwh=None, ratios=None, rule: MarginRule = MarginRule(),
                adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float | str = DEFAULT_APPROACH_M,
                after_departure_m: float | None = 200.0, eval_interval_m: float | None = None, settings=None,
-               closed_loop_errors: dict | None = None, record: bool = False) -> LegResult:
+               closed_loop_errors: dict | None = None, record: bool = False,
+               min_target_speed_ms: float = 20.0 * KMH) -> LegResult:
     """Compute one leg: minimum, slowest, degraded minimum, pattern sweep, closed loop per scheduled time.
 
     Parameters
@@ -163,7 +164,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     energy_a_kwh : ndarray, optional
         Table (a) energy [kWh] that goes with ``tables``.
     ratios : ratio grid spec or list, optional
-        For computed tables (default grid).
+        For computed tables (default grid; its floor is the leg's, :func:`planner.tables.ratios.leg_ratio_grid`).
     rule : MarginRule
     adhesion_kmh_s : spec or list
         Adhesion sweep [km/h/s] (:func:`adhesion_levels`), the rail's; the train's levels
@@ -179,6 +180,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     closed_loop_errors : dict, optional
         ``{("nominal" | "degraded", designated_s rounded to 1e-6): error_s}`` already
         computed (``--closed-loop``); missing ones are simulated.
+    min_target_speed_ms : float
+        The floor of computed tables' grid: ratio × the leg's maximum = this [m/s].
     record : bool
         Also return the run curves (minimum, as scheduled for the first
         scheduled time, degraded with its stopping pattern) in ``.curves``.
@@ -194,7 +197,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     train = line.train_type(train_type)
     ext = line.run_between(origin, destination)
     tables, energy_a, tsource = _leg_tables(line, train_type, origin, destination, tables, energy_a_kwh, ratios,
-                                            after_departure_m, eval_interval_m, settings)
+                                            after_departure_m, eval_interval_m, settings, min_target_speed_ms)
     adh = train_adhesion_kmh_s(train, adhesion_kmh_s)
     track, cands, src = _track_and_starts(line, train_type, origin, destination, ext.length_m, tables,
                                           approach_m, settings, float(adh[0]) * KMH_S)
@@ -233,13 +236,13 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
 
 
 def _leg_tables(line: Line, train_type: str, origin: str, destination: str, tables, energy_a_kwh, ratios,
-                after_departure_m, eval_interval_m, settings):
+                after_departure_m, eval_interval_m, settings, min_target_speed_ms):
     """The leg's tables and table (a) energy: as given (``dataset``) or computed (``computed``)."""
     from planner.tables.build import interstation_tables
-    from planner.tables.ratios import ratio_grid
+    from planner.tables.ratios import leg_ratio_grid
 
     if tables is None:
-        grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
+        grid = leg_ratio_grid(ratios, line, train_type, origin, destination, min_target_speed_ms)
         it = interstation_tables(line, train_type, origin, destination, grid,
                                  after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
                                  settings=settings)

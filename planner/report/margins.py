@@ -238,21 +238,19 @@ def margin_options(job, line: Line) -> dict:
         ``[tables]`` (ratio grid with its floor, evaluation points, integration
         step) and ``[conflicts]`` sections are read.
     line : Line
-        For the ratio grid's floor (ratio × line maximum = ``min_target_kmh``).
+        The line (each leg's grid takes its own floor: ratio × the train's maximum there = ``min_target_kmh``).
 
     Returns
     -------
     dict
-        ``rule, ratios, adhesion_kmh_s, approach_m, after_departure_m,
+        ``rule, ratios, min_target_speed_ms, adhesion_kmh_s, approach_m, after_departure_m,
         eval_interval_m, settings, conflicts, conflict_params``.
     """
     from planner.physics.track import SimSettings
-    from planner.tables.ratios import ratio_grid
 
     tp = job.tables
-    grid = ratio_grid(tp.ratios, line_max_speed_ms=line.max_speed_ms, min_target_speed_ms=tp.min_target_kmh * KMH)
     c = job.conflicts
-    return dict(rule=MarginRule.from_section(job.margins), ratios=[float(r) for r in grid],
+    return dict(rule=MarginRule.from_section(job.margins), ratios=tp.ratios, min_target_speed_ms=tp.min_target_kmh * KMH,
                 adhesion_kmh_s=job.stops.adhesion_kmh_s, approach_m=job.stops.approach_m,
                 after_departure_m=tp.eval_offset_m, eval_interval_m=tp.eval_interval_m or None,
                 settings=SimSettings(ds_m=tp.ds_m), conflicts=c.enabled,
@@ -268,6 +266,7 @@ def compute_margins(
     stops_dir: str | Path | None = None,
     closed_loop_dir: str | Path | None = None,
     ratios=None,
+    min_target_speed_ms: float = 20.0 * KMH,
     adhesion_kmh_s=DEFAULT_ADHESION_KMH_S,
     approach_m: float | str = DEFAULT_APPROACH_M,
     after_departure_m: float | None = 200.0,
@@ -299,6 +298,8 @@ def compute_margins(
         scheduled times are taken from it where present.
     ratios : ratio grid spec or list, optional
         Grid for computed tables (default grid).
+    min_target_speed_ms : float
+        Its floor: ratio × the train's maximum on the leg = this [m/s].
     adhesion_kmh_s : spec or list
         Adhesion sweep [km/h/s]; its lowest level is the degraded one.
     approach_m : float or "auto"
@@ -337,7 +338,7 @@ def compute_margins(
     sched = _scheduled_times(line, types, legs)
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
     cl_index = closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
-    kw = dict(ratios=ratios, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
+    kw = dict(ratios=ratios, min_target_speed_ms=min_target_speed_ms, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
               after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings)
 
     by_leg: dict[tuple, dict] = {}  # the closed-loop errors of each leg, in one pass (not one per leg)
