@@ -168,7 +168,7 @@ def expected_tables(line_id: str) -> dict[str, pd.DataFrame]:
     N = None
     return {
         "line": pd.DataFrame([dict(line_id=line_id, name="Import test line", start_m=0.0, end_m=6500.0,
-                                   max_speed_kmh=100.0, schema_version=1)]),
+                                   max_speed_kmh=None, schema_version=1)]),
         "stations": pd.DataFrame(
             [("W", "West", 500.0, 600.0, 400.0, 200.0), ("M", "Middle", 4000.0, 4100.0, 3900.0, 200.0),
              ("E", "East", 6200.0, 6280.0, 6120.0, 160.0)],

@@ -6,18 +6,20 @@ Closed forms: g = 9.80665 m/s², a gradient of s ‰ adds g s / 1000 / (1 + ρ) 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pandas as pd
 import pytest
 
 import importsrc as src
 from linedb import default_tables, write_line_db
-from planner import load_line
+from planner import load_line, running_time
 from planner.errors import LineValidationError, SourceError
 from planner.line import testing
 from planner.line.importers.csv import export_csv, import_csv
 from planner.line.importers.railjson import import_railjson
-from planner.line.units import KMH_S
+from planner.line.units import KMH, KMH_S
+from planner.tables.ratios import leg_max_speed_ms
 from planner.report.leg_margin import leg_result
 from planner.stopping.approach import train_adhesion_ms2
 from planner.stopping.pattern import decel_limit_profile, solve_stop
@@ -146,3 +148,28 @@ def test_the_bad_day_of_a_slow_braking_freight_is_never_faster_than_nominal(grad
     assert r.degraded_loss_stop_s == 0.0        # one level: low rail adhesion does not limit this train
     if grad < 0:  # a falling approach takes g/100 from the brake: the stop is slower than the run curves'
         assert r.degraded_loss_stop_model_s > 10.0
+
+
+# --------------------------------------------------------------------------- the line maximum
+def test_where_no_restriction_applies_the_train_runs_at_its_own_maximum():
+    tt = testing.train_type(max_speed_kmh=120.0)
+    line = testing.line(length_m=10_000.0, stations=[0.0, 9000.0], max_speed_kmh=None, train_types=[tt],
+                        limits=[(0.0, 1000.0, 60.0)])
+    assert leg_max_speed_ms(line, "T", "S0", "S1") == pytest.approx(120.0 * KMH)
+    same = running_time(replace(line, max_speed_ms=120.0 * KMH), "T", "S0", "S1").time_s
+    assert running_time(line, "T", "S0", "S1").time_s == same
+    # the old importer default (the highest limit on the path, 60 km/h) held the train at 60 everywhere
+    assert running_time(replace(line, max_speed_ms=60.0 * KMH), "T", "S0", "S1").time_s > same + 100.0
+
+
+def test_an_import_sets_no_line_maximum_unless_the_toml_does(tmp_path):
+    def edit(d):  # the 100 km/h section now covers T1 only: T2 and T3 have no section but V60
+        d["speed_sections"][0]["track_ranges"] = d["speed_sections"][0]["track_ranges"][:1]
+
+    i, r, x = src.write_railjson(tmp_path / "rj", infra=src.edited(src.railjson_infra, edit))
+    s = import_railjson(i, ["W", "M", "E"], [r], tmp_path / "line", extra=x)
+    assert pd.read_parquet(tmp_path / "line" / "line.parquet").max_speed_kmh.isna().all()
+    assert "line_max_speed = 'none'" in "\n".join(s.lines())
+    line = load_line(tmp_path / "line")
+    assert line.max_speed_ms == math.inf
+    assert leg_max_speed_ms(line, "EMU", "M", "E") == pytest.approx(110.0 * KMH)  # the train's own, not 100

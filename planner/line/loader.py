@@ -26,6 +26,7 @@ km/h is 3.6 times larger per m/s (3.6² for the quadratic term).
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from pathlib import Path
 
@@ -261,7 +262,7 @@ def _build(views: dict[str, TableView], digest: str, source_path: str) -> Line:
         name=str(ln["name"][0]),
         start_m=_f(ln["start_m"][0]),
         end_m=_f(ln["end_m"][0]),
-        max_speed_ms=_f(ln["max_speed_kmh"][0]) * KMH,
+        max_speed_ms=(_opt_float(ln["max_speed_kmh"][0]) or math.inf) * KMH,  # null: no line maximum
         schema_version=int(ln["schema_version"][0]),
         approach_m=_opt_float(ln["approach_m"][0]) if ln.has("approach_m") else None,
         stations=stations,

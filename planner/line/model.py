@@ -228,7 +228,8 @@ class Line:
     """A validated line database, in SI.
 
     ``source_digest`` is the SHA-256 over the input files (names and bytes) it
-    was loaded from; "" for lines built in memory. ``approach_m``: the line's optional
+    was loaded from; "" for lines built in memory. ``max_speed_ms`` is ``inf`` when the line
+    sets no maximum (each train's own maximum holds where no restriction does). ``approach_m``: the line's optional
     ``approach_m`` column (None when absent or null).
     """
 

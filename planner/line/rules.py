@@ -179,7 +179,10 @@ def line_rules(db: Db) -> Iterator[Violation]:
             yield t.err(i, "schema_version", f"is {t['schema_version'][i]}; this planner reads "
                                              f"schema version {SCHEMA_VERSION}")
     yield from start_before_end(t)
-    yield from positive(t, "max_speed_kmh")
+    x = _num(t, "max_speed_kmh")  # null: no line maximum
+    for i in _where(t, ~np.isnan(x) & ~(x > 0)):
+        yield t.err(i, "max_speed_kmh", f"must be > 0 km/h, or null for no line maximum; found "
+                                        f"{fmt(t['max_speed_kmh'][i])}")
     if t.has("approach_m"):  # null: from the physics
         x = _num(t, "approach_m")
         for i in _where(t, ~np.isnan(x) & ~(x > 0)):

@@ -106,7 +106,8 @@ _SPECS = [
         ("name", S, "display name"),
         ("start_m", D, "first chainage covered by the database [m]"),
         ("end_m", D, "last chainage covered by the database [m]"),
-        ("max_speed_kmh", D, "line maximum speed [km/h]"),
+        ("max_speed_kmh", D, "line maximum speed [km/h]; null: none, so where no restriction applies each train "
+                             "runs at its own maximum (OSRD's meaning)", NULLABLE),
         ("schema_version", I32, "line-database schema version; 1"),
         ("approach_m", D, "stopping-pattern start before the stop marker where no TASC beacon is [m] (optional "
                           "column); null or absent: where the train must start braking, plus 10 %", NULLABLE),

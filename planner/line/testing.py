@@ -75,7 +75,7 @@ def line(
     *,
     length_m: float = 3000.0,
     stations: Sequence[float] | None = None,
-    max_speed_kmh: float = 100.0,
+    max_speed_kmh: float | None = 100.0,
     gradients: Sequence[tuple[float, float, float]] = (),
     curves: Sequence[tuple[float, float, float]] = (),
     limits: Sequence[tuple[float, float, float]] = (),
@@ -115,7 +115,7 @@ def line(
         name=f"Test line {line_id}",
         start_m=0.0,
         end_m=length_m,
-        max_speed_ms=max_speed_kmh * KMH,
+        max_speed_ms=(float("inf") if max_speed_kmh is None else max_speed_kmh) * KMH,  # None: no line maximum
         schema_version=1,
         stations=st,
         gradients=_segments(gradients, 1e-3),

@@ -31,7 +31,7 @@ EXTRA_EXAMPLE = """
 [line]
 line_id = "coast"            # default: the source's line/path name
 name = "Coast Line"          # default: the line id
-max_speed_kmh = 120.0        # default: the highest speed limit on the path
+max_speed_kmh = 120.0        # default: none (each train's own maximum where no speed limit applies)
 approach_m = 800.0           # stopping-pattern start before the marker without a TASC beacon; default:
                              #  where the train must start braking + 10 %
 
@@ -75,7 +75,8 @@ DEFAULTS: dict[str, tuple[object, str]] = {
                                       "(down: centre + length/2, up: centre − length/2), clipped to the line"),
     "speed_limit_kind": ("civil", "kind of every imported speed restriction"),
     "has_beacon": (False, "no ATS-P beacon sends an imported restriction's pattern"),
-    "line_max_speed": ("highest limit", "line max_speed_kmh = the highest speed limit on the path"),
+    "line_max_speed": ("none", "no line max_speed_kmh: where no speed limit applies, each train runs at its own "
+                               "maximum (OSRD's meaning of a missing speed section)"),
     "line_name": ("line id", "display name = the line id"),
     "beacons": ("none", "no ATS-P beacons (add [[beacons]] to the TOML)"),
     "timetable": ("empty", "no trains (add [[timetable]] rows to the TOML)"),
@@ -230,7 +231,7 @@ def braking_note(row: dict, source: str = "") -> str:
 
 
 # --------------------------------------------------------------------------- shared table builders
-def line_table(line_id: str, start_m: float, end_m: float, limits: pd.DataFrame, s: ImportSummary) -> pd.DataFrame:
+def line_table(line_id: str, start_m: float, end_m: float, s: ImportSummary) -> pd.DataFrame:
     """line.parquet from the TOML's [line] and the defaults."""
     ex = s.extra or Extras()
     lid = str(line_id)
@@ -240,12 +241,9 @@ def line_table(line_id: str, start_m: float, end_m: float, limits: pd.DataFrame,
         name = lid
     vmax = ex.line.get("max_speed_kmh")
     if vmax is None:
-        if limits.empty:
-            raise SourceError(f"{s.source}: no speed limit on the path; set [line] max_speed_kmh in the "
-                              f"--extra TOML")
         s.default("line_max_speed")
-        vmax = float(limits["limit_kmh"].max())
-    vmax = number(vmax, f"{ex.path}: [line] max_speed_kmh", positive=True)
+    else:
+        vmax = number(vmax, f"{ex.path}: [line] max_speed_kmh", positive=True)
     s.line_id = lid
     row = dict(line_id=lid, name=str(name), start_m=float(start_m), end_m=float(end_m), max_speed_kmh=vmax,
                schema_version=1)

@@ -546,7 +546,7 @@ def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list,
     rs, traction = rolling_stock_tables(rolling_stock, s)
     default_id = line_id or (s.extra.line.get("line_id") if s.extra else None) or Path(infra).stem
     tables = {
-        "line": line_table(str(default_id), 0.0, _r(path.length), limits, s),
+        "line": line_table(str(default_id), 0.0, _r(path.length), s),
         "stations": stations,
         "gradients": gradients,
         "curves": curves,

@@ -309,7 +309,7 @@ def import_railml(file: str | Path, line_id: str, rolling_stock: list, out: str 
     rs, traction = rolling_stock_tables(rolling_stock, s)
     lid = (s.extra.line.get("line_id") if s.extra else None) or line_id
     tables = {
-        "line": line_table(str(lid), 0.0, length, limits, s),
+        "line": line_table(str(lid), 0.0, length, s),
         "stations": station_table(list(found.values()), 0.0, length, s),
         "gradients": gradients,
         "curves": curves,
