@@ -22,8 +22,8 @@ STOP_SUMMARY_SCHEMA = declare(
     [
         ("station_id", pa.string(), "station of the stop (arrival of the interstation)"),
         ("origin", pa.string(), "departure station of the interstation"),
-        ("tasc_beacon_id", pa.string(), "TASC beacon the approach starts at; empty where there is none (approach_m, or where the train "
-                           "must start braking + 10 %)"),
+        ("tasc_beacon_id", pa.string(), "TASC beacon the approach starts at; empty where there is none "
+                                        "(approach_m, or where the train must start braking + 10 %)"),
         ("approach_start_m", pa.float64(), "chainage of the approach (pattern) start [m]"),
         ("stop_m", pa.float64(), "chainage of the stop marker [m]"),
         ("approach_length_m", pa.float64(), "distance from the approach start to the stop marker [m]"),

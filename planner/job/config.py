@@ -46,7 +46,8 @@ class JobSection:
 @dataclass(frozen=True)
 class TablesSection:
     ratios: str = "1.0:0.7:0.1,0.7:floor:0.05"
-    """Ratio grid SPEC: comma-separated START:STOP:STEP ranges or plain ratios; `floor` is the ratio where ratio × the leg's maximum = min_target_kmh."""
+    """Ratio grid SPEC: comma-separated START:STOP:STEP ranges or plain ratios; `floor` is the ratio where
+    ratio × the leg's maximum = min_target_kmh."""
     min_target_kmh: float = 20.0
     """Each leg's grid stops where ratio × the train's highest on-board maximum on that leg reaches this speed."""
     eval_offset_m: float = 200.0
@@ -63,8 +64,9 @@ class StopsSection:
     """Adhesion sweep START:STOP:STEP in km/h/s: the rail's condition, absolute. Each train type gets the levels at
     or below min(brake_comfort_kmh_s, stop_brake_kmh_s), and that cap in place of every level above it."""
     approach_m: float | str = "auto"
-    """Pattern start distance before the stop marker where no TASC beacon exists [m]; "auto": the line's approach_m,
-    else where the train, at the minimum-time run's speed, must start braking at its lowest adhesion level, plus 10 %."""
+    """Pattern start distance before the stop marker where no TASC beacon exists [m]; "auto": the line's
+    approach_m, else where the train, at the minimum-time run's speed, must start braking at its lowest
+    adhesion level, plus 10 %."""
 
 
 @dataclass(frozen=True)

@@ -18,17 +18,18 @@ carry the sweep's ``stop_summary``):
   run-curve track (every restriction held until the tail clears, minus the
   vehicle's speed margin), a step function of the distance from the start;
 * **deceleration limits** (:func:`decel_limits`): ``min(braking comfort,
-  adhesion, the train's stopping brake)`` plus what gravity adds, and never more
-  than the stopping brake in all (the run curves' stop: a pattern is never faster), from the gradient averaged over the whole train
-  exactly as the run curves take it (:func:`planner.physics.dynamics.running_gradient`,
-  :func:`planner.physics.dynamics.track_accel_ms2`: ``g ḡ / (1 + ρ)``). Averaged over
-  the length, ḡ is piecewise linear in the front's position (kinks where the
-  front or the tail passes a gradient change). The solver takes step
-  functions, so each linear piece is bounded from the safe side by its least
-  favourable value (the smaller end value): the pattern never asks the brake
-  for more than ``min(comfort, adhesion, stopping brake)``. Curve and running resistance,
-  which only help the brake, are left out (safe side too; running resistance
-  also depends on speed and load).
+  adhesion, the train's stopping brake)`` plus what gravity adds, and never
+  more than the stopping brake in all (the run curves' stop: a pattern is never
+  faster), from the gradient averaged over the whole train exactly as the run
+  curves take it (:func:`planner.physics.dynamics.running_gradient`,
+  :func:`planner.physics.dynamics.track_accel_ms2`: ``g ḡ / (1 + ρ)``).
+  Averaged over the length, ḡ is piecewise linear in the front's position
+  (kinks where the front or the tail passes a gradient change). The solver
+  takes step functions, so each linear piece is bounded from the safe side by
+  its least favourable value (the smaller end value): the pattern never asks
+  the brake for more than ``min(comfort, adhesion, stopping brake)``. Curve and
+  running resistance, which only help the brake, are left out (safe side too;
+  running resistance also depends on speed and load).
 """
 from __future__ import annotations
 
@@ -252,9 +253,10 @@ def decel_limits(line: Line, train, direction: str, start_chainage_m: float, len
     """Deceleration limit along an approach [m/s²], a step function from its start (module doc).
 
     ``min(min(comfort, adhesion, brake) + g ḡ / (1 + ρ), brake)`` (the train's braking comfort
-    and stopping brake) with ḡ bounded per piece from the safe side (:func:`gradient_steps`, passed in as ``gradients_permil`` when
-    already computed). Raises :class:`planner.errors.InputError` when a fall
-    leaves no deceleration (as :func:`planner.stopping.pattern.decel_limit_profile`).
+    and stopping brake) with ḡ bounded per piece from the safe side (:func:`gradient_steps`,
+    passed in as ``gradients_permil`` when already computed). Raises
+    :class:`planner.errors.InputError` when a fall leaves no deceleration (as
+    :func:`planner.stopping.pattern.decel_limit_profile`).
     """
     from planner.stopping.pattern import decel_limit_profile
 
