@@ -379,7 +379,7 @@ def test_cli_writes_datasets_summary_and_plot(tmp_path):
     r = CliRunner().invoke(app, ["stops", str(db), "--out", str(out), "--adhesion", "2.5:3.5:0.5",
                                  "--train-type", "EMU10", "--direction", "down", "--plot", "B", "--jobs", "1"])
     assert r.exit_code == 0, r.output
-    assert "tiny: 2 station approaches x 3 adhesion levels (2.5 … 3.5 km/h/s) = 6 patterns" in r.stdout
+    assert "tiny: 2 station approaches x up to 3 adhesion levels (2.5 … 3.5 km/h/s) = 6 patterns" in r.stdout
     assert "feasible" in r.stdout and "time lost against the best adhesion" in r.stdout
     png = out / "plots" / "stop_B_down_EMU10.png"
     assert png.is_file() and png.read_bytes()[:4] == b"\x89PNG"

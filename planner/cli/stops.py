@@ -82,8 +82,11 @@ def stops(
     n_pat = sum(len(r.patterns) for r in results)
     n_inf = n_pat - sum(r.n_feasible for r in results)
     lost = [t for r in results for t in r.time_lost_s if not math.isnan(t)]
-    typer.echo(f"{line.line_id}: {len(results)} station approaches x {len(levels)} adhesion levels "
+    typer.echo(f"{line.line_id}: {len(results)} station approaches x up to {len(levels)} adhesion levels "
                f"({levels[0]:g} … {levels[-1]:g} km/h/s) = {n_pat} patterns")
+    capped = {r.train_type: max(r.adhesion_ms2) / KMH_S for r in results if max(r.adhesion_ms2) < levels[-1] * KMH_S}
+    for tt, top in capped.items():  # a level above what the train's stops ask of its brake is not one of its levels
+        typer.echo(f"  {tt}: levels above {top:g} km/h/s (its braking comfort or stopping brake) are that level")
     typer.echo(f"  feasible {n_pat - n_inf}, infeasible {n_inf}"
                + (f" (in {sum(1 for r in results if r.n_feasible < len(r.patterns))} approaches)" if n_inf else ""))
     if lost:
