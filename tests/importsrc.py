@@ -168,7 +168,7 @@ def expected_tables(line_id: str) -> dict[str, pd.DataFrame]:
     N = None
     return {
         "line": pd.DataFrame([dict(line_id=line_id, name="Import test line", start_m=0.0, end_m=6500.0,
-                                   max_speed_kmh=100.0, schema_version=1)]),
+                                   max_speed_kmh=None, schema_version=1)]),
         "stations": pd.DataFrame(
             [("W", "West", 500.0, 600.0, 400.0, 200.0), ("M", "Middle", 4000.0, 4100.0, 3900.0, 200.0),
              ("E", "East", 6200.0, 6280.0, 6120.0, 160.0)],
@@ -191,7 +191,7 @@ def expected_tables(line_id: str) -> dict[str, pd.DataFrame]:
             train_type="EMU", length_m=120.0, empty_mass_t=250.0, full_load_mass_t=60.0,
             rotating_mass_factor=0.08, max_speed_kmh=110.0, max_accel_kmh_s=2.7, davis_a_kN=3.6,
             davis_b_kN_per_kmh=0.01, davis_c_kN_per_kmh2=0.0004, service_brake_kmh_s=3.6, stop_brake_kmh_s=3.6,
-            atsp_pattern_kmh_s=3.6, comfort_accel_kmh_s=2.7, jerk_limit_kmh_s2=2.5, speed_margin_kmh=0.0,
+            atsp_pattern_kmh_s=3.6, brake_comfort_kmh_s=3.3, jerk_limit_kmh_s2=2.5, speed_margin_kmh=0.0,
             cruise="constant", coast_band_kmh=0.0)]),
         "traction": pd.DataFrame([("EMU", 0.0, 200.0), ("EMU", 40.0, 200.0), ("EMU", 120.0, 60.0)],
                                  columns=["train_type", "speed_kmh", "effort_kN"]),

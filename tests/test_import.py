@@ -140,7 +140,7 @@ def test_summary_lists_every_default_used(imported):
     rj, _ = imported["railjson"]
     text = "\n".join(rj.lines())
     for key in ("platform_length_m", "stop_markers", "speed_limit_kind", "has_beacon", "line_max_speed",
-                "max_accel_kmh_s", "comfort_accel_kmh_s", "service_brake_kmh_s", "stop_brake_kmh_s",
+                "max_accel_kmh_s", "brake_comfort_kmh_s", "service_brake_kmh_s", "stop_brake_kmh_s",
                 "atsp_pattern_kmh_s", "speed_margin_kmh", "cruise", "coast_band_kmh"):
         assert f"- {key} = " in text, key
     # given by the TOML, so not defaults: the jerk limit, the full-load mass, the name, E's platform

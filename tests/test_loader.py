@@ -61,7 +61,7 @@ def test_decelerations_kmh_s_to_ms2(tmp_path):
     assert tt.stop_brake_ms2 == approx(2.0)
     assert tt.max_accel_ms2 == approx(0.5)
     assert tt.atsp_pattern_ms2 == approx(2.9 / 3.6)
-    assert tt.comfort_accel_ms2 == approx(3.2 / 3.6)
+    assert tt.brake_comfort_ms2 == approx(3.2 / 3.6)
 
 
 def test_rolling_stock_si(line):
@@ -292,7 +292,7 @@ CONTRACT = {
     "signals": "signal_id position_m direction",
     "rolling_stock": "train_type length_m empty_mass_t full_load_mass_t rotating_mass_factor max_speed_kmh "
                      "max_accel_kmh_s davis_a_kN davis_b_kN_per_kmh davis_c_kN_per_kmh2 service_brake_kmh_s "
-                     "stop_brake_kmh_s atsp_pattern_kmh_s comfort_accel_kmh_s jerk_limit_kmh_s2 "
+                     "stop_brake_kmh_s atsp_pattern_kmh_s brake_comfort_kmh_s jerk_limit_kmh_s2 "
                      "speed_margin_kmh cruise coast_band_kmh",
     "traction": "train_type speed_kmh effort_kN",
     "timetable": "train_id train_type direction seq station_id arrival_s departure_s stops",
@@ -316,7 +316,7 @@ def test_schema_declares_the_public_contract():
     assert {n: s.min_rows for n, s in TABLES.items() if s.min_rows} == {
         "line": 1, "stations": 2, "rolling_stock": 1, "traction": 1}
     nullable = {(n, f.name) for n, s in TABLES.items() for f in s.schema if f.nullable}
-    assert nullable == {("speed_limits", "train_type"), ("timetable", "arrival_s"),
+    assert nullable == {("line", "approach_m"), ("line", "max_speed_kmh"), ("speed_limits", "train_type"), ("timetable", "arrival_s"),
                         ("timetable", "departure_s"), ("nodes", "station_id"), ("nodes", "track")}
     assert TABLES["timetable"].schema.field("seq").type == pa.int32()
     assert TABLES["line"].schema.field("schema_version").type == pa.int32()

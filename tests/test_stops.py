@@ -104,7 +104,7 @@ def test_bad_adhesion_spec_names_the_flag(spec):
 
 
 def test_fixed_approach_start_and_speed_of_the_minimum_time_run():
-    r = approach_patterns(line_a(), "T", "S0", "S1", LEVELS_MS2)
+    r = approach_patterns(line_a(), "T", "S0", "S1", LEVELS_MS2, approach_m=550.0)
     assert (r.station_id, r.origin, r.direction, r.tasc_beacon_id) == ("S1", "S0", "down", "")
     assert r.approach_start_m == 350.0 and r.stop_m == 900.0 and r.approach_length_m == 550.0
     # 1 m/s² from standstill over 350 m: v² = 2 a s
@@ -133,7 +133,7 @@ def test_approach_starts_at_the_last_tasc_beacon_before_the_marker():
 
 def test_speed_limits_and_gradients_over_the_approach_both_directions():
     line = line_b()
-    down = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2)
+    down = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2, approach_m=550.0)
     # the 60 km/h restriction holds the front from 700 m until the tail clears 760 m (front at 860 m):
     # 350 and 510 m from the approach start at 350 m
     assert down.speed_limits == ((0.0, 100 * KMH), (350.0, 60 * KMH), (510.0, 100 * KMH))
@@ -153,7 +153,7 @@ def test_speed_limits_and_gradients_over_the_approach_both_directions():
     # +5 ‰ (rising towards higher chainage) is a fall of 5 ‰ for up trains from chainage 1200 on:
     # ḡ falls from 0 (front at 1200, x = 250) to -5 ‰ (tail at 1200, x = 350) and stays there;
     # the restriction lies beyond the marker for up trains
-    up = approach_patterns(line, "T", "S2", "S1", LEVELS_MS2)
+    up = approach_patterns(line, "T", "S2", "S1", LEVELS_MS2, approach_m=550.0)
     assert up.direction == "up" and up.approach_start_m == 1450.0 and up.stop_m == 900.0
     assert up.speed_limits == ((0.0, 100 * KMH),)
     assert up.gradients_permil == ((0.0, 0.0), (250.0, -1.25), (275.0, -2.5), (300.0, -3.75), (325.0, -5.0))
@@ -254,7 +254,7 @@ def test_sweep_order_is_deterministic_and_independent_of_n_jobs():
 
 @pytest.mark.filterwarnings("ignore::planner.stopping.sweep.InfeasibleStopWarning")
 def test_datasets_read_back_with_hive_partitioning(tmp_path):
-    results = stop_sweep(line_b(), adhesion_kmh_s="2.75:3.25:0.25", n_jobs=1)
+    results = stop_sweep(line_b(), adhesion_kmh_s="2.75:3.25:0.25", approach_m=550.0, n_jobs=1)
     files = write_stops(results, tmp_path)
     rel = sorted(f.relative_to(tmp_path).as_posix() for f in files)
     assert rel == [f"{d}/line=test/direction={di}/train_type=T/part-0.parquet"
@@ -379,7 +379,7 @@ def test_cli_writes_datasets_summary_and_plot(tmp_path):
     r = CliRunner().invoke(app, ["stops", str(db), "--out", str(out), "--adhesion", "2.5:3.5:0.5",
                                  "--train-type", "EMU10", "--direction", "down", "--plot", "B", "--jobs", "1"])
     assert r.exit_code == 0, r.output
-    assert "tiny: 2 station approaches x 3 adhesion levels (2.5 … 3.5 km/h/s) = 6 patterns" in r.stdout
+    assert "tiny: 2 station approaches x up to 3 adhesion levels (2.5 … 3.5 km/h/s) = 6 patterns" in r.stdout
     assert "feasible" in r.stdout and "time lost against the best adhesion" in r.stdout
     png = out / "plots" / "stop_B_down_EMU10.png"
     assert png.is_file() and png.read_bytes()[:4] == b"\x89PNG"
@@ -438,10 +438,14 @@ def test_one_approach_start_for_stops_and_margins():
     from planner.report.leg_margin import leg_result
 
     line = line_a()
-    r = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2[:1])
-    m = leg_result(line, "T", "S0", "S1", [], ratios=[1.0, 0.6], adhesion_kmh_s="3.5")
+    r = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2[:1], approach_m=550.0)
+    m = leg_result(line, "T", "S0", "S1", [], ratios=[1.0, 0.6], adhesion_kmh_s="3.5", approach_m=550.0)
     assert r.approach_start_m == 350.0
     assert m.pattern_start_m == r.approach_start_m
+    # and the start from the physics (no TASC beacon, no approach_m) is one too, for the same sweep
+    r = approach_patterns(line, "T", "S0", "S1", [3.5 * KMH_S])
+    m = leg_result(line, "T", "S0", "S1", [], ratios=[1.0, 0.6], adhesion_kmh_s="3.5")
+    assert r.approach_start_m == m.pattern_start_m and m.pattern_source == "physics"
 
 
 @pytest.fixture(scope="module")

@@ -192,7 +192,7 @@ G = 9.80665
 # train_type: cars, motor cars, motor-car mass [t], trailer mass [t], rotating-mass
 # factor, max speed [km/h], starting acceleration [km/h/s], base speed [km/h]
 # (end of constant effort), characteristic speed [km/h] (start of the 1/v^2 region),
-# service/stop/ATS-P/comfort decelerations-accelerations [km/h/s], jerk [km/h/s^2],
+# service brake/own stopping brake/ATS-P pattern/ride-comfort limit on stop braking [km/h/s], jerk [km/h/s^2],
 # speed margin [km/h], cruise, coast band [km/h].
 TRAIN_TYPES = {
     "E10": dict(cars=10, motors=6, m_t=31.5, t_t=25.0, rot=0.08, vmax=110.0, acc=3.0,
@@ -336,7 +336,7 @@ def rolling_stock() -> tuple[list[dict], list[dict]]:
             max_speed_kmh=p["vmax"], max_accel_kmh_s=p["acc"],
             davis_a_kN=a_kn, davis_b_kN_per_kmh=b_kn, davis_c_kN_per_kmh2=c_kn,
             service_brake_kmh_s=p["service"], stop_brake_kmh_s=p["stop"],
-            atsp_pattern_kmh_s=p["atsp"], comfort_accel_kmh_s=p["comfort"],
+            atsp_pattern_kmh_s=p["atsp"], brake_comfort_kmh_s=p["comfort"],
             jerk_limit_kmh_s2=p["jerk"], speed_margin_kmh=p["margin"], cruise=p["cruise"],
             coast_band_kmh=p["band"]))
         vb, vc = p["v_base"], p["v_char"]
@@ -984,7 +984,7 @@ SCHEMAS = {
         ("rotating_mass_factor", _D), ("max_speed_kmh", _D), ("max_accel_kmh_s", _D),
         ("davis_a_kN", _D), ("davis_b_kN_per_kmh", _D), ("davis_c_kN_per_kmh2", _D),
         ("service_brake_kmh_s", _D), ("stop_brake_kmh_s", _D), ("atsp_pattern_kmh_s", _D),
-        ("comfort_accel_kmh_s", _D), ("jerk_limit_kmh_s2", _D), ("speed_margin_kmh", _D),
+        ("brake_comfort_kmh_s", _D), ("jerk_limit_kmh_s2", _D), ("speed_margin_kmh", _D),
         ("cruise", _S), ("coast_band_kmh", _D)]),
     "traction": pa.schema([("train_type", _S), ("speed_kmh", _D), ("effort_kN", _D)]),
     # `track` is an optional extra column: the platform or through track used at the call

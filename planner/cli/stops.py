@@ -21,7 +21,8 @@ def stops(
     train_type: Optional[list[str]] = typer.Option(
         None, "--train-type", help="Train type (repeatable); default every type of the line."),
     direction: Optional[str] = typer.Option(None, "--direction", help="down or up; default both."),
-    approach_m: float = typer.Option(550.0, "--approach", help="Approach length where there is no TASC beacon [m]."),
+    approach_m: str = typer.Option("auto", "--approach", help="Approach length where there is no TASC beacon [m], "
+                                   "or auto: the line's approach_m, else where the train must start braking + 10 %."),
     plot: Optional[str] = typer.Option(
         None, "--plot", help="Station id: also write a PNG of its approach (speed, acceleration, jerk per "
         "adhesion level) for the first train type and --direction (default down)."),
@@ -40,6 +41,11 @@ def stops(
     check_out_dir(out, "--out", "stopping-pattern datasets")
     check_jobs(jobs)
     levels = adhesion_levels(adhesion)
+    if approach_m != "auto":
+        try:
+            approach_m = float(approach_m)
+        except ValueError:
+            raise InputError(f"--approach {approach_m!r}: give metres (e.g. 550) or auto") from None
     if direction is not None and direction not in ("down", "up"):
         raise InputError(f"--direction {direction!r}: use down or up")
     line = load_line(line_dir)
@@ -76,8 +82,11 @@ def stops(
     n_pat = sum(len(r.patterns) for r in results)
     n_inf = n_pat - sum(r.n_feasible for r in results)
     lost = [t for r in results for t in r.time_lost_s if not math.isnan(t)]
-    typer.echo(f"{line.line_id}: {len(results)} station approaches x {len(levels)} adhesion levels "
+    typer.echo(f"{line.line_id}: {len(results)} station approaches x up to {len(levels)} adhesion levels "
                f"({levels[0]:g} … {levels[-1]:g} km/h/s) = {n_pat} patterns")
+    capped = {r.train_type: max(r.adhesion_ms2) / KMH_S for r in results if max(r.adhesion_ms2) < levels[-1] * KMH_S}
+    for tt, top in capped.items():  # a level above what the train's stops ask of its brake is not one of its levels
+        typer.echo(f"  {tt}: levels above {top:g} km/h/s (its braking comfort or stopping brake) are that level")
     typer.echo(f"  feasible {n_pat - n_inf}, infeasible {n_inf}"
                + (f" (in {sum(1 for r in results if r.n_feasible < len(r.patterns))} approaches)" if n_inf else ""))
     if lost:

@@ -21,7 +21,9 @@ def summary(line: Line) -> list[str]:
     out = [
         f"line {line.line_id} ({line.name}): valid, schema v{line.schema_version}",
         f"  length:             {(line.end_m - line.start_m) / 1000:.3f} km "
-        f"(chainage {line.start_m:.1f} … {line.end_m:.1f} m), max {kmh(line.max_speed_ms):.0f} km/h",
+        f"(chainage {line.start_m:.1f} … {line.end_m:.1f} m), "
+        + (f"max {kmh(line.max_speed_ms):.0f} km/h" if line.max_speed_ms < float("inf")
+           else "no line maximum (each train's own where no restriction applies)"),
         f"  stations:           {n_st} ({max(n_st - 1, 0)} interstations per direction)",
         f"  speed restrictions: {len(line.speed_limits)} ({no_beacon} without ATS-P beacon)",
         f"  beacons:            {len(line.beacons)} ({eval_pts} evaluation points)",

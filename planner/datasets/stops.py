@@ -22,14 +22,16 @@ STOP_SUMMARY_SCHEMA = declare(
     [
         ("station_id", pa.string(), "station of the stop (arrival of the interstation)"),
         ("origin", pa.string(), "departure station of the interstation"),
-        ("tasc_beacon_id", pa.string(), "TASC beacon the approach starts at; empty when a fixed distance is used"),
+        ("tasc_beacon_id", pa.string(), "TASC beacon the approach starts at; empty where there is none "
+                                        "(approach_m, or where the train must start braking + 10 %)"),
         ("approach_start_m", pa.float64(), "chainage of the approach (pattern) start [m]"),
         ("stop_m", pa.float64(), "chainage of the stop marker [m]"),
         ("approach_length_m", pa.float64(), "distance from the approach start to the stop marker [m]"),
         ("v_start_kmh", pa.float64(), "speed of the minimum-time run (ratio 1.0, load 0) at the approach start [km/h]"),
         ("run_phase", pa.string(), "phase of that run at the approach start (power, hold, coast, brake, stop)"),
         ("jerk_max_ms3", pa.float64(), "jerk limit of the train type [m/s³]"),
-        ("comfort_ms2", pa.float64(), "comfort deceleration limit of the train type [m/s²]"),
+        ("comfort_ms2", pa.float64(), "ride-comfort limit on the braking of a stop of the train type "
+                                      "(rolling_stock brake_comfort_kmh_s) [m/s²]"),
         ("adhesion_ms2", pa.float64(), "adhesion-limited braking deceleration of this sweep level [m/s²] "
                                        "(the job's [stops] adhesion_kmh_s level, in SI)"),
         ("feasible", pa.bool_(), "true when a pattern meeting every limit exists"),

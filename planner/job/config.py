@@ -46,9 +46,10 @@ class JobSection:
 @dataclass(frozen=True)
 class TablesSection:
     ratios: str = "1.0:0.7:0.1,0.7:floor:0.05"
-    """Ratio grid SPEC: comma-separated START:STOP:STEP ranges or plain ratios; `floor` is the ratio where ratio × line maximum = min_target_kmh."""
+    """Ratio grid SPEC: comma-separated START:STOP:STEP ranges or plain ratios; `floor` is the ratio where
+    ratio × the leg's maximum = min_target_kmh."""
     min_target_kmh: float = 20.0
-    """The grid stops where ratio × line maximum reaches this speed."""
+    """Each leg's grid stops where ratio × the train's highest on-board maximum on that leg reaches this speed."""
     eval_offset_m: float = 200.0
     """Evaluation point this far after departure."""
     eval_interval_m: float = 0.0
@@ -60,9 +61,12 @@ class TablesSection:
 @dataclass(frozen=True)
 class StopsSection:
     adhesion_kmh_s: str = "2.5:3.5:0.1"
-    """Adhesion sweep START:STOP:STEP in km/h/s."""
-    approach_m: float = 550.0
-    """Pattern start distance before the stop marker where no TASC beacon exists."""
+    """Adhesion sweep START:STOP:STEP in km/h/s: the rail's condition, absolute. Each train type gets the levels at
+    or below min(brake_comfort_kmh_s, stop_brake_kmh_s), and that cap in place of every level above it."""
+    approach_m: float | str = "auto"
+    """Pattern start distance before the stop marker where no TASC beacon exists [m]; "auto": the line's
+    approach_m, else where the train, at the minimum-time run's speed, must start braking at its lowest
+    adhesion level, plus 10 %."""
 
 
 @dataclass(frozen=True)
@@ -199,6 +203,8 @@ def _check_type(where: str, value: Any, default: Any) -> Any:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise JobError(f"{where}: expected a number, found {value!r}")
         return float(value)
+    if default == "auto" and isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value)  # a number-or-"auto" key (approach_m)
     if isinstance(default, str):
         if not isinstance(value, str):
             raise JobError(f"{where}: expected a string, found {value!r}")
@@ -304,8 +310,9 @@ def _validate(file: str, job: Job, problems: _Problems) -> None:
     if job.tables.eval_interval_m != 0 and not job.tables.eval_interval_m >= MIN_INTERVAL_M:
         bad("tables", "eval_interval_m", f"must be 0 (beacons only) or at least {MIN_INTERVAL_M:g} m, "
                                          f"found {job.tables.eval_interval_m}")
-    if job.stops.approach_m <= 0:
-        bad("stops", "approach_m", "must be positive")
+    a = job.stops.approach_m
+    if a != "auto" and (isinstance(a, (str, bool)) or not a > 0):
+        bad("stops", "approach_m", 'must be a positive number of metres, or "auto" (from the physics)')
     if job.closed_loop.horizon_s < 0 or job.closed_loop.step_s <= 0:
         bad("closed_loop", "horizon_s/step_s", "horizon must be ≥ 0 and step > 0")
     for s in job.closed_loop.scenarios:

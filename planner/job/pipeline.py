@@ -299,15 +299,15 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
               writes: ThreadPoolExecutor) -> None:
-    from planner.tables.ratios import ratio_grid
+    from planner.tables.ratios import leg_ratio_grid
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
 
     tp, code = job.tables, code_digest()
-    grid = ratio_grid(tp.ratios, line_max_speed_ms=line.max_speed_ms,
-                      min_target_speed_ms=tp.min_target_kmh * KMH)
     types = _types(job, line)
     tasks = [(t, d, a.station_id, b.station_id) for t in types for d in DIRECTIONS for a, b in line.interstations(d)]
+    # the floor of each leg's grid: ratio × the train's highest maximum on the leg = min_target_kmh
+    grids = {k: leg_ratio_grid(tp.ratios, line, k[0], k[2], k[3], tp.min_target_kmh * KMH) for k in tasks}
     unit_in = {k: digest(interstation_inputs(line, k[0], k[2], k[3])) for k in tasks}
     # each unit ships only the slice of the line it can see (the slice its key digests), so what a
     # parallel task costs to send does not grow with the line
@@ -315,9 +315,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     # tables
     t_units = [
-        Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grid))]),
+        Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grids[k]))]),
              f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
-             (windows[k], k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
+             (windows[k], k[0], k[2], k[3], grids[k], tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
         for k in tasks
     ]
     tables = runner.run("tables", t_units)

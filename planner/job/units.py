@@ -91,6 +91,7 @@ def interstation_inputs(line: Line, train_type: str, origin: str, destination: s
         "curves": _segments(w.curves),
         "limits": [dataclasses.astuple(s) for s in w.limits_for(direction, train_type)],
         "beacons": [dataclasses.astuple(x) for x in w.beacons_for(direction)],
+        **({"approach_m": w.approach_m} if w.approach_m is not None else {}),  # the line's pattern start
     }
 
 

@@ -17,6 +17,7 @@ import pyarrow.compute as pc
 from planner.errors import Violation
 from planner.line.schema import (
     TableSpec,
+    missing_column_hint,
 )
 
 
@@ -120,7 +121,8 @@ def conform(spec: TableSpec, table: pa.Table) -> tuple[TableView | None, list[Vi
         if field.name not in names:
             if field.name not in spec.optional_columns:
                 out.append(Violation(spec.file, None, field.name,
-                                     f"required column is missing (expected {field.type})"))
+                                     f"required column is missing (expected {field.type})"
+                                     + missing_column_hint(spec.name, field.name, names)))
             continue
         arr, problem = _cast_column(table.column(field.name), field.type)
         if problem:

@@ -26,6 +26,7 @@ km/h is 3.6 times larger per m/s (3.6² for the quadratic term).
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from pathlib import Path
 
@@ -147,6 +148,10 @@ def _f(x) -> float:
     return float(x)
 
 
+def _opt_float(x) -> float | None:
+    return None if x is None or (isinstance(x, float) and np.isnan(x)) else float(x)
+
+
 def _opt_str(x) -> str | None:
     return None if x is None else str(x)
 
@@ -181,7 +186,7 @@ def _train_types(rs: TableView, tr: TableView) -> tuple[TrainType, ...]:
             service_brake_ms2=_f(rs["service_brake_kmh_s"][i]) * KMH_S,
             stop_brake_ms2=_f(rs["stop_brake_kmh_s"][i]) * KMH_S,
             atsp_pattern_ms2=_f(rs["atsp_pattern_kmh_s"][i]) * KMH_S,
-            comfort_accel_ms2=_f(rs["comfort_accel_kmh_s"][i]) * KMH_S,
+            brake_comfort_ms2=_f(rs["brake_comfort_kmh_s"][i]) * KMH_S,
             jerk_limit_ms3=_f(rs["jerk_limit_kmh_s2"][i]) * KMH_S2,
             speed_margin_ms=_f(rs["speed_margin_kmh"][i]) * KMH,
             cruise=str(rs["cruise"][i]),
@@ -257,8 +262,9 @@ def _build(views: dict[str, TableView], digest: str, source_path: str) -> Line:
         name=str(ln["name"][0]),
         start_m=_f(ln["start_m"][0]),
         end_m=_f(ln["end_m"][0]),
-        max_speed_ms=_f(ln["max_speed_kmh"][0]) * KMH,
+        max_speed_ms=(_opt_float(ln["max_speed_kmh"][0]) or math.inf) * KMH,  # null: no line maximum
         schema_version=int(ln["schema_version"][0]),
+        approach_m=_opt_float(ln["approach_m"][0]) if ln.has("approach_m") else None,
         stations=stations,
         gradients=_segments(views["gradients"], "gradient_permil", PERMIL),
         curves=_segments(views["curves"], "radius_m", 1.0),

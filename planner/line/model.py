@@ -142,7 +142,7 @@ class TrainType:
     service_brake_ms2: float
     stop_brake_ms2: float
     atsp_pattern_ms2: float
-    comfort_accel_ms2: float
+    brake_comfort_ms2: float
     jerk_limit_ms3: float
     speed_margin_ms: float
     cruise: str  # "constant" or "sawtooth"
@@ -228,7 +228,9 @@ class Line:
     """A validated line database, in SI.
 
     ``source_digest`` is the SHA-256 over the input files (names and bytes) it
-    was loaded from; "" for lines built in memory.
+    was loaded from; "" for lines built in memory. ``max_speed_ms`` is ``inf`` when the line
+    sets no maximum (each train's own maximum holds where no restriction does). ``approach_m``: the line's optional
+    ``approach_m`` column (None when absent or null).
     """
 
     line_id: str
@@ -248,6 +250,8 @@ class Line:
     network: Network | None = None
     source_digest: str = ""
     source_path: str = field(default="", compare=False)
+    approach_m: float | None = None
+    """Stopping-pattern start before the marker where no TASC beacon is [m]; None: from the physics."""
 
     # --- look-ups -----------------------------------------------------------
     def station(self, station_id: str) -> Station:

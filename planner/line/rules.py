@@ -179,7 +179,15 @@ def line_rules(db: Db) -> Iterator[Violation]:
             yield t.err(i, "schema_version", f"is {t['schema_version'][i]}; this planner reads "
                                              f"schema version {SCHEMA_VERSION}")
     yield from start_before_end(t)
-    yield from positive(t, "max_speed_kmh")
+    x = _num(t, "max_speed_kmh")  # null: no line maximum
+    for i in _where(t, ~np.isnan(x) & ~(x > 0)):
+        yield t.err(i, "max_speed_kmh", f"must be > 0 km/h, or null for no line maximum; found "
+                                        f"{fmt(t['max_speed_kmh'][i])}")
+    if t.has("approach_m"):  # null: from the physics
+        x = _num(t, "approach_m")
+        for i in _where(t, ~np.isnan(x) & ~(x > 0)):
+            yield t.err(i, "approach_m", f"must be > 0 m, or null for the start from the physics; found "
+                                         f"{fmt(t['approach_m'][i])}")
 
 
 # ---- ids that become file names or partition values: one rule (planner.io.paths.PATH_ID_RE)
@@ -299,7 +307,7 @@ def rolling_stock_rules(db: Db) -> Iterator[Violation]:
     yield from unique(t, "train_type")
     yield from positive(t, "length_m", "empty_mass_t", "max_speed_kmh", "max_accel_kmh_s",
                         "service_brake_kmh_s", "stop_brake_kmh_s", "atsp_pattern_kmh_s",
-                        "comfort_accel_kmh_s", "jerk_limit_kmh_s2")
+                        "brake_comfort_kmh_s", "jerk_limit_kmh_s2")
     yield from non_negative(t, "full_load_mass_t", "rotating_mass_factor", "davis_a_kN",
                             "davis_b_kN_per_kmh", "davis_c_kN_per_kmh2", "speed_margin_kmh",
                             "coast_band_kmh")

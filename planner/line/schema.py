@@ -106,9 +106,12 @@ _SPECS = [
         ("name", S, "display name"),
         ("start_m", D, "first chainage covered by the database [m]"),
         ("end_m", D, "last chainage covered by the database [m]"),
-        ("max_speed_kmh", D, "line maximum speed [km/h]"),
+        ("max_speed_kmh", D, "line maximum speed [km/h]; null: none, so where no restriction applies each train "
+                             "runs at its own maximum (OSRD's meaning)", NULLABLE),
         ("schema_version", I32, "line-database schema version; 1"),
-    ]), required=True, min_rows=1, max_rows=1, row_id=("line_id",)),
+        ("approach_m", D, "stopping-pattern start before the stop marker where no TASC beacon is [m] (optional "
+                          "column); null or absent: where the train must start braking, plus 10 %", NULLABLE),
+    ]), required=True, min_rows=1, max_rows=1, row_id=("line_id",), optional_columns=frozenset({"approach_m"})),
     TableSpec("stations", _schema("stations", [
         ("station_id", S, "unique station identifier"),
         ("name", S, "display name"),
@@ -156,14 +159,18 @@ _SPECS = [
         ("full_load_mass_t", D, "passenger mass added at 100 % load [t]"),
         ("rotating_mass_factor", D, "rotating-mass allowance, e.g. 0.08 [-]"),
         ("max_speed_kmh", D, "vehicle maximum speed [km/h]"),
-        ("max_accel_kmh_s", D, "acceleration cap [km/h/s]"),
+        ("max_accel_kmh_s", D, "acceleration cap when powering: the vehicle's maximum or its traction comfort "
+                               "limit, whichever is lower [km/h/s]"),
         ("davis_a_kN", D, "Davis resistance constant term A [kN]"),
         ("davis_b_kN_per_kmh", D, "Davis resistance linear term B [kN/(km/h)]"),
         ("davis_c_kN_per_kmh2", D, "Davis resistance quadratic term C [kN/(km/h)^2]"),
         ("service_brake_kmh_s", D, "intermediate (restriction) braking deceleration [km/h/s]"),
-        ("stop_brake_kmh_s", D, "station stopping deceleration [km/h/s]"),
+        ("stop_brake_kmh_s", D, "the train's own stopping brake: the deceleration achieved at station stops "
+                                "in the run curves, and the most any stopping pattern asks for or achieves "
+                                "[km/h/s]"),
         ("atsp_pattern_kmh_s", D, "deceleration of ATS-P speed-check patterns [km/h/s]"),
-        ("comfort_accel_kmh_s", D, "ride-comfort acceleration limit [km/h/s]"),
+        ("brake_comfort_kmh_s", D, "ride-comfort limit on the braking of a stop (the stopping pattern's "
+                                   "comfort limit, e.g. 3.3); not a limit on acceleration [km/h/s]"),
         ("jerk_limit_kmh_s2", D, "ride-comfort jerk limit [km/h/s^2]"),
         ("speed_margin_kmh", D, "on-board maximum speed = limit - margin [km/h]"),
         ("cruise", S, "constant (constant-speed control) or sawtooth"),
@@ -204,6 +211,23 @@ _SPECS = [
 
 TABLES: dict[str, TableSpec] = {t.name: t for t in _SPECS}
 """Every table of schema v1 by name, in SCHEMA.md order."""
+
+RENAMED_COLUMNS: dict[tuple[str, str], tuple[str, str]] = {
+    ("rolling_stock", "brake_comfort_kmh_s"): (
+        "comfort_accel_kmh_s",
+        "it was the ride-comfort limit on stop braking under its old name: rename the column to "
+        "brake_comfort_kmh_s if it holds that limit (e.g. 3.3); an imported source's comfort "
+        "acceleration belongs in max_accel_kmh_s, so re-import such a line"),
+}
+"""Columns that had another name in older line folders: (table, new name) → (old name, what to do)."""
+
+
+def missing_column_hint(table: str, column: str, present) -> str:
+    """The fix for a missing required column when a folder still has its old name ("" if none)."""
+    old = RENAMED_COLUMNS.get((table, column))
+    if old is None or old[0] not in set(present):
+        return ""
+    return f"; found {old[0]}: {old[1]}"
 
 
 def describe(table: str) -> list[tuple[str, str, bool, str]]:

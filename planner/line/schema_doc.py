@@ -16,6 +16,7 @@ from planner.line.schema import (
     MAX_GRADIENT_PERMIL,
     NODE_KINDS,
     SCHEMA_VERSION,
+    RENAMED_COLUMNS,
     TABLES,
     describe,
 )
@@ -26,8 +27,8 @@ DOC_PATH = "docs/line-database.md"
 
 _RULES: dict[str, list[str]] = {
     "line": ["`line_id` names the line in every output (partition value `line=`, bundle names); the "
-             "folder may have any name.", "`start_m` < `end_m`; `max_speed_kmh` > 0; "
-             f"`schema_version` = {SCHEMA_VERSION}."],
+             "folder may have any name.", "`start_m` < `end_m`; `max_speed_kmh` > 0 or null (no line "
+             f"maximum); `approach_m` > 0 or null; `schema_version` = {SCHEMA_VERSION}."],
     "stations": ["`station_id` unique and not empty; rows sorted by strictly increasing `position_m`.",
                  "Stop markers inside [`start_m`, `end_m`] of `line`; `platform_length_m` > 0."],
     "gradients": ["`start_m` < `end_m`; rows sorted by `start_m`, not overlapping; a gap is level track.",
@@ -42,7 +43,15 @@ _RULES: dict[str, list[str]] = {
     "signals": ["Optional file. `signal_id` unique; `direction` down or up; position inside the line's range."],
     "rolling_stock": ["`train_type` unique; masses, speeds, decelerations and the jerk limit > 0; "
                       "resistance terms, margins and bands ≥ 0.",
-                      f"`cruise` one of {', '.join(CRUISE_MODES)}; `coast_band_kmh` > 0 for sawtooth."],
+                      f"`cruise` one of {', '.join(CRUISE_MODES)}; `coast_band_kmh` > 0 for sawtooth.",
+                      "Three limits kept apart: `max_accel_kmh_s` caps acceleration when powering (a source's "
+                      "traction comfort limit goes here); `brake_comfort_kmh_s` is the ride-comfort limit on the "
+                      "braking of a stop; `stop_brake_kmh_s` is the train's own stopping brake. A stopping pattern "
+                      "asks the brake for at most min(braking comfort, adhesion level, stopping brake) and never "
+                      "stops harder than the stopping brake.",
+                      *[f"Older folders: `{old}` is now `{new}`; {why} (a folder with the old name is refused "
+                        "with one line saying so)." for (t, new), (old, why) in RENAMED_COLUMNS.items()
+                        if t == "rolling_stock"]],
     "traction": ["Per train type: `speed_kmh` starts at 0, strictly increasing, and reaches the train's "
                  "`max_speed_kmh`; `effort_kN` ≥ 0. Every train type of `rolling_stock` has a curve."],
     "timetable": ["Per train: one `train_type` and `direction`; `seq` runs 0..n-1; at least two calls; "

@@ -38,7 +38,7 @@ import numpy as np
 from planner.tables.closed_loop import ClosedLoopResult, closed_loop_batch, get_scenario, overall
 from planner.tables.eval_points import check_interval
 from planner.line.model import Line
-from planner.tables.ratios import ratio_grid
+from planner.tables.ratios import leg_ratio_grid
 from planner.tables.build import InterstationTables, interstation_tables, table_tasks
 from planner.datasets.tables import datasets as table_datasets, write_tables
 
@@ -227,15 +227,15 @@ def run_setting(
     from planner.io.parallel import map_tasks
 
     interval = check_interval(setting.interval_m, "interval")
-    grid = ratio_grid(setting.ratios, line_max_speed_ms=line.max_speed_ms)
     tasks = table_tasks(line, train_types)
     if interstations is not None:
         want = {tuple(x) for x in interstations}
         tasks = [t for t in tasks if (t[2], t[3]) in want]
+    grids = [leg_ratio_grid(setting.ratios, line, t[0], t[2], t[3]) for t in tasks]  # each leg's floor
     order = sorted(range(len(tasks)), key=lambda i: -line.run_between(tasks[i][2], tasks[i][3]).length_m)
     w0 = time.perf_counter()
     # the longest interstations first, so the workers finish together; results come back in this order
-    got = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, interval, list(scenarios),
+    got = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grids[i], interval, list(scenarios),
                              list(modes), settings) for i in order], n_jobs)
     wall = time.perf_counter() - w0
     res: list = [None] * len(tasks)
@@ -254,7 +254,7 @@ def run_setting(
     stats = {(m, sc): overall([r for r in loops if r.mode == m and r.scenario == get_scenario(sc).name])
              for m in modes for sc in scenarios}
     out = SettingResult(
-        setting=setting, n_ratios=len(grid), n_points=sum(len(t.points) for t in tabs),
+        setting=setting, n_ratios=max(map(len, grids), default=0), n_points=sum(len(t.points) for t in tabs),
         n_interval_points=sum(p.kind == "interval" for t in tabs for p in t.points), rows=rows,
         bundle_bytes=int(sum(sizes)), bundle_max_bytes=int(max(sizes)), tables_cpu_s=cpu, tables_wall_s=wall,
         stats=stats,

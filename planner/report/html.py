@@ -493,6 +493,14 @@ def _findings(sched, trains) -> list[str]:
     return find
 
 
+def _approach_words(approach_m) -> str:
+    """Where a pattern starts without a TASC beacon, in words (the job's ``[stops] approach_m``)."""
+    if isinstance(approach_m, (int, float)):
+        return f"{approach_m:g} m before the marker"
+    return ("the line's approach_m before the marker where it sets one, else where the train, at its minimum "
+            "run's speed, must start braking at the lowest adhesion, plus 10 %")
+
+
 def _method(report, datasets_href: str) -> str:
     """How the numbers are made, with links to the datasets."""
     rule, adh = report.rule, report.adhesion_kmh_s
@@ -502,10 +510,9 @@ def _method(report, datasets_href: str) -> str:
         "hold, service-brake curves to lower limits and the stopping brake to the marker; empty train, nominal "
         "traction (the conditions of the running-time tables).</li>"
         f"<li><b>Bad-day minimum</b>: the same run at load {rule.bad_load:.0%} and traction "
-        f"×{rule.bad_traction:g} up to the pattern start (TASC beacon, else {report.approach_m:g} m before the "
-        f"marker; moved back where the lowest adhesion needs more room), then "
+        f"×{rule.bad_traction:g} up to the pattern start (TASC beacon, else {_approach_words(report.approach_m)}; moved back where the lowest adhesion needs more room), then "
         + (f"the minimum-time jerk-limited stopping pattern at {rule.bad_adhesion_kmh_s(adh):g} km/h/s adhesion "
-           "(deceleration limit min(comfort, adhesion) plus the gradient's part, the on-board maximum as speed "
+           "(deceleration limit min(comfort, adhesion, the train's brake) plus the gradient's part, the on-board maximum as speed "
            "limit, the vehicle's jerk limit)." if rule.bad_day_adhesion else
            "the stopping brake of the running-time tables (the adhesion effect is off in the job file).")
         + " Each effect (load, traction, adhesion) is switched and valued in the job file's <code>[margins]</code>; "

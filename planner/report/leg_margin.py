@@ -17,9 +17,9 @@ import numpy as np
 
 from planner.errors import InputError
 from planner.line.model import Line, sign
-from planner.line.units import KMH_S, kmh
+from planner.line.units import KMH, KMH_S, kmh
 from planner.report.margin_rule import MarginRule
-from planner.stopping.approach import DEFAULT_APPROACH_M, approach_start
+from planner.stopping.approach import DEFAULT_APPROACH_M, approach_start, brake_cap_ms2, train_adhesion_ms2
 from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, adhesion_levels
 
 PATTERN_BACKOFF_M = 25.0
@@ -127,6 +127,12 @@ def _first_pattern(line, train, track, res, run: int, cands, adhesion_ms2: float
     return first
 
 
+def train_adhesion_kmh_s(train, adhesion_kmh_s) -> np.ndarray:
+    """The sweep's levels for ``train`` [km/h/s], ascending (:func:`planner.stopping.approach.train_adhesion_ms2`)."""
+    levels = train_adhesion_ms2(train, [a * KMH_S for a in adhesion_levels(adhesion_kmh_s)])
+    return np.asarray([round(a / KMH_S, 9) for a in levels], dtype=float)
+
+
 def passed_stations(line: Line, origin: str, destination: str) -> tuple[str, ...]:
     """Stations strictly between two stops, in running order."""
     d = line.direction_between(origin, destination)
@@ -139,9 +145,10 @@ def passed_stations(line: Line, origin: str, destination: str) -> tuple[str, ...
 
 def leg_result(line: Line, train_type: str, origin: str, destination: str, scheduled: Sequence[float], *,
                tables=None, energy_a_kwh=None, ratios=None, rule: MarginRule = MarginRule(),
-               adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float = DEFAULT_APPROACH_M,
+               adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float | str = DEFAULT_APPROACH_M,
                after_departure_m: float | None = 200.0, eval_interval_m: float | None = None, settings=None,
-               closed_loop_errors: dict | None = None, record: bool = False) -> LegResult:
+               closed_loop_errors: dict | None = None, record: bool = False,
+               min_target_speed_ms: float = 20.0 * KMH) -> LegResult:
     """Compute one leg: minimum, slowest, degraded minimum, pattern sweep, closed loop per scheduled time.
 
     Parameters
@@ -157,12 +164,14 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     energy_a_kwh : ndarray, optional
         Table (a) energy [kWh] that goes with ``tables``.
     ratios : ratio grid spec or list, optional
-        For computed tables (default grid).
+        For computed tables (default grid; its floor is the leg's, :func:`planner.tables.ratios.leg_ratio_grid`).
     rule : MarginRule
     adhesion_kmh_s : spec or list
-        Adhesion sweep [km/h/s] (:func:`adhesion_levels`); the lowest is the degraded level.
-    approach_m : float
-        Pattern start before the marker where there is no TASC beacon [m].
+        Adhesion sweep [km/h/s] (:func:`adhesion_levels`), the rail's; the train's levels
+        (:func:`train_adhesion_kmh_s`), the lowest is the degraded level.
+    approach_m : float or "auto"
+        Pattern start before the marker where there is no TASC beacon [m]; ``"auto"``: the line's, else
+        from the physics (:func:`planner.stopping.approach.approach_start`, the lowest level of the train).
     after_departure_m : float or None
         Evaluation point after departure for computed tables [m].
     eval_interval_m : float or None
@@ -171,6 +180,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     closed_loop_errors : dict, optional
         ``{("nominal" | "degraded", designated_s rounded to 1e-6): error_s}`` already
         computed (``--closed-loop``); missing ones are simulated.
+    min_target_speed_ms : float
+        The floor of computed tables' grid: ratio × the leg's maximum = this [m/s].
     record : bool
         Also return the run curves (minimum, as scheduled for the first
         scheduled time, degraded with its stopping pattern) in ``.curves``.
@@ -186,9 +197,10 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     train = line.train_type(train_type)
     ext = line.run_between(origin, destination)
     tables, energy_a, tsource = _leg_tables(line, train_type, origin, destination, tables, energy_a_kwh, ratios,
-                                            after_departure_m, eval_interval_m, settings)
+                                            after_departure_m, eval_interval_m, settings, min_target_speed_ms)
+    adh = train_adhesion_kmh_s(train, adhesion_kmh_s)
     track, cands, src = _track_and_starts(line, train_type, origin, destination, ext.length_m, tables,
-                                               approach_m, settings)
+                                          approach_m, settings, float(adh[0]) * KMH_S)
     # ratio 1.0 at the tables' conditions (run 0), the bad day's load and traction (run 1) and its load
     # alone (run 2, to split the bad day's cost by effect), states at the pattern starts
     res = simulate(track, train, np.array([1.0, 1.0, 1.0]), load=np.array([0.0, rule.bad_load, rule.bad_load]),
@@ -199,7 +211,6 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     else:  # a grid without 1.0: the simulated nominal run is the minimum
         min_time, e_full = float(t_end[0]), float(np.asarray(res.energy_kwh)[0])
 
-    adh = np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float)
     bad = _bad_day(line, train, track, res, cands, ext.length_m, adh, rule, src)
     sweep, loss = _adhesion_sweep(line, train, track, res, cands, adh, bad.adhesion_kmh_s)
     out = LegResult(
@@ -225,13 +236,13 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
 
 
 def _leg_tables(line: Line, train_type: str, origin: str, destination: str, tables, energy_a_kwh, ratios,
-                after_departure_m, eval_interval_m, settings):
+                after_departure_m, eval_interval_m, settings, min_target_speed_ms):
     """The leg's tables and table (a) energy: as given (``dataset``) or computed (``computed``)."""
     from planner.tables.build import interstation_tables
-    from planner.tables.ratios import ratio_grid
+    from planner.tables.ratios import leg_ratio_grid
 
     if tables is None:
-        grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
+        grid = leg_ratio_grid(ratios, line, train_type, origin, destination, min_target_speed_ms)
         it = interstation_tables(line, train_type, origin, destination, grid,
                                  after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
                                  settings=settings)
@@ -242,7 +253,7 @@ def _leg_tables(line: Line, train_type: str, origin: str, destination: str, tabl
 
 
 def _track_and_starts(line: Line, train_type: str, origin: str, destination: str, length: float, tables,
-                      approach_m: float, settings):
+                      approach_m, settings, adhesion_ms2: float):
     """The leg's track with nodes at the evaluation points and the candidate pattern starts.
 
     Returns ``(track, candidates, source)``: the candidates [m running distance] move back
@@ -252,7 +263,8 @@ def _track_and_starts(line: Line, train_type: str, origin: str, destination: str
     from planner.physics.track import make_track
 
     pts_s = [float(x) for x in tables.eval_distance_m]
-    start = approach_start(line, origin, destination, approach_m)
+    start = approach_start(line, origin, destination, approach_m, train_type=train_type, adhesion_ms2=adhesion_ms2,
+                           settings=settings)
     # at or before the departure marker (approach not shorter than the leg): from the marker, where
     # the train stands and no pattern exists; the note then says the degraded minimum is unknown
     s_p, src = max(start.s_m, 0.0), start.source
@@ -295,6 +307,8 @@ def _bad_day(line: Line, train, track, res, cands, length: float, adh: np.ndarra
     """
     t_end = np.asarray(res.time_s, float)
     a_bad = rule.bad_adhesion_kmh_s(adh)
+    if a_bad is not None:  # a configured level above the train's braking cap is the cap for this train
+        a_bad = min(a_bad, round(brake_cap_ms2(train) / KMH_S, 9))
     a_min = float(adh[0]) if a_bad is None else a_bad
     c, t_deg, v_deg, pat, speed, grads = _first_pattern(line, train, track, res, 1, cands, a_min * KMH_S)
     note = ""

@@ -43,13 +43,15 @@ What each row holds, and how
 
   1. the degraded run at ratio 1.0 from departure to the **pattern start**,
      where the on-board stopping control takes over: the TASC beacon of the
-     arrival stop in that direction, or ``approach_m`` (550 m) before the
-     stop marker where there is none (:func:`planner.stopping.approach.approach_start`,
+     arrival stop in that direction; where there is none, ``approach_m`` before the
+     stop marker when the job or the line sets it, else where the minimum-time run
+     must start braking at the train's lowest adhesion level, plus 10 %
+     (:func:`planner.stopping.approach.approach_start`,
      the one definition the stopping-pattern sweep uses too), simulated with
      the run-curve integrator;
   2. plus the duration of the minimum-time jerk-limited stopping pattern
      (:func:`planner.stopping.pattern.solve_stop`) from the degraded speed there, at
-     the lowest adhesion: deceleration limit ``min(comfort, adhesion)`` plus
+     the lowest adhesion: deceleration limit ``min(comfort, adhesion, brake)`` plus
      the gradient's part, the gradient averaged over the train as in the run
      curves and bounded per piece from the safe side
      (:func:`planner.stopping.approach.decel_limits`), speed limit the on-board
@@ -206,7 +208,7 @@ class MarginReport:
     line_name: str
     rule: MarginRule
     adhesion_kmh_s: np.ndarray
-    approach_m: float
+    approach_m: float | str
     rows: object
     totals: object
     sweep: object
@@ -236,21 +238,19 @@ def margin_options(job, line: Line) -> dict:
         ``[tables]`` (ratio grid with its floor, evaluation points, integration
         step) and ``[conflicts]`` sections are read.
     line : Line
-        For the ratio grid's floor (ratio × line maximum = ``min_target_kmh``).
+        The line (each leg's grid takes its own floor: ratio × the train's maximum there = ``min_target_kmh``).
 
     Returns
     -------
     dict
-        ``rule, ratios, adhesion_kmh_s, approach_m, after_departure_m,
+        ``rule, ratios, min_target_speed_ms, adhesion_kmh_s, approach_m, after_departure_m,
         eval_interval_m, settings, conflicts, conflict_params``.
     """
     from planner.physics.track import SimSettings
-    from planner.tables.ratios import ratio_grid
 
     tp = job.tables
-    grid = ratio_grid(tp.ratios, line_max_speed_ms=line.max_speed_ms, min_target_speed_ms=tp.min_target_kmh * KMH)
     c = job.conflicts
-    return dict(rule=MarginRule.from_section(job.margins), ratios=[float(r) for r in grid],
+    return dict(rule=MarginRule.from_section(job.margins), ratios=tp.ratios, min_target_speed_ms=tp.min_target_kmh * KMH,
                 adhesion_kmh_s=job.stops.adhesion_kmh_s, approach_m=job.stops.approach_m,
                 after_departure_m=tp.eval_offset_m, eval_interval_m=tp.eval_interval_m or None,
                 settings=SimSettings(ds_m=tp.ds_m), conflicts=c.enabled,
@@ -266,8 +266,9 @@ def compute_margins(
     stops_dir: str | Path | None = None,
     closed_loop_dir: str | Path | None = None,
     ratios=None,
+    min_target_speed_ms: float = 20.0 * KMH,
     adhesion_kmh_s=DEFAULT_ADHESION_KMH_S,
-    approach_m: float = DEFAULT_APPROACH_M,
+    approach_m: float | str = DEFAULT_APPROACH_M,
     after_departure_m: float | None = 200.0,
     eval_interval_m: float | None = None,
     chosen: tuple[str, str, str] | None = None,
@@ -297,10 +298,13 @@ def compute_margins(
         scheduled times are taken from it where present.
     ratios : ratio grid spec or list, optional
         Grid for computed tables (default grid).
+    min_target_speed_ms : float
+        Its floor: ratio × the train's maximum on the leg = this [m/s].
     adhesion_kmh_s : spec or list
         Adhesion sweep [km/h/s]; its lowest level is the degraded one.
-    approach_m : float
-        Pattern start before the stop marker where there is no TASC beacon [m].
+    approach_m : float or "auto"
+        Pattern start before the stop marker where there is no TASC beacon [m]; ``"auto"``: the line's
+        ``approach_m``, else where the train must start braking + 10 %.
     after_departure_m : float or None
         Evaluation point after departure for computed tables [m].
     eval_interval_m : float or None
@@ -334,7 +338,7 @@ def compute_margins(
     sched = _scheduled_times(line, types, legs)
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
     cl_index = closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
-    kw = dict(ratios=ratios, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
+    kw = dict(ratios=ratios, min_target_speed_ms=min_target_speed_ms, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
               after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings)
 
     by_leg: dict[tuple, dict] = {}  # the closed-loop errors of each leg, in one pass (not one per leg)

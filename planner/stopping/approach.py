@@ -6,24 +6,30 @@ carry the sweep's ``stop_summary``):
 
 * **where the approach starts** (:func:`approach_start`): the last ``tasc``
   beacon read in the running direction strictly inside the run, where the
-  on-board unit learns its exact distance to go; without one, a fixed distance
-  ``approach_m`` before the stop marker. Nothing is clamped: a start at or
+  on-board unit learns its exact distance to go; without one, ``approach_m``
+  before the stop marker when the job or the line sets it (:func:`fixed_approach_m`),
+  else from the physics (:func:`physics_start_m`): where the minimum-time run, at
+  the speed it has there, must start braking at the pattern's deceleration
+  (jerk-limited, at the train's lowest adhesion level, gradient included),
+  plus :data:`APPROACH_MARGIN` of that braking distance. A fixed start at or
   before the departure marker is returned as such (``s_m <= 0``) and the
   callers say that no pattern fits;
 * **speed limits** (:func:`speed_limits`): the on-board maximum of the
   run-curve track (every restriction held until the tail clears, minus the
   vehicle's speed margin), a step function of the distance from the start;
-* **deceleration limits** (:func:`decel_limits`): ``min(comfort, adhesion)``
-  plus what gravity adds, from the gradient averaged over the whole train
-  exactly as the run curves take it (:func:`planner.physics.dynamics.running_gradient`,
-  :func:`planner.physics.dynamics.track_accel_ms2`: ``g ḡ / (1 + ρ)``). Averaged over
-  the length, ḡ is piecewise linear in the front's position (kinks where the
-  front or the tail passes a gradient change). The solver takes step
-  functions, so each linear piece is bounded from the safe side by its least
-  favourable value (the smaller end value): the pattern never asks the brake
-  for more than ``min(comfort, adhesion)``. Curve and running resistance,
-  which only help the brake, are left out (safe side too; running resistance
-  also depends on speed and load).
+* **deceleration limits** (:func:`decel_limits`): ``min(braking comfort,
+  adhesion, the train's stopping brake)`` plus what gravity adds, and never
+  more than the stopping brake in all (the run curves' stop: a pattern is never
+  faster), from the gradient averaged over the whole train exactly as the run
+  curves take it (:func:`planner.physics.dynamics.running_gradient`,
+  :func:`planner.physics.dynamics.track_accel_ms2`: ``g ḡ / (1 + ρ)``).
+  Averaged over the length, ḡ is piecewise linear in the front's position
+  (kinks where the front or the tail passes a gradient change). The solver
+  takes step functions, so each linear piece is bounded from the safe side by
+  its least favourable value (the smaller end value): the pattern never asks
+  the brake for more than ``min(comfort, adhesion, stopping brake)``. Curve and
+  running resistance, which only help the brake, are left out (safe side too;
+  running resistance also depends on speed and load).
 """
 from __future__ import annotations
 
@@ -32,21 +38,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.errors import InputError
 from planner.physics import dynamics
 from planner.line.model import Line, sign
 
 __all__ = [
     "DEFAULT_APPROACH_M",
+    "APPROACH_MARGIN",
+    "AUTO",
     "ApproachStart",
     "approach_start",
+    "brake_cap_ms2",
     "brake_demand_ms2",
     "decel_limits",
+    "fixed_approach_m",
     "gradient_steps",
+    "physics_start_m",
     "speed_limits",
+    "train_adhesion_ms2",
 ]
 
-DEFAULT_APPROACH_M = 550.0
-"""Approach length where a run has no TASC beacon [m] (the usual beacon spacing)."""
+AUTO = "auto"
+"""``approach_m`` value: the approach start comes from the physics (:func:`physics_start_m`)."""
+DEFAULT_APPROACH_M = AUTO
+"""Approach where a run has no TASC beacon and neither the job nor the line sets ``approach_m``."""
+APPROACH_MARGIN = 0.10
+"""Physics start: this share of the braking distance is added before it (as the sample line places its TASC
+beacons: brake build-up, then 10 %), for the odometer's error and a faster run than the minimum-time one."""
 SLICE_M = 25.0
 """Longest step of the safe-side gradient bound where the train-averaged gradient changes [m]."""
 
@@ -61,7 +79,8 @@ class ApproachStart:
         Running distance from the departure stop marker [m] (``<= 0`` when the
         fixed approach is not shorter than the run).
     source : str
-        ``"tasc"`` (at a TASC beacon) or ``"approach"`` (fixed distance).
+        ``"tasc"`` (at a TASC beacon), ``"approach"`` (``approach_m`` set by the job or
+        line) or ``"physics"`` (:func:`physics_start_m`).
     beacon_id : str
         The TASC beacon, or ``""``.
     """
@@ -71,14 +90,35 @@ class ApproachStart:
     beacon_id: str
 
 
-def approach_start(line: Line, origin: str, destination: str,
-                   approach_m: float = DEFAULT_APPROACH_M) -> ApproachStart:
+def fixed_approach_m(line: Line, approach_m: float | str | None = AUTO) -> float | None:
+    """The fixed approach length [m] in force: the job's number, else the line's ``approach_m``, else None (physics).
+
+    Raises
+    ------
+    InputError
+        ``approach_m`` is neither ``"auto"`` nor a positive number of metres.
+    """
+    if approach_m is None or approach_m == AUTO:
+        return line.approach_m
+    if isinstance(approach_m, bool) or not isinstance(approach_m, (int, float)) or not (
+            math.isfinite(approach_m) and approach_m > 0.0):
+        raise InputError(f"approach_m must be \"auto\" or a positive number of metres, got {approach_m!r}")
+    return float(approach_m)
+
+
+def approach_start(line: Line, origin: str, destination: str, approach_m: float | str | None = AUTO, *,
+                   train_type: str | None = None, adhesion_ms2: float | None = None,
+                   settings=None) -> ApproachStart:
     """Start of the stopping approach of the run ``origin`` → ``destination`` (module doc).
+
+    The one definition of the start, for the stopping sweep, the margin report and so the bundles.
+    ``train_type``, ``adhesion_ms2`` (the lowest level of the train's sweep; default its braking
+    cap) and ``settings`` (the run curves' grid) are what the physics start needs.
 
     Examples
     --------
     >>> from planner.line import testing
-    >>> approach_start(testing.line(length_m=3000.0, stations=[0.0, 900.0, 2900.0]), "S0", "S1")
+    >>> approach_start(testing.line(length_m=3000.0, stations=[0.0, 900.0, 2900.0]), "S0", "S1", 550.0)
     ApproachStart(s_m=350.0, source='approach', beacon_id='')
     """
     ext = line.run_between(origin, destination)
@@ -88,7 +128,51 @@ def approach_start(line: Line, origin: str, destination: str,
             best = b
     if best is not None:
         return ApproachStart(float(ext.sign * (best.position_m - ext.start_m)), "tasc", best.beacon_id)
-    return ApproachStart(float(ext.length_m - approach_m), "approach", "")
+    fixed = fixed_approach_m(line, approach_m)
+    if fixed is not None:
+        return ApproachStart(float(ext.length_m - fixed), "approach", "")
+    if train_type is None:
+        raise InputError("the approach start from the physics needs the train type; give train_type or approach_m")
+    return ApproachStart(physics_start_m(line, train_type, origin, destination, adhesion_ms2, settings),
+                         "physics", "")
+
+
+def physics_start_m(line: Line, train_type: str, origin: str, destination: str, adhesion_ms2: float | None = None,
+                    settings=None) -> float:
+    """Running distance [m] where the approach starts without a TASC beacon or a set ``approach_m``.
+
+    The minimum-time run (ratio 1.0, load 0, traction 1.0: the speed the train can have at each
+    point; :func:`planner.physics.run_curve.simulate`) meets, going back from the stop marker, the
+    first point ``s*`` from which a jerk-limited stop at the pattern's deceleration fits:
+    ``L − s* >= v²/(2b) + v b/(2J)``, ``v`` the run's speed at ``s*``, ``b`` the least deceleration
+    limit of the stretch from ``s*`` to the marker at ``adhesion_ms2`` (:func:`decel_limits`, gradient
+    included). The start is :data:`APPROACH_MARGIN` of ``L − s*`` before ``s*``, and never before
+    half-way from the departure to ``s*`` (a short run that brakes as soon as it has started).
+    """
+    from planner.physics.run_curve import simulate
+    from planner.physics.track import SimSettings, make_track
+
+    train = line.train_type(train_type)
+    ext = line.run_between(origin, destination)
+    length = float(ext.length_m)
+    if not length > 0.0:
+        return 0.0
+    a = brake_cap_ms2(train) if adhesion_ms2 is None else min(float(adhesion_ms2), brake_cap_ms2(train))
+    track = make_track(line, train_type, origin, destination, settings=settings or SimSettings())
+    s = np.asarray(track.s_m, float)
+    v = np.asarray(simulate(track, train, 1.0, load=0.0, traction_factor=1.0, record=True).v_ms[0], float)
+    grads = gradient_steps(line, train.length_m, ext.direction, ext.start_m, length)
+    try:
+        dl = decel_limits(line, train, ext.direction, ext.start_m, length, a, grads)
+    except InputError:  # a fall leaves no deceleration somewhere: no pattern fits; the sweep says why
+        return 0.5 * float(s[1]) if s.size > 1 else 0.0
+    xs = np.array([x for x, _ in dl])
+    b = np.array([d for _, d in dl])[np.searchsorted(xs, s, side="right") - 1]
+    b = np.minimum.accumulate(b[::-1])[::-1]  # the least limit from each node to the marker
+    need = v * v / (2.0 * b) + v * b / (2.0 * train.jerk_limit_ms3)
+    fits = np.flatnonzero((length - s[:-1]) >= need[:-1])  # the marker itself (v = 0) does not count
+    s_star = float(s[fits[-1]]) if fits.size else 0.0
+    return max(s_star - APPROACH_MARGIN * (length - s_star), 0.5 * s_star)
 
 
 def speed_limits(track, s_start_m: float) -> list[tuple[float, float]]:
@@ -168,17 +252,43 @@ def decel_limits(line: Line, train, direction: str, start_chainage_m: float, len
                  adhesion_ms2: float, gradients_permil=None) -> list[tuple[float, float]]:
     """Deceleration limit along an approach [m/s²], a step function from its start (module doc).
 
-    ``min(comfort, adhesion) + g ḡ / (1 + ρ)`` with ḡ bounded per piece from the
-    safe side (:func:`gradient_steps`, passed in as ``gradients_permil`` when
-    already computed). Raises :class:`planner.errors.InputError` when a fall
-    leaves no deceleration (as :func:`planner.stopping.pattern.decel_limit_profile`).
+    ``min(min(comfort, adhesion, brake) + g ḡ / (1 + ρ), brake)`` (the train's braking comfort
+    and stopping brake) with ḡ bounded per piece from the safe side (:func:`gradient_steps`,
+    passed in as ``gradients_permil`` when already computed). Raises
+    :class:`planner.errors.InputError` when a fall leaves no deceleration (as
+    :func:`planner.stopping.pattern.decel_limit_profile`).
     """
     from planner.stopping.pattern import decel_limit_profile
 
     if gradients_permil is None:
         gradients_permil = gradient_steps(line, train.length_m, direction, start_chainage_m, length_m)
-    return decel_limit_profile(train.comfort_accel_ms2, adhesion_ms2, gradients_permil,
-                               rotating_mass_factor=train.rotating_mass_factor)
+    return decel_limit_profile(train.brake_comfort_ms2, adhesion_ms2, gradients_permil,
+                               rotating_mass_factor=train.rotating_mass_factor, brake_ms2=train.stop_brake_ms2)
+
+
+def brake_cap_ms2(train) -> float:
+    """The most a stop of ``train`` asks of its brake on the level [m/s²]: min(braking comfort, stopping brake)."""
+    return min(float(train.brake_comfort_ms2), float(train.stop_brake_ms2))
+
+
+def train_adhesion_ms2(train, levels_ms2) -> tuple[float, ...]:
+    """The adhesion levels [m/s²] that are levels for ``train``, ascending.
+
+    The job's levels are the rail's condition, in absolute terms. A level above what the train
+    asks of its brake anyway (:func:`brake_cap_ms2`) would give the same pattern as the cap: it is
+    not a level of its own for this train, so every such level becomes the cap, once. A freight
+    braking at 0.81 km/h/s has the one level 0.81 km/h/s under a 2.5 … 3.5 km/h/s sweep: rail
+    adhesion that low does not limit it, and its bad day stops no faster than its nominal day.
+
+    Examples
+    --------
+    >>> from planner.line import testing
+    >>> tt = testing.train_type(stop_brake_kmh_s=3.0, brake_comfort_kmh_s=3.5)
+    >>> [round(a * 3.6, 9) for a in train_adhesion_ms2(tt, [x / 3.6 for x in (2.5, 2.8, 3.1, 3.4)])]
+    [2.5, 2.8, 3.0]
+    """
+    cap = brake_cap_ms2(train)
+    return tuple(sorted({min(float(a), cap) for a in levels_ms2}))
 
 
 def brake_demand_ms2(line: Line, train, direction: str, start_chainage_m: float, x_m, a_ms2):

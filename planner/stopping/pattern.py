@@ -6,10 +6,9 @@ train front, all in SI:
     minimise T  subject to   |j(t)| <= J,   -A(x) <= a(t) <= 0,   0 <= v(t) <= v_lim(x),
                              x(0)=0, v(0)=v_start, a(0)=0,   x(T)=x_stop, v(T)=0, a(T)=0,
 
-with ``A`` and ``v_lim`` step functions of position. DESIGN allows powering to
-hold speed (a > 0 only to cancel a gradient); this module keeps ``a <= 0``
-throughout, which is the stricter "no re-acceleration" reading, so every pattern
-here is also admissible under the looser one.
+with ``A`` and ``v_lim`` step functions of position. Powering to hold speed (a > 0 only to cancel a
+gradient) would be allowed; this module keeps ``a <= 0`` throughout, the stricter "no
+re-acceleration" reading, so every pattern here is also admissible under the looser one.
 
 Method (the event-point method of DESIGN §5)
 -------------------------------------------
@@ -88,15 +87,12 @@ time-discretised MILP: no slower, and within 0.01 s. Not covered: a step-down
 met without a cruise (the ease-off would end past the restriction start) is
 still entered at exactly the limit speed with the deceleration that gives.
 
-Code. This module is the public face (the result, input checks, the
-deceleration rule, :func:`solve_stop`); the construction runs compiled with
-numba: :mod:`planner.stopping.kernel` (the request, regions, forward
-breakpoints), :mod:`planner.stopping.construct` (the motions, the fixes, the
-entry choice) and :mod:`planner.stopping.pieces` (closed forms and roots of a
-piece). They are built ahead of time at install (``planner kernels build``,
-:mod:`planner.io.compiled`); without a build for these sources they
-compile on the first solve of a process, some seconds
-(``benchmarks/bench_stopping.py`` prints it); a solve then costs microseconds.
+Code. This module is the public face (the result, input checks, the deceleration rule,
+:func:`solve_stop`); the construction runs compiled with numba: :mod:`planner.stopping.kernel`
+(request, regions, forward breakpoints), :mod:`planner.stopping.construct` (motions, fixes, entry
+choice), :mod:`planner.stopping.pieces` (closed forms and roots of a piece). They are built at install
+(``planner kernels build``, :mod:`planner.io.compiled`); without a build they compile on the first
+solve of a process, some seconds (``benchmarks/bench_stopping.py``); a solve then costs microseconds.
 
 References: DESIGN §5 (event-point constant-jerk stopping pattern method).
 """
@@ -310,17 +306,18 @@ def decel_limit_profile(
     adhesion_ms2: float,
     gradient_segments: Sequence[tuple[float, float]] = ((0.0, 0.0),),
     rotating_mass_factor: float = 0.0,
+    brake_ms2: float = math.inf,
 ) -> list[tuple[float, float]]:
     """Largest deceleration available along a station approach, as a step function.
 
-    ``A(x) = min(comfort, adhesion) + g s(x) / 1000 / (1 + ρ)``  [m/s²], with
-    ``s`` the gradient in ‰ *in the running direction* (DESIGN §5): comfort
-    and adhesion both bound the braking effort (what passengers feel, what the
-    wheel–rail contact transmits); a rising gradient adds its share of gravity
-    to the deceleration achieved, a falling one (``s < 0``) takes it away. The
-    gravity part is the run curves' (:func:`planner.physics.dynamics.track_accel_ms2`:
-    the weight M g s acts on the inertial mass M (1 + ρ)). For a line, ``s``
-    is the gradient averaged over the train, bounded per piece from the safe
+    ``A(x) = min(min(comfort, adhesion, brake) + g s(x) / 1000 / (1 + ρ), brake)`` [m/s²], ``s`` the
+    gradient in ‰ *in the running direction*. Comfort, adhesion and the train's own stopping brake
+    bound the braking effort (what passengers feel, what the wheel–rail contact transmits, what the
+    brake gives); a rising gradient adds gravity's share to the deceleration achieved (the run curves'
+    :func:`planner.physics.dynamics.track_accel_ms2`: M g s on the inertial mass M (1 + ρ)), a falling
+    one takes it away. The stopping brake also caps the deceleration achieved, as the run curves stop
+    at it whatever the gradient: a pattern never stops harder than the run curves (a bad day is never
+    faster than nominal). On a line ``s`` is averaged over the train, bounded per piece from the safe
     side: :func:`planner.stopping.approach.decel_limits` builds it.
 
     Parameters
@@ -334,6 +331,8 @@ def decel_limit_profile(
         the first at 0), in ‰, positive when rising in the running direction.
     rotating_mass_factor : float
         The train's rotating-mass allowance ρ (>= 0; 0 gives g/1000 per ‰).
+    brake_ms2 : float
+        The train's own stopping brake [m/s²] (``TrainType.stop_brake_ms2``), > 0; inf: no cap.
 
     Returns
     -------
@@ -355,7 +354,8 @@ def decel_limit_profile(
     comfort = _check_number("comfort_ms2", comfort_ms2, positive=True)
     adhesion = _check_number("adhesion_ms2", adhesion_ms2, positive=True)
     rho = _check_number("rotating_mass_factor", rotating_mass_factor)
-    base = min(comfort, adhesion)
+    brake = math.inf if brake_ms2 == math.inf else _check_number("brake_ms2", brake_ms2, positive=True)
+    base = min(comfort, adhesion, brake)
     try:
         segs = list(gradient_segments)
     except TypeError:
@@ -364,11 +364,11 @@ def decel_limit_profile(
             if segs else [(0.0, 0.0)])
     out: list[tuple[float, float]] = []
     for i, (x, s) in enumerate(segs):
-        value = round(base - float(track_accel_ms2(s / 1000.0, 0.0, rho)), 12)  # round: stable merging/printing
+        value = round(min(base - float(track_accel_ms2(s / 1000.0, 0.0, rho)), brake), 12)  # round: stable merging
         if not value > 0.0:
             raise InputError(
                 f"gradient_segments[{i}]: at x_from={x!r} m the falling gradient {s!r} ‰ leaves "
-                f"{value:.4f} m/s² of deceleration (min(comfort, adhesion) = {base!r} m/s²); "
+                f"{value:.4f} m/s² of deceleration (min(comfort, adhesion, brake) = {base!r} m/s²); "
                 "no stop is possible there — check the gradient sign or the adhesion level"
             )
         if out and out[-1][1] == value:

@@ -11,9 +11,10 @@ One *approach* is set up from the line as the vehicle meets it, by
 
 * **start**: the TASC beacon before the stop marker (the last ``tasc`` beacon
   read in that direction inside the interstation), where the on-board unit
-  learns its exact distance to go; without one, a fixed distance
-  ``approach_m`` (550 m by default, the usual TASC beacon spacing) before
-  the marker (:func:`planner.stopping.approach.approach_start`);
+  learns its exact distance to go; without one, ``approach_m`` before the
+  marker when the job or the line sets it, else where the minimum-time run
+  must start braking at the pattern's deceleration (the train's lowest
+  adhesion level), plus 10 % (:func:`planner.stopping.approach.approach_start`);
 * **start speed**: the speed of the minimum-time run there (ratio 1.0, load 0,
   nominal traction, :func:`planner.physics.run_curve.simulate`; the point is an exact
   grid node, read from a snapshot). The pattern takes it with acceleration 0;
@@ -21,12 +22,18 @@ One *approach* is set up from the line as the vehicle meets it, by
   restriction held until the tail clears, minus the vehicle's speed margin),
   which is piecewise constant on the run-curve grid, as a step function of the
   distance from the approach start;
-* **deceleration limits**: ``min(comfort, adhesion) + g s / 1000 / (1 + ρ)``
+* **deceleration limits**: ``min(comfort, adhesion, brake) + g s / 1000 / (1 + ρ)``, at most ``brake``
   for the gradient ``s`` [‰] averaged over the whole train in the running
   direction (sign flipped for ``up``), exactly as the run curves take it, each
   linear piece bounded by its least favourable value
   (:func:`planner.stopping.approach.decel_limits`), one profile per adhesion level;
 * **jerk**: the vehicle's ``jerk_limit_ms3``.
+
+**Adhesion levels** are the rail's condition, absolute, in km/h/s (job ``[stops]
+adhesion_kmh_s``); each train type gets those at or below what it asks of its brake anyway
+(min(braking comfort, stopping brake)) and that cap in place of every level above it
+(:func:`planner.stopping.approach.train_adhesion_ms2`), so a level is never faster than the
+train can brake and the bad day never faster than nominal.
 
 An approach with no admissible pattern at some adhesion level is kept as a row
 with ``feasible = False`` and the solver's reason, and produces a warning
@@ -170,7 +177,7 @@ class ApproachResult:
     approach_length_m : float
         Distance from the approach start to the stop marker [m] (``x_stop``).
     tasc_beacon_id : str
-        The TASC beacon the approach starts at, or ``""`` (fixed distance).
+        The TASC beacon the approach starts at, or ``""`` (``approach_m``, or the physics start).
     v_start_ms : float
         Speed of the minimum-time run at the approach start [m/s] (NaN if none).
     run_phase : str
@@ -178,7 +185,7 @@ class ApproachResult:
         ``brake`` (for a restriction) or ``stop`` (on the stopping-brake curve) means the
         run was already braking there; the pattern still starts with a = 0.
     jerk_max_ms3, comfort_ms2 : float
-        Vehicle jerk limit [m/s³] and comfort deceleration limit [m/s²].
+        Vehicle jerk limit [m/s³] and ride-comfort limit on braking [m/s²] (``brake_comfort_kmh_s``).
     speed_limits : tuple of (x_from_m, speed_ms)
         On-board maximum over the approach.
     gradients_permil : tuple of (x_from_m, gradient_permil)
@@ -186,7 +193,8 @@ class ApproachResult:
         direction, each linear piece at its least favourable value
         (:func:`planner.stopping.approach.gradient_steps`).
     adhesion_ms2 : tuple of float
-        The adhesion levels (adhesion-limited braking decelerations) [m/s²], ascending.
+        The train's adhesion levels (adhesion-limited braking decelerations) [m/s²], ascending: the
+        job's levels, those above the train's braking cap replaced by the cap once.
     decel_limits : tuple
         Per level, the deceleration limit step function ``((x_from_m, decel_ms2), ...)``,
         or ``()`` when the gradient leaves no deceleration.
@@ -250,7 +258,7 @@ def approach_patterns(
     origin: str,
     destination: str,
     adhesions_ms2: Sequence[float],
-    approach_m: float = DEFAULT_APPROACH_M,
+    approach_m: float | str = DEFAULT_APPROACH_M,
     *,
     settings=None,
 ) -> ApproachResult:
@@ -265,9 +273,12 @@ def approach_patterns(
     train_type, origin, destination : str
         Consecutive stations; the direction follows from them.
     adhesions_ms2 : sequence of float
-        Adhesion-limited braking decelerations [m/s²], > 0 (sorted ascending in the result).
-    approach_m : float
-        Approach length where the interstation has no TASC beacon [m], > 0.
+        Adhesion-limited braking decelerations [m/s²], > 0, the rail's condition: the result has the
+        train's levels (:func:`planner.stopping.approach.train_adhesion_ms2`: every level above the
+        train's braking cap becomes the cap, once), ascending.
+    approach_m : float or "auto"
+        Approach length where the interstation has no TASC beacon [m], > 0; ``"auto"``: the line's
+        ``approach_m``, else from the physics (:func:`planner.stopping.approach.physics_start_m`).
     settings : planner.physics.track.SimSettings, optional
         Grid of the minimum-time run (default 1 m).
 
@@ -284,7 +295,7 @@ def approach_patterns(
 
     Notes
     -----
-    ``A(x) = min(comfort, adhesion) + g s(x) / 1000 / (1 + ρ)`` (DESIGN §5) with
+    ``A(x) = min(min(comfort, adhesion, brake) + g s(x) / 1000 / (1 + ρ), brake)`` with
     ``s`` the gradient averaged over the train, bounded per piece from the safe
     side (:mod:`planner.stopping.approach`); ``v_lim(x)`` the on-board maximum (restriction
     held to the tail, minus the speed margin); the start speed is the
@@ -293,20 +304,21 @@ def approach_patterns(
     from planner.physics.run_curve import PHASE_NAMES, simulate
     from planner.physics.track import SimSettings, make_track
 
-    if not (isinstance(approach_m, (int, float)) and math.isfinite(approach_m) and approach_m > 0.0):
-        raise InputError(f"approach_m must be a positive number of metres, got {approach_m!r}")
+    _approach.fixed_approach_m(line, approach_m)  # a bad value is an InputError before any work
     levels_ms2 = sorted(float(a) for a in adhesions_ms2)
     if not levels_ms2 or not all(math.isfinite(a) and a > 0.0 for a in levels_ms2):
         raise InputError(f"adhesion levels must be positive decelerations [m/s²], got {list(adhesions_ms2)!r}")
-    levels_kmh_s = tuple(round(a / KMH_S, 9) for a in levels_ms2)
     train = line.train_type(train_type)
+    levels_ms2 = list(_approach.train_adhesion_ms2(train, levels_ms2))  # none above what the train asks anyway
+    levels_kmh_s = tuple(round(a / KMH_S, 9) for a in levels_ms2)
     ext = line.run_between(origin, destination)
     direction, sg, x0, stop, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m
-    start = _approach.approach_start(line, origin, destination, float(approach_m))
+    start = _approach.approach_start(line, origin, destination, approach_m, train_type=train_type,
+                                     adhesion_ms2=levels_ms2[0], settings=settings)
     s_a = start.s_m
     X = length - s_a
     J = train.jerk_limit_ms3
-    comfort = train.comfort_accel_ms2
+    comfort = train.brake_comfort_ms2
     common = dict(line_id=line.line_id, train_type=train_type, direction=direction, origin=origin,
                   station_id=destination, stop_m=float(stop), approach_start_m=float(x0 + sg * s_a),
                   approach_length_m=float(X), tasc_beacon_id=start.beacon_id,
@@ -322,7 +334,7 @@ def approach_patterns(
 
     if not s_a > 0.0:
         return all_infeasible(
-            f"the approach of {approach_m:g} m is not shorter than the interstation ({length:.1f} m); "
+            f"the approach of {X:.0f} m is not shorter than the interstation ({length:.1f} m); "
             "lower approach_m or add a TASC beacon", math.nan, "")
 
     track = make_track(line, train_type, origin, destination, settings=settings or SimSettings(),
@@ -392,7 +404,7 @@ def stop_sweep(
     *,
     train_types: Sequence[str] | None = None,
     adhesion_kmh_s: str | Sequence[float] = DEFAULT_ADHESION_KMH_S,
-    approach_m: float = DEFAULT_APPROACH_M,
+    approach_m: float | str = DEFAULT_APPROACH_M,
     directions: Sequence[str] | None = None,
     n_jobs: int = -1,
     settings=None,
@@ -408,8 +420,8 @@ def stop_sweep(
     adhesion_kmh_s : str or sequence of float
         Adhesion levels [km/h/s], or a spec for :func:`adhesion_levels`
         (default 2.5 … 3.5 in 0.1 steps).
-    approach_m : float
-        Approach length where there is no TASC beacon [m].
+    approach_m : float or "auto"
+        Approach length where there is no TASC beacon [m], or ``"auto"`` (:func:`approach_patterns`).
     directions : sequence of str, optional
         Default both.
     n_jobs : int

@@ -70,7 +70,7 @@ from planner.tables.eval_points import (
 from planner.line.model import DIRECTIONS, Line
 from planner.tables.onboard import ApproachTable, RunningTimeTables
 from planner.io.parallel import map_tasks
-from planner.tables.ratios import ratio_grid
+from planner.tables.ratios import leg_ratio_grid
 from planner.line.units import ms
 
 
@@ -421,13 +421,13 @@ def build_tables(
     list of InterstationTables
         In :func:`table_tasks` order, independent of ``n_jobs``.
     """
-    grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
     eval_interval_m = check_interval(eval_interval_m)
     tasks = table_tasks(line, train_types)
+    grids = [leg_ratio_grid(ratios, line, t[0], t[2], t[3]) for t in tasks]  # each leg's floor
     # longest interstations first, so no core idles on one long task at the end; the results
     # are put back in task order, so the output does not depend on this or on n_jobs
     order = sorted(range(len(tasks)), key=lambda i: -interstation_length_m(line, tasks[i][2], tasks[i][3]))
-    results = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, after_departure_m, settings,
+    results = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grids[i], after_departure_m, settings,
                                  eval_interval_m) for i in order], n_jobs, progress)
     out: list[InterstationTables | None] = [None] * len(tasks)
     for i, res in zip(order, results):

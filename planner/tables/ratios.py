@@ -2,15 +2,19 @@
 
 The on-board logic drives at a target speed ``ratio × maximum speed(x)``. The
 tables are computed for a finite set of ratios, from 100 % down until
-``ratio × line maximum`` reaches the minimum target speed (20 km/h by default).
+``ratio × the leg's maximum`` reaches the minimum target speed (20 km/h by
+default): the highest on-board maximum of that train on that leg
+(:func:`leg_max_speed_ms`: restrictions, line and train maximum, minus the speed
+margin), so a 36 km/h train's table stops at 20/36, not at 20 km/h over a
+120 km/h line maximum (2.4 km/h).
 Low ratios change the running time a lot per step, so the default grid is
 coarse at the top and fine at the bottom: 10 % steps from 100 % to 70 %, then
 5 % steps.
 
 The floor ratio
 ---------------
-The floor ``r_min = v_target_min / v_line_max`` is generally not on the 5 %
-grid (20/120 = 0.1667). A piece that ends at ``floor`` (as the default does)
+The floor ``r_min = v_target_min / v_leg_max`` is generally not on the 5 %
+grid (20/117 = 0.1709). A piece that ends at ``floor`` (as the default does)
 *includes* it as its last entry even when the step does not land on it: the
 slowest table column is then exactly the slowest running the on-board method
 allows, so the range of designated times that can be stretched to is as large
@@ -66,6 +70,35 @@ def floor_ratio(line_max_speed_ms: float, min_target_speed_ms: float = MIN_TARGE
     if not line_max_speed_ms > 0:
         raise InputError(f"line maximum speed must be > 0 m/s, got {line_max_speed_ms}")
     return min(1.0, float(min_target_speed_ms) / float(line_max_speed_ms))
+
+
+def leg_max_speed_ms(line, train_type: str, origin: str, destination: str) -> float:
+    """The highest on-board maximum of ``train_type`` on the leg ``origin`` → ``destination`` [m/s].
+
+    The run curves' own maximum (:func:`planner.physics.track.make_track`: every restriction held
+    until the tail clears, the line and the train maximum, minus the speed margin), whose
+    ``ratio ×`` is the target speed: the fastest the train is ever driven on the leg.
+    """
+    from planner.physics.track import SimSettings, make_track
+
+    track = make_track(line, train_type, origin, destination, settings=SimSettings(ds_m=1e9))  # breakpoints only
+    return float(np.max(track.vmax_interval_ms))
+
+
+def leg_ratio_grid(spec, line, train_type: str, origin: str, destination: str,
+                   min_target_speed_ms: float = MIN_TARGET_SPEED_MS) -> np.ndarray:
+    """:func:`ratio_grid` with the floor of one leg and train: ratio × :func:`leg_max_speed_ms` = the minimum target.
+
+    Examples
+    --------
+    >>> from planner.line import testing
+    >>> slow = testing.train_type(max_speed_kmh=36.0)
+    >>> line = testing.line(max_speed_kmh=120.0, train_types=[slow])
+    >>> leg_ratio_grid(None, line, "T", "S0", "S1")[-3:].tolist()
+    [0.65, 0.6, 0.555556]
+    """
+    return ratio_grid(spec, line_max_speed_ms=leg_max_speed_ms(line, train_type, origin, destination),
+                      min_target_speed_ms=min_target_speed_ms)
 
 
 def _piece(text: str, floor: float, where: str) -> list[float]:

@@ -12,6 +12,7 @@ The ``--extra`` TOML is :data:`EXTRA_EXAMPLE` (every section optional).
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import os
 import re
@@ -34,7 +35,9 @@ EXTRA_EXAMPLE = """
 [line]
 line_id = "coast"            # default: the source's line/path name
 name = "Coast Line"          # default: the line id
-max_speed_kmh = 120.0        # default: the highest speed limit on the path
+max_speed_kmh = 120.0        # default: none (each train's own maximum where no speed limit applies)
+approach_m = 800.0           # stopping-pattern start before the marker without a TASC beacon; default:
+                             #  where the train must start braking + 10 %
 
 [defaults]                   # replace any documented default, e.g.
 platform_length_m = 180.0
@@ -82,7 +85,8 @@ DEFAULTS: dict[str, tuple[object, str]] = {
                                       "(down: centre + length/2, up: centre − length/2), clipped to the line"),
     "speed_limit_kind": ("civil", "kind of every imported speed restriction"),
     "has_beacon": (False, "no ATS-P beacon sends an imported restriction's pattern"),
-    "line_max_speed": ("highest limit", "line max_speed_kmh = the highest speed limit on the path"),
+    "line_max_speed": ("none", "no line max_speed_kmh: where no speed limit applies, each train runs at its own "
+                               "maximum (OSRD's meaning of a missing speed section)"),
     "line_name": ("line id", "display name = the line id"),
     "line_id": ("source and path", "line id = railML: the <line> id; railjson: the file stem and the first and "
                                    "last point of --path (two paths of one file never share an id)"),
@@ -93,11 +97,12 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "beacon_telegram": ("", "telegram of a beacon the TOML gives none for (empty)"),
     "evaluation_point": (False, "a beacon is not an evaluation point unless the TOML says so"),
     "full_load_mass_t": (0.0, "passenger mass at 100 % load [t]"),
-    "max_accel_kmh_s": ("comfort_acceleration", "acceleration cap = the source's comfort acceleration"),
-    "comfort_accel_kmh_s": ("comfort_acceleration", "ride-comfort acceleration = the source's comfort "
-                                                    "acceleration"),
+    "max_accel_kmh_s": ("comfort_acceleration", "acceleration cap when powering = the source's comfort "
+                                                "acceleration (OSRD: the traction comfort limit)"),
+    "brake_comfort_kmh_s": (3.3, "ride-comfort limit on stop braking [km/h/s] (0.92 m/s²); the source has none "
+                                 "(its comfort acceleration limits powering, not braking)"),
     "service_brake_kmh_s": ("braking", "restriction braking = the source's braking deceleration"),
-    "stop_brake_kmh_s": ("braking", "station stopping braking = the source's braking deceleration"),
+    "stop_brake_kmh_s": ("braking", "the train's own stopping brake = the source's braking deceleration"),
     "atsp_pattern_kmh_s": ("braking", "ATS-P pattern deceleration = the source's braking deceleration"),
     "jerk_limit_kmh_s2": (1.8, "ride-comfort jerk limit [km/h/s²] (0.5 m/s³)"),
     "speed_margin_kmh": (0.0, "on-board speed margin below the limit [km/h]"),
@@ -111,7 +116,7 @@ OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_nam
 
 _ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema)  # train_type renames
 _SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable", "categories"}
-_LINE_KEYS = {"line_id", "name", "max_speed_kmh"}
+_LINE_KEYS = {"line_id", "name", "max_speed_kmh", "approach_m"}
 _STATION_KEYS = {"station_id", "name", "platform_length_m", "stop_down_m", "stop_up_m", "position_m"}
 _BEACON_KEYS = {f.name for f in TABLES["beacons"].schema} | {"at"}
 _TIMETABLE_KEYS = {f.name for f in TABLES["timetable"].schema}
@@ -232,8 +237,20 @@ def number(value, where: str, fix: str = "", *, positive: bool = False) -> float
     return x
 
 
+def braking_note(row: dict, source: str = "") -> str:
+    """One summary line: what a train type's acceleration and braking limits are, and what a stop may ask.
+
+    ``row`` is a rolling_stock row (railway units); ``source`` says where its values came from.
+    """
+    acc, comfort, brake = (float(row[c]) for c in ("max_accel_kmh_s", "brake_comfort_kmh_s", "stop_brake_kmh_s"))
+    return (f"train type {row['train_type']}: acceleration cap {acc:.3g} km/h/s (max_accel_kmh_s), braking "
+            f"comfort {comfort:.3g} km/h/s (brake_comfort_kmh_s), own stopping brake {brake:.3g} km/h/s "
+            f"(stop_brake_kmh_s){' from ' + source if source else ''}; a stopping pattern asks for at most "
+            f"{min(comfort, brake):.3g} km/h/s and the adhesion level")
+
+
 # --------------------------------------------------------------------------- shared table builders
-def line_table(line_id: str, start_m: float, end_m: float, limits: pd.DataFrame, s: ImportSummary) -> pd.DataFrame:
+def line_table(line_id: str, start_m: float, end_m: float, s: ImportSummary) -> pd.DataFrame:
     """line.parquet from the TOML's [line] and the defaults."""
     ex = s.extra or Extras()
     lid = str(line_id)
@@ -243,15 +260,15 @@ def line_table(line_id: str, start_m: float, end_m: float, limits: pd.DataFrame,
         name = lid
     vmax = ex.line.get("max_speed_kmh")
     if vmax is None:
-        if limits.empty:
-            raise SourceError(f"{s.source}: no speed limit on the path; set [line] max_speed_kmh in the "
-                              f"--extra TOML")
         s.default("line_max_speed")
-        vmax = float(limits["limit_kmh"].max())
-    vmax = number(vmax, f"{ex.path}: [line] max_speed_kmh", positive=True)
+    else:
+        vmax = number(vmax, f"{ex.path}: [line] max_speed_kmh", positive=True)
     s.line_id = lid
-    return pd.DataFrame([dict(line_id=lid, name=str(name), start_m=float(start_m), end_m=float(end_m),
-                              max_speed_kmh=vmax, schema_version=1)])
+    row = dict(line_id=lid, name=str(name), start_m=float(start_m), end_m=float(end_m), max_speed_kmh=vmax,
+               schema_version=1)
+    if ex.line.get("approach_m") is not None:
+        row["approach_m"] = number(ex.line["approach_m"], f"{ex.path}: [line] approach_m", positive=True)
+    return pd.DataFrame([row])
 
 
 def station_table(found: list[dict], start_m: float, end_m: float, s: ImportSummary) -> pd.DataFrame:
@@ -476,3 +493,17 @@ def write_line(tables: dict[str, pd.DataFrame | pa.Table], out: str | Path, summ
                     break
     summary.out = out
     return summary
+
+
+def load_json(path: str | Path) -> tuple[str, object]:
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SourceError(f"{p}: file does not exist") from None
+    except UnicodeDecodeError as e:
+        raise SourceError(f"{p.name}: not UTF-8 text ({e.reason})") from None
+    try:
+        return p.name, json.loads(text)
+    except json.JSONDecodeError as e:
+        raise SourceError(f"{p.name} line {e.lineno} column {e.colno}: not valid JSON ({e.msg})") from None

@@ -26,9 +26,9 @@ import pyarrow.parquet as pq
 
 from planner.io.atomic import write_bytes_atomic
 from planner.errors import InputError, SourceError, Violation
-from planner.line.schema import TABLES
+from planner.line.schema import TABLES, missing_column_hint
 from planner.line.schema_doc import DOC_PATH
-from planner.line.importers.common import ImportSummary, write_line
+from planner.line.importers.common import ImportSummary, braking_note, write_line
 from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
 
 _TRUE, _FALSE = {"true", "1", "yes"}, {"false", "0", "no"}
@@ -164,8 +164,9 @@ def read_table_csv(path: Path, name: str) -> tuple[pa.Table, list[int]]:
     missing = [c for c in declared if c not in header and c not in spec.optional_columns]
     if missing:
         extra = [h for h in header if h not in declared]
-        hint = next((f"; found {h!r}: units are part of the column name, convert the values to "
-                     f"{missing[0]!r}" for h in extra if _same_stem(h, missing[0])), "")
+        hint = missing_column_hint(name, missing[0], header) or next(
+            (f"; found {h!r}: units are part of the column name, convert the values to "
+             f"{missing[0]!r}" for h in extra if _same_stem(h, missing[0])), "")
         raise SourceError(f"{path.name} line {skip + 1}: required column {missing[0]} is missing "
                           f"(expected {declared[missing[0]].type}){hint}")
     # your own columns are kept, as text (docs/line-database.md: extra columns are allowed)
@@ -222,4 +223,7 @@ def import_csv(src: str | Path, out: str | Path, *, force: bool = False) -> Impo
 
     summary.describe = where
     summary.line_id = str(tables["line"].column("line_id")[0]) if tables["line"].num_rows else ""
-    return write_line(tables, out, summary, force=force)
+    write_line(tables, out, summary, force=force)
+    for row in tables["rolling_stock"].to_pylist():  # column for column: the summary still says what each limit is
+        summary.notes.append(braking_note(row, "rolling_stock.csv"))
+    return summary

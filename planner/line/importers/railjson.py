@@ -23,12 +23,15 @@ OSRD rolling stock (``{"name", "length" [m], "mass" [kg], "max_speed" [m/s],
 "C" [N/(m/s)²]}, "effort_curves": {"default_mode", "modes": {mode: {"default_curve":
 {"speeds" [m/s], "max_efforts" [N]}}}}}``) becomes one rolling_stock row and its
 traction curve. Converted values are rounded to 1e-9 of the target unit (so that
-22.2222… m/s is written 80.0 km/h).
+22.2222… m/s is written 80.0 km/h). The braking mapping is explicit (and printed in the
+import summary): ``comfort_acceleration``, OSRD's traction comfort limit, caps acceleration
+(``max_accel_kmh_s``) and never braking; ``gamma`` is the train's own brake (``service_brake_kmh_s``,
+``stop_brake_kmh_s``, ``atsp_pattern_kmh_s``); OSRD has no ride-comfort limit on braking, so
+``brake_comfort_kmh_s`` takes the documented default (3.3 km/h/s) unless the TOML gives one.
 """
 from __future__ import annotations
 
 import heapq
-import json
 from pathlib import Path
 
 import pandas as pd
@@ -42,13 +45,14 @@ from planner.line.importers.common import (
     check_categories,
     line_table,
     load_extras,
+    load_json,
     number,
     path_id,
     station_table,
     timetable_table,
     write_line,
 )
-from planner.line.importers.stock import extend_at_constant_power, unused_fields
+from planner.line.importers.stock import MAX_SPEED_MS, rolling_stock_tables
 
 SWITCH_LINKS = {
     "link": [("A", "B")],
@@ -59,28 +63,11 @@ SWITCH_LINKS = {
 }
 """Built-in OSRD switch types: which ports a train can run between."""
 
-MAX_SPEED_MS = 100.0
-"""Highest plausible railjson speed [m/s] (360 km/h); above it the value was probably given in km/h."""
-
 INC, DEC = "START_TO_STOP", "STOP_TO_START"
 
 
 def _r(x: float) -> float:
     return round(x, 9)
-
-
-def load_json(path: str | Path) -> tuple[str, object]:
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SourceError(f"{p}: file does not exist") from None
-    except UnicodeDecodeError as e:
-        raise SourceError(f"{p.name}: not UTF-8 text ({e.reason})") from None
-    try:
-        return p.name, json.loads(text)
-    except json.JSONDecodeError as e:
-        raise SourceError(f"{p.name} line {e.lineno} column {e.colno}: not valid JSON ({e.msg})") from None
 
 
 class _Src:
@@ -434,112 +421,6 @@ def _points(src: _Src, net: _Network, path: _Path, key: str, located: dict[str, 
 
 
 # --------------------------------------------------------------------------- rolling stock
-def read_rolling_stock(path: str | Path, s: ImportSummary) -> tuple[str, dict, list[dict]]:
-    """One OSRD rolling-stock JSON: its name, its rolling_stock row (railway units) and traction rows."""
-    fname, rs = load_json(path)
-    if not isinstance(rs, dict):
-        raise SourceError(f"{fname}: the top level must be a JSON object (OSRD rolling stock)")
-
-    def get(field: str):
-        if field not in rs:
-            raise SourceError(f"{fname}: {field}: missing (OSRD rolling stock)")
-        return rs[field]
-
-    name = get("name")
-    if not isinstance(name, str) or not name:
-        raise SourceError(f"{fname}: name: must be a non-empty string (it becomes the train type)")
-    length = number(get("length"), f"{fname}: length", "metres", positive=True)
-    mass = number(get("mass"), f"{fname}: mass", "kilograms", positive=True)
-    if mass < 1000:
-        raise SourceError(f"{fname}: mass: {mass!r} kg is lighter than a tonne; OSRD masses are in kg, "
-                          f"not tonnes")
-    vmax = number(get("max_speed"), f"{fname}: max_speed", "m/s", positive=True)
-    if vmax > MAX_SPEED_MS:
-        raise SourceError(f"{fname}: max_speed: {vmax!r} m/s is {vmax * 3.6:.0f} km/h; OSRD speeds are in "
-                          f"m/s: was it given in km/h?")
-    inertia = number(get("inertia_coefficient"), f"{fname}: inertia_coefficient")
-    if inertia < 1:
-        raise SourceError(f"{fname}: inertia_coefficient: {inertia!r} < 1; it is 1 + the rotating-mass "
-                          f"factor (e.g. 1.05)")
-    comfort = number(get("comfort_acceleration"), f"{fname}: comfort_acceleration", "m/s²", positive=True)
-    if "const_gamma" in rs:
-        gamma = number(rs["const_gamma"], f"{fname}: const_gamma", "m/s²", positive=True)
-    elif isinstance(rs.get("gamma"), dict):
-        gamma = number(rs["gamma"].get("value"), f"{fname}: gamma.value", "m/s²", positive=True)
-    else:
-        raise SourceError(f"{fname}: const_gamma: missing (braking deceleration in m/s², or gamma.value)")
-    rr = get("rolling_resistance")
-    if not isinstance(rr, dict) or rr.get("type", "davis") != "davis":
-        raise SourceError(f"{fname}: rolling_resistance: must be {{\"type\": \"davis\", \"A\", \"B\", \"C\"}}")
-    a, b, c = (number(rr.get(k), f"{fname}: rolling_resistance.{k}", "N, N/(m/s), N/(m/s)²") for k in "ABC")
-    if min(a, b, c) < 0:
-        raise SourceError(f"{fname}: rolling_resistance: A, B and C must be >= 0")
-    ec = get("effort_curves")
-    mode = ec.get("default_mode") if isinstance(ec, dict) else None
-    modes = ec.get("modes") if isinstance(ec, dict) else None
-    if not isinstance(modes, dict) or mode not in modes:
-        raise SourceError(f"{fname}: effort_curves.default_mode: {mode!r} is not one of effort_curves.modes")
-    curve = (modes[mode] or {}).get("default_curve") or {}
-    w = f"{fname}: effort_curves.modes.{mode}.default_curve"
-    speeds, efforts = curve.get("speeds"), curve.get("max_efforts")
-    if not isinstance(speeds, list) or not isinstance(efforts, list) or len(speeds) != len(efforts) \
-            or len(speeds) < 2:
-        raise SourceError(f"{w}: speeds and max_efforts must be lists of the same length (>= 2)")
-    speeds = [number(x, f"{w}.speeds[{k}]", "m/s") for k, x in enumerate(speeds)]
-    efforts = [number(x, f"{w}.max_efforts[{k}]", "newtons") for k, x in enumerate(efforts)]
-    if speeds[0] != 0 or any(y <= x for x, y in zip(speeds[:-1], speeds[1:])):
-        raise SourceError(f"{w}.speeds: must start at 0 and increase strictly")
-    if min(efforts) < 0:
-        raise SourceError(f"{w}.max_efforts: efforts must be >= 0 N")
-    if speeds[-1] < vmax:
-        added = extend_at_constant_power(speeds, efforts, vmax)
-        s.notes.append(f"{fname}: effort curve ends at {speeds[-1 - len(added)]:g} m/s, below max_speed {vmax:g} "
-                       f"m/s: extended at the constant power of its last point (F = F_last·v_last / v), "
-                       f"{len(added)} points up to {efforts[-1] / 1000:.3f} kN at max_speed")
-    s.unused += [f"{fname}: {u}" for u in unused_fields(rs, mode)]
-    kmh = lambda v: _r(v * 3.6)  # noqa: E731
-    row = dict(train_type=name, length_m=length, empty_mass_t=_r(mass / 1000),
-               full_load_mass_t=None,
-               rotating_mass_factor=_r(inertia - 1), max_speed_kmh=kmh(vmax),
-               max_accel_kmh_s=None, davis_a_kN=_r(a / 1000), davis_b_kN_per_kmh=_r(b / 1000 / 3.6),
-               davis_c_kN_per_kmh2=_r(c / 1000 / 3.6**2), service_brake_kmh_s=None, stop_brake_kmh_s=None,
-               atsp_pattern_kmh_s=None, comfort_accel_kmh_s=None,
-               jerk_limit_kmh_s2=None, speed_margin_kmh=None, cruise=None, coast_band_kmh=None)
-    over = (s.extra.rolling_stock if s.extra else {}).get(name, {})
-    derived = {"max_accel_kmh_s": kmh(comfort), "comfort_accel_kmh_s": kmh(comfort),
-               "service_brake_kmh_s": kmh(gamma), "stop_brake_kmh_s": kmh(gamma), "atsp_pattern_kmh_s": kmh(gamma)}
-    for col in ("full_load_mass_t", "max_accel_kmh_s", "comfort_accel_kmh_s", "service_brake_kmh_s", "stop_brake_kmh_s",
-                "atsp_pattern_kmh_s", "jerk_limit_kmh_s2", "speed_margin_kmh", "cruise", "coast_band_kmh"):
-        if col in over:
-            continue
-        value = s.default(col, name)
-        given = s.extra is not None and col in s.extra.defaults  # [defaults] beats the derived value
-        row[col] = value if given else derived.get(col, value)
-    row.update(over)
-    traction = [dict(train_type=row["train_type"], speed_kmh=kmh(v), effort_kN=_r(f / 1000)) for v, f in zip(speeds, efforts)]
-    return name, row, traction
-
-
-def rolling_stock_tables(paths: list, s: ImportSummary) -> tuple[pd.DataFrame, pd.DataFrame]:
-    if not paths:
-        raise SourceError(f"{s.source}: --rolling-stock: give at least one OSRD rolling-stock JSON (the "
-                          f"line database needs a train type)")
-    rows, traction, known = [], [], set()
-    for p in paths:
-        name, row, tr = read_rolling_stock(p, s)
-        if any(r["train_type"] == row["train_type"] for r in rows):
-            raise SourceError(f"{Path(p).name}: name: train type {row['train_type']!r} is given twice")
-        rows.append(row)
-        traction += tr
-        known.add(name)
-    for k in (s.extra.rolling_stock if s.extra else {}):
-        if k not in known:
-            raise s.extra.err(f"[rolling_stock.{k}]", f"no train type {k!r}; they are {', '.join(sorted(known))}")
-    cols = lambda t: [f.name for f in TABLES[t].schema]  # noqa: E731
-    return pd.DataFrame(rows, columns=cols("rolling_stock")), pd.DataFrame(traction, columns=cols("traction"))
-
-
-# --------------------------------------------------------------------------- entry point
 def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list, out: str | Path, *,
                     extra: str | Path | None = None, line_id: str | None = None,
                     force: bool = False, categories: list[str] | None = None) -> ImportSummary:
@@ -581,7 +462,7 @@ def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list,
         default_id = path_id(f"{Path(infra).stem}_{path_ops[0]}_{path_ops[-1]}")
         s.default("line_id", default_id)
     tables = {
-        "line": line_table(str(default_id), 0.0, _r(path.length), limits, s),
+        "line": line_table(str(default_id), 0.0, _r(path.length), s),
         "stations": stations,
         "gradients": gradients,
         "curves": curves,

@@ -64,7 +64,7 @@ from planner.line.importers.common import (
     station_table,
     write_line,
 )
-from planner.line.importers.railjson import rolling_stock_tables
+from planner.line.importers.stock import rolling_stock_tables
 from planner.line.importers.timetable import railml_or_toml_timetable
 
 END_SPEEDS = {"end", "999.9"}
@@ -538,7 +538,7 @@ def import_railml(file: str | Path, line_id: str, rolling_stock: list, out: str 
         if lid != line_id:
             s.notes.append(f"line id {lid!r} from railML line {line_id!r} (a line id names files: A-Z a-z 0-9 . _ -)")
     tables = {
-        "line": line_table(str(lid), line.start, line.end, limits, s),
+        "line": line_table(str(lid), line.start, line.end, s),
         "stations": station_table(list(found.values()), line.start, line.end, s),
         "gradients": gradients,
         "curves": curves,
