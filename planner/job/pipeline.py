@@ -431,6 +431,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts,
                   given.result())
     _bundles_step(stage, runner, summary, key, bundles)
+    from planner.job.verdicts import record_verdicts
+
+    record_verdicts(line.line_id, summary, tables, loops, summary.reports[line.line_id])
     from planner.job.views import line_views  # inputs copy, train graph page
 
     line_views(job, line, stage, runner, summary, got["graph"])

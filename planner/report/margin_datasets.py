@@ -81,6 +81,13 @@ MARGINS_SCHEMA = declare(
          "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; infeasible and "
          "tight are then null (unknown), remaining_margin_s null"),
         ("unassessed_reason", pa.string(), "why the leg could not be assessed; empty when assessed"),
+        ("unassessed_cause", pa.string(),
+         "the physical verdict behind an unassessed leg: 'stall' (the train cannot climb: tractive effort below "
+         "resistance and gradient), 'no_stop' (no stopping pattern stops it at the marker), or empty"),
+        ("unassessed_scenario", pa.string(),
+         "under which conditions: 'bad_day' (the [margins] bad day) or 'nominal'; empty without a cause"),
+        ("unassessed_position_m", pa.float64(),
+         "where: chainage of the stall, or of the stop marker the train cannot stop at [m]; null without a cause"),
         ("tables_source", pa.string(), "'dataset' (--tables) or 'computed'"),
         ("note", pa.string(), "anything unusual about the row, else empty"),
     ],

@@ -86,9 +86,17 @@ What each row holds, and how
   ``tight_threshold_s``; ``unreachable`` — scheduled above the slowest table
   time (lowest ratio), so the vehicle cannot stretch the run that long;
   ``unassessed`` — the minimum or the degraded minimum could not be computed
-  (e.g. no stopping pattern at the lowest adhesion from any start), with
-  ``unassessed_reason``: then ``infeasible`` and ``tight`` are unknown, written
-  as null in the dataset, and the report lists the leg first.
+  (e.g. no stopping pattern at the lowest adhesion from any start, or the
+  train stalls on a climb on the bad day), with ``unassessed_reason``: then
+  ``infeasible`` and ``tight`` are unknown, written as null in the dataset,
+  and the report lists the leg first. Where the cause is physical (a
+  :class:`planner.tables.flags.LegFlag`) the leg says what, under which
+  conditions and where: ``unassessed_cause`` (``stall``, ``no_stop``),
+  ``unassessed_scenario`` (``bad_day``, ``nominal``) and
+  ``unassessed_position_m`` (the chainage of the stall, or the stop marker
+  the train cannot stop at). Such a leg is a verdict, not a failure: every
+  other column that does not need the bad day (minimum, on-time ratio,
+  nominal closed loop, energy) is still computed, and so is every other leg.
 
 Totals (dataset ``margin_totals``, :func:`margin_totals`): per train (sum
 over its legs), per direction × train type, and per direction over all train
@@ -466,6 +474,9 @@ def _leg_columns(line: Line, r: LegResult) -> dict:
         "stop_time_degraded_s": r.stop_time_degraded_s, "stop_time_nominal_s": r.stop_time_nominal_s,
         "adhesion_min_ms2": r.adhesion_min_kmh_s * KMH_S, "adhesion_loss_s": r.adhesion_loss_s,
         "tables_source": r.tables_source, "note": r.note,
+        "unassessed_cause": r.flags[0].kind if r.flags else "",
+        "unassessed_scenario": r.flags[0].scenario if r.flags else "",
+        "unassessed_position_m": r.flags[0].position_m if r.flags else math.nan,
     }
 
 

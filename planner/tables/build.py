@@ -58,7 +58,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from planner.errors import InfeasibleError
+from planner.errors import InfeasibleError, StallError
 from planner.tables.eval_points import (
     DEFAULT_AFTER_DEPARTURE_M,
     DEFAULT_INTERVAL_M,
@@ -68,6 +68,7 @@ from planner.tables.eval_points import (
     interstation_length_m,
 )
 from planner.line.model import DIRECTIONS, Line
+from planner.tables.flags import LegFlag
 from planner.tables.onboard import ApproachTable, RunningTimeTables
 from planner.io.parallel import map_tasks
 from planner.tables.ratios import ratio_grid
@@ -110,6 +111,11 @@ class InterstationTables:
     approach : ApproachTable or None
         Table (d) at the last evaluation point (sawtooth vehicles; None for the others and where
         a run of it stalls).
+    ref_stall_m : ndarray, shape (n_r,)
+        Per ratio, the chainage where the reference train stalls at constant ratio [m]; NaN
+        where it does not. Where any does, the leg has no table (c) (nor (d)).
+    flags : tuple of LegFlag
+        Physical verdicts on the leg (:mod:`planner.tables.flags`): the reference train's stall.
     remaining_s : ndarray, shape (n_x, n_r, n_r)
         Table (b) ``[x, i_before, j_after]`` [s].
     """
@@ -130,6 +136,8 @@ class InterstationTables:
     speed_ms: np.ndarray | None = None
     ref_traction_factor: float = float("nan")
     approach: ApproachTable | None = None
+    ref_stall_m: np.ndarray | None = None
+    flags: tuple[LegFlag, ...] = ()
 
     def onboard(self) -> RunningTimeTables:
         """The vehicle's view of these tables (same numbers as the datasets hold)."""
@@ -145,6 +153,7 @@ class InterstationTables:
             ref_remaining_s=self.ref_remaining_s,
             speed_ms=None if self.speed_ms is None else self.speed_ms.T.copy(),
             approach=self.approach,
+            flags=self.flags,
         )
 
 
@@ -261,6 +270,7 @@ def interstation_tables(
     r = np.asarray(ratios, dtype=float)
     n_r, n_x = len(r), len(points)
     kw = dict(load=load, traction_factor=traction_factor)
+    ref_stall, flags = np.full(n_r, np.nan), ()
 
     # the constant-ratio runs of the table train and of the reference train (table (c)) in one
     # batch: the integrator's cost is per step, nearly independent of the batch size
@@ -275,11 +285,13 @@ def interstation_tables(
         ref_rem[0] = ref.time_s
         for k in range(1, n_x):
             ref_rem[k] = ref.time_s - _snapshot(ref.snapshots, s_pts[k]).t_s
-    except InfeasibleError:
-        # the full-load reference stalls on this interstation: no table (c) here (the adaptive
-        # mode then says so); the table train itself must run, so let its own error surface
+    except StallError:
+        # the full-load reference stalls on this interstation: no table (c) here, and a flag on the
+        # leg that says where (the adaptive mode then runs nowhere on it); the table train itself
+        # must run, so let its own error surface
         full = _Half(simulate(track, train, r, snapshots_m=s_pts[1:], **kw), slice(None))
         ref_rem = None
+        ref_stall, flags = _ref_stalls(track, train, r, ref_load, ref_traction_factor)
     time_a = full.time_s
     elapsed, speed, remaining = _table_b(track, train, r, s_pts, full, kw)
     approach = None
@@ -310,7 +322,34 @@ def interstation_tables(
         speed_ms=speed,
         ref_traction_factor=float(ref_traction_factor) if ref_rem is not None else float("nan"),
         approach=approach,
+        ref_stall_m=ref_stall,
+        flags=flags,
     )
+
+
+def _ref_stalls(track, train, r: np.ndarray, ref_load: float, ref_traction_factor: float):
+    """Where the reference train stalls at each grid ratio, and the leg's flag for it.
+
+    One run per ratio (a batch stops at its first stall): only on a leg where the batch stalled.
+
+    Returns
+    -------
+    stall_m : ndarray (n_r,)
+        Chainage where the run at each ratio stalls [m]; NaN where it does not.
+    flags : tuple of LegFlag
+        One flag, at the fastest ratio that stalls (others stall near it; ``stall_m`` has each).
+    """
+    from planner.physics.run_curve import simulate
+
+    out, flags = np.full(len(r), np.nan), []
+    for i, x in enumerate(r):
+        try:
+            simulate(track, train, np.array([x]), load=ref_load, traction_factor=ref_traction_factor)
+        except StallError as e:
+            out[i] = e.position_m[1]
+            if not flags:
+                flags.append(LegFlag.reference_stall(x, e.position_m[1], ref_load, ref_traction_factor))
+    return out, tuple(flags)
 
 
 def approach_ratios(ratios: Sequence[float], step: float = APPROACH_RATIO_STEP) -> np.ndarray:
