@@ -52,6 +52,10 @@ def tables(
     eval_interval_m: float = typer.Option(
         0.0, "--eval-interval", help="Odometer evaluation points at this regular interval after the point "
         "after departure [m], in addition to the beacons; 0 = beacons only (the default)."),
+    # 30.0 = planner.tables.eval_points.DEFAULT_AUTO_S (not imported: the CLI starts without numpy)
+    eval_auto_s: float = typer.Option(
+        30.0, "--eval-auto", help="On a leg with no beacon evaluation point (and no --eval-interval): "
+        "odometer points every this many seconds of running at the leg's maximum speed; 0 = none."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
 ) -> None:
     """Compute running-time tables (a), (b), (c) and (d) for every interstation, direction and train type.
@@ -61,7 +65,8 @@ def tables(
     train's own state at the last evaluation point (sawtooth vehicles only).
 
     Evaluation points: the departure, the point after departure (--after-departure), the flagged
-    beacons and, with --eval-interval, odometer points at that regular interval.
+    beacons and, with --eval-interval, odometer points at that regular interval; a leg without
+    beacon points gets odometer points every --eval-auto seconds of running at its maximum.
     """
     from planner.line.loader import load_line
     from planner.tables.build import build_tables
@@ -75,7 +80,8 @@ def tables(
     with _progress("tables") as update:
         results = build_tables(line, train_types=train_type or None, ratios=ratios,
                                after_departure_m=after_departure_m or None,
-                               eval_interval_m=eval_interval_m or None, n_jobs=jobs, progress=update)
+                               eval_interval_m=eval_interval_m or None, eval_auto_s=eval_auto_s or None,
+                               n_jobs=jobs, progress=update)
     files = write_tables(results, out)
     n_b = sum(r.remaining_s.size for r in results)
     grid = results[0].ratios if results else []

@@ -358,7 +358,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     t_units = [
         Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grid))]),
              f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
-             (windows[k], k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
+             (windows[k], k[0], k[2], k[3], grid, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m,
+              tp.eval_auto_s))
         for k in tasks
     ]
     tables = runner.run("tables", t_units)
@@ -490,7 +491,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
                                                name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
                                     for names in halves]
     summary.pending += summary.charts[line.line_id]
-    for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
+    for flag in ("unassessed", "infeasible", "tight", "unreachable", "inaccurate"):  # legs the margin report flags
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
 

@@ -149,7 +149,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
                tables=None, energy_a_kwh=None, ratios=None, rule: MarginRule = MarginRule(),
                adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float = DEFAULT_APPROACH_M,
                after_departure_m: float | None = 200.0, eval_interval_m: float | None = None, settings=None,
-               closed_loop_errors: dict | None = None, record: bool = False) -> LegResult:
+               eval_auto_s: float | None = None, closed_loop_errors: dict | None = None, record: bool = False) -> LegResult:
     """Compute one leg: minimum, slowest, degraded minimum, pattern sweep, closed loop per scheduled time.
 
     Parameters
@@ -176,6 +176,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     eval_interval_m : float or None
         Interval of the odometer evaluation points for computed tables [m]; None: beacons only.
     settings : SimSettings, optional
+    eval_auto_s : float or None
+        Fill interval of computed tables on a leg without beacon points [s of running at its maximum].
     closed_loop_errors : dict, optional
         ``{("nominal" | "degraded", designated_s rounded to 1e-6): error_s}`` already
         computed (``--closed-loop``); missing ones are simulated.
@@ -194,7 +196,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     train = line.train_type(train_type)
     ext = line.run_between(origin, destination)
     tables, energy_a, tsource = _leg_tables(line, train_type, origin, destination, tables, energy_a_kwh, ratios,
-                                            after_departure_m, eval_interval_m, settings)
+                                            after_departure_m, eval_interval_m, settings, eval_auto_s)
     track, cands, src = _track_and_starts(line, train_type, origin, destination, ext.length_m, tables,
                                                approach_m, settings)
     # ratio 1.0 at the tables' conditions (run 0), the bad day's load and traction (run 1) and its load
@@ -279,7 +281,7 @@ def _stalled_leg(line: Line, train, track, cands, src: str, tables, energy_a, ts
 
 
 def _leg_tables(line: Line, train_type: str, origin: str, destination: str, tables, energy_a_kwh, ratios,
-                after_departure_m, eval_interval_m, settings):
+                after_departure_m, eval_interval_m, settings, eval_auto_s=None):
     """The leg's tables and table (a) energy: as given (``dataset``) or computed (``computed``)."""
     from planner.tables.build import interstation_tables
     from planner.tables.ratios import ratio_grid
@@ -288,6 +290,7 @@ def _leg_tables(line: Line, train_type: str, origin: str, destination: str, tabl
         grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
         it = interstation_tables(line, train_type, origin, destination, grid,
                                  after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
+                                 eval_auto_s=eval_auto_s,
                                  settings=settings)
         return it.onboard(), np.asarray(it.energy_a_kwh, float), "computed"
     if energy_a_kwh is None:

@@ -77,6 +77,13 @@ MARGINS_SCHEMA = declare(
         ("infeasible", pa.bool_(), "flag: scheduled < degraded minimum"),
         ("tight", pa.bool_(), "flag: not infeasible, but remaining margin < tight_threshold_s"),
         ("unreachable", pa.bool_(), "flag: scheduled > slowest table time: the vehicle cannot stretch the run that long"),
+        ("closed_loop_max_error_s", pa.float64(),
+         "worst |arrival error| of the closed-loop sweep on this leg (designated times minimum ... + horizon, every "
+         "scenario and mode of the job; closed_loop_summary has each) [s]; null: no closed loop for the leg "
+         "(e.g. a rapid's leg passing stations, or planner margins without --closed-loop)"),
+        ("inaccurate", pa.bool_(),
+         "flag: closed_loop_max_error_s > [margins] arrival_error_threshold_s: the on-board logic misses the "
+         "designated arrival by that much (e.g. a long leg without evaluation points)"),
         ("unassessed", pa.bool_(),
          "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; infeasible and "
          "tight are then null (unknown), remaining_margin_s null"),
@@ -206,6 +213,20 @@ def closed_loop_index(closed_loop_dir: Path, line_id: str, rule) -> dict:
             out[(r.direction, r.train_type, r.origin, r.destination, names[r.scenario],
                  round(float(r.designated_s), 6))] = float(r.error_s)
     return out
+
+
+def closed_loop_worst(closed_loop_dir: Path, line_id: str) -> dict:
+    """Worst |arrival error| per leg over every scenario and mode of a ``planner simulate`` folder [s],
+    by (direction, train type, origin, destination); legs without a feasible run are left out."""
+    try:
+        t = read_dataset(closed_loop_dir, "closed_loop_summary", line=line_id).to_pandas()
+    except (FileNotFoundError, OSError):
+        return {}
+    if t.empty or "max_abs_error_s" not in t:
+        return {}
+    t = t[np.isfinite(t["max_abs_error_s"].to_numpy(float))]
+    g = t.groupby([t[c].astype(str) for c in ("direction", "train_type", "origin", "destination")])
+    return {k: float(v) for k, v in g["max_abs_error_s"].max().items()}
 
 
 def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:

@@ -85,6 +85,11 @@ What each row holds, and how
   ``tight`` — not infeasible, but the remaining margin is below
   ``tight_threshold_s``; ``unreachable`` — scheduled above the slowest table
   time (lowest ratio), so the vehicle cannot stretch the run that long;
+  ``inaccurate`` — the closed-loop sweep of the leg (``planner simulate``, the
+  nightly job's closed loop) misses the designated arrival by more than
+  ``arrival_error_threshold_s`` (10 s) in some scenario and mode
+  (``closed_loop_max_error_s``): the on-board logic cannot keep the time
+  there, e.g. a long leg with too few evaluation points;
   ``unassessed`` — the minimum or the degraded minimum could not be computed
   (e.g. no stopping pattern at the lowest adhesion from any start, or the
   train stalls on a climb on the bad day), with ``unassessed_reason``: then
@@ -127,7 +132,13 @@ from planner.io.parallel import map_tasks
 from planner.line.model import DIRECTIONS, Line, sign
 from planner.line.units import KMH, KMH_S, kmh
 from planner.report.leg_margin import LegResult, leg_result, passed_stations
-from planner.report.margin_datasets import MARGINS_SCHEMA, closed_loop_index, read_energy, stops_adhesion
+from planner.report.margin_datasets import (
+    MARGINS_SCHEMA,
+    closed_loop_index,
+    closed_loop_worst,
+    read_energy,
+    stops_adhesion,
+)
 from planner.report.margin_rule import TOTALS_COLUMNS, MarginRule, margin_columns, margin_totals
 from planner.stopping.approach import DEFAULT_APPROACH_M
 from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, adhesion_levels
@@ -250,7 +261,7 @@ def margin_options(job, line: Line) -> dict:
     -------
     dict
         ``rule, ratios, adhesion_kmh_s, approach_m, after_departure_m,
-        eval_interval_m, settings, conflicts, conflict_params``.
+        eval_interval_m, eval_auto_s, settings, conflicts, conflict_params``.
     """
     from planner.physics.track import SimSettings
     from planner.tables.ratios import ratio_grid
@@ -261,6 +272,7 @@ def margin_options(job, line: Line) -> dict:
     return dict(rule=MarginRule.from_section(job.margins), ratios=[float(r) for r in grid],
                 adhesion_kmh_s=job.stops.adhesion_kmh_s, approach_m=job.stops.approach_m,
                 after_departure_m=tp.eval_offset_m, eval_interval_m=tp.eval_interval_m or None,
+                eval_auto_s=tp.eval_auto_s or None,
                 settings=SimSettings(ds_m=tp.ds_m), conflicts=c.enabled,
                 conflict_params={"setting_s": c.setting_s, "approach_s": c.approach_s, "release_s": c.release_s})
 
@@ -278,6 +290,7 @@ def compute_margins(
     approach_m: float = DEFAULT_APPROACH_M,
     after_departure_m: float | None = 200.0,
     eval_interval_m: float | None = None,
+    eval_auto_s: float | None = None,
     chosen: tuple[str, str, str] | None = None,
     conflicts: bool = True,
     conflict_params=None,
@@ -313,6 +326,8 @@ def compute_margins(
         Evaluation point after departure for computed tables [m].
     eval_interval_m : float or None
         Interval of the odometer evaluation points for computed tables [m]; None: beacons only.
+    eval_auto_s : float or None
+        Fill interval of computed tables' legs without beacon points [s of running at the maximum].
     chosen : (train_type, origin, destination), optional
         Leg whose run curves the report draws; default the row with the least
         remaining margin.
@@ -342,8 +357,10 @@ def compute_margins(
     sched = _scheduled_times(line, types, legs)
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
     cl_index = closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
+    cl_worst = closed_loop_worst(Path(closed_loop_dir), line.line_id) if closed_loop_dir else {}
     kw = dict(ratios=ratios, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
-              after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings)
+              after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, eval_auto_s=eval_auto_s,
+              settings=settings)
 
     by_leg: dict[tuple, dict] = {}  # the closed-loop errors of each leg, in one pass (not one per leg)
     for k, v in cl_index.items():
@@ -363,7 +380,7 @@ def compute_margins(
     for r in results:  # the window holds only the leg's two stations: the ones it passes come from the line
         r.passes = passed_stations(line, r.origin, r.destination)
 
-    rows, sweep = _rows(line, results, legs, rule)
+    rows, sweep = _rows(line, results, legs, rule, cl_worst)
     tl = pd.DataFrame.from_records(
         [{"train_id": lg.train_id, "direction": lg.direction, "train_type": lg.train_type, "origin": lg.origin,
           "destination": lg.destination, "scheduled_running_time_s": lg.scheduled_s,
@@ -417,7 +434,8 @@ def given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, di
     return tabs, energy
 
 
-def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], rule: MarginRule):
+def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], rule: MarginRule,
+          cl_worst: dict | None = None):
     """The ``margins`` rows (one per leg and scheduled time, with margins and flags) and the sweep records."""
     import pandas as pd
 
@@ -444,10 +462,13 @@ def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], ru
                                 "arrival_error_degraded_s": sc["arrival_error_degraded_s"],
                                 "energy_at_ratio_kwh": sc["energy_at_ratio_kwh"]})
     rows = pd.DataFrame.from_records(recs)
+    rows["closed_loop_max_error_s"] = [(cl_worst or {}).get((r.direction, r.train_type, r.origin, r.destination),
+                                                            math.nan) for r in rows.itertuples(index=False)]
     cols = margin_columns(rows["min_running_time_s"].to_numpy(float),
                           rows["scheduled_running_time_s"].to_numpy(float),
                           rows["degraded_min_running_time_s"].to_numpy(float),
-                          rows["slowest_running_time_s"].to_numpy(float), rows["length_m"].to_numpy(float), rule)
+                          rows["slowest_running_time_s"].to_numpy(float), rows["length_m"].to_numpy(float), rule,
+                          rows["closed_loop_max_error_s"].to_numpy(float))
     for k, v in cols.items():
         rows[k] = v
     why = np.where(~np.isfinite(rows["min_running_time_s"].to_numpy(float)), "minimum running time unknown",

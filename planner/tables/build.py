@@ -7,7 +7,9 @@ ran at r_before up to X and at r_after from X on.
 
 The evaluation points are those of :func:`planner.tables.eval_points.evaluation_points`:
 the departure, the point after departure, the odometer points at the regular
-interval (``eval_interval_m``, none by default) and the flagged beacons. Each
+interval (``eval_interval_m``, none by default) and the flagged beacons; a leg with no
+beacon point gets odometer points every ``eval_auto_s`` seconds of running at its maximum
+(:func:`planner.tables.eval_points.train_evaluation_points`; the nightly job's default 30 s). Each
 point after departure costs n_r² runs and n_r² rows of table (b).
 
 How it is computed (per interstation, direction and train type)
@@ -63,9 +65,10 @@ from planner.tables.eval_points import (
     DEFAULT_AFTER_DEPARTURE_M,
     DEFAULT_INTERVAL_M,
     EvalPoint,
+    check_auto,
     check_interval,
-    evaluation_points,
     interstation_length_m,
+    train_evaluation_points,
 )
 from planner.line.model import DIRECTIONS, Line
 from planner.tables.flags import LegFlag
@@ -228,6 +231,7 @@ def interstation_tables(
     after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
     eval_interval_m: float | None = DEFAULT_INTERVAL_M,
     settings=None,
+    eval_auto_s: float | None = None,
     load: float = 0.0,
     traction_factor: float = 1.0,
     ref_load: float = REF_LOAD,
@@ -248,6 +252,10 @@ def interstation_tables(
         (:func:`planner.tables.eval_points.evaluation_points`).
     settings : planner.physics.track.SimSettings, optional
         Integrator settings (distance step).
+    eval_auto_s : float or None
+        On a leg without beacon evaluation points and without ``eval_interval_m``, odometer points
+        every this many seconds of running at the leg's maximum
+        (:func:`planner.tables.eval_points.train_evaluation_points`); None: none.
     load, traction_factor : float
         Conditions the tables assume (DESIGN: load 0, traction 1.0).
     ref_load, ref_traction_factor : float
@@ -262,8 +270,8 @@ def interstation_tables(
 
     settings = settings or SimSettings()
     direction = line.direction_between(origin, destination)
-    points = evaluation_points(line, origin, destination, after_departure_m=after_departure_m,
-                               interval_m=eval_interval_m)
+    points = train_evaluation_points(line, train_type, origin, destination, after_departure_m=after_departure_m,
+                                     interval_m=eval_interval_m, auto_s=eval_auto_s, settings=settings)
     s_pts = [p.s_m for p in points]
     track = make_track(line, train_type, origin, destination, settings=settings, nodes_m=s_pts)
     train = line.train_type(train_type)
@@ -417,11 +425,12 @@ def table_tasks(line: Line, train_types: Sequence[str] | None = None) -> list[tu
 
 
 def _task(line: Line, train_type: str, origin: str, destination: str, ratios, after_departure_m, settings,
-          eval_interval_m=None):
+          eval_interval_m=None, eval_auto_s=None):
     """joblib worker: one interstation, direction, train type (module-level, picklable inputs)."""
     return interstation_tables(
         line, train_type, origin, destination, ratios,
         after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings,
+        eval_auto_s=eval_auto_s,
     )
 
 
@@ -432,6 +441,7 @@ def build_tables(
     ratios: str | Sequence[float] | None = None,
     after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
     eval_interval_m: float | None = DEFAULT_INTERVAL_M,
+    eval_auto_s: float | None = None,
     n_jobs: int = -1,
     settings=None,
     progress: Callable[[int, int], None] | None = None,
@@ -449,6 +459,8 @@ def build_tables(
         Distance of the evaluation point after departure [m].
     eval_interval_m : float or None
         Interval of the odometer evaluation points [m]; None: beacons only.
+    eval_auto_s : float or None
+        Fill interval of legs without beacon points, in seconds at the leg's maximum; None: none.
     n_jobs : int
         joblib processes; -1 = all cores, 1 = in this process.
     settings : planner.physics.track.SimSettings, optional
@@ -462,12 +474,13 @@ def build_tables(
     """
     grid = ratio_grid(ratios, line_max_speed_ms=line.max_speed_ms)
     eval_interval_m = check_interval(eval_interval_m)
+    eval_auto_s = check_auto(eval_auto_s)
     tasks = table_tasks(line, train_types)
     # longest interstations first, so no core idles on one long task at the end; the results
     # are put back in task order, so the output does not depend on this or on n_jobs
     order = sorted(range(len(tasks)), key=lambda i: -interstation_length_m(line, tasks[i][2], tasks[i][3]))
     results = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grid, after_departure_m, settings,
-                                 eval_interval_m) for i in order], n_jobs, progress)
+                                 eval_interval_m, eval_auto_s) for i in order], n_jobs, progress)
     out: list[InterstationTables | None] = [None] * len(tasks)
     for i, res in zip(order, results):
         out[i] = res
