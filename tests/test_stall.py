@@ -181,3 +181,40 @@ def test_every_other_train_types_outputs_equal_a_run_without_the_freight(runs):
     assert {p.split("/")[0] for p in with_} >= {"margins", "closed_loop", "table_c", "margin_totals"}
     for path, t in with_.items():
         assert t.num_rows > 0 and t.equals(without[path]), path
+
+
+def test_a_leg_no_pattern_can_stop_says_so_and_where():
+    """The other physical verdict the margin report finds: no stopping pattern stops the train (a jerk limit
+    of 1e-3 km/h/s² leaves none, tests/test_margins_unassessed.py); the place is the stop marker it misses."""
+    import dataclasses
+
+    from planner.report.margins import compute_margins
+    from test_margins import APPROACH, SMALL_GRID as GRID, closed_form_line
+
+    line = closed_form_line()
+    tt = dataclasses.replace(line.train_types[0], jerk_limit_ms3=1e-3 / 3.6)
+    line = dataclasses.replace(line, train_types=(tt,))
+    rows = compute_margins(line, adhesion_kmh_s="3.0:3.5:0.5", approach_m=APPROACH, conflicts=False,
+                           ratios=GRID).rows
+    assert rows.unassessed.all() and (rows.unassessed_cause == "no_stop").all()
+    assert (rows.unassessed_scenario == "bad_day").all()
+    for r in rows.itertuples(index=False):
+        st = line.station(r.destination)
+        assert r.unassessed_position_m == st.stop_m(r.direction)
+
+
+def test_cli_says_the_flag_and_exits_zero(tmp_path):
+    from typer.testing import CliRunner
+
+    from planner.cli import app
+
+    write_steep_line(tmp_path / "steep")
+    r = CliRunner().invoke(app, ["tables", str(tmp_path / "steep"), "--out", str(tmp_path / "t"), "--train-type",
+                                 "FRT", "--ratios", "1,0.6", "--jobs", "1"])
+    assert r.exit_code == 0, r.output
+    assert "flag FRT down A->B: the reference train" in r.output and "stalls" in r.output
+    r = CliRunner().invoke(app, ["simulate", str(tmp_path / "steep"), "--tables", str(tmp_path / "t"), "--out",
+                                 str(tmp_path / "cl"), "--scenario", "perturbed", "--train-type", "FRT",
+                                 "--extra", "5", "--jobs", "1"])
+    assert r.exit_code == 0, r.output
+    assert "flag FRT down A->B: 6 runs did not arrive: the train stalls (perturbed" in r.output

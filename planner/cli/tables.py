@@ -93,6 +93,9 @@ def tables(
     for r in results[: min(3, len(results))]:
         typer.echo(f"  {r.train_type} {r.direction} {r.origin}->{r.destination}: minimum "
                    f"{r.time_a_s[0]:.1f} s, slowest {r.time_a_s[-1]:.1f} s")
+    for r in results:  # physical verdicts: flags on their legs, not errors
+        for f in r.flags:
+            typer.echo(f"  flag {r.train_type} {r.direction} {r.origin}->{r.destination}: {f.reason}")
     typer.echo(f"  wrote {len(files)} files under {out}")
 
 
@@ -143,8 +146,12 @@ def simulate(
     typer.echo(f"  |arrival error| over {o['n_feasible']} feasible runs: median {o['median_abs_error_s']:.2f} s, "
                f"p95 {o['p95_abs_error_s']:.2f} s, max {o['max_abs_error_s']:.2f} s; "
                f"|stop error| max {o['max_abs_stop_error_m']:.3f} m")
-    n_inf = o["n_runs"] - o["n_feasible"]
+    n_inf = o["n_runs"] - o["n_feasible"] - sum(int(r.stalled.sum()) for r in results)  # stalled: below
     if n_inf:
         typer.echo(f"  {n_inf} runs infeasible by physics (designated below the {scenario} minimum); "
                    f"worst arrival after that minimum {o['infeasible_excess_max_s']:.2f} s")
+    for r in results:  # physical verdicts: flags on their legs, not errors
+        for f in r.flags:
+            typer.echo(f"  flag {r.train_type} {r.direction} {r.origin}->{r.destination}: {int(r.stalled.sum())} "
+                       f"runs did not arrive: {f.reason}")
     typer.echo(f"  wrote {len(files)} files under {out}")
