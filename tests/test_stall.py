@@ -218,3 +218,14 @@ def test_cli_says_the_flag_and_exits_zero(tmp_path):
                                  "--extra", "5", "--jobs", "1"])
     assert r.exit_code == 0, r.output
     assert "flag FRT down A->B: 6 runs did not arrive: the train stalls (perturbed" in r.output
+
+
+def test_the_page_draws_no_curves_for_a_stalled_leg_asked_for(steep):
+    """``--curves FRT:A-B`` on the stalled leg: there is no bad-day run to draw, so no curves (not a crash)."""
+    from planner.report.html import render_html, stop_markers
+    from planner.report.margins import compute_margins
+
+    rep = compute_margins(steep, train_types=["FRT"], ratios=SMALL_GRID, conflicts=False, chosen=("FRT", "A", "B"))
+    assert rep.curves is None and rep.chosen is None
+    page = render_html(rep, stop_markers(steep))
+    assert "stalls (bad_day: load 1, traction ×0.9)" in page

@@ -206,7 +206,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
                        traction_factor=np.array([1.0, rule.bad_traction, 1.0]), snapshots_m=cands, record=record)
     except StallError as e:  # a physical verdict: the leg is unassessed, the flag says where and why
         return _stalled_leg(line, train, track, cands, src, tables, energy_a, tsource, ext, e, rule,
-                            adhesion_kmh_s, scheduled, closed_loop_errors, record, settings)
+                            adhesion_kmh_s, scheduled, closed_loop_errors)
     t_end = np.asarray(res.time_s, float)
     if abs(float(tables.ratios[0]) - 1.0) <= 1e-9:
         min_time, e_full = float(tables.time_a_s[0]), float(energy_a[0])
@@ -241,12 +241,12 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
 
 
 def _stalled_leg(line: Line, train, track, cands, src: str, tables, energy_a, tsource: str, ext, err: StallError,
-                 rule: MarginRule, adhesion_kmh_s, scheduled, closed_loop_errors, record: bool, settings) -> LegResult:
+                 rule: MarginRule, adhesion_kmh_s, scheduled, closed_loop_errors) -> LegResult:
     """A leg whose bad-day run stalls: unassessed (degraded minimum unknown), flagged with where and why.
 
     What does not need the bad day is still computed from the nominal run alone: the minimum, the
     adhesion sweep at the nominal approach speed, the on-time ratio, the closed loop (its bad-day runs
-    NaN where they stall) and the energy.
+    NaN where they stall) and the energy. It has no run curves (``record`` draws the bad day's).
     """
     from planner.physics.run_curve import simulate
 

@@ -522,6 +522,8 @@ def _chosen_curves(line: Line, rows, results: Sequence[LegResult], chosen, kw: d
     done = next(r for r in results if (r.direction, r.train_type, r.origin, r.destination) == k)
     lr = leg_result(line, k[1], k[2], k[3], s, tables=done.tables, energy_a_kwh=done.energy_a_kwh,
                     record=True, **kw)
+    if lr.curves is None:  # a stalled leg has no bad-day curve to draw
+        return None, None
     return lr.curves, {"direction": k[0], "train_type": k[1], "origin": k[2], "destination": k[3],
                        "scheduled_running_time_s": float(pick.scheduled_running_time_s)}
 
