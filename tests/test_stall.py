@@ -229,3 +229,41 @@ def test_the_page_draws_no_curves_for_a_stalled_leg_asked_for(steep):
     assert rep.curves is None and rep.chosen is None
     page = render_html(rep, stop_markers(steep))
     assert "stalls (bad_day: load 1, traction ×0.9)" in page
+
+
+# --- a momentum grade: the table train itself gets over a short hump only at speed ------------------
+def _hump(tmp_path):
+    """The steep line with a 1 km hump of 20 ‰ (3,000-4,000 m) instead of the long climb, and FRT's effort
+    scaled to 140 kN at low speed: empty it needs 149 + 8 = 157 kN there, so at a crawl it stalls, but at
+    speed its kinetic energy carries it over (0.5 v² at 60 km/h is 139 J/kg, the deficit of ~25 kN over
+    1 km on 806 t of effective mass is 31 J/kg)."""
+    import pandas as pd
+
+    from linedb import write_line_db
+    from steep_line import steep_tables
+
+    t = steep_tables("hump")
+    t["gradients"] = pd.DataFrame([(3000.0, 4000.0, 20.0)], columns=["start_m", "end_m", "gradient_permil"])
+    tr = t["traction"]
+    tr.loc[tr.train_type == "FRT", "effort_kN"] *= 140.0 / 190.0
+    import planner
+
+    return planner.load_line(write_line_db(tmp_path / "hump", **t))
+
+
+def test_ratios_the_train_itself_stalls_at_are_left_out_with_a_flag(tmp_path):
+    from planner.tables.build import interstation_tables
+    from planner.tables.closed_loop import closed_loop_batch
+
+    line = _hump(tmp_path)
+    t = interstation_tables(line, "FRT", "A", "B", [1.0, 0.6, 0.3, 0.2])
+    assert t.ratios.tolist() == [1.0, 0.6, 0.3]  # 0.2 (16 km/h) stalls: a crawl cannot climb 20 ‰
+    f = t.flags[0]
+    assert (f.kind, f.scenario) == ("stall", "nominal") and 3000.0 <= f.position_m <= 4064.0
+    assert "ratio(s) 0.2 left out" in f.reason
+    assert np.isfinite(t.remaining_s).all() and t.remaining_s.shape == (len(t.points), 3, 3)
+    (nom,) = closed_loop_batch(line, "FRT", t.onboard(), scenarios=["nominal"], modes=["nearest"], extra_s=5.0)
+    assert np.isfinite(nom.actual_s).all()
+    # a train that cannot get over at any ratio has no tables: that error (its data) still surfaces
+    with pytest.raises(StallError):
+        interstation_tables(line, "FRT", "A", "B", [0.3, 0.2], load=1.0, traction_factor=0.5)

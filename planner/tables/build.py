@@ -48,6 +48,12 @@ on ``n_jobs`` or scheduling.
    the point is (r_b × maximum speed, or a braking curve), which the rows of
    table (b) already index, so it gets no table (d).
 
+Stalls (a physical verdict, :mod:`planner.tables.flags`): where the reference train stalls there is
+no table (c) (nor (d)) on the leg, ``ref_stall_m`` says where at each ratio and the leg carries a
+flag; where the table train itself stalls at the slow ratios of the grid (a momentum grade), those
+ratios are left out of the leg's tables, with a flag; where it stalls at every ratio the
+:class:`~planner.errors.StallError` surfaces (no tables can exist).
+
 Datasets (hive-partitioned line / direction / train_type, see schemas below):
 ``eval_points``, ``table_a``, ``table_b``, ``table_c``, ``table_d``. The vehicle
 reads them back with :func:`planner.datasets.tables.load_tables`.
@@ -71,7 +77,7 @@ from planner.tables.eval_points import (
     train_evaluation_points,
 )
 from planner.line.model import DIRECTIONS, Line
-from planner.tables.flags import LegFlag
+from planner.tables.flags import NOMINAL, LegFlag
 from planner.tables.onboard import ApproachTable, RunningTimeTables
 from planner.io.parallel import map_tasks
 from planner.tables.ratios import ratio_grid
@@ -265,7 +271,6 @@ def interstation_tables(
     -------
     InterstationTables
     """
-    from planner.physics.run_curve import simulate
     from planner.physics.track import SimSettings, make_track
 
     settings = settings or SimSettings()
@@ -276,30 +281,17 @@ def interstation_tables(
     track = make_track(line, train_type, origin, destination, settings=settings, nodes_m=s_pts)
     train = line.train_type(train_type)
     r = np.asarray(ratios, dtype=float)
-    n_r, n_x = len(r), len(points)
+    n_x = len(points)
     kw = dict(load=load, traction_factor=traction_factor)
-    ref_stall, flags = np.full(n_r, np.nan), ()
-
-    # the constant-ratio runs of the table train and of the reference train (table (c)) in one
-    # batch: the integrator's cost is per step, nearly independent of the batch size
     try:
-        both = simulate(track, train, np.concatenate([r, r]), snapshots_m=s_pts[1:],
-                        load=np.concatenate([np.full(n_r, load), np.full(n_r, ref_load)]),
-                        traction_factor=np.concatenate([np.full(n_r, traction_factor),
-                                                        np.full(n_r, ref_traction_factor)]))
-        full = _Half(both, slice(0, n_r))
-        ref = _Half(both, slice(n_r, 2 * n_r))
-        ref_rem = np.empty((n_x, n_r))
-        ref_rem[0] = ref.time_s
-        for k in range(1, n_x):
-            ref_rem[k] = ref.time_s - _snapshot(ref.snapshots, s_pts[k]).t_s
+        full, ref_rem, ref_stall, flags = _constant_runs(track, train, r, s_pts, kw, ref_load, ref_traction_factor)
     except StallError:
-        # the full-load reference stalls on this interstation: no table (c) here, and a flag on the
-        # leg that says where (the adaptive mode then runs nowhere on it); the table train itself
-        # must run, so let its own error surface
-        full = _Half(simulate(track, train, r, snapshots_m=s_pts[1:], **kw), slice(None))
-        ref_rem = None
-        ref_stall, flags = _ref_stalls(track, train, r, ref_load, ref_traction_factor)
+        # the table train itself stalls at some ratios (a momentum grade: it only gets over at speed):
+        # those ratios are left out of this leg's tables, with a flag; stalling at every ratio it
+        # cannot have tables at all, and that error (train data or gradients) surfaces
+        r, nominal = _runnable_ratios(track, train, r, load, traction_factor)
+        full, ref_rem, ref_stall, flags = _constant_runs(track, train, r, s_pts, kw, ref_load, ref_traction_factor)
+        flags = (nominal,) + flags
     time_a = full.time_s
     elapsed, speed, remaining = _table_b(track, train, r, s_pts, full, kw)
     approach = None
@@ -333,6 +325,62 @@ def interstation_tables(
         ref_stall_m=ref_stall,
         flags=flags,
     )
+
+
+def _constant_runs(track, train, r: np.ndarray, s_pts: list[float], kw: dict, ref_load: float,
+                   ref_traction_factor: float):
+    """The constant-ratio runs of the table train and of the reference train (table (c)), in one batch
+    (the integrator's cost is per step, nearly independent of the batch size).
+
+    Returns ``(full, ref_remaining_s, ref_stall_m, flags)``: where the reference train stalls there is
+    no table (c) (``ref_remaining_s`` None) and a flag says where (:func:`_ref_stalls`).
+
+    Raises
+    ------
+    StallError
+        The table train itself stalls at some ratio.
+    """
+    from planner.physics.run_curve import simulate
+
+    n_r, n_x = len(r), len(s_pts)
+    try:
+        both = simulate(track, train, np.concatenate([r, r]), snapshots_m=s_pts[1:],
+                        load=np.concatenate([np.full(n_r, kw["load"]), np.full(n_r, ref_load)]),
+                        traction_factor=np.concatenate([np.full(n_r, kw["traction_factor"]),
+                                                        np.full(n_r, ref_traction_factor)]))
+    except StallError:
+        # the full-load reference (or the table train) stalls: the table train alone; where it runs,
+        # no table (c) here and a flag on the leg that says where (the adaptive mode runs nowhere on it)
+        full = _Half(simulate(track, train, r, snapshots_m=s_pts[1:], **kw), slice(None))
+        ref_stall, flags = _ref_stalls(track, train, r, ref_load, ref_traction_factor)
+        return full, None, ref_stall, flags
+    full, ref = _Half(both, slice(0, n_r)), _Half(both, slice(n_r, 2 * n_r))
+    ref_rem = np.empty((n_x, n_r))
+    ref_rem[0] = ref.time_s
+    for k in range(1, n_x):
+        ref_rem[k] = ref.time_s - _snapshot(ref.snapshots, s_pts[k]).t_s
+    return full, ref_rem, np.full(n_r, np.nan), ()
+
+
+def _runnable_ratios(track, train, r: np.ndarray, load: float, traction_factor: float):
+    """The grid ratios at which the table train gets through at constant ratio, and the leg's flag for the
+    others (at the fastest that stalls); re-raises the stall when none runs. One run per ratio."""
+    from planner.physics.run_curve import simulate
+
+    keep, first = np.ones(len(r), bool), None
+    for i, x in enumerate(r):
+        try:
+            simulate(track, train, np.array([x]), load=load, traction_factor=traction_factor)
+        except StallError as e:
+            keep[i] = False
+            first = first or (x, e)
+    x, e = first
+    if not keep.any():
+        raise e
+    f = LegFlag.stall(e, NOMINAL)
+    left = ", ".join(f"{y:g}" for y in r[~keep])
+    return r[keep], LegFlag(f.kind, f.scenario, f.position_m,
+                            f"{f.reason} at ratio {x:g}: ratio(s) {left} left out of this leg's tables")
 
 
 def _ref_stalls(track, train, r: np.ndarray, ref_load: float, ref_traction_factor: float):

@@ -336,7 +336,6 @@ def closed_loop_batch(
     are not table modes (registered runners) run on their own.
     """
     from planner.physics.track import SimSettings, make_track
-    from planner.physics.run_curve import simulate
 
     scs = [get_scenario(s) for s in scenarios]
     for m in modes:

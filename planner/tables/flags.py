@@ -20,6 +20,8 @@ STALL = "stall"
 NO_STOP = "no_stop"
 """Kind of flag: no stopping pattern stops the train at the marker."""
 KINDS = (STALL, NO_STOP)
+NOMINAL = "nominal"
+"""Scenario name of the tables' own train (load 0, nominal traction: the train the tables are for)."""
 REFERENCE = "reference"
 """Scenario name of the reference train of tables (c) and (d) (full load, weak traction)."""
 
