@@ -29,7 +29,9 @@ the *fill interval* (``fill_interval_m``): the tables choose it from the
 train's speed, the distance run in ``[tables] eval_auto_s`` seconds (30 s by
 default) at the leg's on-board maximum (:func:`auto_interval_m`), about the
 spacing the sample line's beacons have (14–35 s at its maximum). A leg with
-beacons keeps exactly its beacons.
+beacons keeps exactly its beacons. The nightly job and the commands
+(``planner tables --eval-auto``, ``planner margins``) fill by default; the
+library functions only when given ``eval_auto_s`` / ``fill_interval_m``.
 
 The vehicle evaluates at a point when its odometer passes it. The simulator
 takes the odometer as exact (no position error is modelled): an odometer point
