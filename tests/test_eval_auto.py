@@ -104,19 +104,22 @@ def before_after(tmp_path_factory):
         write_closed_loop(res, d)
         rep = compute_margins(line, train_types=["EMU"], ratios=grid, closed_loop_dir=d, eval_auto_s=auto,
                               conflicts=False)
-        out[name] = (res, rep.rows[(rep.rows.direction == "down")].iloc[0])
+        out[name] = (res, rep.rows[(rep.rows.direction == "down")].iloc[0], rep.totals)
     return out
 
 
 def test_without_points_the_long_leg_misses_and_is_flagged(before_after):
-    res, row = before_after["before"]
+    res, row, totals = before_after["before"]
     worst = max(float(np.max(np.abs(r.error_s[r.feasible]))) for r in res)
     assert worst > 20.0  # module doc: up to ≈ 33 s
     assert row.closed_loop_max_error_s == pytest.approx(worst) and bool(row.inaccurate)
+    # the line's one train runs the leg: its totals count the flagged run
+    assert totals.set_index("level").loc["train", "n_inaccurate"] == 1
 
 
 def test_with_the_fill_interval_it_keeps_the_time_and_is_not_flagged(before_after):
-    res, row = before_after["after"]
+    res, row, totals = before_after["after"]
     worst = max(float(np.max(np.abs(r.error_s[r.feasible]))) for r in res)
     assert worst < 10.0
     assert row.closed_loop_max_error_s == pytest.approx(worst) and not bool(row.inaccurate)
+    assert totals.set_index("level").loc["train", "n_inaccurate"] == 0

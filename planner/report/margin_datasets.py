@@ -135,6 +135,7 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("n_unassessed", pa.int32(),
          "train runs of a leg flagged unassessed; when > 0 the degraded and remaining sums, worst margin and "
          "shortfall are null"),
+        ("n_inaccurate", pa.int32(), "train runs of a leg flagged inaccurate (the closed loop misses the arrival)"),
     ],
     name="margin_totals",
     description="Margin totals at three levels, told apart by `level`: per train, per direction x train type "
@@ -155,7 +156,8 @@ def datasets(report) -> dict[str, pa.Table]:
         rows[c] = rows[c].astype("boolean")
         rows.loc[unknown, c] = pd.NA
     t = report.totals.copy()
-    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed"):
+    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed",
+              "n_inaccurate"):
         t[c] = t[c].astype("int32")
     return {
         "margins": pa.Table.from_pandas(rows, preserve_index=False),

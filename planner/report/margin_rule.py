@@ -217,7 +217,7 @@ TOTALS_COLUMNS = [
     "level", "train_id", "direction", "train_type", "origin", "destination", "first_departure_s", "n_trains",
     "n_legs", *TOTAL_SUM_COLS, "margin_percent", "min_remaining_margin_s", "bad_day_shortfall_s",
     "n_supplement_short",
-    "n_infeasible", "n_tight", "n_unreachable", "n_unassessed",
+    "n_infeasible", "n_tight", "n_unreachable", "n_unassessed", "n_inaccurate",
 ]
 """Columns of the totals frame (and the ``margin_totals`` dataset), in order."""
 
@@ -245,7 +245,7 @@ def margin_totals(rows, train_legs):
         of :data:`TOTAL_SUM_COLS`, ``margin_percent`` (total margin / total
         minimum), ``min_remaining_margin_s`` (worst leg), ``bad_day_shortfall_s``
         (sum of max(0, −remaining margin) over the legs), ``n_supplement_short``,
-        ``n_infeasible``, ``n_tight``, ``n_unreachable``, ``n_unassessed``
+        ``n_infeasible``, ``n_tight``, ``n_unreachable``, ``n_unassessed``, ``n_inaccurate``
         (legs, counted per train run). With an unassessed leg among those
         summed, the degraded-minimum and remaining-margin sums, the worst
         remaining margin and the shortfall are NaN: unknown, not partial.
@@ -254,7 +254,7 @@ def margin_totals(rows, train_legs):
 
     key = ["direction", "train_type", "origin", "destination", "scheduled_running_time_s"]
     cols = key + [c for c in TOTAL_SUM_COLS if c not in key] + ["supplement_met", "infeasible", "tight", "unreachable",
-                                                                "unassessed"]
+                                                                "unassessed", "inaccurate"]
     r = rows[rows["scheduled_running_time_s"].notna()][cols]
     legs = train_legs.merge(r, on=key, how="left", validate="many_to_one")
     if legs["min_running_time_s"].isna().any():
@@ -262,13 +262,14 @@ def margin_totals(rows, train_legs):
         raise ValueError(f"train {bad.train_id}: leg {bad.origin}->{bad.destination} has no margin row")
     legs = legs.assign(short=~legs["supplement_met"].astype(bool),
                        n_inf=legs["infeasible"].astype(int), n_tight=legs["tight"].astype(int),
-                       n_unr=legs["unreachable"].astype(int), n_una=legs["unassessed"].astype(int))
+                       n_unr=legs["unreachable"].astype(int), n_una=legs["unassessed"].astype(int),
+                       n_acc=legs["inaccurate"].astype(int))
     legs = legs.sort_values(["train_id", "leg_seq"], kind="stable")
 
     # each column once as an array, each group as row positions: the sums are numpy's over the same
     # values in the same order as pandas' per-group Series.sum (NaN skipped as zeros), so the same bits
     f = {c: legs[c].to_numpy(float) for c in (*TOTAL_SUM_COLS, "departure_s")}
-    n = {c: legs[c].to_numpy(int) for c in ("short", "n_inf", "n_tight", "n_unr", "n_una")}
+    n = {c: legs[c].to_numpy(int) for c in ("short", "n_inf", "n_tight", "n_unr", "n_una", "n_acc")}
     ids, dirs, types = (legs[c].to_numpy(object) for c in ("train_id", "direction", "train_type"))
     origins, destinations = legs["origin"].to_numpy(object), legs["destination"].to_numpy(object)
 
@@ -289,6 +290,7 @@ def margin_totals(rows, train_legs):
         out["n_tight"] = int(n["n_tight"][at].sum())
         out["n_unreachable"] = int(n["n_unr"][at].sum())
         out["n_unassessed"] = int(n["n_una"][at].sum())
+        out["n_inaccurate"] = int(n["n_acc"][at].sum())
         out["first_departure_s"] = float(np.fmin.reduce(f["departure_s"][at]))
         return out
 
