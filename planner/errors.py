@@ -82,6 +82,29 @@ class InfeasibleError(PlannerError):
     key = "infeasible"
 
 
+class StallError(InfeasibleError):
+    """A run stalls: tractive effort cannot overcome resistance and gradient (a physical verdict).
+
+    Attributes
+    ----------
+    position_m : (float, float)
+        Chainage interval [m] where the run's speed reached zero (between two grid nodes).
+    load, traction_factor : float
+        Conditions of the (first) stalled run of the batch.
+    """
+
+    key = "infeasible.stall"
+
+    def __init__(self, message: str, position_m: tuple[float, float], load: float, traction_factor: float):
+        super().__init__(message)
+        self.position_m = (float(position_m[0]), float(position_m[1]))
+        self.load = float(load)
+        self.traction_factor = float(traction_factor)
+
+    def __reduce__(self):  # raised in a worker process, it pickles back with its attributes
+        return type(self), (str(self), self.position_m, self.load, self.traction_factor)
+
+
 class BundleError(PlannerError):
     """An on-board DB bundle failed to build, open or verify."""
 

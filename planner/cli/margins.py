@@ -65,6 +65,10 @@ def margins(
         line = load_line(line_dir)
         # with --job, the configuration the nightly job uses (the same library call); else the defaults
         options = margin_options(j, line) if j is not None else {}
+        if j is None:  # the job's default fill interval too, for legs without beacon points (as `planner tables`)
+            from planner.tables.eval_points import DEFAULT_AUTO_S
+
+            options["eval_auto_s"] = DEFAULT_AUTO_S
         if adhesion is not None:
             options["adhesion_kmh_s"] = adhesion
         if no_conflicts:

@@ -52,6 +52,10 @@ def tables(
     eval_interval_m: float = typer.Option(
         0.0, "--eval-interval", help="Odometer evaluation points at this regular interval after the point "
         "after departure [m], in addition to the beacons; 0 = beacons only (the default)."),
+    # 30.0 = planner.tables.eval_points.DEFAULT_AUTO_S (not imported: the CLI starts without numpy)
+    eval_auto_s: float = typer.Option(
+        30.0, "--eval-auto", help="On a leg with no beacon evaluation point (and no --eval-interval): "
+        "odometer points every this many seconds of running at the leg's maximum speed; 0 = none."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
 ) -> None:
     """Compute running-time tables (a), (b), (c) and (d) for every interstation, direction and train type.
@@ -61,7 +65,8 @@ def tables(
     train's own state at the last evaluation point (sawtooth vehicles only).
 
     Evaluation points: the departure, the point after departure (--after-departure), the flagged
-    beacons and, with --eval-interval, odometer points at that regular interval.
+    beacons and, with --eval-interval, odometer points at that regular interval; a leg without
+    beacon points gets odometer points every --eval-auto seconds of running at its maximum.
     """
     from planner.line.loader import load_line
     from planner.tables.build import build_tables
@@ -75,7 +80,8 @@ def tables(
     with _progress("tables") as update:
         results = build_tables(line, train_types=train_type or None, ratios=ratios,
                                after_departure_m=after_departure_m or None,
-                               eval_interval_m=eval_interval_m or None, n_jobs=jobs, progress=update)
+                               eval_interval_m=eval_interval_m or None, eval_auto_s=eval_auto_s or None,
+                               n_jobs=jobs, progress=update)
     files = write_tables(results, out)
     n_b = sum(r.remaining_s.size for r in results)
     grid = results[0].ratios if results else []
@@ -87,6 +93,9 @@ def tables(
     for r in results[: min(3, len(results))]:
         typer.echo(f"  {r.train_type} {r.direction} {r.origin}->{r.destination}: minimum "
                    f"{r.time_a_s[0]:.1f} s, slowest {r.time_a_s[-1]:.1f} s")
+    for r in results:  # physical verdicts: flags on their legs, not errors
+        for f in r.flags:
+            typer.echo(f"  flag {r.train_type} {r.direction} {r.origin}->{r.destination}: {f.reason}")
     typer.echo(f"  wrote {len(files)} files under {out}")
 
 
@@ -137,8 +146,12 @@ def simulate(
     typer.echo(f"  |arrival error| over {o['n_feasible']} feasible runs: median {o['median_abs_error_s']:.2f} s, "
                f"p95 {o['p95_abs_error_s']:.2f} s, max {o['max_abs_error_s']:.2f} s; "
                f"|stop error| max {o['max_abs_stop_error_m']:.3f} m")
-    n_inf = o["n_runs"] - o["n_feasible"]
+    n_inf = o["n_runs"] - o["n_feasible"] - sum(int(r.stalled.sum()) for r in results)  # stalled: below
     if n_inf:
         typer.echo(f"  {n_inf} runs infeasible by physics (designated below the {scenario} minimum); "
                    f"worst arrival after that minimum {o['infeasible_excess_max_s']:.2f} s")
+    for r in results:  # physical verdicts: flags on their legs, not errors
+        for f in r.flags:
+            typer.echo(f"  flag {r.train_type} {r.direction} {r.origin}->{r.destination}: {int(r.stalled.sum())} "
+                       f"runs did not arrive: {f.reason}")
     typer.echo(f"  wrote {len(files)} files under {out}")

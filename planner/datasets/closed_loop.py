@@ -6,6 +6,7 @@ gives results and Parquet files partitioned by line, direction, train type, scen
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -82,7 +83,8 @@ CLOSED_LOOP_SCHEMA = declare(
         ("origin", pa.string(), "departure station id"),
         ("destination", pa.string(), "arrival station id"),
         ("designated_s", pa.float64(), "designated running time (scheduled arrival - departure) [s]"),
-        ("actual_s", pa.float64(), "simulated running time under the scenario [s]"),
+        ("actual_s", pa.float64(), "simulated running time under the scenario [s]; NaN: the run stalled "
+                                   "(see closed_loop_summary flag_reason)"),
         ("error_s", pa.float64(), "arrival error actual - designated [s], positive = late"),
         ("feasible", pa.bool_(), "designated time within the scenario's fastest..slowest running time"),
         ("min_time_s", pa.float64(), "scenario minimum running time (ratio 1.0 throughout) [s]"),
@@ -108,6 +110,12 @@ CLOSED_LOOP_SUMMARY_SCHEMA = declare(
         ("min_time_s", pa.float64(), "scenario minimum running time [s]"),
         ("infeasible_excess_max_s", pa.float64(),
          "infeasible runs: worst arrival after the scenario minimum [s] (0 if none)"),
+        ("n_stalled", pa.int32(),
+         "runs that did not arrive: the train stalled under the scenario, or the mode cannot run on the "
+         "leg (adaptive without table (c)); their actual_s is NaN"),
+        ("flag_kind", pa.string(), "physical verdict on the leg under this scenario and mode: 'stall', or empty"),
+        ("flag_position_m", pa.float64(), "chainage where it happens [m] (the stall), null when none or unknown"),
+        ("flag_reason", pa.string(), "what, under which load and traction, where; empty when none"),
     ],
     name="closed_loop_summary",
     description="Arrival error statistics per interstation (DESIGN §3).",
@@ -135,7 +143,10 @@ def datasets(results: Sequence[ClosedLoopResult]) -> dict[str, pa.Table]:
                 "stop_error_m": float("nan") if r.stop_error_m is None else float(r.stop_error_m[i]),
                 "eval_point_ids": list(r.eval_point_ids), "ratios": [float(x) for x in r.ratios[i]],
             })
-        add(summ, part | summary_row(r))
+        row = summary_row(r)
+        if not math.isfinite(row["flag_position_m"]):  # no place: null, not NaN
+            row["flag_position_m"] = None
+        add(summ, part | row)
     return {"closed_loop": pa.table(runs), "closed_loop_summary": pa.table(summ)}
 
 

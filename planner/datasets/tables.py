@@ -16,7 +16,8 @@ import pyarrow as pa
 from planner.errors import InputError
 from planner.io.parquet import by_partition, declare, read_dataset, write_partitioned
 from planner.line.units import kmh, ms
-from planner.tables.build import InterstationTables
+from planner.tables.build import REF_LOAD, REF_TRACTION, InterstationTables
+from planner.tables.flags import LegFlag
 from planner.tables.onboard import ApproachTable, RunningTimeTables
 
 
@@ -43,6 +44,9 @@ TABLE_A_SCHEMA = declare(
         ("ratio", pa.float64(), "target-speed ratio (target = ratio x on-board maximum speed), 0..1"),
         ("running_time_s", pa.float64(), "running time stop marker to stop marker at constant ratio [s]"),
         ("energy_kwh", pa.float64(), "traction energy at the wheel over the run [kWh]"),
+        ("ref_stall_position_m", pa.float64(),
+         "chainage where the reference train of table_c (full load, weak traction) stalls at this ratio [m]; "
+         "null where it does not. A leg with any stall has no table_c (nor table_d) and is flagged"),
     ],
     name="table_a",
     description="Table (a): running time per ratio, tables at load 0 and nominal traction (DESIGN §3).",
@@ -119,6 +123,12 @@ def _keys(t: InterstationTables, n: int) -> dict[str, list]:
     }
 
 
+def _null_nan(x: np.ndarray) -> pa.Array:
+    """Floats with NaN written as null (an absent value, which equals itself in Arrow)."""
+    x = np.asarray(x, float)
+    return pa.array(x, mask=~np.isfinite(x))
+
+
 def _concat(cols: list[dict[str, list]]) -> pa.Table:
     """One table from per-interstation column chunks, each converted once (numpy arrays without a
     Python object per value: on a 10x line the lists of floats were a gigabyte)."""
@@ -126,7 +136,7 @@ def _concat(cols: list[dict[str, list]]) -> pa.Table:
     for c in cols:
         for k, v in c.items():
             if len(v):
-                chunks.setdefault(k, []).append(pa.array(v))
+                chunks.setdefault(k, []).append(v if isinstance(v, pa.Array) else pa.array(v))
     return pa.table({k: pa.chunked_array(v) for k, v in chunks.items()})
 
 
@@ -143,6 +153,7 @@ def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
         })
         ta.append(_keys(t, n_r) | {
             "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
+            "ref_stall_position_m": _null_nan(np.full(n_r, np.nan) if t.ref_stall_m is None else t.ref_stall_m),
         })
         k, i, j = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), np.arange(n_r), indexing="ij"))
         tb.append(_keys(t, len(k)) | {
@@ -286,8 +297,21 @@ def load_tables(
             remaining_s=rem,
             ref_remaining_s=ref,
             speed_ms=spd,
+            flags=_reference_flags(a, ref is None),
         )
     return out
+
+
+def _reference_flags(a, no_table_c: bool) -> tuple:
+    """The leg's reference-stall flag from its ``table_a`` rows (ratios descending), as the build gave it."""
+    if not no_table_c or "ref_stall_position_m" not in a:
+        return ()
+    x = a["ref_stall_position_m"].to_numpy(float)
+    at = np.flatnonzero(np.isfinite(x))
+    if not at.size:
+        return ()
+    # the job's tables always use the reference train REF_LOAD, REF_TRACTION (table_c, absent here, would say)
+    return (LegFlag.reference_stall(float(a["ratio"].iloc[at[0]]), float(x[at[0]]), REF_LOAD, REF_TRACTION),)
 
 
 def _by_pair(df) -> dict | None:

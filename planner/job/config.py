@@ -18,6 +18,7 @@ folder), so ``make run`` works from a fresh clone.
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,6 +55,9 @@ class TablesSection:
     """Evaluation point this far after departure."""
     eval_interval_m: float = 0.0
     """Odometer evaluation points at this regular interval after the point after departure [m]; 0 = none (beacons only)."""
+    eval_auto_s: float = 30.0
+    """On a leg with no beacon evaluation point (and eval_interval_m = 0): odometer points every this many seconds of
+    running at the leg's maximum speed for the train (interval rounded to 10 m, at least 50 m); 0 = none."""
     ds_m: float = 1.0
     """Integration step in running distance [m]."""
 
@@ -109,6 +113,8 @@ class MarginsSection:
     """The bad day includes low adhesion in the stop (minimum-time stopping pattern): on/off ..."""
     degraded_adhesion_kmh_s: float = 0.0
     """... and its adhesion-limited deceleration [km/h/s]; 0 = the lowest level of the [stops] sweep."""
+    arrival_error_threshold_s: float = 10.0
+    """A leg whose closed loop misses the designated arrival by more than this is flagged `inaccurate` [s]; 0 = off."""
 
 
 @dataclass(frozen=True)
@@ -310,6 +316,8 @@ def _validate(file: str, job: Job, problems: _Problems) -> None:
     if job.tables.eval_interval_m != 0 and not job.tables.eval_interval_m >= MIN_INTERVAL_M:
         bad("tables", "eval_interval_m", f"must be 0 (beacons only) or at least {MIN_INTERVAL_M:g} m, "
                                          f"found {job.tables.eval_interval_m}")
+    if not (math.isfinite(job.tables.eval_auto_s) and job.tables.eval_auto_s >= 0):
+        bad("tables", "eval_auto_s", f"must be 0 (no fill) or a number of seconds > 0, found {job.tables.eval_auto_s}")
     a = job.stops.approach_m
     if a != "auto" and (isinstance(a, (str, bool)) or not a > 0):
         bad("stops", "approach_m", 'must be a positive number of metres, or "auto" (from the physics)')
@@ -327,6 +335,9 @@ def _validate(file: str, job: Job, problems: _Problems) -> None:
         bad("margins", "degraded_traction", f"must lie in (0, 2], found {m.degraded_traction:g}")
     if m.degraded_adhesion_kmh_s < 0:
         bad("margins", "degraded_adhesion_kmh_s", "must be > 0 km/h/s, or 0 for the lowest level of the sweep")
+    if not (math.isfinite(m.arrival_error_threshold_s) and m.arrival_error_threshold_s >= 0):
+        bad("margins", "arrival_error_threshold_s", f"must be a number of seconds ≥ 0 (0 = off), "
+                                                    f"found {m.arrival_error_threshold_s}")
     if job.parallel.backend not in ("local", "dask"):
         bad("parallel", "backend", f"must be \"local\" or \"dask\", found {job.parallel.backend!r}")
     if job.parallel.backend == "dask" and not job.parallel.scheduler:

@@ -317,7 +317,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     t_units = [
         Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grids[k]))]),
              f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
-             (windows[k], k[0], k[2], k[3], grids[k], tp.eval_offset_m, tp.ds_m, tp.eval_interval_m))
+             (windows[k], k[0], k[2], k[3], grids[k], tp.eval_offset_m, tp.ds_m, tp.eval_interval_m,
+              tp.eval_auto_s))
         for k in tasks
     ]
     tables = runner.run("tables", t_units)
@@ -390,6 +391,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts,
                   given.result())
     _bundles_step(stage, runner, summary, key, bundles)
+    from planner.job.verdicts import record_verdicts
+
+    record_verdicts(line.line_id, summary, tables, loops, summary.reports[line.line_id])
     from planner.job.views import line_views  # inputs copy, train graph page
 
     line_views(job, line, stage, runner, summary, got["graph"])
@@ -453,7 +457,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
                                                name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
                                     for names in halves]
     summary.pending += summary.charts[line.line_id]
-    for flag in ("unassessed", "infeasible", "tight", "unreachable"):  # legs flagged by the margin report
+    for flag in ("unassessed", "infeasible", "tight", "unreachable", "inaccurate"):  # legs the margin report flags
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
 

@@ -107,12 +107,13 @@ class Unit:
     args: tuple
 
 
-def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m, eval_interval_m=0.0):
+def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m, eval_interval_m=0.0, eval_auto_s=0.0):
     from planner.physics.track import SimSettings
     from planner.tables.build import interstation_tables
 
     return interstation_tables(line, tt, o, d, grid, after_departure_m=eval_offset_m,
-                               eval_interval_m=eval_interval_m or None, settings=SimSettings(ds_m=ds_m))
+                               eval_interval_m=eval_interval_m or None, settings=SimSettings(ds_m=ds_m),
+                               eval_auto_s=eval_auto_s or None)
 
 
 def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):

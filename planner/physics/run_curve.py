@@ -60,7 +60,7 @@ from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from planner.errors import InfeasibleError, InputError
+from planner.errors import InputError, StallError
 from planner.line.model import TrainType
 from planner.line.units import KWH
 from planner.physics import dynamics, kernel_abi as K, speed_profile
@@ -200,13 +200,14 @@ _PREPARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 """Per track (while it lives), its :class:`_Prep` per train constants; kept out of the track, so never pickled with it."""
 
 
-def _stall_error(track, train, load, tf, s, j: int, k_ok: int, k: int) -> InfeasibleError:
+def _stall_error(track, train, load, tf, s, j: int, k_ok: int, k: int) -> StallError:
     """Run j stalled (v = sqrt(w ≤ 0): its time turned NaN or infinite) between nodes k_ok and k."""
     a, b = sorted((float(track.position_m(s[k_ok])), float(track.position_m(s[k]))))
-    return InfeasibleError(
+    return StallError(
         f"train type {train.train_type} stalls on {track.origin}->{track.destination} between chainage "
         f"{a:.0f} and {b:.0f} m (run {j}: load {load[j]:g}, traction factor {tf[j]:g}): tractive effort "
-        "cannot overcome resistance and gradient; check traction.parquet or the gradients")
+        "cannot overcome resistance and gradient; check traction.parquet or the gradients",
+        (a, b), float(load[j]), float(tf[j]))
 
 
 def _as_batch(x, n: int, name: str) -> np.ndarray:
@@ -269,8 +270,10 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
 
     Raises
     ------
-    InfeasibleError
-        If a run stalls (tractive effort cannot overcome resistance and gradient).
+    StallError
+        If a run stalls (tractive effort cannot overcome resistance and gradient): an
+        :class:`~planner.errors.InfeasibleError` that says where (chainage) and under which load
+        and traction.
     """
     if train.train_type != track.train_type:
         raise InputError(f"track is for train type {track.train_type!r}, not {train.train_type!r}")

@@ -54,11 +54,11 @@ th,td{border:1px solid #dde1e5;padding:3px 5px;text-align:right;white-space:nowr
 th{background:#eef1f4;position:sticky;top:0;font-weight:600;white-space:normal;vertical-align:bottom}
 td.l,th.l{text-align:left}
 tr.unassessed td{background:#e3e7ea}
-tr.infeasible td{background:#fdecea}tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}
+tr.infeasible td{background:#fdecea}tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}tr.inaccurate td{background:#fff8e1}
 tr.sep td{background:#d5d9de;text-align:left;font-weight:600}
 .badge{display:inline-block;border-radius:4px;padding:0 5px;margin-right:3px;color:#fff;font-size:11px;font-weight:600}
 .b-unassessed{background:#37474f}
-.b-infeasible{background:#c62828}.b-tight{background:#ef8f00}.b-unreachable{background:#6a1b9a}
+.b-infeasible{background:#c62828}.b-tight{background:#ef8f00}.b-unreachable{background:#6a1b9a}.b-inaccurate{background:#8d6e00}
 .b-short{background:#fff;color:#8a5a00;border:1px solid #c89b3c}
 .neg{color:#c62828;font-weight:600}
 details{margin:10px 0}summary{cursor:pointer;font-weight:600;font-size:14px}
@@ -139,7 +139,7 @@ def flagged_summary(sched) -> str:
     """The flagged legs on the first screen: what each lacks and where the bad day's time goes."""
     # unassessed legs have their own section, listed first; this one lists the legs judged
     f = sched[(sched.infeasible.fillna(False).astype(bool) | sched.tight.fillna(False).astype(bool)
-               | sched.unreachable.fillna(False).astype(bool)) & ~sched.unassessed.astype(bool)]
+               | sched.unreachable.fillna(False).astype(bool) | _inaccurate(sched)) & ~sched.unassessed.astype(bool)]
     if f.empty:
         return "<p><b>No leg is flagged</b>: every timetabled leg keeps its time on a bad day.</p>"
     f = f.sort_values(["remaining_margin_s", "direction", "train_type", "origin"], kind="stable")
@@ -153,6 +153,9 @@ def flagged_summary(sched) -> str:
         cost = r.degraded_min_running_time_s - r.min_running_time_s
         if flag == "unreachable":
             why = "scheduled longer than the slowest table ratio: the vehicle arrives early"
+        elif flag == "inaccurate":
+            why = (f"the closed loop misses the designated arrival by up to {r.closed_loop_max_error_s:.1f} s: "
+                   "the on-board logic cannot keep the time on this leg (too few evaluation points?)")
         else:
             why = (f"margin {r.margin_percent:.1f} % against a median of {med:.1f} %: the timetable grants "
                    f"{r.margin_s:.1f} s where a bad day costs {cost:.1f} s")
@@ -204,7 +207,8 @@ ROW_HEAD = ("<tr><th class='l'>flags</th><th class='l'>dir</th><th class='l'>typ
 def _row_html(r) -> str:
     flag = flag_of(r)
     badges = "".join(f"<span class='badge b-{f}'>{f}</span>"
-                     for f in ("unassessed", "infeasible", "tight", "unreachable") if bool(getattr(r, f)))
+                     for f in ("unassessed", "infeasible", "tight", "unreachable", "inaccurate")
+                     if bool(getattr(r, f, False)))
     if np.isfinite(r.scheduled_running_time_s) and not bool(r.supplement_met):
         badges += "<span class='badge b-short'>supplement short</span>"
     rem = r.remaining_margin_s
@@ -233,7 +237,7 @@ def rows_table(rows) -> str:
     then the rest in running order."""
     una = rows[rows.unassessed.astype(bool)]
     assessed = rows.drop(una.index)
-    flagged = assessed[assessed.infeasible | assessed.tight | assessed.unreachable].sort_values(
+    flagged = assessed[assessed.infeasible | assessed.tight | assessed.unreachable | _inaccurate(assessed)].sort_values(
         ["remaining_margin_s", "direction", "train_type"], kind="stable")
     rest = assessed.drop(flagged.index)
     out = ["<div class='tw'><table>", ROW_HEAD]
@@ -249,6 +253,11 @@ def rows_table(rows) -> str:
     out += [_row_html(r) for r in rest.itertuples(index=False)]
     out.append("</table></div>")
     return "\n".join(out)
+
+
+def _inaccurate(rows):
+    """The rows flagged ``inaccurate`` (False for a report from before the flag)."""
+    return rows["inaccurate"].fillna(False).astype(bool) if "inaccurate" in rows else False
 
 
 def totals_table(totals, scopes=("line", "type")) -> str:
@@ -416,6 +425,7 @@ def _headline(report, sched, trains, top: str) -> list[str]:
     n_inf, n_tight, n_unr = int(sched.infeasible.sum()), int(sched.tight.sum()), int(sched.unreachable.sum())
     n_short = int((~sched.supplement_met).sum())
     n_una = int(rows.unassessed.sum())
+    n_acc = int(np.sum(_inaccurate(rows)))
     rule = report.rule
     adh = report.adhesion_kmh_s
     types = ", ".join(sorted(rows.train_type.unique()))
@@ -440,6 +450,8 @@ def _headline(report, sched, trains, top: str) -> list[str]:
         ("bad" if n_inf else "ok", n_inf, "legs infeasible: scheduled below the bad-day minimum"),
         ("warn" if n_tight else "ok", n_tight, f"legs tight: less than {rule.tight_threshold_s:g} s left on a bad day"),
         ("purple" if n_unr else "ok", n_unr, "legs unreachable: longer than the slowest ratio"),
+        ("warn" if n_acc else "ok", n_acc, f"legs inaccurate: the closed loop misses the arrival by more than "
+                                           f"{rule.arrival_error_threshold_s:g} s"),
         ("warn" if n_short else "ok", n_short, "legs with a margin below the supplement rule"),
         ("info", f"{len(sched)}", "legs checked (train type × stop → next stop × scheduled time), "
                                   f"run {int(sched.n_trains.sum())} times a day"),
@@ -526,7 +538,8 @@ def _method(report, datasets_href: str) -> str:
         "no stopping pattern at the lowest adhesion); its infeasible and tight are unknown (null in the dataset); "
         "<i>infeasible</i> — scheduled below the bad-day minimum; <i>tight</i> — not infeasible "
         f"but less than {rule.tight_threshold_s:g} s left; <i>unreachable</i> — scheduled above the slowest table "
-        "time (lowest ratio), so the vehicle would arrive early. <i>supplement short</i> — the margin is below the "
+        "time (lowest ratio), so the vehicle would arrive early; <i>inaccurate</i> — the closed loop misses the "
+        f"designated arrival by more than {rule.arrival_error_threshold_s:g} s on the leg. <i>supplement short</i> — the margin is below the "
         "rule (not a flag).</li>"
         "<li><b>Ratio and arrival error</b>: the on-board nearest rule on table (a) with designated time = "
         "scheduled; the closed loop re-chooses at every evaluation point from table (b).</li>"

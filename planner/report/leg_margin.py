@@ -15,13 +15,16 @@ from typing import Sequence
 
 import numpy as np
 
-from planner.errors import InputError
+from planner.errors import InputError, StallError
 from planner.line.model import Line, sign
 from planner.line.units import KMH, KMH_S, kmh
 from planner.report.margin_rule import MarginRule
 from planner.stopping.approach import DEFAULT_APPROACH_M, approach_start, brake_cap_ms2, train_adhesion_ms2
 from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, adhesion_levels
+from planner.tables.flags import NO_STOP, LegFlag
 
+BAD_DAY = "bad_day"
+"""Scenario name of the margin report's bad day in a :class:`~planner.tables.flags.LegFlag`."""
 PATTERN_BACKOFF_M = 25.0
 """Step [m] by which the pattern start moves back when the lowest adhesion cannot stop in time."""
 def approach_limits(line: Line, train, track, s_start_m: float):
@@ -90,22 +93,27 @@ class LegResult:
     curves: dict | None = None  # with record=True: run curves for the report
     tables: object = None  # the RunningTimeTables used (read or computed)
     energy_a_kwh: np.ndarray | None = None
+    flags: tuple = ()  # physical verdicts (planner.tables.flags.LegFlag): why the leg is unassessed
 
 
 def _closed_loop(track, train, tables, designated: np.ndarray, rule: MarginRule, record: bool = False):
     """Nominal and bad-day closed-loop runs of the on-board nearest rule, per designated time.
 
-    Returns the departure ratios (n,) and the simulator's BatchResult of 2n
-    runs: the n designated times at the tables' conditions, then the same
-    under the rule's bad-day load and traction, driven by
-    :func:`planner.tables.closed_loop.drive_tables` (the closed-loop proof's own driver).
+    Returns the running times, shape (2n,): the n designated times at the tables' conditions,
+    then the same under the rule's bad-day load and traction, NaN where a run stalls; and, with
+    ``record``, the simulator's BatchResult of those 2n runs (None where one stalls).
+    Driven by :func:`planner.tables.closed_loop.drive_tables` (the closed-loop proof's own driver).
     """
-    from planner.tables.closed_loop import SCENARIOS, Scenario, drive_tables
+    from planner.tables.closed_loop import SCENARIOS, Scenario, drive_runs, drive_tables
 
-    bad = Scenario("bad_day", rule.bad_load, rule.bad_traction)
-    r0, _, res = drive_tables(track, train, tables, designated, [SCENARIOS["nominal"], bad],
-                              ["nearest", "nearest"], record=record)
-    return r0[:len(designated)], res
+    scs, modes = [SCENARIOS["nominal"], Scenario("bad_day", rule.bad_load, rule.bad_traction)], ["nearest"] * 2
+    if record:
+        try:
+            _, _, res = drive_tables(track, train, tables, designated, scs, modes, record=True)
+            return np.asarray(res.time_s, float), res
+        except StallError:
+            pass
+    return drive_runs(track, train, tables, designated, scs, modes)[0], None
 
 
 def _first_pattern(line, train, track, res, run: int, cands, adhesion_ms2: float):
@@ -147,7 +155,7 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
                tables=None, energy_a_kwh=None, ratios=None, rule: MarginRule = MarginRule(),
                adhesion_kmh_s=DEFAULT_ADHESION_KMH_S, approach_m: float | str = DEFAULT_APPROACH_M,
                after_departure_m: float | None = 200.0, eval_interval_m: float | None = None, settings=None,
-               closed_loop_errors: dict | None = None, record: bool = False,
+               eval_auto_s: float | None = None, closed_loop_errors: dict | None = None, record: bool = False,
                min_target_speed_ms: float = 20.0 * KMH) -> LegResult:
     """Compute one leg: minimum, slowest, degraded minimum, pattern sweep, closed loop per scheduled time.
 
@@ -177,6 +185,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     eval_interval_m : float or None
         Interval of the odometer evaluation points for computed tables [m]; None: beacons only.
     settings : SimSettings, optional
+    eval_auto_s : float or None
+        Fill interval of computed tables on a leg without beacon points [s of running at its maximum].
     closed_loop_errors : dict, optional
         ``{("nominal" | "degraded", designated_s rounded to 1e-6): error_s}`` already
         computed (``--closed-loop``); missing ones are simulated.
@@ -197,14 +207,19 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     train = line.train_type(train_type)
     ext = line.run_between(origin, destination)
     tables, energy_a, tsource = _leg_tables(line, train_type, origin, destination, tables, energy_a_kwh, ratios,
-                                            after_departure_m, eval_interval_m, settings, min_target_speed_ms)
+                                            after_departure_m, eval_interval_m, settings, min_target_speed_ms,
+                                            eval_auto_s)
     adh = train_adhesion_kmh_s(train, adhesion_kmh_s)
     track, cands, src = _track_and_starts(line, train_type, origin, destination, ext.length_m, tables,
                                           approach_m, settings, float(adh[0]) * KMH_S)
     # ratio 1.0 at the tables' conditions (run 0), the bad day's load and traction (run 1) and its load
     # alone (run 2, to split the bad day's cost by effect), states at the pattern starts
-    res = simulate(track, train, np.array([1.0, 1.0, 1.0]), load=np.array([0.0, rule.bad_load, rule.bad_load]),
-                   traction_factor=np.array([1.0, rule.bad_traction, 1.0]), snapshots_m=cands, record=record)
+    try:
+        res = simulate(track, train, np.array([1.0, 1.0, 1.0]), load=np.array([0.0, rule.bad_load, rule.bad_load]),
+                       traction_factor=np.array([1.0, rule.bad_traction, 1.0]), snapshots_m=cands, record=record)
+    except StallError as e:  # a physical verdict: the leg is unassessed, the flag says where and why
+        return _stalled_leg(line, train, track, cands, src, tables, energy_a, tsource, ext, e, rule,
+                            adh, scheduled, closed_loop_errors)
     t_end = np.asarray(res.time_s, float)
     if abs(float(tables.ratios[0]) - 1.0) <= 1e-9:
         min_time, e_full = float(tables.time_a_s[0]), float(energy_a[0])
@@ -227,6 +242,8 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
         stop_time_nominal_s=bad.stop_nom_s, adhesion_min_kmh_s=bad.adhesion_kmh_s, adhesion_loss_s=loss,
         sweep_adhesion_kmh_s=adh, sweep_duration_s=sweep, note=bad.note, tables_source=tsource, tables=tables,
         energy_a_kwh=energy_a)
+    if bad.pattern is None and not bad.adhesion_off:  # no pattern stops it at the marker: where it must stop
+        out.flags = (LegFlag(NO_STOP, BAD_DAY, float(ext.end_m), bad.note),)
     sched = np.asarray(sorted({float(x) for x in scheduled}), float)
     cl = _scheduled_runs(out, track, train, tables, energy_a, sched, rule, closed_loop_errors, record)
     if record:
@@ -235,8 +252,47 @@ def leg_result(line: Line, train_type: str, origin: str, destination: str, sched
     return out
 
 
+def _stalled_leg(line: Line, train, track, cands, src: str, tables, energy_a, tsource: str, ext, err: StallError,
+                 rule: MarginRule, adhesion_kmh_s, scheduled, closed_loop_errors) -> LegResult:
+    """A leg whose bad-day run stalls: unassessed (degraded minimum unknown), flagged with where and why.
+
+    What does not need the bad day is still computed from the nominal run alone: the minimum, the
+    adhesion sweep at the nominal approach speed, the on-time ratio, the closed loop (its bad-day runs
+    NaN where they stall) and the energy. It has no run curves (``record`` draws the bad day's).
+    """
+    from planner.physics.run_curve import simulate
+
+    scenario = "nominal" if (err.load, err.traction_factor) == (0.0, 1.0) else BAD_DAY
+    flag = LegFlag.stall(err, scenario)
+    adh = np.asarray(adhesion_kmh_s, dtype=float)  # the train's levels (train_adhesion_kmh_s)
+    a_bad, a_min = _bad_adhesion(train, adh, rule)
+    nan = math.nan
+    sweep, loss = np.full(adh.size, nan), nan
+    min_time, e_full = nan, nan
+    if scenario != "nominal":
+        res = simulate(track, train, np.array([1.0]), snapshots_m=cands)
+        sweep, loss = _adhesion_sweep(line, train, track, res, cands, adh, a_min)
+        min_time, e_full = ((float(tables.time_a_s[0]), float(energy_a[0]))
+                            if abs(float(tables.ratios[0]) - 1.0) <= 1e-9
+                            else (float(res.time_s[0]), float(res.energy_kwh[0])))
+    out = LegResult(
+        direction=ext.direction, train_type=train.train_type, origin=tables.origin, destination=tables.destination,
+        passes=passed_stations(line, tables.origin, tables.destination), length_m=float(ext.length_m),
+        min_time_s=min_time, slowest_time_s=float(tables.time_a_s[-1]), energy_full_kwh=e_full, degraded_min_s=nan,
+        degraded_loss_running_s=nan, degraded_loss_stop_s=nan, degraded_loss_load_s=nan,
+        degraded_loss_traction_s=nan, degraded_loss_stop_model_s=nan, pattern_start_s_m=float(cands[0]),
+        pattern_start_m=float(ext.start_m + ext.sign * cands[0]), pattern_source=src, v_pattern_degraded_ms=nan,
+        stop_time_degraded_s=nan, stop_time_nominal_s=nan, adhesion_min_kmh_s=a_min, adhesion_loss_s=loss,
+        sweep_adhesion_kmh_s=adh, sweep_duration_s=sweep,
+        note=f"{flag.reason}: {'minimum' if scenario == 'nominal' else 'degraded minimum'} unknown",
+        tables_source=tsource, tables=tables, energy_a_kwh=energy_a, flags=(flag,))
+    sched = np.asarray(sorted({float(x) for x in scheduled}), float)
+    _scheduled_runs(out, track, train, tables, energy_a, sched, rule, closed_loop_errors, False)
+    return out
+
+
 def _leg_tables(line: Line, train_type: str, origin: str, destination: str, tables, energy_a_kwh, ratios,
-                after_departure_m, eval_interval_m, settings, min_target_speed_ms):
+                after_departure_m, eval_interval_m, settings, min_target_speed_ms, eval_auto_s=None):
     """The leg's tables and table (a) energy: as given (``dataset``) or computed (``computed``)."""
     from planner.tables.build import interstation_tables
     from planner.tables.ratios import leg_ratio_grid
@@ -245,6 +301,7 @@ def _leg_tables(line: Line, train_type: str, origin: str, destination: str, tabl
         grid = leg_ratio_grid(ratios, line, train_type, origin, destination, min_target_speed_ms)
         it = interstation_tables(line, train_type, origin, destination, grid,
                                  after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
+                                 eval_auto_s=eval_auto_s,
                                  settings=settings)
         return it.onboard(), np.asarray(it.energy_a_kwh, float), "computed"
     if energy_a_kwh is None:
@@ -298,6 +355,17 @@ class BadDay:
         return self.t_deg_s + self.stop_deg_s
 
 
+def _bad_adhesion(train, adh: np.ndarray, rule: MarginRule) -> tuple[float | None, float]:
+    """The bad day's adhesion [km/h/s] (None: the effect is off) and the level its stop uses.
+
+    A configured level above the train's braking cap is the cap for this train; with the effect
+    off, or no level configured, the lowest of the train's levels ``adh``."""
+    a_bad = rule.bad_adhesion_kmh_s(adh)
+    if a_bad is not None:
+        a_bad = min(a_bad, round(brake_cap_ms2(train) / KMH_S, 9))
+    return a_bad, float(adh[0]) if a_bad is None else a_bad
+
+
 def _bad_day(line: Line, train, track, res, cands, length: float, adh: np.ndarray, rule: MarginRule,
              src: str) -> BadDay:
     """Degraded minimum: the degraded run to the pattern start + the pattern at the bad day's adhesion.
@@ -306,10 +374,7 @@ def _bad_day(line: Line, train, track, res, cands, length: float, adh: np.ndarra
     with the bad day's load alone, for the shares of the bad day's cost.
     """
     t_end = np.asarray(res.time_s, float)
-    a_bad = rule.bad_adhesion_kmh_s(adh)
-    if a_bad is not None:  # a configured level above the train's braking cap is the cap for this train
-        a_bad = min(a_bad, round(brake_cap_ms2(train) / KMH_S, 9))
-    a_min = float(adh[0]) if a_bad is None else a_bad
+    a_bad, a_min = _bad_adhesion(train, adh, rule)
     c, t_deg, v_deg, pat, speed, grads = _first_pattern(line, train, track, res, 1, cands, a_min * KMH_S)
     note = ""
     if a_bad is None:  # adhesion effect off: the degraded run stops with the tables' stopping brake
@@ -377,8 +442,8 @@ def _scheduled_runs(out: LegResult, track, train, tables, energy_a: np.ndarray, 
     if record:
         todo[:] = True  # the recorded run is wanted whatever the dataset holds
     if todo.any():
-        _, cl = _closed_loop(track, train, tables, sched[todo], rule, record=record)
-        t_n, t_d = np.split(np.asarray(cl.time_s, float), 2)
+        times, cl = _closed_loop(track, train, tables, sched[todo], rule, record=record)
+        t_n, t_d = np.split(times, 2)
         err_nom[todo] = np.where(np.isfinite(err_nom[todo]), err_nom[todo], t_n - sched[todo])
         err_deg[todo] = np.where(np.isfinite(err_deg[todo]), err_deg[todo], t_d - sched[todo])
     r0 = NearestRule().depart(tables, sched)

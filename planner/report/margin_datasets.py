@@ -77,10 +77,24 @@ MARGINS_SCHEMA = declare(
         ("infeasible", pa.bool_(), "flag: scheduled < degraded minimum"),
         ("tight", pa.bool_(), "flag: not infeasible, but remaining margin < tight_threshold_s"),
         ("unreachable", pa.bool_(), "flag: scheduled > slowest table time: the vehicle cannot stretch the run that long"),
+        ("closed_loop_max_error_s", pa.float64(),
+         "worst |arrival error| of the closed-loop sweep on this leg (designated times minimum ... + horizon, every "
+         "scenario and mode of the job; closed_loop_summary has each) [s]; null: no closed loop for the leg "
+         "(e.g. a rapid's leg passing stations, or planner margins without --closed-loop)"),
+        ("inaccurate", pa.bool_(),
+         "flag: closed_loop_max_error_s > [margins] arrival_error_threshold_s: the on-board logic misses the "
+         "designated arrival by that much (e.g. a long leg without evaluation points)"),
         ("unassessed", pa.bool_(),
          "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; infeasible and "
          "tight are then null (unknown), remaining_margin_s null"),
         ("unassessed_reason", pa.string(), "why the leg could not be assessed; empty when assessed"),
+        ("unassessed_cause", pa.string(),
+         "the physical verdict behind an unassessed leg: 'stall' (the train cannot climb: tractive effort below "
+         "resistance and gradient), 'no_stop' (no stopping pattern stops it at the marker), or empty"),
+        ("unassessed_scenario", pa.string(),
+         "under which conditions: 'bad_day' (the [margins] bad day) or 'nominal'; empty without a cause"),
+        ("unassessed_position_m", pa.float64(),
+         "where: chainage of the stall, or of the stop marker the train cannot stop at [m]; null without a cause"),
         ("tables_source", pa.string(), "'dataset' (--tables) or 'computed'"),
         ("note", pa.string(), "anything unusual about the row, else empty"),
     ],
@@ -121,6 +135,7 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("n_unassessed", pa.int32(),
          "train runs of a leg flagged unassessed; when > 0 the degraded and remaining sums, worst margin and "
          "shortfall are null"),
+        ("n_inaccurate", pa.int32(), "train runs of a leg flagged inaccurate (the closed loop misses the arrival)"),
     ],
     name="margin_totals",
     description="Margin totals at three levels, told apart by `level`: per train, per direction x train type "
@@ -141,7 +156,8 @@ def datasets(report) -> dict[str, pa.Table]:
         rows[c] = rows[c].astype("boolean")
         rows.loc[unknown, c] = pd.NA
     t = report.totals.copy()
-    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed"):
+    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed",
+              "n_inaccurate"):
         t[c] = t[c].astype("int32")
     return {
         "margins": pa.Table.from_pandas(rows, preserve_index=False),
@@ -199,6 +215,20 @@ def closed_loop_index(closed_loop_dir: Path, line_id: str, rule) -> dict:
             out[(r.direction, r.train_type, r.origin, r.destination, names[r.scenario],
                  round(float(r.designated_s), 6))] = float(r.error_s)
     return out
+
+
+def closed_loop_worst(closed_loop_dir: Path, line_id: str) -> dict:
+    """Worst |arrival error| per leg over every scenario and mode of a ``planner simulate`` folder [s],
+    by (direction, train type, origin, destination); legs without a feasible run are left out."""
+    try:
+        t = read_dataset(closed_loop_dir, "closed_loop_summary", line=line_id).to_pandas()
+    except (FileNotFoundError, OSError):
+        return {}
+    if t.empty or "max_abs_error_s" not in t:
+        return {}
+    t = t[np.isfinite(t["max_abs_error_s"].to_numpy(float))]
+    g = t.groupby([t[c].astype(str) for c in ("direction", "train_type", "origin", "destination")])
+    return {k: float(v) for k, v in g["max_abs_error_s"].max().items()}
 
 
 def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:

@@ -87,10 +87,23 @@ What each row holds, and how
   ``tight`` — not infeasible, but the remaining margin is below
   ``tight_threshold_s``; ``unreachable`` — scheduled above the slowest table
   time (lowest ratio), so the vehicle cannot stretch the run that long;
+  ``inaccurate`` — the closed-loop sweep of the leg (``planner simulate``, the
+  nightly job's closed loop) misses the designated arrival by more than
+  ``arrival_error_threshold_s`` (10 s) in some scenario and mode
+  (``closed_loop_max_error_s``): the on-board logic cannot keep the time
+  there, e.g. a long leg with too few evaluation points;
   ``unassessed`` — the minimum or the degraded minimum could not be computed
-  (e.g. no stopping pattern at the lowest adhesion from any start), with
-  ``unassessed_reason``: then ``infeasible`` and ``tight`` are unknown, written
-  as null in the dataset, and the report lists the leg first.
+  (e.g. no stopping pattern at the lowest adhesion from any start, or the
+  train stalls on a climb on the bad day), with ``unassessed_reason``: then
+  ``infeasible`` and ``tight`` are unknown, written as null in the dataset,
+  and the report lists the leg first. Where the cause is physical (a
+  :class:`planner.tables.flags.LegFlag`) the leg says what, under which
+  conditions and where: ``unassessed_cause`` (``stall``, ``no_stop``),
+  ``unassessed_scenario`` (``bad_day``, ``nominal``) and
+  ``unassessed_position_m`` (the chainage of the stall, or the stop marker
+  the train cannot stop at). Such a leg is a verdict, not a failure: every
+  other column that does not need the bad day (minimum, on-time ratio,
+  nominal closed loop, energy) is still computed, and so is every other leg.
 
 Totals (dataset ``margin_totals``, :func:`margin_totals`): per train (sum
 over its legs), per direction × train type, and per direction over all train
@@ -121,7 +134,13 @@ from planner.io.parallel import map_tasks
 from planner.line.model import DIRECTIONS, Line, sign
 from planner.line.units import KMH, KMH_S, kmh
 from planner.report.leg_margin import LegResult, leg_result, passed_stations
-from planner.report.margin_datasets import MARGINS_SCHEMA, closed_loop_index, read_energy, stops_adhesion
+from planner.report.margin_datasets import (
+    MARGINS_SCHEMA,
+    closed_loop_index,
+    closed_loop_worst,
+    read_energy,
+    stops_adhesion,
+)
 from planner.report.margin_rule import TOTALS_COLUMNS, MarginRule, margin_columns, margin_totals
 from planner.stopping.approach import DEFAULT_APPROACH_M
 from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, adhesion_levels
@@ -244,7 +263,7 @@ def margin_options(job, line: Line) -> dict:
     -------
     dict
         ``rule, ratios, min_target_speed_ms, adhesion_kmh_s, approach_m, after_departure_m,
-        eval_interval_m, settings, conflicts, conflict_params``.
+        eval_interval_m, eval_auto_s, settings, conflicts, conflict_params``.
     """
     from planner.physics.track import SimSettings
 
@@ -253,6 +272,7 @@ def margin_options(job, line: Line) -> dict:
     return dict(rule=MarginRule.from_section(job.margins), ratios=tp.ratios, min_target_speed_ms=tp.min_target_kmh * KMH,
                 adhesion_kmh_s=job.stops.adhesion_kmh_s, approach_m=job.stops.approach_m,
                 after_departure_m=tp.eval_offset_m, eval_interval_m=tp.eval_interval_m or None,
+                eval_auto_s=tp.eval_auto_s or None,
                 settings=SimSettings(ds_m=tp.ds_m), conflicts=c.enabled,
                 conflict_params={"setting_s": c.setting_s, "approach_s": c.approach_s, "release_s": c.release_s})
 
@@ -271,6 +291,7 @@ def compute_margins(
     approach_m: float | str = DEFAULT_APPROACH_M,
     after_departure_m: float | None = 200.0,
     eval_interval_m: float | None = None,
+    eval_auto_s: float | None = None,
     chosen: tuple[str, str, str] | None = None,
     conflicts: bool = True,
     conflict_params=None,
@@ -309,6 +330,8 @@ def compute_margins(
         Evaluation point after departure for computed tables [m].
     eval_interval_m : float or None
         Interval of the odometer evaluation points for computed tables [m]; None: beacons only.
+    eval_auto_s : float or None
+        Fill interval of computed tables' legs without beacon points [s of running at the maximum].
     chosen : (train_type, origin, destination), optional
         Leg whose run curves the report draws; default the row with the least
         remaining margin.
@@ -338,8 +361,10 @@ def compute_margins(
     sched = _scheduled_times(line, types, legs)
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
     cl_index = closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
-    kw = dict(ratios=ratios, min_target_speed_ms=min_target_speed_ms, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
-              after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings)
+    cl_worst = closed_loop_worst(Path(closed_loop_dir), line.line_id) if closed_loop_dir else {}
+    kw = dict(ratios=ratios, min_target_speed_ms=min_target_speed_ms, rule=rule, adhesion_kmh_s=adh,
+              approach_m=approach_m, after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
+              eval_auto_s=eval_auto_s, settings=settings)
 
     by_leg: dict[tuple, dict] = {}  # the closed-loop errors of each leg, in one pass (not one per leg)
     for k, v in cl_index.items():
@@ -359,7 +384,7 @@ def compute_margins(
     for r in results:  # the window holds only the leg's two stations: the ones it passes come from the line
         r.passes = passed_stations(line, r.origin, r.destination)
 
-    rows, sweep = _rows(line, results, legs, rule)
+    rows, sweep = _rows(line, results, legs, rule, cl_worst)
     tl = pd.DataFrame.from_records(
         [{"train_id": lg.train_id, "direction": lg.direction, "train_type": lg.train_type, "origin": lg.origin,
           "destination": lg.destination, "scheduled_running_time_s": lg.scheduled_s,
@@ -413,7 +438,8 @@ def given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, di
     return tabs, energy
 
 
-def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], rule: MarginRule):
+def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], rule: MarginRule,
+          cl_worst: dict | None = None):
     """The ``margins`` rows (one per leg and scheduled time, with margins and flags) and the sweep records."""
     import pandas as pd
 
@@ -440,10 +466,13 @@ def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], ru
                                 "arrival_error_degraded_s": sc["arrival_error_degraded_s"],
                                 "energy_at_ratio_kwh": sc["energy_at_ratio_kwh"]})
     rows = pd.DataFrame.from_records(recs)
+    rows["closed_loop_max_error_s"] = [(cl_worst or {}).get((r.direction, r.train_type, r.origin, r.destination),
+                                                            math.nan) for r in rows.itertuples(index=False)]
     cols = margin_columns(rows["min_running_time_s"].to_numpy(float),
                           rows["scheduled_running_time_s"].to_numpy(float),
                           rows["degraded_min_running_time_s"].to_numpy(float),
-                          rows["slowest_running_time_s"].to_numpy(float), rows["length_m"].to_numpy(float), rule)
+                          rows["slowest_running_time_s"].to_numpy(float), rows["length_m"].to_numpy(float), rule,
+                          rows["closed_loop_max_error_s"].to_numpy(float))
     for k, v in cols.items():
         rows[k] = v
     why = np.where(~np.isfinite(rows["min_running_time_s"].to_numpy(float)), "minimum running time unknown",
@@ -470,6 +499,9 @@ def _leg_columns(line: Line, r: LegResult) -> dict:
         "stop_time_degraded_s": r.stop_time_degraded_s, "stop_time_nominal_s": r.stop_time_nominal_s,
         "adhesion_min_ms2": r.adhesion_min_kmh_s * KMH_S, "adhesion_loss_s": r.adhesion_loss_s,
         "tables_source": r.tables_source, "note": r.note,
+        "unassessed_cause": r.flags[0].kind if r.flags else "",
+        "unassessed_scenario": r.flags[0].scenario if r.flags else "",
+        "unassessed_position_m": r.flags[0].position_m if r.flags else math.nan,
     }
 
 
@@ -494,6 +526,8 @@ def _chosen_curves(line: Line, rows, results: Sequence[LegResult], chosen, kw: d
     done = next(r for r in results if (r.direction, r.train_type, r.origin, r.destination) == k)
     lr = leg_result(line, k[1], k[2], k[3], s, tables=done.tables, energy_a_kwh=done.energy_a_kwh,
                     record=True, **kw)
+    if lr.curves is None:  # a stalled leg has no bad-day curve to draw
+        return None, None
     return lr.curves, {"direction": k[0], "train_type": k[1], "origin": k[2], "destination": k[3],
                        "scheduled_running_time_s": float(pick.scheduled_running_time_s)}
 

@@ -155,8 +155,13 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     labels = {"infeasible": "legs infeasible (below the bad-day minimum)", "tight": "legs tight",
               "unreachable": "legs unreachable (above the slowest ratio)",
               "infeasible_stops": "stopping patterns infeasible (approach × adhesion)",
-              "conflicts": "route conflicts"}
-    cards = [("bad" if v and k in ("infeasible", "conflicts") else "warn" if v else "ok", v, labels.get(k, k))
+              "conflicts": "route conflicts",
+              "unassessed": "legs unassessed (no bad-day minimum: see the margin report)",
+              "inaccurate": "legs whose closed loop misses the arrival by more than the threshold",
+              "stalls": "legs where a train stalls under some scenario (the notes say where)",
+              "no_stop": "legs where no stopping pattern stops the train (the notes say where)"}
+    cards = [("bad" if v and k in ("infeasible", "conflicts", "stalls", "no_stop") else "warn" if v else "ok", v,
+              labels.get(k, k))
              for k, v in sorted(flags.items())]
     unchecked = {"no track network": "no track network (nodes.parquet, edges.parquet)",
                  "disabled": "[conflicts] enabled = false"}

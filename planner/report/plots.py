@@ -32,6 +32,7 @@ from planner.line.units import KMH, KMH_S, KMH_S2, kmh
 from planner.report.margin_rule import flag_of
 
 FLAG_COLOURS = {"unassessed": "#37474f", "infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a",
+                "inaccurate": "#8d6e00",
                 "ok": "#2e7d32"}
 """Colour of a leg by its worst flag (also used in the table)."""
 MARGIN_COLOUR = "#b0c4de"

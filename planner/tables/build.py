@@ -7,7 +7,9 @@ ran at r_before up to X and at r_after from X on.
 
 The evaluation points are those of :func:`planner.tables.eval_points.evaluation_points`:
 the departure, the point after departure, the odometer points at the regular
-interval (``eval_interval_m``, none by default) and the flagged beacons. Each
+interval (``eval_interval_m``, none by default) and the flagged beacons; a leg with no
+beacon point gets odometer points every ``eval_auto_s`` seconds of running at its maximum
+(:func:`planner.tables.eval_points.train_evaluation_points`; the nightly job's default 30 s). Each
 point after departure costs n_r² runs and n_r² rows of table (b).
 
 How it is computed (per interstation, direction and train type)
@@ -46,6 +48,12 @@ on ``n_jobs`` or scheduling.
    the point is (r_b × maximum speed, or a braking curve), which the rows of
    table (b) already index, so it gets no table (d).
 
+Stalls (a physical verdict, :mod:`planner.tables.flags`): where the reference train stalls there is
+no table (c) (nor (d)) on the leg, ``ref_stall_m`` says where at each ratio and the leg carries a
+flag; where the table train itself stalls at the slow ratios of the grid (a momentum grade), those
+ratios are left out of the leg's tables, with a flag; where it stalls at every ratio the
+:class:`~planner.errors.StallError` surfaces (no tables can exist).
+
 Datasets (hive-partitioned line / direction / train_type, see schemas below):
 ``eval_points``, ``table_a``, ``table_b``, ``table_c``, ``table_d``. The vehicle
 reads them back with :func:`planner.datasets.tables.load_tables`.
@@ -58,16 +66,18 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from planner.errors import InfeasibleError
+from planner.errors import InfeasibleError, StallError
 from planner.tables.eval_points import (
     DEFAULT_AFTER_DEPARTURE_M,
     DEFAULT_INTERVAL_M,
     EvalPoint,
+    check_auto,
     check_interval,
-    evaluation_points,
     interstation_length_m,
+    train_evaluation_points,
 )
 from planner.line.model import DIRECTIONS, Line
+from planner.tables.flags import NOMINAL, LegFlag
 from planner.tables.onboard import ApproachTable, RunningTimeTables
 from planner.io.parallel import map_tasks
 from planner.tables.ratios import leg_ratio_grid
@@ -110,6 +120,11 @@ class InterstationTables:
     approach : ApproachTable or None
         Table (d) at the last evaluation point (sawtooth vehicles; None for the others and where
         a run of it stalls).
+    ref_stall_m : ndarray, shape (n_r,)
+        Per ratio, the chainage where the reference train stalls at constant ratio [m]; NaN
+        where it does not. Where any does, the leg has no table (c) (nor (d)).
+    flags : tuple of LegFlag
+        Physical verdicts on the leg (:mod:`planner.tables.flags`): the reference train's stall.
     remaining_s : ndarray, shape (n_x, n_r, n_r)
         Table (b) ``[x, i_before, j_after]`` [s].
     """
@@ -130,6 +145,8 @@ class InterstationTables:
     speed_ms: np.ndarray | None = None
     ref_traction_factor: float = float("nan")
     approach: ApproachTable | None = None
+    ref_stall_m: np.ndarray | None = None
+    flags: tuple[LegFlag, ...] = ()
 
     def onboard(self) -> RunningTimeTables:
         """The vehicle's view of these tables (same numbers as the datasets hold)."""
@@ -145,6 +162,7 @@ class InterstationTables:
             ref_remaining_s=self.ref_remaining_s,
             speed_ms=None if self.speed_ms is None else self.speed_ms.T.copy(),
             approach=self.approach,
+            flags=self.flags,
         )
 
 
@@ -219,6 +237,7 @@ def interstation_tables(
     after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
     eval_interval_m: float | None = DEFAULT_INTERVAL_M,
     settings=None,
+    eval_auto_s: float | None = None,
     load: float = 0.0,
     traction_factor: float = 1.0,
     ref_load: float = REF_LOAD,
@@ -239,6 +258,10 @@ def interstation_tables(
         (:func:`planner.tables.eval_points.evaluation_points`).
     settings : planner.physics.track.SimSettings, optional
         Integrator settings (distance step).
+    eval_auto_s : float or None
+        On a leg without beacon evaluation points and without ``eval_interval_m``, odometer points
+        every this many seconds of running at the leg's maximum
+        (:func:`planner.tables.eval_points.train_evaluation_points`); None: none.
     load, traction_factor : float
         Conditions the tables assume (DESIGN: load 0, traction 1.0).
     ref_load, ref_traction_factor : float
@@ -248,38 +271,27 @@ def interstation_tables(
     -------
     InterstationTables
     """
-    from planner.physics.run_curve import simulate
     from planner.physics.track import SimSettings, make_track
 
     settings = settings or SimSettings()
     direction = line.direction_between(origin, destination)
-    points = evaluation_points(line, origin, destination, after_departure_m=after_departure_m,
-                               interval_m=eval_interval_m)
+    points = train_evaluation_points(line, train_type, origin, destination, after_departure_m=after_departure_m,
+                                     interval_m=eval_interval_m, auto_s=eval_auto_s, settings=settings)
     s_pts = [p.s_m for p in points]
     track = make_track(line, train_type, origin, destination, settings=settings, nodes_m=s_pts)
     train = line.train_type(train_type)
     r = np.asarray(ratios, dtype=float)
-    n_r, n_x = len(r), len(points)
+    n_x = len(points)
     kw = dict(load=load, traction_factor=traction_factor)
-
-    # the constant-ratio runs of the table train and of the reference train (table (c)) in one
-    # batch: the integrator's cost is per step, nearly independent of the batch size
     try:
-        both = simulate(track, train, np.concatenate([r, r]), snapshots_m=s_pts[1:],
-                        load=np.concatenate([np.full(n_r, load), np.full(n_r, ref_load)]),
-                        traction_factor=np.concatenate([np.full(n_r, traction_factor),
-                                                        np.full(n_r, ref_traction_factor)]))
-        full = _Half(both, slice(0, n_r))
-        ref = _Half(both, slice(n_r, 2 * n_r))
-        ref_rem = np.empty((n_x, n_r))
-        ref_rem[0] = ref.time_s
-        for k in range(1, n_x):
-            ref_rem[k] = ref.time_s - _snapshot(ref.snapshots, s_pts[k]).t_s
-    except InfeasibleError:
-        # the full-load reference stalls on this interstation: no table (c) here (the adaptive
-        # mode then says so); the table train itself must run, so let its own error surface
-        full = _Half(simulate(track, train, r, snapshots_m=s_pts[1:], **kw), slice(None))
-        ref_rem = None
+        full, ref_rem, ref_stall, flags = _constant_runs(track, train, r, s_pts, kw, ref_load, ref_traction_factor)
+    except StallError:
+        # the table train itself stalls at some ratios (a momentum grade: it only gets over at speed):
+        # those ratios are left out of this leg's tables, with a flag; stalling at every ratio it
+        # cannot have tables at all, and that error (train data or gradients) surfaces
+        r, nominal = _runnable_ratios(track, train, r, load, traction_factor)
+        full, ref_rem, ref_stall, flags = _constant_runs(track, train, r, s_pts, kw, ref_load, ref_traction_factor)
+        flags = (nominal,) + flags
     time_a = full.time_s
     elapsed, speed, remaining = _table_b(track, train, r, s_pts, full, kw)
     approach = None
@@ -310,7 +322,90 @@ def interstation_tables(
         speed_ms=speed,
         ref_traction_factor=float(ref_traction_factor) if ref_rem is not None else float("nan"),
         approach=approach,
+        ref_stall_m=ref_stall,
+        flags=flags,
     )
+
+
+def _constant_runs(track, train, r: np.ndarray, s_pts: list[float], kw: dict, ref_load: float,
+                   ref_traction_factor: float):
+    """The constant-ratio runs of the table train and of the reference train (table (c)), in one batch
+    (the integrator's cost is per step, nearly independent of the batch size).
+
+    Returns ``(full, ref_remaining_s, ref_stall_m, flags)``: where the reference train stalls there is
+    no table (c) (``ref_remaining_s`` None) and a flag says where (:func:`_ref_stalls`).
+
+    Raises
+    ------
+    StallError
+        The table train itself stalls at some ratio.
+    """
+    from planner.physics.run_curve import simulate
+
+    n_r, n_x = len(r), len(s_pts)
+    try:
+        both = simulate(track, train, np.concatenate([r, r]), snapshots_m=s_pts[1:],
+                        load=np.concatenate([np.full(n_r, kw["load"]), np.full(n_r, ref_load)]),
+                        traction_factor=np.concatenate([np.full(n_r, kw["traction_factor"]),
+                                                        np.full(n_r, ref_traction_factor)]))
+    except StallError:
+        # the full-load reference (or the table train) stalls: the table train alone; where it runs,
+        # no table (c) here and a flag on the leg that says where (the adaptive mode runs nowhere on it)
+        full = _Half(simulate(track, train, r, snapshots_m=s_pts[1:], **kw), slice(None))
+        ref_stall, flags = _ref_stalls(track, train, r, ref_load, ref_traction_factor)
+        return full, None, ref_stall, flags
+    full, ref = _Half(both, slice(0, n_r)), _Half(both, slice(n_r, 2 * n_r))
+    ref_rem = np.empty((n_x, n_r))
+    ref_rem[0] = ref.time_s
+    for k in range(1, n_x):
+        ref_rem[k] = ref.time_s - _snapshot(ref.snapshots, s_pts[k]).t_s
+    return full, ref_rem, np.full(n_r, np.nan), ()
+
+
+def _runnable_ratios(track, train, r: np.ndarray, load: float, traction_factor: float):
+    """The grid ratios at which the table train gets through at constant ratio, and the leg's flag for the
+    others (at the fastest that stalls); re-raises the stall when none runs. One run per ratio."""
+    from planner.physics.run_curve import simulate
+
+    keep, first = np.ones(len(r), bool), None
+    for i, x in enumerate(r):
+        try:
+            simulate(track, train, np.array([x]), load=load, traction_factor=traction_factor)
+        except StallError as e:
+            keep[i] = False
+            first = first or (x, e)
+    x, e = first
+    if not keep.any():
+        raise e
+    f = LegFlag.stall(e, NOMINAL)
+    left = ", ".join(f"{y:g}" for y in r[~keep])
+    return r[keep], LegFlag(f.kind, f.scenario, f.position_m,
+                            f"{f.reason} at ratio {x:g}: ratio(s) {left} left out of this leg's tables")
+
+
+def _ref_stalls(track, train, r: np.ndarray, ref_load: float, ref_traction_factor: float):
+    """Where the reference train stalls at each grid ratio, and the leg's flag for it.
+
+    One run per ratio (a batch stops at its first stall): only on a leg where the batch stalled.
+
+    Returns
+    -------
+    stall_m : ndarray (n_r,)
+        Chainage where the run at each ratio stalls [m]; NaN where it does not.
+    flags : tuple of LegFlag
+        One flag, at the fastest ratio that stalls (others stall near it; ``stall_m`` has each).
+    """
+    from planner.physics.run_curve import simulate
+
+    out, flags = np.full(len(r), np.nan), []
+    for i, x in enumerate(r):
+        try:
+            simulate(track, train, np.array([x]), load=ref_load, traction_factor=ref_traction_factor)
+        except StallError as e:
+            out[i] = e.position_m[1]
+            if not flags:
+                flags.append(LegFlag.reference_stall(x, e.position_m[1], ref_load, ref_traction_factor))
+    return out, tuple(flags)
 
 
 def approach_ratios(ratios: Sequence[float], step: float = APPROACH_RATIO_STEP) -> np.ndarray:
@@ -378,11 +473,12 @@ def table_tasks(line: Line, train_types: Sequence[str] | None = None) -> list[tu
 
 
 def _task(line: Line, train_type: str, origin: str, destination: str, ratios, after_departure_m, settings,
-          eval_interval_m=None):
+          eval_interval_m=None, eval_auto_s=None):
     """joblib worker: one interstation, direction, train type (module-level, picklable inputs)."""
     return interstation_tables(
         line, train_type, origin, destination, ratios,
         after_departure_m=after_departure_m, eval_interval_m=eval_interval_m, settings=settings,
+        eval_auto_s=eval_auto_s,
     )
 
 
@@ -393,6 +489,7 @@ def build_tables(
     ratios: str | Sequence[float] | None = None,
     after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
     eval_interval_m: float | None = DEFAULT_INTERVAL_M,
+    eval_auto_s: float | None = None,
     n_jobs: int = -1,
     settings=None,
     progress: Callable[[int, int], None] | None = None,
@@ -410,6 +507,8 @@ def build_tables(
         Distance of the evaluation point after departure [m].
     eval_interval_m : float or None
         Interval of the odometer evaluation points [m]; None: beacons only.
+    eval_auto_s : float or None
+        Fill interval of legs without beacon points, in seconds at the leg's maximum; None: none.
     n_jobs : int
         joblib processes; -1 = all cores, 1 = in this process.
     settings : planner.physics.track.SimSettings, optional
@@ -422,13 +521,14 @@ def build_tables(
         In :func:`table_tasks` order, independent of ``n_jobs``.
     """
     eval_interval_m = check_interval(eval_interval_m)
+    eval_auto_s = check_auto(eval_auto_s)
     tasks = table_tasks(line, train_types)
     grids = [leg_ratio_grid(ratios, line, t[0], t[2], t[3]) for t in tasks]  # each leg's floor
     # longest interstations first, so no core idles on one long task at the end; the results
     # are put back in task order, so the output does not depend on this or on n_jobs
     order = sorted(range(len(tasks)), key=lambda i: -interstation_length_m(line, tasks[i][2], tasks[i][3]))
     results = map_tasks(_task, [(line, tasks[i][0], tasks[i][2], tasks[i][3], grids[i], after_departure_m, settings,
-                                 eval_interval_m) for i in order], n_jobs, progress)
+                                 eval_interval_m, eval_auto_s) for i in order], n_jobs, progress)
     out: list[InterstationTables | None] = [None] * len(tasks)
     for i, res in zip(order, results):
         out[i] = res

@@ -28,6 +28,17 @@ be ≈ 0, i.e. the logic did run at 1.0). Designated times above the slowest
 table time (lowest ratio) would be infeasible the other way; they do not occur
 in the default sweep of +60 s but are flagged the same way.
 
+Stalls
+------
+A plant that stalls (a heavy train on a climb under the perturbed scenario's
+load and traction) is a physical verdict on the leg, not a failed run: its
+runs have NaN times and are neither feasible nor counted in the error
+statistics, and the result carries a :class:`~planner.tables.flags.LegFlag`
+(scenario, chainage) that the summary's ``n_stalled`` and ``flag_*`` columns
+show (:func:`drive_runs`). A mode that needs table (c) (``adaptive``) does not
+run on a leg without it (its reference train stalls): every run NaN, the
+tables' flag carried on.
+
 Mode dispatch
 -------------
 A mode name maps to a *runner* in :data:`MODE_RUNNERS`. Every table mode of
@@ -47,8 +58,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from planner.errors import InputError
+from planner.errors import InputError, StallError
 from planner.line.model import Line
+from planner.tables.flags import REFERENCE, STALL, LegFlag
 from planner.tables.onboard import CHOOSERS, RunningTimeTables, chooser, make_controller
 from planner.tables.timekeeping import closed_loop_runner as _timekeeping_runner
 
@@ -102,6 +114,9 @@ class ClosedLoopResult:
         Scenario minimum: ratio 1.0 throughout under the scenario's conditions [s].
     max_time_s : float
         Scenario time at the lowest grid ratio [s] (+inf for the time-keeping mode: no ratio grid).
+    flags : tuple of planner.tables.flags.LegFlag
+        Physical verdicts (module doc, "Stalls"): the plant stalls under the scenario (its stalled
+        runs have NaN times), or the mode cannot run on the leg (no table (c): every run NaN).
     """
 
     line_id: str
@@ -118,6 +133,12 @@ class ClosedLoopResult:
     min_time_s: float
     max_time_s: float
     stop_error_m: np.ndarray | None = None
+    flags: tuple = ()
+
+    @property
+    def stalled(self) -> np.ndarray:
+        """Runs that did not arrive: the plant stalled, or the mode could not run (NaN time)."""
+        return ~np.isfinite(self.actual_s)
 
     @property
     def error_s(self) -> np.ndarray:
@@ -126,9 +147,10 @@ class ClosedLoopResult:
 
     @property
     def feasible(self) -> np.ndarray:
-        """Designated time within [scenario minimum, scenario slowest] (module doc)."""
+        """Designated time within [scenario minimum, scenario slowest] (module doc), and the run arrived
+        (not :attr:`stalled`)."""
         d = self.designated_s
-        return (d >= self.min_time_s - FEASIBLE_TOL_S) & (d <= self.max_time_s + FEASIBLE_TOL_S)
+        return (d >= self.min_time_s - FEASIBLE_TOL_S) & (d <= self.max_time_s + FEASIBLE_TOL_S) & ~self.stalled
 
 
 def designated_times(tables: RunningTimeTables, extra_s: float = DEFAULT_EXTRA_S,
@@ -267,35 +289,10 @@ def closed_loop_interstation(
     Returns
     -------
     ClosedLoopResult
+        :func:`closed_loop_batch` of the one scenario and mode.
     """
-    from planner.physics.track import SimSettings, make_track
-    from planner.physics.run_curve import simulate
-
-    sc = get_scenario(scenario_name or scenario)
-    run = _runner(mode)
-    train = line.train_type(train_type)
-    track = make_track(line, train_type, tables.origin, tables.destination,
-                       settings=settings or SimSettings(), nodes_m=list(tables.eval_distance_m))
-    designated = designated_times(tables, extra_s, step_s)
-    actual, ratios, stop_m = run(track, train, tables, designated, sc, mode)
-    ends = simulate(track, train, np.array([tables.ratios[0], tables.ratios[-1]]),
-                    load=sc.load, traction_factor=sc.traction_factor)
-    return ClosedLoopResult(
-        line_id=line.line_id,
-        direction=line.direction_between(tables.origin, tables.destination),
-        train_type=train_type,
-        origin=tables.origin,
-        destination=tables.destination,
-        scenario=sc.name,
-        mode=mode,
-        designated_s=designated,
-        actual_s=np.asarray(actual, float),
-        ratios=np.asarray(ratios, float),
-        eval_point_ids=tables.eval_point_ids,
-        min_time_s=float(ends.time_s[0]),
-        max_time_s=_slowest(mode, ends.time_s[1]),
-        stop_error_m=np.asarray(stop_m, float) - track.length_m,
-    )
+    return closed_loop_batch(line, train_type, tables, scenarios=[get_scenario(scenario_name or scenario)],
+                             modes=[mode], extra_s=extra_s, step_s=step_s, settings=settings)[0]
 
 
 class _Stacked:
@@ -339,45 +336,121 @@ def closed_loop_batch(
     are not table modes (registered runners) run on their own.
     """
     from planner.physics.track import SimSettings, make_track
-    from planner.physics.run_curve import simulate
 
     scs = [get_scenario(s) for s in scenarios]
     for m in modes:
         _runner(m)
-    table_modes = [m for m in modes if m not in MODE_RUNNERS and m in CHOOSERS]
+    # a mode that needs table (c) cannot run where the leg has none (its reference train stalls)
+    unable = {m for m in modes if getattr(CHOOSERS.get(m), "NEEDS_TABLE_C", False)
+              and tables.ref_remaining_s is None}
+    table_modes = [m for m in modes if m not in MODE_RUNNERS and m in CHOOSERS and m not in unable]
     train = line.train_type(train_type)
     track = make_track(line, train_type, tables.origin, tables.destination,
                        settings=settings or SimSettings(), nodes_m=list(tables.eval_distance_m))
     designated = designated_times(tables, extra_s, step_s)
-    n = len(designated)
+    n, n_x = len(designated), len(tables.eval_point_ids)
     combos = [(sc, m) for sc in scs for m in table_modes]
-    out: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    out: dict[tuple[str, str], tuple] = {}
     if combos:
-        _, ratios, res = drive_tables(track, train, tables, designated, [sc for sc, _ in combos],
-                                      [m for _, m in combos])
+        t, ratios, stop, flags = drive_runs(track, train, tables, designated, [sc for sc, _ in combos],
+                                            [m for _, m in combos])
         for i, (sc, m) in enumerate(combos):
             sl = slice(i * n, (i + 1) * n)
-            out[(sc.name, m)] = (np.asarray(res.time_s[sl], float), ratios[sl], np.asarray(res.stop_m[sl], float))
+            out[(sc.name, m)] = (t[sl], ratios[sl], stop[sl], flags[i])
+    nan = (np.full(n, np.nan), np.full((n, n_x), np.nan), np.full(n, np.nan))
     for sc in scs:
         for m in modes:
-            if (sc.name, m) not in out:
-                out[(sc.name, m)] = _runner(m)(track, train, tables, designated, sc, m)
-    ends = simulate(track, train, np.tile([tables.ratios[0], tables.ratios[-1]], len(scs)),
-                    load=np.repeat([sc.load for sc in scs], 2),
-                    traction_factor=np.repeat([sc.traction_factor for sc in scs], 2))
+            if (sc.name, m) in out:
+                continue
+            if m in unable:
+                out[(sc.name, m)] = (*nan, tables.flags or (LegFlag(
+                    STALL, REFERENCE, math.nan,
+                    f"mode {m} needs table (c), which this leg lacks: rebuild the tables with `planner tables`"),))
+                continue
+            try:
+                out[(sc.name, m)] = (*_runner(m)(track, train, tables, designated, sc, m), ())
+            except StallError as e:
+                out[(sc.name, m)] = (*nan, (LegFlag.stall(e, sc.name),))
+    ends = _ends(track, train, tables, scs)
     direction = line.direction_between(tables.origin, tables.destination)
     results = []
     for j, sc in enumerate(scs):
         for m in modes:
-            actual, ratios, stop_m = out[(sc.name, m)]
+            actual, ratios, stop_m, flags = out[(sc.name, m)]
             results.append(ClosedLoopResult(
                 line_id=line.line_id, direction=direction, train_type=train_type, origin=tables.origin,
                 destination=tables.destination, scenario=sc.name, mode=m, designated_s=designated,
                 actual_s=np.asarray(actual, float), ratios=np.asarray(ratios, float),
-                eval_point_ids=tables.eval_point_ids, min_time_s=float(ends.time_s[2 * j]),
-                max_time_s=_slowest(m, ends.time_s[2 * j + 1]), stop_error_m=np.asarray(stop_m, float) - track.length_m,
+                eval_point_ids=tables.eval_point_ids, min_time_s=float(ends[j, 0]),
+                max_time_s=_slowest(m, ends[j, 1]), stop_error_m=np.asarray(stop_m, float) - track.length_m,
+                flags=tuple(flags),
             ))
     return results
+
+
+def _ends(track, train, tables: RunningTimeTables, scs: Sequence[Scenario]) -> np.ndarray:
+    """Per scenario, the time at the highest and at the lowest grid ratio [s], shape (n_sc, 2); NaN where
+    that run stalls (each run alone then: a batch stops at its first stall)."""
+    from planner.physics.run_curve import simulate
+
+    r = np.array([tables.ratios[0], tables.ratios[-1]])
+    load, tf = np.array([sc.load for sc in scs]), np.array([sc.traction_factor for sc in scs])
+    try:
+        return np.asarray(simulate(track, train, np.tile(r, len(scs)), load=np.repeat(load, 2),
+                                   traction_factor=np.repeat(tf, 2)).time_s, float).reshape(len(scs), 2)
+    except StallError:
+        out = np.full((len(scs), 2), np.nan)
+        for j in range(len(scs)):
+            for i in range(2):
+                try:
+                    out[j, i] = float(simulate(track, train, r[i:i + 1], load=load[j], traction_factor=tf[j]).time_s[0])
+                except StallError:
+                    pass
+        return out
+
+
+def drive_runs(track, train, tables: RunningTimeTables, designated_s: np.ndarray,
+               scenarios: Sequence[Scenario], modes: Sequence[str]):
+    """:func:`drive_tables` that survives stalls: a stalled run is NaN and its group gets a flag.
+
+    The batch runs as one; only when a run in it stalls (a batch stops at its first stall) each
+    (scenario, mode) group runs apart, and in a group that stalls each designated time alone
+    (runs in a batch do not interact, so the others' results are the same bits).
+
+    Returns
+    -------
+    time_s, stop_m : ndarray, shape (k n,)
+        Running time [s] and where the run came to a stand [m of running distance]; NaN where it stalled.
+    ratios : ndarray, shape (k n, n_x)
+        As :func:`drive_tables`; NaN rows where the run stalled.
+    flags : list of tuple of LegFlag, length k
+        Per group, its stall flag (the first stall met), or ().
+    """
+    designated_s = np.asarray(designated_s, float)
+    try:
+        _, ratios, res = drive_tables(track, train, tables, designated_s, scenarios, modes)
+        return np.asarray(res.time_s, float), ratios, np.asarray(res.stop_m, float), [()] * len(modes)
+    except StallError:
+        pass
+    n, n_x = designated_s.size, len(tables.eval_point_ids)
+    t, st, ra, flags = [], [], [], []
+    for sc, m in zip(scenarios, modes):
+        try:
+            _, r_g, res = drive_tables(track, train, tables, designated_s, [sc], [m])
+            t.append(np.asarray(res.time_s, float)), st.append(np.asarray(res.stop_m, float)), ra.append(r_g)
+            flags.append(())
+            continue
+        except StallError as e:
+            flags.append((LegFlag.stall(e, sc.name),))
+        t_g, s_g, r_g = np.full(n, np.nan), np.full(n, np.nan), np.full((n, n_x), np.nan)
+        for i in range(n):
+            try:
+                _, r_i, res = drive_tables(track, train, tables, designated_s[i:i + 1], [sc], [m])
+            except StallError:
+                continue
+            t_g[i], s_g[i], r_g[i] = float(res.time_s[0]), float(res.stop_m[0]), r_i[0]
+        t.append(t_g), st.append(s_g), ra.append(r_g)
+    return np.concatenate(t), np.concatenate(ra), np.concatenate(st), flags
 
 
 # --- summary and datasets --------------------------------------------------------
@@ -391,14 +464,18 @@ def _stats(err: np.ndarray) -> tuple[float, float, float]:
 
 
 def _max_abs(x) -> float:
-    return float("nan") if x is None or np.size(x) == 0 else float(np.max(np.abs(x)))
+    """max |x| over the finite values (a stalled run has no stop error), NaN when there are none."""
+    a = np.abs(np.asarray([] if x is None else x, float))
+    a = a[np.isfinite(a)]
+    return float(a.max()) if a.size else float("nan")
 
 
 def summary_row(r: ClosedLoopResult) -> dict:
     """Error statistics of one result (summary dataset row, without partition columns)."""
     f = r.feasible
     med, p95, mx = _stats(r.error_s[f])
-    inf = ~f
+    inf = ~f & ~r.stalled
+    flag = r.flags[0] if r.flags else None
     excess = float(np.max(np.abs(r.actual_s[inf] - np.clip(r.designated_s[inf], r.min_time_s, r.max_time_s)),
                           initial=0.0))
     return {
@@ -406,6 +483,10 @@ def summary_row(r: ClosedLoopResult) -> dict:
         "median_abs_error_s": med, "p95_abs_error_s": p95, "max_abs_error_s": mx,
         "max_abs_stop_error_m": _max_abs(r.stop_error_m),
         "min_time_s": r.min_time_s, "infeasible_excess_max_s": excess,
+        "n_stalled": int(r.stalled.sum()),
+        "flag_kind": "" if flag is None else flag.kind,
+        "flag_position_m": math.nan if flag is None else flag.position_m,
+        "flag_reason": "; ".join(f.reason for f in r.flags),
     }
 
 

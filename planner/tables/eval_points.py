@@ -21,6 +21,18 @@ the points are, in running order:
   ``beacon``), strictly between the two stations' stop markers, under its
   ``beacon_id``. Block lengths of 550–1,000 m give their spacing.
 
+A leg with **no** beacon evaluation point (a line without ATS-P beacons, an
+imported line) would have nothing after ``dep+200``: on a 60 km leg the
+nearest rule then misses the designated arrival by up to the whole sweep
+(60 s). Without an interval of its own, such a leg gets interval points at
+the *fill interval* (``fill_interval_m``): the tables choose it from the
+train's speed, the distance run in ``[tables] eval_auto_s`` seconds (30 s by
+default) at the leg's on-board maximum (:func:`auto_interval_m`), about the
+spacing the sample line's beacons have (14–35 s at its maximum). A leg with
+beacons keeps exactly its beacons. The nightly job and the commands
+(``planner tables --eval-auto``, ``planner margins``) fill by default; the
+library functions only when given ``eval_auto_s`` / ``fill_interval_m``.
+
 The vehicle evaluates at a point when its odometer passes it. The simulator
 takes the odometer as exact (no position error is modelled): an odometer point
 is exactly where its running distance says, like a beacon.
@@ -48,6 +60,13 @@ DEFAULT_AFTER_DEPARTURE_M = 200.0
 """Default distance of the point after departure [m] (DESIGN §3)."""
 DEFAULT_INTERVAL_M = None
 """Default interval of the odometer points: none (beacons only, as before issue 22)."""
+DEFAULT_AUTO_S = 30.0
+"""The nightly job's default fill interval in seconds of running at the leg's maximum (``[tables]
+eval_auto_s``): the sample line's beacons stand 14–35 s apart at its maximum, and on a 60 km
+beacon-less leg 30 s (about 1 km at 130 km/h) brings the nearest rule's worst arrival error from
+60 s to 1.5–2 s (``benchmarks/bench_eval_auto.py``)."""
+AUTO_ROUND_M = 10.0
+"""The fill interval is rounded to this [m], so the points' ids stay short (``dep+1290``)."""
 MIN_INTERVAL_M = 50.0
 """Smallest interval accepted [m]. Each point costs n_r² rows of table (b) (and a decision on
 board); a point every 50 m is already finer than the vehicle's odometer knows its position
@@ -108,6 +127,31 @@ def check_interval(interval_m: float | None, where: str = "--eval-interval") -> 
     return x
 
 
+def check_auto(seconds: float | None, where: str = "--eval-auto") -> float | None:
+    """The fill interval's seconds as a float, None for none (None or 0); InputError naming ``where`` otherwise."""
+    if seconds is None or seconds == 0:
+        return None
+    x = float(seconds)
+    if not (math.isfinite(x) and x > 0):
+        raise InputError(f"{where} must be 0 (no fill) or a number of seconds > 0, got {seconds}")
+    return x
+
+
+def auto_interval_m(vmax_ms: float, seconds: float | None) -> float | None:
+    """Fill interval [m]: the distance run in ``seconds`` at ``vmax_ms``, rounded to :data:`AUTO_ROUND_M`,
+    at least :data:`MIN_INTERVAL_M`; None when ``seconds`` is None or 0.
+
+    Examples
+    --------
+    >>> auto_interval_m(130 / 3.6, 30.0), auto_interval_m(1.0, 30.0), auto_interval_m(30.0, None)
+    (1080.0, 50.0, None)
+    """
+    s = check_auto(seconds)
+    if s is None:
+        return None
+    return max(MIN_INTERVAL_M, round(s * float(vmax_ms) / AUTO_ROUND_M) * AUTO_ROUND_M)
+
+
 def interval_distances(length_m: float, interval_m: float | None,
                        after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M) -> list[float]:
     """Running distances of the interval points: ``a + k·I`` for k = 1, 2, … short of ``length_m`` [m].
@@ -139,6 +183,7 @@ def evaluation_points(
     *,
     after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
     interval_m: float | None = DEFAULT_INTERVAL_M,
+    fill_interval_m: float | None = None,
 ) -> tuple[EvalPoint, ...]:
     """Evaluation points of one interstation, in running order.
 
@@ -153,6 +198,9 @@ def evaluation_points(
     interval_m : float or None
         Interval of the odometer points after the point after departure [m]; None or 0:
         none (departure, point after departure and beacons only).
+    fill_interval_m : float or None
+        Interval of the odometer points on a leg that has no beacon evaluation point and no
+        ``interval_m`` [m] (module doc); None: none.
 
     Returns
     -------
@@ -172,6 +220,8 @@ def evaluation_points(
     ['dep', 'dep+200']
     >>> [p.eval_point_id for p in evaluation_points(testing.line(), "S0", "S1", interval_m=1000)]
     ['dep', 'dep+200', 'dep+1200', 'dep+2200']
+    >>> [p.eval_point_id for p in evaluation_points(testing.line(), "S0", "S1", fill_interval_m=1500)]
+    ['dep', 'dep+200', 'dep+1700']
     """
     d = line.direction_between(origin, destination)
     sg = sign(d)
@@ -190,8 +240,7 @@ def evaluation_points(
         if after_departure_m < length:
             after = float(after_departure_m)
             pts.append(EvalPoint(odometer_id(after), after, stop0 + sg * after, "after_departure"))
-    for s in interval_distances(length, interval_m, after):
-        pts.append(EvalPoint(odometer_id(s), s, stop0 + sg * s, "interval"))
+    beacons = []
     for b in line.beacons_for(d):
         if not b.evaluation_point:
             continue
@@ -200,7 +249,12 @@ def evaluation_points(
                              "'dep' and 'dep+<m>' name the odometer evaluation points; rename the beacon")
         s = sg * (b.position_m - stop0)
         if 0.0 < s < length:
-            pts.append(EvalPoint(b.beacon_id, float(s), float(b.position_m), "beacon"))
+            beacons.append(EvalPoint(b.beacon_id, float(s), float(b.position_m), "beacon"))
+    if check_interval(interval_m) is None and not beacons:
+        interval_m = fill_interval_m  # no beacon and no interval: the fill interval (module doc)
+    for s in interval_distances(length, interval_m, after):
+        pts.append(EvalPoint(odometer_id(s), s, stop0 + sg * s, "interval"))
+    pts += beacons
     pts.sort(key=lambda p: p.s_m)  # stable: odometer points before a beacon at the same place
     out: list[EvalPoint] = []
     for p in pts:
@@ -208,3 +262,30 @@ def evaluation_points(
             continue
         out.append(p)
     return tuple(out)
+
+
+def train_evaluation_points(
+    line: Line,
+    train_type: str,
+    origin: str,
+    destination: str,
+    *,
+    after_departure_m: float | None = DEFAULT_AFTER_DEPARTURE_M,
+    interval_m: float | None = DEFAULT_INTERVAL_M,
+    auto_s: float | None = None,
+    settings=None,
+) -> tuple[EvalPoint, ...]:
+    """:func:`evaluation_points` of one train type, with the fill interval from its speed.
+
+    On a leg without beacon evaluation points and without ``interval_m``, the fill interval is
+    :func:`auto_interval_m` of ``auto_s`` seconds at the leg's on-board maximum for the train
+    (the highest speed of its maximum-speed profile, :func:`planner.physics.track.make_track`).
+    """
+    pts = evaluation_points(line, origin, destination, after_departure_m=after_departure_m, interval_m=interval_m)
+    if check_auto(auto_s) is None or check_interval(interval_m) is not None or any(p.kind == "beacon" for p in pts):
+        return pts
+    from planner.physics.track import SimSettings, make_track
+
+    vmax = float(max(make_track(line, train_type, origin, destination, settings=settings or SimSettings()).vmax_ms))
+    return evaluation_points(line, origin, destination, after_departure_m=after_departure_m, interval_m=interval_m,
+                             fill_interval_m=auto_interval_m(vmax, auto_s))

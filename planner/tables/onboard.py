@@ -240,6 +240,9 @@ class RunningTimeTables:
         Table (c): speed of the table train at point x at constant ``ratios[i]`` [m/s].
     approach : ApproachTable, optional
         Table (d) at the last evaluation point; used by the ``adaptive`` mode there.
+    flags : tuple of planner.tables.flags.LegFlag
+        Physical verdicts on the leg found while building the tables (e.g. the reference train
+        stalls, so there is no table (c)).
     """
 
     origin: str
@@ -253,6 +256,7 @@ class RunningTimeTables:
     ref_remaining_s: np.ndarray | None = None
     speed_ms: np.ndarray | None = None
     approach: ApproachTable | None = None
+    flags: tuple = ()
 
     @property
     def min_time_s(self) -> float:
@@ -371,6 +375,8 @@ class AdaptiveRule:
     """
 
     name = "adaptive"
+    NEEDS_TABLE_C = True
+    """Runs only where the leg has table (c) (no reference-train stall)."""
     THETA_RANGE = (0.0, 4.0)
     """Bounds of the learned performance parameter (0 = table train, 1 = reference train). The
     table train is the empty train at nominal traction, so a real train is never systematically
