@@ -282,3 +282,22 @@ def test_the_sample_feed_around_the_sample_day():
     nights = (renewal.valid_until_s - renewal.valid_from_s) / 86400
     assert 9 < nights < 10.5  # ten nights of works
     assert (ROOT / "lines" / "sample" / "daily").exists() is False  # the static line folder holds no feed
+
+
+def test_the_sample_feed_is_its_build_scripts_output(tmp_path):
+    import subprocess
+    import sys
+
+    subprocess.run([sys.executable, str(ROOT / "feeds" / "sample" / "build.py"), "--out", str(tmp_path)],
+                   check=True, capture_output=True)
+    for spec in FEED_TABLES.values():
+        assert pq.read_table(tmp_path / spec.file).equals(pq.read_table(ROOT / "feeds" / "sample" / spec.file))
+
+
+def test_the_docs_list_every_feed_column_as_declared():
+    doc = (ROOT / "docs" / "operating-day.md").read_text()
+    for spec in FEED_TABLES.values():
+        assert f"#### `{spec.file}`" in doc
+        for f in spec.schema:
+            row = f"| `{f.name}` | {f.type} | {'yes' if f.nullable else 'no'} | {f.metadata[b'description'].decode()} |"
+            assert row in doc, f"docs/operating-day.md: {spec.file} {f.name} differs from the declared schema"

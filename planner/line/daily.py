@@ -55,7 +55,7 @@ FEED_TABLES: dict[str, TableSpec] = {t.name: t for t in [
         ("direction", S, "both, down or up"),
         ("train_type", S, "train type it applies to; null = every train type", True),
         ("valid_from", S, f"in force from this {_LOCAL}"),
-        ("valid_until", S, f"in force until this {_LOCAL} (exclusive); after valid_from"),
+        ("valid_until", S, f"in force until (exclusive) this {_LOCAL}; after valid_from"),
         ("reason", S, "why: track renewal, rail defect, works, ..."),
         ("has_beacon", B, "a temporary ATS-P beacon sends its pattern; false: the on-board DB feeds it"),
     ]), required=False, row_id=("restriction_id",)),
