@@ -116,6 +116,8 @@ def test_calendar_rules(tmp_path, tiny):
         "it in calendar or calendar_dates (wk)",
         "train_services.parquet row 1 (train_id=999) column train_id: train '999' is not in the line's timetable; "
         "delete the row or add the train to timetable.parquet",
+        "train_services.parquet column train_id: 1 timetable train(s) have no service, first 202; add a row for "
+        "each",
     ]
 
 
@@ -301,3 +303,16 @@ def test_the_docs_list_every_feed_column_as_declared():
         for f in spec.schema:
             row = f"| `{f.name}` | {f.type} | {'yes' if f.nullable else 'no'} | {f.metadata[b'description'].decode()} |"
             assert row in doc, f"docs/operating-day.md: {spec.file} {f.name} differs from the declared schema"
+
+
+def test_an_import_into_a_feed_with_a_broken_calendar_is_refused(tmp_path, tiny):
+    t = calendar_rows()
+    t["train_services"][0]["service_id"] = "nope"
+    feed = write_feed(tmp_path / "f", restrictions=[{**OK, "limit_kmh": 120.0}], **t)
+    src = tmp_path / "r.csv"
+    src.write_text(CSV)
+    for replace in (False, True):  # --replace drops the bad old restriction, not the calendar's problem
+        with pytest.raises(LineValidationError) as e:
+            import_restrictions(src, tiny, feed, tz=TZ, replace=replace)
+        files = [v.file for v in e.value.violations]
+        assert files == (["restrictions.parquet"] if not replace else []) + ["train_services.parquet"]

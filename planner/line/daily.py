@@ -271,6 +271,7 @@ def _check_train_services(v: TableView, line: Line, known: set[str]) -> tuple[di
     ids = set(trains)
     out: dict[str, str] = {}
     bad: list[Violation] = []
+    listed = set(v["train_id"])  # a train on a bad row is reported there, not again as missing
     for i in v.rows():
         tid, sid = v["train_id"][i], v["service_id"][i]
         if tid not in ids:
@@ -283,8 +284,8 @@ def _check_train_services(v: TableView, line: Line, known: set[str]) -> tuple[di
                                               f"calendar_dates ({', '.join(sorted(known)) or 'none defined'})"))
         else:
             out[tid] = sid
-    missing = [t for t in trains if t not in out and t in ids]
-    if missing and not any(x.column == "train_id" for x in bad):
+    missing = [t for t in trains if t not in listed]
+    if missing:
         bad.append(Violation(v.file, None, "train_id", f"{len(missing)} timetable train(s) have no service, "
                                                        f"first {missing[0]}; add a row for each"))
     return out, bad

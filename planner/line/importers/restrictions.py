@@ -168,8 +168,10 @@ def import_restrictions(src: str | Path, line: Line, feed: str | Path, *, tz: st
     _validated(table, names, line, tz, src.name)
     views, bad = read_feed_tables(feed) if feed.is_dir() else ({}, [])
     old, more = check_feed(feed, line, tz, views)
-    if bad or (more and not replace):
-        raise LineValidationError(str(feed), bad + more)
+    # the rest of the feed must load with the new restrictions; the old restrictions only when they stay
+    bad = [v for v in bad + more if replace is False or v.file != SPEC.file]
+    if bad:
+        raise LineValidationError(str(feed), bad)
     rows = table.to_pylist()
     if not replace:
         have = {r.restriction_id for r in old.restrictions}
