@@ -115,7 +115,10 @@ def feed_of(job: Job, line: Line) -> str | None:
 
 
 def day_digest(job: Job) -> dict:
-    """What the day adds to a run's inputs digest: the day, its hour and zone, each feed's bytes."""
+    """What the day adds to a run's inputs digest: the day, its hour and zone, each feed's bytes. A job
+    whose day is not resolved yet is resolved by the clock, as :func:`resolve_day` does at the run's start
+    (so the check before the workers start agrees with the run)."""
+    job = resolve_day(job)
     return {"day": job.day.day, "start_hour": job.day.start_hour, "time_zone": time_zone(job),
             "feeds": [source_digest(job.resolve(f)) for f in job.day.feeds]}
 
