@@ -180,7 +180,7 @@ def check_restrictions(v: TableView, line: Line, tz: str) -> tuple[list[Temporar
     bad: list[Violation] = []
     seen: dict[str, int] = {}
     types = {t.train_type for t in line.train_types}
-    vmax = kmh(line.max_speed_ms)
+    vmax = round(kmh(line.max_speed_ms), 9)  # back in the unit it was written in (100/3.6*3.6 may miss 100)
     for i in v.rows():
         errs = len(bad)
         rid = v["restriction_id"][i]
