@@ -316,3 +316,19 @@ def test_an_import_into_a_feed_with_a_broken_calendar_is_refused(tmp_path, tiny)
             import_restrictions(src, tiny, feed, tz=TZ, replace=replace)
         files = [v.file for v in e.value.violations]
         assert files == (["restrictions.parquet"] if not replace else []) + ["train_services.parquet"]
+
+
+def test_restrictions_show_prints_the_day(tmp_path):
+    write_feed(tmp_path / "feeds" / "tiny", restrictions=[OK], **calendar_rows())
+    job = job_file(tmp_path, "2026-11-30")
+    r = CliRunner().invoke(app, ["restrictions", "show", str(job), "--day", "2026-11-29"])
+    assert r.exit_code == 0, r.output
+    assert r.output.splitlines() == [
+        "lines/tiny: operating day 2026-11-29 (Sunday) 2026-11-29T03:00:00+09:00 to 2026-11-30T03:00:00+09:00 (24 h)",
+        "  trains: 0 run, 2 do not (101, 202)",
+        "  restrictions in force: 1",
+        "    R1: 1000–1400 m 45 km/h both, 2026-11-30T01:00 → 2026-12-02T05:00 (part of the day; DB-fed pattern): "
+        "renewal",
+        "  note: tiny: no train runs on 2026-11-29 (Sunday) by the calendar of feeds/tiny: is a service missing "
+        "for that day?",
+    ]

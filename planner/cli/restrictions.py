@@ -37,3 +37,34 @@ def import_cmd(
                             path_ops=[p.strip() for p in path.split(",") if p.strip()])
     for out in s.lines():
         typer.echo(out)
+
+
+@restrictions_app.command("show")
+def show_cmd(
+    job_file: Path = typer.Argument(..., help="Job file (TOML) naming the lines and their daily feeds ([day])."),
+    day: str = typer.Option("", "--day", metavar="YYYY-MM-DD", help="This operating day instead of the job's."),
+) -> None:
+    """The operating day's window, and per line the restrictions in force and the trains that do not run."""
+    from planner.job.config import load_job
+    from planner.job.day import day_inputs, resolve_day, with_day
+    from planner.line.loader import load_line
+    from planner.line.operating_day import whole_day
+
+    job = load_job(job_file)
+    job = resolve_day(with_day(job, day) if day else job)
+    for p in job.job.lines:
+        d = day_inputs(job, load_line(job.resolve(p)))
+        w = d.window
+        typer.echo(f"{p}: operating day {w.day} ({w.day:%A}) {w.start_local} to {w.end_local} "
+                   f"({w.length_s / 3600:g} h)")
+        some = f" ({', '.join(d.cancelled[:6])}{' …' if len(d.cancelled) > 6 else ''})" if d.cancelled else ""
+        typer.echo(f"  trains: {len(d.trains)} run, {len(d.cancelled)} do not{some}")
+        typer.echo(f"  restrictions in force: {len(d.restrictions)}")
+        for r in d.restrictions:
+            rec = r.record()
+            typer.echo(f"    {r.restriction_id}: {r.start_m:g}–{r.end_m:g} m {rec['limit_kmh']:g} km/h {r.direction}"
+                       f"{' ' + r.train_type if r.train_type else ''}, {r.valid_from} → {r.valid_until}"
+                       f" ({'whole day' if whole_day(r, w) else 'part of the day'}; "
+                       f"{'temporary beacon' if r.has_beacon else 'DB-fed pattern'}): {r.reason}")
+        for n in d.notes:
+            typer.echo(f"  note: {n}")

@@ -140,7 +140,7 @@ def day_inputs(job: Job, line: Line) -> DayInputs:
     keep = set(running)
     notes = list(feed.notes)
     if ids and not running:
-        notes.append(f"{line.line_id}: no train runs on {w.day} ({w.day:%A}) by the calendar of {path}: "
+        notes.append(f"{line.line_id}: no train runs on {w.day} ({w.day:%A}) by the calendar of {name}: "
                      f"is a service missing for that day?")
     return DayInputs(w, restrictions_in_force(feed.restrictions, w), running,
                      tuple(t for t in ids if t not in keep), tuple(notes))
