@@ -47,6 +47,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         proj = Path(tmp)
         shutil.copytree(ROOT / "lines" / "sample", proj / "lines" / "sample")
+        shutil.copytree(ROOT / "feeds" / "sample", proj / "feeds" / "sample")  # the job's [day] feeds
         shutil.copytree(ROOT / "jobs", proj / "jobs")
         for label in ("cold", "warm"):
             t0 = time.perf_counter()

@@ -75,6 +75,7 @@ from . import importer  # noqa: E402,F401
 from . import graph  # noqa: E402,F401
 from . import diff  # noqa: E402,F401
 from . import kernels  # noqa: E402,F401
+from . import restrictions  # noqa: E402,F401
 
 
 def main() -> None:

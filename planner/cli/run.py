@@ -15,6 +15,8 @@ def run(
     no_cache: bool = typer.Option(False, "--no-cache",
                                   help="Trust no cache entry: recompute every unit and publish a new run even "
                                        "if nothing changed (fresh entries replace the old ones)."),
+    day: str = typer.Option("", "--day", metavar="YYYY-MM-DD",
+                            help="Plan this operating day instead of the job's [day] day (default: the next one)."),
 ) -> None:
     """Validate, build tables, stopping patterns, closed loop, margins, bundles and conflicts; publish atomically."""
     from planner.job.config import load_job
@@ -23,6 +25,10 @@ def run(
     from planner.io.parallel import stop_workers
 
     job = load_job(job_file)
+    if day:
+        from planner.job.day import with_day
+
+        job = with_day(job, day)
     try:
         s = run_job(job, show_progress=progress, use_cache=not no_cache)
     finally:

@@ -158,6 +158,21 @@ class ParallelSection:
 
 
 @dataclass(frozen=True)
+class DaySection:
+    day: str = ""
+    """The operating day planned (YYYY-MM-DD; `planner run --day` overrides it); "" = the next operating day in
+    time_zone when the run starts (a production job). The sample job names a fixed day, so its runs repeat."""
+    start_hour: int = 3
+    """Local hour at which an operating day starts and the previous one ends (03:00 to 03:00 next day)."""
+    time_zone: str = ""
+    """IANA time zone of the job's lines (e.g. Asia/Tokyo): restrictions' validity and timetable times are local
+    times there; "" = UTC, only for a job without feeds."""
+    feeds: tuple[str, ...] = ()
+    """Daily feed folder of each line of [job] lines, in the same order (restrictions, calendar); empty = no daily
+    inputs: no temporary restrictions, every timetable train runs every day (docs/operating-day.md)."""
+
+
+@dataclass(frozen=True)
 class Job:
     path: str
     root: str
@@ -169,6 +184,7 @@ class Job:
     bundles: BundlesSection = field(default_factory=BundlesSection)
     conflicts: ConflictsSection = field(default_factory=ConflictsSection)
     parallel: ParallelSection = field(default_factory=ParallelSection)
+    day: DaySection = field(default_factory=DaySection)
 
     def resolve(self, p: str) -> Path:
         """A path from the job file, resolved against the project root."""
@@ -192,6 +208,7 @@ SECTIONS = {
     "bundles": BundlesSection,
     "conflicts": ConflictsSection,
     "parallel": ParallelSection,
+    "day": DaySection,
 }
 
 
@@ -351,6 +368,10 @@ def _validate(file: str, job: Job, problems: _Problems) -> None:
     for p in job.job.lines:
         if not job.resolve(p).is_dir():
             bad("job", "lines", f"line folder {p!r} does not exist (resolved to {job.resolve(p)})")
+    from planner.job.day import day_problems
+
+    for key, msg in day_problems(job):
+        bad("day", key, msg)
 
 
 def project_root_for(job_path: Path) -> Path:

@@ -42,6 +42,7 @@ from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomi
 from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
+from planner.job.day import day_digest, day_record, resolve_day
 from planner.line.model import DIRECTIONS, Line
 from planner.job.cache import Cache
 from planner.job.keys import signing_key_path
@@ -127,8 +128,9 @@ def _renewal_due(last_manifest: dict, now_s: int) -> bool:
 
 def _result_params(job: Job) -> dict[str, Any]:
     """The job parameters that can change a result: all but where runs go, how many are kept, and the
-    run's date (it goes into the inputs digest on its own)."""
+    run's date and the operating day (they go into the inputs digest on their own)."""
     params = job.parameters()
+    params.pop("day", None)
     params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root", "run_date")}
     return params
 
@@ -139,7 +141,7 @@ def _inputs_digest(job: Job, lines: Sequence[Line | str], key_id: str, run_date:
     on every dataset row, so one run id always has one date)."""
     return digest({"code": code_digest(), "params": _result_params(job),
                    "lines": [ln if isinstance(ln, str) else ln.source_digest for ln in lines],
-                   "key": key_id, "run_date": run_date})
+                   "key": key_id, "run_date": run_date, "day": day_digest(job)})
 
 
 def _current_run(root: Path, inputs: str) -> tuple[str, dict] | None:
@@ -222,6 +224,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
     from planner.io.parallel import started_workers
 
     run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
+    job = resolve_day(job)  # [day] day, else the next operating day by the clock, read here at the start too
     built_at_s = build_time_s()  # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or now
     # the staged run's files are flushed to disk once, by publish(), before it becomes visible
     with job_lock(root), deferred_fsync(), \
@@ -243,6 +246,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             from planner.bundle.signing import load_private_key, public_key_id
 
             notes: list[str] = []
+            day = day_record(job, lines, notes)  # the day's feeds validated against their lines, before any unit
             key_path, development = signing_key_path(job, notes)
             key = load_private_key(key_path)
             release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
@@ -270,7 +274,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                     summary.computed, summary.reused = runner.computed, runner.reused
                     if cache.rejected:  # once per run, with the count
                         summary.warnings.append(cache.rejected_note())
-                    _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date)
+                    _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date, day)
                     from planner.job.views import run_views  # changes since the last run, overview page
 
                     run_views(job, lines, stage, root, prog, summary)  # takes the charts drawn meanwhile
@@ -527,7 +531,7 @@ def _release_record(release) -> dict | None:
 
 
 def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary,
-                    run_date: str = "") -> None:
+                    run_date: str = "", day: dict | None = None) -> None:
     import platform
 
     import numpy
@@ -536,6 +540,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
     manifest = {
         "run_id": run_id,
         "run_date": run_date,
+        "operating_day": day,
         "job": job.job.name,
         "inputs_digest": inputs,
         "code_digest": code_digest(),

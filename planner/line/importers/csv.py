@@ -26,7 +26,7 @@ import pyarrow.parquet as pq
 
 from planner.io.atomic import write_bytes_atomic
 from planner.errors import InputError, SourceError, Violation
-from planner.line.schema import TABLES, missing_column_hint
+from planner.line.schema import TABLES, TableSpec, missing_column_hint
 from planner.line.schema_doc import DOC_PATH
 from planner.line.importers.common import ImportSummary, braking_note, write_line
 from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
@@ -133,13 +133,14 @@ def _parse(value: str, f: pa.Field, where: str):
     return value
 
 
-def read_table_csv(path: Path, name: str) -> tuple[pa.Table, list[int]]:
+def read_table_csv(path: Path, name: str, spec: TableSpec | None = None) -> tuple[pa.Table, list[int]]:
     """One CSV file as a pyarrow table of the declared types, and the physical line number of each row.
 
     Values go straight from text to Python objects to Arrow (no DataFrame in between), so a
-    null stays a null and a float keeps every bit.
+    null stays a null and a float keeps every bit. ``spec``: another declared table than the line
+    database's ``name`` (a daily feed's, :mod:`planner.line.daily`).
     """
-    spec = TABLES[name]
+    spec = spec or TABLES[name]
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as e:

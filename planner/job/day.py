@@ -1,0 +1,165 @@
+"""The job's operating day: which day a run plans, its daily feeds, and what is in force that day.
+
+``[day]`` of the job file (:class:`planner.job.config.DaySection`) names the day
+(or leaves it to the clock: the next operating day in the line's time zone, read
+once when the run starts, like ``run_date``), the hour days start at, the time
+zone and each line's daily feed (:mod:`planner.line.daily`). ``planner run
+--day`` overrides the day (:func:`with_day`).
+
+The pipeline asks :func:`day_inputs` for a line's :class:`DayInputs` (the
+window, the restrictions in force, the trains that run) and puts
+:func:`day_record` in the run's manifest; :func:`day_digest` goes into the
+run's inputs digest (the day and the feeds' bytes), so another day or an edited
+feed is another run.
+"""
+from __future__ import annotations
+
+import dataclasses
+from datetime import date
+from pathlib import Path
+
+from planner.errors import InputError
+from planner.job.config import Job
+from planner.line.daily import load_feed
+from planner.line.loader import source_digest
+from planner.line.model import Line
+from planner.line.operating_day import (
+    DayInputs,
+    next_operating_day,
+    operating_day,
+    restrictions_in_force,
+    trains_running,
+    zone,
+)
+
+UTC_NAME = "UTC"
+
+
+def time_zone(job: Job) -> str:
+    """The job's time zone: ``[day] time_zone``, else UTC."""
+    return job.day.time_zone or UTC_NAME
+
+
+def _parse_day(text: str) -> date:
+    if len(text) != 10:
+        raise ValueError
+    return date.fromisoformat(text)
+
+
+def day_problems(job: Job) -> list[tuple[str, str]]:
+    """``(key, message)`` for each bad ``[day]`` value (the job file's validation reports them with the others)."""
+    out = []
+    d = job.day
+    if d.day:
+        try:
+            _parse_day(d.day)
+        except ValueError:
+            out.append(("day", f"expected a date YYYY-MM-DD (or \"\" for the next operating day), found {d.day!r}"))
+    if not 0 <= d.start_hour <= 23:
+        out.append(("start_hour", f"must be a whole hour 0..23, found {d.start_hour}"))
+    if d.time_zone:
+        try:
+            zone(d.time_zone)
+        except ValueError as e:
+            out.append(("time_zone", str(e)))
+    if d.feeds:
+        if len(d.feeds) != len(job.job.lines):
+            out.append(("feeds", f"{len(d.feeds)} feed(s) for {len(job.job.lines)} line(s) of [job] lines; "
+                                 f"give one feed folder per line, in the same order"))
+        if not d.time_zone:
+            out.append(("time_zone", "a daily feed's times are local: name the lines' time zone, e.g. "
+                                     "\"Asia/Tokyo\""))
+        for p in d.feeds:
+            if not job.resolve(p).is_dir():
+                out.append(("feeds", f"daily feed folder {p!r} does not exist (resolved to {job.resolve(p)})"))
+    return out
+
+
+def with_day(job: Job, day: str) -> Job:
+    """``job`` planning operating day ``day`` (YYYY-MM-DD): what ``planner run --day`` does."""
+    try:
+        _parse_day(day)
+    except ValueError:
+        raise InputError(f"--day: expected a date YYYY-MM-DD, found {day!r}") from None
+    return dataclasses.replace(job, day=dataclasses.replace(job.day, day=day))
+
+
+def resolve_day(job: Job, now_s: float | None = None) -> Job:
+    """``job`` with its operating day fixed: ``[day] day``, else the next operating day in the job's time
+    zone at ``now_s`` (default: the clock, read here once, at the start of the run)."""
+    if job.day.day:
+        return job
+    if now_s is None:
+        import time
+
+        now_s = time.time()
+    d = next_operating_day(now_s, time_zone(job), job.day.start_hour)
+    return dataclasses.replace(job, day=dataclasses.replace(job.day, day=d.isoformat()))
+
+
+def window(job: Job):
+    """The :class:`~planner.line.operating_day.OperatingDay` of a job whose day is resolved."""
+    if not job.day.day:
+        raise InputError("the job's operating day is not resolved yet (resolve_day)")
+    return operating_day(job.day.day, time_zone(job), job.day.start_hour)
+
+
+def feed_of(job: Job, line: Line) -> str | None:
+    """The daily feed folder of ``line`` as the job names it (matched by the line's folder in [job] lines),
+    or None without feeds."""
+    here = Path(line.source_path).resolve()
+    for p, f in zip(job.job.lines, job.day.feeds):
+        if job.resolve(p).resolve() == here:
+            return f
+    return None
+
+
+def day_digest(job: Job) -> dict:
+    """What the day adds to a run's inputs digest: the day, its hour and zone, each feed's bytes. A job
+    whose day is not resolved yet is resolved by the clock, as :func:`resolve_day` does at the run's start
+    (so the check before the workers start agrees with the run)."""
+    job = resolve_day(job)
+    return {"day": job.day.day, "start_hour": job.day.start_hour, "time_zone": time_zone(job),
+            "feeds": [source_digest(job.resolve(f)) for f in job.day.feeds]}
+
+
+def day_inputs(job: Job, line: Line) -> DayInputs:
+    """What is in force on the job's operating day on ``line``: the window, the temporary restrictions in
+    force at some instant of it, the timetable trains that run and those that do not.
+
+    Raises ``LineValidationError`` (every broken rule of the feed, one line each) or ``InputError``.
+    """
+    w = window(job)
+    ids = [t.train_id for t in line.trains]
+    name = feed_of(job, line)
+    if name is None:  # a job without [day] feeds: the static line alone, every train every day
+        return DayInputs(w, (), tuple(ids))
+    path = job.resolve(name)
+    feed = load_feed(path, line, time_zone(job))
+    running = trains_running(feed.calendar, w.day, ids)
+    keep = set(running)
+    notes = list(feed.notes)
+    if ids and not running:
+        notes.append(f"{line.line_id}: no train runs on {w.day} ({w.day:%A}) by the calendar of {name}: "
+                     f"is a service missing for that day?")
+    return DayInputs(w, restrictions_in_force(feed.restrictions, w), running,
+                     tuple(t for t in ids if t not in keep), tuple(notes))
+
+
+def day_record(job: Job, lines: list[Line], notes: list[str]) -> dict:
+    """The operating day for the run's manifest: window, and per line its feed, the restrictions in force
+    and the trains that do not run; the day's notes are appended to ``notes``. Validates every feed, so a
+    bad feed fails the run before anything is computed."""
+    rec = window(job).record()
+    rec["lines"] = []
+    for line in lines:
+        d = day_inputs(job, line)
+        notes.extend(d.notes)
+        f = feed_of(job, line)
+        rec["lines"].append({"line_id": line.line_id, "feed": Path(f).as_posix() if f else None,
+                             "feed_digest": source_digest(job.resolve(f)) if f else None, **d.record()})
+    return rec
+
+
+__all__ = ["day_digest", "day_inputs", "day_problems", "day_record", "feed_of", "resolve_day", "time_zone",
+           "window", "with_day"]
