@@ -1,0 +1,85 @@
+"""Rules for impossible geometry (issue 33): where a standing train's body lies.
+
+Registered with :func:`planner.line.rules.rule` like every other rule of stage 2
+(:mod:`planner.line.validate` imports this module so that they run): a train's
+tail must stand on the line (an error), and a train longer than its platform is
+reported as a warning (legitimate with selective door opening).
+"""
+from __future__ import annotations
+
+from typing import Iterator
+
+from planner.errors import Violation
+from planner.line.conform import TableView, fmt
+from planner.line.rules import Db, _ordered_calls, _trains, rule
+from planner.line.schema import DIRECTIONS
+
+
+def _standing_calls(t: TableView, db: Db) -> Iterator[tuple[str, str, float, int, str]]:
+    """(train, direction, train length [m], row, station) of every call where a train stands.
+
+    A train stands at its origin, its terminus and every call with ``stops``;
+    only trains whose rows, train type and direction are usable.
+    """
+    rs = db.tables["rolling_stock"]
+    length = {rs["train_type"][i]: float(rs["length_m"][i]) for i in rs.rows()}
+    for train, rows in _trains(t).items():
+        calls = _ordered_calls(t, rows)
+        d, tt = t["direction"][rows[0]], t["train_type"][rows[0]]
+        if calls is None or d not in DIRECTIONS or tt not in length:
+            continue
+        for k, i in enumerate(calls):
+            if k == 0 or k == len(calls) - 1 or t["stops"][i]:
+                yield train, d, length[tt], i, t["station_id"][i]
+
+
+@rule("timetable", "stations", "rolling_stock", "line")
+def tail_on_the_line(db: Db) -> Iterator[Violation]:
+    """A standing train's tail lies inside the line's chainage range (issue 33: impossible geometry).
+
+    The front stands at the stop marker of its direction, the body one train
+    length behind it (lower chainage for down, higher for up). A tail beyond
+    start_m/end_m stands on track the database does not describe: gradients and
+    curves there would silently count as level and straight.
+    """
+    rng = db.line_range()
+    if rng is None:
+        return
+    a, b = rng
+    t, st = db.tables["timetable"], db.tables["stations"]
+    marker = {}
+    for i in st.rows():
+        marker.setdefault(st["station_id"][i], (float(st["stop_down_m"][i]), float(st["stop_up_m"][i])))
+    for train, d, length, i, station in _standing_calls(t, db):
+        if station not in marker:
+            continue
+        front = marker[station][0 if d == "down" else 1]
+        tail = front - length if d == "down" else front + length
+        if (tail >= a) if d == "down" else (tail <= b):
+            continue  # the front's own position is stations_inside's to judge
+        end, col = (a, "start_m") if d == "down" else (b, "end_m")
+        yield t.err(i, "station_id",
+                    f"train {train!r} ({fmt(length)} m long) stands with its front at {station}'s {d} stop marker "
+                    f"{fmt(front)} m, so its tail is at {fmt(tail)} m, beyond the line's {col} {fmt(end)} "
+                    f"(line.parquet); extend the line database to {fmt(tail)} m, move the stop marker, or run a "
+                    f"shorter train type")
+
+
+@rule("timetable", "stations", "rolling_stock", warning=True)
+def train_fits_platform(db: Db) -> Iterator[Violation]:
+    """Warn where a train stands at a platform shorter than itself (issue 33).
+
+    Legitimate on real railways (selective door opening, door cut: only the
+    doors along the platform open), so a warning, not an error: the planner's
+    physics does not depend on the platform length.
+    """
+    t, st = db.tables["timetable"], db.tables["stations"]
+    platform = {}
+    for i in st.rows():
+        platform.setdefault(st["station_id"][i], float(st["platform_length_m"][i]))
+    for train, d, length, i, station in _standing_calls(t, db):
+        if station in platform and length > platform[station]:
+            yield t.err(i, "stops",
+                        f"train {train!r} ({fmt(length)} m long) stands at {station}, whose platform is "
+                        f"{fmt(platform[station])} m (stations.parquet platform_length_m); fine where only the "
+                        f"doors along the platform open, else lengthen the platform or shorten the train")
