@@ -348,12 +348,17 @@ def jerk_allows_a_stop(db: Db) -> Iterator[Violation]:
                         f"typically 1-5 km/h/s²)")
 
 
-def _traction_curves(t: TableView) -> dict[str, list[int]]:
-    """Rows of each train type's traction curve, in file order."""
+def _traction_curves(t: TableView, usable: bool = True) -> dict[str, list[int]]:
+    """Rows of each train type's traction curve, in file order.
+
+    ``usable``: only the curves whose rows are all usable (a curve with a bad
+    cell is left to that message, so its shape is not judged without the row).
+    """
     curves: dict[str, list[int]] = {}
-    for i in t.rows():
-        curves.setdefault(t["train_type"][i], []).append(i)
-    return curves
+    for i in range(t.n):
+        if t["train_type"][i] is not None:
+            curves.setdefault(t["train_type"][i], []).append(i)
+    return {k: rows for k, rows in curves.items() if not usable or all(t.good[i] for i in rows)}
 
 
 @rule("traction")
@@ -373,22 +378,22 @@ def traction_shape(db: Db) -> Iterator[Violation]:
 @rule("traction", "rolling_stock")
 def traction_per_train_type(db: Db) -> Iterator[Violation]:
     t, rs = db.tables["traction"], db.tables["rolling_stock"]
-    curves = _traction_curves(t)
+    curves, named = _traction_curves(t), _traction_curves(t, usable=False)
     known = set(rs["train_type"])  # a row with a bad cell still names its train type (no follow-up message)
     max_speed = {rs["train_type"][i]: rs["max_speed_kmh"][i] for i in rs.rows()}
-    for tt, rows in curves.items():
+    for tt, rows in named.items():
         if tt not in known:
             yield t.err(rows[0], "train_type", f"unknown train type {tt!r} (not in rolling_stock.parquet)")
             continue
-        if tt not in max_speed:
-            continue  # its rolling_stock row has a bad cell, reported there
+        if tt not in max_speed or tt not in curves:
+            continue  # its rolling_stock row or a row of its curve has a bad cell, reported there
         top = max(t["speed_kmh"][i] for i in rows)
         if top < max_speed[tt]:
             last = max(rows, key=lambda i: t["speed_kmh"][i])
             yield t.err(last, "speed_kmh", f"the traction curve of {tt!r} ends at {fmt(top)} km/h, below "
                                            f"its max_speed_kmh {fmt(max_speed[tt])}; extend it")
     for i in rs.rows():
-        if rs["train_type"][i] not in curves:
+        if rs["train_type"][i] not in named:
             yield rs.err(i, "train_type", "has no traction curve in traction.parquet")
 
 
