@@ -180,7 +180,7 @@ CASES = [
     ("stock_length", cell("rolling_stock", 0, "length_m", 0.0), "rolling_stock.parquet", 0, "length_m",
      "must be >= 1"),
     ("stock_mass", cell("rolling_stock", 1, "empty_mass_t", -5.0), "rolling_stock.parquet", 1,
-     "empty_mass_t", "> 0"),
+     "empty_mass_t", "must be >= 1"),
     ("stock_passenger_mass", cell("rolling_stock", 1, "full_load_mass_t", -5.0), "rolling_stock.parquet", 1,
      "full_load_mass_t", ">= 0"),
     ("stock_max_speed", cell("rolling_stock", 0, "max_speed_kmh", 0.0), "rolling_stock.parquet", 0,

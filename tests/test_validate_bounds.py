@@ -31,10 +31,27 @@ def _fast(t):
     t["traction"].loc[len(t["traction"])] = ["EMU10", 1000.0, 50.0]
 
 
+def _no_margin(t):
+    """On-board margins 0: a speed just above 0 still leaves an on-board speed."""
+    t["rolling_stock"]["speed_margin_kmh"] = 0.0
+
+
+def _free(t):
+    """Level track and no standstill resistance: any brake rate holds the train (the brake rule asks for > 0)."""
+    t["gradients"]["gradient_permil"] = 0.0
+    t["rolling_stock"]["davis_a_kN"] = 0.0
+
+
+def _heavy(t):
+    """A 100,000 t train on level track: 10,000 kN of Davis A is 0.1 m/s², less than its brakes."""
+    t["gradients"]["gradient_permil"] = 0.0
+    t["rolling_stock"]["empty_mass_t"] = 100_000.0
+
+
 # (table, column, row, side, base): side "lo" or "hi" of the declared range; base edits the tiny line
 CASES = [
     ("line", "start_m", 0, "lo", _wide), ("line", "end_m", 0, "hi", _wide),
-    ("line", "max_speed_kmh", 0, "lo", None), ("line", "max_speed_kmh", 0, "hi", None),
+    ("line", "max_speed_kmh", 0, "lo", _no_margin), ("line", "max_speed_kmh", 0, "hi", None),
     ("stations", "position_m", 0, "lo", _wide), ("stations", "position_m", 2, "hi", _wide),
     ("stations", "stop_down_m", 2, "hi", _wide), ("stations", "stop_up_m", 0, "lo", _wide),
     ("stations", "platform_length_m", 0, "lo", None), ("stations", "platform_length_m", 0, "hi", None),
@@ -43,16 +60,17 @@ CASES = [
     ("curves", "start_m", 0, "lo", _wide), ("curves", "end_m", 1, "hi", _wide),
     ("curves", "radius_m", 0, "lo", None), ("curves", "radius_m", 0, "hi", None),
     ("speed_limits", "start_m", 0, "lo", _wide), ("speed_limits", "end_m", 2, "hi", _wide),
-    ("speed_limits", "limit_kmh", 0, "lo", None), ("speed_limits", "limit_kmh", 0, "hi", None),
+    ("speed_limits", "limit_kmh", 0, "lo", _no_margin), ("speed_limits", "limit_kmh", 0, "hi", None),
     ("beacons", "position_m", 0, "lo", _wide), ("beacons", "position_m", 1, "hi", _wide),
     ("signals", "position_m", 0, "lo", _wide), ("signals", "position_m", 1, "hi", _wide),
     ("rolling_stock", "length_m", 0, "lo", None), ("rolling_stock", "length_m", 0, "hi", _wide),
-    ("rolling_stock", "empty_mass_t", 0, "lo", None), ("rolling_stock", "empty_mass_t", 0, "hi", None),
+    ("rolling_stock", "empty_mass_t", 0, "lo", _free), ("rolling_stock", "empty_mass_t", 0, "hi", None),
     ("rolling_stock", "full_load_mass_t", 0, "lo", None), ("rolling_stock", "full_load_mass_t", 0, "hi", None),
     ("rolling_stock", "rotating_mass_factor", 0, "lo", None),
     ("rolling_stock", "rotating_mass_factor", 0, "hi", None),
-    ("rolling_stock", "max_speed_kmh", 0, "lo", None), ("rolling_stock", "max_speed_kmh", 0, "hi", _fast),
-    *[("rolling_stock", c, 0, side, None)
+    ("rolling_stock", "max_speed_kmh", 0, "lo", _no_margin), ("rolling_stock", "max_speed_kmh", 0, "hi", _fast),
+    *[("rolling_stock", c, 0, side, _heavy if (c, side) == ("davis_a_kN", "hi") else
+       _free if c.endswith("_kmh_s") else None)
       for c in ("max_accel_kmh_s", "service_brake_kmh_s", "stop_brake_kmh_s", "atsp_pattern_kmh_s",
                 "comfort_accel_kmh_s", "davis_a_kN", "davis_b_kN_per_kmh", "davis_c_kN_per_kmh2",
                 "speed_margin_kmh", "coast_band_kmh")

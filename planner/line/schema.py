@@ -110,7 +110,8 @@ LENGTH = Range(1.0, MAX_TRAIN_LENGTH_M, "a rail vehicle is at least 1 m long and
                                         "7,353 m (BHP iron ore, 2001)")
 PLATFORM = Range(0.0, MAX_TRAIN_LENGTH_M, "a platform (or loop) longer than the longest train ever run (7,353 m) "
                                           "holds no train a shorter one would not", lo_open=True)
-MASS = Range(0.0, MAX_MASS_T, "the heaviest train ever run weighed 99,734 t (BHP iron ore, 2001)", lo_open=True)
+MASS = Range(1.0, MAX_MASS_T, "a rail vehicle weighs at least a tonne (a track trolley); the heaviest train ever "
+                              "run weighed 99,734 t (BHP iron ore, 2001)")
 LOAD = Range(0.0, MAX_MASS_T, "the heaviest train ever run weighed 99,734 t (BHP iron ore, 2001)")
 ACCEL = Range(MIN_ACCEL_KMH_S, MAX_ACCEL_KMH_S,
               "18 km/h/s is 5 m/s², above what wheel-on-rail adhesion transmits (about 4 m/s² on dry rail); "

@@ -41,6 +41,13 @@ _RULES: dict[str, list[str]] = {
                 f"`kind` one of {', '.join(BEACON_KINDS)}; position inside the line's range."],
     "signals": ["Optional file. `signal_id` unique; `direction` down or up; position inside the line's range."],
     "rolling_stock": ["`train_type` unique.",
+                      "`speed_margin_kmh` below the lowest speed the train type meets (the line's and its own "
+                      "maximum, every restriction for it or for every train type): the on-board maximum is that "
+                      "speed minus the margin.",
+                      "Each of `service_brake_kmh_s`, `stop_brake_kmh_s`, `atsp_pattern_kmh_s` above "
+                      "(g·|s| + A/M) / (1 + ρ) in km/h/s: the pull of the steepest gradient `s` of the line and the "
+                      "Davis A term on the empty train. A weaker brake rate could not follow its braking curve up "
+                      "that climb without traction (the train would stop short of its marker).",
                       f"`cruise` one of {', '.join(CRUISE_MODES)}; `coast_band_kmh` > 0 for sawtooth."],
     "traction": ["Per train type: `speed_kmh` starts at 0, strictly increasing, and reaches the train's "
                  "`max_speed_kmh`. Every train type of `rolling_stock` has a curve."],

@@ -36,7 +36,7 @@ import pyarrow as pa
 
 from planner.errors import Violation
 from planner.line.conform import TableView, conform
-from planner.line import geometry  # noqa: F401  (registers its rules)
+from planner.line import plausibility  # noqa: F401  (registers its rules)
 from planner.line.rules import ADVICE, RULES, Db
 from planner.line.schema import TABLES
 

@@ -1,7 +1,12 @@
-"""Impossible geometry (issue 33): a standing train's tail off the line is refused; a train longer than
-its platform is a warning. Closed-form positions on the tiny line (tests/linedb.py): A's down stop
-marker is at 260 m, C's up stop marker at 4740 m, the line runs 0 … 5000 m, platforms are 200 m;
-train 101 (EMU10, down) calls A, B, C stopping at each; train 202 (EMU6, up) calls C, passes B, ends at A.
+"""Rules across tables (planner/line/plausibility.py), with closed-form numbers on the tiny line.
+
+Impossible geometry (issue 33): a standing train's tail off the line is refused; a train longer
+than its platform is a warning. A's down stop marker is at 260 m, C's up stop marker at 4740 m,
+the line runs 0 … 5000 m, platforms are 200 m; train 101 (EMU10, down) calls A, B, C stopping at
+each; train 202 (EMU6, up) calls C, passes B, ends at A.
+
+Values that pass their own range but fail with another table (issue 32): an on-board margin that
+leaves no speed under a restriction, a brake weaker than the steepest climb's pull.
 """
 from __future__ import annotations
 
@@ -56,3 +61,32 @@ def test_validate_prints_the_warning_and_succeeds(tmp_path):
     warnings = [x for x in r.stderr.splitlines() if x.startswith("warning: ")]
     assert len(warnings) == 3 and warnings[0].startswith("warning: timetable.parquet row 0 (train_id=101 seq=0) "
                                                          "column stops: train '101'")
+
+
+# --- values that pass their range but fail with another table (issue 32)
+def _stock(tmp_path, name, row, **cells):
+    t = default_tables()
+    for c, v in cells.items():
+        t["rolling_stock"].loc[row, c] = v
+    t["speed_limits"].loc[1, "limit_kmh"] = 40.0  # the EMU6-only restriction
+    return check_line(write_line_db(tmp_path / name, rolling_stock=t["rolling_stock"],
+                                    speed_limits=t["speed_limits"]))
+
+
+def test_margin_must_leave_an_on_board_speed_under_the_lowest_limit(tmp_path):
+    found = _stock(tmp_path, "at", 1, speed_margin_kmh=40.0)  # EMU6 meets the 40 km/h restriction
+    assert [(v.file, v.row, v.column) for v in found] == [("rolling_stock.parquet", 1, "speed_margin_kmh")]
+    assert "under 40.0 km/h (speed_limits.parquet row 1)" in str(found[0])
+    assert _stock(tmp_path, "below", 1, speed_margin_kmh=39.9) == []
+    assert _stock(tmp_path, "other", 0, speed_margin_kmh=45.0) == []  # EMU10 does not meet it (70 km/h is its lowest)
+
+
+def test_brakes_must_hold_the_train_on_the_steepest_climb(tmp_path):
+    # EMU10: (g 10 ‰ + A/M) / (1 + ρ) with A = 5 kN, M = 320 t, ρ = 0.08, in km/h/s (× 3.6)
+    need = (9.80665 * 0.010 + 5_000.0 / 320_000.0) / 1.08 * 3.6
+    assert 0.378 < need < 0.380
+    found = _stock(tmp_path, "weak", 0, stop_brake_kmh_s=0.378)
+    assert [(v.file, v.row, v.column) for v in found] == [("rolling_stock.parquet", 0, "stop_brake_kmh_s")]
+    assert "10.0 ‰, gradients.parquet row 2" in str(found[0])
+    assert _stock(tmp_path, "enough", 0, stop_brake_kmh_s=0.380, service_brake_kmh_s=0.380,
+                  atsp_pattern_kmh_s=0.380) == []

@@ -1,9 +1,19 @@
-"""Rules for impossible geometry (issue 33): where a standing train's body lies.
+"""Rules across tables that a run needs to be physically possible (issues 32 and 33).
 
 Registered with :func:`planner.line.rules.rule` like every other rule of stage 2
-(:mod:`planner.line.validate` imports this module so that they run): a train's
-tail must stand on the line (an error), and a train longer than its platform is
-reported as a warning (legitimate with selective door opening).
+(:mod:`planner.line.validate` imports this module so that they run):
+
+- a standing train's tail must stand on the line (an error), and a train longer
+  than its platform is reported as a warning (legitimate with selective door
+  opening);
+- the on-board speed margin must leave a positive speed under every limit the
+  train type meets;
+- every brake rate must exceed the deceleration a standing train gets from the
+  steepest gradient of the line and its own standstill resistance, or the train
+  could not follow its braking curve up that climb (it would stop short).
+
+Each is a value that passes its column's range but fails with another table; the
+run would otherwise stop late, in the middle of a computation.
 """
 from __future__ import annotations
 
@@ -11,8 +21,10 @@ from typing import Iterator
 
 from planner.errors import Violation
 from planner.line.conform import TableView, fmt
+from planner.line.model import G
 from planner.line.rules import Db, _ordered_calls, _trains, rule
 from planner.line.schema import DIRECTIONS
+from planner.line.units import KMH_S, KN, PERMIL, TONNE
 
 
 def _standing_calls(t: TableView, db: Db) -> Iterator[tuple[str, str, float, int, str]]:
@@ -83,3 +95,56 @@ def train_fits_platform(db: Db) -> Iterator[Violation]:
                         f"train {train!r} ({fmt(length)} m long) stands at {station}, whose platform is "
                         f"{fmt(platform[station])} m (stations.parquet platform_length_m); fine where only the "
                         f"doors along the platform open, else lengthen the platform or shorten the train")
+
+
+@rule("rolling_stock", "speed_limits", "line")
+def margin_leaves_a_speed(db: Db) -> Iterator[Violation]:
+    """speed_margin_kmh is below the lowest limit the train type meets (line, vehicle, restrictions).
+
+    The on-board maximum is that limit minus the margin (:func:`planner.physics.speed_profile.onboard_max_ms`);
+    at or below zero no run exists.
+    """
+    ln, rs, sl = db.tables["line"], db.tables["rolling_stock"], db.tables["speed_limits"]
+    if ln.n != 1 or not ln.good[0]:
+        return
+    line_max = float(ln["max_speed_kmh"][0])
+    for i in rs.rows():
+        tt, margin = rs["train_type"][i], float(rs["speed_margin_kmh"][i])
+        lowest, where = min(line_max, float(rs["max_speed_kmh"][i])), "the line's or its own maximum speed"
+        for j in sl.rows():
+            if sl["train_type"][j] in (None, tt) and float(sl["limit_kmh"][j]) < lowest:
+                lowest, where = float(sl["limit_kmh"][j]), f"speed_limits.parquet row {j}"
+        if margin >= lowest:
+            yield rs.err(i, "speed_margin_kmh",
+                         f"{fmt(margin)} km/h leaves no on-board speed under {fmt(lowest)} km/h ({where}); "
+                         f"use a margin below it")
+
+
+@rule("rolling_stock", "gradients")
+def brakes_hold_on_the_steepest_climb(db: Db) -> Iterator[Violation]:
+    """Each brake rate exceeds the deceleration of a standing train on the line's steepest gradient.
+
+    The deceleration is ``(g |s| + A / M) / (1 + ρ)``: the steepest gradient
+    ``s`` of gradients.parquet (a climb in one of the two directions), the Davis
+    A term over the empty mass (the lightest train has the most), inertia with
+    the rotating-mass factor ρ. A braking curve at a lower rate would need
+    traction to hold on the climb; the planner brakes without traction, so the
+    train would stop before its marker (the run fails as a stall).
+    """
+    g, rs = db.tables["gradients"], db.tables["rolling_stock"]
+    rows = g.rows()
+    if not rows:
+        return
+    k = max(rows, key=lambda r: abs(float(g["gradient_permil"][r])))
+    steep = abs(float(g["gradient_permil"][k]))
+    for i in rs.rows():
+        mass_kg = float(rs["empty_mass_t"][i]) * TONNE
+        rho = float(rs["rotating_mass_factor"][i])
+        need_ms2 = (G * steep * PERMIL + float(rs["davis_a_kN"][i]) * KN / mass_kg) / (1.0 + rho)
+        need = need_ms2 / KMH_S
+        for c in ("service_brake_kmh_s", "stop_brake_kmh_s", "atsp_pattern_kmh_s"):
+            if not float(rs[c][i]) > need:
+                yield rs.err(i, c, f"{fmt(float(rs[c][i]))} km/h/s is not more than the {need:.3g} km/h/s a "
+                                   f"standing train gets from the steepest gradient ({fmt(steep)} ‰, "
+                                   f"gradients.parquet row {k}) and its Davis A term: it could not follow its "
+                                   f"braking curve up that climb; use a higher rate")
