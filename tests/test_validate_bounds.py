@@ -141,3 +141,21 @@ def test_jerk_at_its_open_lower_bound_is_refused_once(tmp_path):
     """0 is outside (0, 100]; just above 0 no valid line exists (the jerk rule's own message)."""
     found = _check(tmp_path, "zero", "rolling_stock", "jerk_limit_kmh_s2", 0, 0.0, None)
     assert [(v.file, v.row, v.column) for v in found] == [("rolling_stock.parquet", 0, "jerk_limit_kmh_s2")]
+
+
+@pytest.mark.parametrize("table", ["gradients", "curves"])
+def test_segment_table_denser_than_a_row_per_metre_is_refused(tmp_path, table):
+    """The tiny line is 5000 m long: 5000 segments of 1 m pass, 5001 of 5000/5001 m are refused as a whole file."""
+    import numpy as np
+    import pandas as pd
+
+    value = {"gradients": ("gradient_permil", 1.0), "curves": ("radius_m", 500.0)}[table]
+    for n, ok in ((5000, True), (5001, False)):
+        edges = np.linspace(0.0, 5000.0, n + 1)
+        df = pd.DataFrame({"start_m": edges[:-1], "end_m": edges[1:], value[0]: value[1]})
+        found = check_line(write_line_db(tmp_path / f"{table}{n}", **{table: df}))
+        if ok:
+            assert found == []
+        else:
+            assert [(v.file, v.row, v.column) for v in found] == [(f"{table}.parquet", None, None)]
+            assert "has 5001 rows for a line of 5000.0 m; at most 5000" in str(found[0])
