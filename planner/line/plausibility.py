@@ -19,6 +19,8 @@ from __future__ import annotations
 
 from typing import Iterator
 
+import numpy as np
+
 from planner.errors import Violation
 from planner.line.conform import TableView, fmt
 from planner.line.model import G
@@ -132,11 +134,11 @@ def brakes_hold_on_the_steepest_climb(db: Db) -> Iterator[Violation]:
     train would stop before its marker (the run fails as a stall).
     """
     g, rs = db.tables["gradients"], db.tables["rolling_stock"]
-    rows = g.rows()
-    if not rows:
+    if not g.good.any():
         return
-    k = max(rows, key=lambda r: abs(float(g["gradient_permil"][r])))
-    steep = abs(float(g["gradient_permil"][k]))
+    slope = np.where(g.good, np.abs(np.asarray(g["gradient_permil"], dtype=float)), -1.0)  # vectorised: big tables
+    k = int(np.argmax(slope))
+    steep = float(slope[k])
     for i in rs.rows():
         mass_kg = float(rs["empty_mass_t"][i]) * TONNE
         rho = float(rs["rotating_mass_factor"][i])
