@@ -11,6 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from planner.cli import app
+from planner.line.schema import RADIUS
 
 from linedb import default_tables, write_line_db
 
@@ -57,7 +58,8 @@ def test_violations_one_line_each_on_stderr(tmp_path):
     assert r.stdout == ""
     lines = r.stderr.splitlines()
     assert lines == [
-        "curves.parquet row 0 (start_m=1200.0) column radius_m: must be > 0, found -1.0",
+        f"curves.parquet row 0 (start_m=1200.0) column radius_m: must be >= 10, found -1.0 "
+        f"(accepted [10, 1000000]: {RADIUS.why})",
         "timetable.parquet row 1 (train_id=101 seq=1) column station_id: unknown station 'Z' "
         "(not in stations.parquet)",
         f"{tmp_path / 'tiny'}: 2 problem(s); the line database is invalid"

@@ -45,8 +45,9 @@ def validate(
     """Check a line database against docs/line-database.md (`planner schema`); print a summary (exit 0) or every problem (exit 1)."""
     from planner.line.loader import load_line
 
+    warnings: list = []
     try:
-        line = load_line(line_dir)
+        line = load_line(line_dir, warnings)
     except LineValidationError as e:
         for msg in format_violations(e.violations):
             typer.echo(msg, err=True)
@@ -58,3 +59,5 @@ def validate(
         raise typer.Exit(e.exit_code)
     for msg in summary(line):
         typer.echo(msg)
+    for msg in format_violations(warnings):
+        typer.echo(f"warning: {msg}", err=True)

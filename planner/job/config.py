@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from planner.errors import JobError
+from planner.errors import InputError, JobError
+from planner.line.schema import ACCEL, MAX_CHAINAGE_M, MAX_SPEED_KMH, Range
 from planner.tables.eval_points import MIN_INTERVAL_M
 
 
@@ -225,6 +227,8 @@ def _check_type(where: str, value: Any, default: Any) -> Any:
     if isinstance(default, float):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise JobError(f"{where}: expected a number, found {value!r}")
+        if not math.isfinite(value):  # TOML has inf and nan
+            raise JobError(f"{where}: expected a finite number, found {value!r}")
         return float(value)
     if default == "auto" and isinstance(value, (int, float)) and not isinstance(value, bool):
         return float(value)  # a number-or-"auto" key (approach_m)
@@ -301,11 +305,92 @@ def _scenarios(where: str, value: Any) -> tuple[Scenario, ...]:
     return tuple(out)
 
 
+_LINE = 2 * MAX_CHAINAGE_M
+_SECONDS = "route setting, approach and release take seconds to minutes, not hours"
+RANGES: dict[tuple[str, str], Range] = {
+    ("tables", "min_target_kmh"): Range(1.0, MAX_SPEED_KMH, "from walking pace (1 km/h) to 600 km/h, every line's "
+                                                            "maximum at most (the line database's bound)"),
+    ("tables", "eval_offset_m"): Range(0.0, _LINE, "no interstation is longer than a line can be (20,000 km)"),
+    ("tables", "eval_interval_m"): Range(0.0, _LINE, "no interstation is longer than a line can be (20,000 km)"),
+    ("tables", "ds_m"): Range(0.01, 10.0, "a step under 1 cm resolves nothing a train does and multiplies the work; "
+                                          "over 10 m misses short restrictions"),
+    ("stops", "approach_m"): Range(10.0, _LINE, "a stop approach is at least one step of the coarsest ds_m "
+                                                "(10 m; shorter has no grid to sweep) and no longer than a line "
+                                                "can be (20,000 km)"),
+    ("tables", "eval_auto_s"): Range(0.0, 3_600.0, "0 (no odometer points on a leg without beacons) or seconds "
+                                                   "of running between points; over an hour is no point at all"),
+    ("closed_loop", "horizon_s"): Range(0.0, 86_400.0, "designated times more than a day after the minimum "
+                                                      "running time are no timetable"),
+    ("closed_loop", "step_s"): Range(0.01, 86_400.0, "designated times closer than 10 ms apart differ by nothing "
+                                                    "a driver or the on-board unit can do"),
+    ("margins", "supplement_percent"): Range(0.0, 100.0, "a supplement is a share of the minimum running time: "
+                                                         "0-100 %"),
+    ("margins", "supplement_min_per_100km"): Range(0.0, 100.0, "a supplement of minutes per 100 km; over 100 "
+                                                                "min/100 km is a stop, not a supplement"),
+    ("margins", "tight_threshold_s"): Range(0.0, 3_600.0, "a margin threshold over an hour flags every leg"),
+    ("margins", "arrival_error_threshold_s"): Range(0.0, 3_600.0, "0 (off) or an arrival error in seconds; over "
+                                                                  "an hour flags nothing a timetable can use"),
+    ("margins", "degraded_adhesion_kmh_s"): Range(0.0, ACCEL.hi, "0 (the lowest level of the sweep) or an "
+                                                                 "adhesion of at most 18 km/h/s (5 m/s²)"),
+    ("bundles", "valid_days"): Range(1.0, 3_660.0, "bundles are loaded overnight: a shorter validity expires "
+                                                   "before they reach the vehicles; over 10 years is no expiry"),
+    ("conflicts", "setting_s"): Range(0.0, 3_600.0, _SECONDS),
+    ("conflicts", "approach_s"): Range(0.0, 3_600.0, _SECONDS),
+    ("conflicts", "release_s"): Range(0.0, 3_600.0, _SECONDS),
+    ("conflicts", "terminal_s"): Range(0.0, 86_400.0, "a train keeps its destination platform at most a day"),
+    ("parallel", "n_jobs"): Range(-1.0, 4_096.0, "-1 (all cores) or a number of worker processes"),
+    ("parallel", "dask_lost_timeout_s"): Range(1.0, 86_400.0, "between a second and a day without workers"),
+}
+"""Bounds of the job's number keys, each with its reason: an absurd value (a negative step, 1e308) is
+refused here, naming the key, instead of failing late in a computation."""
+MAX_CLOSED_LOOP_TIMES = 1_000
+"""Most designated times per closed-loop unit (horizon_s / step_s + 1): each is a closed-loop run per scenario
+and mode."""
+MAX_LOAD = 3.0
+"""Heaviest scenario load factor: 300 % of the passenger mass at 100 % load (Tokyo's rush hour peaks near 200 %)."""
+
+
+def _out_of_range(rng: Range, x: float) -> str:
+    need = f"must be {'>' if rng.lo_open else '>='} {rng.lo:g}" if rng.below(x) else f"must be <= {rng.hi:g}"
+    return f"{need}, found {x:g} (accepted {rng}: {rng.why})"
+
+
+def _spec_error(e: InputError, flag: str, key: str) -> str:
+    """A ratio or adhesion spec error worded for the job file: its key, not the CLI flag."""
+    return re.sub(rf"^{flag}:? ?", "", str(e)).replace(flag, key)
+
+
+def _validate_specs(job: Job, bad) -> None:
+    """Parse the ratio grid and the adhesion sweep now, so a bad spec names its key before any work."""
+    from planner.line.units import KMH
+    from planner.stopping.sweep import adhesion_levels
+    from planner.tables.ratios import ratio_grid
+
+    target = RANGES[("tables", "min_target_kmh")]
+    if not (target.below(job.tables.min_target_kmh) or target.above(job.tables.min_target_kmh)):
+        try:  # the fastest line the schema allows has the lowest floor: below it no line keeps a ratio
+            ratio_grid(job.tables.ratios, line_max_speed_ms=MAX_SPEED_KMH * KMH,
+                       min_target_speed_ms=job.tables.min_target_kmh * KMH)
+        except InputError as e:
+            bad("tables", "ratios", _spec_error(e, "--ratios", "ratios"))
+    try:
+        levels = adhesion_levels(job.stops.adhesion_kmh_s)
+    except InputError as e:
+        bad("stops", "adhesion_kmh_s", _spec_error(e, "--adhesion", "adhesion_kmh_s"))
+        return
+    except OverflowError:  # START:STOP:STEP with an infinite count of levels
+        bad("stops", "adhesion_kmh_s", f"{job.stops.adhesion_kmh_s!r} gives too many levels; use a larger STEP")
+        return
+    off = [x for x in levels if ACCEL.below(x) or ACCEL.above(x)]
+    if off:
+        bad("stops", "adhesion_kmh_s", f"level {off[0]:g} km/h/s is outside {ACCEL} ({ACCEL.why})")
+
+
 def _validate(file: str, job: Job, problems: _Problems) -> None:
     """Value rules that types alone do not catch; each names the key."""
     def bad(section: str, key: str, msg: str):
-        if f"{section}.{key}" not in problems.keys:  # a value that failed its type check is not judged again
-            problems.add(f"{file}: [{section}] {key}: {msg}")
+        if f"{section}.{key}" not in problems.keys:  # a value already refused is not judged again
+            problems.add(f"{file}: [{section}] {key}: {msg}", f"{section}.{key}")
 
     if not job.job.lines:
         bad("job", "lines", "name at least one line-database folder")
@@ -324,46 +409,43 @@ def _validate(file: str, job: Job, problems: _Problems) -> None:
         base = base.parent
     if not base.is_dir():
         bad("job", "output_root", f"{out}: {base} is a file, not a folder; name a folder for the published runs")
-    if not 0 < job.tables.ds_m <= 10:
-        bad("tables", "ds_m", f"must be in (0, 10] m, found {job.tables.ds_m}")
-    if job.tables.min_target_kmh <= 0:
-        bad("tables", "min_target_kmh", "must be positive")
-    if job.tables.eval_offset_m < 0:
-        bad("tables", "eval_offset_m", "must be ≥ 0")
+    for (section, key), rng in RANGES.items():
+        x = getattr(getattr(job, section), key)
+        if isinstance(x, (str, bool)):  # "auto" for a number-or-"auto" key (approach_m): checked below
+            continue
+        if rng.below(x) or rng.above(x):
+            bad(section, key, _out_of_range(rng, x))
+    _validate_specs(job, bad)
     if job.tables.eval_interval_m != 0 and not job.tables.eval_interval_m >= MIN_INTERVAL_M:
         bad("tables", "eval_interval_m", f"must be 0 (beacons only) or at least {MIN_INTERVAL_M:g} m, "
                                          f"found {job.tables.eval_interval_m}")
-    if not (math.isfinite(job.tables.eval_auto_s) and job.tables.eval_auto_s >= 0):
-        bad("tables", "eval_auto_s", f"must be 0 (no fill) or a number of seconds > 0, found {job.tables.eval_auto_s}")
     a = job.stops.approach_m
-    if a != "auto" and (isinstance(a, (str, bool)) or not a > 0):
-        bad("stops", "approach_m", 'must be a positive number of metres, or "auto" (from the physics)')
-    if job.closed_loop.horizon_s < 0 or job.closed_loop.step_s <= 0:
-        bad("closed_loop", "horizon_s/step_s", "horizon must be ≥ 0 and step > 0")
-    for s in job.closed_loop.scenarios:
-        if s.load < 0 or not 0 < s.traction <= 2:
-            bad("closed_loop", "scenarios", f"scenario {s.name!r}: load ≥ 0 and 0 < traction ≤ 2")
+    if isinstance(a, (str, bool)) and a != "auto":
+        bad("stops", "approach_m", 'must be a number of metres, or "auto" (from the physics)')
+    cl = job.closed_loop
+    n_times = cl.horizon_s / cl.step_s + 1 if cl.step_s > 0 else math.inf
+    if n_times > MAX_CLOSED_LOOP_TIMES and "closed_loop.horizon_s" not in problems.keys:
+        bad("closed_loop", "step_s", f"horizon_s / step_s gives {n_times:.3g} designated times per unit, more than "
+                                     f"{MAX_CLOSED_LOOP_TIMES}; use a larger step_s or a shorter horizon_s")
+    for s in cl.scenarios:
+        if not 0 <= s.load <= MAX_LOAD or not 0.1 <= s.traction <= 2:
+            bad("closed_loop", "scenarios", f"scenario {s.name!r}: load must lie in [0, {MAX_LOAD:g}] (full load "
+                                            f"is 1) and traction in [0.1, 2] (nominal is 1); found load {s.load:g}, "
+                                            f"traction {s.traction:g}")
     m = job.margins
-    if m.tight_threshold_s < 0:
-        bad("margins", "tight_threshold_s", "must be ≥ 0")
     if not 0 <= m.degraded_load <= 1:
         bad("margins", "degraded_load", f"must lie between 0 (empty) and 1 (full), found {m.degraded_load:g}")
-    if not 0 < m.degraded_traction <= 2:
-        bad("margins", "degraded_traction", f"must lie in (0, 2], found {m.degraded_traction:g}")
-    if m.degraded_adhesion_kmh_s < 0:
-        bad("margins", "degraded_adhesion_kmh_s", "must be > 0 km/h/s, or 0 for the lowest level of the sweep")
-    if not (math.isfinite(m.arrival_error_threshold_s) and m.arrival_error_threshold_s >= 0):
-        bad("margins", "arrival_error_threshold_s", f"must be a number of seconds ≥ 0 (0 = off), "
-                                                    f"found {m.arrival_error_threshold_s}")
+    if not 0.1 <= m.degraded_traction <= 2:
+        bad("margins", "degraded_traction", f"must lie in [0.1, 2] (a tenth of the tractive effort at least; "
+                                            f"nominal is 1), found {m.degraded_traction:g}")
+    if 0 < m.degraded_adhesion_kmh_s < ACCEL.lo:
+        bad("margins", "degraded_adhesion_kmh_s", f"must be 0 (the lowest level of the sweep) or in {ACCEL}, "
+                                                  f"found {m.degraded_adhesion_kmh_s:g}")
     if job.parallel.backend not in ("local", "dask"):
         bad("parallel", "backend", f"must be \"local\" or \"dask\", found {job.parallel.backend!r}")
     if job.parallel.backend == "dask" and not job.parallel.scheduler:
         bad("parallel", "scheduler", "backend = \"dask\" needs a scheduler address, e.g. tcp://127.0.0.1:8786")
-    if not 0 < job.bundles.valid_days <= 3660:
-        bad("bundles", "valid_days", f"must be in (0, 3660] days, found {job.bundles.valid_days}")
-    if not 0 < job.parallel.dask_lost_timeout_s <= 86400:
-        bad("parallel", "dask_lost_timeout_s", f"must be in (0, 86400] s, found {job.parallel.dask_lost_timeout_s}")
-    if job.parallel.n_jobs == 0 or job.parallel.n_jobs < -1:
+    if job.parallel.n_jobs == 0:
         bad("parallel", "n_jobs", f"must be -1 (all cores) or ≥ 1, found {job.parallel.n_jobs}")
     for p in job.job.lines:
         if not job.resolve(p).is_dir():

@@ -16,7 +16,10 @@ import pyarrow.compute as pc
 
 from planner.errors import Violation
 from planner.line.schema import (
+    Range,
     TableSpec,
+    column_range,
+    fmt_bound,
     missing_column_hint,
 )
 
@@ -29,6 +32,15 @@ def fmt(x) -> str:
     if isinstance(x, (np.integer,)):
         return str(int(x))
     return str(x)
+
+
+def out_of_range(rng: Range, x: float) -> str:
+    """The message for a value outside its column's declared range."""
+    if rng.below(x):
+        need = f"must be {'>' if rng.lo_open else '>='} {fmt_bound(rng.lo)}"
+    else:
+        need = f"must be <= {fmt_bound(rng.hi)}"
+    return f"{need}, found {fmt(x)} (accepted {rng}: {rng.why})"
 
 
 # --------------------------------------------------------------------------- stage 1: schema
@@ -158,4 +170,11 @@ def conform(spec: TableSpec, table: pa.Table) -> tuple[TableView | None, list[Vi
             for i in np.flatnonzero(np.isinf(vals)):
                 view.good[i] = False
                 out.append(view.err(int(i), field.name, f"value is {fmt(vals[i])}; write a finite number"))
+            rng = column_range(field)
+            if rng is not None:
+                with np.errstate(invalid="ignore"):
+                    bad = np.isfinite(vals) & (rng.below(vals) | rng.above(vals))
+                for i in np.flatnonzero(bad):
+                    view.good[i] = False
+                    out.append(view.err(int(i), field.name, out_of_range(rng, float(vals[i]))))
     return view, out

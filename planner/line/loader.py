@@ -108,7 +108,7 @@ def check_line(path: str | Path) -> list[Violation]:
     return violations
 
 
-def load_line(path: str | Path) -> Line:
+def load_line(path: str | Path, warnings: list[Violation] | None = None) -> Line:
     """Load, validate and convert the line database folder ``path``.
 
     Parameters
@@ -116,6 +116,9 @@ def load_line(path: str | Path) -> Line:
     path : str or Path
         Folder with the Parquet tables of docs/line-database.md; any name (the line id
         is ``line.parquet``'s ``line_id``).
+    warnings : list, optional
+        When given, findings that are legitimate on some railways (a train
+        longer than its platform) are appended to it; they never refuse the line.
 
     Returns
     -------
@@ -137,7 +140,7 @@ def load_line(path: str | Path) -> Line:
     1.0833333333333333
     """
     line_dir = _line_dir(path)
-    views, violations = check_tables(line_dir.resolve().name, read_tables(line_dir))
+    views, violations = check_tables(line_dir.resolve().name, read_tables(line_dir), warnings)
     if violations:
         raise LineValidationError(str(path), violations)
     return _build(views, source_digest(line_dir), str(path))

@@ -22,7 +22,7 @@ from planner.line.schema import (
     CRUISE_MODES,
     DIRECTIONS,
     LIMIT_DIRECTIONS,
-    MAX_GRADIENT_PERMIL,
+    MAX_ROWS_PER_M,
     NODE_KINDS,
     PATH_ID_COLUMNS,
     SCHEMA_VERSION,
@@ -63,11 +63,15 @@ Rule = Callable[[Db], Iterable[Violation]]
 RULES: list[tuple[tuple[str, ...], Rule]] = []
 
 
-def rule(*needs: str) -> Callable[[Rule], Rule]:
-    """Register a rule that runs when every table in ``needs`` passed stage 1."""
+ADVICE: list[tuple[tuple[str, ...], Rule]] = []
+"""Rules whose findings are warnings: legitimate on some railways, so reported, never refused."""
+
+
+def rule(*needs: str, warning: bool = False) -> Callable[[Rule], Rule]:
+    """Register a rule that runs when every table in ``needs`` passed stage 1 (``warning``: into ADVICE)."""
 
     def deco(fn: Rule) -> Rule:
-        RULES.append((needs, fn))
+        (ADVICE if warning else RULES).append((needs, fn))
         return fn
 
     return deco
@@ -100,24 +104,6 @@ def _where(t: TableView, bad: np.ndarray) -> list[int]:
 
 def _num(t: TableView, column: str) -> np.ndarray:
     return np.asarray(t[column], dtype=np.float64)
-
-
-def positive(t: TableView, *columns: str) -> Iterator[Violation]:
-    for c in columns:
-        x = _num(t, c)
-        with np.errstate(invalid="ignore"):
-            bad = ~(x > 0)
-        for i in _where(t, bad):
-            yield t.err(i, c, f"must be > 0, found {fmt(t[c][i])}")
-
-
-def non_negative(t: TableView, *columns: str) -> Iterator[Violation]:
-    for c in columns:
-        x = _num(t, c)
-        with np.errstate(invalid="ignore"):
-            bad = x < 0
-        for i in _where(t, bad):
-            yield t.err(i, c, f"must be >= 0, found {fmt(t[c][i])}")
 
 
 def inside(db: Db, t: TableView, *columns: str) -> Iterator[Violation]:
@@ -179,15 +165,6 @@ def line_rules(db: Db) -> Iterator[Violation]:
             yield t.err(i, "schema_version", f"is {t['schema_version'][i]}; this planner reads "
                                              f"schema version {SCHEMA_VERSION}")
     yield from start_before_end(t)
-    x = _num(t, "max_speed_kmh")  # null: no line maximum
-    for i in _where(t, ~np.isnan(x) & ~(x > 0)):
-        yield t.err(i, "max_speed_kmh", f"must be > 0 km/h, or null for no line maximum; found "
-                                        f"{fmt(t['max_speed_kmh'][i])}")
-    if t.has("approach_m"):  # null: from the physics
-        x = _num(t, "approach_m")
-        for i in _where(t, ~np.isnan(x) & ~(x > 0)):
-            yield t.err(i, "approach_m", f"must be > 0 m, or null for the start from the physics; found "
-                                         f"{fmt(t['approach_m'][i])}")
 
 
 # ---- ids that become file names or partition values: one rule (planner.io.paths.PATH_ID_RE)
@@ -209,7 +186,6 @@ def path_ids(db: Db) -> Iterator[Violation]:
 def station_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["stations"]
     yield from unique(t, "station_id")
-    yield from positive(t, "platform_length_m")
     prev = None
     for i in t.rows():
         if prev is not None and not t["position_m"][i] > t["position_m"][prev]:
@@ -231,9 +207,6 @@ def gradient_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["gradients"]
     yield from start_before_end(t)
     yield from sorted_disjoint(t)
-    for i in _where(t, np.abs(_num(t, "gradient_permil")) > MAX_GRADIENT_PERMIL):
-        yield t.err(i, "gradient_permil", f"|{fmt(t['gradient_permil'][i])}| exceeds "
-                                          f"{fmt(MAX_GRADIENT_PERMIL)} ‰")
 
 
 @rule("curves")
@@ -241,7 +214,6 @@ def curve_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["curves"]
     yield from start_before_end(t)
     yield from sorted_disjoint(t)
-    yield from positive(t, "radius_m")
 
 
 @rule("gradients", "line")
@@ -254,12 +226,32 @@ def curves_inside(db: Db) -> Iterator[Violation]:
     yield from inside(db, db.tables["curves"], "start_m", "end_m")
 
 
+@rule("line")
+def segment_density(db: Db) -> Iterator[Violation]:
+    """At most MAX_ROWS_PER_M rows per metre of line in the segment tables (issue 32): a sanity limit.
+
+    A table denser than that is a sampled curve, not a table of segments; the
+    limit refuses it before the run spends minutes and gigabytes on it.
+    """
+    rng = db.line_range()
+    if rng is None:
+        return
+    length = rng[1] - rng[0]
+    limit = max(1, math.floor(length * MAX_ROWS_PER_M))
+    for name in ("gradients", "curves", "speed_limits"):
+        t = db.tables.get(name)
+        if t is not None and t.n > limit:
+            yield Violation(t.file, None, None,
+                            f"has {t.n} rows for a line of {fmt(length)} m; at most {limit} (one row per "
+                            f"metre of line) are accepted: a surveyed profile changes every few tens of metres "
+                            f"or more; merge neighbouring rows with equal values")
+
+
 # ---- speed_limits.parquet
 @rule("speed_limits")
 def speed_limit_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["speed_limits"]
     yield from start_before_end(t)
-    yield from positive(t, "limit_kmh")
     yield from one_of(t, "direction", LIMIT_DIRECTIONS)
 
 
@@ -305,12 +297,6 @@ def signals_inside(db: Db) -> Iterator[Violation]:
 def rolling_stock_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["rolling_stock"]
     yield from unique(t, "train_type")
-    yield from positive(t, "length_m", "empty_mass_t", "max_speed_kmh", "max_accel_kmh_s",
-                        "service_brake_kmh_s", "stop_brake_kmh_s", "atsp_pattern_kmh_s",
-                        "brake_comfort_kmh_s", "jerk_limit_kmh_s2")
-    yield from non_negative(t, "full_load_mass_t", "rotating_mass_factor", "davis_a_kN",
-                            "davis_b_kN_per_kmh", "davis_c_kN_per_kmh2", "speed_margin_kmh",
-                            "coast_band_kmh")
     yield from one_of(t, "cruise", CRUISE_MODES)
     for i in t.rows():
         if t["cruise"][i] == "sawtooth" and not t["coast_band_kmh"][i] > 0:
@@ -351,7 +337,7 @@ def jerk_allows_a_stop(db: Db) -> Iterator[Violation]:
     for i in t.rows():
         j_kmh = float(t["jerk_limit_kmh_s2"][i])
         if not j_kmh > 0:
-            continue  # refused by the positive() rule
+            continue  # refused by its declared range (stage 1)
         need = min_stop_distance_m(v, j_kmh * KMH_S2)
         if need > length:
             j_min = v ** 3 / length ** 2 / KMH_S2  # solves v sqrt(v/j) = length for j, in km/h/s²
@@ -362,18 +348,22 @@ def jerk_allows_a_stop(db: Db) -> Iterator[Violation]:
                         f"typically 1-5 km/h/s²)")
 
 
-def _traction_curves(t: TableView) -> dict[str, list[int]]:
-    """Rows of each train type's traction curve, in file order."""
+def _traction_curves(t: TableView, usable: bool = True) -> dict[str, list[int]]:
+    """Rows of each train type's traction curve, in file order.
+
+    ``usable``: only the curves whose rows are all usable (a curve with a bad
+    cell is left to that message, so its shape is not judged without the row).
+    """
     curves: dict[str, list[int]] = {}
-    for i in t.rows():
-        curves.setdefault(t["train_type"][i], []).append(i)
-    return curves
+    for i in range(t.n):
+        if t["train_type"][i] is not None:
+            curves.setdefault(t["train_type"][i], []).append(i)
+    return {k: rows for k, rows in curves.items() if not usable or all(t.good[i] for i in rows)}
 
 
 @rule("traction")
 def traction_shape(db: Db) -> Iterator[Violation]:
     t = db.tables["traction"]
-    yield from non_negative(t, "effort_kN")
     for tt, rows in _traction_curves(t).items():
         v = t["speed_kmh"]
         if v[rows[0]] != 0:
@@ -388,19 +378,22 @@ def traction_shape(db: Db) -> Iterator[Violation]:
 @rule("traction", "rolling_stock")
 def traction_per_train_type(db: Db) -> Iterator[Violation]:
     t, rs = db.tables["traction"], db.tables["rolling_stock"]
-    curves = _traction_curves(t)
+    curves, named = _traction_curves(t), _traction_curves(t, usable=False)
+    known = set(rs["train_type"])  # a row with a bad cell still names its train type (no follow-up message)
     max_speed = {rs["train_type"][i]: rs["max_speed_kmh"][i] for i in rs.rows()}
-    for tt, rows in curves.items():
-        if tt not in max_speed:
+    for tt, rows in named.items():
+        if tt not in known:
             yield t.err(rows[0], "train_type", f"unknown train type {tt!r} (not in rolling_stock.parquet)")
             continue
+        if tt not in max_speed or tt not in curves:
+            continue  # its rolling_stock row or a row of its curve has a bad cell, reported there
         top = max(t["speed_kmh"][i] for i in rows)
         if top < max_speed[tt]:
             last = max(rows, key=lambda i: t["speed_kmh"][i])
             yield t.err(last, "speed_kmh", f"the traction curve of {tt!r} ends at {fmt(top)} km/h, below "
                                            f"its max_speed_kmh {fmt(max_speed[tt])}; extend it")
     for i in rs.rows():
-        if rs["train_type"][i] not in curves:
+        if rs["train_type"][i] not in named:
             yield rs.err(i, "train_type", "has no traction curve in traction.parquet")
 
 
@@ -554,7 +547,6 @@ def node_stations(db: Db) -> Iterator[Violation]:
 def edge_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["edges"]
     yield from unique(t, "edge_id")
-    yield from positive(t, "length_m")
 
 
 @rule("edges", "nodes")

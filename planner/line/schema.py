@@ -54,6 +54,93 @@ MAX_GRADIENT_PERMIL = 40.0
 
 
 @dataclass(frozen=True)
+class Range:
+    """The values a numeric column accepts: ``lo <= x <= hi`` (``lo < x`` when ``lo_open``), and why.
+
+    Declared with the column (field metadata ``range`` and ``range_why``), checked
+    by stage 1 of validation (:mod:`planner.line.conform`) on every value that is
+    not null, and listed by ``planner schema``. The bounds are generous on
+    purpose: they refuse what no railway has (a unit slip, a missing decimal
+    point, 1e308), never a heavy freight train or a high-speed line.
+    """
+
+    lo: float
+    hi: float
+    why: str
+    """Why the bounds are where they are (said in the error message and the docs)."""
+    lo_open: bool = False
+
+    def __str__(self) -> str:
+        return f"{'(' if self.lo_open else '['}{fmt_bound(self.lo)}, {fmt_bound(self.hi)}]"
+
+    def below(self, x):
+        """True where ``x`` is under the lower bound (numpy arrays or floats)."""
+        return x <= self.lo if self.lo_open else x < self.lo
+
+    def above(self, x):
+        """True where ``x`` is over the upper bound."""
+        return x > self.hi
+
+
+def fmt_bound(x: float) -> str:
+    """A bound as written in messages and docs: ``600``, ``0.05``, ``-10000000``."""
+    return str(int(x)) if float(x).is_integer() else repr(float(x))
+
+
+# ---- the bounds, each with the railway fact that puts it there
+MAX_CHAINAGE_M = 10_000_000.0
+MAX_SPEED_KMH = 600.0
+MAX_TRAIN_LENGTH_M = 8_000.0
+MAX_MASS_T = 100_000.0
+MIN_ACCEL_KMH_S, MAX_ACCEL_KMH_S = 0.05, 18.0
+MAX_DAVIS_AT_100_KN = 10_000.0
+MAX_EFFORT_KN = 20_000.0
+MAX_TIME_S = 7 * 86_400.0
+MAX_ROWS_PER_M = 1.0
+"""Densest gradient, curve or speed-limit table accepted [rows per metre of line]: a surveyed
+profile changes every few tens to hundreds of metres; a row per metre or more is a sampled
+curve, not a table of segments, and costs memory and time in every step that reads it."""
+
+CHAINAGE = Range(-MAX_CHAINAGE_M, MAX_CHAINAGE_M,
+                 "a chainage is within 10,000 km of the line's origin (the longest railway line, Moscow-Vladivostok, "
+                 "is 9,289 km)")
+SPEED = Range(0.0, MAX_SPEED_KMH, "600 km/h is above every train ever run on rails (record 574.8 km/h, 2007)",
+              lo_open=True)
+LENGTH = Range(1.0, MAX_TRAIN_LENGTH_M, "a rail vehicle is at least 1 m long and no train has been longer than "
+                                        "7,353 m (BHP iron ore, 2001)")
+PLATFORM = Range(0.0, MAX_TRAIN_LENGTH_M, "a platform (or loop) longer than the longest train ever run (7,353 m) "
+                                          "holds no train a shorter one would not", lo_open=True)
+MASS = Range(1.0, MAX_MASS_T, "a rail vehicle weighs at least a tonne (a track trolley); the heaviest train ever "
+                              "run weighed 99,734 t (BHP iron ore, 2001)")
+LOAD = Range(0.0, MAX_MASS_T, "the heaviest train ever run weighed 99,734 t (BHP iron ore, 2001)")
+ACCEL = Range(MIN_ACCEL_KMH_S, MAX_ACCEL_KMH_S,
+              "18 km/h/s is 5 m/s², above what wheel-on-rail adhesion transmits (about 4 m/s² on dry rail); "
+              "0.05 km/h/s is below the weakest brake or start of a 100,000 t freight train (about 0.15 km/h/s)")
+DAVIS = ("each Davis term at most 10,000 kN at 100 km/h, about four times the whole running resistance of a "
+         "100,000 t train at that speed (about 2,500 kN)")
+GRADIENT = Range(-MAX_GRADIENT_PERMIL, MAX_GRADIENT_PERMIL,
+                 f"steeper than {MAX_GRADIENT_PERMIL:g} ‰ is outside adhesion railway practice (and this planner's "
+                 f"adhesion model); a rack section is not modelled")
+RADIUS = Range(10.0, 1_000_000.0, "the sharpest railway curves have radii of about 15 m (tramways, Darjeeling "
+                                   "18 m); over 1,000 km a curve is straight track (leave it out of curves.parquet)")
+LIMIT = Range(1.0, MAX_SPEED_KMH, "a restriction is between walking pace (1 km/h) and 600 km/h, above every train "
+                                  "ever run on rails (record 574.8 km/h, 2007)")
+ROTATING = Range(0.0, 1.0, "rotating parts add 3-30 % to a train's inertia; 100 % would double it")
+JERK = Range(0.0, 100.0, "100 km/h/s² (28 m/s³) reaches a full brake in under 0.05 s, faster than any brake "
+                         "builds up (ride comfort is 1-5 km/h/s²)", lo_open=True)
+MARGIN = Range(0.0, 50.0, "on-board speed margins are a few km/h; 50 km/h would leave no speed below most "
+                          "restrictions")
+BAND = Range(0.0, 100.0, "a sawtooth band of 5-20 km/h is usual; over 100 km/h the train would coast to a stop")
+TRACTION_SPEED = Range(0.0, 1_000.0, "a traction curve may run past the train's maximum speed, but not past "
+                                     "1,000 km/h")
+EFFORT = Range(0.0, MAX_EFFORT_KN, "twice the starting effort of ten of the strongest locomotives (about "
+                                   "1,000 kN each); the 99,734 t record train had eight")
+TIME = Range(0.0, MAX_TIME_S, "seconds after the service day's midnight, at most 7 days (604800 s): longer than "
+                              "the longest scheduled run (Moscow-Vladivostok, about 6 days); a train of the evening "
+                              "before belongs to that day's timetable")
+
+
+@dataclass(frozen=True)
 class TableSpec:
     """One table of the line database.
 
@@ -88,13 +175,27 @@ class TableSpec:
 
 
 def _schema(table: str, fields: list[tuple]) -> pa.Schema:
-    """Build a schema from ``(name, type, description[, nullable])`` tuples."""
+    """Build a schema from ``(name, type, description[, nullable][, Range])`` tuples."""
     out = []
     for f in fields:
         name, typ, desc = f[:3]
-        nullable = f[3] if len(f) > 3 else False
-        out.append(pa.field(name, typ, nullable=nullable, metadata={"description": desc}))
+        nullable = next((x for x in f[3:] if isinstance(x, bool)), False)
+        meta = {"description": desc}
+        rng = next((x for x in f[3:] if isinstance(x, Range)), None)
+        if rng is not None:
+            meta.update(range=str(rng), range_why=rng.why)
+        out.append(pa.field(name, typ, nullable=nullable, metadata=meta))
     return pa.schema(out, metadata={"table": table, "schema_version": str(SCHEMA_VERSION)})
+
+
+def column_range(field: pa.Field) -> Range | None:
+    """The declared :class:`Range` of a numeric column, read back from its metadata (None: unbounded)."""
+    meta = field.metadata or {}
+    if b"range" not in meta:
+        return None
+    text = meta[b"range"].decode()
+    lo, hi = (float(x) for x in text[1:-1].split(","))
+    return Range(lo, hi, meta[b"range_why"].decode(), lo_open=text.startswith("("))
 
 
 S, D, I32, B = pa.string(), pa.float64(), pa.int32(), pa.bool_()
@@ -104,36 +205,38 @@ _SPECS = [
     TableSpec("line", _schema("line", [
         ("line_id", S, "line identifier, used in every output; the folder may have any name; names files (PATH_ID_RE)"),
         ("name", S, "display name"),
-        ("start_m", D, "first chainage covered by the database [m]"),
-        ("end_m", D, "last chainage covered by the database [m]"),
+        ("start_m", D, "first chainage covered by the database [m]", CHAINAGE),
+        ("end_m", D, "last chainage covered by the database [m]", CHAINAGE),
         ("max_speed_kmh", D, "line maximum speed [km/h]; null: none, so where no restriction applies each train "
-                             "runs at its own maximum (OSRD's meaning)", NULLABLE),
+                             "runs at its own maximum (OSRD's meaning)", NULLABLE, SPEED),
         ("schema_version", I32, "line-database schema version; 1"),
         ("approach_m", D, "stopping-pattern start before the stop marker where no TASC beacon is [m] (optional "
-                          "column); null or absent: where the train must start braking, plus 10 %", NULLABLE),
+                          "column); null or absent: where the train must start braking, plus 10 %", NULLABLE,
+         Range(10.0, MAX_CHAINAGE_M, "an approach is at least one grid step of the coarsest step and lies on the "
+                                     "line")),
     ]), required=True, min_rows=1, max_rows=1, row_id=("line_id",), optional_columns=frozenset({"approach_m"})),
     TableSpec("stations", _schema("stations", [
         ("station_id", S, "unique station identifier"),
         ("name", S, "display name"),
-        ("position_m", D, "chainage of the centre of the platform [m]"),
-        ("stop_down_m", D, "stop marker for the train front, direction down [m]"),
-        ("stop_up_m", D, "stop marker for the train front, direction up [m]"),
-        ("platform_length_m", D, "platform length [m]"),
+        ("position_m", D, "chainage of the centre of the platform [m]", CHAINAGE),
+        ("stop_down_m", D, "stop marker for the train front, direction down [m]", CHAINAGE),
+        ("stop_up_m", D, "stop marker for the train front, direction up [m]", CHAINAGE),
+        ("platform_length_m", D, "platform length [m]", PLATFORM),
     ]), required=True, min_rows=2, row_id=("station_id",)),
     TableSpec("gradients", _schema("gradients", [
-        ("start_m", D, "segment start chainage [m]"),
-        ("end_m", D, "segment end chainage [m]; > start_m"),
-        ("gradient_permil", D, "gradient [‰], positive = rising towards increasing chainage"),
+        ("start_m", D, "segment start chainage [m]", CHAINAGE),
+        ("end_m", D, "segment end chainage [m]; > start_m", CHAINAGE),
+        ("gradient_permil", D, "gradient [‰], positive = rising towards increasing chainage", GRADIENT),
     ]), required=True, row_id=("start_m",)),
     TableSpec("curves", _schema("curves", [
-        ("start_m", D, "curve start chainage [m]"),
-        ("end_m", D, "curve end chainage [m]; > start_m"),
-        ("radius_m", D, "curve radius [m]; > 0"),
+        ("start_m", D, "curve start chainage [m]", CHAINAGE),
+        ("end_m", D, "curve end chainage [m]; > start_m", CHAINAGE),
+        ("radius_m", D, "curve radius [m]; > 0", RADIUS),
     ]), required=True, row_id=("start_m",)),
     TableSpec("speed_limits", _schema("speed_limits", [
-        ("start_m", D, "restricted stretch start chainage [m]"),
-        ("end_m", D, "restricted stretch end chainage [m]; > start_m"),
-        ("limit_kmh", D, "speed limit [km/h]; > 0"),
+        ("start_m", D, "restricted stretch start chainage [m]", CHAINAGE),
+        ("end_m", D, "restricted stretch end chainage [m]; > start_m", CHAINAGE),
+        ("limit_kmh", D, "speed limit [km/h]; > 0", LIMIT),
         ("direction", S, "both, down or up"),
         ("train_type", S, "train type it applies to; null = every train type", NULLABLE),
         ("kind", S, "curve, turnout, civil, station, ..."),
@@ -141,7 +244,7 @@ _SPECS = [
     ]), required=True, row_id=("start_m",)),
     TableSpec("beacons", _schema("beacons", [
         ("beacon_id", S, "unique beacon identifier"),
-        ("position_m", D, "beacon chainage [m]"),
+        ("position_m", D, "beacon chainage [m]", CHAINAGE),
         ("direction", S, "down or up: trains that read it"),
         ("kind", S, "signal, pattern_update, tasc or other"),
         ("telegram", S, "telegram content as received on board"),
@@ -149,37 +252,37 @@ _SPECS = [
     ]), required=True, row_id=("beacon_id",)),
     TableSpec("signals", _schema("signals", [
         ("signal_id", S, "unique signal identifier"),
-        ("position_m", D, "signal chainage (block boundary) [m]"),
+        ("position_m", D, "signal chainage (block boundary) [m]", CHAINAGE),
         ("direction", S, "down or up"),
     ]), required=False, row_id=("signal_id",)),
     TableSpec("rolling_stock", _schema("rolling_stock", [
         ("train_type", S, "unique train type; names files (PATH_ID_RE)"),
-        ("length_m", D, "train length [m]"),
-        ("empty_mass_t", D, "empty train mass [t]"),
-        ("full_load_mass_t", D, "passenger mass added at 100 % load [t]"),
-        ("rotating_mass_factor", D, "rotating-mass allowance, e.g. 0.08 [-]"),
-        ("max_speed_kmh", D, "vehicle maximum speed [km/h]"),
+        ("length_m", D, "train length [m]", LENGTH),
+        ("empty_mass_t", D, "empty train mass [t]", MASS),
+        ("full_load_mass_t", D, "passenger mass added at 100 % load [t]", LOAD),
+        ("rotating_mass_factor", D, "rotating-mass allowance, e.g. 0.08 [-]", ROTATING),
+        ("max_speed_kmh", D, "vehicle maximum speed [km/h]", SPEED),
         ("max_accel_kmh_s", D, "acceleration cap when powering: the vehicle's maximum or its traction comfort "
-                               "limit, whichever is lower [km/h/s]"),
-        ("davis_a_kN", D, "Davis resistance constant term A [kN]"),
-        ("davis_b_kN_per_kmh", D, "Davis resistance linear term B [kN/(km/h)]"),
-        ("davis_c_kN_per_kmh2", D, "Davis resistance quadratic term C [kN/(km/h)^2]"),
-        ("service_brake_kmh_s", D, "intermediate (restriction) braking deceleration [km/h/s]"),
+                               "limit, whichever is lower [km/h/s]", ACCEL),
+        ("davis_a_kN", D, "Davis resistance constant term A [kN]", Range(0.0, MAX_DAVIS_AT_100_KN, DAVIS)),
+        ("davis_b_kN_per_kmh", D, "Davis resistance linear term B [kN/(km/h)]", Range(0.0, MAX_DAVIS_AT_100_KN / 100, DAVIS)),
+        ("davis_c_kN_per_kmh2", D, "Davis resistance quadratic term C [kN/(km/h)^2]", Range(0.0, MAX_DAVIS_AT_100_KN / 100**2, DAVIS)),
+        ("service_brake_kmh_s", D, "intermediate (restriction) braking deceleration [km/h/s]", ACCEL),
         ("stop_brake_kmh_s", D, "the train's own stopping brake: the deceleration achieved at station stops "
                                 "in the run curves, and the most any stopping pattern asks for or achieves "
-                                "[km/h/s]"),
-        ("atsp_pattern_kmh_s", D, "deceleration of ATS-P speed-check patterns [km/h/s]"),
+                                "[km/h/s]", ACCEL),
+        ("atsp_pattern_kmh_s", D, "deceleration of ATS-P speed-check patterns [km/h/s]", ACCEL),
         ("brake_comfort_kmh_s", D, "ride-comfort limit on the braking of a stop (the stopping pattern's "
-                                   "comfort limit, e.g. 3.3); not a limit on acceleration [km/h/s]"),
-        ("jerk_limit_kmh_s2", D, "ride-comfort jerk limit [km/h/s^2]"),
-        ("speed_margin_kmh", D, "on-board maximum speed = limit - margin [km/h]"),
+                                   "comfort limit, e.g. 3.3); not a limit on acceleration [km/h/s]", ACCEL),
+        ("jerk_limit_kmh_s2", D, "ride-comfort jerk limit [km/h/s^2]", JERK),
+        ("speed_margin_kmh", D, "on-board maximum speed = limit - margin [km/h]", MARGIN),
         ("cruise", S, "constant (constant-speed control) or sawtooth"),
-        ("coast_band_kmh", D, "sawtooth speed band [km/h]"),
+        ("coast_band_kmh", D, "sawtooth speed band [km/h]", BAND),
     ]), required=True, min_rows=1, row_id=("train_type",)),
     TableSpec("traction", _schema("traction", [
         ("train_type", S, "train type (references rolling_stock)"),
-        ("speed_kmh", D, "speed of this curve point [km/h]; strictly increasing per train type from 0"),
-        ("effort_kN", D, "full-notch tractive effort of the whole train [kN]; >= 0"),
+        ("speed_kmh", D, "speed of this curve point [km/h]; strictly increasing per train type from 0", TRACTION_SPEED),
+        ("effort_kN", D, "full-notch tractive effort of the whole train [kN]; >= 0", EFFORT),
     ]), required=True, min_rows=1, row_id=("train_type", "speed_kmh")),
     TableSpec("timetable", _schema("timetable", [
         ("train_id", S, "train identifier"),
@@ -187,15 +290,15 @@ _SPECS = [
         ("direction", S, "down or up"),
         ("seq", I32, "order of the call along the run, from 0"),
         ("station_id", S, "station (references stations)"),
-        ("arrival_s", D, "arrival [s after midnight, may exceed 86400]; null at the origin", NULLABLE),
+        ("arrival_s", D, "arrival [s after midnight, may exceed 86400]; null at the origin", NULLABLE, TIME),
         ("departure_s", D, "departure [s after midnight, may exceed 86400]; null at the terminus",
-         NULLABLE),
+         NULLABLE, TIME),
         ("stops", B, "false for a pass"),
     ]), required=True, row_id=("train_id", "seq")),
     TableSpec("nodes", _schema("nodes", [
         ("node_id", S, "unique node identifier"),
         ("kind", S, "switch, stop, boundary or end"),
-        ("position_m", D, "node chainage [m]"),
+        ("position_m", D, "node chainage [m]", CHAINAGE),
         ("interlocking", S, "interlocking that controls the node"),
         ("station_id", S, "station a stop node belongs to (optional column)", NULLABLE),
         ("track", S, "track the node lies on (optional column)", NULLABLE),
@@ -204,7 +307,7 @@ _SPECS = [
         ("edge_id", S, "unique edge identifier"),
         ("from_node", S, "node id at one end"),
         ("to_node", S, "node id at the other end"),
-        ("length_m", D, "track length between the nodes [m]; > 0"),
+        ("length_m", D, "track length between the nodes [m]; > 0", Range(0.0, 2 * MAX_CHAINAGE_M, 'an edge is no longer than the line can be', lo_open=True)),
         ("track", S, "track name"),
     ]), required=False, row_id=("edge_id",)),
 ]

@@ -13,11 +13,11 @@ from planner.line.schema import (
     BEACON_KINDS,
     CRUISE_MODES,
     LIMIT_DIRECTIONS,
-    MAX_GRADIENT_PERMIL,
     NODE_KINDS,
     SCHEMA_VERSION,
     RENAMED_COLUMNS,
     TABLES,
+    column_range,
     describe,
 )
 
@@ -27,22 +27,30 @@ DOC_PATH = "docs/line-database.md"
 
 _RULES: dict[str, list[str]] = {
     "line": ["`line_id` names the line in every output (partition value `line=`, bundle names); the "
-             "folder may have any name.", "`start_m` < `end_m`; `max_speed_kmh` > 0 or null (no line "
-             f"maximum); `approach_m` > 0 or null; `schema_version` = {SCHEMA_VERSION}."],
+             "folder may have any name.", "`start_m` < `end_m`; `max_speed_kmh` null: no line maximum (each "
+             "train's own applies where no restriction does); `approach_m` null or absent: the start from the "
+             f"physics; `schema_version` = {SCHEMA_VERSION}."],
     "stations": ["`station_id` unique and not empty; rows sorted by strictly increasing `position_m`.",
-                 "Stop markers inside [`start_m`, `end_m`] of `line`; `platform_length_m` > 0."],
+                 "Platform centre and stop markers inside [`start_m`, `end_m`] of `line`."],
     "gradients": ["`start_m` < `end_m`; rows sorted by `start_m`, not overlapping; a gap is level track.",
-                  f"|`gradient_permil`| ≤ {MAX_GRADIENT_PERMIL:g}; every segment inside the line's range."],
-    "curves": ["As for gradients (sorted, non-overlapping, gaps are straight track); `radius_m` > 0."],
-    "speed_limits": [f"`direction` one of {', '.join(LIMIT_DIRECTIONS)}; `limit_kmh` > 0; "
+                  "Every segment inside the line's range; at most one row per metre of line (also for "
+                  "`curves` and `speed_limits`): a denser table is a sampled curve, not a table of segments."],
+    "curves": ["As for gradients (sorted, non-overlapping, gaps are straight track)."],
+    "speed_limits": [f"`direction` one of {', '.join(LIMIT_DIRECTIONS)}; "
                      "`train_type` null or a train type of `rolling_stock`.",
                      "Restrictions may overlap: the lowest applies. Where none applies, the lower of the "
                      "line's and the train's maximum speed does."],
     "beacons": ["`beacon_id` unique; `direction` down or up; "
                 f"`kind` one of {', '.join(BEACON_KINDS)}; position inside the line's range."],
     "signals": ["Optional file. `signal_id` unique; `direction` down or up; position inside the line's range."],
-    "rolling_stock": ["`train_type` unique; masses, speeds, decelerations and the jerk limit > 0; "
-                      "resistance terms, margins and bands ≥ 0.",
+    "rolling_stock": ["`train_type` unique.",
+                      "`speed_margin_kmh` below the lowest speed the train type meets (the line's and its own "
+                      "maximum, every restriction for it or for every train type): the on-board maximum is that "
+                      "speed minus the margin.",
+                      "Each of `service_brake_kmh_s`, `stop_brake_kmh_s`, `atsp_pattern_kmh_s` above "
+                      "(g·|s| + A/M) / (1 + ρ) in km/h/s: the pull of the steepest gradient `s` of the line and the "
+                      "Davis A term on the empty train. A weaker brake rate could not follow its braking curve up "
+                      "that climb without traction (the train would stop short of its marker).",
                       f"`cruise` one of {', '.join(CRUISE_MODES)}; `coast_band_kmh` > 0 for sawtooth.",
                       "Three limits kept apart: `max_accel_kmh_s` caps acceleration when powering (a source's "
                       "traction comfort limit goes here); `brake_comfort_kmh_s` is the ride-comfort limit on the "
@@ -53,14 +61,21 @@ _RULES: dict[str, list[str]] = {
                         "with one line saying so)." for (t, new), (old, why) in RENAMED_COLUMNS.items()
                         if t == "rolling_stock"]],
     "traction": ["Per train type: `speed_kmh` starts at 0, strictly increasing, and reaches the train's "
-                 "`max_speed_kmh`; `effort_kN` ≥ 0. Every train type of `rolling_stock` has a curve."],
+                 "`max_speed_kmh`. Every train type of `rolling_stock` has a curve."],
     "timetable": ["Per train: one `train_type` and `direction`; `seq` runs 0..n-1; at least two calls; "
                   "null `arrival_s` only at seq 0 and null `departure_s` only at the last call.",
                   "Times never decrease along `seq`; consecutive stations follow the direction "
-                  "(down: increasing chainage). May have no rows."],
+                  "(down: increasing chainage). May have no rows.",
+                  "Where a train stands (its origin, its terminus, every call with `stops`) its front is at the "
+                  "station's stop marker for its direction and its tail one train length (`rolling_stock."
+                  "length_m`) behind; the tail must lie inside the line's range (down: ≥ `start_m`, up: ≤ "
+                  "`end_m`), or the train would stand on track the database does not describe.",
+                  "Warning only (printed by `planner validate`, not refused): a train longer than the platform "
+                  "where it stands. Real railways do this with selective door opening (door cut: only the "
+                  "doors along the platform open), and the planner's physics does not use platform lengths."],
     "nodes": ["Optional file (with `edges`). `node_id` unique; "
               f"`kind` one of {', '.join(NODE_KINDS)}; `station_id`, when given, names a station."],
-    "edges": ["Optional file (with `nodes`). `edge_id` unique; `length_m` > 0; both ends name nodes."],
+    "edges": ["Optional file (with `nodes`). `edge_id` unique; both ends name nodes."],
 }
 
 
@@ -99,6 +114,12 @@ def line_database_doc() -> str:
         "the row's id), the column and what is wrong, e.g.",
         "`gradients.parquet row 7 (start_m=4200.0) column start_m: overlaps row 6, which ends at 4350.0`.",
         "Nothing is computed from a database that fails validation.",
+        "",
+        "Every number column has a range (column `range` of the tables below; `[a, b]` includes both",
+        "ends, `(a, b]` not `a`), checked on every value that is not null: a unit slip, a lost decimal",
+        "point or a 1e308 is refused up front, naming the cell, instead of failing late in a computation.",
+        "The bounds are generous: they refuse what no railway has, never a heavy freight train, a",
+        "high-speed line or a tight tramway curve. Why each bound is where it is: [Value ranges](#value-ranges).",
         "",
         "## Bringing your own line",
         "",
@@ -140,13 +161,28 @@ def line_database_doc() -> str:
     for name, spec in TABLES.items():
         need = "required" if spec.required else "optional"
         out += [f"### `{spec.file}` ({need}; {_rows(name)})", ""]
-        out += ["| column | type | nullable | meaning |", "|---|---|---|---|"]
-        for col, typ, nullable, desc in describe(name):
+        out += ["| column | type | nullable | range | meaning |", "|---|---|---|---|---|"]
+        for (col, typ, nullable, desc), field in zip(describe(name), spec.schema):
             opt = " (optional column)" if col in spec.optional_columns and "optional" not in desc else ""
-            out.append(f"| `{col}` | {typ} | {'yes' if nullable else 'no'} | "
+            rng = column_range(field)
+            out.append(f"| `{col}` | {typ} | {'yes' if nullable else 'no'} | {'' if rng is None else rng} | "
                        f"{desc.replace('|', chr(92) + '|')}{opt} |")
         out.append("")
         for r in _RULES.get(name, []):
             out.append(f"- {r}")
         out.append("")
+    out += ["## Value ranges", "", "| range | columns | why |", "|---|---|---|"]
+    for (rng, why), cols in _ranges().items():
+        out.append(f"| {rng} | {', '.join(cols)} | {why} |")
     return "\n".join(out).rstrip() + "\n"
+
+
+def _ranges() -> dict[tuple[str, str], list[str]]:
+    """Each declared range with its reason, and the columns (``table.column``) that have it."""
+    out: dict[tuple[str, str], list[str]] = {}
+    for name, spec in TABLES.items():
+        for field in spec.schema:
+            rng = column_range(field)
+            if rng is not None:
+                out.setdefault((str(rng), rng.why), []).append(f"`{name}.{field.name}`")
+    return out

@@ -36,7 +36,8 @@ import pyarrow as pa
 
 from planner.errors import Violation
 from planner.line.conform import TableView, conform
-from planner.line.rules import RULES, Db
+from planner.line import plausibility  # noqa: F401  (registers its rules)
+from planner.line.rules import ADVICE, RULES, Db
 from planner.line.schema import TABLES
 
 MAX_PRINTED = 50
@@ -60,7 +61,7 @@ def _sort_key(v: Violation):
 
 
 def check_tables(
-    folder_name: str, raw: dict[str, pa.Table | Violation | None]
+    folder_name: str, raw: dict[str, pa.Table | Violation | None], warnings: list[Violation] | None = None
 ) -> tuple[dict[str, TableView], list[Violation]]:
     """Validate the raw tables of one line folder.
 
@@ -72,6 +73,9 @@ def check_tables(
         For each table name of :data:`planner.line.schema.TABLES`: the pyarrow table
         read from its file, a :class:`Violation` if it could not be read, or
         None if the file does not exist.
+    warnings : list, optional
+        When given, the findings of the warning rules (legitimate on some
+        railways, never refused) are appended to it, sorted like violations.
 
     Returns
     -------
@@ -103,4 +107,7 @@ def check_tables(
         if all(n in views for n in needs):
             out.extend(fn(db))
     out.sort(key=_sort_key)
+    if warnings is not None:
+        found = [v for needs, fn in ADVICE if all(n in views for n in needs) for v in fn(db)]
+        warnings.extend(sorted(found, key=_sort_key))
     return views, out

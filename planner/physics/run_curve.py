@@ -206,7 +206,8 @@ def _stall_error(track, train, load, tf, s, j: int, k_ok: int, k: int) -> StallE
     return StallError(
         f"train type {train.train_type} stalls on {track.origin}->{track.destination} between chainage "
         f"{a:.0f} and {b:.0f} m (run {j}: load {load[j]:g}, traction factor {tf[j]:g}): tractive effort "
-        "cannot overcome resistance and gradient; check traction.parquet or the gradients",
+        "cannot overcome resistance and gradient; check its effort (traction.parquet), its mass and Davis terms "
+        "(rolling_stock.parquet) and the gradients",
         (a, b), float(load[j]), float(tf[j]))
 
 

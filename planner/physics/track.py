@@ -143,10 +143,16 @@ def make_track(line: Line, train_type: str, origin: str, destination: str, *,
         Extra running distances [m] from the departure marker that must be exact
         grid nodes (evaluation points, ratio changes, snapshots).
 
+    Only the slice of the line the run can see (:meth:`planner.line.model.Line.window`) is
+    read, so the work grows with the interstation, not with the line's gradient and
+    curve tables (a 10-million-row gradient table made every whole-line call take
+    seconds and gigabytes: the train graph's and the conflict check's).
+
     Raises
     ------
     UnknownNameError, InputError, InfeasibleError
     """
+    line = line.window(origin, destination, train_type)
     train = line.train_type(train_type)
     ext = line.run_between(origin, destination)
     direction, sg, x0, x1, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m

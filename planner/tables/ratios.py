@@ -50,6 +50,9 @@ DECIMALS = 6
 """Ratios are rounded to this many decimals (1e-6 of the maximum speed is far below any effect)."""
 FLOOR_MERGE = 0.005
 """A grid ratio this close above the floor (0.5 % of maximum speed) stands for it."""
+MAX_RATIOS = 1000
+"""Most ratios one piece may give: each ratio is a column of every table (and a simulation per interstation);
+ratios are rounded to 1e-6 anyway, and a grid of 1,000 is 0.1 % of the maximum speed apart."""
 
 
 def floor_ratio(line_max_speed_ms: float, min_target_speed_ms: float = MIN_TARGET_SPEED_MS) -> float:
@@ -118,10 +121,12 @@ def _piece(text: str, floor: float, where: str) -> list[float]:
             f"--ratios piece {text!r} in {where!r}: expected 'start:stop:step' or a single ratio, "
             "e.g. '1.0:0.7:0.1,0.7:floor:0.05'"
         ) from None
-    if not step > 0 or start < stop:
+    if not (step > 0 and start >= stop and math.isfinite(start) and math.isfinite(stop)):
         raise InputError(
             f"--ratios piece {text!r}: needs start >= stop and step > 0 (ratios run downwards), e.g. '1.0:0.7:0.1'"
         )
+    if (start - stop) / step + 1 > MAX_RATIOS:
+        raise InputError(f"--ratios piece {text!r} gives more than {MAX_RATIOS} ratios; use a larger step")
     n = int(math.floor((start - stop) / step + 1e-9))
     out = [start - i * step for i in range(n + 1)]
     # the stop value itself belongs to the piece even when the step does not land on it exactly
@@ -175,8 +180,10 @@ def ratio_grid(
             values.extend(_piece(piece.strip(), floor, spec))
     else:
         values = [float(v) for v in spec]
-    arr = np.round(np.asarray(values, dtype=float), DECIMALS)
-    bad = arr[~((arr > 0) & (arr <= 1.0))]
+    raw = np.asarray(values, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e308 × 10^DECIMALS: refused below by its own value
+        arr = np.round(raw, DECIMALS)
+    bad = raw[~((arr > 0) & (arr <= 1.0))]
     if bad.size:
         raise InputError(f"--ratios: ratio {bad[0]:g} is outside (0, 1]; ratios are fractions of the maximum speed")
     fl = round(floor, DECIMALS)

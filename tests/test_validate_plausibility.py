@@ -1,0 +1,92 @@
+"""Rules across tables (planner/line/plausibility.py), with closed-form numbers on the tiny line.
+
+Impossible geometry (issue 33): a standing train's tail off the line is refused; a train longer
+than its platform is a warning. A's down stop marker is at 260 m, C's up stop marker at 4740 m,
+the line runs 0 … 5000 m, platforms are 200 m; train 101 (EMU10, down) calls A, B, C stopping at
+each; train 202 (EMU6, up) calls C, passes B, ends at A.
+
+Values that pass their own range but fail with another table (issue 32): an on-board margin that
+leaves no speed under a restriction, a brake weaker than the steepest climb's pull.
+"""
+from __future__ import annotations
+
+from typer.testing import CliRunner
+
+from planner.cli import app
+from planner.line.loader import check_line, load_line
+
+from linedb import default_tables, write_line_db
+
+
+def _line(tmp_path, name, emu10_m=200.0, emu6_m=120.0):
+    t = default_tables()
+    t["rolling_stock"].loc[0, "length_m"] = emu10_m
+    t["rolling_stock"].loc[1, "length_m"] = emu6_m
+    return write_line_db(tmp_path / name, rolling_stock=t["rolling_stock"])
+
+
+def test_down_train_whose_tail_is_before_the_line_start_is_refused(tmp_path):
+    found = check_line(_line(tmp_path, "long", emu10_m=300.0))  # tail at 260 - 300 = -40 m
+    assert [(v.file, v.row, v.column) for v in found] == [("timetable.parquet", 0, "station_id")]
+    msg = str(found[0])
+    assert "train '101'" in msg and "tail is at -40.0 m" in msg and "start_m 0.0" in msg and "\n" not in msg
+
+
+def test_down_train_whose_tail_is_on_the_line_start_is_valid(tmp_path):
+    assert check_line(_line(tmp_path, "exact", emu10_m=260.0)) == []  # tail at exactly 0 m
+
+
+def test_up_train_whose_tail_is_beyond_the_line_end_is_refused(tmp_path):
+    found = check_line(_line(tmp_path, "long", emu6_m=261.0))  # tail at 4740 + 261 = 5001 m
+    assert [(v.file, v.row, v.column) for v in found] == [("timetable.parquet", 3, "station_id")]
+    assert "tail is at 5001.0 m" in str(found[0]) and "end_m 5000.0" in str(found[0])
+    assert check_line(_line(tmp_path, "exact", emu6_m=260.0)) == []  # tail at exactly 5000 m
+
+
+def test_train_longer_than_its_platform_is_a_warning_where_it_stands(tmp_path):
+    w: list = []
+    load_line(_line(tmp_path, "fits", emu10_m=200.0, emu6_m=200.0), w)  # as long as the 200 m platforms
+    assert w == []
+    w = []
+    line = load_line(_line(tmp_path, "over", emu10_m=201.0, emu6_m=201.0), w)  # loads: never refused
+    assert line.train_type("EMU10").length_m == 201.0
+    # 101 stands at A, B, C (rows 0-2); 202 stands at C and A (rows 3, 5) but passes B (row 4)
+    assert [(v.file, v.row, v.column) for v in w] == [("timetable.parquet", r, "stops") for r in (0, 1, 2, 3, 5)]
+    assert "201.0 m long" in str(w[0]) and "platform is 200.0 m" in str(w[0])
+
+
+def test_validate_prints_the_warning_and_succeeds(tmp_path):
+    r = CliRunner().invoke(app, ["validate", str(_line(tmp_path, "over", emu10_m=201.0))])
+    assert r.exit_code == 0
+    warnings = [x for x in r.stderr.splitlines() if x.startswith("warning: ")]
+    assert len(warnings) == 3 and warnings[0].startswith("warning: timetable.parquet row 0 (train_id=101 seq=0) "
+                                                         "column stops: train '101'")
+
+
+# --- values that pass their range but fail with another table (issue 32)
+def _stock(tmp_path, name, row, **cells):
+    t = default_tables()
+    for c, v in cells.items():
+        t["rolling_stock"].loc[row, c] = v
+    t["speed_limits"].loc[1, "limit_kmh"] = 40.0  # the EMU6-only restriction
+    return check_line(write_line_db(tmp_path / name, rolling_stock=t["rolling_stock"],
+                                    speed_limits=t["speed_limits"]))
+
+
+def test_margin_must_leave_an_on_board_speed_under_the_lowest_limit(tmp_path):
+    found = _stock(tmp_path, "at", 1, speed_margin_kmh=40.0)  # EMU6 meets the 40 km/h restriction
+    assert [(v.file, v.row, v.column) for v in found] == [("rolling_stock.parquet", 1, "speed_margin_kmh")]
+    assert "under 40.0 km/h (speed_limits.parquet row 1)" in str(found[0])
+    assert _stock(tmp_path, "below", 1, speed_margin_kmh=39.9) == []
+    assert _stock(tmp_path, "other", 0, speed_margin_kmh=45.0) == []  # EMU10 does not meet it (70 km/h is its lowest)
+
+
+def test_brakes_must_hold_the_train_on_the_steepest_climb(tmp_path):
+    # EMU10: (g 10 ‰ + A/M) / (1 + ρ) with A = 5 kN, M = 320 t, ρ = 0.08, in km/h/s (× 3.6)
+    need = (9.80665 * 0.010 + 5_000.0 / 320_000.0) / 1.08 * 3.6
+    assert 0.378 < need < 0.380
+    found = _stock(tmp_path, "weak", 0, stop_brake_kmh_s=0.378)
+    assert [(v.file, v.row, v.column) for v in found] == [("rolling_stock.parquet", 0, "stop_brake_kmh_s")]
+    assert "10.0 ‰, gradients.parquet row 2" in str(found[0])
+    assert _stock(tmp_path, "enough", 0, stop_brake_kmh_s=0.380, service_brake_kmh_s=0.380,
+                  atsp_pattern_kmh_s=0.380) == []
