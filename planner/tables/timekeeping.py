@@ -367,7 +367,27 @@ class TimekeepingController:
             # powers back up: its mean speed is about the band's middle, so aim the band there
             cap += 0.5 * self.model.coast_band_ms
         self.cap[i] = cap
-        self.shed[i] = float(tg.decel_ms2) if math.isfinite(tg.decel_ms2) else self.service
+        shed = float(tg.decel_ms2) if math.isfinite(tg.decel_ms2) else self.service
+        if cap < v and shed < self.service and self._sheds_above_ceiling(gs, gw, k, v, cap, shed):
+            shed = self.service
+        self.shed[i] = shed
+
+    def _sheds_above_ceiling(self, gs, gw, k: int, v: float, cap: float, shed: float) -> bool:
+        """Would shedding from v at ``shed`` down to the cap run above the ceiling (a restriction's
+        service-brake curve starting on the way, as in the flat-out guide ``gs, gw``)?
+
+        The integrator sheds at the controller's rate whenever a run is above its ceiling, whatever
+        lowered it: a gentle trim meant for the cap would then run on above a restriction's braking
+        curve, which falls faster (found in the closed loop: the cap re-computed a hair under the
+        speed held, one node before a braking curve began, ran 38 m above it and arrived 1.12 s
+        early). Checked at the guide's nodes up to where the cap is met, and one grid step beyond
+        (the integrator decides per step)."""
+        s0 = self.s[k]
+        s_end = s0 + (v * v - cap * cap) / (2.0 * shed) + (self.s[min(k + 1, self.s.size - 1)] - s0)
+        j0, j1 = np.searchsorted(gs, [s0, s_end], side="right")
+        x = np.append(gs[j0:j1], s_end)
+        line = v * v - 2.0 * shed * (x - s0)
+        return bool(np.any(line > np.interp(x, gs, gw) + GUIDE_TOL_MS2))
 
     def __call__(self, s_m: float, state):
         from planner.physics.run_curve import Command
