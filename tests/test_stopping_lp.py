@@ -257,7 +257,7 @@ def _regions(v0, X, decel_limits, speed_limits):
     return events, A_reg, V_reg
 
 
-def pinned_lp_feasible(T, N, v0, X, J, decel_limits, speed_limits, pins):
+def pinned_lp_feasible(T, N, v0, X, J, decel_limits, speed_limits, pins, unit_steps=None):
     """Is there a trajectory of duration T, jerk constant on each of N equal steps, that crosses
     event point k inside step ``pins[k]`` (strictly increasing) and meets every limit?
 
@@ -268,20 +268,21 @@ def pinned_lp_feasible(T, N, v0, X, J, decel_limits, speed_limits, pins):
     and ``v >= 0`` at its end keeps x monotone (``x_k <= e <= x_{k+1}`` places the crossing). So
     every feasible point is an admissible trajectory and the LP's minimum time is a rigorous upper
     bound on the true minimum. A pure LP (HiGHS, fast at thousands of steps), unlike
-    :func:`lp_feasible`, whose binaries time out near the bound on fine grids.
+    :func:`lp_feasible`, whose binaries time out near the bound on fine grids. ``unit_steps``: the
+    N steps as fractions of T (default equal), to refine the grid where it matters.
     """
     events, A_reg, V_reg = _regions(v0, X, decel_limits, speed_limits)
-    h = T / N
+    hs = np.full(N, T / N) if unit_steps is None else T * np.asarray(unit_steps)
     n = N + 1
     ix, iv, ia, ij = 0, n, 2 * n, 3 * n
     nvar = 3 * n + N
-    pins = np.asarray(pins)
-    region = np.searchsorted(pins, np.arange(N), side="left")  # region of each step (the crossing: before)
+    pins = np.asarray(pins, dtype=int)
     lb, ub = np.full(nvar, -np.inf), np.full(nvar, np.inf)
     lb[ix:ix + n], ub[ix:ix + n] = 0.0, X
     lb[iv:iv + n], ub[iv:iv + n] = 0.0, v0
     ub[ia:ia + n] = 0.0
     lb[ij:ij + N], ub[ij:ij + N] = -J, J
+    region = np.searchsorted(pins, np.arange(N), side="left")  # region of each step (the crossing: before)
     A_step = np.asarray(A_reg)[region]
     C_step = np.asarray(V_reg)[region]
     A_step[pins] = np.minimum(A_step[pins], np.asarray(A_reg)[1:])  # the crossing step: both sides
@@ -297,6 +298,7 @@ def pinned_lp_feasible(T, N, v0, X, J, decel_limits, speed_limits, pins):
     rows, cols, vals = [], [], []
     r = 0
     for i in range(N):
+        h = hs[i]
         for c, val in ((ix + i + 1, 1.0), (ix + i, -1.0), (iv + i, -h), (ia + i, -h * h / 2), (ij + i, -h ** 3 / 6)):
             rows.append(r), cols.append(c), vals.append(val)
         for c, val in ((iv + i + 1, 1.0), (iv + i, -1.0), (ia + i, -h), (ij + i, -h * h / 2)):
@@ -311,8 +313,26 @@ def pinned_lp_feasible(T, N, v0, X, J, decel_limits, speed_limits, pins):
     return res.status == 0
 
 
+def refined_steps(N, crossing_guess, fine):
+    """N equal steps (as fractions of the duration), each of the two around every guessed crossing
+    cut into ``fine``: the steps and, per event, the index of the first fine step."""
+    cut = set()
+    for f in crossing_guess:
+        c = min(int(f * N), N - 1)
+        cut.update({max(c - 1, 0), c, min(c + 1, N - 1)})
+    steps, first = [], {}
+    for i in range(N):
+        if i in cut:
+            first.setdefault(i, len(steps))
+            steps += [1.0 / (N * fine)] * fine
+        else:
+            steps.append(1.0 / N)
+    starts = np.concatenate([[0.0], np.cumsum(steps)])
+    return np.asarray(steps), [int(np.searchsorted(starts, f, side="right") - 1) for f in crossing_guess]
+
+
 def pinned_lp_min_time(N, v0, X, J, decel_limits, speed_limits, T_guess, crossing_guess, *, window=3,
-                       tol=1e-4, bracket=(0.995, 1.005)):
+                       tol=1e-4, bracket=(0.995, 1.005), fine=1):
     """The LP's minimum time by bisection on T; at every T the crossing steps are searched in a window
     of ``window`` steps around ``crossing_guess`` (each event's crossing as a fraction of the
     duration: where to look, which does not touch the bound's rigour, only how tight it is)."""
@@ -321,11 +341,13 @@ def pinned_lp_min_time(N, v0, X, J, decel_limits, speed_limits, T_guess, crossin
     events, _, _ = _regions(v0, X, decel_limits, speed_limits)
     assert len(crossing_guess) == len(events)
 
+    unit, centre = refined_steps(N, crossing_guess, fine)
+    M = unit.size
+
     def feasible(T):
-        centre = [int(f * N) for f in crossing_guess]
-        for pins in product(*[range(max(1, c - window), min(N - 1, c + window) + 1) for c in centre]):
+        for pins in product(*[range(max(1, c - window), min(M - 1, c + window) + 1) for c in centre]):
             if all(p < q for p, q in zip(pins, pins[1:])) and pinned_lp_feasible(
-                    T, N, v0, X, J, decel_limits, speed_limits, pins):
+                    T, M, v0, X, J, decel_limits, speed_limits, pins, unit):
                 return True
         return False
 
