@@ -193,7 +193,9 @@ class TimekeepingController:
     the train noticeably, a light trim brake, the service brake). The
     vehicle then runs at ratio 1.0 under the cap v_m: power below it, hold at
     it (constant-speed control; sawtooth vehicles run their coasting band
-    below it), shed speed at the planned deceleration above it, and brake
+    below it), shed speed at the planned deceleration above it (following a
+    restriction's braking curve at the service brake where that is lower,
+    as the target computation assumes), and brake
     onto the marker on the stopping curve, after which the stop is committed
     and later changes are recorded but cannot re-plan it.
 
