@@ -17,6 +17,13 @@ duration must not exceed it (one-sided, rigorous check that no feasible
 trajectory beats it), and as N grows ``T_lp(N)`` must come down onto it
 (discretisation error O(T/N): a switching instant off the grid costs a fraction
 of a step). The minimum T is found by bisection on feasibility to 2e-3 s.
+
+:func:`pinned_lp_feasible` is the same bound with the step in which each event point is crossed
+fixed: a pure LP (every limit a bound on one variable), fast on fine grids where the MILP's
+binaries time out near the bound; :func:`pinned_lp_min_time` searches the crossing steps near
+where the solver's pattern crosses (which only makes the bound tight, never less rigorous). The
+random-case property checks the solver against the MILP on approaches with speed steps down and up
+and deceleration steps: nothing admissible on its grid is faster.
 """
 from __future__ import annotations
 
@@ -26,8 +33,10 @@ import numpy as np
 import pytest
 
 scipy_optimize = pytest.importorskip("scipy.optimize")
-from scipy.optimize import Bounds, LinearConstraint, milp  # noqa: E402
-from scipy.sparse import lil_matrix  # noqa: E402
+from hypothesis import HealthCheck, assume, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+from scipy.optimize import Bounds, LinearConstraint, linprog, milp  # noqa: E402
+from scipy.sparse import coo_matrix, lil_matrix  # noqa: E402
 
 from planner.stopping.pattern import solve_stop  # noqa: E402
 
@@ -37,10 +46,11 @@ def _steps(steps, x_stop):
     return events
 
 
-def lp_feasible(T, N, v0, X, J, decel_limits, speed_limits):
+def lp_feasible(T, N, v0, X, J, decel_limits, speed_limits, *, time_limit=60.0, proved=False):
     """Is there a trajectory of duration T on an N-step grid meeting every limit (conservatively)?
 
-    Returns (feasible, x samples) — x samples to check that no step spans two events.
+    Returns (feasible, x samples) — x samples to check that no step spans two events. ``proved``:
+    "no" only when HiGHS proved it (else RuntimeError), not when it ran out of time.
     """
     h = T / N
     events = sorted({x for x, _ in list(decel_limits) + list(speed_limits) if 0.0 < x < X})
@@ -114,10 +124,12 @@ def lp_feasible(T, N, v0, X, J, decel_limits, speed_limits):
         constraints=LinearConstraint(M, np.array(lo), np.array(hi)),
         bounds=Bounds(lb, ub),
         integrality=integrality,
-        options={"time_limit": 60.0},
+        options={"time_limit": time_limit},
     )
     if res.status == 0:
         return True, res.x[ix:ix + n]
+    if res.status != 2 and proved:
+        raise RuntimeError(f"MILP neither solved nor proved infeasible: {res.message}")
     return False, None
 
 
@@ -226,3 +238,206 @@ def test_speed_step_down_is_entered_in_minimum_time(name):
     assert p.duration_s <= T_lp + 1e-9  # no admissible (LP) trajectory is faster
     assert T_lp - p.duration_s <= 0.01
     assert paper.duration_s - T_lp >= 0.05  # the paper's rule is not the minimum
+
+
+# --------------------------------------------------------------------------------------
+# the same bound with the crossing steps fixed: a pure LP, no binaries
+# --------------------------------------------------------------------------------------
+
+
+def _regions(v0, X, decel_limits, speed_limits):
+    """Event points in (0, X) and the limits between them: deceleration, speed cap (running minimum)."""
+    events = sorted({x for x, _ in list(decel_limits) + list(speed_limits) if 0.0 < x < X})
+    A_reg, V_reg = [], []
+    cap = v0
+    for xb in [0.0] + events:
+        A_reg.append([v for x, v in decel_limits if x <= xb][-1])
+        cap = min(cap, [v for x, v in speed_limits if x <= xb][-1])
+        V_reg.append(cap)
+    return events, A_reg, V_reg
+
+
+def pinned_lp_feasible(T, N, v0, X, J, decel_limits, speed_limits, pins, unit_steps=None):
+    """Is there a trajectory of duration T, jerk constant on each of N equal steps, that crosses
+    event point k inside step ``pins[k]`` (strictly increasing) and meets every limit?
+
+    With the crossing steps fixed there is nothing left to decide by binaries: every limit is a
+    bound on one variable. A step lies in one region, or (the crossing step) takes the stricter
+    limits of both sides. The acceleration is linear in a step, so ``a >= -A`` at both ends holds
+    throughout; ``a <= 0`` makes the speed fall, so ``v <= C`` at the step's start holds throughout,
+    and ``v >= 0`` at its end keeps x monotone (``x_k <= e <= x_{k+1}`` places the crossing). So
+    every feasible point is an admissible trajectory and the LP's minimum time is a rigorous upper
+    bound on the true minimum. A pure LP (HiGHS, fast at thousands of steps), unlike
+    :func:`lp_feasible`, whose binaries time out near the bound on fine grids. ``unit_steps``: the
+    N steps as fractions of T (default equal), to refine the grid where it matters.
+    """
+    events, A_reg, V_reg = _regions(v0, X, decel_limits, speed_limits)
+    hs = np.full(N, T / N) if unit_steps is None else T * np.asarray(unit_steps)
+    n = N + 1
+    ix, iv, ia, ij = 0, n, 2 * n, 3 * n
+    nvar = 3 * n + N
+    pins = np.asarray(pins, dtype=int)
+    lb, ub = np.full(nvar, -np.inf), np.full(nvar, np.inf)
+    lb[ix:ix + n], ub[ix:ix + n] = 0.0, X
+    lb[iv:iv + n], ub[iv:iv + n] = 0.0, v0
+    ub[ia:ia + n] = 0.0
+    lb[ij:ij + N], ub[ij:ij + N] = -J, J
+    region = np.searchsorted(pins, np.arange(N), side="left")  # region of each step (the crossing: before)
+    A_step = np.asarray(A_reg)[region]
+    C_step = np.asarray(V_reg)[region]
+    A_step[pins] = np.minimum(A_step[pins], np.asarray(A_reg)[1:])  # the crossing step: both sides
+    C_step[pins] = np.asarray(V_reg)[1:]  # the running minimum: the far side's is the lower
+    lb[ia:ia + N] = -A_step
+    lb[ia + 1:ia + n] = np.maximum(lb[ia + 1:ia + n], -A_step)
+    ub[iv:iv + N] = np.minimum(ub[iv:iv + N], C_step)
+    for e, i in zip(events, pins):
+        ub[ix + i] = min(ub[ix + i], e)
+        lb[ix + i + 1] = max(lb[ix + i + 1], e)
+    for k, val in ((ix, 0.0), (iv, v0), (ia, 0.0), (ix + N, X), (iv + N, 0.0), (ia + N, 0.0)):
+        lb[k] = ub[k] = val
+    rows, cols, vals = [], [], []
+    r = 0
+    for i in range(N):
+        h = hs[i]
+        for c, val in ((ix + i + 1, 1.0), (ix + i, -1.0), (iv + i, -h), (ia + i, -h * h / 2), (ij + i, -h ** 3 / 6)):
+            rows.append(r), cols.append(c), vals.append(val)
+        for c, val in ((iv + i + 1, 1.0), (iv + i, -1.0), (ia + i, -h), (ij + i, -h * h / 2)):
+            rows.append(r + 1), cols.append(c), vals.append(val)
+        for c, val in ((ia + i + 1, 1.0), (ia + i, -1.0), (ij + i, -h)):
+            rows.append(r + 2), cols.append(c), vals.append(val)
+        r += 3
+    M = coo_matrix((vals, (rows, cols)), shape=(r, nvar)).tocsr()
+    res = linprog(np.zeros(nvar), A_eq=M, b_eq=np.zeros(r), bounds=np.column_stack([lb, ub]), method="highs")
+    if res.status not in (0, 2):
+        raise RuntimeError(f"LP neither solved nor proved infeasible: {res.message}")
+    return res.status == 0
+
+
+def refined_steps(N, crossing_guess, fine):
+    """N equal steps (as fractions of the duration), each of the two around every guessed crossing
+    cut into ``fine``: the steps and, per event, the index of the first fine step."""
+    cut = set()
+    for f in crossing_guess:
+        c = min(int(f * N), N - 1)
+        cut.update({max(c - 1, 0), c, min(c + 1, N - 1)})
+    steps, first = [], {}
+    for i in range(N):
+        if i in cut:
+            first.setdefault(i, len(steps))
+            steps += [1.0 / (N * fine)] * fine
+        else:
+            steps.append(1.0 / N)
+    starts = np.concatenate([[0.0], np.cumsum(steps)])
+    return np.asarray(steps), [int(np.searchsorted(starts, f, side="right") - 1) for f in crossing_guess]
+
+
+def pinned_lp_min_time(N, v0, X, J, decel_limits, speed_limits, T_guess, crossing_guess, *, window=3,
+                       tol=1e-4, bracket=(0.995, 1.005), fine=1):
+    """The LP's minimum time by bisection on T; at every T the crossing steps are searched in a window
+    of ``window`` steps around ``crossing_guess`` (each event's crossing as a fraction of the
+    duration: where to look, which does not touch the bound's rigour, only how tight it is)."""
+    from itertools import product
+
+    events, _, _ = _regions(v0, X, decel_limits, speed_limits)
+    assert len(crossing_guess) == len(events)
+
+    unit, centre = refined_steps(N, crossing_guess, fine)
+    M = unit.size
+
+    def feasible(T):
+        for pins in product(*[range(max(1, c - window), min(M - 1, c + window) + 1) for c in centre]):
+            if all(p < q for p, q in zip(pins, pins[1:])) and pinned_lp_feasible(
+                    T, M, v0, X, J, decel_limits, speed_limits, pins, unit):
+                return True
+        return False
+
+    lo, hi = bracket[0] * T_guess, bracket[1] * T_guess
+    while feasible(lo):
+        lo -= (hi - lo)
+    while not feasible(hi):
+        hi += (hi - lo)
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if feasible(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def crossing_fractions(p, events):
+    """When the pattern ``p`` passes each event point, as fractions of its duration."""
+    s = p.sample(p.duration_s / 20000.0)
+    return [float(np.interp(e, s.x_m, s.t_s)) / p.duration_s for e in events]
+
+
+# --------------------------------------------------------------------------------------
+# random position-dependent approaches: nothing admissible is faster than the solver
+# --------------------------------------------------------------------------------------
+
+N_RANDOM = 120
+"""The MILP grid of the random cases (each check one MILP of ~500 binaries at most)."""
+
+
+@st.composite
+def spaced_approaches(draw):
+    """Approaches with speed steps down and up and deceleration steps (gradients) at event points at
+    least 20 m apart (so that an LP step of a faster trajectory spans at most one of them)."""
+    X = draw(st.floats(120.0, 450.0))
+    v0 = draw(st.floats(6.0, 22.0))
+    J = draw(st.floats(0.35, 1.0))
+    n_ev = draw(st.integers(1, 3))
+    grid = sorted(draw(st.sets(st.integers(1, int((X - 20.0) // 20.0)), min_size=n_ev, max_size=n_ev)))
+    dl, sl = [(0.0, draw(st.floats(0.45, 1.1)))], [(0.0, v0 * draw(st.floats(1.0, 1.15)))]
+    for g in grid:
+        x = 20.0 * g + draw(st.floats(0.0, 5.0))
+        if draw(st.booleans()):
+            dl.append((x, draw(st.floats(0.45, 1.1))))
+        else:
+            sl.append((x, v0 * draw(st.floats(0.3, 1.05))))
+    return v0, X, J, dl, sl
+
+
+@settings(max_examples=40, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(spaced_approaches())
+def test_no_admissible_trajectory_is_faster_than_the_solver(case):
+    """Issue 37: the solver against an independent bound, not against itself. For random approaches
+    with speed steps down and up and deceleration steps, the MILP (every feasible point of which is
+    an admissible trajectory, checked: no step spans two event points) must prove that no trajectory
+    on its grid stops in less than the solver's duration. It finds the defects issue 37 fixed (a
+    step-down met while still braking, 0.05-0.1 s) when they are larger than its grid's loss."""
+    v0, X, J, dl, sl = case
+    p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+    assume(p.feasible)
+    T = p.duration_s * (1.0 - 1e-9) - 1e-6
+    faster, xs = lp_feasible(T, N_RANDOM, v0, X, J, dl, sl, time_limit=30.0, proved=True)
+    if faster:
+        ev = np.array(sorted({x for x, _ in dl + sl if 0.0 < x < X}))
+        per_step = np.searchsorted(ev, xs[1:], side="left") - np.searchsorted(ev, xs[:-1], side="right")
+        assert np.any(per_step > 1), f"an admissible trajectory stops faster than {p.duration_s:.4f} s"
+
+
+def test_case_study_step_down_met_while_still_braking():
+    """Issue 37: the seed paper's case study (350 m from 70 km/h, 40 km/h from 250 m, -20 ‰ before
+    150 m, jerk 0.6 m/s³, comfort 3.3 km/h/s) at adhesion 2.5 km/h/s. The step-down cannot be met at
+    a = 0 with a cruise after it; the optimum passes 250 m at 40 km/h still braking (about
+    -2.2 km/h/s). The construction that forced a = 0 there took 33.2526 s: the independent LP finds an
+    admissible trajectory faster than that, and none faster than the solver."""
+    from planner.stopping.pattern import decel_limit_profile
+
+    kmh = 1.0 / 3.6
+    v0, X, J = 70.0 * kmh, 350.0, 0.6
+    dl = decel_limit_profile(3.3 * kmh, 2.5 * kmh, [(0.0, -20.0), (150.0, 0.0)])
+    sl = [(0.0, v0), (250.0, 40.0 * kmh)]
+    p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+    s = p.sample(1e-3)
+    i = int(np.searchsorted(s.x_m, 250.0))
+    assert s.v_ms[i] == pytest.approx(40.0 * kmh, abs=1e-3) and s.a_ms2[i] < -2.0 * kmh
+    events, _, _ = _regions(v0, X, dl, sl)
+    T_lp = pinned_lp_min_time(200, v0, X, J, dl, sl, p.duration_s, crossing_fractions(p, events), window=1,
+                              tol=5e-4)
+    print(f"solver {p.duration_s:.4f} s, LP(N=200) {T_lp:.4f} s")
+    assert p.duration_s <= T_lp + 1e-9
+    assert T_lp < 33.2526 - 0.04  # the a = 0 entry was not the minimum, by the LP alone
+    assert T_lp - p.duration_s <= 0.01

@@ -34,6 +34,7 @@ from planner.stopping.pieces import (
 )
 
 _INF = math.inf
+_BAD = 1e9  # the entry choice's objective from here on: the braking does not fit, or no join
 _MAX_STEPS = 10_000  # guard against a construction that fails to make progress (never hit in tests)
 
 # slots of the node store, and the field rows of a slot
@@ -146,29 +147,90 @@ def _fix_decel(st, ns, J, Yb, A, C, r2, i_hi, s_hi):
     _push(st, ns, st[W, TAU, n] + rr, ye, v_e, A_new, _motion(A, C, J, v_e, A_new, r2), r2)
 
 
+@jit(nt.Tuple((f8, i8, f8))(ST, f8, f8, f8, f8, f8, i8, f8, f8))
+def _gap(st, J, Cr, y_cap, b_s, s1, i_v, s_v, ftol):
+    """Entering the step-down at ``y_cap`` with ``v = C``, ``b = b_s`` after a full-jerk arc of ``s1``
+    (from ``b_m = b_s - J s1``), joined to the part built by easing off (j = -J) from it: where that
+    easing-off piece reaches ``b_m`` minus where the arc starts, and the point ``(i, s)`` it leaves
+    the built part. ``E = v + b²/2J`` is constant on the easing-off piece, so that point is where the
+    built part's ``E`` equals the arc start's."""
+    b_m = b_s - J * s1
+    v_m = Cr - (b_s * b_s - b_m * b_m) / (2.0 * J)
+    y_m = y_cap - s1 * (v_m + s1 * (b_m / 2.0 + J * s1 / 6.0))
+    iq, sq = _search(st, ENERGY, v_m + b_m * b_m / (2.0 * J), 0.0, J, i_v, s_v, 0, 0.0, ftol)
+    yq, vq, bq = _state(st, iq, sq)
+    s2 = _pmax(bq - b_m, 0.0) / J
+    return yq + s2 * (vq + s2 * (bq / 2.0 - J * s2 / 6.0)) - y_m, iq, sq
+
+
 @jit(b1(ST, NS, f8, V, V, V, V, i8, f8, i8, f8))
 def _enter_braking(st, ns, J, Yb, A, C, capnext, i_v, s_v, r, b_s):
-    """Replace the part after the step-down: ease off to the lower cruise ``C - b_s²/(2J)``, cruise,
-    then brake on with full jerk so that ``v = C`` exactly at the restriction start, still braking
-    with ``b_s`` there. False when that needs more room than there is or breaks a limit."""
+    """Replace the part after the step-down so that ``v = C`` exactly at the restriction start, still
+    braking with ``b_s`` there: ease off (j = -J backwards) from the part built, down to ``b_m``, then
+    full jerk up to ``b_s`` at the restriction start. ``b_m = 0`` with a cruise at ``C - b_s²/(2J)``
+    in between when there is room for one; else (no cruise: the step-down met while braking) ``b_m > 0``
+    is the root of :func:`_gap`. False when no such join exists or it breaks a limit."""
     Cr = C[r]
     y_cap = capnext[r]
+    ftol = 1e-13 * _pmax(1.0, Cr)
     Cp = Cr - b_s * b_s / (2.0 * J)
-    if not Cp > 0.0:
-        return False
-    iq, sq = _search(st, ENERGY, Cp, 0.0, J, i_v, s_v, 0, 0.0, 1e-13 * _pmax(1.0, Cr))
-    yq, vq, bq = _state(st, iq, sq)
-    rr = bq / J
-    y_end = yq + rr * (vq + rr * (bq / 2.0 - J * rr / 6.0))
-    s_r = b_s / J
-    y0 = y_cap - (Cp * s_r + J * s_r ** 3 / 6.0)
-    if y0 < y_end:
-        return False
-    # speed: at most Cp while easing off and cruising, at most C on the arc; the caps nearer the
+    s1 = b_s / J  # the arc up to the restriction start
+    b_m = 0.0
+    v_m = Cp
+    iq, sq, yq, vq, bq, y_m = 0, 0.0, 0.0, 0.0, 0.0, 0.0
+    cruise = False
+    if Cp > 0.0:
+        iq, sq = _search(st, ENERGY, Cp, 0.0, J, i_v, s_v, 0, 0.0, ftol)
+        yq, vq, bq = _state(st, iq, sq)
+        rr = bq / J
+        y_m = y_cap - (Cp * s1 + J * s1 ** 3 / 6.0)
+        cruise = y_m >= yq + rr * (vq + rr * (bq / 2.0 - J * rr / 6.0))
+    if not cruise:
+        # no room for a cruise: b_m > 0, the root of the gap in s1 (b_m between 0 and b_s; the
+        # built part's E at the point the cap is first exceeded bounds b_m from above)
+        y_v, v_v, b_v = _state(st, i_v, s_v)
+        hi = s1 if Cp > 0.0 else (b_s - math.sqrt(_pmax(b_s * b_s - 2.0 * J * Cr, 0.0))) / J
+        if not Cp > 0.0:
+            hi *= 1.0 - 1e-12  # v_m = 0 at the top: stay just inside
+        bm_hi = math.sqrt(J * (v_v + b_v * b_v / (2.0 * J) - Cr) + b_s * b_s / 2.0)
+        lo = _pmax(b_s - bm_hi, 0.0) / J * (1.0 + 1e-12)
+        if not lo < hi:
+            return False
+        glo, _, _ = _gap(st, J, Cr, y_cap, b_s, lo, i_v, s_v, ftol)
+        ghi, iq, sq = _gap(st, J, Cr, y_cap, b_s, hi, i_v, s_v, ftol)
+        if not (glo < 0.0 < ghi):
+            return False
+        side = 0
+        for _ in range(100):
+            s1 = (lo * ghi - hi * glo) / (ghi - glo)
+            if not lo < s1 < hi:
+                s1 = 0.5 * (lo + hi)
+            g, iq, sq = _gap(st, J, Cr, y_cap, b_s, s1, i_v, s_v, ftol)
+            if abs(g) <= 1e-12 * _pmax(1.0, y_cap) or hi - lo <= 4e-16 * hi:
+                break
+            if g > 0.0:
+                hi, ghi = s1, g
+                if side == 1:
+                    glo *= 0.5
+                side = 1
+            else:
+                lo, glo = s1, g
+                if side == -1:
+                    ghi *= 0.5
+                side = -1
+        b_m = b_s - J * s1
+        v_m = Cr - (b_s * b_s - b_m * b_m) / (2.0 * J)
+        y_m = y_cap - s1 * (v_m + s1 * (b_m / 2.0 + J * s1 / 6.0))
+        yq, vq, bq = _state(st, iq, sq)
+        if bq < b_m:
+            return False
+    rr = (bq - b_m) / J  # easing off from the part built, down to b_m
+    y_end = _pmin(yq + rr * (vq + rr * (bq / 2.0 - J * rr / 6.0)), y_m)
+    # speed: at most v_m while easing off and cruising, at most C on the arc; the caps nearer the
     # stop are lower, so every region the new part runs in is checked (conservatively)
     k = _region_of(Yb, yq)
     while k < A.size and Yb[k] < y_cap:
-        if C[k] < (Cr if Yb[k + 1] > y0 else Cp):
+        if C[k] < (Cr if Yb[k + 1] > y_m else v_m):
             return False
         k += 1
     # easing off (b falls from bq): the deceleration limit at every event point it passes
@@ -179,23 +241,23 @@ def _enter_braking(st, ns, J, Yb, A, C, capnext, i_v, s_v, r, b_s):
             if bq - J * s_e > A[k] * (1.0 + 1e-13):
                 return False
         k += 1
-    # braking on from y0 (b grows to b_s at y_cap): the limit of every region it runs in
+    # braking on from y_m (b grows from b_m to b_s at y_cap): the limit of every region it runs in
     r_c = _region_of(Yb, y_cap)
     if b_s > A[r_c]:
         return False
-    k = _region_of(Yb, y0)
+    k = _region_of(Yb, y_m)
     while k < r_c:
         y_hi = _pmin(Yb[k + 1], y_cap)
-        if J * _time_to_y(y0, Cp, 0.0, J, y_hi, _INF) > A[k] * (1.0 + 1e-13):
+        if b_m + J * _time_to_y(y_m, v_m, b_m, J, y_hi, _INF) > A[k] * (1.0 + 1e-13):
             return False
         k += 1
     _cut(st, ns, J, iq, sq)
     t = st[W, TAU, ns[W] - 1] + rr
-    if y0 > y_end:
-        _push(st, ns, t, y_end, Cp, 0.0, 0.0, _region_of(Yb, y_end))
-        t += (y0 - y_end) / Cp
-    _push(st, ns, t, y0, Cp, 0.0, J, _region_of(Yb, y0))
-    _push(st, ns, t + s_r, y_cap, Cr, b_s, _motion(A, C, J, Cr, b_s, r_c), r_c)
+    if y_m > y_end:
+        _push(st, ns, t, y_end, v_m, 0.0, 0.0, _region_of(Yb, y_end))
+        t += (y_m - y_end) / v_m
+    _push(st, ns, t, y_m, v_m, b_m, J, _region_of(Yb, y_m))
+    _push(st, ns, t + s1, y_cap, Cr, b_s, _motion(A, C, J, Cr, b_s, r_c), r_c)
     return True
 
 
@@ -235,8 +297,8 @@ def _fix_speed(st, ns, J, Yb, A, C, capnext, entry, optimize, i_v, s_v, r):
             _fix_decel(st, ns, J, Yb, A, C, r2, iq, sq)
             return False
     b_end = bq - J * rr if touch else 0.0
-    step_down = not touch and optimize and y_cap < _INF and Cr < C[A.size - 1]
-    has_entry = not touch and entry[r] > 0.0
+    step_down = optimize and y_cap < _INF and Cr < C[A.size - 1]
+    has_entry = entry[r] > 0.0
     if step_down:
         _copy(st, ns, W, BEFORE)
     elif has_entry:
@@ -329,18 +391,23 @@ def _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, enter,
     if status != DONE or ns[FLAGS]:
         return _INF
     t = st[W, TAU, ns[W] - 1] - y_r / C[A.size - 1]
-    return t if y_r <= X else 1e9 + (y_r - X)
+    return t if y_r <= X else _BAD + (y_r - X)
 
 
 @jit(nt.none(ST, NS, f8, f8, V, V, V, V, V, V, i8, f8, i8))
 def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     """Choose the deceleration ``b_s`` at the restriction start that minimises the duration.
 
-    The paper's rule is ``b_s = 0`` (the working construction on entry, slot
-    BEFORE the one before the fix). The optimum enters still braking:
-    one-dimensional minimisation of the duration over ``b_s`` (Brent's method,
-    golden section with parabolic steps, to 0.5 % of its range, a few 1e-3 m/s²;
-    the duration is flat at the optimum, so its error is some 1e-4 s), each trial
+    The working construction on entry (slot PAPER; slot BEFORE the one before the
+    fix) has the paper's rule ``b_s = 0``, or, where easing off to ``a = 0`` would
+    end past the restriction start, ``v = C`` met there easing off. The optimum
+    enters still braking with ``b_s`` up to the deceleration limits on both sides
+    of the restriction start (:func:`_enter_braking` joins it, with or without a
+    cruise): one-dimensional minimisation of the duration over ``b_s`` (Brent's
+    method, golden section with parabolic steps, to 0.5 % of its range; the
+    duration is flat at an inner optimum, so its error is some 1e-4 s; an
+    optimum on the edge of the entries that work, where it is not flat, is
+    found by bisection to round-off), each trial
     finishing the construction with the entries already chosen at the step-downs
     further back (else the paper's rule); :func:`planner.stopping.kernel.kernel` repeats the whole
     construction once when there are several step-downs, so each choice sees the
@@ -348,10 +415,12 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     """
     _copy(st, ns, W, PAPER)
     f0 = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, False, 0.0)
-    hi = _pmin(A[_region_of(Yb, capnext[r])], math.sqrt(2.0 * J * C[r]) * 0.999)
+    r_c = _region_of(Yb, capnext[r])
+    hi = _pmin(A[r_c], A[r_c - 1])
     a, b, xtol = 0.0, hi, 5e-3 * hi
     g = 0.5 * (3.0 - math.sqrt(5.0))
     x = w = v = a + g * (b - a)
+    fa = fb = 0.0  # the objective at the bracket's ends, where known (0: not evaluated)
     fx = fw = fv = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, True, x)
     d = e = 0.0
     for _ in range(12):
@@ -360,7 +429,7 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
         if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):
             break
         para = False
-        if abs(e) > tol and fx < _INF and fw < _INF and fv < _INF:
+        if abs(e) > tol and fx < _BAD and fw < _BAD and fv < _BAD:
             rp = (x - w) * (fx - fv)
             q = (x - v) * (fx - fw)
             p = (x - v) * q - (x - w) * rp
@@ -381,19 +450,38 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
         fu = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, True, u)
         if fu <= fx:
             if u >= x:
-                a = x
+                a, fa = x, fx
             else:
-                b = x
+                b, fb = x, fx
             v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
         else:
             if u < x:
-                a = u
+                a, fa = u, fu
             else:
-                b = u
+                b, fb = u, fu
             if fu <= fw or w == x:
                 v, fv, w, fw = w, fw, u, fu
             elif fu <= fv or v == x or v == w:
                 v, fv = u, fu
+    # the minimum on the edge of the entries that work (the braking fits, the join exists): there the
+    # duration is not flat, so the edge is found to round-off by bisection, not to Brent's tolerance
+    if fx < _BAD:
+        for side in range(2):
+            lo, hi = (x, a) if side == 0 else (x, b)  # lo works, hi does not
+            if not (side == 0 and fa >= _BAD or side == 1 and fb >= _BAD):
+                continue
+            f_lo = fx
+            for _ in range(64):
+                if abs(hi - lo) <= 1e-14 * _pmax(1.0, abs(x)):
+                    break
+                mid = 0.5 * (lo + hi)
+                fm = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, True, mid)
+                if fm < _BAD:
+                    lo, f_lo = mid, fm
+                else:
+                    hi = mid
+            if f_lo < fx:
+                x, fx = lo, f_lo
     _copy(st, ns, BEFORE, W)
     if fx < f0 and _enter_braking(st, ns, J, Yb, A, C, capnext, i_v, s_v, r, x):
         entry[r] = x

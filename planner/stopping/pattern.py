@@ -70,22 +70,19 @@ tests). Where the deceleration limit falls, meeting it with equality at the
 event point is best for the parts on both sides; an independent time-discretised
 MILP agrees within its discretisation error on such cases.
 
-Speed step-downs (the true minimum, DESIGN §5). Where a speed limit steps
-down and the pattern cruises at the lower speed before braking on, the paper's
-rule reaches the lower speed with ``a = 0`` at the restriction start. That is
-not the minimum: the optimum enters the restriction still braking with some
-``b_s``, eases off inside it and cruises slightly below the limit
-(``C - b_s²/2J``); the time lost inside is paid back by braking later before
-it. The construction takes ``b_s`` by a one-dimensional minimisation of the
-duration (:func:`planner.stopping.construct._best_entry`, Brent's method; each trial finishes the
-construction), and with several step-downs runs once more so that each choice
-sees the others'. The choice also shortens the braking distance, so approaches
-that the paper's rule declares infeasible by less than an easing-off distance
-can get a pattern. ``rule="paper"`` keeps the paper's rule for comparison.
-``tests/test_stopping_lp.py`` checks the result against an independent
-time-discretised MILP: no slower, and within 0.01 s. Not covered: a step-down
-met without a cruise (the ease-off would end past the restriction start) is
-still entered at exactly the limit speed with the deceleration that gives.
+Speed step-downs (the true minimum, DESIGN §5). Speed falls, so a step-down
+to ``C`` is the point constraint ``v <= C`` at its start. The paper's rule meets
+it with ``a = 0``; the optimum enters still braking with some ``b_s`` (a free
+variable), eases off inside to ``b_m`` and brakes on: ``b_m = 0`` with a cruise
+at ``C - b_s²/2J`` where there is room, else ``b_m > 0`` (met while braking).
+The construction takes ``b_s`` by a one-dimensional minimisation of the
+duration (:func:`planner.stopping.construct._best_entry`, Brent's method, each
+trial finishing the construction; an optimum on the edge of the entries whose
+braking fits is found to round-off by bisection), and with several step-downs
+runs once more so that each choice sees the others'. ``rule="paper"`` keeps the
+paper's rule for comparison. ``tests/test_stopping_lp.py`` checks the result
+against an independent time-discretised MILP (no slower; its bound comes down
+onto it as the grid is refined).
 
 Code. This module is the public face (the result, input checks, the deceleration rule,
 :func:`solve_stop`); the construction runs compiled with numba: :mod:`planner.stopping.kernel`

@@ -193,7 +193,9 @@ class TimekeepingController:
     the train noticeably, a light trim brake, the service brake). The
     vehicle then runs at ratio 1.0 under the cap v_m: power below it, hold at
     it (constant-speed control; sawtooth vehicles run their coasting band
-    below it), shed speed at the planned deceleration above it, and brake
+    below it), shed speed at the planned deceleration above it (following a
+    restriction's braking curve at the service brake where that is lower,
+    as the target computation assumes), and brake
     onto the marker on the stopping curve, after which the stop is committed
     and later changes are recorded but cannot re-plan it.
 
@@ -369,6 +371,25 @@ class TimekeepingController:
         self.cap[i] = cap
         self.shed[i] = float(tg.decel_ms2) if math.isfinite(tg.decel_ms2) else self.service
 
+    def _onto_braking_curve(self, k: int, v: np.ndarray) -> np.ndarray:
+        """Runs shedding gently onto their cap whose next step would end above a braking curve of the
+        ceiling (a restriction's service-brake curve, as in the flat-out guide): they follow it at the
+        service brake from here, as the target computation assumes (``min(shed line, ceiling)``).
+
+        The integrator sheds at the controller's rate whenever a run is above its ceiling, whatever
+        lowered it, so a trim meant for the cap would run on above a braking curve that falls faster
+        (found in the closed loop at 1 s steps: E8 down MDR→TKD at 173 s, plant at full load and
+        traction × 0.9, ran 38 m above a restriction's curve and arrived 1.12 s early)."""
+        out = np.zeros(v.size, dtype=bool)
+        if k + 1 >= self.s.size:
+            return out
+        s0, s1 = self.s[k], self.s[k + 1]
+        for i in np.flatnonzero(~self.committed & (self.shed < self.service) & (v > self.cap)).tolist():
+            gs, gw = self.guides[i]
+            g0, g1 = np.interp([s0, s1], gs, gw)
+            out[i] = g1 < g0 and v[i] * v[i] - 2.0 * self.shed[i] * (s1 - s0) > g1 + GUIDE_TOL_MS2
+        return out
+
     def __call__(self, s_m: float, state):
         from planner.physics.run_curve import Command
 
@@ -407,14 +428,16 @@ class TimekeepingController:
             newly = ~self.committed & (v * v >= self.stop2[k] - 1e-9)
             self.committed |= newly
         due = plan | ((t >= self.next_t) | (s_m >= self.next_s)) & ~self.committed & ~self.flat_out
-        if not (due.any() or newly.any()):
-            return None
         for i in np.flatnonzero(due | newly).tolist():
             if self.committed[i] or self.flat_out[i]:
                 self.cap[i], self.shed[i] = np.inf, self.service
             else:
                 self._target(i, k, float(t[i]), float(v[i]))
                 self.next_t[i], self.next_s[i] = t[i] + self.recompute_s, s_m + self.recompute_m
+        curve = self._onto_braking_curve(k, v)
+        self.shed[curve] = self.service
+        if not (due.any() or newly.any() or curve.any()):
+            return None
         return Command(np.ones(n), self.cap.copy(), self.shed.copy())
 
 
