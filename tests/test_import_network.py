@@ -340,3 +340,22 @@ def test_railml_line_tracks_without_a_connection_are_joined_with_a_note(tmp_path
     pos = dict(zip(nodes["node_id"], nodes["position_m"]))
     assert pos["oL"] == 6040.0 and "oM" not in pos      # one piece of track 0 … 6040 m, no end between
     assert edges["length_m"].sum() == 6040.0
+
+
+def test_a_station_added_by_position_gets_a_stop_node_on_the_line(tmp_path):
+    """A station the source has no platform for ([stations.X] position_m in --extra) still gets a stop node,
+    on the line's own track at its chainage: without it a train calling there could not be routed and the
+    night would fail on a line the import accepted (seen on OSRD's one_line infra)."""
+    import pyarrow.parquet as pq
+
+    folder = tmp_path / "src"
+    folder.mkdir()
+    (folder / "infra.json").write_text(json.dumps(loop_infra()))
+    (folder / "emu.json").write_text(json.dumps(rolling_stock()))
+    (folder / "extra.toml").write_text(EXTRA + '\n[stations.HALT]\nposition_m = 1200.0\n')
+    s = import_railjson(folder / "infra.json", ["WEST", "MID", "EAST"], [folder / "emu.json"], tmp_path / "line",
+                        extra=folder / "extra.toml", line_id="loop")
+    nodes = pq.read_table(tmp_path / "line" / "nodes.parquet").to_pandas()
+    halt = nodes[nodes["station_id"] == "HALT"]
+    assert list(zip(halt["kind"], halt["position_m"])) == [("stop", 1200.0)]
+    assert any("HALT" in n and "stop node" in n for n in s.notes)

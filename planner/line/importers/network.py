@@ -363,12 +363,43 @@ def path_chainage(pieces) -> dict[str, tuple[float, int]]:
     return out
 
 
+def stops_of(stations: pd.DataFrame) -> list[tuple[str, float]]:
+    """``(station_id, position_m)`` of every row of a stations table (for :func:`stops_on_line`)."""
+    return [(str(a), float(b)) for a, b in zip(stations["station_id"], stations["position_m"])]
+
+
+def stops_on_line(topo: Topology, on_line: dict[str, tuple[float, int]], stations, notes: list[str]) -> None:
+    """A ``stop`` point on the line's own track for every station of the line the source gives no platform
+    (a station added by position in ``--extra``, or an operational point without parts).
+
+    ``stations``: ``(station_id, chainage)`` of every station of the imported line. Without its stop
+    node a timetabled train could not be routed, and the night would fail on data the import accepted.
+    """
+    have = {p[4] for p in topo.points if p[1] == "stop"}
+    added = []
+    for sid, x in stations:
+        if sid in have:
+            continue
+        for t, (offset, sign) in sorted(on_line.items()):
+            pos = (x - offset) * sign
+            if -1e-6 <= pos <= topo.lengths[t] + 1e-6:
+                topo.points.append((f"STOP-{sid}", "stop", t, min(max(pos, 0.0), topo.lengths[t]), sid))
+                added.append(sid)
+                break
+    if added:
+        notes.append(f"track network: {len(added)} station(s) without a platform in the source ({', '.join(added)}) "
+                     "get a stop node on the line's own track at their chainage")
+
+
 def railjson_network(src, net, pieces, op_ids: list[str], extra, line_id: str,
-                     notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """nodes and edges of a railjson import: the line's path ``pieces``, its operational points ``op_ids``."""
+                     notes: list[str], stations=()) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """nodes and edges of a railjson import: the line's path ``pieces``, its operational points ``op_ids``;
+    ``stations``: ``(station_id, chainage)`` of the imported line's stations (:func:`stops_on_line`)."""
     over = extra.stations if extra is not None else {}
-    stations = {n: str(over.get(n, {}).get("station_id", n)) for n in op_ids}
-    nodes, edges = network_tables(railjson_topology(src, net, stations), path_chainage(pieces), str(line_id), notes)
+    names = {n: str(over.get(n, {}).get("station_id", n)) for n in op_ids}
+    topo, on_line = railjson_topology(src, net, names), path_chainage(pieces)
+    stops_on_line(topo, on_line, stations, notes)
+    nodes, edges = network_tables(topo, on_line, str(line_id), notes)
     n_sw = int((nodes["kind"] == "switch").sum())
     notes.append(f"track network: {len(nodes)} nodes ({n_sw} switches), {len(edges)} edges on "
                  f"{edges['track'].nunique()} tracks, from the switches, links, detectors, buffer stops and "
@@ -547,11 +578,13 @@ def _piece(pieces: dict, tid: str, p: float) -> tuple[str, float]:
 
 
 def railml_network(doc, line_tracks, found: dict, extra, line_id: str,
-                   notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """nodes and edges of a railML import: every connected track, cut at its switches."""
+                   notes: list[str], stations=()) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """nodes and edges of a railML import: every connected track, cut at its switches; ``stations``:
+    ``(station_id, chainage)`` of the imported line's stations (:func:`stops_on_line`)."""
     over = extra.stations if extra is not None else {}
-    stations = {k: str(over.get(k, {}).get("station_id", k)) for k in found}
-    topo, on_line = railml_topology(doc, line_tracks, stations, notes)
+    names = {k: str(over.get(k, {}).get("station_id", k)) for k in found}
+    topo, on_line = railml_topology(doc, line_tracks, names, notes)
+    stops_on_line(topo, on_line, stations, notes)
     nodes, edges = network_tables(topo, on_line, str(line_id), notes)
     n_sw = int((nodes["kind"] == "switch").sum())
     notes.append(f"track network: {len(nodes)} nodes ({n_sw} switches and crossings), {len(edges)} edges on "

@@ -473,8 +473,8 @@ def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list,
         "traction": traction,
         "timetable": timetable_table(s),
     }
-    from planner.line.importers.network import railjson_network
+    from planner.line.importers.network import railjson_network, stops_of
 
     tables["nodes"], tables["edges"] = railjson_network(src, net, path.pieces, [n for n, *_, is_op in ops if is_op],
-                                                        s.extra, str(default_id), s.notes)
+                                                        s.extra, str(default_id), s.notes, stops_of(stations))
     return write_line(tables, out, s, force=force)

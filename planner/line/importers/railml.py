@@ -550,7 +550,8 @@ def import_railml(file: str | Path, line_id: str, rolling_stock: list, out: str 
         "traction": traction,
         "timetable": railml_or_toml_timetable(doc.root, doc.fname, found, [str(x) for x in rs["train_type"]], s),
     }
-    from planner.line.importers.network import railml_network
+    from planner.line.importers.network import railml_network, stops_of
 
-    tables["nodes"], tables["edges"] = railml_network(doc, line.tracks, found, s.extra, str(lid), s.notes)
+    tables["nodes"], tables["edges"] = railml_network(doc, line.tracks, found, s.extra, str(lid), s.notes,
+                                                      stops_of(tables["stations"]))
     return write_line(tables, out, s, force=force)
