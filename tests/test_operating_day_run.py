@@ -1,5 +1,5 @@
 """`planner run` plans one operating day: the day and what is in force go into the manifest and the
-inputs digest; another day is another run that reuses every unit (nothing computes with the day yet);
+inputs digest; another day is another run that recomputes only the units what is in force reaches;
 a bad feed fails the run before anything is published.
 """
 from __future__ import annotations
@@ -51,7 +51,7 @@ def _manifest(root: Path) -> dict:
     return json.loads((root / "out" / latest_run(root / "out") / "manifest.json").read_text())
 
 
-def test_the_day_is_in_the_manifest_and_another_day_reuses_every_unit(project):
+def test_the_day_is_in_the_manifest_and_another_day_recomputes_what_its_restrictions_reach(project):
     from planner.job.pipeline import run_job
 
     job = load_job(project / "jobs" / "job.toml")
@@ -66,7 +66,11 @@ def test_the_day_is_in_the_manifest_and_another_day_reuses_every_unit(project):
 
     holiday = run_job(with_day(job, "2026-11-23"), show_progress=False)  # weekday service removed
     assert holiday.run_id != first.run_id and not holiday.up_to_date
-    assert sum(holiday.computed.values()) == 0 and sum(holiday.reused.values()) > 0
+    # R1 (1000-1400 m, both directions, every type) is not in force on the 23rd: it lies between A (200 m)
+    # and B (2500 m) only, so 2 directions x 2 types of the 8 interstation units change (tables, stops,
+    # closed loop each), and the line-level units (the trains that run changed too); B-C is reused
+    assert holiday.computed == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 1, "graph": 1}
+    assert holiday.reused == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 0, "graph": 0}
     assert any("no train runs on 2026-11-23 (Monday)" in n for n in holiday.notes)
     assert _manifest(project)["operating_day"]["lines"][0]["trains_not_running"] == ["101", "202"]
     again = run_job(with_day(job, "2026-11-23"), show_progress=False)

@@ -74,7 +74,7 @@ def line_tables(line: Line, direction: str, train_type: str) -> dict[str, pa.Tab
 
     # Restrictions in running order.
     spans = sorted(restriction_spans(line, train, direction, x0),
-                   key=lambda sp: (sp.s_from_m, sp.s_to_m, sp.limit_ms, sp.row))
+                   key=lambda sp: (sp.s_from_m, sp.s_to_m, sp.limit_ms, sp.row, sp.ident))
     restrictions, atsp_table = _restriction_tables(line, train, spans, target, to_chain)
     return {"restrictions": restrictions,
             "max_profile": _max_profile(line, train, spans, target, to_chain),
@@ -87,7 +87,7 @@ def _restriction_tables(line: Line, train, spans, target: tuple[str, str, str],
                         to_chain: Callable) -> tuple[pa.Table, pa.Table]:
     """``restrictions`` (every span, with its ATS-P pattern) and ``atsp`` (the DB-fed telegrams)."""
     direction, train_type = target[1], target[2]
-    rows = {r.row: r for r in line.limits_for(direction, train_type)}
+    rows = {r.ident: r for r in line.limits_for(direction, train_type)}
     n = len(spans)
     s_from = np.array([sp.s_from_m for sp in spans], dtype=float)
     s_to = np.array([sp.s_to_m for sp in spans], dtype=float)
@@ -97,18 +97,18 @@ def _restriction_tables(line: Line, train, spans, target: tuple[str, str, str],
     needed = limit < v_high
     s_start = s_from - dist
     s_feed = np.maximum(s_start, 0.0)  # cannot feed before the train is on the line
-    has_beacon = np.array([rows[sp.row].has_beacon for sp in spans], dtype=bool)
+    has_beacon = np.array([rows[sp.ident].has_beacon for sp in spans], dtype=bool)
     db_fed = needed & ~has_beacon
     overwrites, conflict = atsp.overwrite_conflicts(s_feed, s_to, needed)
-    rid = [f"R{sp.row}" for sp in spans]
+    rid = [sp.ident for sp in spans]
     ow = [rid[i] if i >= 0 else None for i in overwrites]
     restrictions = _table({
         **_keys(n, *target),
         "seq": list(range(n)),
         "restriction_id": rid,
-        "kind": [rows[sp.row].kind for sp in spans],
-        "start_m": [rows[sp.row].start_m for sp in spans],
-        "end_m": [rows[sp.row].end_m for sp in spans],
+        "kind": [rows[sp.ident].kind for sp in spans],
+        "start_m": [rows[sp.ident].start_m for sp in spans],
+        "end_m": [rows[sp.ident].end_m for sp in spans],
         "entry_m": to_chain(s_from).tolist(),
         "clear_m": to_chain(s_to).tolist(),
         "limit_kmh": kmh(limit).tolist(),

@@ -42,7 +42,7 @@ from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomi
 from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
-from planner.job.day import day_digest, day_record, resolve_day
+from planner.job.day import day_digest, line_digest, plan_day, resolve_day
 from planner.line.model import DIRECTIONS, Line
 from planner.job.cache import Cache
 from planner.job.keys import signing_key_path
@@ -246,7 +246,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             from planner.bundle.signing import load_private_key, public_key_id
 
             notes: list[str] = []
-            day = day_record(job, lines, notes)  # the day's feeds validated against their lines, before any unit
+            # the day's feeds validated against their lines before any unit; each line as it is that day
+            day, lines = plan_day(job, lines, notes)
             key_path, development = signing_key_path(job, notes)
             key = load_private_key(key_path)
             release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
@@ -438,7 +439,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import margin_options
 
-    key = digest(["margins", code_digest(), line.source_digest, unit_keys, _result_params(job)])
+    key = digest(["margins", code_digest(), line_digest(line), unit_keys, _result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     report = _line_unit(runner, "margins", key, _margins_unit, line, margin_options(job, line), _types(job, line),
                         stage, n_jobs, given)
@@ -506,7 +507,7 @@ def _conflicts_unit(line, params):
 def _conflicts_unit_of(job: Job, line: Line) -> Unit:
     """The unit of the line's route conflicts (its whole timetable)."""
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
-    key = digest(["conflicts", code_digest(), line.source_digest, params, job.tables.ds_m])
+    key = digest(["conflicts", code_digest(), line_digest(line), params, job.tables.ds_m])
     return Unit("conflicts", key, "conflicts", _conflicts_unit, (line, params))
 
 

@@ -62,10 +62,11 @@ def graph_unit(job, line):
     """The unit of a line's train graph trajectories (:func:`_graph_unit`), keyed by the line and the code."""
     from planner.report.train_graph import TOL_T_S, TOL_X_M
     from planner.job.units import code_digest
+    from planner.job.day import line_digest
     from planner.job.publish import digest
 
     check = bool(job.conflicts.enabled)
-    key = digest(["graph", code_digest(), line.source_digest, check, TOL_T_S, TOL_X_M])
+    key = digest(["graph", code_digest(), line_digest(line), check, TOL_T_S, TOL_X_M])
     return _unit("graph", key, _graph_unit, (line, check))
 
 
