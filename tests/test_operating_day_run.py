@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from linedb import write_line_db
 from planner.cli import app
-from planner.errors import LineValidationError
+from planner.errors import BundleError, LineValidationError
 from planner.job.config import load_job
 from planner.job.day import with_day
 from planner.job.publish import latest_run, list_runs
@@ -63,6 +63,15 @@ def test_the_day_is_in_the_manifest_and_another_day_recomputes_what_its_restrict
     # R1: 01:00 on the 30th (before the day's 03:00 start) to 05:00 on 2 December (after its end)
     assert [r["restriction_id"] for r in line["restrictions"]] == ["R1"] and line["restrictions"][0]["whole_day"]
     assert line["trains_running"] == 2 and line["trains_not_running"] == []
+    # the run's bundles are that day's: verify refuses one the day after (the day ends 2026-11-30T18:00Z)
+    from planner.bundle.verify import verify_bundle
+
+    b = project / "out" / "latest" / "bundles"
+    pub = b / "signing_key.pub.pem"
+    info = verify_bundle(b / "tiny_down_EMU10.pdb", pub, at="2026-11-30T17:59:59Z", allow_dev=True)
+    assert info.operating_day["day"] == "2026-11-30" and info.operating_day["restrictions"] == ["R1"]
+    with pytest.raises(BundleError, match="outside its window"):
+        verify_bundle(b / "tiny_down_EMU10.pdb", pub, at="2026-11-30T18:00:00Z", allow_dev=True)
 
     holiday = run_job(with_day(job, "2026-11-23"), show_progress=False)  # weekday service removed
     assert holiday.run_id != first.run_id and not holiday.up_to_date

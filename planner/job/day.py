@@ -171,10 +171,25 @@ def line_digest(line: Line) -> str:
                    [t.train_id for t in line.trains]])
 
 
-def plan_day(job: Job, lines: list[Line], notes: list[str]) -> tuple[dict, list[Line]]:
-    """:func:`day_record` and each line as it is on the day (:func:`day_line`): what the run computes with."""
+def bundle_day(job: Job, line: Line, d: DayInputs):
+    """The :class:`~planner.bundle.manifest.BundleDay` of ``line``'s bundles: the day's window and the
+    temporary restrictions in force with theirs; None for a line without a daily feed (its bundles are not
+    bound to one day: nothing in them changes with the day)."""
+    from planner.bundle.manifest import BundleDay
+
+    if feed_of(job, line) is None:
+        return None
+    w = d.window
+    return BundleDay(w.day.isoformat(), w.time_zone, w.start_s, w.end_s,
+                     tuple((r.restriction_id, r.valid_from_s, r.valid_until_s) for r in d.restrictions))
+
+
+def plan_day(job: Job, lines: list[Line], notes: list[str]) -> tuple[dict, list[Line], list]:
+    """:func:`day_record`, each line as it is on the day (:func:`day_line`: what the run computes with) and
+    its bundles' day (:func:`bundle_day`)."""
     ins = [day_inputs(job, line) for line in lines]
-    return day_record(job, lines, notes, ins), [day_line(ln, d) for ln, d in zip(lines, ins)]
+    return (day_record(job, lines, notes, ins), [day_line(ln, d) for ln, d in zip(lines, ins)],
+            [bundle_day(job, ln, d) for ln, d in zip(lines, ins)])
 
 
 def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInputs] | None = None) -> dict:
@@ -192,5 +207,5 @@ def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInput
     return rec
 
 
-__all__ = ["day_digest", "day_inputs", "day_line", "day_problems", "day_record", "feed_of", "line_digest",
+__all__ = ["bundle_day", "day_digest", "day_inputs", "day_line", "day_problems", "day_record", "feed_of", "line_digest",
            "plan_day", "resolve_day", "time_zone", "window", "with_day"]

@@ -247,7 +247,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
 
             notes: list[str] = []
             # the day's feeds validated against their lines before any unit; each line as it is that day
-            day, lines = plan_day(job, lines, notes)
+            day, lines, bundle_days = plan_day(job, lines, notes)
             key_path, development = signing_key_path(job, notes)
             key = load_private_key(key_path)
             release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
@@ -270,8 +270,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 try:
                     # a writer thread: a step's datasets are written while the workers compute the next
                     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
-                        for line in lines:
-                            _run_line(job, line, stage, runner, summary, key, key_path, writes)
+                        for line, bday in zip(lines, bundle_days):
+                            _run_line(job, line, stage, runner, summary, key, key_path, writes, bday)
                     summary.computed, summary.reused = runner.computed, runner.reused
                     if cache.rejected:  # once per run, with the count
                         summary.warnings.append(cache.rejected_note())
@@ -303,7 +303,7 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
-              writes: ThreadPoolExecutor) -> None:
+              writes: ThreadPoolExecutor, bday=None) -> None:
     from planner.tables.ratios import leg_ratio_grid
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
@@ -384,7 +384,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     _count(summary, stops_written.result())
     # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
     # margins (the worker loads the key from its file)
-    bundles = _start_bundles(job, line, stage, runner, summary, key_path)
+    bundles = _start_bundles(job, line, stage, runner, summary, key_path, bday)
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
@@ -466,19 +466,22 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
 
-def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str]) -> list:
-    """Every bundle of the line (runs on a worker: module level, the key read from its file there)."""
+def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None) -> list:
+    """Every bundle of the line for the operating day ``day`` (:func:`planner.job.day.bundle_day`; runs on a
+    worker: module level, the key read from its file there)."""
     from planner.bundle.container import build_line
 
-    return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage, train_types=types)
+    return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage, train_types=types,
+                      day=day)
 
 
-def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path):
+def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
+                   bday=None):
     """Start the line's bundles on a worker; the step's time runs from here to when they are written."""
     from planner.io.parallel import background
 
     runner.progress.start("bundles", 2 * len(_types(job, line)))
-    b = background(_build_bundles, (line, stage / "bundles", key_path, summary.release, stage, _types(job, line)),
+    b = background(_build_bundles, (line, stage / "bundles", key_path, summary.release, stage, _types(job, line), bday),
                    name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)
     return b
