@@ -115,3 +115,27 @@ def test_the_minimum_running_time_rises_by_at_least_the_speed_dip(straight, trai
     # at least the physical loss; the real acceleration (traction minus resistance) is below a, so a little more
     assert loss <= gained <= loss * 1.25 + 5.0, (gained, loss)
     print(f"{train_type} {kmh_limit}: gained {gained:.2f} s, closed form {loss:.2f} s")
+
+
+def test_the_restrictions_page_names_the_legs_slowed_and_the_trains_that_lose_their_margin(straight):
+    from planner.report.restrictions import render, restriction_losses, scheduled_legs
+
+    line = day_line(straight, day_of(straight, tsr("W", 4800.0, 5200.0, 45.0)))
+    before = running_time(straight, "EMU10", "A", "B").time_s
+    after = running_time(line, "EMU10", "A", "B").time_s
+    (leg,) = [x for x in restriction_losses(line)["W"] if x[0] == "EMU10" and x[1] == "down"]
+    assert leg[:4] == ("EMU10", "down", "A", "B") and leg[4] == pytest.approx(after - before, abs=1e-6)
+    # 10 s of margin without the restriction, about 40 s lost with it: the train loses its margin;
+    # 100 s of margin: it still makes it
+    rows = pd.DataFrame([dict(train_type="EMU10", direction="down", origin="A", destination="B", n_trains=1,
+                              train_ids=["101"], scheduled_running_time_s=s, remaining_margin_s=0.0,
+                              arrival_error_s=0.0, arrival_error_degraded_s=0.0) for s in (before + 10, before + 100)])
+    legs = scheduled_legs(line, rows)
+    assert [round(x["margin_before_s"], 6) for x in legs] == [10.0, 100.0]
+    assert legs[0]["margin_after_s"] == pytest.approx(10 + before - after) and legs[0]["margin_after_s"] < 0
+    page = render(line, {"day": "2026-11-30", "restrictions": [
+        dict(restriction_id="W", start_m=4800.0, end_m=5200.0, limit_kmh=45.0, direction="both", train_type=None,
+             valid_from="2026-11-30T01:00", valid_until="2026-12-02T05:00", whole_day=True, has_beacon=False,
+             reason="test")]}, rows)
+    assert "1 leg row(s), 1 train run(s) lose their margin" in page and "still makes it" in page
+    assert f"EMU10 A→B: +{after - before:.1f} s" in page

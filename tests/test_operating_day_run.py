@@ -72,6 +72,11 @@ def test_the_day_is_in_the_manifest_and_another_day_recomputes_what_its_restrict
     assert info.operating_day["day"] == "2026-11-30" and info.operating_day["restrictions"] == ["R1"]
     with pytest.raises(BundleError, match="outside its window"):
         verify_bundle(b / "tiny_down_EMU10.pdb", pub, at="2026-11-30T18:00:00Z", allow_dev=True)
+    # the page a planner reads first, linked from the overview
+    run = project / "out" / "latest"
+    page = (run / "report" / "tiny_restrictions.html").read_text()
+    assert "<b>R1</b>" in page and "EMU10 A→B" in page and "EMU6 B→A" in page and "B→C" not in page
+    assert "href='report/tiny_restrictions.html'" in (run / "index.html").read_text()
 
     holiday = run_job(with_day(job, "2026-11-23"), show_progress=False)  # weekday service removed
     assert holiday.run_id != first.run_id and not holiday.up_to_date
