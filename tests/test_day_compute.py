@@ -78,7 +78,8 @@ def straight(tmp_path):
     """A level, straight 10 km line without permanent restrictions: A at 200 m, B at 9800 m."""
     t = default_tables()
     t["line"]["end_m"] = 10000.0
-    t["stations"] = pd.DataFrame([("A", "Aoba", 200.0, 230.0, 170.0, 200.0), ("B", "Bashi", 9800.0, 9830.0, 9770.0, 200.0)],
+    t["stations"] = pd.DataFrame([("A", "Aoba", 200.0, 230.0, 170.0, 200.0),
+                                  ("B", "Bashi", 9800.0, 9830.0, 9770.0, 200.0)],
                                  columns=t["stations"].columns)
     t["gradients"] = t["gradients"].iloc[:0]
     t["curves"] = t["curves"].iloc[:0]
@@ -107,7 +108,8 @@ def test_the_minimum_running_time_rises_by_at_least_the_speed_dip(straight, trai
     after = running_time(day_line(straight, day_of(straight, tsr("W", a_m, b_m, kmh_limit))), train_type, "A", "B")
     # the closed form's premise: without the restriction the train cruises at v1 over the whole dip
     c = before.curve
-    dip = (c["position_m"] > a_m - v1 ** 2 / (2 * b) - 10) & (c["position_m"] < b_m + train.length_m + v1 ** 2 / (2 * acc))
+    x = c["position_m"]
+    dip = (x > a_m - v1 ** 2 / (2 * b) - 10) & (x < b_m + train.length_m + v1 ** 2 / (2 * acc))
     assert np.allclose(c.loc[dip, "speed_kmh"], v1 / KMH, atol=0.2)
     assert after.curve["speed_kmh"][(after.curve["position_m"] > a_m) &
                                     (after.curve["position_m"] < b_m + train.length_m)].max() <= v2 / KMH + 1e-6
@@ -139,3 +141,22 @@ def test_the_restrictions_page_names_the_legs_slowed_and_the_trains_that_lose_th
              reason="test")]}, rows)
     assert "1 leg row(s), 1 train run(s) lose their margin" in page and "still makes it" in page
     assert f"EMU10 A→B: +{after - before:.1f} s" in page
+
+
+def test_a_train_that_runs_the_leg_while_a_part_day_restriction_is_lifted_is_named(straight):
+    from planner.report.restrictions import passing_while_lifted, windows_of
+
+    # train 101 leaves A at 06:00 local (21600 s) and is due at B at 06:10
+    rec = {"day": "2026-11-30", "time_zone": "Asia/Tokyo", "restrictions": [
+        dict(restriction_id="PM", valid_from="2026-11-30T14:20", valid_until="2026-12-02T16:00"),
+        dict(restriction_id="AM", valid_from="2026-11-30T06:05", valid_until="2026-12-02T16:00"),
+        dict(restriction_id="EARLY", valid_from="2026-11-29T05:00", valid_until="2026-11-30T06:00")]}
+    wins = windows_of(rec)
+    assert wins["PM"][0] == 1795996800 + 14 * 3600 + 20 * 60 - 9 * 3600  # 2026-11-30T00:00Z = 1795996800
+    leg = {"origin": "A", "train_ids": ["101"], "scheduled_s": 600.0}
+    assert passing_while_lifted(straight, {**leg, "restrictions": ["PM"]}, wins, "2026-11-30", "Asia/Tokyo") == ["101"]
+    assert passing_while_lifted(straight, {**leg, "restrictions": ["AM"]}, wins, "2026-11-30", "Asia/Tokyo") == []
+    # ended at 06:00 sharp, as the train leaves: lifted (validity is half-open)
+    early = {**leg, "restrictions": ["EARLY"]}
+    assert passing_while_lifted(straight, early, wins, "2026-11-30", "Asia/Tokyo") == ["101"]
+    assert passing_while_lifted(straight, {**leg, "restrictions": ["PM", "AM"]}, wins, "2026-11-30", "Asia/Tokyo") == []

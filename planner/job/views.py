@@ -143,7 +143,7 @@ def _restrictions_pages(job, lines, stage: Path, manifest: dict, summary) -> Non
         if rec.get("feed") is None:
             continue
         rep = summary.reports.get(line.line_id)
-        write_page(line, {**{k: day.get(k) for k in ("day", "start", "end")}, **rec},
+        write_page(line, {**{k: day.get(k) for k in ("day", "start", "end", "time_zone")}, **rec},
                    None if rep is None else rep.rows, stage / "report" / f"{line.line_id}_restrictions.html",
                    job.tables.ds_m)
 
