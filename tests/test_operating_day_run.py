@@ -1,5 +1,5 @@
 """`planner run` plans one operating day: the day and what is in force go into the manifest and the
-inputs digest; another day is another run that reuses every unit (nothing computes with the day yet);
+inputs digest; another day is another run that recomputes only the units what is in force reaches;
 a bad feed fails the run before anything is published.
 """
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from linedb import write_line_db
 from planner.cli import app
-from planner.errors import LineValidationError
+from planner.errors import BundleError, LineValidationError
 from planner.job.config import load_job
 from planner.job.day import with_day
 from planner.job.publish import latest_run, list_runs
@@ -51,7 +51,7 @@ def _manifest(root: Path) -> dict:
     return json.loads((root / "out" / latest_run(root / "out") / "manifest.json").read_text())
 
 
-def test_the_day_is_in_the_manifest_and_another_day_reuses_every_unit(project):
+def test_the_day_is_in_the_manifest_and_another_day_recomputes_what_its_restrictions_reach(project):
     from planner.job.pipeline import run_job
 
     job = load_job(project / "jobs" / "job.toml")
@@ -63,10 +63,28 @@ def test_the_day_is_in_the_manifest_and_another_day_reuses_every_unit(project):
     # R1: 01:00 on the 30th (before the day's 03:00 start) to 05:00 on 2 December (after its end)
     assert [r["restriction_id"] for r in line["restrictions"]] == ["R1"] and line["restrictions"][0]["whole_day"]
     assert line["trains_running"] == 2 and line["trains_not_running"] == []
+    # the run's bundles are that day's: verify refuses one the day after (the day ends 2026-11-30T18:00Z)
+    from planner.bundle.verify import verify_bundle
+
+    b = project / "out" / "latest" / "bundles"
+    pub = b / "signing_key.pub.pem"
+    info = verify_bundle(b / "tiny_down_EMU10.pdb", pub, at="2026-11-30T17:59:59Z", allow_dev=True)
+    assert info.operating_day["day"] == "2026-11-30" and info.operating_day["restrictions"] == ["R1"]
+    with pytest.raises(BundleError, match="outside its window"):
+        verify_bundle(b / "tiny_down_EMU10.pdb", pub, at="2026-11-30T18:00:00Z", allow_dev=True)
+    # the page a planner reads first, linked from the overview
+    run = project / "out" / "latest"
+    page = (run / "report" / "tiny_restrictions.html").read_text()
+    assert "<b>R1</b>" in page and "EMU10 A→B" in page and "EMU6 B→A" in page and "B→C" not in page
+    assert "href='report/tiny_restrictions.html'" in (run / "index.html").read_text()
 
     holiday = run_job(with_day(job, "2026-11-23"), show_progress=False)  # weekday service removed
     assert holiday.run_id != first.run_id and not holiday.up_to_date
-    assert sum(holiday.computed.values()) == 0 and sum(holiday.reused.values()) > 0
+    # R1 (1000-1400 m, both directions, every type) is not in force on the 23rd: it lies between A (200 m)
+    # and B (2500 m) only, so 2 directions x 2 types of the 8 interstation units change (tables, stops,
+    # closed loop each), and the line-level units (the trains that run changed too); B-C is reused
+    assert holiday.computed == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 1, "graph": 1}
+    assert holiday.reused == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 0, "graph": 0}
     assert any("no train runs on 2026-11-23 (Monday)" in n for n in holiday.notes)
     assert _manifest(project)["operating_day"]["lines"][0]["trains_not_running"] == ["101", "202"]
     again = run_job(with_day(job, "2026-11-23"), show_progress=False)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Mapping
 
 import numpy as np
 import pyarrow as pa
@@ -45,7 +45,8 @@ def _table(cols: dict[str, list], schema: pa.Schema) -> pa.Table:
     return pa.Table.from_arrays([pa.array(cols[f.name], type=f.type) for f in schema], schema=schema)
 
 
-def line_tables(line: Line, direction: str, train_type: str) -> dict[str, pa.Table]:
+def line_tables(line: Line, direction: str, train_type: str,
+                validity: Mapping[str, tuple[int, int]] | None = None) -> dict[str, pa.Table]:
     """The tables built from the line DB alone: restrictions, max_profile, atsp, beacons, timetable.
 
     Parameters
@@ -74,8 +75,8 @@ def line_tables(line: Line, direction: str, train_type: str) -> dict[str, pa.Tab
 
     # Restrictions in running order.
     spans = sorted(restriction_spans(line, train, direction, x0),
-                   key=lambda sp: (sp.s_from_m, sp.s_to_m, sp.limit_ms, sp.row))
-    restrictions, atsp_table = _restriction_tables(line, train, spans, target, to_chain)
+                   key=lambda sp: (sp.s_from_m, sp.s_to_m, sp.limit_ms, sp.row, sp.ident))
+    restrictions, atsp_table = _restriction_tables(line, train, spans, target, to_chain, validity or {})
     return {"restrictions": restrictions,
             "max_profile": _max_profile(line, train, spans, target, to_chain),
             "atsp": atsp_table,
@@ -84,10 +85,11 @@ def line_tables(line: Line, direction: str, train_type: str) -> dict[str, pa.Tab
 
 
 def _restriction_tables(line: Line, train, spans, target: tuple[str, str, str],
-                        to_chain: Callable) -> tuple[pa.Table, pa.Table]:
-    """``restrictions`` (every span, with its ATS-P pattern) and ``atsp`` (the DB-fed telegrams)."""
+                        to_chain: Callable, validity: Mapping[str, tuple[int, int]]) -> tuple[pa.Table, pa.Table]:
+    """``restrictions`` (every span, with its ATS-P pattern) and ``atsp`` (the DB-fed telegrams); ``validity``:
+    ``ident`` → (valid from, until) [UTC epoch s] of each temporary restriction (its pattern's window)."""
     direction, train_type = target[1], target[2]
-    rows = {r.row: r for r in line.limits_for(direction, train_type)}
+    rows = {r.ident: r for r in line.limits_for(direction, train_type)}
     n = len(spans)
     s_from = np.array([sp.s_from_m for sp in spans], dtype=float)
     s_to = np.array([sp.s_to_m for sp in spans], dtype=float)
@@ -97,18 +99,18 @@ def _restriction_tables(line: Line, train, spans, target: tuple[str, str, str],
     needed = limit < v_high
     s_start = s_from - dist
     s_feed = np.maximum(s_start, 0.0)  # cannot feed before the train is on the line
-    has_beacon = np.array([rows[sp.row].has_beacon for sp in spans], dtype=bool)
+    has_beacon = np.array([rows[sp.ident].has_beacon for sp in spans], dtype=bool)
     db_fed = needed & ~has_beacon
     overwrites, conflict = atsp.overwrite_conflicts(s_feed, s_to, needed)
-    rid = [f"R{sp.row}" for sp in spans]
+    rid = [sp.ident for sp in spans]
     ow = [rid[i] if i >= 0 else None for i in overwrites]
     restrictions = _table({
         **_keys(n, *target),
         "seq": list(range(n)),
         "restriction_id": rid,
-        "kind": [rows[sp.row].kind for sp in spans],
-        "start_m": [rows[sp.row].start_m for sp in spans],
-        "end_m": [rows[sp.row].end_m for sp in spans],
+        "kind": [rows[sp.ident].kind for sp in spans],
+        "start_m": [rows[sp.ident].start_m for sp in spans],
+        "end_m": [rows[sp.ident].end_m for sp in spans],
         "entry_m": to_chain(s_from).tolist(),
         "clear_m": to_chain(s_to).tolist(),
         "limit_kmh": kmh(limit).tolist(),
@@ -120,6 +122,8 @@ def _restriction_tables(line: Line, train, spans, target: tuple[str, str, str],
         "db_fed": db_fed.tolist(),
         "overwrite_conflict": conflict.tolist(),
         "overwrites": ow,
+        "valid_from_utc_s": [validity[x][0] if x in validity else None for x in rid],
+        "valid_until_utc_s": [validity[x][1] if x in validity else None for x in rid],
     }, RESTRICTIONS_SCHEMA)
 
     # DB-fed telegrams, in order of their feed points.
@@ -141,6 +145,8 @@ def _restriction_tables(line: Line, train, spans, target: tuple[str, str, str],
         "feed_clipped": [bool(s_start[i] < 0.0) for i in idx],
         "overwrite_conflict": [bool(conflict[i]) for i in idx],
         "overwrites": [ow[i] for i in idx],
+        "valid_from_utc_s": [validity[rid[i]][0] if rid[i] in validity else None for i in idx],
+        "valid_until_utc_s": [validity[rid[i]][1] if rid[i] in validity else None for i in idx],
     }, ATSP_SCHEMA)
     return restrictions, atsp_table
 
@@ -236,7 +242,7 @@ def read_partition(root: str | os.PathLike, dataset: str, line_id: str, directio
 
 
 def assemble(line: Line, direction: str, train_type: str, *, tables_dir=None,
-             stops_dir=None) -> dict[str, pa.Table]:
+             stops_dir=None, validity: Mapping[str, tuple[int, int]] | None = None) -> dict[str, pa.Table]:
     """Every table of one bundle that exists: the line's own tables plus the datasets found.
 
     ``tables_dir`` is the output folder of ``planner tables`` (``eval_points``,
@@ -244,7 +250,7 @@ def assemble(line: Line, direction: str, train_type: str, *, tables_dir=None,
     (``stop_summary``, ``stop_samples``). Tables not found are left out; the
     builder records them as missing in the manifest.
     """
-    tables = line_tables(line, direction, train_type)
+    tables = line_tables(line, direction, train_type, validity)
     for key, root in (("tables", tables_dir), ("stops", stops_dir)):
         if root is None:
             continue

@@ -51,7 +51,7 @@ from planner.bundle import signing
 from planner.bundle.archive import pack, unpack
 from planner.bundle.assemble import assemble
 from planner.bundle.contents import CORE_SCHEMAS, check_keys, check_schema, check_tables
-from planner.bundle.manifest import (CORE_TABLES, EXPECTED_TABLES, FORMAT, MANIFEST, MAX_MEMBER_BYTES,
+from planner.bundle.manifest import (CORE_TABLES, BundleDay, EXPECTED_TABLES, FORMAT, MANIFEST, MAX_MEMBER_BYTES,
                                      MAX_TOTAL_BYTES, SCHEMA_VERSION, SHA256_RE, SIGNATURE, VEHICLE_TABLES,
                                      BundleInfo, Release, bundle_name, canonical_json, check_manifest,
                                      expected_tables, format_time, manifest_info)
@@ -88,7 +88,7 @@ def _private_key(key) -> "signing.Ed25519PrivateKey":
 
 def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
                  private_key, release: Release, line_digest: str = "", line_schema_version: int = 1,
-                 expected: Sequence[str] | None = None) -> bytes:
+                 expected: Sequence[str] | None = None, day: BundleDay | None = None) -> bytes:
     """The bytes of a signed bundle holding ``tables`` (no file is written).
 
     Parameters
@@ -111,6 +111,9 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     expected : sequence of str, optional
         The expected tables for this vehicle (:func:`expected_tables` of its cruise mode);
         those absent are listed as missing. Default every :data:`EXPECTED_TABLES`.
+    day : BundleDay, optional
+        The operating day the bundle is for: its window and the temporary restrictions it includes
+        (those of ``day`` named ``T.<id>`` in its restrictions table) go into the manifest.
     """
     key = _private_key(private_key)
     if not isinstance(release, Release):
@@ -162,6 +165,9 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
         "files": files,
         "missing": sorted(t for t in expected if t not in tables),
     }
+    if day is not None:
+        have = set(tables["restrictions"].column("restriction_id").to_pylist())
+        manifest["operating_day"] = day.record(rid for rid, _, _ in day.restrictions if f"T.{rid}" in have)
     check_manifest(manifest, "build")
     check_tables(tables, manifest, "build")  # never sign what verify would refuse
     mbytes = canonical_json(manifest)
@@ -183,7 +189,8 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
 
 def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
                  out_dir: str | os.PathLike, private_key, release: Release, line_digest: str = "",
-                 line_schema_version: int = 1, expected: Sequence[str] | None = None) -> BundleInfo:
+                 line_schema_version: int = 1, expected: Sequence[str] | None = None,
+                 day: BundleDay | None = None) -> BundleInfo:
     """Build, sign and atomically write one bundle into ``out_dir``; see :func:`bundle_bytes`.
 
     Returns
@@ -201,7 +208,7 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     out = Path(out_dir)
     data = bundle_bytes(tables, line_id=line_id, direction=direction, train_type=train_type,
                         private_key=private_key, release=release, line_digest=line_digest,
-                        line_schema_version=line_schema_version, expected=expected)
+                        line_schema_version=line_schema_version, expected=expected, day=day)
     path = out / bundle_name(line_id, direction, train_type)
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(path, data)
@@ -211,8 +218,13 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
 
 def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: Release, tables_dir=None,
                stops_dir=None, directions: Sequence[str] | None = None, train_types: Sequence[str] | None = None,
-               on_built: Callable[[BundleInfo], None] | None = None) -> list[BundleInfo]:
+               on_built: Callable[[BundleInfo], None] | None = None, day: BundleDay | None = None
+               ) -> list[BundleInfo]:
     """Build every bundle of a line (each direction × train type, or the ones asked for).
+
+    ``day``: the operating day the bundles are for (``line`` is then the day's line, its temporary
+    restrictions among its speed limits): the manifest names it, and each DB-fed pattern of a temporary
+    restriction carries its window.
 
     The key is loaded once; every bundle gets the same ``release``; each is
     written atomically as soon as it is complete. ``on_built`` is called after
@@ -229,11 +241,12 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: 
     done = []
     for d in dirs:
         for t in types:
-            tables = assemble(line, d, t, tables_dir=tables_dir, stops_dir=stops_dir)
+            tables = assemble(line, d, t, tables_dir=tables_dir, stops_dir=stops_dir,
+                              validity=day.validity() if day is not None else None)
             info = build_bundle(tables, line_id=line.line_id, direction=d, train_type=t, out_dir=out_dir,
                                 private_key=key, release=release, line_digest=line.source_digest,
                                 line_schema_version=line.schema_version,
-                                expected=expected_tables(line.train_type(t).cruise))
+                                expected=expected_tables(line.train_type(t).cruise), day=day)
             done.append(info)
             if on_built is not None:
                 on_built(info)

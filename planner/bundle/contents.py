@@ -34,7 +34,8 @@ def _key_fields() -> list[tuple[str, pa.DataType, str]]:
 RESTRICTIONS_SCHEMA = declare(
     _key_fields() + [
         ("seq", pa.int32(), "running order of the restriction entry, from 0"),
-        ("restriction_id", pa.string(), "'R<row>', row = 0-based row in speed_limits.parquet"),
+        ("restriction_id", pa.string(), "'R<row>', row = 0-based row in speed_limits.parquet; 'T.<id>' for "
+                                    "a temporary restriction of the daily feed"),
         ("kind", pa.string(), "curve, turnout, civil, station, ..."),
         ("start_m", pa.float64(), "start chainage of the restricted stretch [m]"),
         ("end_m", pa.float64(), "end chainage of the restricted stretch [m]"),
@@ -49,6 +50,10 @@ RESTRICTIONS_SCHEMA = declare(
         ("db_fed", pa.bool_(), "the on-board logic feeds this telegram (a row in atsp)"),
         ("overwrite_conflict", pa.bool_(), "its pattern and another's would overwrite each other"),
         ("overwrites", pa.string(), "restriction_id whose pattern this one's telegram overwrites, or null"),
+        ("valid_from_utc_s", pa.int64(), "a temporary restriction (kind temporary, id T.<feed id>): in force "
+                                         "from [UTC epoch s]; null for the line's own"),
+        ("valid_until_utc_s", pa.int64(), "a temporary restriction: in force until (exclusive) [UTC epoch s]; "
+                                          "null for the line's own"),
     ],
     name="restrictions",
     description="Speed restrictions for the direction and train type, in running order, with ATS-P data.",
@@ -78,6 +83,10 @@ ATSP_SCHEMA = declare(
         ("feed_clipped", pa.bool_(), "pattern start lies before the line start; fed at the line start"),
         ("overwrite_conflict", pa.bool_(), "this telegram and another's would overwrite each other"),
         ("overwrites", pa.string(), "restriction_id whose pattern this telegram overwrites, or null"),
+        ("valid_from_utc_s", pa.int64(), "a temporary restriction's pattern: fed from [UTC epoch s]; null: "
+                                         "always (the line's own)"),
+        ("valid_until_utc_s", pa.int64(), "a temporary restriction's pattern: fed until (exclusive) [UTC epoch "
+                                          "s]; null: always"),
     ],
     name="atsp",
     description="ATS-P telegrams fed from the DB for restrictions without a ground beacon.",

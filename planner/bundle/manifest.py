@@ -161,6 +161,50 @@ class Release:
         return self.built_at_s + self.valid_s
 
 
+# --- the operating day a bundle is for -------------------------------------------
+@dataclass(frozen=True)
+class BundleDay:
+    """The operating day a bundle is built for: its window and the temporary restrictions in force.
+
+    Signed in the manifest as ``operating_day``; a vehicle (``planner bundle verify --at``) refuses the
+    bundle outside [start_s, end_s). ``restrictions``: (feed id, valid from, valid until [UTC epoch s]) of
+    every temporary restriction in force that day on the line; each bundle lists those it includes (its
+    direction and train type).
+    """
+
+    day: str
+    time_zone: str
+    start_s: int
+    end_s: int
+    restrictions: tuple[tuple[str, int, int], ...] = ()
+
+    def validity(self) -> dict[str, tuple[int, int]]:
+        """Bundle restriction id (``T.<feed id>``) → its window, for the ATS-P data."""
+        return {f"T.{rid}": (a, b) for rid, a, b in self.restrictions}
+
+    def record(self, included) -> dict:
+        """The manifest's ``operating_day``: day, zone, window (UTC), the feed ids of ``included``."""
+        return {"day": self.day, "time_zone": self.time_zone, "valid_from": format_time(self.start_s),
+                "valid_until": format_time(self.end_s), "restrictions": sorted(included)}
+
+
+_DAY_KEYS = {"day": str, "time_zone": str, "valid_from": str, "valid_until": str, "restrictions": list}
+
+
+def _check_day(d, where: str) -> None:
+    """The manifest's optional ``operating_day``: keys, types, a window of two times in order."""
+    if not isinstance(d, dict) or set(d) != set(_DAY_KEYS) or not all(_is(d[k], t) for k, t in _DAY_KEYS.items()):
+        raise fail(where, f"manifest operating_day must have exactly the keys {sorted(_DAY_KEYS)}")
+    for k in ("valid_from", "valid_until"):
+        if not _TIME_RE.fullmatch(d[k]):
+            raise fail(where, f"manifest operating_day {k} {d[k]!r} is not a time of the form YYYY-MM-DDTHH:MM:SSZ")
+    if not d["valid_until"] > d["valid_from"]:
+        raise fail(where, f"manifest operating_day valid_until {d['valid_until']} is not after valid_from")
+    r = d["restrictions"]
+    if not all(isinstance(x, str) and PATH_ID_RE.fullmatch(x) for x in r) or r != sorted(set(r)):
+        raise fail(where, "manifest operating_day restrictions must be a sorted list of unique restriction ids")
+
+
 # --- target: what a bundle is for -----------------------------------------------
 def check_id(value: str, what: str) -> str:
     """A line id / train type safe to put in a file name and a manifest."""
@@ -236,6 +280,8 @@ class BundleInfo:
     bundle_version: int = 0
     built_at: str = ""
     expires: str = ""
+    operating_day: dict | None = None
+    """The manifest's ``operating_day`` (:class:`BundleDay`), or None for a bundle not bound to a day."""
 
     @property
     def target(self) -> str:
@@ -261,6 +307,10 @@ class BundleInfo:
             + ("  (DEVELOPMENT KEY: not for service)" if self.key_kind != "production" else ""),
             f"{self.size_bytes} bytes, sha256 {self.sha256}",
         ]
+        d = self.operating_day
+        if d is not None:
+            out.insert(2, f"operating day {d['day']} ({d['time_zone']}), valid {d['valid_from']} to "
+                          f"{d['valid_until']}; temporary restrictions: {', '.join(d['restrictions']) or 'none'}")
         for f in self.files:
             out.append(f"  {f.name:<24} {f.rows:>9} rows {f.size:>11} bytes")
         out.append("complete" if self.complete else "PARTIAL: missing " + ", ".join(self.missing))
@@ -277,6 +327,7 @@ def manifest_info(path: str, m: dict, size_digest: tuple[int, str]) -> BundleInf
         files=tuple(FileEntry(e["name"], e["size"], e["sha256"], e["rows"]) for e in m["files"]),
         missing=tuple(m["missing"]), size_bytes=size, sha256=digest, key_kind=m["key_kind"],
         bundle_version=m["bundle_version"], built_at=m["built_at"], expires=m["expires"],
+        operating_day=m.get("operating_day"),
     )
 
 
@@ -331,7 +382,7 @@ def check_manifest(m, where: str) -> None:
         raise fail(where, f"bundle schema version {m['schema_version']} not supported by planner {__version__} "
                           f"(supports {sorted(SUPPORTED_SCHEMA_VERSIONS)}); update the vehicle-side software")
     missing = sorted(set(_MANIFEST_KEYS) - set(m))
-    extra = sorted(set(m) - set(_MANIFEST_KEYS))
+    extra = sorted(set(m) - set(_MANIFEST_KEYS) - {"operating_day"})  # optional: a bundle for one day
     if missing or extra:
         raise fail(where, f"manifest keys wrong (missing {missing}, unknown {extra})")
     for k, typ in _MANIFEST_KEYS.items():
@@ -361,6 +412,8 @@ def check_manifest(m, where: str) -> None:
             raise fail(where, f"manifest {k} {m[k]!r} is not a time of the form YYYY-MM-DDTHH:MM:SSZ")
     if not m["expires"] > m["built_at"]:  # same fixed-width form: text order is time order
         raise fail(where, f"manifest expires {m['expires']} is not after built_at {m['built_at']}")
+    if "operating_day" in m:
+        _check_day(m["operating_day"], where)
     _check_files(m, where)
 
 

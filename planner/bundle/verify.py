@@ -108,6 +108,10 @@ def _check_expect(m: dict, expect: Expect, pub_id: str, where: str) -> None:
     if now >= parse_time(m["expires"]):
         raise fail(where, f"bundle expired at {m['expires']} (checked at {format_time(now)}; built "
                           f"{m['built_at']}): a fresh bundle is needed (refused)")
+    d = m.get("operating_day")
+    if d is not None and not parse_time(d["valid_from"]) <= now < parse_time(d["valid_until"]):
+        raise fail(where, f"bundle is for operating day {d['day']} ({d['valid_from']} to {d['valid_until']}), "
+                          f"checked at {format_time(now)}: outside its window, that day's bundle is needed (refused)")
 
 
 def _verified(path, public_key, expect: Expect | None = None

@@ -146,14 +146,60 @@ def day_inputs(job: Job, line: Line) -> DayInputs:
                      tuple(t for t in ids if t not in keep), tuple(notes))
 
 
-def day_record(job: Job, lines: list[Line], notes: list[str]) -> dict:
+def day_line(line: Line, d: DayInputs) -> Line:
+    """``line`` as it is on the day: every temporary restriction in force at some instant of the day added to
+    its speed limits (whole day, on the safe side: see docs/operating-day.md), and only the trains that run.
+
+    Every unit is given a slice of this line (:meth:`Line.window`), so a unit's cache key (the digest of its
+    slice) includes exactly the restrictions that reach it; the static line's ``source_digest`` is kept (it
+    names the line database the run read), and :func:`line_digest` keys the line-level units.
+    """
+    keep = set(d.trains)
+    return dataclasses.replace(
+        line, speed_limits=line.speed_limits + tuple(r.as_speed_limit() for r in d.restrictions),
+        trains=tuple(t for t in line.trains if t.train_id in keep))
+
+
+def line_digest(line: Line) -> str:
+    """Key of what a line-level unit (margins, conflicts, train graph) sees of a :func:`day_line`: the static
+    line, the temporary restrictions added and the trains that run."""
+    from planner.job.publish import digest
+    from planner.line.daily import TEMPORARY_KIND
+
+    return digest([line.source_digest,
+                   [dataclasses.astuple(s) for s in line.speed_limits if s.kind == TEMPORARY_KIND],
+                   [t.train_id for t in line.trains]])
+
+
+def bundle_day(job: Job, line: Line, d: DayInputs):
+    """The :class:`~planner.bundle.manifest.BundleDay` of ``line``'s bundles: the day's window and the
+    temporary restrictions in force with theirs; None for a line without a daily feed (its bundles are not
+    bound to one day: nothing in them changes with the day)."""
+    from planner.bundle.manifest import BundleDay
+
+    if feed_of(job, line) is None:
+        return None
+    w = d.window
+    return BundleDay(w.day.isoformat(), w.time_zone, w.start_s, w.end_s,
+                     tuple((r.restriction_id, r.valid_from_s, r.valid_until_s) for r in d.restrictions))
+
+
+def plan_day(job: Job, lines: list[Line], notes: list[str]) -> tuple[dict, list[Line], list]:
+    """:func:`day_record`, each line as it is on the day (:func:`day_line`: what the run computes with) and
+    its bundles' day (:func:`bundle_day`)."""
+    ins = [day_inputs(job, line) for line in lines]
+    return (day_record(job, lines, notes, ins), [day_line(ln, d) for ln, d in zip(lines, ins)],
+            [bundle_day(job, ln, d) for ln, d in zip(lines, ins)])
+
+
+def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInputs] | None = None) -> dict:
     """The operating day for the run's manifest: window, and per line its feed, the restrictions in force
     and the trains that do not run; the day's notes are appended to ``notes``. Validates every feed, so a
     bad feed fails the run before anything is computed."""
     rec = window(job).record()
     rec["lines"] = []
-    for line in lines:
-        d = day_inputs(job, line)
+    for i, line in enumerate(lines):
+        d = ins[i] if ins is not None else day_inputs(job, line)
         notes.extend(d.notes)
         f = feed_of(job, line)
         rec["lines"].append({"line_id": line.line_id, "feed": Path(f).as_posix() if f else None,
@@ -161,5 +207,5 @@ def day_record(job: Job, lines: list[Line], notes: list[str]) -> dict:
     return rec
 
 
-__all__ = ["day_digest", "day_inputs", "day_problems", "day_record", "feed_of", "resolve_day", "time_zone",
-           "window", "with_day"]
+__all__ = ["bundle_day", "day_digest", "day_inputs", "day_line", "day_problems", "day_record", "feed_of", "line_digest",
+           "plan_day", "resolve_day", "time_zone", "window", "with_day"]

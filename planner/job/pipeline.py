@@ -42,7 +42,7 @@ from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomi
 from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
-from planner.job.day import day_digest, day_record, resolve_day
+from planner.job.day import day_digest, line_digest, plan_day, resolve_day
 from planner.line.model import DIRECTIONS, Line
 from planner.job.cache import Cache
 from planner.job.keys import signing_key_path
@@ -246,7 +246,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             from planner.bundle.signing import load_private_key, public_key_id
 
             notes: list[str] = []
-            day = day_record(job, lines, notes)  # the day's feeds validated against their lines, before any unit
+            # the day's feeds validated against their lines before any unit; each line as it is that day
+            day, lines, bundle_days = plan_day(job, lines, notes)
             key_path, development = signing_key_path(job, notes)
             key = load_private_key(key_path)
             release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
@@ -269,8 +270,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 try:
                     # a writer thread: a step's datasets are written while the workers compute the next
                     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
-                        for line in lines:
-                            _run_line(job, line, stage, runner, summary, key, key_path, writes)
+                        for line, bday in zip(lines, bundle_days):
+                            _run_line(job, line, stage, runner, summary, key, key_path, writes, bday)
                     summary.computed, summary.reused = runner.computed, runner.reused
                     if cache.rejected:  # once per run, with the count
                         summary.warnings.append(cache.rejected_note())
@@ -302,7 +303,7 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
-              writes: ThreadPoolExecutor) -> None:
+              writes: ThreadPoolExecutor, bday=None) -> None:
     from planner.tables.ratios import leg_ratio_grid
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
@@ -383,7 +384,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     _count(summary, stops_written.result())
     # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
     # margins (the worker loads the key from its file)
-    bundles = _start_bundles(job, line, stage, runner, summary, key_path)
+    bundles = _start_bundles(job, line, stage, runner, summary, key_path, bday)
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
@@ -438,7 +439,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import margin_options
 
-    key = digest(["margins", code_digest(), line.source_digest, unit_keys, _result_params(job)])
+    key = digest(["margins", code_digest(), line_digest(line), unit_keys, _result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     report = _line_unit(runner, "margins", key, _margins_unit, line, margin_options(job, line), _types(job, line),
                         stage, n_jobs, given)
@@ -465,19 +466,22 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
 
-def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str]) -> list:
-    """Every bundle of the line (runs on a worker: module level, the key read from its file there)."""
+def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None) -> list:
+    """Every bundle of the line for the operating day ``day`` (:func:`planner.job.day.bundle_day`; runs on a
+    worker: module level, the key read from its file there)."""
     from planner.bundle.container import build_line
 
-    return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage, train_types=types)
+    return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage, train_types=types,
+                      day=day)
 
 
-def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path):
+def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
+                   bday=None):
     """Start the line's bundles on a worker; the step's time runs from here to when they are written."""
     from planner.io.parallel import background
 
     runner.progress.start("bundles", 2 * len(_types(job, line)))
-    b = background(_build_bundles, (line, stage / "bundles", key_path, summary.release, stage, _types(job, line)),
+    b = background(_build_bundles, (line, stage / "bundles", key_path, summary.release, stage, _types(job, line), bday),
                    name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)
     return b
@@ -506,7 +510,7 @@ def _conflicts_unit(line, params):
 def _conflicts_unit_of(job: Job, line: Line) -> Unit:
     """The unit of the line's route conflicts (its whole timetable)."""
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
-    key = digest(["conflicts", code_digest(), line.source_digest, params, job.tables.ds_m])
+    key = digest(["conflicts", code_digest(), line_digest(line), params, job.tables.ds_m])
     return Unit("conflicts", key, "conflicts", _conflicts_unit, (line, params))
 
 

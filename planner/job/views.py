@@ -62,10 +62,11 @@ def graph_unit(job, line):
     """The unit of a line's train graph trajectories (:func:`_graph_unit`), keyed by the line and the code."""
     from planner.report.train_graph import TOL_T_S, TOL_X_M
     from planner.job.units import code_digest
+    from planner.job.day import line_digest
     from planner.job.publish import digest
 
     check = bool(job.conflicts.enabled)
-    key = digest(["graph", code_digest(), line.source_digest, check, TOL_T_S, TOL_X_M])
+    key = digest(["graph", code_digest(), line_digest(line), check, TOL_T_S, TOL_X_M])
     return _unit("graph", key, _graph_unit, (line, check))
 
 
@@ -133,6 +134,20 @@ def _write_line_changes(ch, stage: Path) -> int:
         raise
 
 
+def _restrictions_pages(job, lines, stage: Path, manifest: dict, summary) -> None:
+    """``report/<line>_restrictions.html`` of each line with a daily feed (:mod:`planner.report.restrictions`)."""
+    from planner.report.restrictions import write_page
+
+    day = manifest.get("operating_day") or {}
+    for line, rec in zip(lines, day.get("lines", [])):
+        if rec.get("feed") is None:
+            continue
+        rep = summary.reports.get(line.line_id)
+        write_page(line, {**{k: day.get(k) for k in ("day", "start", "end", "time_zone")}, **rec},
+                   None if rep is None else rep.rows, stage / "report" / f"{line.line_id}_restrictions.html",
+                   job.tables.ds_m)
+
+
 def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     """Changes since the previous run, report sections, manifest additions and the overview page (module doc)."""
     from planner.io.atomic import write_bytes_atomic
@@ -190,6 +205,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     manifest["units_reused"] = dict(summary.reused)
     write_bytes_atomic(manifest_path, canonical_json(manifest) + b"\n")
     with prog.step("overview"):
+        _restrictions_pages(job, lines, stage, manifest, summary)
         # notes name the development key by its path: keep the page free of absolute paths
         notes = [n.replace(str(root), job.job.output_root) for n in summary.warnings + summary.notes]
         write_overview(stage, manifest, notes=notes)

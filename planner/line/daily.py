@@ -102,9 +102,12 @@ class TemporaryRestriction:
     row: int = -1
 
     def as_speed_limit(self) -> SpeedLimit:
-        """The restriction as a line speed limit (kind ``temporary``): what the physics sees while in force."""
+        """The restriction as a line speed limit (kind ``temporary``): what the physics sees while in force.
+
+        Named by its id (``row`` -1): its place in the feed keys nothing, so a restriction added before
+        it does not change the cache key of the units it reaches."""
         return SpeedLimit(self.start_m, self.end_m, self.limit_ms, self.direction, self.train_type,
-                          TEMPORARY_KIND, self.has_beacon, self.row)
+                          TEMPORARY_KIND, self.has_beacon, -1, self.restriction_id)
 
     def record(self, window=None) -> dict:
         """Plain data (railway units at the edge) for manifests and reports."""

@@ -83,7 +83,10 @@ class SpeedLimit:
 
     ``train_type`` None applies to every train type; ``direction`` is
     ``both``, ``down`` or ``up``. ``row`` is the 0-based row in
-    speed_limits.parquet, used as a stable id.
+    speed_limits.parquet, used as a stable id (``R<row>``). A temporary
+    restriction of the daily feed in force that day (kind ``temporary``) has
+    ``row`` -1 and its feed id in ``restriction_id``, so its place in the feed
+    file keys nothing.
     """
 
     start_m: float
@@ -94,9 +97,16 @@ class SpeedLimit:
     kind: str
     has_beacon: bool
     row: int = -1
+    restriction_id: str = ""
 
     def applies(self, direction: str, train_type: str) -> bool:
         return self.direction in ("both", direction) and self.train_type in (None, train_type)
+
+    @property
+    def ident(self) -> str:
+        """The id that names it in bundles: ``R<row>`` for a restriction of the line, ``T.<restriction_id>``
+        for a temporary one (the prefix keeps a feed id such as ``R1`` apart from the line's row 1)."""
+        return f"T.{self.restriction_id}" if self.restriction_id else f"R{self.row}"
 
 
 @dataclass(frozen=True)

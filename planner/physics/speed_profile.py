@@ -42,6 +42,8 @@ class RestrictionSpan:
     s_to_m: float
     limit_ms: float
     row: int
+    ident: str = ""
+    """The restriction's id (:attr:`planner.line.model.SpeedLimit.ident`)."""
 
 
 def restriction_spans(line: Line, train: TrainType, direction: str, x0_m: float) -> list[RestrictionSpan]:
@@ -56,7 +58,7 @@ def restriction_spans(line: Line, train: TrainType, direction: str, x0_m: float)
     for r in line.limits_for(direction, train.train_type):
         a, b = sg * (r.start_m - x0_m), sg * (r.end_m - x0_m)
         s_from, s_exit = min(a, b), max(a, b)
-        out.append(RestrictionSpan(s_from, s_exit, s_exit + train.length_m, r.limit_ms, r.row))
+        out.append(RestrictionSpan(s_from, s_exit, s_exit + train.length_m, r.limit_ms, r.row, r.ident))
     return out
 
 

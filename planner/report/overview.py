@@ -7,7 +7,8 @@ Sections, in the order someone opening a run reads them:
    the top of each margin report);
 2. flags (infeasible/tight/unreachable legs, infeasible stops, conflicts) and
    the notes of the run;
-3. pages: the margin report and the train graph of each line;
+3. pages: the restrictions in force (a line with a daily feed), the margin report and the train graph of
+   each line;
 4. inputs: each line database with its source digest and, per table of the
    copy kept under ``inputs/<line_id>/``, rows and SHA-256; the job
    parameters;
@@ -197,7 +198,8 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     parts.append("<h2 id='pages'>Pages</h2>")
     for lid in lines:
         links = []
-        for rel, label in ((f"report/{lid}_margins.html", "margin report"), (f"graph/{lid}_graph.html", "train graph")):
+        for rel, label in ((f"report/{lid}_restrictions.html", "restrictions in force"),
+                           (f"report/{lid}_margins.html", "margin report"), (f"graph/{lid}_graph.html", "train graph")):
             if (run_dir / rel).is_file():
                 links.append(f"<a href='{_e(rel)}'>{_e(label)}</a>")
         parts.append(f"<p class='links'><b>{_e(lid)}</b>: " + ("".join(links) or "none") + "</p>")
