@@ -132,6 +132,12 @@ def main_cause(shares) -> str:
     return name
 
 
+def _s(x: float) -> str:
+    """Seconds to 0.1 s, never ``-0.0``."""
+    t = f"{x:.1f}"
+    return "0.0" if t == "-0.0" else t
+
+
 def cost_words(cost: float, shares) -> str:
     """``the bad day costs 9.9 s (load 4.0, traction 3.0, adhesion 2.0, stop model 0.9 s)``, the parts adding up."""
     if not all(math.isfinite(x) for x in [cost, *shares]):
@@ -166,13 +172,13 @@ def flag_reasons(rows, tight_threshold_s: float, arrival_error_threshold_s: floa
             if f == "unassessed":
                 said.append(f"unassessed: {r.unassessed_reason}")
             elif f == "impossible":
-                said.append(f"impossible: scheduled {r.scheduled_running_time_s:.1f} s, {-r.margin_s:.1f} s below "
+                said.append(f"impossible: scheduled {r.scheduled_running_time_s:.1f} s, {_s(-r.margin_s)} s below "
                             f"the minimum running time {r.min_running_time_s:.1f} s: no driving makes it")
             elif f in ("short_bad_day", "tight"):
                 cause = main_cause(shares)
-                head = (f"short on a bad day by {-r.remaining_margin_s:.1f} s" if f == "short_bad_day" else
-                        f"tight: {r.remaining_margin_s:.1f} s left on a bad day (below {tight_threshold_s:g} s)")
-                said.append(f"{head}: margin {r.margin_s:.1f} s, {cost_words(cost, shares)}"
+                head = (f"short on a bad day by {_s(-r.remaining_margin_s)} s" if f == "short_bad_day" else
+                        f"tight: {_s(r.remaining_margin_s)} s left on a bad day (below {tight_threshold_s:g} s)")
+                said.append(f"{head}: margin {_s(r.margin_s)} s, {cost_words(cost, shares)}"
                             + (f", most of it {CAUSE_WORDS[cause]}" if cause else ""))
             elif f == "unreachable":
                 said.append(f"unreachable: scheduled {r.scheduled_running_time_s:.1f} s, above the slowest table "
