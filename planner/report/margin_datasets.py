@@ -94,8 +94,8 @@ MARGINS_SCHEMA = declare(
          "flag: closed_loop_max_error_s > [margins] arrival_error_threshold_s: the on-board logic misses the "
          "designated arrival by that much (e.g. a long leg without evaluation points)"),
         ("unassessed", pa.bool_(),
-         "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; infeasible and "
-         "tight are then null (unknown), remaining_margin_s null"),
+         "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; short_bad_day, "
+         "infeasible (unless impossible) and tight are then null (unknown), remaining_margin_s null"),
         ("unassessed_reason", pa.string(), "why the leg could not be assessed; empty when assessed"),
         ("flag_reason", pa.string(),
          "every flag of the row in words, '; ' between them, e.g. 'short on a bad day by 0.2 s: margin 19.8 s, the "
