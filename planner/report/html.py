@@ -52,7 +52,7 @@ p,li{line-height:1.45;font-size:14px}.sub{color:#555;margin:0 0 14px;font-size:1
 table{border-collapse:collapse;background:#fff;font-size:12px;width:100%}
 th,td{border:1px solid #dde1e5;padding:3px 5px;text-align:right;white-space:nowrap}
 th{background:#eef1f4;position:sticky;top:0;font-weight:600;white-space:normal;vertical-align:bottom}
-td.l,th.l{text-align:left}
+td.l,th.l{text-align:left}td.why{white-space:normal;min-width:300px}
 tr.unassessed td{background:#e3e7ea}tr.impossible td{background:#f8d7d3}tr.short_bad_day td{background:#fdecea}
 tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}tr.inaccurate td{background:#fff8e1}
 tr.sep td{background:#d5d9de;text-align:left;font-weight:600}
@@ -118,24 +118,21 @@ def flagged_summary(sched) -> str:
         return "<p><b>No leg is flagged</b>: every timetabled leg keeps its time on a bad day.</p>"
     f = f.sort_values(["remaining_margin_s", "direction", "train_type", "origin"], kind="stable")
     med = float(sched.margin_percent.median())
-    out = [f"<h3>Flagged legs ({len(f)} of {len(sched)})</h3><div class='tw'><table><tr><th class='l'>flag</th>"
+    out = [f"<h3>Flagged legs ({len(f)} of {len(sched)}; the median margin of the day is {med:.1f} %)</h3>"
+           "<div class='tw'><table><tr><th class='l'>flag</th>"
            "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
            "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop + stop model</th>"
            "<th>remaining on a bad day [s]</th><th class='l'>why</th></tr>"]
     for r in f.itertuples(index=False):
         flag = flag_of(r)
-        cost = r.degraded_min_running_time_s - r.min_running_time_s
         why = getattr(r, "flag_reason", "") or ""
-        if flag in ("impossible", "short_bad_day", "tight"):
-            why += (f" (margin {r.margin_percent:.1f} % against a median of {med:.1f} %: the timetable grants "
-                    f"{r.margin_s:.1f} s where a bad day costs {cost:.1f} s)")
         out.append(
             f"<tr class='{flag}'><td class='l'>{_badges(r)}</td>"
             f"<td class='l'>{_e(r.direction)}</td><td class='l'>{_e(r.train_type)}</td><td class='l'>{_leg(r)}</td>"
             f"<td>{r.n_trains}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
             f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
             f"<td>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td>"
-            f"<td class='l'>{_e(why)}</td></tr>")
+            f"<td class='l why'>{_e(why)}</td></tr>")
     out.append("</table></div>")
     return "\n".join(out)
 
