@@ -52,7 +52,7 @@ p,li{line-height:1.45;font-size:14px}.sub{color:#555;margin:0 0 14px;font-size:1
 table{border-collapse:collapse;background:#fff;font-size:12px;width:100%}
 th,td{border:1px solid #dde1e5;padding:3px 5px;text-align:right;white-space:nowrap}
 th{background:#eef1f4;position:sticky;top:0;font-weight:600;white-space:normal;vertical-align:bottom}
-td.l,th.l{text-align:left}td.why{white-space:normal;min-width:300px}
+td.l,th.l{text-align:left}td.why{white-space:normal}
 tr.unassessed td{background:#e3e7ea}tr.impossible td{background:#f8d7d3}tr.short_bad_day td{background:#fdecea}
 tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}tr.inaccurate td{background:#fff8e1}
 tr.sep td{background:#d5d9de;text-align:left;font-weight:600}
@@ -122,7 +122,7 @@ def flagged_summary(sched) -> str:
            "<div class='tw'><table><tr><th class='l'>flag</th>"
            "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
            "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop + stop model</th>"
-           "<th>remaining on a bad day [s]</th><th class='l'>why</th></tr>"]
+           "<th>remaining on a bad day [s]</th></tr>"]
     for r in f.itertuples(index=False):
         flag = flag_of(r)
         why = getattr(r, "flag_reason", "") or ""
@@ -131,8 +131,8 @@ def flagged_summary(sched) -> str:
             f"<td class='l'>{_e(r.direction)}</td><td class='l'>{_e(r.train_type)}</td><td class='l'>{_leg(r)}</td>"
             f"<td>{r.n_trains}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
             f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
-            f"<td>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td>"
-            f"<td class='l why'>{_e(why)}</td></tr>")
+            f"<td>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td></tr>"
+            + (f"<tr class='{flag}'><td colspan='9' class='l why'>↳ {_e(why)}</td></tr>" if why else ""))
     out.append("</table></div>")
     return "\n".join(out)
 
@@ -462,8 +462,9 @@ def _findings(sched, trains) -> list[str]:
             find.append(f"{len(short)} of {len(sched)} legs are <b>short on a bad day</b>: they meet the minimum but "
                         f"would run late on a bad day even at ratio 100 %, by "
                         f"{(-short.remaining_margin_s).median():.1f} s (median) and "
-                        f"{(-short.remaining_margin_s).max():.1f} s at most; the largest share of the bad day's cost "
-                        "is " + ", ".join(f"{_e(k.replace('_', ' '))} on {v}" for k, v in main.items() if k) + ".")
+                        f"{(-short.remaining_margin_s).max():.1f} s at most; the largest share of the bad day's cost: "
+                        + ", ".join(f"{_e(k.replace('_', ' '))} on {v} leg{'s' if v != 1 else ''}"
+                                    for k, v in main.items() if k) + ".")
         e = sched[np.isfinite(sched.energy_saved_kwh)]
         if len(e):
             w_tr = e.energy_saved_kwh * e.n_trains
