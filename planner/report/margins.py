@@ -123,6 +123,8 @@ Layout
 ------
 * :mod:`planner.report.margin_rule`: the rule, rounding, margins and flags,
   totals (pure: plain numbers and arrays in, columns out);
+* :mod:`planner.report.leg_flags`: what each flag says, its badge, card and
+  colour, and the words of ``flag_reason`` and ``bad_day_cause`` (pure);
 * :mod:`planner.report.leg_margin`: one leg with the simulator, the tables
   (read from ``--tables`` or computed), the stopping patterns and the closed loop;
 * this module: the timetable as legs and the whole line (:func:`compute_margins`);
