@@ -233,7 +233,7 @@ def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> No
         assert want > 0.5 and abs(r.delta - want) < 0.05, (r.subject, r.delta, want)
     html = (project / "out" / "latest" / "report" / "tiny_margins.html").read_text()
     top = html.index("What changed since the last run")
-    assert top < html.index("infeasible: scheduled below")  # a section at the top, before the headline cards
+    assert top < html.index("impossible: scheduled below")  # a section at the top, before the headline cards
     assert "speed restriction 4000–4200 m up civil: limit_kmh 70 → 65 — affects" in html
 
 

@@ -44,6 +44,7 @@ def margins(
 ) -> None:
     """Margin-time report: minimum, scheduled and bad-day running time of every leg, flags, totals, HTML page."""
     from planner.line.loader import load_line
+    from planner.report.leg_flags import FLAG, FLAGS
     from planner.report.html import write_html
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import compute_margins, margin_options
@@ -91,9 +92,8 @@ def margins(
     typer.echo(f"{line.line_id}: {len(rows)} legs x train type ({len(s)} timetabled, "
                f"{int((s.passes.map(len) > 0).sum())} passing stations); tables "
                f"{report.sources['tables_dataset']} read, {report.sources['tables_computed']} computed")
-    typer.echo(f"  flags: {int(s.unassessed.sum())} unassessed, {int(s.infeasible.sum())} infeasible, "
-               f"{int(s.tight.sum())} tight, "
-               f"{int(s.unreachable.sum())} unreachable; {int((~s.supplement_met).sum())} below the supplement rule")
+    typer.echo("  flags: " + ", ".join(f"{int(s[f].sum())} {FLAG[f].badge}" for f in FLAGS)
+               + f"; {int((~s.supplement_met).sum())} below the supplement rule")
     if s.unassessed.any():
         u = s[s.unassessed].iloc[0]
         typer.echo(f"  UNASSESSED: {int(s.unassessed.sum())} leg(s) have no bad-day minimum, e.g. {u.train_type} "

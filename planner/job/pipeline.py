@@ -455,6 +455,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     from planner.io.parallel import background
     from planner.report.html import stop_markers
     from planner.report.html_charts import chart_svgs
+    from planner.report.leg_flags import FLAGS
 
     summary.reports[line.line_id] = report
     halves = (("margin:down", "curves"), ("margin:up", "adhesion"))
@@ -462,7 +463,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
                                                name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
                                     for names in halves]
     summary.pending += summary.charts[line.line_id]
-    for flag in ("unassessed", "infeasible", "tight", "unreachable", "inaccurate"):  # legs the margin report flags
+    for flag in FLAGS:  # legs the margin report flags, each flag its own card on the overview
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 
 

@@ -13,8 +13,10 @@
   line-table changes that lie within one train length of its stretch (or name
   its train type or trains), which is how the page says "this restriction made
   these legs this much slower";
-* **flags** — legs whose ``infeasible``/``tight``/``unreachable`` flag appeared
-  or cleared, and conflicts (train pair, resource) that appeared or cleared;
+* **flags** — legs whose ``impossible``, ``short_bad_day``, ``tight``,
+  ``unreachable``, ``inaccurate`` or ``unassessed`` flag appeared or cleared
+  (a margin going from 7.1 s to −0.5 s: *impossible* appeared, whatever the
+  bad day did), and conflicts (train pair, resource) that appeared or cleared;
 * **bundles** — bundles whose content changed: members whose SHA-256 differs,
   with the rows that differ and the bytes, after both bundles verified against
   their own run's public key.
@@ -36,6 +38,8 @@ import pyarrow as pa
 
 from planner.errors import InputError
 from planner.io.parquet import declare
+from planner.report.leg_flags import FLAG
+from planner.report.margin_rule import TIME_TOL_S
 from planner.report.published_run import line_inputs, path_id, read_line_dataset, read_manifest
 
 THRESHOLD_S = 0.5
@@ -59,7 +63,8 @@ TABLE_KEYS: dict[str, tuple[str, ...]] = {
 
 LEG_KEY = ("direction", "train_type", "origin", "destination", "scheduled_running_time_s")
 LEG_MEASURES = ("min_running_time_s", "margin_s", "remaining_margin_s")
-LEG_FLAGS = ("infeasible", "tight", "unreachable")
+LEG_FLAGS = ("impossible", "short_bad_day", "tight", "unreachable", "inaccurate", "unassessed")
+"""The flags of a leg compared between runs (``infeasible`` is the first two together: not listed twice)."""
 
 CATEGORIES = ("code", "parameter", "line_table", "leg", "flag", "conflict", "bundle")
 
@@ -390,11 +395,30 @@ def _leg_changes(ch: LineChanges, old, new, reach: dict[int, dict], threshold_s:
             ch.add("leg", label, f"leg {label}: {m} {va:.1f} → {vb:.1f} s ({vb - va:+.1f} s)", field_=m,
                    before=round(va, 3), after=round(vb, 3), delta=vb - va, **common)
         for f in LEG_FLAGS:
-            fa, fb = bool(a.get(f)), bool(b.get(f))
-            if fa != fb:
-                ch.add("flag", label, f"leg {label}: {f} {'appeared' if fb else 'cleared'} "
-                       f"(bad-day margin {_num(a.get('remaining_margin_s')):.1f} → {_num(b.get('remaining_margin_s')):.1f} s)",
-                       field_=f, before=fa, after=fb, **common)
+            fa, fb = _flag(a, f), _flag(b, f)
+            if fa is not None and fb is not None and fa != fb:
+                ch.add("flag", label, f"leg {label}: {FLAG[f].badge} {'appeared' if fb else 'cleared'} "
+                       f"({_flag_measure(f, a, b)})", field_=f, before=fa, after=fb, **common)
+
+
+def _flag(r: dict, f: str) -> bool | None:
+    """A leg's flag in a run; a run from before ``impossible`` and ``short_bad_day`` has them derived from its
+    ``margin_s`` and ``infeasible`` (the same definitions); None: unknown, or no such flag in the run (not
+    compared)."""
+    if f in r:  # null: unknown on an unassessed leg, whose own flag says so
+        return None if r[f] is None else bool(r[f])
+    if f in ("impossible", "short_bad_day") and "infeasible" in r:
+        impossible = _num(r.get("margin_s")) < -TIME_TOL_S
+        return impossible if f == "impossible" else bool(r["infeasible"]) and not impossible
+    return None
+
+
+def _flag_measure(f: str, a: dict, b: dict) -> str:
+    """The number behind a flag before and after, e.g. ``margin 7.1 → -0.5 s``."""
+    m, word = {"impossible": ("margin_s", "margin"), "unreachable": ("margin_s", "margin"),
+               "inaccurate": ("closed_loop_max_error_s", "closed-loop error")}.get(
+        f, ("remaining_margin_s", "bad-day margin"))
+    return f"{word} {_num(a.get(m)):.1f} → {_num(b.get(m)):.1f} s"
 
 
 def _conflict_changes(ch: LineChanges, old, new) -> None:

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.report.margin_rule import flag_of
 from planner.report.html_charts import chart_sections
+from planner.report.leg_flags import FLAG, FLAGS, FLAGS_SHOWN, added_up, any_flag, flag_of, flags_of
 
 CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;color:#1d2327;background:#f6f7f9}
@@ -52,13 +52,12 @@ p,li{line-height:1.45;font-size:14px}.sub{color:#555;margin:0 0 14px;font-size:1
 table{border-collapse:collapse;background:#fff;font-size:12px;width:100%}
 th,td{border:1px solid #dde1e5;padding:3px 5px;text-align:right;white-space:nowrap}
 th{background:#eef1f4;position:sticky;top:0;font-weight:600;white-space:normal;vertical-align:bottom}
-td.l,th.l{text-align:left}
-tr.unassessed td{background:#e3e7ea}
-tr.infeasible td{background:#fdecea}tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}tr.inaccurate td{background:#fff8e1}
+td.l,th.l{text-align:left}td.why{white-space:normal}
+tr.unassessed td{background:#e3e7ea}tr.impossible td{background:#f8d7d3}tr.short_bad_day td{background:#fdecea}
+tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}tr.inaccurate td{background:#fff8e1}
 tr.sep td{background:#d5d9de;text-align:left;font-weight:600}
 .badge{display:inline-block;border-radius:4px;padding:0 5px;margin-right:3px;color:#fff;font-size:11px;font-weight:600}
-.b-unassessed{background:#37474f}
-.b-infeasible{background:#c62828}.b-tight{background:#ef8f00}.b-unreachable{background:#6a1b9a}.b-inaccurate{background:#8d6e00}
+""" + "".join(f".b-{f.name}{{background:{f.colour}}}" for f in FLAGS_SHOWN) + """
 .b-short{background:#fff;color:#8a5a00;border:1px solid #c89b3c}
 .neg{color:#c62828;font-weight:600}
 details{margin:10px 0}summary{cursor:pointer;font-weight:600;font-size:14px}
@@ -98,30 +97,6 @@ LOSS_COLUMNS = ("degraded_loss_load_s", "degraded_loss_traction_s", "degraded_lo
 """The shares of the bad day's cost (degraded − minimum) in the ``margins`` dataset: load, traction, stop, stop model."""
 
 
-def added_up(total: float, parts, nd: int = 1) -> tuple[float, list[float]]:
-    """``total`` and its ``parts`` rounded to ``nd`` decimals so that the rounded parts add up to the rounded total.
-
-    Each part is rounded down to the unit, then the units the rounded total still lacks go to the
-    parts with the largest remainders (the largest-remainder method), so a row never shows
-    ``14.8 = 7.0 + 3.0 + 5.5 − 0.6`` off by a unit. The parts must add up to the total (to round-off).
-
-    Examples
-    --------
-    >>> added_up(0.15, [0.05, 0.05, 0.05])
-    (0.1, [0.1, 0.0, 0.0])
-    >>> added_up(14.830341, [6.953380, 2.989338, 5.464473, -0.576850])
-    (14.8, [6.9, 3.0, 5.5, -0.6])
-    """
-    unit = 10.0 ** -nd
-    t = round(float(f"{total:.{nd}f}") / unit)
-    raw = [p / unit for p in parts]
-    low = [math.floor(x) for x in raw]
-    order = sorted(range(len(raw)), key=lambda i: -(raw[i] - low[i]))  # stable: ties go to the first part
-    for i in order[:max(t - sum(low), 0)]:
-        low[i] += 1
-    return round(t * unit, nd), [round(k * unit, nd) for k in low]
-
-
 def cost_breakdown(r, nd: int = 1) -> str:
     """``cost = load + traction + stop ± stop model`` of a margin row [s], the shown parts adding up to the shown cost."""
     cost = r.degraded_min_running_time_s - r.min_running_time_s
@@ -138,34 +113,26 @@ def cost_breakdown(r, nd: int = 1) -> str:
 def flagged_summary(sched) -> str:
     """The flagged legs on the first screen: what each lacks and where the bad day's time goes."""
     # unassessed legs have their own section, listed first; this one lists the legs judged
-    f = sched[(sched.infeasible.fillna(False).astype(bool) | sched.tight.fillna(False).astype(bool)
-               | sched.unreachable.fillna(False).astype(bool) | _inaccurate(sched)) & ~sched.unassessed.astype(bool)]
+    f = sched[any_flag(sched) & ~sched.unassessed.astype(bool)]
     if f.empty:
         return "<p><b>No leg is flagged</b>: every timetabled leg keeps its time on a bad day.</p>"
     f = f.sort_values(["remaining_margin_s", "direction", "train_type", "origin"], kind="stable")
     med = float(sched.margin_percent.median())
-    out = [f"<h3>Flagged legs ({len(f)} of {len(sched)})</h3><div class='tw'><table><tr><th class='l'>flag</th>"
+    out = [f"<h3>Flagged legs ({len(f)} of {len(sched)}; the median margin of the day is {med:.1f} %)</h3>"
+           "<div class='tw'><table><tr><th class='l'>flag</th>"
            "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
            "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop + stop model</th>"
-           "<th>remaining on a bad day [s]</th><th class='l'>why</th></tr>"]
+           "<th>remaining on a bad day [s]</th></tr>"]
     for r in f.itertuples(index=False):
         flag = flag_of(r)
-        cost = r.degraded_min_running_time_s - r.min_running_time_s
-        if flag == "unreachable":
-            why = "scheduled longer than the slowest table ratio: the vehicle arrives early"
-        elif flag == "inaccurate":
-            why = (f"the closed loop misses the designated arrival by up to {r.closed_loop_max_error_s:.1f} s: "
-                   "the on-board logic cannot keep the time on this leg (too few evaluation points?)")
-        else:
-            why = (f"margin {r.margin_percent:.1f} % against a median of {med:.1f} %: the timetable grants "
-                   f"{r.margin_s:.1f} s where a bad day costs {cost:.1f} s")
+        why = getattr(r, "flag_reason", "") or ""
         out.append(
-            f"<tr class='{flag}'><td class='l'><span class='badge b-{flag}'>{flag}</span></td>"
+            f"<tr class='{flag}'><td class='l'>{_badges(r)}</td>"
             f"<td class='l'>{_e(r.direction)}</td><td class='l'>{_e(r.train_type)}</td><td class='l'>{_leg(r)}</td>"
             f"<td>{r.n_trains}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
             f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
-            f"<td>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td>"
-            f"<td class='l'>{_e(why)}</td></tr>")
+            f"<td>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td></tr>"
+            + (f"<tr class='{flag}'><td colspan='9' class='l why'>↳ {_e(why)}</td></tr>" if why else ""))
     out.append("</table></div>")
     return "\n".join(out)
 
@@ -204,18 +171,23 @@ ROW_HEAD = ("<tr><th class='l'>flags</th><th class='l'>dir</th><th class='l'>typ
             "<th>energy at that ratio vs 100 %</th></tr>")
 
 
+def _badges(r) -> str:
+    """The row's flags as badges, worst first, each with what it says on hover."""
+    tip = f" title='{_e(r.flag_reason)}'" if getattr(r, "flag_reason", "") else ""
+    return "".join(f"<span{tip} class='badge b-{f}'>{_e(FLAG[f].badge)}</span>" for f in flags_of(r))
+
+
 def _row_html(r) -> str:
     flag = flag_of(r)
-    badges = "".join(f"<span class='badge b-{f}'>{f}</span>"
-                     for f in ("unassessed", "infeasible", "tight", "unreachable", "inaccurate")
-                     if bool(getattr(r, f, False)))
+    badges = _badges(r)
     if np.isfinite(r.scheduled_running_time_s) and not bool(r.supplement_met):
         badges += "<span class='badge b-short'>supplement short</span>"
     rem = r.remaining_margin_s
     rem_s = _f(rem, 1, sign=True)
     if math.isfinite(rem) and rem < 0:
         rem_s = f"<span class='neg'>{rem_s}</span>"
-    tip = r.unassessed_reason if r.unassessed else r.note
+    tip = "; ".join(x for x in (getattr(r, "flag_reason", "") or (r.unassessed_reason if r.unassessed else ""),
+                                r.note) if x)
     note = f" title='{_e(tip)}'" if tip else ""
     cls = f" class='{flag}'" if flag != "ok" else ""
     return (
@@ -237,13 +209,13 @@ def rows_table(rows) -> str:
     then the rest in running order."""
     una = rows[rows.unassessed.astype(bool)]
     assessed = rows.drop(una.index)
-    flagged = assessed[assessed.infeasible | assessed.tight | assessed.unreachable | _inaccurate(assessed)].sort_values(
+    flagged = assessed[any_flag(assessed)].sort_values(
         ["remaining_margin_s", "direction", "train_type"], kind="stable")
     rest = assessed.drop(flagged.index)
     out = ["<div class='tw'><table>", ROW_HEAD]
     if len(una):
         out.append(f"<tr class='sep'><td colspan='17'>Unassessed legs ({len(una)}): no bad-day minimum could be "
-                   "computed, so infeasible and tight are unknown</td></tr>")
+                   "computed, so short on a bad day and tight are unknown</td></tr>")
         for r in una.itertuples(index=False):
             out.append(_row_html(r))
             out.append(f"<tr class='unassessed'><td colspan='17' class='l'>↳ {_e(r.unassessed_reason)}</td></tr>")
@@ -255,11 +227,6 @@ def rows_table(rows) -> str:
     return "\n".join(out)
 
 
-def _inaccurate(rows):
-    """The rows flagged ``inaccurate`` (False for a report from before the flag)."""
-    return rows["inaccurate"].fillna(False).astype(bool) if "inaccurate" in rows else False
-
-
 def totals_table(totals, scopes=("line", "type")) -> str:
     t = totals[totals.level.isin(scopes)].copy()
     t["o"] = t.level.map({"line": 0, "type": 1})
@@ -268,7 +235,8 @@ def totals_table(totals, scopes=("line", "type")) -> str:
            "<th>train runs of a leg</th>"
            "<th>sum of minimum running times [s]</th><th>sum of scheduled [s]</th><th>sum of margins [s]</th>"
            "<th>margin %</th><th>sum of bad-day remaining margins [s]</th><th>least remaining, one leg [s]</th>"
-           "<th>train runs on an infeasible leg</th><th>… on a tight leg</th><th>… on an unreachable leg</th>"
+           "<th>train runs on an impossible leg</th><th>… on a leg short on a bad day</th><th>… on a tight leg</th>"
+           "<th>… on an unreachable leg</th>"
            "<th>… on a leg short of the rule</th><th>energy saved [kWh]</th></tr>"]
     for r in t.itertuples(index=False):
         bold = " style='font-weight:600'" if r.level == "line" else ""
@@ -277,7 +245,8 @@ def totals_table(totals, scopes=("line", "type")) -> str:
             f"{'all types' if r.level == 'line' else _e(r.train_type)}</td><td>{r.n_trains}</td><td>{r.n_legs}</td>"
             f"<td>{r.min_running_time_s:.0f}</td><td>{r.scheduled_running_time_s:.0f}</td>"
             f"<td>{r.margin_s:.0f}</td><td>{r.margin_percent:.1f}</td><td>{r.remaining_margin_s:+.0f}</td>"
-            f"<td>{r.min_remaining_margin_s:+.1f}</td><td>{r.n_infeasible}</td><td>{r.n_tight}</td>"
+            f"<td>{r.min_remaining_margin_s:+.1f}</td><td>{r.n_impossible}</td><td>{r.n_short_bad_day}</td>"
+            f"<td>{r.n_tight}</td>"
             f"<td>{r.n_unreachable}</td><td>{r.n_supplement_short}</td><td>{r.energy_saved_kwh:.0f}</td></tr>")
     out.append("</table></div>")
     return "\n".join(out)
@@ -285,21 +254,23 @@ def totals_table(totals, scopes=("line", "type")) -> str:
 
 def train_table(totals) -> str:
     t = totals[totals.level == "train"].copy()
-    t = t.sort_values(["n_infeasible", "min_remaining_margin_s", "train_id"], ascending=[False, True, True],
+    t = t.sort_values(["n_impossible", "n_infeasible", "min_remaining_margin_s", "train_id"],
+                      ascending=[False, False, True, True],
                       kind="stable")
     out = ["<div class='tw'><table><tr><th class='l'>train</th><th class='l'>dir</th><th class='l'>type</th>"
            "<th class='l'>from → to</th><th>departs</th><th>legs</th><th>minimum [s]</th><th>scheduled [s]</th>"
            "<th>margin [s]</th><th>margin %</th><th>remaining [s]</th><th>worst leg [s]</th>"
-           "<th>infeasible</th><th>tight</th><th>unreachable</th></tr>"]
+           "<th>impossible</th><th>short on a bad day</th><th>tight</th><th>unreachable</th></tr>"]
     for r in t.itertuples(index=False):
-        cls = " class='infeasible'" if r.n_infeasible else (" class='tight'" if r.n_tight else "")
+        worst = next((f for f in ("impossible", "short_bad_day", "tight") if getattr(r, f"n_{f}")), "")
+        cls = f" class='{worst}'" if worst else ""
         out.append(
             f"<tr{cls}><td class='l'>{_e(r.train_id)}</td><td class='l'>{_e(r.direction)}</td>"
             f"<td class='l'>{_e(r.train_type)}</td><td class='l'>{_e(r.origin)} → {_e(r.destination)}</td>"
             f"<td>{_hms(r.first_departure_s)}</td><td>{r.n_legs}</td><td>{r.min_running_time_s:.0f}</td>"
             f"<td>{r.scheduled_running_time_s:.0f}</td><td>{r.margin_s:.0f}</td><td>{r.margin_percent:.1f}</td>"
             f"<td>{r.remaining_margin_s:+.0f}</td><td>{r.min_remaining_margin_s:+.1f}</td>"
-            f"<td>{r.n_infeasible}</td><td>{r.n_tight}</td><td>{r.n_unreachable}</td></tr>")
+            f"<td>{r.n_impossible}</td><td>{r.n_short_bad_day}</td><td>{r.n_tight}</td><td>{r.n_unreachable}</td></tr>")
     out.append("</table></div>")
     return "\n".join(out)
 
@@ -410,7 +381,7 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         "departure. <i>arrival error</i>: closed loop of the on-board logic, positive = late. <i>energy saved</i>: "
         "traction energy at that ratio against ratio 100 %. Hover a row for notes.</p>")
     parts.append(rows_table(rows))
-    parts.append(f"<details><summary>Totals per train ({len(trains)} trains; with infeasible legs first)</summary>"
+    parts.append(f"<details><summary>Totals per train ({len(trains)} trains; with impossible legs first, then legs short on a bad day)</summary>"
                  f"{train_table(report.totals)}</details>")
     parts.append(conflicts_section(report))
     parts.append(_method(report, datasets_href))
@@ -422,10 +393,8 @@ def _headline(report, sched, trains, top: str) -> list[str]:
     """The page's head, title, conditions, the ``top`` section and the flag cards."""
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
-    n_inf, n_tight, n_unr = int(sched.infeasible.sum()), int(sched.tight.sum()), int(sched.unreachable.sum())
+    counts = {f: int(np.sum(any_flag(rows if f in ("unassessed", "inaccurate") else sched, (f,)))) for f in FLAGS}
     n_short = int((~sched.supplement_met).sum())
-    n_una = int(rows.unassessed.sum())
-    n_acc = int(np.sum(_inaccurate(rows)))
     rule = report.rule
     adh = report.adhesion_kmh_s
     types = ", ".join(sorted(rows.train_type.unique()))
@@ -445,13 +414,11 @@ def _headline(report, sched, trains, top: str) -> list[str]:
         parts.append(top)
     # cards count distinct legs (train type × stop → next stop × scheduled time); the totals table
     # below counts train runs, and says so
-    cards = [
-        ("bad" if n_una else "ok", n_una, "legs unassessed: no bad-day minimum could be computed (listed first)"),
-        ("bad" if n_inf else "ok", n_inf, "legs infeasible: scheduled below the bad-day minimum"),
-        ("warn" if n_tight else "ok", n_tight, f"legs tight: less than {rule.tight_threshold_s:g} s left on a bad day"),
-        ("purple" if n_unr else "ok", n_unr, "legs unreachable: longer than the slowest ratio"),
-        ("warn" if n_acc else "ok", n_acc, f"legs inaccurate: the closed loop misses the arrival by more than "
-                                           f"{rule.arrival_error_threshold_s:g} s"),
+    words = {"tight": f"legs tight: less than {rule.tight_threshold_s:g} s left on a bad day",
+             "inaccurate": f"legs inaccurate: the closed loop misses the arrival by more than "
+                           f"{rule.arrival_error_threshold_s:g} s"}
+    cards = [(f.severity if counts[f.name] else "ok", counts[f.name], words.get(f.name, f.card)) for f in FLAGS_SHOWN]
+    cards += [
         ("warn" if n_short else "ok", n_short, "legs with a margin below the supplement rule"),
         ("info", f"{len(sched)}", "legs checked (train type × stop → next stop × scheduled time), "
                                   f"run {int(sched.n_trains.sum())} times a day"),
@@ -464,7 +431,6 @@ def _headline(report, sched, trains, top: str) -> list[str]:
 
 def _findings(sched, trains) -> list[str]:
     """What stands out among the legs that could be assessed, as list items (HTML)."""
-    n_inf = int(sched.infeasible.sum())
     # what stands out (among the legs that could be assessed)
     find = []
     if (~sched.unassessed.astype(bool)).any():
@@ -485,11 +451,20 @@ def _findings(sched, trains) -> list[str]:
                         f"would lengthen their runs by a median {tr.bad_day_shortfall_s.median():.0f} s "
                         f"(at most {w.bad_day_shortfall_s:.0f} s, train {_e(w.train_id)} {_e(w.origin)} → "
                         f"{_e(w.destination)}).")
-        if n_inf:
-            short = sched[sched.infeasible]
-            find.append(f"{n_inf} of {len(sched)} legs would run late on a bad day even at ratio 100 %, "
-                        f"by {(-short.remaining_margin_s).median():.1f} s (median) and "
-                        f"{(-short.remaining_margin_s).max():.1f} s at most.")
+        imp = sched[any_flag(sched, ("impossible",))]
+        if len(imp):
+            find.append(f"{len(imp)} of {len(sched)} legs are <b>impossible</b>: scheduled below the minimum running "
+                        f"time, by {(-imp.margin_s).median():.1f} s (median) and {(-imp.margin_s).max():.1f} s at "
+                        "most; no driving makes them, on any day.")
+        short = sched[any_flag(sched, ("short_bad_day",))]
+        if len(short):
+            main = short.bad_day_cause.value_counts()
+            find.append(f"{len(short)} of {len(sched)} legs are <b>short on a bad day</b>: they meet the minimum but "
+                        f"would run late on a bad day even at ratio 100 %, by "
+                        f"{(-short.remaining_margin_s).median():.1f} s (median) and "
+                        f"{(-short.remaining_margin_s).max():.1f} s at most; the largest share of the bad day's cost: "
+                        + ", ".join(f"{_e(k.replace('_', ' '))} on {v} leg{'s' if v != 1 else ''}"
+                                    for k, v in main.items() if k) + ".")
         e = sched[np.isfinite(sched.energy_saved_kwh)]
         if len(e):
             w_tr = e.energy_saved_kwh * e.n_trains
@@ -535,8 +510,10 @@ def _method(report, datasets_href: str) -> str:
         "minimum. The four add up to the bad-day cost; each row's shares are rounded so that the shown "
         "numbers add up too.</li>"
         "<li><b>Flags</b>: <i>unassessed</i> — the bad-day minimum could not be computed (the row says why, e.g. "
-        "no stopping pattern at the lowest adhesion); its infeasible and tight are unknown (null in the dataset); "
-        "<i>infeasible</i> — scheduled below the bad-day minimum; <i>tight</i> — not infeasible "
+        "no stopping pattern at the lowest adhesion); whether it is short on a bad day or tight is unknown (null in "
+        "the dataset); <i>impossible</i> — scheduled below the minimum: no driving makes it, on any day; "
+        "<i>short on a bad day</i> — meets the minimum but not the bad-day minimum, so it runs late on a bad day "
+        "(the row says by how much and which share of the bad day's cost is largest); <i>tight</i> — neither, "
         f"but less than {rule.tight_threshold_s:g} s left; <i>unreachable</i> — scheduled above the slowest table "
         "time (lowest ratio), so the vehicle would arrive early; <i>inaccurate</i> — the closed loop misses the "
         f"designated arrival by more than {rule.arrival_error_threshold_s:g} s on the leg. <i>supplement short</i> — the margin is below the "

@@ -50,7 +50,8 @@ def chart_sections(report, markers: dict[str, dict[str, float]], svgs: dict | No
     parts.append(
         "<p class='caption'>Each bar spans one leg from stop marker to stop marker. Light bar: margin the timetable "
         "grants over the minimum running time. Narrow coloured bar and its number: what remains on a bad day "
-        f"(scheduled − bad-day minimum); below zero the leg is infeasible. Black line: the supplement the rule asks "
+        f"(scheduled − bad-day minimum); below zero the leg is short on a bad day (dark red where the margin "
+        "itself is below zero: impossible). Black line: the supplement the rule asks "
         f"for ({rule.supplement_percent:g} % of the minimum + {rule.supplement_min_per_100km:g} min/100 km). "
         "Where a leg has several scheduled times, the one with the least remaining margin is drawn.</p>")
     for d in ("down", "up"):

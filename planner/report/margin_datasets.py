@@ -17,6 +17,7 @@ import pyarrow as pa
 from planner.errors import InputError
 from planner.io.parquet import declare, read_dataset, write_partitioned
 from planner.line.units import KMH_S
+from planner.report.margin_rule import COUNTED
 
 MARGINS_SCHEMA = declare(
     [
@@ -74,7 +75,15 @@ MARGINS_SCHEMA = declare(
          "adhesion of the bad day's stop: [margins] degraded_adhesion_kmh_s, else the sweep's lowest level [m/s²]"),
         ("adhesion_loss_s", pa.float64(),
          "stopping-pattern duration at the lowest minus at the highest adhesion, nominal approach speed [s]"),
-        ("infeasible", pa.bool_(), "flag: scheduled < degraded minimum"),
+        ("impossible", pa.bool_(),
+         "flag: scheduled < minimum running time (margin_s < 0): no driving makes it, on any day; null when the "
+         "minimum is unknown"),
+        ("short_bad_day", pa.bool_(),
+         "flag: not impossible, but scheduled < degraded minimum: the leg runs late on a bad day, by "
+         "-remaining_margin_s; null when unassessed"),
+        ("infeasible", pa.bool_(),
+         "impossible or short_bad_day (the flag before the two were told apart, kept so that queries and older runs "
+         "still compare); null when unassessed and not impossible"),
         ("tight", pa.bool_(), "flag: not infeasible, but remaining margin < tight_threshold_s"),
         ("unreachable", pa.bool_(), "flag: scheduled > slowest table time: the vehicle cannot stretch the run that long"),
         ("closed_loop_max_error_s", pa.float64(),
@@ -85,9 +94,16 @@ MARGINS_SCHEMA = declare(
          "flag: closed_loop_max_error_s > [margins] arrival_error_threshold_s: the on-board logic misses the "
          "designated arrival by that much (e.g. a long leg without evaluation points)"),
         ("unassessed", pa.bool_(),
-         "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; infeasible and "
-         "tight are then null (unknown), remaining_margin_s null"),
+         "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; short_bad_day, "
+         "infeasible (unless impossible) and tight are then null (unknown), remaining_margin_s null"),
         ("unassessed_reason", pa.string(), "why the leg could not be assessed; empty when assessed"),
+        ("flag_reason", pa.string(),
+         "every flag of the row in words, '; ' between them, e.g. 'short on a bad day by 0.2 s: margin 19.8 s, the "
+         "bad day costs 20.0 s (load 8.1, traction 6.0, adhesion 4.9, stop model 1.0 s), most of it the load'; "
+         "empty without a flag"),
+        ("bad_day_cause", pa.string(),
+         "a leg short on a bad day or tight: the largest share of the bad day's cost, 'load', 'traction', "
+         "'adhesion' (the stop at low adhesion) or 'stop_model'; else empty"),
         ("unassessed_cause", pa.string(),
          "the physical verdict behind an unassessed leg: 'stall' (the train cannot climb: tractive effort below "
          "resistance and gradient), 'no_stop' (no stopping pattern stops it at the marker), or empty"),
@@ -129,7 +145,9 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("bad_day_shortfall_s", pa.float64(),
          "sum over the legs of what each lacks on a bad day, max(0, -remaining margin): the time to add [s]"),
         ("n_supplement_short", pa.int32(), "train runs of a leg whose margin is below the required supplement"),
-        ("n_infeasible", pa.int32(), "train runs of a leg flagged infeasible"),
+        ("n_impossible", pa.int32(), "train runs of a leg flagged impossible (scheduled below the minimum)"),
+        ("n_short_bad_day", pa.int32(), "train runs of a leg flagged short_bad_day (late on a bad day only)"),
+        ("n_infeasible", pa.int32(), "train runs of a leg flagged infeasible: n_impossible + n_short_bad_day"),
         ("n_tight", pa.int32(), "train runs of a leg flagged tight"),
         ("n_unreachable", pa.int32(), "train runs of a leg flagged unreachable"),
         ("n_unassessed", pa.int32(),
@@ -152,12 +170,15 @@ def datasets(report) -> dict[str, pa.Table]:
     rows = report.rows.copy()
     rows["n_trains"] = rows["n_trains"].astype("int32")
     unknown = rows["unassessed"].to_numpy(bool)
-    for c in ("infeasible", "tight"):  # undecidable on an unassessed leg: null, never a false "all clear"
+    impossible = rows["impossible"].to_numpy(bool)
+    no_min = ~np.isfinite(rows["min_running_time_s"].to_numpy(float))
+    # undecidable on an unassessed leg: null, never a false "all clear"; impossible needs only the minimum
+    for c, unknown_at in (("short_bad_day", unknown), ("infeasible", unknown & ~impossible), ("tight", unknown),
+                          ("impossible", no_min)):
         rows[c] = rows[c].astype("boolean")
-        rows.loc[unknown, c] = pd.NA
+        rows.loc[unknown_at, c] = pd.NA
     t = report.totals.copy()
-    for c in ("n_trains", "n_legs", "n_supplement_short", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed",
-              "n_inaccurate"):
+    for c in ("n_trains", "n_legs", "n_supplement_short", *(f"n_{f}" for f in COUNTED)):
         t[c] = t[c].astype("int32")
     return {
         "margins": pa.Table.from_pandas(rows, preserve_index=False),

@@ -165,11 +165,14 @@ def margin_columns(min_time_s, scheduled_s, degraded_min_s, slowest_time_s, leng
         ``margin_percent`` (of the minimum), ``remaining_margin_s``
         (scheduled − degraded minimum), ``supplement_required_s``,
         ``supplement_met`` (margin ≥ required), ``supplement_shortfall_s``
-        (required − margin, ≥ 0), and the flags ``infeasible`` (scheduled <
-        degraded minimum), ``tight`` (not infeasible and remaining margin <
+        (required − margin, ≥ 0), and the flags ``impossible`` (scheduled <
+        minimum: no driving makes it), ``short_bad_day`` (not impossible, but
+        scheduled < degraded minimum), ``infeasible`` (either of the two, kept
+        for compatibility), ``tight`` (not infeasible and remaining margin <
         threshold), ``unreachable`` (scheduled > slowest), ``unassessed``
-        (minimum or degraded minimum not finite: infeasible and tight cannot
-        be decided and are False here; :func:`datasets` writes them as null),
+        (minimum or degraded minimum not finite: short, infeasible and tight cannot
+        be decided and are False here, impossible too when the minimum is unknown;
+        :func:`planner.report.margin_datasets.datasets` writes them as null),
         ``inaccurate`` (closed-loop error above ``arrival_error_threshold_s``, whether
         or not a train runs the leg).
         Times within :data:`TIME_TOL_S` count as equal; infeasible, tight and
@@ -185,7 +188,9 @@ def margin_columns(min_time_s, scheduled_s, degraded_min_s, slowest_time_s, leng
     req = np.broadcast_to(rule.required_supplement_s(tmin, length_m), tmin.shape)
     cl = np.broadcast_to(np.asarray(closed_loop_error_s, dtype=float), tmin.shape)
     with np.errstate(invalid="ignore"):
-        infeasible = has & (sched < deg - TIME_TOL_S)
+        impossible = has & (sched < tmin - TIME_TOL_S)
+        short = has & ~impossible & (sched < deg - TIME_TOL_S)
+        infeasible = impossible | short
         return {
             "min_running_time_rounded_s": np.asarray(round_up_s(tmin), dtype=float).reshape(tmin.shape),
             "margin_s": margin,
@@ -194,6 +199,8 @@ def margin_columns(min_time_s, scheduled_s, degraded_min_s, slowest_time_s, leng
             "supplement_required_s": np.array(req, dtype=float),
             "supplement_met": has & (margin >= req - TIME_TOL_S),
             "supplement_shortfall_s": np.where(has, np.maximum(req - margin, 0.0), np.nan),
+            "impossible": impossible,
+            "short_bad_day": short,
             "infeasible": infeasible,
             "tight": has & ~infeasible & (remaining < rule.tight_threshold_s - TIME_TOL_S),
             "unreachable": has & (sched > slow + TIME_TOL_S),
@@ -217,9 +224,11 @@ TOTALS_COLUMNS = [
     "level", "train_id", "direction", "train_type", "origin", "destination", "first_departure_s", "n_trains",
     "n_legs", *TOTAL_SUM_COLS, "margin_percent", "min_remaining_margin_s", "bad_day_shortfall_s",
     "n_supplement_short",
-    "n_infeasible", "n_tight", "n_unreachable", "n_unassessed", "n_inaccurate",
+    "n_impossible", "n_short_bad_day", "n_infeasible", "n_tight", "n_unreachable", "n_unassessed", "n_inaccurate",
 ]
 """Columns of the totals frame (and the ``margin_totals`` dataset), in order."""
+COUNTED = ("impossible", "short_bad_day", "infeasible", "tight", "unreachable", "unassessed", "inaccurate")
+"""The flags counted in the totals (``n_<flag>``)."""
 
 
 def margin_totals(rows, train_legs):
@@ -245,7 +254,8 @@ def margin_totals(rows, train_legs):
         of :data:`TOTAL_SUM_COLS`, ``margin_percent`` (total margin / total
         minimum), ``min_remaining_margin_s`` (worst leg), ``bad_day_shortfall_s``
         (sum of max(0, −remaining margin) over the legs), ``n_supplement_short``,
-        ``n_infeasible``, ``n_tight``, ``n_unreachable``, ``n_unassessed``, ``n_inaccurate``
+        ``n_impossible``, ``n_short_bad_day``, ``n_infeasible`` (the two together),
+        ``n_tight``, ``n_unreachable``, ``n_unassessed``, ``n_inaccurate``
         (legs, counted per train run). With an unassessed leg among those
         summed, the degraded-minimum and remaining-margin sums, the worst
         remaining margin and the shortfall are NaN: unknown, not partial.
@@ -253,23 +263,20 @@ def margin_totals(rows, train_legs):
     import pandas as pd
 
     key = ["direction", "train_type", "origin", "destination", "scheduled_running_time_s"]
-    cols = key + [c for c in TOTAL_SUM_COLS if c not in key] + ["supplement_met", "infeasible", "tight", "unreachable",
-                                                                "unassessed", "inaccurate"]
+    cols = key + [c for c in TOTAL_SUM_COLS if c not in key] + ["supplement_met", *COUNTED]
     r = rows[rows["scheduled_running_time_s"].notna()][cols]
     legs = train_legs.merge(r, on=key, how="left", validate="many_to_one")
     if legs["min_running_time_s"].isna().any():
         bad = legs[legs["min_running_time_s"].isna()].iloc[0]
         raise ValueError(f"train {bad.train_id}: leg {bad.origin}->{bad.destination} has no margin row")
     legs = legs.assign(short=~legs["supplement_met"].astype(bool),
-                       n_inf=legs["infeasible"].astype(int), n_tight=legs["tight"].astype(int),
-                       n_unr=legs["unreachable"].astype(int), n_una=legs["unassessed"].astype(int),
-                       n_acc=legs["inaccurate"].astype(int))
+                       **{f"n_{f}": legs[f].astype(int) for f in COUNTED})
     legs = legs.sort_values(["train_id", "leg_seq"], kind="stable")
 
     # each column once as an array, each group as row positions: the sums are numpy's over the same
     # values in the same order as pandas' per-group Series.sum (NaN skipped as zeros), so the same bits
     f = {c: legs[c].to_numpy(float) for c in (*TOTAL_SUM_COLS, "departure_s")}
-    n = {c: legs[c].to_numpy(int) for c in ("short", "n_inf", "n_tight", "n_unr", "n_una", "n_acc")}
+    n = {c: legs[c].to_numpy(int) for c in ("short", *(f"n_{f}" for f in COUNTED))}
     ids, dirs, types = (legs[c].to_numpy(object) for c in ("train_id", "direction", "train_type"))
     origins, destinations = legs["origin"].to_numpy(object), legs["destination"].to_numpy(object)
 
@@ -286,11 +293,8 @@ def margin_totals(rows, train_legs):
         out["bad_day_shortfall_s"] = float(np.maximum(-rm, 0.0).sum())
         out["n_legs"] = int(len(at))
         out["n_supplement_short"] = int(n["short"][at].sum())
-        out["n_infeasible"] = int(n["n_inf"][at].sum())
-        out["n_tight"] = int(n["n_tight"][at].sum())
-        out["n_unreachable"] = int(n["n_unr"][at].sum())
-        out["n_unassessed"] = int(n["n_una"][at].sum())
-        out["n_inaccurate"] = int(n["n_acc"][at].sum())
+        for flag in COUNTED:
+            out[f"n_{flag}"] = int(n[f"n_{flag}"][at].sum())
         out["first_departure_s"] = float(np.fmin.reduce(f["departure_s"][at]))
         return out
 
@@ -314,13 +318,3 @@ def margin_totals(rows, train_legs):
     return out
 
 
-FLAGS = ("unassessed", "infeasible", "unreachable", "inaccurate", "tight")
-"""The flags of a leg, worst first."""
-
-
-def flag_of(r) -> str:
-    """The worst flag of a margin row (``ok`` when it has none), for colours and badges."""
-    for f in FLAGS:
-        if bool(getattr(r, f, False)):
-            return f
-    return "ok"

@@ -83,7 +83,12 @@ What each row holds, and how
   simulator's stopping brake, as in :mod:`planner.tables.closed_loop`).
 * **energy**: table (a) traction energy at that ratio against at ratio 1.0;
   the difference is what the margin saves.
-* **flags**: ``infeasible`` — scheduled below the degraded minimum;
+* **flags** (:mod:`planner.report.leg_flags` says each in words):
+  ``impossible`` — scheduled below the minimum running time: no driving
+  makes it, on any day; ``short_bad_day`` — not impossible, but scheduled
+  below the degraded minimum: late on a bad day, by ``-remaining_margin_s``;
+  ``infeasible`` — either of the two (the flag before they were told apart,
+  kept so that existing queries and older runs compare);
   ``tight`` — not infeasible, but the remaining margin is below
   ``tight_threshold_s``; ``unreachable`` — scheduled above the slowest table
   time (lowest ratio), so the vehicle cannot stretch the run that long;
@@ -95,7 +100,8 @@ What each row holds, and how
   ``unassessed`` — the minimum or the degraded minimum could not be computed
   (e.g. no stopping pattern at the lowest adhesion from any start, or the
   train stalls on a climb on the bad day), with ``unassessed_reason``: then
-  ``infeasible`` and ``tight`` are unknown, written as null in the dataset,
+  ``short_bad_day``, ``infeasible`` and ``tight`` are unknown, written as null in the
+  dataset (``impossible`` only needs the minimum; ``infeasible`` is true where it is),
   and the report lists the leg first. Where the cause is physical (a
   :class:`planner.tables.flags.LegFlag`) the leg says what, under which
   conditions and where: ``unassessed_cause`` (``stall``, ``no_stop``),
@@ -104,6 +110,10 @@ What each row holds, and how
   the train cannot stop at). Such a leg is a verdict, not a failure: every
   other column that does not need the bad day (minimum, on-time ratio,
   nominal closed loop, energy) is still computed, and so is every other leg.
+  ``flag_reason`` says every flag of the row in words (how far below the
+  minimum, how short on the bad day and the bad day's shares); ``bad_day_cause``
+  names the largest share (``load``, ``traction``, ``adhesion``, ``stop_model``)
+  of a leg short on the bad day or tight.
 
 Totals (dataset ``margin_totals``, :func:`margin_totals`): per train (sum
 over its legs), per direction × train type, and per direction over all train
@@ -113,6 +123,8 @@ Layout
 ------
 * :mod:`planner.report.margin_rule`: the rule, rounding, margins and flags,
   totals (pure: plain numbers and arrays in, columns out);
+* :mod:`planner.report.leg_flags`: what each flag says, its badge, card and
+  colour, and the words of ``flag_reason`` and ``bad_day_cause`` (pure);
 * :mod:`planner.report.leg_margin`: one leg with the simulator, the tables
   (read from ``--tables`` or computed), the stopping patterns and the closed loop;
 * this module: the timetable as legs and the whole line (:func:`compute_margins`);
@@ -133,6 +145,7 @@ from planner.errors import InputError
 from planner.io.parallel import map_tasks
 from planner.line.model import DIRECTIONS, Line, sign
 from planner.line.units import KMH, KMH_S, kmh
+from planner.report.leg_flags import flag_reasons
 from planner.report.leg_margin import LegResult, leg_result, passed_stations
 from planner.report.margin_datasets import (
     MARGINS_SCHEMA,
@@ -478,6 +491,8 @@ def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], ru
     why = np.where(~np.isfinite(rows["min_running_time_s"].to_numpy(float)), "minimum running time unknown",
                    np.where(rows["note"].astype(str) != "", rows["note"].astype(str), "degraded minimum unknown"))
     rows["unassessed_reason"] = np.where(rows["unassessed"].to_numpy(bool), why, "")
+    rows["flag_reason"], rows["bad_day_cause"] = flag_reasons(rows, rule.tight_threshold_s,
+                                                              rule.arrival_error_threshold_s)
     rows["energy_saved_kwh"] = rows["energy_at_full_ratio_kwh"] - rows["energy_at_ratio_kwh"]
     rows["energy_saved_percent"] = 100.0 * rows["energy_saved_kwh"] / rows["energy_at_full_ratio_kwh"]
     return rows[["line", "direction", "train_type"] + [f.name for f in MARGINS_SCHEMA]], sweep

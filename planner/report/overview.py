@@ -5,8 +5,8 @@ Sections, in the order someone opening a run reads them:
 1. the run: id, job, inputs digest, code digest, software versions, and what
    changed since the previous run (counts per line, linked to the section at
    the top of each margin report);
-2. flags (infeasible/tight/unreachable legs, infeasible stops, conflicts) and
-   the notes of the run;
+2. flags (impossible, short on a bad day, tight, unreachable, inaccurate and
+   unassessed legs, stalls, infeasible stops, conflicts) and the notes of the run;
 3. pages: the restrictions in force (a line with a daily feed), the margin report and the train graph of
    each line;
 4. inputs: each line database with its source digest and, per table of the
@@ -30,6 +30,8 @@ import html
 import json
 from pathlib import Path
 from typing import Any, Sequence
+
+from planner.report.leg_flags import FLAGS, FLAGS_SHOWN
 
 CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;color:#1d2327;background:#f6f7f9}
@@ -153,17 +155,18 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     ]
     # flags
     flags = manifest.get("flags", {})
-    labels = {"infeasible": "legs infeasible (below the bad-day minimum)", "tight": "legs tight",
-              "unreachable": "legs unreachable (above the slowest ratio)",
+    labels = {f.name: f.card for f in FLAGS_SHOWN} | {
+              "infeasible": "legs infeasible (below the bad-day minimum; a run from before impossible and short "
+                            "on a bad day were told apart)",
               "infeasible_stops": "stopping patterns infeasible (approach × adhesion)",
               "conflicts": "route conflicts",
-              "unassessed": "legs unassessed (no bad-day minimum: see the margin report)",
-              "inaccurate": "legs whose closed loop misses the arrival by more than the threshold",
               "stalls": "legs where a train stalls under some scenario (the notes say where)",
               "no_stop": "legs where no stopping pattern stops the train (the notes say where)"}
-    cards = [("bad" if v and k in ("infeasible", "conflicts", "stalls", "no_stop") else "warn" if v else "ok", v,
-              labels.get(k, k))
-             for k, v in sorted(flags.items())]
+    severity = {f.name: f.severity for f in FLAGS_SHOWN} | {"conflicts": "bad", "stalls": "bad", "no_stop": "bad",
+                                                           "infeasible": "bad"}
+    # the margin report's flags first, in their order (worst first), then the others by name
+    order = [f for f in FLAGS if f in flags] + sorted(k for k in flags if k not in FLAGS)
+    cards = [(severity.get(k, "warn") if flags[k] else "ok", flags[k], labels.get(k, k)) for k in order]
     unchecked = {"no track network": "no track network (nodes.parquet, edges.parquet)",
                  "disabled": "[conflicts] enabled = false"}
     cards += [("warn", "–", f"conflicts not checked: {unchecked[x['conflicts']]} ({x['line_id']})")

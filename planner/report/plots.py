@@ -29,12 +29,10 @@ import numpy as np
 
 from planner.errors import InputError
 from planner.line.units import KMH, KMH_S, KMH_S2, kmh
-from planner.report.margin_rule import flag_of
+from planner.report.leg_flags import FLAGS_SHOWN, flag_of
 
-FLAG_COLOURS = {"unassessed": "#37474f", "infeasible": "#c62828", "tight": "#ef8f00", "unreachable": "#6a1b9a",
-                "inaccurate": "#8d6e00",
-                "ok": "#2e7d32"}
-"""Colour of a leg by its worst flag (also used in the table)."""
+FLAG_COLOURS = {f.name: f.colour for f in FLAGS_SHOWN} | {"ok": "#2e7d32"}
+"""Colour of a leg by its worst flag (the badges' colours)."""
 MARGIN_COLOUR = "#b0c4de"
 """Bar colour of the nominal margin."""
 SVG_SALT = "planner-margins"
@@ -157,9 +155,10 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
     handles = [Patch(color=MARGIN_COLOUR, label="margin = scheduled − minimum"),
                Patch(color=FLAG_COLOURS["ok"], label="remaining on a bad day (≥ tight threshold)"),
                Patch(color=FLAG_COLOURS["tight"], label="remaining < tight threshold"),
-               Patch(color=FLAG_COLOURS["infeasible"], label="negative: infeasible"),
+               Patch(color=FLAG_COLOURS["short_bad_day"], label="negative: short on a bad day"),
+               Patch(color=FLAG_COLOURS["impossible"], label="impossible: margin < 0"),
                Line2D([], [], color="k", lw=1.4, label="supplement the rule asks for")]
-    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=8.5, frameon=False)
+    fig.legend(handles=handles, loc="lower center", ncol=6, fontsize=8.5, frameon=False)
     first, last = order[0][0], order[-1][0]
     if direction == "up":
         first, last = last, first

@@ -249,8 +249,8 @@ class GraphData:
         return min(t.start_s for t in self.trains), max(t.end_s for t in self.trains)
 
 
-MARGIN_COLUMNS = ("margin_s", "remaining_margin_s", "min_remaining_margin_s", "n_legs", "n_infeasible", "n_tight",
-                  "n_unreachable")
+MARGIN_COLUMNS = ("margin_s", "remaining_margin_s", "min_remaining_margin_s", "n_legs", "n_impossible",
+                  "n_short_bad_day", "n_tight", "n_unreachable")
 
 
 def margins_by_train(margin_totals) -> dict[str, dict[str, float]]:

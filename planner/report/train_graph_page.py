@@ -245,7 +245,8 @@ function tipHtml(tr, t) {
   if (tr.m) {
     h += "<table><tr><td>margin</td><td>" + tr.m.margin_s + " s</td><td>bad day</td><td>" + tr.m.remaining_margin_s +
       " s</td></tr><tr><td>least on a leg</td><td>" + tr.m.min_remaining_margin_s + " s</td><td>legs</td><td>" + tr.m.n_legs + "</td></tr></table>";
-    const f = []; if (tr.m.n_infeasible) f.push(tr.m.n_infeasible + " infeasible"); if (tr.m.n_tight) f.push(tr.m.n_tight + " tight");
+    const f = []; if (tr.m.n_impossible) f.push(tr.m.n_impossible + " impossible");
+    if (tr.m.n_short_bad_day) f.push(tr.m.n_short_bad_day + " short on a bad day"); if (tr.m.n_tight) f.push(tr.m.n_tight + " tight");
     if (tr.m.n_unreachable) f.push(tr.m.n_unreachable + " unreachable");
     if (f.length) h += "<span class='flag'>" + f.join(", ") + "</span><br>";
   } else h += "<br>margin: not given";
