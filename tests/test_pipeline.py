@@ -224,10 +224,12 @@ def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> No
     legs = ch[(ch.category == "leg") & (ch.field == "min_running_time_s")]
     # only up runs from C to B (or through it) can see a restriction at 4000-4200 m in the up direction
     assert len(legs) and set(legs.direction) == {"up"} and all(cid in list(c) for c in legs.caused_by)
+    assert "run" not in ch.columns and set(ch.run_id) == {(project / "out" / "latest").resolve().name}
     for r in legs.itertuples():
-        assert r.subject.startswith(f"{r.train_type} up C→")
+        assert r.subject.startswith(f"{r.train_type} up C→") and r.origin == "C"  # structured columns to join on
         # by how much: the same as the simulator's minimum time C→B before and after, run independently here
-        dest = r.subject.split("→")[1][0]
+        dest = r.destination
+        assert r.subject.startswith(f"{r.train_type} up C→{dest}")
         want = (running_time(new_line, r.train_type, "C", dest).time_s
                 - running_time(old_line, r.train_type, "C", dest).time_s)
         assert want > 0.5 and abs(r.delta - want) < 0.05, (r.subject, r.delta, want)
