@@ -130,3 +130,17 @@ def test_duckdb_flag_example_lists_the_flagged_legs_unassessed_first(published, 
     flagged = m[m.unassessed.fillna(False) | m.infeasible.fillna(False) | m.tight.fillna(False)]
     assert len(got) == len(flagged)
     assert sorted(got.remaining_margin_s.dropna()) == list(got.remaining_margin_s.dropna())
+
+
+def test_the_2_5_level_filters_without_arithmetic(published):
+    """adhesion in km/h/s beside the SI column: `= 2.5` finds the job's lowest level (2.5:3.5:0.5)."""
+    import duckdb
+
+    root, (_, r2) = published
+    run = root / "outputs" / r2
+    n = duckdb.sql(f"select count(*) from read_parquet('{run}/stop_summary/**/*.parquet', hive_partitioning = true)"
+                   " where adhesion_kmh_s = 2.5").fetchall()[0][0]
+    s = pd.concat(pq.read_table(f).to_pandas() for f in sorted((run / "stop_summary").rglob("*.parquet")))
+    assert n == int((abs(s.adhesion_ms2 - 2.5 / 3.6) < 1e-12).sum()) > 0
+    m = _margins(run)
+    assert set(m.adhesion_min_kmh_s) == {2.5}  # the bad day's stop at the sweep's lowest level
