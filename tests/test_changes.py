@@ -45,3 +45,28 @@ def test_changes_table_has_the_declared_schema():
     t = ch.table()
     assert t.schema.remove(t.schema.get_field_index("line")).equals(CHANGES_SCHEMA, check_metadata=False)
     assert t.column("before").to_pylist() == ["1"] and t.column("delta").to_pylist() == [-0.5]
+
+
+def test_changes_carry_origin_destination_and_train_to_join_on():
+    """Leg rows name their stops and conflict rows the waiting train in columns of their own, not only in
+    `subject`; the run is `run_id` alone (stamped at publication), no second `run` column."""
+    import pandas as pd
+    from planner.report.changes import CHANGES_SCHEMA, _conflict_changes, _leg_changes
+
+    assert "run" not in CHANGES_SCHEMA.names
+    leg = {"direction": "up", "train_type": "EMU10", "origin": "C", "destination": "B", "passes": [],
+           "scheduled_running_time_s": 150.0, "min_running_time_s": 120.0, "margin_s": 30.0,
+           "remaining_margin_s": 10.0, "infeasible": False, "tight": False, "unreachable": False, "train_ids": ["202"]}
+    old = pd.DataFrame([leg])
+    new = pd.DataFrame([{**leg, "min_running_time_s": 125.0, "margin_s": 25.0}])
+    ch = LineChanges("tiny", "r1", "r2")
+    _leg_changes(ch, old, new, {}, 0.5, lambda r: (2440.0, 4740.0, 200.0))
+    con = {"train_a": "101", "train_b": "202", "resource_id": "S1", "delay_s": 12.0, "rule": "timetable-order",
+           "direction_b": "up", "from_m": 100.0, "to_m": 200.0}
+    _conflict_changes(ch, pd.DataFrame(columns=list(con)), pd.DataFrame([con]))
+    t = ch.table().to_pandas()
+    legs = t[t.category == "leg"]
+    assert list(legs.field) == ["min_running_time_s", "margin_s"]
+    assert set(zip(legs.origin, legs.destination)) == {("C", "B")} and legs.train_id.isna().all()
+    c = t[t.category == "conflict"].iloc[0]
+    assert c.train_id == "202" and pd.isna(c.origin) and pd.isna(c.destination)

@@ -278,3 +278,18 @@ def test_an_os_error_while_writing_is_one_line(tmp_path, monkeypatch):
 
     monkeypatch.setattr(planner.io.atomic, "write_bytes_atomic", full)
     one_line_error(run("schema", "--write", tmp_path / "x.md"), "No space left on device", str(tmp_path / "x.md"))
+
+
+def test_output_starts_with_its_first_line_and_says_how_many_more(tmp_path):
+    """No blank first line (a progress bar that stops on a stdout that is no terminal printed one), and a
+    listing cut to its first lines says how many it left out: the tiny line has 3 stations, so 2
+    interstations x 2 directions x 2 train types = 8 tables, 3 shown."""
+    from linedb import write_line_db
+
+    line = write_line_db(tmp_path / "tiny")
+    r = run("tables", line, "--out", tmp_path / "t", "--jobs", "1")
+    assert r.exit_code == 0, r.output
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("tiny: tables for 8 interstation"), lines[:2]
+    assert sum("->" in x and "minimum" in x for x in lines) == 3
+    assert f"  … 5 more (every one in {tmp_path / 't' / 'table_a'})" in lines

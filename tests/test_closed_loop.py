@@ -120,6 +120,10 @@ def test_datasets_and_summary_recomputed_from_rows(flat, tmp_path):
     assert summ.max_abs_error_s == pytest.approx(np.abs(feas.error_s).max())
     o = overall([x for x in res if x.direction == "down"])
     assert o["max_abs_error_s"] == pytest.approx(summ.max_abs_error_s)
+    # no stop-error columns: every run of the sweep stands exactly on the marker (the stopping curve is in
+    # the ceiling), so such a column would be 0.0 in every row and say nothing
+    assert all(np.all(x.stop_error_m == 0.0) for x in res)
+    assert "stop_error_m" not in runs.columns and "max_abs_stop_error_m" not in summ.index
 
 
 def test_unknown_mode_and_scenario(flat):

@@ -384,3 +384,7 @@ def test_datasets_schema_partitions_and_determinism(report, tmp_path):
     tot = read_dataset(tmp_path / "a", "margin_totals").to_pandas()
     assert set(tot.columns) >= set(MARGIN_TOTALS_SCHEMA.names)
     assert sorted(tot.level.unique()) == ["line", "train", "type"]
+    # the clock column says the same time as the seconds after midnight, as HH:MM:SS
+    for t_s, text in zip(tot.first_departure_s, tot.first_departure_clock):
+        h, m, sec = (int(x) for x in text.split(":"))
+        assert len(text) == 8 and h * 3600 + m * 60 + sec == round(t_s), (t_s, text)

@@ -44,6 +44,8 @@ def test_build_script_reproduces_committed_files(tmp_path):
         committed = pq.read_table(SAMPLE / f"{name}.parquet")
         assert fresh.schema.equals(committed.schema, check_metadata=True), name
         assert fresh.equals(committed, check_metadata=True), f"{name}.parquet differs from a fresh build"
+        # the bytes too: the build writes the declared form with the importers' writer (CSV round trip)
+        assert (tmp_path / f"{name}.parquet").read_bytes() == (SAMPLE / f"{name}.parquet").read_bytes(), name
     assert not list(tmp_path.glob("*.tmp")), "temporary files left behind"
 
 

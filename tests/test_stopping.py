@@ -183,7 +183,7 @@ def test_restriction_too_close_is_infeasible_and_needed_distance_is_consistent()
 
 def test_zero_speed_limit_before_the_stop():
     p = solve_stop(10.0, 500.0, jerk_max=0.5, decel_limits=[(0.0, 1.0)], speed_limits=[(0.0, 10.0), (200.0, 0.0)])
-    assert not p.feasible and "0 m/s" in p.reason
+    assert not p.feasible and "0 km/h" in p.reason
 
 
 @pytest.mark.parametrize("v0, X, sl", [

@@ -291,6 +291,22 @@ def test_datasets_read_back_with_hive_partitioning(tmp_path):
         assert a.read_bytes() == b.read_bytes()
 
 
+def test_adhesion_in_km_h_s_is_the_jobs_own_value(tmp_path):
+    """stop_summary and stop_samples carry the level as the job writes it: 1.9 km/h/s does not come back
+    from m/s² by arithmetic (1.9 / 3.6 * 3.6 = 1.9000000000000001), the column filters on it exactly
+    (levels below the train's 3.6 km/h/s cap)."""
+    assert 1.9 / 3.6 * 3.6 != 1.9  # why the column is worth having
+    results = stop_sweep(line_b(), adhesion_kmh_s="1.9,2.5,3.0", approach_m=550.0, directions=["down"],
+                         n_jobs=1)
+    write_stops(results, tmp_path)
+    for name in ("stop_summary", "stop_samples"):
+        t = pads.dataset(tmp_path / name, format="parquet", partitioning="hive").to_table().to_pandas()
+        levels = set(t.adhesion_kmh_s)  # samples: feasible levels only
+        assert levels == {1.9, 2.5, 3.0} if name == "stop_summary" else levels <= {1.9, 2.5, 3.0}, name
+        assert np.allclose(t.adhesion_kmh_s * KMH_S, t.adhesion_ms2, rtol=1e-12, atol=0)
+        assert len(t[t.adhesion_kmh_s == 2.5]) == len(t[np.isclose(t.adhesion_ms2, 2.5 * KMH_S)]) > 0
+
+
 # --------------------------------------------------------------------------------------
 # the sample line
 # --------------------------------------------------------------------------------------

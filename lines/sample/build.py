@@ -20,14 +20,11 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 # =====================================================================================
 # Parameters
@@ -1072,18 +1069,13 @@ def check_special_approach(limits: list[dict]) -> None:
 
 
 def write_tables(tables: dict[str, pa.Table], out: Path) -> None:
-    """Write each table atomically (temp file in the same folder, then rename)."""
+    """Write each table atomically in its declared form, with the writer every importer uses, so that
+    `planner export csv` -> `planner import csv` gives these files back byte for byte."""
+    from planner.line.schema import write_line_table
+
     out.mkdir(parents=True, exist_ok=True)
     for name, table in tables.items():
-        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".parquet.tmp", dir=out)
-        os.close(fd)
-        try:
-            pq.write_table(table, tmp)
-            os.chmod(tmp, 0o644)       # mkstemp makes it private; these are shared data files
-            os.replace(tmp, out / f"{name}.parquet")
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        write_line_table(name, table, out / f"{name}.parquet")
 
 
 def _hms(t: float | None) -> str:

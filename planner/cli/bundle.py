@@ -52,7 +52,7 @@ def bundle_build(
         False, "--development-key", help="Mark the bundles as signed with a development key (not for service)."),
 ) -> None:
     """Build one signed bundle per direction x train type of a line."""
-    from rich.progress import Progress
+    from .progress import bar as progress_bar
 
     from planner.bundle.container import build_line
     from planner.bundle.manifest import Release, parse_time
@@ -72,7 +72,7 @@ def bundle_build(
     line = load_line(line_dir)
     train_type = train_type_codes(line, train_type)
     n = len(direction or ("down", "up")) * len(train_type or line.train_types)
-    with Progress(transient=True) as progress:
+    with progress_bar() as progress:
         task = progress.add_task("building bundles", total=n)
         try:
             infos = build_line(line, out, key, release=release, tables_dir=tables, stops_dir=stops,

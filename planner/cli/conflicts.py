@@ -22,7 +22,7 @@ def conflicts(
     jobs: int = typer.Option(1, "--jobs", help="Worker processes for the run-curve simulations (-1 = all cores)."),
 ) -> None:
     """Route every train, predict its occupation windows and report conflicts with priority decisions."""
-    from rich.progress import Progress
+    from .progress import bar as progress_bar
 
     from .. import load_line
     from ..errors import InputError
@@ -55,7 +55,7 @@ def conflicts(
     if line.network is None:
         raise InputError(f"{line_dir}: no track network; add nodes.parquet and edges.parquet to check conflicts")
     curves = SimulatorCurves(line, mode=curve_mode, n_jobs=jobs)
-    with Progress(transient=True) as bar:
+    with progress_bar() as bar:
         sim = bar.add_task("run curves", total=None)
         pred = bar.add_task("trains", total=len(line.trains))
         report = check_conflicts(

@@ -44,6 +44,7 @@ def margins(
 ) -> None:
     """Margin-time report: minimum, scheduled and bad-day running time of every leg, flags, totals, HTML page."""
     from planner.line.loader import load_line
+    from planner.line.units import hms
     from planner.report.leg_flags import FLAG, FLAGS
     from planner.report.html import write_html
     from planner.report.margin_datasets import write_margins
@@ -105,8 +106,8 @@ def margins(
                    f"{w.remaining_margin_s:+.1f} s (scheduled {w.scheduled_running_time_s:.0f} s, minimum "
                    f"{w.min_running_time_s:.1f} s, bad day {w.degraded_min_running_time_s:.1f} s)")
     for r in report.totals[report.totals.level == "line"].itertuples(index=False):
-        typer.echo(f"  {r.direction}: {r.n_trains} trains, margin {r.margin_s:.0f} s ({r.margin_percent:.1f} %), "
-                   f"remaining on a bad day {r.remaining_margin_s:+.0f} s"
+        typer.echo(f"  {r.direction}: {r.n_trains} trains, margin {hms(r.margin_s)} ({r.margin_percent:.1f} %), "
+                   f"remaining on a bad day {hms(r.remaining_margin_s, sign=True)} (h:mm:ss)"
                    + (f" (unknown: {r.n_unassessed} legs unassessed)" if r.n_unassessed else ""))
     if report.conflicts is not None:
         n = report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0

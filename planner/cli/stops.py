@@ -29,7 +29,8 @@ def stops(
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
 ) -> None:
     """Solve minimum-time jerk-limited stopping patterns for every station approach and adhesion level."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
+    from .progress import bar as progress_bar
 
     from planner.line.loader import load_line
     from planner.stopping.sweep import InfeasibleStopWarning, adhesion_levels, stop_sweep
@@ -58,8 +59,7 @@ def stops(
         if st.station_id not in arrivals:
             raise InputError(f"--plot {plot}: no train arrives at {plot} running {plot_dir}; "
                              f"choose the other --direction")
-    with Progress(TextColumn("stops"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  transient=True) as bar:
+    with progress_bar(TextColumn("stops"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()) as bar:
         task = bar.add_task("stops", total=None)
         with warnings.catch_warnings():
             # reported below, one line per approach, instead of one warning per level

@@ -25,10 +25,10 @@ def all_modes() -> list[str]:
 @contextmanager
 def _progress(label: str) -> Iterator:
     """A rich progress bar; yields a ``(done, total)`` callback for the library functions."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
+    from .progress import bar as progress_bar
 
-    with Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  transient=True) as bar:
+    with progress_bar(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()) as bar:
         task = bar.add_task(label, total=None)
 
         def update(done: int, total: int) -> None:
@@ -90,9 +90,12 @@ def tables(
     n_odo = sum(p.kind == "interval" for r in results for p in r.points)
     typer.echo(f"  evaluation points: {sum(len(r.points) for r in results)} ({n_odo} at the regular interval), "
                f"table (b) rows: {n_b}")
-    for r in results[: min(3, len(results))]:
+    shown = 3
+    for r in results[:shown]:
         typer.echo(f"  {r.train_type} {r.direction} {r.origin}->{r.destination}: minimum "
                    f"{r.time_a_s[0]:.1f} s, slowest {r.time_a_s[-1]:.1f} s")
+    if len(results) > shown:
+        typer.echo(f"  … {len(results) - shown} more (every one in {out / 'table_a'})")
     for r in results:  # physical verdicts: flags on their legs, not errors
         for f in r.flags:
             typer.echo(f"  flag {r.train_type} {r.direction} {r.origin}->{r.destination}: {f.reason}")
@@ -120,7 +123,7 @@ def simulate(
 ) -> None:
     """Closed loop: the on-board logic (its nominal model) drives the real train (the scenario)
     against designated running times from the minimum to the minimum + --extra; reports arrival
-    and stop errors."""
+    errors (the simulated train stops on the marker by construction: no stop error)."""
     from planner.tables.closed_loop import overall
     from planner.datasets.closed_loop import run_closed_loop, write_closed_loop
     from planner.line.loader import load_line
@@ -144,8 +147,7 @@ def simulate(
     typer.echo(f"{line.line_id}: closed loop {scenario}/{mode}, {o['n_runs']} runs over "
                f"{len(results)} interstation x direction x train type")
     typer.echo(f"  |arrival error| over {o['n_feasible']} feasible runs: median {o['median_abs_error_s']:.2f} s, "
-               f"p95 {o['p95_abs_error_s']:.2f} s, max {o['max_abs_error_s']:.2f} s; "
-               f"|stop error| max {o['max_abs_stop_error_m']:.3f} m")
+               f"p95 {o['p95_abs_error_s']:.2f} s, max {o['max_abs_error_s']:.2f} s")
     n_inf = o["n_runs"] - o["n_feasible"] - sum(int(r.stalled.sum()) for r in results)  # stalled: below
     if n_inf:
         typer.echo(f"  {n_inf} runs infeasible by physics (designated below the {scenario} minimum); "

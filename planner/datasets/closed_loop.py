@@ -88,12 +88,16 @@ CLOSED_LOOP_SCHEMA = declare(
         ("error_s", pa.float64(), "arrival error actual - designated [s], positive = late"),
         ("feasible", pa.bool_(), "designated time within the scenario's fastest..slowest running time"),
         ("min_time_s", pa.float64(), "scenario minimum running time (ratio 1.0 throughout) [s]"),
-        ("stop_error_m", pa.float64(), "where the train came to a stand - the stop marker [m], positive = overrun"),
         ("eval_point_ids", pa.list_(pa.string()), "evaluation points in running order ('dep' first)"),
         ("ratios", pa.list_(pa.float64()), "ratio chosen at each evaluation point, same order"),
     ],
     name="closed_loop",
-    description="Closed-loop runs of the on-board ratio choice, one row per designated time (DESIGN §3).",
+    version=2,
+    description="Closed-loop runs of the on-board ratio choice, one row per designated time. It has no stop "
+                "error column: the simulated train stops exactly at the marker by construction (the stopping "
+                "brake curve is part of the speed ceiling and the last grid step ends on the marker), and the "
+                "on-board stopping control (TASC positioning and brake response errors) is not modelled, so it "
+                "was 0.0 in every row.",
 )
 
 
@@ -106,7 +110,6 @@ CLOSED_LOOP_SUMMARY_SCHEMA = declare(
         ("median_abs_error_s", pa.float64(), "median |arrival error| over feasible runs [s]"),
         ("p95_abs_error_s", pa.float64(), "95th percentile |arrival error| over feasible runs [s]"),
         ("max_abs_error_s", pa.float64(), "maximum |arrival error| over feasible runs [s]"),
-        ("max_abs_stop_error_m", pa.float64(), "maximum |stop error| over all runs [m]"),
         ("min_time_s", pa.float64(), "scenario minimum running time [s]"),
         ("infeasible_excess_max_s", pa.float64(),
          "infeasible runs: worst arrival after the scenario minimum [s] (0 if none)"),
@@ -118,7 +121,8 @@ CLOSED_LOOP_SUMMARY_SCHEMA = declare(
         ("flag_reason", pa.string(), "what, under which load and traction, where; empty when none"),
     ],
     name="closed_loop_summary",
-    description="Arrival error statistics per interstation (DESIGN §3).",
+    version=2,
+    description="Arrival error statistics per interstation (no stop error: see closed_loop).",
 )
 
 
@@ -140,7 +144,6 @@ def datasets(results: Sequence[ClosedLoopResult]) -> dict[str, pa.Table]:
                 "origin": r.origin, "destination": r.destination,
                 "designated_s": float(r.designated_s[i]), "actual_s": float(r.actual_s[i]),
                 "error_s": float(err[i]), "feasible": bool(feas[i]), "min_time_s": r.min_time_s,
-                "stop_error_m": float("nan") if r.stop_error_m is None else float(r.stop_error_m[i]),
                 "eval_point_ids": list(r.eval_point_ids), "ratios": [float(x) for x in r.ratios[i]],
             })
         row = summary_row(r)

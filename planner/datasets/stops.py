@@ -14,7 +14,7 @@ import numpy as np
 import pyarrow as pa
 
 from planner.io.parquet import by_partition, declare, write_partitioned
-from planner.line.units import kmh
+from planner.line.units import kmh, kmh_s
 from planner.stopping.sweep import DEFAULT_SAMPLE_DT_S, ApproachResult
 
 
@@ -34,6 +34,8 @@ STOP_SUMMARY_SCHEMA = declare(
                                       "(rolling_stock brake_comfort_kmh_s) [m/s²]"),
         ("adhesion_ms2", pa.float64(), "adhesion-limited braking deceleration of this sweep level [m/s²] "
                                        "(the job's [stops] adhesion_kmh_s level, in SI)"),
+        ("adhesion_kmh_s", pa.float64(), "the same level in km/h/s, as the job writes it (rounded to 1e-9, so "
+                                         "`adhesion_kmh_s = 2.5` finds the job's 2.5 level)"),
         ("feasible", pa.bool_(), "true when a pattern meeting every limit exists"),
         ("reason", pa.string(), "why there is no pattern (empty when feasible)"),
         ("duration_s", pa.float64(), "pattern duration from the approach start to standstill at the marker [s]"),
@@ -54,6 +56,7 @@ STOP_SAMPLES_SCHEMA = declare(
     [
         ("station_id", pa.string(), "station of the stop"),
         ("adhesion_ms2", pa.float64(), "adhesion level of the pattern [m/s²]"),
+        ("adhesion_kmh_s", pa.float64(), "the same level in km/h/s, as the job writes it (see stop_summary)"),
         ("t_s", pa.float64(), "time from the approach start [s]"),
         ("position_m", pa.float64(), "chainage of the train front [m]"),
         ("distance_to_stop_m", pa.float64(), "distance from the front to the stop marker [m]"),
@@ -93,7 +96,7 @@ def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_
                 "approach_length_m": r.approach_length_m,
                 "v_start_kmh": _nan_to_none(kmh(r.v_start_ms)), "run_phase": r.run_phase,
                 "jerk_max_ms3": r.jerk_max_ms3, "comfort_ms2": r.comfort_ms2,
-                "adhesion_ms2": a, "feasible": p.feasible, "reason": p.reason,
+                "adhesion_ms2": a, "adhesion_kmh_s": kmh_s(a), "feasible": p.feasible, "reason": p.reason,
                 "duration_s": _nan_to_none(p.duration_s),
                 "brake_start_m": float(r.chainage_m(p.brake_start_m)) if p.feasible else None,
                 "brake_start_distance_m": _nan_to_none(p.braking_distance_m),
@@ -110,6 +113,7 @@ def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_
             samp["train_type"] += [r.train_type] * n
             samp["station_id"] += [r.station_id] * n
             samp["adhesion_ms2"] += [a] * n
+            samp["adhesion_kmh_s"] += [kmh_s(a)] * n
             samp["t_s"].append(s.t_s)
             samp["position_m"].append(r.chainage_m(s.x_m))
             samp["distance_to_stop_m"].append(r.approach_length_m - s.x_m)

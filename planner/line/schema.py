@@ -339,3 +339,34 @@ def describe(table: str) -> list[tuple[str, str, bool, str]]:
         (f.name, str(f.type), f.nullable, f.metadata[b"description"].decode())
         for f in TABLES[table].schema
     ]
+
+
+def declared_table(name: str, table: pa.Table) -> pa.Table:
+    """``table`` in the one form every writer of a line database gives its file ``<name>.parquet``.
+
+    The declared columns in declared order (an optional one only when present), each with its
+    declared type, nullability and description; then the user's own columns as they are; the
+    schema metadata of the declaration (``table``, ``schema_version``). A line database written in
+    this form by :func:`write_line_table` (the importers, ``lines/sample/build.py``) comes back from
+    ``planner export csv`` → ``planner import csv`` in the same bytes, so its source digest, and so
+    every cached result of it, stays the same.
+    """
+    spec = TABLES[name]
+    fields, arrays = [], []
+    for f in spec.schema:
+        if f.name in table.column_names:
+            fields.append(f)
+            arrays.append(table.column(f.name).cast(f.type).combine_chunks())
+    for f in table.schema:
+        if f.name not in spec.schema.names:
+            fields.append(f)
+            arrays.append(table.column(f.name).combine_chunks())
+    return pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=spec.schema.metadata))
+
+
+def write_line_table(name: str, table: pa.Table, path) -> None:
+    """Write table ``name`` of a line database to ``path`` in its declared form (:func:`declared_table`),
+    with the planner's one deterministic Parquet writer, atomically."""
+    from planner.io.parquet import write_parquet_atomic
+
+    write_parquet_atomic(declared_table(name, table), path)

@@ -19,6 +19,12 @@ KWH = 3.6e6
 """1 kWh in J."""
 
 
+def kmh_s(a_ms2: float) -> float:
+    """m/s² → km/h/s, rounded to 1e-9 km/h/s: a level written 2.6 in a job comes back as the float 2.6
+    (not 2.6000000000000005), so a dataset filters on the job's own value (``adhesion_kmh_s = 2.6``)."""
+    return round(float(a_ms2) * 3.6, 9)
+
+
 def kmh(v_ms):
     """m/s → km/h."""
     return v_ms * 3.6
@@ -27,3 +33,31 @@ def kmh(v_ms):
 def ms(v_kmh):
     """km/h → m/s."""
     return v_kmh / 3.6
+
+
+def clock(t_s) -> str:
+    """Seconds after midnight → ``HH:MM:SS`` clock text (rounded to the second; hours run past 24 after
+    midnight, as the timetable writes them); ``""`` for no time (None, NaN).
+
+    >>> clock(18145.0), clock(90600.0), clock(float("nan"))
+    ('05:02:25', '25:10:00', '')
+    """
+    if t_s is None or t_s != t_s or t_s in (float("inf"), float("-inf")):
+        return ""
+    t = int(round(float(t_s)))
+    return f"{t // 3600:02d}:{t // 60 % 60:02d}:{t % 60:02d}"
+
+
+def hms(d_s, sign: bool = False) -> str:
+    """A duration [s] → ``h:mm:ss`` for a person to read (258929 s → ``71:55:29``), rounded to the second;
+    ``sign``: a leading + or − (−0:00:00 is written +0:00:00); ``–`` for no value (None, NaN).
+
+    >>> hms(258929), hms(-83.4, sign=True), hms(59.6)
+    ('71:55:29', '−0:01:23', '0:01:00')
+    """
+    if d_s is None or d_s != d_s or d_s in (float("inf"), float("-inf")):
+        return "–"
+    t = int(round(float(d_s)))
+    s = ("−" if t < 0 else "+") if sign else ("−" if t < 0 else "")
+    t = abs(t)
+    return f"{s}{t // 3600}:{t // 60 % 60:02d}:{t % 60:02d}"

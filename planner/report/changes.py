@@ -70,7 +70,6 @@ CATEGORIES = ("code", "parameter", "line_table", "leg", "flag", "conflict", "bun
 
 CHANGES_SCHEMA = declare([
     ("base_run", pa.string(), "run this one is compared with (the previous published run)"),
-    ("run", pa.string(), "this run"),
     ("change_id", pa.int32(), "number of the change within the line, from 0"),
     ("category", pa.string(), "`code`, `parameter`, `line_table` (inputs); `leg`, `flag`, `conflict`, `bundle` (outputs)"),
     ("subject", pa.string(), "what changed: parameter key, table name, leg, flag, conflict or bundle file"),
@@ -81,10 +80,14 @@ CHANGES_SCHEMA = declare([
     ("detail", pa.string(), "the change in one sentence"),
     ("direction", pa.string(), "running direction of a leg or bundle; null otherwise"),
     ("train_type", pa.string(), "train type of a leg or bundle; null otherwise"),
+    ("origin", pa.string(), "departure stop (station id) of a leg or flag row, as in margins; null otherwise"),
+    ("destination", pa.string(), "next stop (station id) of a leg or flag row, as in margins; null otherwise"),
+    ("train_id", pa.string(), "the train of a timetable row, or the train that waits in a conflict (train_b); "
+                              "null otherwise"),
     ("from_m", pa.float64(), "lower chainage of a line-table change or a leg [m]; null when it has none"),
     ("to_m", pa.float64(), "upper chainage [m]; null when it has none"),
     ("caused_by", pa.list_(pa.int32()), "change_ids of the input changes that reach this leg (within a train length of its stretch, or naming its train type or trains)"),
-], name="changes", description="What changed since the previous run: inputs (code, job parameters, line-table rows) and outputs (legs whose minimum or margin moved, flags, conflicts, bundles)")
+], name="changes", version=2, description="What changed since the previous run: inputs (code, job parameters, line-table rows) and outputs (legs whose minimum or margin moved, flags, conflicts, bundles)")
 
 
 @dataclass
@@ -100,14 +103,15 @@ class LineChanges:
 
     def add(self, category: str, subject: str, detail: str, *, field_: str = "", before: Any = "", after: Any = "",
             delta: float | None = None, direction: str | None = None, train_type: str | None = None,
-            from_m: float | None = None, to_m: float | None = None, caused_by: Iterable[int] = ()) -> int:
+            from_m: float | None = None, to_m: float | None = None, caused_by: Iterable[int] = (),
+            origin: str | None = None, destination: str | None = None, train_id: str | None = None) -> int:
         cid = len(self.rows)
         self.rows.append({
-            "base_run": self.base_run, "run": self.run, "change_id": cid, "category": category,
+            "base_run": self.base_run, "change_id": cid, "category": category,
             "subject": subject, "field": field_, "before": _text(before), "after": _text(after),
             "delta": None if delta is None or not math.isfinite(delta) else float(delta), "detail": detail,
-            "direction": direction, "train_type": train_type, "from_m": from_m, "to_m": to_m,
-            "caused_by": [int(c) for c in caused_by],
+            "direction": direction, "train_type": train_type, "origin": origin, "destination": destination,
+            "train_id": train_id, "from_m": from_m, "to_m": to_m, "caused_by": [int(c) for c in caused_by],
         })
         return cid
 
@@ -319,13 +323,14 @@ def _input_changes(ch: LineChanges, old_dir: Path, old_m: dict, new_dir: Path, n
                     d = _num(a) - _num(b) if not isinstance(a, (bool, str)) and a is not None and b is not None else None
                     cid = ch.add("line_table", name, f"{what}: {c} {_text(b)} → {_text(a)}", field_=c, before=b,
                                  after=a, delta=d, direction=scope["direction"], train_type=_str(scope["train_type"]),
-                                 from_m=lo, to_m=hi)
+                                 train_id=_str(scope["train_id"]), from_m=lo, to_m=hi)
                     reach[cid] = scope
             else:
                 cid = ch.add("line_table", name, f"{what}: row {kind}", field_="row",
                              before=json.dumps(o, default=str, ensure_ascii=False, sort_keys=True) if o else "",
                              after=json.dumps(n, default=str, ensure_ascii=False, sort_keys=True) if n else "",
-                             direction=scope["direction"], train_type=_str(scope["train_type"]), from_m=lo, to_m=hi)
+                             direction=scope["direction"], train_type=_str(scope["train_type"]),
+                             train_id=_str(scope["train_id"]), from_m=lo, to_m=hi)
                 reach[cid] = scope
     return reach
 
@@ -381,7 +386,8 @@ def _leg_changes(ch: LineChanges, old, new, reach: dict[int, dict], threshold_s:
         label = _leg_label(r)
         lo, hi, length = geometry(r)
         causes = _causes(reach, r, lo, hi, length) if lo is not None else []
-        common = dict(direction=r["direction"], train_type=r["train_type"], from_m=lo, to_m=hi, caused_by=causes)
+        common = dict(direction=r["direction"], train_type=r["train_type"], origin=_str(r["origin"]),
+                      destination=_str(r["destination"]), from_m=lo, to_m=hi, caused_by=causes)
         if a is None or b is None:
             ch.add("leg", label, f"leg {label} {'appeared' if b else 'disappeared'}", field_="row",
                    before="" if b else label, after=label if b else "", **common)
@@ -437,7 +443,7 @@ def _conflict_changes(ch: LineChanges, old, new) -> None:
                f"conflict {k[0]} before {k[1]} at {k[2]} {'appeared' if appeared else 'cleared'} "
                f"(delay {_num(r.get('delay_s')):.1f} s, {r.get('rule')})",
                field_="delay_s", before="" if appeared else r.get("delay_s"), after=r.get("delay_s") if appeared else "",
-               direction=r.get("direction_b"), from_m=r.get("from_m"), to_m=r.get("to_m"))
+               direction=r.get("direction_b"), train_id=_str(k[1]), from_m=r.get("from_m"), to_m=r.get("to_m"))
 
 
 MANIFEST_CONTENT = (("line_digest", "line database digest"), ("software_version", "software version"),

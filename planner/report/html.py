@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.line.units import clock, hms
+
 from planner.report.html_charts import chart_sections
 from planner.report.leg_flags import FLAG, FLAGS, FLAGS_SHOWN, added_up, any_flag, flag_of, flags_of
 
@@ -80,10 +82,7 @@ def _f(x, nd: int = 1, sign: bool = False) -> str:
 
 
 def _hms(t: float) -> str:
-    if t is None or not math.isfinite(t):
-        return "–"
-    t = int(round(t))
-    return f"{t // 3600:02d}:{t // 60 % 60:02d}:{t % 60:02d}"
+    return clock(t) or "–"
 
 
 def _leg(r) -> str:
@@ -233,8 +232,9 @@ def totals_table(totals, scopes=("line", "type")) -> str:
     t = t.sort_values(["direction", "o", "train_type"], kind="stable")
     out = ["<div class='tw'><table><tr><th class='l'>direction</th><th class='l'>train type</th><th>trains</th>"
            "<th>train runs of a leg</th>"
-           "<th>sum of minimum running times [s]</th><th>sum of scheduled [s]</th><th>sum of margins [s]</th>"
-           "<th>margin %</th><th>sum of bad-day remaining margins [s]</th><th>least remaining, one leg [s]</th>"
+           "<th>sum of minimum running times [h:mm:ss]</th><th>sum of scheduled [h:mm:ss]</th>"
+           "<th>sum of margins [h:mm:ss]</th>"
+           "<th>margin %</th><th>sum of bad-day remaining margins [h:mm:ss]</th><th>least remaining, one leg [s]</th>"
            "<th>train runs on an impossible leg</th><th>… on a leg short on a bad day</th><th>… on a tight leg</th>"
            "<th>… on an unreachable leg</th>"
            "<th>… on a leg short of the rule</th><th>energy saved [kWh]</th></tr>"]
@@ -243,8 +243,8 @@ def totals_table(totals, scopes=("line", "type")) -> str:
         out.append(
             f"<tr{bold}><td class='l'>{_e(r.direction)}</td><td class='l'>"
             f"{'all types' if r.level == 'line' else _e(r.train_type)}</td><td>{r.n_trains}</td><td>{r.n_legs}</td>"
-            f"<td>{r.min_running_time_s:.0f}</td><td>{r.scheduled_running_time_s:.0f}</td>"
-            f"<td>{r.margin_s:.0f}</td><td>{r.margin_percent:.1f}</td><td>{r.remaining_margin_s:+.0f}</td>"
+            f"<td>{hms(r.min_running_time_s)}</td><td>{hms(r.scheduled_running_time_s)}</td>"
+            f"<td>{hms(r.margin_s)}</td><td>{r.margin_percent:.1f}</td><td>{hms(r.remaining_margin_s, sign=True)}</td>"
             f"<td>{r.min_remaining_margin_s:+.1f}</td><td>{r.n_impossible}</td><td>{r.n_short_bad_day}</td>"
             f"<td>{r.n_tight}</td>"
             f"<td>{r.n_unreachable}</td><td>{r.n_supplement_short}</td><td>{r.energy_saved_kwh:.0f}</td></tr>")

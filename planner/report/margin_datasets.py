@@ -73,6 +73,7 @@ MARGINS_SCHEMA = declare(
          "is off [s]"),
         ("adhesion_min_ms2", pa.float64(),
          "adhesion of the bad day's stop: [margins] degraded_adhesion_kmh_s, else the sweep's lowest level [m/s²]"),
+        ("adhesion_min_kmh_s", pa.float64(), "the same in km/h/s, as the job writes it (rounded to 1e-9)"),
         ("adhesion_loss_s", pa.float64(),
          "stopping-pattern duration at the lowest minus at the highest adhesion, nominal approach speed [s]"),
         ("impossible", pa.bool_(),
@@ -128,6 +129,8 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("origin", pa.string(), "the train's first stop (level 'train'), else null"),
         ("destination", pa.string(), "the train's last stop (level 'train'), else null"),
         ("first_departure_s", pa.float64(), "earliest departure of the legs summed [s after midnight]"),
+        ("first_departure_clock", pa.string(), "the same as a clock time, HH:MM:SS (hours past 24 after midnight, "
+                                               "as the timetable writes them)"),
         ("n_trains", pa.int32(), "trains summed"),
         ("n_legs", pa.int32(), "train runs of a leg summed (each train x stop to next stop once)"),
         ("min_running_time_s", pa.float64(), "sum of minimum running times [s]"),
@@ -182,8 +185,15 @@ def datasets(report) -> dict[str, pa.Table]:
         t[c] = t[c].astype("int32")
     return {
         "margins": pa.Table.from_pandas(rows, preserve_index=False),
-        "margin_totals": pa.Table.from_pandas(t, preserve_index=False),
+        "margin_totals": pa.Table.from_pandas(_with_clock(t), preserve_index=False),
     }
+
+
+def _with_clock(totals):
+    """The totals with ``first_departure_clock`` beside ``first_departure_s`` (the text a planner reads)."""
+    from planner.line.units import clock
+
+    return totals.assign(first_departure_clock=[clock(x) for x in totals["first_departure_s"]])
 
 
 def write_margins(report, out_dir: str | Path) -> list[Path]:

@@ -144,7 +144,7 @@ import numpy as np
 from planner.errors import InputError
 from planner.io.parallel import map_tasks
 from planner.line.model import DIRECTIONS, Line, sign
-from planner.line.units import KMH, KMH_S, kmh
+from planner.line.units import KMH, KMH_S, kmh, kmh_s
 from planner.report.leg_flags import flag_reasons
 from planner.report.leg_margin import LegResult, leg_result, passed_stations
 from planner.report.margin_datasets import (
@@ -512,7 +512,8 @@ def _leg_columns(line: Line, r: LegResult) -> dict:
         "pattern_start_source": r.pattern_source,
         "pattern_start_speed_degraded_kmh": kmh(r.v_pattern_degraded_ms),
         "stop_time_degraded_s": r.stop_time_degraded_s, "stop_time_nominal_s": r.stop_time_nominal_s,
-        "adhesion_min_ms2": r.adhesion_min_kmh_s * KMH_S, "adhesion_loss_s": r.adhesion_loss_s,
+        "adhesion_min_ms2": r.adhesion_min_kmh_s * KMH_S, "adhesion_min_kmh_s": kmh_s(r.adhesion_min_kmh_s * KMH_S),
+        "adhesion_loss_s": r.adhesion_loss_s,
         "tables_source": r.tables_source, "note": r.note,
         "unassessed_cause": r.flags[0].kind if r.flags else "",
         "unassessed_scenario": r.flags[0].scenario if r.flags else "",

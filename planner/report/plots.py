@@ -17,6 +17,11 @@ Charts
 * one run (``planner runtime --plot``): :func:`run_curve_chart`;
 * time-keeping run (``planner timekeeping --plot``): :func:`timekeeping_chart`;
 * evaluation-interval study: :func:`interval_study_chart`.
+
+Position axes: one per kind of chart, labelled with its unit. A chart of a run along the line
+(the margin report's, ``runtime --plot``, ``timekeeping --plot``) is against the chainage [km],
+running left to right in the running direction; a chart of a stop (``stops --plot``) against the
+distance to the stop marker [m], the way a braking curve is read.
 """
 from __future__ import annotations
 
@@ -533,9 +538,10 @@ def run_curve_chart(result, path: Path) -> Path:
 
 
 def timekeeping_chart(result, segments: list[dict], path: Path, title: str) -> Path:
-    """Speed, target and advice against distance, as a PNG written atomically.
+    """Speed, target and advice against chainage (km, running left to right, as every chart of a run), as a
+    PNG written atomically.
 
-    ``segments``: the runs of one driver advice, ``[{"from_m", "to_m", "advice"}]``.
+    ``segments``: the runs of one driver advice, ``[{"from_m", "to_m", "advice"}]`` (running distance).
     """
     plt = _agg()
     path = Path(path)
@@ -544,13 +550,18 @@ def timekeeping_chart(result, segments: list[dict], path: Path, title: str) -> P
     c = result.curve
     colours = {"power": "tab:red", "hold": "tab:green", "coast": "tab:blue", "brake": "tab:orange"}
     fig, ax = plt.subplots(figsize=(9, 4.5), dpi=100)
-    ax.plot(c["distance_m"], c["target_kmh"], color="0.6", lw=1.0, ls="--", label="target")
-    ax.plot(c["distance_m"], c["speed_kmh"], color="k", lw=1.3, label="speed")
-    for seg in segments:
-        ax.axvspan(seg["from_m"], seg["to_m"], ymin=0, ymax=0.04, color=colours[seg["advice"]], lw=0)
+    dist, pos = c["distance_m"].to_numpy(float), c["position_m"].to_numpy(float)
+    km = pos / 1000.0
+    ax.plot(km, c["target_kmh"], color="0.6", lw=1.0, ls="--", label="target")
+    ax.plot(km, c["speed_kmh"], color="k", lw=1.3, label="speed")
+    for seg in segments:  # running distance -> chainage
+        a, b = np.interp([seg["from_m"], seg["to_m"]], dist, pos) / 1000.0
+        ax.axvspan(min(a, b), max(a, b), ymin=0, ymax=0.04, color=colours[seg["advice"]], lw=0)
     for name, col in colours.items():
         ax.plot([], [], color=col, lw=6, label=name)
-    ax.set_xlabel("distance from departure marker [m]")
+    ax.set_xlabel("chainage [km]")
+    if len(km) > 1 and km[-1] < km[0]:
+        ax.invert_xaxis()  # run left to right
     ax.set_ylabel("speed [km/h]")
     ax.set_title(title)
     # below the axes, never over the curves

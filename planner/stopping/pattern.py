@@ -570,13 +570,13 @@ def _not_solved(code: int, work: np.ndarray, n: int, v0: float, X: float, J: flo
     out = 2 * n  # where the kernel's result starts in work
     if code == k.NEEDS_MORE:  # the common verdict first
         y_r = float(work[out + 4])
-        return _infeasible(f"needs {y_r:.1f} m to stop from {v0:.2f} m/s under these limits, only "
+        return _infeasible(f"needs {y_r:.1f} m to stop from {v0 * 3.6:.1f} km/h under these limits, only "
                            f"{X:.1f} m available", v0, X, J, y_r)
     if code == k.START_ABOVE_LIMIT:
-        return _infeasible(f"start speed {v0:.2f} m/s is above the speed limit "
-                           f"{float(work[2 * n_dl + 1]):.2f} m/s at the pattern start", v0, X, J)
+        return _infeasible(f"start speed {v0 * 3.6:.1f} km/h is above the speed limit "
+                           f"{float(work[2 * n_dl + 1]) * 3.6:.1f} km/h at the pattern start", v0, X, J)
     if code == k.ZERO_LIMIT:
-        return _infeasible(f"speed limit 0 m/s from x={float(work[out + 1]):.1f} m, before the stop at {X:.1f} m",
+        return _infeasible(f"speed limit 0 km/h from x={float(work[out + 1]):.1f} m, before the stop at {X:.1f} m",
                            v0, X, J)
     if code == k.STANDING:
         return _infeasible(f"standing at the start and no re-acceleration allowed, cannot reach "

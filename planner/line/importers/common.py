@@ -26,9 +26,8 @@ from typing import Callable
 import pandas as pd
 import pyarrow as pa
 
-from planner.io.parquet import write_parquet_atomic
 from planner.errors import SourceError, SourceProblems, Violation
-from planner.line.schema import TABLES
+from planner.line.schema import TABLES, write_line_table
 from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
 
 EXTRA_EXAMPLE = """
@@ -464,7 +463,7 @@ def write_line(tables: dict[str, pd.DataFrame | pa.Table], out: str | Path, summ
     try:
         for name, t in tables.items():
             table = t if isinstance(t, pa.Table) else to_arrow(name, t)
-            write_parquet_atomic(table, tmp / TABLES[name].file)
+            write_line_table(name, table, tmp / TABLES[name].file)
             summary.rows[name] = table.num_rows
         problems = check_line(tmp)
         if len(problems) == 1:
