@@ -97,7 +97,7 @@ def test_datasets_leave_only_the_unknown_flags_null():
         "infeasible": [True, True, False], "tight": [False, False, False], "n_trains": [1, 1, 1]})
     totals = pd.DataFrame({c: [0] for c in ("n_trains", "n_legs", "n_supplement_short", "n_impossible",
                                              "n_short_bad_day", "n_infeasible", "n_tight", "n_unreachable",
-                                             "n_unassessed", "n_inaccurate")})
+                                             "n_unassessed", "n_inaccurate")} | {"first_departure_s": [21600.0]})
     t = datasets(SimpleNamespace(rows=rows, totals=totals))["margins"]
     assert t.column("impossible").to_pylist() == [False, True, None]  # needs only the minimum
     assert t.column("short_bad_day").to_pylist() == [True, None, None]

@@ -26,7 +26,7 @@ def test_report_totals_are_h_mm_ss():
 
     row = dict(level="line", direction="down", train_type="all", n_trains=178, n_legs=2000,
                min_running_time_s=258929.0, scheduled_running_time_s=300000.0, margin_s=41071.0,
-               margin_percent=15.9, remaining_margin_s=-83.0, min_remaining_margin_s=-0.5, n_infeasible=1,
+               margin_percent=15.9, remaining_margin_s=-83.0, min_remaining_margin_s=-0.5, n_infeasible=1, n_impossible=0, n_short_bad_day=1,
                n_tight=0, n_unreachable=0, n_supplement_short=0, energy_saved_kwh=10.0)
     html = totals_table(pd.DataFrame([row]))
     assert "<td>71:55:29</td><td>83:20:00</td><td>11:24:31</td>" in html
