@@ -63,15 +63,18 @@ def day_problems(job: Job) -> list[tuple[str, str]]:
         except ValueError as e:
             out.append(("time_zone", str(e)))
     if d.feeds:
+        feeds = []  # one message for the key: the job file's validation reports a key once
         if len(d.feeds) != len(job.job.lines):
-            out.append(("feeds", f"{len(d.feeds)} feed(s) for {len(job.job.lines)} line(s) of [job] lines; "
-                                 f"give one feed folder per line, in the same order"))
+            feeds.append(f"{len(d.feeds)} feed(s) for {len(job.job.lines)} line(s) of [job] lines; "
+                         f"give one feed folder per line, in the same order")
         if not d.time_zone:
             out.append(("time_zone", "a daily feed's times are local: name the lines' time zone, e.g. "
                                      "\"Asia/Tokyo\""))
         for p in d.feeds:
             if not job.resolve(p).is_dir():
-                out.append(("feeds", f"daily feed folder {p!r} does not exist (resolved to {job.resolve(p)})"))
+                feeds.append(f"daily feed folder {p!r} does not exist (resolved to {job.resolve(p)})")
+        if feeds:
+            out.append(("feeds", "; ".join(feeds)))
     return out
 
 
