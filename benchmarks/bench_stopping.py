@@ -1,4 +1,4 @@
-"""Benchmark: solve time of one minimum-time stopping pattern (DESIGN §5, issues 5 and 20).
+"""Benchmark: solve time of one minimum-time stopping pattern (docs/design.md §5, issues 5 and 20).
 
 Prints the median (and 90th percentile) wall time per ``solve_stop`` call over a few
 thousand seeded random station approaches with up to six event points (positions

@@ -1,4 +1,4 @@
-"""Benchmark: the time-keeping mode (DESIGN §4) in closed loop on the whole sample line (issue 14).
+"""Benchmark: the time-keeping mode (docs/design.md §4) in closed loop on the whole sample line (issue 14).
 
 The on-board logic has the vehicle's nominal model (load 0, traction 1.0); the
 plant is the real train of the scenario (``perturbed``: load 1.0, traction × 0.9).

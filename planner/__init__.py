@@ -28,7 +28,7 @@ def running_time(line_or_path, train_type, origin, destination, *, ratio=1.0, lo
 
 def timekeeping_run(line_or_path, train_type, origin, destination, *, arrival_s, changes=(), load=0.0,
                     traction_factor=1.0, settings=None):
-    """One interstation in time-keeping mode (DESIGN §4); see :func:`planner.api.timekeeping_run`."""
+    """One interstation in time-keeping mode (docs/design.md §4); see :func:`planner.api.timekeeping_run`."""
     from planner.api import timekeeping_run as _tk
 
     return _tk(line_or_path, train_type, origin, destination, arrival_s=arrival_s, changes=changes,

@@ -183,7 +183,7 @@ def timekeeping_run(line_or_path, train_type: str, origin: str, destination: str
                     arrival_s: float, changes=(), load: float = 0.0,
                     traction_factor: float = 1.0, settings=None,
                     recompute_s: float = RECOMPUTE_S, recompute_m: float = RECOMPUTE_M) -> TimekeepingResult:
-    """One interstation driven in time-keeping mode (DESIGN §4); see :func:`drive`.
+    """One interstation driven in time-keeping mode (docs/design.md §4); see :func:`drive`.
 
     Parameters
     ----------

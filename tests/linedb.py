@@ -1,6 +1,6 @@
 """A tiny but complete, valid line database written to disk, for tests.
 
-``write_line_db(path, **overrides)`` writes every table of SCHEMA.md into the
+``write_line_db(path, **overrides)`` writes every table of docs/line-database.md into the
 folder ``path`` (whose name becomes the ``line_id`` unless ``line`` is
 overridden). Override a table with a DataFrame (columns of the schema are
 written with their declared types), a ``pyarrow.Table`` (written verbatim, for

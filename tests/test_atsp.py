@@ -111,7 +111,7 @@ def test_overwrite_matches_pairwise_definition(rows):
 def test_overwrite_with_hold_until_start_is_the_briefs_rule(rows):
     """Held only up to the restriction start, a pair conflicts iff the next restriction (in
     running order of the starts) has its pattern start before the previous one's start
-    (DESIGN §3 wording). Patterns have positive length here (d ≥ 1 m)."""
+    (docs/design.md §3 wording). Patterns have positive length here (d ≥ 1 m)."""
     entry = np.array([float(e) for e, _ in rows])
     start = entry - np.array([float(d) for _, d in rows])
     _, c = atsp.overwrite_conflicts(start, entry)

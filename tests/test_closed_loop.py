@@ -24,7 +24,7 @@ from linedb import write_line_db
 VMAX = 100 / 3.6
 L = 3000.0
 INTEGRATION_TOL_S = 0.05
-"""DESIGN §2 accuracy of a simulated running time against its closed form."""
+"""docs/design.md §2 accuracy of a simulated running time against its closed form."""
 
 
 def flat_line():

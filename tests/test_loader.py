@@ -281,7 +281,7 @@ def test_source_digest_changes_with_content_and_extra_tables(tmp_path, line):
 
 
 # --------------------------------------------------------------------------- declared schema
-# The public contract, typed from SCHEMA.md: (table, columns). Renaming or dropping any is a breaking change.
+# The public contract, typed from docs/line-database.md: (table, columns). Renaming or dropping any is a breaking change.
 CONTRACT = {
     "line": "line_id name start_m end_m max_speed_kmh schema_version",
     "stations": "station_id name position_m stop_down_m stop_up_m platform_length_m",

@@ -48,7 +48,7 @@ SMALL_GRID = [1.0, 0.6, 0.2]  # tests that check neither the ratio choice nor th
 GRID = [1.0, 0.9, 0.8, 0.7, 0.65, 0.6, 0.55, 0.5, 0.45, 0.4, 0.35, 0.3, 0.25, 0.2]  # default grid, 100 km/h line
 
 TOL_S = 0.05
-"""Integrator accuracy on closed-form cases (DESIGN §2: within 0.05 s at the default 1 m step)."""
+"""Integrator accuracy on closed-form cases (docs/design.md §2: within 0.05 s at the default 1 m step)."""
 TOL_KWH = 1e-3 * 32.0
 """Energy: 0.1 % of the full-ratio energy (Heun's step is exact for constant force; round-off only)."""
 

@@ -17,7 +17,7 @@ from planner.physics.track import SimSettings, make_track
 from planner.line.units import KMH, KMH_S
 
 TOL_S = 0.05
-"""Acceptance: running times within 0.05 s of the closed form (DESIGN §2)."""
+"""Acceptance: running times within 0.05 s of the closed form (docs/design.md §2)."""
 TOL_STOP_M = 0.05
 """Acceptance: the final stop within 0.05 m of the marker."""
 
@@ -152,7 +152,7 @@ def test_equilibrium_speed_on_a_rise(direction, with_curve):
     start = RunState(np.zeros(1), np.zeros(1), np.array([v]), np.array([PHASE_POWER], np.int8), np.ones(1))
     res = simulate(tr, tt, 1.0, start=start, load=load, traction_factor=tf, record=True)
     bs = 3.0 * KMH_S
-    # the stopping brake is the achieved deceleration: gradient does not change it (DESIGN §2)
+    # the stopping brake is the achieved deceleration: gradient does not change it (docs/design.md §2)
     expect = (length - v * v / (2 * bs)) / v + v / bs
     assert abs(res.time_s[0] - expect) < TOL_S
     # work at the wheel: the balancing force over the constant-speed stretch

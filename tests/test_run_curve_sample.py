@@ -9,7 +9,7 @@ from planner.physics.track import SimSettings, make_track
 from planner.physics.run_curve import simulate
 
 TOL_S = 0.05
-"""Acceptance (DESIGN §2): halving the step changes no running time by more than 0.05 s."""
+"""Acceptance (docs/design.md §2): halving the step changes no running time by more than 0.05 s."""
 SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 
 

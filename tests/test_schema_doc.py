@@ -1,4 +1,4 @@
-"""The line-database contract ships with the code: docs/line-database.md is generated from planner/schema.py."""
+"""The line-database contract ships with the code: docs/line-database.md is generated from planner/line/schema.py."""
 from pathlib import Path
 
 from typer.testing import CliRunner

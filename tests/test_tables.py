@@ -22,7 +22,7 @@ from planner.datasets.tables import TABLE_B_SCHEMA, write_tables
 from linedb import write_line_db
 
 CLOSED_FORM_TOL_S = 0.05
-"""DESIGN §2: running times within 0.05 s of closed-form answers at the default 1 m step."""
+"""docs/design.md §2: running times within 0.05 s of closed-form answers at the default 1 m step."""
 CONSISTENCY_TOL_S = 0.1
 """Issue 4: table (b) at (r, r) + time to reach X at r equals table (a) at r within 0.1 s."""
 SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"

@@ -1,4 +1,4 @@
-"""Closed-loop time-keeping runs (DESIGN §4, issue 10): arrival and stop errors, shortfalls."""
+"""Closed-loop time-keeping runs (docs/design.md §4, issue 10): arrival and stop errors, shortfalls."""
 from __future__ import annotations
 
 import math
@@ -20,7 +20,7 @@ ARRIVAL_TOL_S = 0.2
 STOP_TOL_M = 0.2
 """Issue 10: stop within 0.2 m of the marker."""
 CLOSED_FORM_TOL_S = 0.05
-"""DESIGN §2: running times within 0.05 s of closed-form answers at the 1 m step."""
+"""docs/design.md §2: running times within 0.05 s of closed-form answers at the 1 m step."""
 
 
 # Straight level 1 km, one limit: 60 km/h over [400, 600] m. Default test train:

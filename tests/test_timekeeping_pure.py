@@ -1,4 +1,4 @@
-"""Closed-form and property tests of the time-keeping target speed (DESIGN §4)."""
+"""Closed-form and property tests of the time-keeping target speed (docs/design.md §4)."""
 from __future__ import annotations
 
 import math

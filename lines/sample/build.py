@@ -12,7 +12,7 @@ car masses and standard Japanese formulas, signals/beacons from the block
 layout, the track network from the station layouts, and the timetable from a
 self-contained minimum-running-time *estimate* plus margins.
 
-Conventions (SCHEMA.md): chainage [m] grows from the origin terminus Minato;
+Conventions (docs/line-database.md): chainage [m] grows from the origin terminus Minato;
 ``down`` runs towards increasing chainage, ``up`` towards decreasing chainage;
 gradients in ‰, positive when rising towards increasing chainage.
 """
@@ -394,7 +394,7 @@ class RunEstimator:
     """Minimum running times of one train type in one direction, on a 1 m grid.
 
     A deliberately simple, self-contained kinematic estimate that follows the
-    running model of DESIGN.md §2 at ratio 1.0: full notch below the on-board
+    running model of docs/design.md §2 at ratio 1.0: full notch below the on-board
     maximum speed (restriction held until the tail clears, minus the speed
     margin), constant-speed hold or a coast band (sawtooth), service-brake
     curves to each lower limit, stop-brake curve to the stop marker; gradient
@@ -988,7 +988,7 @@ SCHEMAS = {
     "timetable": pa.schema([("train_id", _S), ("train_type", _S), ("direction", _S),
                             ("seq", _I), ("station_id", _S), ("arrival_s", _D),
                             ("departure_s", _D), ("stops", _B), ("track", _S)]),
-    # `station_id` and `track` are optional extra columns (SCHEMA.md allows them)
+    # `station_id` and `track` are optional extra columns (docs/line-database.md allows them)
     "nodes": pa.schema([("node_id", _S), ("kind", _S), ("position_m", _D),
                         ("interlocking", _S), ("station_id", _S), ("track", _S)]),
     "edges": pa.schema([("edge_id", _S), ("from_node", _S), ("to_node", _S),

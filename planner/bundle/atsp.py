@@ -1,6 +1,6 @@
 """ATS-P data for the on-board DB: DB-fed speed-check patterns and beacon-match flags.
 
-Pure functions on numpy arrays (no pandas, no I/O); DESIGN.md §3 "ATS-P data in
+Pure functions on numpy arrays (no pandas, no I/O); docs/design.md §3 "ATS-P data in
 the on-board DB".
 
 Positions here are *running coordinates* ``s = sign(direction) × chainage``

@@ -1,4 +1,4 @@
-"""The bundle container: signed, reproducible on-board DB bundles (DESIGN.md §7, issue 7).
+"""The bundle container: signed, reproducible on-board DB bundles (docs/design.md §7, issue 7).
 
 Takes a bundle's tables (:mod:`planner.bundle.assemble`), a signing key and a
 :class:`~planner.bundle.manifest.Release`; gives one file per line × direction

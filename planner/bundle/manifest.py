@@ -58,7 +58,7 @@ CORE_TABLES = ("restrictions", "max_profile", "atsp", "beacons", "timetable")
 EXPECTED_TABLES = ("eval_points", "table_a", "table_b", "table_c", "table_d", "stop_summary", "stop_samples")
 """Tables a complete bundle holds, built by the tables and stopping steps; absent ones are listed in the manifest."""
 VEHICLE_TABLES = {"table_d": "sawtooth"}
-"""Expected tables that exist only for one cruise mode: table (d) for sawtooth vehicles (DESIGN §3)."""
+"""Expected tables that exist only for one cruise mode: table (d) for sawtooth vehicles (docs/design.md §3)."""
 
 
 def expected_tables(cruise: str | None = None) -> tuple[str, ...]:

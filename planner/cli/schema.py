@@ -1,4 +1,4 @@
-"""`planner schema`: the line-database contract (docs/line-database.md), generated from planner/schema.py."""
+"""`planner schema`: the line-database contract (docs/line-database.md), generated from planner/line/schema.py."""
 from __future__ import annotations
 
 from pathlib import Path

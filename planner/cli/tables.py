@@ -114,7 +114,7 @@ def simulate(
     mode: str = typer.Option("nearest", "--mode", help="On-board mode, one of " + ", ".join(BUILTIN_MODES)
                              + ": nearest (published rule), interpolate (fractional ratios), adaptive "
                              "(interpolate + learns the train's deviation from the tables), timekeeping "
-                             "(cruise speed from the remaining time and distance, DESIGN §4; one interstation "
+                             "(cruise speed from the remaining time and distance, docs/design.md §4; one interstation "
                              "with arrival changes: `planner timekeeping`); modes registered with "
                              "planner.tables.closed_loop.register_mode are accepted too."),
     train_type: Optional[list[str]] = typer.Option(None, "--train-type", help="Train type (repeatable)."),

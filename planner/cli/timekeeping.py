@@ -1,4 +1,4 @@
-"""``planner timekeeping``: one interstation in time-keeping support mode (DESIGN §4).
+"""``planner timekeeping``: one interstation in time-keeping support mode (docs/design.md §4).
 
 The same behaviour is what ``planner simulate ... --mode timekeeping`` runs:
 that command dispatches to :func:`simulate_timekeeping_cli`.

@@ -5,7 +5,7 @@ Takes a :class:`~planner.network.check.ConflictCheck` (computed by
 :class:`ConflictReport` whose ``conflicts`` and ``occupation`` are pandas
 DataFrames with the columns of :data:`CONFLICTS_SCHEMA` and
 :data:`OCCUPATION_SCHEMA`, the summary the CLI prints, and the Parquet
-datasets (:func:`write_conflicts`). DESIGN §8 and §9.
+datasets (:func:`write_conflicts`). docs/design.md §8 and §9.
 """
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ CONFLICTS_SCHEMA = declare([
     ("overlap_start_s", pa.float64(), "start of the overlap of the two windows [s after midnight]"),
     ("overlap_end_s", pa.float64(), "end of the overlap [s after midnight]"),
     ("overlap_s", pa.float64(), "overlap of the two windows on this resource [s]"),
-    ("rule", pa.string(), "priority rule: `no-deadlock`, `timetable-order` or `leaves-first` (DESIGN §8)"),
+    ("rule", pa.string(), "priority rule: `no-deadlock`, `timetable-order` or `leaves-first` (docs/design.md §8)"),
     ("decision", pa.string(), "who goes first and why"),
     ("delay_s", pa.float64(), "delay the decision imposes on train_b: shift that opens each of its windows after train_a's close [s]"),
     ("deadlock", pa.bool_(), "the two opposing trains would deadlock on a single-track stretch without the decision"),

@@ -48,7 +48,7 @@ STOP_SUMMARY_SCHEMA = declare(
     ],
     name="stop_summary",
     description="Minimum-time jerk-limited stopping patterns: one row per station approach and adhesion level "
-                "(DESIGN §5).",
+                "(docs/design.md §5).",
 )
 
 
@@ -65,7 +65,7 @@ STOP_SAMPLES_SCHEMA = declare(
         ("jerk_ms3", pa.float64(), "jerk of the constant-jerk piece the sample lies in [m/s³]"),
     ],
     name="stop_samples",
-    description="Feasible stopping patterns sampled in time (exact values of the cubic pieces) (DESIGN §5).",
+    description="Feasible stopping patterns sampled in time (exact values of the cubic pieces) (docs/design.md §5).",
 )
 SCHEMAS = {"stop_summary": STOP_SUMMARY_SCHEMA, "stop_samples": STOP_SAMPLES_SCHEMA}
 SORT_BY = {"stop_summary": ("station_id", "adhesion_ms2"), "stop_samples": ("station_id", "adhesion_ms2", "t_s")}

@@ -33,7 +33,7 @@ EVAL_POINTS_SCHEMA = declare(
                                          "the regular interval) or 'beacon'"),
     ],
     name="eval_points",
-    description="Evaluation points per interstation, in running order (DESIGN §3).",
+    description="Evaluation points per interstation, in running order (docs/design.md §3).",
 )
 
 
@@ -49,7 +49,7 @@ TABLE_A_SCHEMA = declare(
          "null where it does not. A leg with any stall has no table_c (nor table_d) and is flagged"),
     ],
     name="table_a",
-    description="Table (a): running time per ratio, tables at load 0 and nominal traction (DESIGN §3).",
+    description="Table (a): running time per ratio, tables at load 0 and nominal traction (docs/design.md §3).",
 )
 
 
@@ -65,7 +65,7 @@ TABLE_B_SCHEMA = declare(
         ("elapsed_time_s", pa.float64(), "running time from departure to the evaluation point at ratio_before [s]"),
     ],
     name="table_b",
-    description="Table (b): remaining running time per evaluation point and ratio pair (DESIGN §3).",
+    description="Table (b): remaining running time per evaluation point and ratio pair (docs/design.md §3).",
 )
 
 

@@ -1,4 +1,4 @@
-"""Stage 2 of validation: the row and cross-table rules of a line database (SCHEMA.md).
+"""Stage 2 of validation: the row and cross-table rules of a line database (docs/line-database.md).
 
 Each rule is a small function registered with :func:`rule`, naming the tables it
 needs; it runs only when all of them passed stage 1 (:mod:`planner.line.conform`)

@@ -1,6 +1,6 @@
 """Line database schema v1: one pyarrow schema per table, declared once.
 
-This module is the machine-readable form of ``SCHEMA.md``: the table files,
+This module is the machine-readable form of ``docs/line-database.md``: the table files,
 their columns (units in the column names), the column types, which columns may
 hold nulls, which tables must exist and how many rows they need. The loader
 (:mod:`planner.line.loader`) and the validator (:mod:`planner.line.validate`) read it;
@@ -8,7 +8,7 @@ nothing else restates the column list.
 
 Every field carries a ``description`` metadata entry, and every schema the
 metadata ``table`` and ``schema_version``. Users may add their own columns and
-tables (SCHEMA.md); columns not declared here are ignored on load. Columns
+tables (docs/line-database.md); columns not declared here are ignored on load. Columns
 listed in :attr:`TableSpec.optional_columns` may be absent.
 
 Ids that become file names or partition values
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import pyarrow as pa
 
 SCHEMA_VERSION = 1
-"""Version of the line-database contract described by this module and SCHEMA.md."""
+"""Version of the line-database contract described by this module and docs/line-database.md."""
 
 DIRECTIONS = ("down", "up")
 """Running directions: ``down`` towards increasing chainage, ``up`` towards decreasing."""
@@ -313,7 +313,7 @@ _SPECS = [
 ]
 
 TABLES: dict[str, TableSpec] = {t.name: t for t in _SPECS}
-"""Every table of schema v1 by name, in SCHEMA.md order."""
+"""Every table of schema v1 by name, in docs/line-database.md order."""
 
 RENAMED_COLUMNS: dict[tuple[str, str], tuple[str, str]] = {
     ("rolling_stock", "brake_comfort_kmh_s"): (

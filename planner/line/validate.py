@@ -1,4 +1,4 @@
-"""Validation of a line database against schema v1 (SCHEMA.md) and the cross-table rules.
+"""Validation of a line database against schema v1 (docs/line-database.md) and the cross-table rules.
 
 The validator works on the raw pyarrow tables the loader has read and returns
 *every* violation it finds, each a :class:`planner.errors.Violation` naming the
@@ -82,7 +82,7 @@ def check_tables(
     views : dict of str to TableView
         The tables that conform to their schema.
     violations : list of Violation
-        Every problem found, sorted by file (SCHEMA.md order) then row; empty
+        Every problem found, sorted by file (docs/line-database.md order) then row; empty
         when the database is valid.
     """
     out: list[Violation] = []

@@ -1,4 +1,4 @@
-"""Arrival prediction (DESIGN §8, step 2): run curves per interstation and each train's front trajectory.
+"""Arrival prediction (docs/design.md §8, step 2): run curves per interstation and each train's front trajectory.
 
 Takes a Line, a train and a run-curve source; gives a :class:`Trajectory`,
 the predicted front position over the whole run (:func:`build_trajectory`).

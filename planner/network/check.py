@@ -1,4 +1,4 @@
-"""The whole-timetable conflict check (DESIGN §8): routes → arrivals → blocking windows → conflicts.
+"""The whole-timetable conflict check (docs/design.md §8): routes → arrivals → blocking windows → conflicts.
 
 Takes a :class:`~planner.line.model.Line` with a track network and a
 timetable, the blocking-time parameters and a run-curve source; gives a

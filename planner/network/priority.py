@@ -1,4 +1,4 @@
-"""Conflicts and priority (DESIGN §8, step 4): overlapping windows become conflicts, each decided once.
+"""Conflicts and priority (docs/design.md §8, step 4): overlapping windows become conflicts, each decided once.
 
 Takes the track graph, the trains, their routes and their :class:`Windows`;
 gives one record (a dict of plain values, the columns of the ``conflicts``
@@ -6,7 +6,7 @@ dataset) per conflict and shared resource (:func:`detect_conflicts`).
 
 Windows are sorted per resource and swept, so only neighbours in time are
 compared. Overlapping windows of two trains on consecutive shared resources
-form one conflict, decided once with the rules of DESIGN §8:
+form one conflict, decided once with the rules of docs/design.md §8:
 
 * opposing trains that would both be inside a shared single-track stretch
   (≥ 2 resources, so each would hold one the other needs) are a **deadlock**

@@ -1,4 +1,4 @@
-"""Route search on the track network (DESIGN §8, step 1): the track graph, overtaking, each train's route.
+"""Route search on the track network (docs/design.md §8, step 1): the track graph, overtaking, each train's route.
 
 Takes a :class:`~planner.line.model.Line` with ``network`` and a timetable;
 gives a :class:`TrackGraph` (nodes, edges, and the sections: edges split at

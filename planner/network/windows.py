@@ -1,4 +1,4 @@
-"""Blocking-time windows (DESIGN §8, step 3): when each train claims each switch and section, and overlaps.
+"""Blocking-time windows (docs/design.md §8, step 3): when each train claims each switch and section, and overlaps.
 
 Takes the track graph, a train's route and its predicted trajectory; gives
 :class:`Windows`, parallel arrays with one entry per resource use

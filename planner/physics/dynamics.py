@@ -4,7 +4,7 @@ Every function takes floats or numpy arrays (broadcast together) in SI units
 and returns the same; nothing here reads files or builds DataFrames, so the
 integrator in :mod:`planner.physics.run_curve` can call them on whole batches of runs.
 
-The model (DESIGN §2)::
+The model (docs/design.md §2)::
 
     M   = empty mass + load × full passenger mass                  [kg]
     M_e = M (1 + rotating-mass factor)                             [kg]

@@ -1,4 +1,4 @@
-"""Run curves: the distance-domain, lock-step batch integrator (DESIGN §2, §3).
+"""Run curves: the distance-domain, lock-step batch integrator (docs/design.md §2, §3).
 
 A *run* is one train running from a departure stop marker to the next stop
 marker at a target-speed ratio. A *batch* advances many runs (different ratios,
@@ -103,7 +103,7 @@ class Command(NamedTuple):
 
     A controller (see :func:`simulate`) returns either a plain ratio array or a
     Command. The target is ``min(ratio × on-board maximum, cap_ms)``: the ratio
-    modes of DESIGN §3 leave ``cap_ms`` at +inf; the time-keeping mode of §4
+    modes of docs/design.md §3 leave ``cap_ms`` at +inf; the time-keeping mode of §4
     runs at ratio 1.0 under a cruise-speed cap. A run above its new ceiling
     sheds speed at ``shed_ms2`` (default: the service brake) until it meets it.
 

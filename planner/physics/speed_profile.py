@@ -1,4 +1,4 @@
-"""On-board maximum-speed profile and braking curves (DESIGN §2, §3).
+"""On-board maximum-speed profile and braking curves (docs/design.md §2, §3).
 
 Positions here are *running distances* ``s`` [m]: metres from the departure
 stop marker, increasing in the running direction, so ``chainage = x0 + σ s``

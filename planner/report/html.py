@@ -1,4 +1,4 @@
-"""The margin-time report as one self-contained HTML page (DESIGN §6, §9).
+"""The margin-time report as one self-contained HTML page (docs/design.md §6, §9).
 
 :func:`render_html` turns a :class:`planner.report.margins.MarginReport` into a
 single HTML document that needs no network: inline CSS, charts as inline SVG

@@ -116,7 +116,7 @@ MARGINS_SCHEMA = declare(
         ("note", pa.string(), "anything unusual about the row, else empty"),
     ],
     name="margins",
-    description="Margin-time report: minimum, scheduled and degraded running times per leg and scheduled time (DESIGN §6).",
+    description="Margin-time report: minimum, scheduled and degraded running times per leg and scheduled time (docs/design.md §6).",
 )
 
 MARGIN_TOTALS_SCHEMA = declare(
@@ -160,7 +160,7 @@ MARGIN_TOTALS_SCHEMA = declare(
     ],
     name="margin_totals",
     description="Margin totals at three levels, told apart by `level`: per train, per direction x train type "
-                "and per direction (DESIGN §6). Each level counts every train run once; filter on one level "
+                "and per direction (docs/design.md §6). Each level counts every train run once; filter on one level "
                 "before summing.",
 )
 SCHEMAS = {"margins": MARGINS_SCHEMA, "margin_totals": MARGIN_TOTALS_SCHEMA}

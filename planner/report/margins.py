@@ -1,4 +1,4 @@
-"""Margin-time report: how much running-time supplement each interstation has, and how much it needs (DESIGN §6).
+"""Margin-time report: how much running-time supplement each interstation has, and how much it needs (docs/design.md §6).
 
 A timetable grants each run from one stop to the next a *scheduled running
 time* (arrival at the next stop − departure). This module compares it with
@@ -66,7 +66,7 @@ What each row holds, and how
   ``degraded_loss_stop_s`` is the effect of the adhesion and the approach speed
   alone (no change of stop model hides in it); ``adhesion_loss_s`` is the growth of the
   pattern duration from the highest to the lowest adhesion of the sweep at
-  the nominal approach speed (DESIGN §5: "the margin report uses the growth
+  the nominal approach speed (docs/design.md §5: "the margin report uses the growth
   in stopping time").
 * **remaining margin** = scheduled − degraded minimum [s].
 * **supplement required** by the rule (:class:`MarginRule`, configurable in

@@ -1,4 +1,4 @@
-"""A station approach as the stopping control meets it: where it starts, and its limits (DESIGN §5).
+"""A station approach as the stopping control meets it: where it starts, and its limits (docs/design.md §5).
 
 One definition, used by the stopping-pattern sweep (:mod:`planner.stopping.sweep`), the
 margin report (:mod:`planner.report.margins`) and so by the on-board bundles (which

@@ -1,4 +1,4 @@
-"""The backward event-point construction of a stopping pattern, compiled (DESIGN §5).
+"""The backward event-point construction of a stopping pattern, compiled (docs/design.md §5).
 
 The four motions built backwards from the stop, the fixes of motion 4 and the
 choice of the entry deceleration at a speed step-down, exactly as the method

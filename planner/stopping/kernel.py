@@ -1,4 +1,4 @@
-"""One stop solved in compiled code: checks, regions, construction, forward breakpoints (DESIGN §5).
+"""One stop solved in compiled code: checks, regions, construction, forward breakpoints (docs/design.md §5).
 
 :func:`kernel` is what :func:`planner.stopping.pattern.solve_stop` calls: it
 checks the request, builds the regions of the backward frame, runs the

@@ -1,4 +1,4 @@
-"""Minimum-time, jerk-limited stopping patterns with position-dependent limits (DESIGN §5).
+"""Minimum-time, jerk-limited stopping patterns with position-dependent limits (docs/design.md §5).
 
 The station stop is solved as a one-dimensional optimal-control problem on the
 train front, all in SI:
@@ -10,7 +10,7 @@ with ``A`` and ``v_lim`` step functions of position. Powering to hold speed (a >
 gradient) would be allowed; this module keeps ``a <= 0`` throughout, the stricter "no
 re-acceleration" reading, so every pattern here is also admissible under the looser one.
 
-Method (the event-point method of DESIGN §5)
+Method (the event-point method of docs/design.md §5)
 -------------------------------------------
 The trajectory is piecewise constant jerk, each piece a cubic in time::
 
@@ -70,7 +70,7 @@ tests). Where the deceleration limit falls, meeting it with equality at the
 event point is best for the parts on both sides; an independent time-discretised
 MILP agrees within its discretisation error on such cases.
 
-Speed step-downs (the true minimum, DESIGN §5). Speed falls, so a step-down
+Speed step-downs (the true minimum, docs/design.md §5). Speed falls, so a step-down
 to ``C`` is the point constraint ``v <= C`` at its start. The paper's rule meets
 it with ``a = 0``; the optimum enters still braking with some ``b_s`` (a free
 variable), eases off inside to ``b_m`` and brakes on: ``b_m = 0`` with a cruise
@@ -91,7 +91,7 @@ choice), :mod:`planner.stopping.pieces` (closed forms and roots of a piece). The
 (``planner kernels build``, :mod:`planner.io.compiled`); without a build they compile on the first
 solve of a process, some seconds (``benchmarks/bench_stopping.py``); a solve then costs microseconds.
 
-References: DESIGN §5 (event-point constant-jerk stopping pattern method).
+References: docs/design.md §5 (event-point constant-jerk stopping pattern method).
 """
 from __future__ import annotations
 
@@ -442,7 +442,7 @@ def solve_stop(
 
     Notes
     -----
-    The event-point method of DESIGN §5, built backwards from the stop (see the
+    The event-point method of docs/design.md §5, built backwards from the stop (see the
     module docstring for the construction and why it is minimum-time). Exact:
     every switching point solves its cubic (or lower) equation to machine
     precision; there is no time grid. Acceleration stays ``<= 0`` throughout.

@@ -1,4 +1,4 @@
-"""Constant-jerk pieces of a stopping pattern: closed forms and roots, compiled (DESIGN §5).
+"""Constant-jerk pieces of a stopping pattern: closed forms and roots, compiled (docs/design.md §5).
 
 The scalar arithmetic under :mod:`planner.stopping.construct`: the state after
 a time on a piece, the time to reach a speed or a position, the residuals whose

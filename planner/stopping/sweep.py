@@ -1,4 +1,4 @@
-"""Stopping patterns for every station approach of a line, over a sweep of adhesion levels (DESIGN §5).
+"""Stopping patterns for every station approach of a line, over a sweep of adhesion levels (docs/design.md §5).
 
 The nightly job solves, for every arrival of every interstation, direction and
 train type, the minimum-time jerk-limited stopping pattern of

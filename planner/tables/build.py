@@ -1,4 +1,4 @@
-"""Running-time tables (a) and (b) for every interstation, direction and train type (DESIGN §3).
+"""Running-time tables (a) and (b) for every interstation, direction and train type (docs/design.md §3).
 
 Table (a): for every grid ratio r, the running time departure → arrival at
 constant r (and the traction energy). Table (b): for every evaluation point X
@@ -263,7 +263,7 @@ def interstation_tables(
         every this many seconds of running at the leg's maximum
         (:func:`planner.tables.eval_points.train_evaluation_points`); None: none.
     load, traction_factor : float
-        Conditions the tables assume (DESIGN: load 0, traction 1.0).
+        Conditions the tables assume (docs/design.md §3: load 0, traction 1.0).
     ref_load, ref_traction_factor : float
         Load and traction factor of the reference train of tables (c) and (d).
 

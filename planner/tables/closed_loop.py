@@ -1,4 +1,4 @@
-"""Closed-loop proof of the tables: the on-board logic driving the simulated train (DESIGN §3).
+"""Closed-loop proof of the tables: the on-board logic driving the simulated train (docs/design.md §3).
 
 For every interstation, direction and train type, and for designated running
 times from the minimum (table (a) at ratio 1.0, rounded up to the second) to
@@ -43,7 +43,7 @@ Mode dispatch
 -------------
 A mode name maps to a *runner* in :data:`MODE_RUNNERS`. Every table mode of
 :data:`planner.tables.onboard.CHOOSERS` is run by :func:`table_runner`; the
-time-keeping mode (DESIGN §4, :mod:`planner.tables.timekeeping`) drives the same
+time-keeping mode (docs/design.md §4, :mod:`planner.tables.timekeeping`) drives the same
 integrator with its own controller; other modes register a runner with
 :func:`register_runner`.
 
@@ -65,7 +65,7 @@ from planner.tables.onboard import CHOOSERS, RunningTimeTables, chooser, make_co
 from planner.tables.timekeeping import closed_loop_runner as _timekeeping_runner
 
 DEFAULT_EXTRA_S = 60.0
-"""Sweep designated times up to the minimum + this [s] (DESIGN §3)."""
+"""Sweep designated times up to the minimum + this [s] (docs/design.md §3)."""
 DEFAULT_STEP_S = 1.0
 """Step of the designated-time sweep [s]."""
 FEASIBLE_TOL_S = 1e-6

@@ -1,4 +1,4 @@
-"""The cruise speed that arrives on time (DESIGN §4): pure target-speed functions.
+"""The cruise speed that arrives on time (docs/design.md §4): pure target-speed functions.
 
 From the remaining time t_d and distance x_d and the stopping deceleration β:
 :func:`cruise_speed` (the closed form of §4), :func:`braking_pattern_speed`,
@@ -58,7 +58,7 @@ def braking_pattern_speed(x_d, beta):
     """Speed of the constant-deceleration stopping pattern onto the marker.
 
     ``v_t = sqrt(2 β x_d)``: the highest speed at remaining distance ``x_d``
-    from which braking at ``β`` still stops at the marker (DESIGN §4).
+    from which braking at ``β`` still stops at the marker (docs/design.md §4).
 
     Parameters
     ----------
@@ -86,7 +86,7 @@ def cruise_speed(t_d, x_d, beta) -> CruiseTarget:
 
     Running at v_m and braking at β onto the marker covers the cruise part
     x_d − v_m²/(2β) in (x_d − v_m²/(2β))/v_m and the braking part in v_m/β, so
-    arriving after exactly t_d means (DESIGN §4)
+    arriving after exactly t_d means (docs/design.md §4)
 
         x_d − v_m²/(2β) = v_m (t_d − v_m/β)
         ⇔  v_m²/(2β) − t_d v_m + x_d = 0
@@ -322,7 +322,7 @@ def cruise_speed_limited(t_d, s_m, vmax_ms, beta, *, v0_ms: float | None = None,
     accel_ms2 : float, optional
         Acceleration [m/s²] (> 0) the train will use to get up from v0 to
         the cruise speed. Omit for an instant change (the plain model of
-        DESIGN §4).
+        docs/design.md §4).
     decel_ms2 : float or sequence of float, optional
         Deceleration(s) [m/s²] (> 0) for getting down from v0, tried in
         order (e.g. a gentle trim, then the service brake): the first with

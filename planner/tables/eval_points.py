@@ -1,4 +1,4 @@
-"""Evaluation points: where the on-board logic re-evaluates the remaining time (DESIGN §3).
+"""Evaluation points: where the on-board logic re-evaluates the remaining time (docs/design.md §3).
 
 There are two kinds of points: points the vehicle finds by its **odometer**
 (running distance since the departure stop marker, corrected at beacons) and
@@ -57,7 +57,7 @@ from planner.errors import InputError
 from planner.line.model import Line, sign
 
 DEFAULT_AFTER_DEPARTURE_M = 200.0
-"""Default distance of the point after departure [m] (DESIGN §3)."""
+"""Default distance of the point after departure [m] (docs/design.md §3)."""
 DEFAULT_INTERVAL_M = None
 """Default interval of the odometer points: none (beacons only, as before issue 22)."""
 DEFAULT_AUTO_S = 30.0

@@ -1,4 +1,4 @@
-"""The on-board ratio choice: pick the target-speed ratio from the running-time tables (DESIGN §3).
+"""The on-board ratio choice: pick the target-speed ratio from the running-time tables (docs/design.md §3).
 
 This is the logic the vehicle runs. It sees **only the tables** (table (a),
 table (b) and the evaluation points, as read from the Parquet datasets by
@@ -295,7 +295,7 @@ def grid_index(ratios: np.ndarray, ratio: np.ndarray) -> np.ndarray:
 
 
 class NearestRule:
-    """The published nearest-time rule (DESIGN §3); chooses grid ratios only."""
+    """The published nearest-time rule (docs/design.md §3); chooses grid ratios only."""
 
     name = "nearest"
 

@@ -1,4 +1,4 @@
-"""The target-speed ratio grid (DESIGN §3).
+"""The target-speed ratio grid (docs/design.md §3).
 
 The on-board logic drives at a target speed ``ratio × maximum speed(x)``. The
 tables are computed for a finite set of ratios, from 100 % down until
@@ -43,7 +43,7 @@ from planner.errors import InputError
 from planner.line.units import KMH
 
 MIN_TARGET_SPEED_MS = 20.0 * KMH
-"""Default minimum target speed [m/s] (20 km/h, DESIGN §3)."""
+"""Default minimum target speed [m/s] (20 km/h, docs/design.md §3)."""
 DEFAULT_SPEC = "1.0:0.7:0.1,0.7:floor:0.05"
 """Default grid: 10 % steps down to 70 %, then 5 % steps down to the floor."""
 DECIMALS = 6

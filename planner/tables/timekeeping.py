@@ -1,4 +1,4 @@
-"""Time-keeping driver support: the cruise speed that arrives on time (DESIGN §4).
+"""Time-keeping driver support: the cruise speed that arrives on time (docs/design.md §4).
 
 A continuous on-board support method, an alternative to the ratio tables of
 §3: from the remaining time t_d and remaining distance x_d, and the stopping
@@ -175,7 +175,7 @@ class DriveResult:
 
 
 class TimekeepingController:
-    """The time-keeping on-board logic (DESIGN §4) as a controller of :func:`planner.physics.run_curve.simulate`.
+    """The time-keeping on-board logic (docs/design.md §4) as a controller of :func:`planner.physics.run_curve.simulate`.
 
     It knows what a vehicle knows: the track from its DB, its **own nominal
     model** of the train (``model`` at ``model_load`` and ``model_traction``),
@@ -463,7 +463,7 @@ def _check_schedule(arrival_s: float, changes) -> list[tuple[float, float]]:
 def drive(track, train, arrival_s: float, *, changes=(), load: float = 0.0,
           traction_factor: float = 1.0, recompute_s: float = RECOMPUTE_S, recompute_m: float = RECOMPUTE_M,
           model_load: float = 0.0, model_traction: float = 1.0) -> DriveResult:
-    """One train driven by the time-keeping logic in the one integrator (DESIGN §4).
+    """One train driven by the time-keeping logic in the one integrator (docs/design.md §4).
 
     The on-board logic is a :class:`TimekeepingController` with the vehicle's
     nominal model of itself (``model_load``, ``model_traction``); the plant is
