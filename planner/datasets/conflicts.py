@@ -256,7 +256,7 @@ def conflict_list(conflicts) -> pd.DataFrame:
     resource of it), ``station_id``, ``track``, ``from_m``, ``to_m``. The CLI,
     the margin report and the train graph list conflicts from this.
     """
-    con = _with_place(conflicts)
+    con = with_place(conflicts)
     c = con.groupby("conflict_id", sort=True).agg(
         train_a=("train_a", "first"), train_b=("train_b", "first"), rule=("rule", "first"),
         decision=("decision", "first"), delay_s=("delay_s", "first"), deadlock=("deadlock", "first"),
@@ -289,7 +289,7 @@ def largest(c: pd.DataFrame, n: int) -> pd.DataFrame:
     return worst.drop(columns="_d").sort_values("t0", kind="stable")
 
 
-def _with_place(conflicts) -> pd.DataFrame:
+def with_place(conflicts) -> pd.DataFrame:
     """The rows with the place columns; a run written before they existed gets them empty."""
     con = conflicts
     missing = {"track": "", "station_id": "", "station_name": "", "station_distance_m": 0.0,
