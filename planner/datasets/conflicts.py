@@ -263,7 +263,7 @@ def conflict_list(conflicts) -> pd.DataFrame:
         overlap_s=("overlap_s", "max"), resource=("resource_id", "first"), interlocking=("interlocking", "first"),
         t0=("overlap_start_s", "min"), t1=("overlap_end_s", "max"), n=("resource_id", "size"),
         station_id=("station_id", "first"), station_name=("station_name", "first"),
-        station_distance_m=("station_distance_m", "min"), track=("track", "first"),
+        station_distance_m=("station_distance_m", "first"), track=("track", "first"),
         from_m=("from_m", "min"), to_m=("to_m", "max"))
     c["place"] = [place_text(r) for r in c.itertuples()]
     # headways of the resource that needs the longest wait (min_headway − headway largest): the one behind the delay
