@@ -115,3 +115,17 @@ def test_largest_delays_break_ties_by_time_not_by_round_off():
     s = _summary([], [], [], pd.DataFrame(rows))
     assert (s["conflicts"], s["pairs"], s["resources"]) == (16, 16, 1)
     assert [x.split(":")[0] for x in s["worst"]] == ["#1", "#2", "#3", "#4", "#10"]
+
+
+def test_a_conflict_that_appears_says_where(rep):
+    from planner.report.changes import LineChanges, _conflict_changes
+
+    ch = LineChanges("test", "r1", "r2")
+    _conflict_changes(ch, rep.conflicts.iloc[0:0], rep.conflicts[rep.conflicts.conflict_id == 2])
+    (row,) = ch.of("conflict")
+    assert row["detail"].startswith("conflict T2 before T3 at J-c (Station 2 (S2) track M, km 0.500–2.000) appeared")
+    # a run written before the place columns existed: the resource alone, no error
+    old = rep.conflicts.drop(columns=["station_id", "station_name", "station_distance_m", "track"])
+    ch = LineChanges("test", "r1", "r2")
+    _conflict_changes(ch, old.iloc[0:0], old[old.conflict_id == 2])
+    assert ch.of("conflict")[0]["detail"].startswith("conflict T2 before T3 at J-c appeared")
