@@ -21,7 +21,8 @@ def conflicts(
     curve_mode: str = typer.Option("match", "--curve-mode", help="`match`: ratio meeting the schedule; `stretch`: ratio 1.0 stretched."),
     jobs: int = typer.Option(1, "--jobs", help="Worker processes for the run-curve simulations (-1 = all cores)."),
 ) -> None:
-    """Route every train, predict its occupation windows and report conflicts with priority decisions."""
+    """Route every train, predict its occupation windows and report conflicts (station, track, km) with priority
+    decisions, and the minimum headway on every section and switch."""
     from rich.progress import Progress
 
     from .. import load_line

@@ -23,6 +23,12 @@ The delay imposed on the other train is how far its windows must move so
 that each starts after the first train's window on the same resource ends
 (for the usual case exactly the overlap). Delays are not propagated to later
 conflicts: the report lists each conflict of the timetable as planned.
+
+Each record also says where the resource is (station, track, chainage extent:
+:meth:`TrackGraph.resource_station`) and the two trains' headway there (the
+time between their windows opening) against the minimum headway (the first
+train's blocking time), defined in :mod:`planner.network.headways`. Conflicts
+are numbered from 1 in time order.
 """
 from __future__ import annotations
 
