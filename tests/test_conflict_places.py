@@ -129,3 +129,32 @@ def test_a_conflict_that_appears_says_where(rep):
     ch = LineChanges("test", "r1", "r2")
     _conflict_changes(ch, old.iloc[0:0], old[old.conflict_id == 2])
     assert ch.of("conflict")[0]["detail"].startswith("conflict T2 before T3 at J-c appeared")
+
+
+def test_headways_dataset_is_written_with_its_schema(rep, tmp_path):
+    import pyarrow.parquet as pq
+
+    from planner.datasets.conflicts import HEADWAYS_SCHEMA, write_conflicts
+
+    write_conflicts(rep, tmp_path / "a")
+    write_conflicts(rep, tmp_path / "b")
+    f = tmp_path / "a" / "headways" / "line=test" / "part-0.parquet"
+    assert f.read_bytes() == (tmp_path / "b" / "headways" / "line=test" / "part-0.parquet").read_bytes()
+    t = pq.read_table(f)
+    assert t.num_rows == 3 and t.column_names == [x.name for x in HEADWAYS_SCHEMA]
+    assert t.schema.field("min_headway_s").metadata[b"description"]
+    c = pq.read_table(tmp_path / "a" / "conflicts" / "line=test" / "part-0.parquet").to_pandas()
+    assert {"station_id", "station_name", "station_distance_m", "track", "headway_s", "min_headway_s"} <= set(c.columns)
+
+
+def test_graph_page_of_a_run_written_before_the_place_columns(rep):
+    from planner.report.train_graph import GraphData
+    from planner.report.train_graph_page import page_payload
+
+    old = rep.conflicts.drop(columns=["station_id", "station_name", "station_distance_m", "track",
+                                      "headway_s", "min_headway_s"])
+    data = GraphData("test", "Test", 0.0, 2000.0, [], [], None, old)
+    cons = page_payload(data)["conflicts"]
+    assert len(cons) == 3 and all(c[11] == "" and c[12] is None for c in cons)
+    new = page_payload(GraphData("test", "Test", 0.0, 2000.0, [], [], None, rep.conflicts))["conflicts"]
+    assert new[-1][11] == "Station 2 (S2) track M, km 0.500–2.000" and new[-1][12:] == [100, 110]
