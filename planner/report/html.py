@@ -336,7 +336,7 @@ def conflicts_section(report) -> str:
                        f"<td class='l'>{_e(r.resource)}</td>"
                        f"<td class='l'>{_e(r.interlocking)}</td><td>{r.n}</td><td>{r.overlap_s:.1f}</td>"
                        + "".join(f"<td>{v:.1f}</td>" if v == v else "<td>–</td>" for v in (r.headway_s, r.min_headway_s))
-                       + f"<td>{r.delay_s:.1f}</td><td class='l'>{_e(r.rule)}</td><td class='l'>{_e(r.decision)}</td></tr>")
+                       + f"<td>{r.delay_s:.1f}</td><td class='l'>{_e(r.rule)}</td><td class='l' style='white-space:normal;min-width:16em'>{_e(r.decision)}</td></tr>")
         out.append("</table></div>")
         return "\n".join(out)
 

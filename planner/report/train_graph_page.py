@@ -373,7 +373,7 @@ svg.addEventListener("mousemove", ev => {
 svg.addEventListener("mouseleave", () => { tip.style.display = "none"; st.hover = null; highlight(null, "hov"); });
 svg.addEventListener("click", ev => {
   const box = ev.target.closest && ev.target.closest("rect.conflict");
-  if (box) selectConflict(+box.dataset.cid, true); else select(st.hover ? st.hover.id : null);
+  if (box) { tip.style.display = "none"; selectConflict(+box.dataset.cid, true); } else select(st.hover ? st.hover.id : null);
 });
 svg.addEventListener("wheel", ev => {
   ev.preventDefault();
