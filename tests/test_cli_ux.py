@@ -249,7 +249,10 @@ def test_conflict_listing_in_time_order_without_plus_zero():
                                           (500.0, 2.0, 1), (600.0, 9.0, 1), (700.0, 0.5, 1)]):
         for k in range(n):
             rows.append(dict(conflict_id=cid, train_a=f"A{cid}", train_b=f"B{cid}", rule="follow", delay_s=delay,
-                             deadlock=False, overlap_s=1.0, resource_id=f"R{cid}-{k}", overlap_start_s=t0 + k))
+                             deadlock=False, overlap_s=1.0, resource_id=f"R{cid}-{k}", overlap_start_s=t0 + k,
+                             overlap_end_s=t0 + k + 1.0, decision="", resource_kind="section", interlocking="IXL",
+                             track="D1", station_id="S", station_name="Sta", station_distance_m=0.0,
+                             from_m=100.0 * k, to_m=100.0 * k + 50.0, headway_s=1.0, min_headway_s=2.0))
     s = _summary([], [], [], pd.DataFrame(rows))
     ids = [int(x.split(":")[0].lstrip("#")) for x in s["worst"]]
     assert ids == sorted(ids) == [0, 1, 3, 4, 5]  # the five largest delays, in time order
@@ -264,7 +267,7 @@ def test_conflicts_command_output_has_no_plus_zero(tmp_path):
     line = write_line_db(tmp_path / "tiny", nodes=NODES, edges=EDGES, timetable=timetable(21900.0))
     r = run("conflicts", line, "--out", tmp_path / "out")
     assert r.exit_code == 0, r.output
-    assert "#0: 101 before 202" in r.stdout and "(+" not in r.stdout
+    assert "#1: 101 before 202" in r.stdout and "(+" not in r.stdout
 
 
 def test_an_os_error_while_writing_is_one_line(tmp_path, monkeypatch):

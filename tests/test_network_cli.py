@@ -48,6 +48,12 @@ def test_cli_reports_the_single_track_deadlock_and_writes_datasets(tmp_path):
     assert "2 trains routed" in r.stdout and "deadlocks avoided: 1" in r.stdout
     c = ds.dataset(out / "conflicts", partitioning="hive").to_table().to_pandas()
     assert c["deadlock"].all() and c["conflict_id"].nunique() == 1
+    # the printed counts are the dataset's: conflicts, train pairs and distinct resources (not rows)
+    n_res = c["resource_id"].nunique()
+    on = "1 resource" if n_res == 1 else f"{n_res} resources"
+    assert f"conflicts: 1 conflict between 1 train pair on {on};" in r.stdout
+    assert list(c["conflict_id"].unique()) == [1] and "#1: 101 before 202 at " in r.stdout
+    assert all(c["station_id"].isin(["A", "B", "C"])) and "km " in r.stdout
     # 101 leaves the stretch first (arrives C 22100 < 202 leaving it near A); 202 waits at C.
     assert set(c["train_a"]) == {"101"} and set(c["train_b"]) == {"202"}
     occ = ds.dataset(out / "occupation", partitioning="hive").to_table().to_pandas()

@@ -75,14 +75,18 @@ def test_flagged_rows_first(page):
 
 
 def test_conflicts_section(report, line):
-    con = pd.DataFrame([dict(line="test", conflict_id=0, train_a="L1", train_b="R1", direction_a="down",
+    con = pd.DataFrame([dict(line="test", conflict_id=1, train_a="L1", train_b="R1", direction_a="down",
                              direction_b="down", resource_kind="section", resource_id="E1", interlocking="IXL1",
+                             track="D1", station_id="S0", station_name="Start", station_distance_m=0.0,
                              from_m=0.0, to_m=100.0, a_start_s=10.0, a_end_s=50.0, b_start_s=40.0, b_end_s=90.0,
-                             overlap_start_s=40.0, overlap_end_s=50.0, overlap_s=10.0, rule="timetable-order",
+                             overlap_start_s=40.0, overlap_end_s=50.0, overlap_s=10.0, headway_s=30.0,
+                             min_headway_s=40.0, rule="timetable-order",
                              decision="L1 first", delay_s=10.0, deadlock=False, stretch="")])
     page = render_html(dataclasses.replace(report, conflicts=con), stop_markers(line))
     sec = page[page.index("<h2>Route conflicts</h2>"):]
-    assert "1 conflicts between 1 pairs of trains (1 timetable-order)" in sec
+    assert "1 conflict between 1 pairs of trains on 1 resource (1 timetable-order)" in sec
+    assert "Start (S0) track D1, km 0.000–0.100" in sec  # where: station, track, km
+    assert "<td>30.0</td><td>40.0</td>" in sec  # headway, minimum headway
     assert "L1 first" in sec
     page = render_html(dataclasses.replace(report, conflicts=None, conflicts_note="no network"), stop_markers(line))
     assert "Not checked: no network" in page

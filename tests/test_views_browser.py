@@ -151,3 +151,42 @@ def _page(tmp_path: Path, body: str) -> Path:
     p.write_text("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>c</title></head><body>"
                  + body + "</body></html>")
     return p
+
+
+def test_graph_page_conflict_box_is_visible_and_a_click_shows_both_stairways_and_the_overlap(browser, tmp_path):
+    from planner.report.train_graph import CONFLICT_COLOUR, COLOURS, graph_data
+    from planner.report.train_graph_page import write_page
+    from test_conflict_places import three_trains
+    from test_network import P, const_curves
+
+    line = three_trains()  # T1/T2 conflict on J and J–c (#1), T2/T3 on J–c (#2)
+    data = graph_data(line, params=P, curves=const_curves(line))
+    page = browser.open(write_page(data, tmp_path / "g.html"))
+    _clean(page)
+    assert CONFLICT_COLOUR not in COLOURS.values()
+    boxes = page.eval("[...document.querySelectorAll('rect.conflict')].map(r => { const b = r.getBoundingClientRect();"
+                      " return [+r.dataset.cid, b.width, b.height, b.left + b.width / 2, b.top + b.height / 2]; })")
+    assert sorted(b[0] for b in boxes) == [1, 1, 2]
+    assert all(w >= 11.5 and h >= 11.5 for _, w, h, _, _ in boxes)  # at least 12 px a side, whatever the zoom
+    # a real pointer over conflict #2's box: the tooltip is the conflict's, with where it is
+    _, _, _, x, y = next(b for b in boxes if b[0] == 2)
+    page.mouse(x, y)
+    tip = page.eval("document.getElementById('tip').innerText")
+    assert "#2: T2 before T3 at J-c" in tip and "Station 2 (S2) track M, km 0.500–2.000" in tip
+    page.mouse(x, y, "click")
+    assert page.eval("document.getElementById('selinfo').textContent").startswith("#2: T2 before T3 at J-c")
+    # both stairways: every window of T2 (first) and of T3 (waits), and the overlap on J–c
+    stairs = page.eval("[...document.querySelectorAll('#stair rect.window')].map(r => r.dataset.train + ' ' + r.getAttribute('class'))")
+    n = data.windows.groupby("train_id").size()
+    assert stairs.count("T2 window a") == n["T2"] and stairs.count("T3 window b") == n["T3"] and len(stairs) == n["T2"] + n["T3"]
+    ov = page.eval("[...document.querySelectorAll('#stair rect.overlap')].map(r => [+r.dataset.t0, +r.dataset.t1, +r.dataset.x0, +r.dataset.x1])")
+    assert ov == [[110, 120, 500, 2000]]  # T3 opens J–c at 110 s, T2 closes it at 120 s (module doc of test_conflict_places)
+    assert page.eval("location.hash") == "#conflict=2"
+    assert page.eval("[...document.querySelectorAll('#highlight path')].map(p => p.getAttribute('class')).sort()") == ["sel", "sel2"]
+    # a click on a train afterwards shows that train's stairway alone again
+    page.eval("select('T1')")
+    assert page.eval("document.querySelectorAll('#stair rect.b, #stair rect.overlap').length") == 0
+    # the page opened at #conflict=1 selects it
+    page = browser.open(f"{(tmp_path / 'g.html').resolve().as_uri()}#conflict=1")
+    assert page.eval("document.getElementById('selinfo').textContent").startswith("#1: T1 before T2 at J and 1 more")
+    assert page.errors == []

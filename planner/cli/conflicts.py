@@ -12,7 +12,7 @@ from . import app
 @app.command()
 def conflicts(
     line_dir: Path = typer.Argument(..., help="Line database folder with nodes.parquet and edges.parquet."),
-    out: Path = typer.Option(..., "--out", help="Output folder; writes conflicts/ and occupation/ datasets."),
+    out: Path = typer.Option(..., "--out", help="Output folder; writes conflicts/, headways/ and occupation/ datasets."),
     job: Optional[Path] = typer.Option(None, "--job", help="Job file whose [conflicts] table gives the parameters."),
     setting_s: Optional[float] = typer.Option(None, "--setting-s", help="Route setting time in s (default 10)."),
     approach_s: Optional[float] = typer.Option(None, "--approach-s", help="Sight/reaction + approach time in s (default 20)."),
@@ -21,7 +21,8 @@ def conflicts(
     curve_mode: str = typer.Option("match", "--curve-mode", help="`match`: ratio meeting the schedule; `stretch`: ratio 1.0 stretched."),
     jobs: int = typer.Option(1, "--jobs", help="Worker processes for the run-curve simulations (-1 = all cores)."),
 ) -> None:
-    """Route every train, predict its occupation windows and report conflicts with priority decisions."""
+    """Route every train, predict its occupation windows and report conflicts (station, track, km) with priority
+    decisions, and the minimum headway on every section and switch."""
     from .progress import bar as progress_bar
 
     from .. import load_line
@@ -66,4 +67,4 @@ def conflicts(
     files = write_conflicts(report, out)
     for msg in report.summary_lines():
         typer.echo(msg)
-    typer.echo(f"  wrote {len(files)} files under {out} (conflicts/, occupation/)")
+    typer.echo(f"  wrote {len(files)} files under {out} (conflicts/, headways/, occupation/)")

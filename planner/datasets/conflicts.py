@@ -1,4 +1,4 @@
-"""The ``conflicts`` and ``occupation`` datasets of the conflict check, its summary, and their writer.
+"""The ``conflicts``, ``headways`` and ``occupation`` datasets of the conflict check, its summary, and their writer.
 
 Takes a :class:`~planner.network.check.ConflictCheck` (computed by
 :func:`planner.network.check.check_timetable`); gives a
@@ -45,7 +45,7 @@ OCCUPATION_SCHEMA = declare([
     ("end_s", pa.float64(), "window closes: clear + release [s after midnight]"),
 ], name="occupation", description="Blocking-time occupation windows of every train on every switch and section of its route")
 CONFLICTS_SCHEMA = declare([
-    ("conflict_id", pa.int32(), "conflict number, in time order; rows of one conflict share it"),
+    ("conflict_id", pa.int32(), "conflict number, from 1 in time order; rows of one conflict share it"),
     ("train_a", pa.string(), "train that goes first by the decision"),
     ("train_b", pa.string(), "train that waits"),
     ("direction_a", pa.string(), "running direction of train_a"),
@@ -53,6 +53,10 @@ CONFLICTS_SCHEMA = declare([
     ("resource_kind", pa.string(), "`node` (a switch) or `section` (a track piece, edge)"),
     ("resource_id", pa.string(), "node_id or edge_id"),
     ("interlocking", pa.string(), "interlocking controlling the resource"),
+    ("track", pa.string(), "track name of the section, or of the switch"),
+    ("station_id", pa.string(), "station the resource is named by: the one whose position (stations.parquet position_m) is nearest to the resource's extent from_m..to_m"),
+    ("station_name", pa.string(), "name of that station"),
+    ("station_distance_m", pa.float64(), "distance from the station's position to the nearer end of the resource's extent; 0 when the extent spans it [m]"),
     ("from_m", pa.float64(), "lower chainage of the resource [m]"),
     ("to_m", pa.float64(), "upper chainage of the resource [m]"),
     ("a_start_s", pa.float64(), "train_a's window opens [s after midnight]"),
@@ -62,21 +66,42 @@ CONFLICTS_SCHEMA = declare([
     ("overlap_start_s", pa.float64(), "start of the overlap of the two windows [s after midnight]"),
     ("overlap_end_s", pa.float64(), "end of the overlap [s after midnight]"),
     ("overlap_s", pa.float64(), "overlap of the two windows on this resource [s]"),
+    ("headway_s", pa.float64(), "headway as planned: b_start_s − a_start_s, the time between the two fronts entering the resource (both windows open setting + approach before the entry) [s]"),
+    ("min_headway_s", pa.float64(), "minimum headway: train_a's blocking time on the resource, a_end_s − a_start_s; train_b entering at least this much after train_a would not conflict here; min_headway_s − headway_s = a_end_s − b_start_s is the wait train_b needs on this resource [s]"),
     ("rule", pa.string(), "priority rule: `no-deadlock`, `timetable-order` or `leaves-first` (docs/design.md §8)"),
     ("decision", pa.string(), "who goes first and why"),
     ("delay_s", pa.float64(), "delay the decision imposes on train_b: shift that opens each of its windows after train_a's close [s]"),
     ("deadlock", pa.bool_(), "the two opposing trains would deadlock on a single-track stretch without the decision"),
     ("stretch", pa.string(), "for deadlocks: the single-track stretch first..last resource; else empty"),
 ], name="conflicts", description="Overlapping occupation windows of two trains, with the priority decision and the delay it causes")
+HEADWAYS_SCHEMA = declare([
+    ("resource_kind", pa.string(), "`node` (a switch) or `section` (a track piece, edge)"),
+    ("resource_id", pa.string(), "node_id or edge_id"),
+    ("interlocking", pa.string(), "interlocking controlling the resource"),
+    ("track", pa.string(), "track name of the section, or of the switch"),
+    ("station_id", pa.string(), "station the resource is named by: the one whose position (stations.parquet position_m) is nearest to the resource's extent from_m..to_m"),
+    ("station_name", pa.string(), "name of that station"),
+    ("station_distance_m", pa.float64(), "distance from the station's position to the nearer end of the resource's extent; 0 when the extent spans it [m]"),
+    ("from_m", pa.float64(), "lower chainage of the resource [m]"),
+    ("to_m", pa.float64(), "upper chainage of the resource [m]"),
+    ("n_trains", pa.int32(), "trains whose route uses the resource"),
+    ("train_a", pa.string(), "the earlier train of the tightest pair: of the trains whose window opens before train_b's, the one whose window closes last"),
+    ("train_b", pa.string(), "the following train of the tightest pair (the smallest buffer_s on this resource)"),
+    ("a_start_s", pa.float64(), "train_a's window opens [s after midnight]"),
+    ("headway_s", pa.float64(), "headway as planned: train_b's window opens this long after train_a's, the time between the two fronts entering the resource [s]"),
+    ("min_headway_s", pa.float64(), "minimum headway behind train_a: its blocking time on the resource (window close − open), the least headway at which train_b's window opens after train_a's closes [s]"),
+    ("buffer_s", pa.float64(), "headway_s − min_headway_s: free time between train_a's window closing and train_b's opening; negative: they overlap by this much (a conflict) [s]"),
+], name="headways", description="Minimum headway per switch and section: the tightest pair of following trains on each resource two or more trains use, its planned headway, minimum headway and buffer")
 
 
 @dataclass(frozen=True, eq=False)
 class ConflictReport:
     """Everything the conflict check found for one line.
 
-    ``conflicts`` and ``occupation`` are pandas DataFrames with the columns of
-    :data:`CONFLICTS_SCHEMA` and :data:`OCCUPATION_SCHEMA` (plus ``line``,
-    ``direction``, ``train_type`` partition columns).
+    ``conflicts``, ``occupation`` and ``headways`` are pandas DataFrames with
+    the columns of :data:`CONFLICTS_SCHEMA`, :data:`OCCUPATION_SCHEMA` and
+    :data:`HEADWAYS_SCHEMA` (plus ``line``, ``direction``, ``train_type``
+    partition columns).
     """
 
     line_id: str
@@ -85,24 +110,31 @@ class ConflictReport:
     conflicts: Any
     occupation: Any
     summary: dict[str, Any] = field(default_factory=dict)
+    headways: Any = None
 
     def summary_lines(self) -> list[str]:
         s = self.summary
         out = [
             f"line {self.line_id}: {s['trains']} trains routed, {s['windows']} occupation windows "
             f"({s['loops']} loop stops for overtaking)",
-            f"  conflicts: {s['conflicts']} between {s['pairs']} train pairs on {s['rows']} resources; "
-            f"deadlocks avoided: {s['deadlocks']}",
+            f"  conflicts: {_count(s['conflicts'], 'conflict')} between {_count(s['pairs'], 'train pair')} on "
+            f"{_count(s['resources'], 'resource')}; deadlocks avoided: {s['deadlocks']}",
         ]
         for rule, n in sorted(s["by_rule"].items()):
             out.append(f"    {rule}: {n}")
         out.append(f"  delay imposed: total {s['delay_total_s']:.1f} s, largest {s['delay_max_s']:.1f} s"
-                   + ("; the largest, in time order:" if s["worst"] else ""))
+                   + (f"; the {len(s['worst'])} largest (ties: the earliest), in time order:" if s["worst"] else ""))
         for row in s["worst"]:
             out.append(f"    {row}")
+        if s.get("tightest"):
+            out.append(f"  tightest headway: {s['tightest']}")
         for note in s["notes"]:
             out.append(f"  note: {note}")
         return out
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def check_conflicts(line: Line, params: BlockingParams | Mapping[str, Any] | None = None, *,
@@ -116,18 +148,21 @@ def check_conflicts(line: Line, params: BlockingParams | Mapping[str, Any] | Non
 
 
 def conflict_report(check: ConflictCheck) -> ConflictReport:
-    """The frames of the ``conflicts`` and ``occupation`` datasets, and the summary, of a conflict check."""
+    """The frames of the ``conflicts``, ``occupation`` and ``headways`` datasets, and the summary, of a check."""
     records = check.conflicts
     conflicts = pd.DataFrame.from_records(records, columns=[f.name for f in CONFLICTS_SCHEMA] if not records else None)
     if len(conflicts):
         conflicts = conflicts[[f.name for f in CONFLICTS_SCHEMA]].sort_values(
             ["conflict_id", "from_m", "resource_kind", "resource_id"], kind="stable").reset_index(drop=True)
     conflicts.insert(0, "line", check.line_id)
+    heads = pd.DataFrame.from_records(check.headways, columns=[f.name for f in HEADWAYS_SCHEMA])
+    heads = heads.sort_values(["from_m", "to_m", "resource_kind", "resource_id"], kind="stable").reset_index(drop=True)
+    heads.insert(0, "line", check.line_id)
     trains = list(check.trains)
     routes = [check.routes[t.train_id] for t in trains]
     occupation = _occupation_frame(check.graph, trains, routes, check.windows, check.params, check.line_id)
     return ConflictReport(check.line_id, check.params, check.routes, conflicts, occupation,
-                          _summary(trains, routes, check.windows, conflicts))
+                          _summary(trains, routes, check.windows, conflicts, heads), heads)
 
 
 def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingParams, line_id: str):
@@ -161,40 +196,107 @@ def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingPara
     return df.sort_values(["train_id", "seq"], kind="stable").reset_index(drop=True)
 
 
-def _summary(trains, routes, w: Windows, conflicts) -> dict[str, Any]:
+def _summary(trains, routes, w: Windows, conflicts, headways=None) -> dict[str, Any]:
     notes = [f"train {r.train_id}: {n}" for r in routes for n in r.notes]
     s: dict[str, Any] = {
         "trains": len(trains), "windows": int(len(w)),
         "loops": sum(len(r.loop_calls) for r in routes), "notes": notes,
-        "rows": int(len(conflicts)), "conflicts": 0, "pairs": 0, "deadlocks": 0,
-        "by_rule": {}, "delay_total_s": 0.0, "delay_max_s": 0.0, "worst": [],
+        "rows": int(len(conflicts)), "conflicts": 0, "pairs": 0, "resources": 0, "deadlocks": 0,
+        "by_rule": {}, "delay_total_s": 0.0, "delay_max_s": 0.0, "worst": [], "tightest": "",
     }
     if len(conflicts):
-        c = conflicts.groupby("conflict_id", sort=True).agg(
-            train_a=("train_a", "first"), train_b=("train_b", "first"), rule=("rule", "first"),
-            delay_s=("delay_s", "first"), deadlock=("deadlock", "first"), overlap_s=("overlap_s", "max"),
-            resource=("resource_id", "first"), t0=("overlap_start_s", "min"), n=("resource_id", "size"))
+        c = conflict_list(conflicts)
         s["conflicts"] = int(len(c))
-        s["pairs"] = int(len(c.groupby(["train_a", "train_b"]).size()))
+        s["pairs"] = int(len(c.groupby(["train_a", "train_b"]).size()))  # ordered as decided: who went first
+        s["resources"] = int(len(conflicts.groupby(["resource_kind", "resource_id"]).size()))
         s["deadlocks"] = int(c["deadlock"].sum())
         s["by_rule"] = {k: int(v) for k, v in c["rule"].value_counts().sort_index().items()}
         s["delay_total_s"] = float(c["delay_s"].sum())
         s["delay_max_s"] = float(c["delay_s"].max())
-        # the five largest delays, listed in time order (as the conflict ids run)
-        worst = c.sort_values(["delay_s", "t0"], ascending=[False, True], kind="stable").head(5)
-        worst = worst.sort_values(["t0"], kind="stable")
         s["worst"] = [
-            f"#{cid}: {r.train_a} before {r.train_b} at {r.resource}"
+            f"#{cid}: {r.train_a} before {r.train_b} at {r.resource} ({r.place})"
             + (f" and {r.n - 1} more resource{'s' if r.n > 2 else ''}" if r.n > 1 else "")
             + f" ~{_hms(r.t0)}, overlap {r.overlap_s:.1f} s, delay {r.delay_s:.1f} s [{r.rule}]"
-            for cid, r in worst.iterrows()
+            for cid, r in largest(c, 5).iterrows()
         ]
+    if headways is not None and len(headways):
+        h = headways.sort_values(["buffer_s", "from_m"], kind="stable").iloc[0]
+        s["tightest"] = (f"{h.resource_id} ({place_text(h)}): {h.train_b} {h.headway_s:.1f} s behind {h.train_a} "
+                         f"~{_hms(h.a_start_s)}, minimum headway {h.min_headway_s:.1f} s, buffer {h.buffer_s:+.1f} s")
     return s
 
 
 def _hms(t: float) -> str:
     t = int(round(t))
     return f"{t // 3600:02d}:{t // 60 % 60:02d}:{t % 60:02d}"
+
+
+def place_text(r) -> str:
+    """Where a resource is, as a planner says it: ``Takadai (TKD) track U1, km 11.100–11.405``.
+
+    ``r`` has the ``station_*``, ``track``, ``from_m`` and ``to_m`` columns of the
+    ``conflicts`` or ``headways`` dataset; a resource away from its station's
+    position says how far (``1.2 km from Ohashi (OHS)``).
+    """
+    km = f"km {r.from_m / 1000:.3f}" + (f"–{r.to_m / 1000:.3f}" if r.to_m > r.from_m else "")
+    d = float(r.station_distance_m)
+    st = f"{r.station_name} ({r.station_id})"
+    where = st if d < 0.5 else f"{d / 1000:.1f} km from {st}"
+    return f"{where}{' track ' + str(r.track) if r.track else ''}, {km}"
+
+
+def conflict_list(conflicts) -> pd.DataFrame:
+    """One row per conflict (index ``conflict_id``) from the ``conflicts`` dataset's rows (one per resource).
+
+    Columns: the pair, rule, decision, delay, deadlock; ``overlap_s`` (the
+    largest on a resource), ``t0`` (first overlap), ``n`` (resources), the
+    first resource (``resource``, ``interlocking``); ``headway_s`` and
+    ``min_headway_s`` of the resource that needs the longest wait; where it is:
+    ``place`` (:func:`place_text` of its first resource; km over every
+    resource of it), ``station_id``, ``track``, ``from_m``, ``to_m``. The CLI,
+    the margin report and the train graph list conflicts from this.
+    """
+    con = with_place(conflicts)
+    c = con.groupby("conflict_id", sort=True).agg(
+        train_a=("train_a", "first"), train_b=("train_b", "first"), rule=("rule", "first"),
+        decision=("decision", "first"), delay_s=("delay_s", "first"), deadlock=("deadlock", "first"),
+        overlap_s=("overlap_s", "max"), resource=("resource_id", "first"), interlocking=("interlocking", "first"),
+        t0=("overlap_start_s", "min"), t1=("overlap_end_s", "max"), n=("resource_id", "size"),
+        station_id=("station_id", "first"), station_name=("station_name", "first"),
+        station_distance_m=("station_distance_m", "first"), track=("track", "first"),
+        from_m=("from_m", "min"), to_m=("to_m", "max"))
+    c["place"] = [place_text(r) for r in c.itertuples()]
+    # headways of the resource that needs the longest wait (min_headway − headway largest): the one behind the delay
+    need = con["min_headway_s"] - con["headway_s"]
+    if need.notna().any():
+        k = need.fillna(-np.inf).groupby(con["conflict_id"]).idxmax()
+        c["headway_s"] = con.loc[k.to_numpy(), "headway_s"].to_numpy()
+        c["min_headway_s"] = con.loc[k.to_numpy(), "min_headway_s"].to_numpy()
+    else:
+        c["headway_s"] = c["min_headway_s"] = np.nan
+    return c
+
+
+def largest(c: pd.DataFrame, n: int) -> pd.DataFrame:
+    """The ``n`` largest delays of :func:`conflict_list`, listed in time order.
+
+    Delays equal to the 0.1 s they are printed with are ties, and of tied
+    conflicts the earliest are taken, so a day of identical conflicts lists its
+    first ones (the morning), not whichever round-off made a few microseconds larger.
+    """
+    key = c.assign(_d=c["delay_s"].round(1))
+    worst = key.sort_values(["_d", "t0"], ascending=[False, True], kind="stable").head(n)
+    return worst.drop(columns="_d").sort_values("t0", kind="stable")
+
+
+def with_place(conflicts) -> pd.DataFrame:
+    """The rows with the place columns; a run written before they existed gets them empty."""
+    con = conflicts
+    missing = {"track": "", "station_id": "", "station_name": "", "station_distance_m": 0.0,
+               "headway_s": np.nan, "min_headway_s": np.nan}
+    if any(k not in con.columns for k in missing):
+        con = con.assign(**{k: v for k, v in missing.items() if k not in con.columns})
+    return con
 
 
 def conflicts_table(line: Line, params: BlockingParams | Mapping[str, Any] | None = None, *,
@@ -210,10 +312,11 @@ def conflicts_table(line: Line, params: BlockingParams | Mapping[str, Any] | Non
 
 
 def write_conflicts(report: ConflictReport, out_dir) -> list:
-    """Write ``conflicts`` and ``occupation`` datasets under ``out_dir`` (hive-partitioned, atomic files).
+    """Write ``conflicts``, ``headways`` and ``occupation`` datasets under ``out_dir`` (hive-partitioned, atomic).
 
-    ``conflicts/line=L/part-0.parquet`` (a conflict can involve both directions,
-    so it is partitioned by line only) and
+    ``conflicts/line=L/part-0.parquet`` and ``headways/line=L/part-0.parquet``
+    (a conflict or a resource can involve both directions, so they are
+    partitioned by line only) and
     ``occupation/line=L/direction=D/train_type=T/part-0.parquet``.
     """
     occ_schema, con_schema = OCCUPATION_SCHEMA, CONFLICTS_SCHEMA
@@ -228,6 +331,16 @@ def write_conflicts(report: ConflictReport, out_dir) -> list:
         path = out / "conflicts" / f"line={report.line_id}" / "part-0.parquet"
         write_parquet_atomic(con_schema.empty_table(), path)
         written.append(path)
+    heads = report.headways
+    if heads is not None:
+        if len(heads):
+            written += write_partitioned(pa.Table.from_pandas(heads, preserve_index=False), out, "headways",
+                                         ("line",), schema=HEADWAYS_SCHEMA,
+                                         sort_by=("from_m", "to_m", "resource_kind", "resource_id"))
+        else:
+            path = out / "headways" / f"line={report.line_id}" / "part-0.parquet"
+            write_parquet_atomic(HEADWAYS_SCHEMA.empty_table(), path)
+            written.append(path)
     occ = report.occupation
     if len(occ):
         written += write_partitioned(pa.Table.from_pandas(occ, preserve_index=False), out, "occupation",

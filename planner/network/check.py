@@ -13,6 +13,7 @@ from typing import Any, Callable, Mapping
 
 from planner.line.model import Line, Train
 from planner.network.arrivals import RunCurveSource, SimulatorCurves, build_trajectory, interstation_keys
+from planner.network.headways import resource_headways
 from planner.network.priority import detect_conflicts
 from planner.network.routes import Route, TrackGraph, plan_routes
 from planner.network.windows import BlockingParams, Windows, occupation_windows
@@ -34,6 +35,8 @@ class ConflictCheck:
         Blocking-time windows of every train.
     conflicts : list of dict
         One record per (conflict, resource), from :func:`detect_conflicts`.
+    headways : list of dict
+        The tightest pair of following trains per resource, from :func:`resource_headways`.
     """
 
     line_id: str
@@ -43,6 +46,7 @@ class ConflictCheck:
     routes: dict[str, Route]
     windows: Windows
     conflicts: list[dict[str, Any]]
+    headways: list[dict[str, Any]]
 
 
 def check_timetable(line: Line, params: BlockingParams | Mapping[str, Any] | None = None, *,
@@ -85,4 +89,4 @@ def check_timetable(line: Line, params: BlockingParams | Mapping[str, Any] | Non
             progress(k + 1, len(trains))
     w = Windows.concat(parts)
     records = detect_conflicts(g, trains, routes, w)
-    return ConflictCheck(line.line_id, p, g, tuple(trains), routes_d, w, records)
+    return ConflictCheck(line.line_id, p, g, tuple(trains), routes_d, w, records, resource_headways(g, trains, w))

@@ -23,6 +23,12 @@ The delay imposed on the other train is how far its windows must move so
 that each starts after the first train's window on the same resource ends
 (for the usual case exactly the overlap). Delays are not propagated to later
 conflicts: the report lists each conflict of the timetable as planned.
+
+Each record also says where the resource is (station, track, chainage extent:
+:meth:`TrackGraph.resource_station`) and the two trains' headway there (the
+time between their windows opening) against the minimum headway (the first
+train's blocking time), defined in :mod:`planner.network.headways`. Conflicts
+are numbered from 1 in time order.
 """
 from __future__ import annotations
 
@@ -96,10 +102,10 @@ def detect_conflicts(g: TrackGraph, trains: Sequence[Train], routes: Sequence[Ro
             groups = list(merged.values())
         for grp in groups:
             records.extend(_decide(g, A, B, grp, w, rkey, by_train, boundaries, ta, tb, st_pos, len(records)))
-    # Stable ids in time order.
+    # Stable ids in time order, numbered from 1 as a planner counts.
     cids: dict[int, int] = {}
     for r in sorted(records, key=lambda r: (r["_t0"], r["train_a"], r["train_b"], r["_gid"])):
-        cids.setdefault(r["_gid"], len(cids))
+        cids.setdefault(r["_gid"], len(cids) + 1)
     for r in records:
         r["conflict_id"] = cids[r.pop("_gid")]
         r.pop("_t0")
@@ -221,6 +227,7 @@ def _decide(g, A: Train, B: Train, grp, w: Windows, rkey, by_train, boundaries, 
         rk = int(rkey[a])
         rid = g.resource_id(rk % 2, rk // 2)
         il = g.resource_interlocking(rk % 2, rk // 2)
+        sid, dist = g.resource_station(rk % 2, rk // 2)
         out.append({
             "_gid": gid,
             "_t0": float(min(w.start_s[a], w.start_s[b])),
@@ -231,6 +238,10 @@ def _decide(g, A: Train, B: Train, grp, w: Windows, rkey, by_train, boundaries, 
             "resource_kind": KIND_NAMES[rk % 2],
             "resource_id": rid,
             "interlocking": il,
+            "track": g.resource_track(rk % 2, rk // 2) or "",
+            "station_id": sid,
+            "station_name": g.line.station(sid).name,
+            "station_distance_m": float(dist),
             "from_m": float(min(w.from_m[a], w.to_m[a])),
             "to_m": float(max(w.from_m[a], w.to_m[a])),
             "a_start_s": float(w.start_s[kp]),
@@ -240,6 +251,8 @@ def _decide(g, A: Train, B: Train, grp, w: Windows, rkey, by_train, boundaries, 
             "overlap_start_s": float(ov0),
             "overlap_end_s": float(ov1),
             "overlap_s": float(ov1 - ov0),
+            "headway_s": float(w.start_s[kq2] - w.start_s[kp]),
+            "min_headway_s": float(w.end_s[kp] - w.start_s[kp]),
             "rule": rule,
             "decision": decision,
             "delay_s": float(delay),

@@ -170,6 +170,28 @@ class TrackGraph:
     def resource_track(self, kind: int, i: int) -> str | None:
         return self.node_track[i] if kind == KIND_NODE else self.edge_track[self.piece_edge[i]]
 
+    def resource_extent(self, kind: int, i: int) -> tuple[float, float]:
+        """Lower and upper chainage of a resource [m] (a switch: its position twice)."""
+        if kind == KIND_NODE:
+            return float(self.pos_m[i]), float(self.pos_m[i])
+        return float(self.piece_lo_m[i]), float(self.piece_hi_m[i])
+
+    def resource_station(self, kind: int, i: int) -> tuple[str, float]:
+        """The station a resource is named by, and how far it lies from it: ``(station_id, distance_m)``.
+
+        The station whose reference chainage (``stations.parquet`` position_m)
+        is nearest to the resource's extent [lo, hi]: distance 0 when the extent
+        spans it (a platform track, the section into a stop), else the gap to
+        the nearer end. Of two stations an extent spans (a section from one
+        stop to the next) the one nearer its middle; on a tie the lower
+        chainage.
+        """
+        lo, hi = self.resource_extent(kind, i)
+        mid = 0.5 * (lo + hi)
+        best = min(self.line.stations, key=lambda s: (max(lo - s.position_m, s.position_m - hi, 0.0),
+                                                      abs(s.position_m - mid), s.position_m))
+        return best.station_id, max(lo - best.position_m, best.position_m - hi, 0.0)
+
     def candidates(self, station_id: str, direction: str) -> list[int]:
         """Stop nodes where a train running ``direction`` can stop at ``station_id``.
 

@@ -39,7 +39,9 @@ def datasets() -> list[DatasetDoc]:
                    "closed_loop"),
     ]
     out += [DatasetDoc(n, s, HIVE, "margins") for n, s in margins.SCHEMAS.items()]
-    out += [DatasetDoc("conflicts", con, ("line",), "conflicts"), DatasetDoc("occupation", occ, HIVE, "conflicts")]
+    out += [DatasetDoc("conflicts", con, ("line",), "conflicts"),
+            DatasetDoc("headways", conflicts.HEADWAYS_SCHEMA, ("line",), "conflicts"),
+            DatasetDoc("occupation", occ, HIVE, "conflicts")]
     out.append(DatasetDoc("changes", changes.CHANGES_SCHEMA, ("line",), "changes"))
     return out
 

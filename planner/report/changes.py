@@ -430,6 +430,9 @@ def _flag_measure(f: str, a: dict, b: dict) -> str:
 def _conflict_changes(ch: LineChanges, old, new) -> None:
     if old is None or new is None:
         return
+    import pandas as pd
+
+    from planner.datasets.conflicts import place_text
     def keys(df):
         out = {}
         for r in _records(df):
@@ -439,8 +442,9 @@ def _conflict_changes(ch: LineChanges, old, new) -> None:
     for k in sorted(set(o) ^ set(n)):
         r = n.get(k) or o[k]
         appeared = k in n
+        where = f" ({place_text(pd.Series(r))})" if r.get("station_id") else ""
         ch.add("conflict", f"{k[0]}/{k[1]} at {k[2]}",
-               f"conflict {k[0]} before {k[1]} at {k[2]} {'appeared' if appeared else 'cleared'} "
+               f"conflict {k[0]} before {k[1]} at {k[2]}{where} {'appeared' if appeared else 'cleared'} "
                f"(delay {_num(r.get('delay_s')):.1f} s, {r.get('rule')})",
                field_="delay_s", before="" if appeared else r.get("delay_s"), after=r.get("delay_s") if appeared else "",
                direction=r.get("direction_b"), train_id=_str(k[1]), from_m=r.get("from_m"), to_m=r.get("to_m"))

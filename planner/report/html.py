@@ -282,32 +282,36 @@ def conflicts_section(report) -> str:
                 if report.conflicts_note else "")
     if len(con) == 0:
         return "<h2>Route conflicts</h2><p>The conflict check found no overlapping occupation windows.</p>"
-    c = con.groupby("conflict_id", sort=True).agg(
-        train_a=("train_a", "first"), train_b=("train_b", "first"), rule=("rule", "first"),
-        decision=("decision", "first"), delay_s=("delay_s", "first"), overlap_s=("overlap_s", "max"),
-        resource=("resource_id", "first"), interlocking=("interlocking", "first"),
-        t0=("overlap_start_s", "min"), n=("resource_id", "size"), deadlock=("deadlock", "first"))
+    from planner.datasets.conflicts import conflict_list, largest
+
+    c = conflict_list(con)
     by_rule = ", ".join(f"{v} {_e(k)}" for k, v in c["rule"].value_counts().sort_index().items())
-    head = (f"<p>{len(c)} conflicts between {len(c.groupby(['train_a', 'train_b']))} pairs of trains "
-            f"({by_rule}); {int(c.deadlock.sum())} would deadlock. The decisions delay the waiting trains by "
-            f"{c.delay_s.sum():.0f} s in all, at most {c.delay_s.max():.1f} s. The {min(len(c), 10)} largest delays, in time order; a conflict "
-            f"spans one or more consecutive sections or switches.</p>")
+    n_res = len(con.groupby(["resource_kind", "resource_id"]).size())
+    head = (f"<p>{len(c)} conflict{'s' if len(c) != 1 else ''} between {len(c.groupby(['train_a', 'train_b']))} "
+            f"pairs of trains on {n_res} resource{'s' if n_res != 1 else ''} ({by_rule}); "
+            f"{int(c.deadlock.sum())} would deadlock. The decisions delay the waiting trains by "
+            f"{c.delay_s.sum():.0f} s in all, at most {c.delay_s.max():.1f} s. The {min(len(c), 10)} largest delays "
+            f"(of equal delays the earliest), in time order; a conflict spans one or more consecutive sections or "
+            f"switches. <i>Minimum headway</i>: the first train's blocking time on the resource, the least time "
+            f"after it that the second may enter without a conflict; <i>headway</i>: how much later it enters as "
+            f"planned.</p>")
 
     def table(df) -> str:
         out = ["<div class='tw'><table><tr><th>#</th><th>at</th><th class='l'>first</th><th class='l'>waits</th>"
-               "<th class='l'>where</th><th class='l'>interlocking</th><th>resources</th><th>overlap [s]</th>"
+               "<th class='l'>where</th><th class='l'>resource</th><th class='l'>interlocking</th><th>resources</th>"
+               "<th>overlap [s]</th><th>headway [s]</th><th>min. headway [s]</th>"
                "<th>delay [s]</th><th class='l'>rule</th><th class='l'>decision</th></tr>"]
         for cid, r in df.iterrows():
             out.append(f"<tr><td>{cid}</td><td>{_hms(r.t0)}</td><td class='l'>{_e(r.train_a)}</td>"
-                       f"<td class='l'>{_e(r.train_b)}</td><td class='l'>{_e(r.resource)}</td>"
+                       f"<td class='l'>{_e(r.train_b)}</td><td class='l'>{_e(r.place)}</td>"
+                       f"<td class='l'>{_e(r.resource)}</td>"
                        f"<td class='l'>{_e(r.interlocking)}</td><td>{r.n}</td><td>{r.overlap_s:.1f}</td>"
-                       f"<td>{r.delay_s:.1f}</td><td class='l'>{_e(r.rule)}</td><td class='l'>{_e(r.decision)}</td></tr>")
+                       + "".join(f"<td>{v:.1f}</td>" if v == v else "<td>–</td>" for v in (r.headway_s, r.min_headway_s))
+                       + f"<td>{r.delay_s:.1f}</td><td class='l'>{_e(r.rule)}</td><td class='l' style='white-space:normal;min-width:16em'>{_e(r.decision)}</td></tr>")
         out.append("</table></div>")
         return "\n".join(out)
 
-    worst = c.sort_values(["delay_s", "t0"], ascending=[False, True], kind="stable").head(10)
-    worst = worst.sort_values("t0", kind="stable")  # the largest delays, listed in time order
-    return ("<h2>Route conflicts</h2>" + head + table(worst)
+    return ("<h2>Route conflicts</h2>" + head + table(largest(c, 10))
             + (f"<details><summary>All {len(c)} conflicts in time order</summary>{table(c.sort_values('t0', kind='stable'))}"
                "</details>" if len(c) > 10 else ""))
 

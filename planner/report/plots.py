@@ -372,9 +372,12 @@ def train_graph_chart(data, path: str | Path, *, direction: str = "both", t0: fl
         rects = [Rectangle((r.overlap_start_s, r.from_m), max(r.overlap_end_s - r.overlap_start_s, 1.0),
                            max(r.to_m - r.from_m, 1.0)) for r in c.itertuples()]
         if rects:
-            ax.add_collection(PatchCollection(rects, facecolor=CONFLICT_COLOUR, edgecolor=CONFLICT_COLOUR, lw=1.5,
+            ax.add_collection(PatchCollection(rects, facecolor=CONFLICT_COLOUR, edgecolor="black", lw=0.8,
                                               alpha=0.85, zorder=4))
-            ax.plot([], [], "s", color=CONFLICT_COLOUR, label=f"conflict: windows overlap ({c.conflict_id.nunique()})")
+            # a marker of fixed size at each overlap, so a few seconds over a few hundred metres stay visible
+            ax.scatter((c.overlap_start_s + c.overlap_end_s) / 2, (c.from_m + c.to_m) / 2, s=36, marker="s",
+                       c=CONFLICT_COLOUR, edgecolors="black", linewidths=0.8, zorder=4,
+                       label=f"conflict: windows overlap ({c.conflict_id.nunique()})")
     if sel is not None:
         w = data.windows
         if w is not None and len(w):

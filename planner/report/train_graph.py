@@ -22,7 +22,9 @@ What the graph shows:
   stopping train on the loop to be overtaken, :attr:`planner.network.routes.Route.loop_calls`)
   with a ring, so an overtake reads as a rapid crossing a standing local there;
 * **conflicts**: the overlap of two trains' blocking windows on one resource,
-  a red box from overlap start to end over the resource's chainage;
+  a magenta box from overlap start to end over the resource's chainage, at
+  least :data:`CONFLICT_MIN_PX` on each side; clicked, both trains' stairways
+  with their overlap;
 * the **blocking-time stairway** of a selected train: its occupation windows,
   one box per section/switch from window opening (entry − setting − approach)
   to closing (tail clear + release).
@@ -65,8 +67,15 @@ COLOURS = {
     ("up", "local"): "#3a9a5b", ("up", "rapid"): "#a0327f",
 }
 """Line colour by direction and service (colour-blind-safe pairs: blue/orange, green/purple)."""
-CONFLICT_COLOUR = "#e00000"
+CONFLICT_COLOUR = "#ff00ff"
+"""Conflict boxes: magenta with a black edge, a hue no train line has (the nearest, the up rapids' plum,
+is ΔE*ab ≈ 66 away; the old red was ≈ 19 from the down rapids' orange-red)."""
 STAIR_COLOUR = "#f2b705"
+"""Blocking-time stairway of the selected train, or of the first train of a clicked conflict."""
+STAIR_B_COLOUR = "#56b4e9"
+"""Blocking-time stairway of the waiting train of a clicked conflict."""
+CONFLICT_MIN_PX = 12
+"""Smallest side of a conflict box on the page [px]: a 4 s overlap is visible in the whole-day view."""
 
 
 # ---------------------------------------------------------------------------

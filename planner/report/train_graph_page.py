@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from planner.report.train_graph import COLOURS, CONFLICT_COLOUR, GraphData, time_window
+from planner.report.train_graph import (COLOURS, CONFLICT_COLOUR, CONFLICT_MIN_PX, STAIR_B_COLOUR, STAIR_COLOUR, GraphData,
+                                        time_window)
 
 __all__ = ["page_payload", "render_page", "write_page"]
 
@@ -71,15 +72,20 @@ def page_payload(data: GraphData) -> dict[str, Any]:
     cons = []
     c = data.conflicts
     if c is not None and len(c):
-        for r in c.itertuples(index=False):
+        from planner.datasets.conflicts import with_place, place_text
+
+        for r in with_place(c).itertuples(index=False):
             cons.append([int(r.conflict_id), str(r.train_a), str(r.train_b), _num(r.from_m, 0), _num(r.to_m, 0),
                          _num(r.overlap_start_s), _num(r.overlap_end_s), _num(r.delay_s), str(r.rule),
-                         str(r.resource_id), str(r.decision)])
+                         str(r.resource_id), str(r.decision), place_text(r) if r.station_id else "",
+                         _num(r.headway_s), _num(r.min_headway_s)])
     return {
         "line": {"id": data.line_id, "name": data.line_name, "start_m": data.start_m, "end_m": data.end_m},
         "day": [math.floor(lo / 3600) * 3600, math.ceil(hi / 3600) * 3600],
         "stations": [[sid, name, x] for sid, name, x in data.stations],
         "colours": {f"{d} {s}": c for (d, s), c in COLOURS.items()},
+        "conflict": {"colour": CONFLICT_COLOUR, "stair_a": STAIR_COLOUR, "stair_b": STAIR_B_COLOUR,
+                     "min_px": CONFLICT_MIN_PX},
         "trains": trains, "windows": win, "resources": list(res), "conflicts": cons, "notes": data.notes,
     }
 
@@ -93,6 +99,7 @@ header{padding:10px 18px 6px}h1{font-size:20px;margin:0 0 4px}.sub{color:#555;fo
 .bar button.on{background:#1f5fa8;color:#fff;border-color:#1f5fa8}
 .bar input[type=text]{font:inherit;font-size:12px;width:90px;padding:2px 4px}
 .key{display:inline-block;width:18px;height:0;border-top:3px solid;vertical-align:middle;margin-right:3px}
+.box{display:inline-block;width:12px;height:12px;border:1.5px solid #000;vertical-align:middle;margin-right:3px}
 #wrap{position:relative;margin:8px 18px;background:#fff;border:1px solid #d5d9de;border-radius:6px}
 #graph{display:block;width:100%;user-select:none;cursor:crosshair}
 #tip{position:absolute;pointer-events:none;background:rgba(255,255,255,.97);border:1px solid #8a9199;border-radius:5px;
@@ -100,6 +107,7 @@ header{padding:10px 18px 6px}h1{font-size:20px;margin:0 0 4px}.sub{color:#555;fo
 #tip b{font-size:13px}#tip table{border-collapse:collapse;margin-top:3px}#tip td{padding:0 6px 0 0;white-space:nowrap}
 #info{margin:0 18px 20px;font-size:13px}#info code{font-size:12px}
 .flag{color:#c62828;font-weight:600}
+rect.conflict{cursor:pointer}rect.conflict.chosen{stroke-width:3}
 """
 
 PAGE_JS = r"""
@@ -110,7 +118,8 @@ const svg = document.getElementById("graph");
 const tip = document.getElementById("tip");
 const M = {l: 150, r: 16, t: 14, b: 30};
 const H = 640;
-const st = {t0: D.view[0], t1: D.view[1], sel: null, hover: null, show: {down: true, up: true, conflicts: true}};
+const st = {t0: D.view[0], t1: D.view[1], sel: null, con: null, hover: null, hoverCon: null,
+  show: {down: true, up: true, conflicts: true}};
 function el(name, attrs, parent) {
   const e = document.createElementNS(NS, name);
   for (const k in attrs) e.setAttribute(k, attrs[k]);
@@ -157,11 +166,25 @@ for (const tr of D.trains) for (const c of tr.calls) if (tr.loops.includes(c[0])
     fill: "none", stroke: "#333", "stroke-width": 1, "vector-effect": "non-scaling-stroke", class: "loop " + tr.dir}, gLoops);
   r.dataset.train = tr.id;
 }
+// conflicts: one box per (conflict, resource), at least D.conflict.min_px on each side (sized in layout)
+const conRects = [];
 for (const c of D.conflicts) {
-  const r = el("rect", {x: c[5], y: c[3], width: Math.max(c[6] - c[5], 0.5), height: Math.max(c[4] - c[3], 30),
-    fill: "#e00000", "fill-opacity": 0.55, stroke: "#e00000", "stroke-width": 3, "vector-effect": "non-scaling-stroke",
-    class: "conflict"}, gCon);
-  r.dataset.a = c[1]; r.dataset.b = c[2];
+  const r = el("rect", {fill: D.conflict.colour, "fill-opacity": 0.85, stroke: "#000", "stroke-width": 1.5,
+    "vector-effect": "non-scaling-stroke", class: "conflict"}, gCon);
+  r.dataset.a = c[1]; r.dataset.b = c[2]; r.dataset.cid = c[0]; r.con = c; conRects.push(r);
+}
+const byCon = new Map();
+for (const c of D.conflicts) { if (!byCon.has(c[0])) byCon.set(c[0], []); byCon.get(c[0]).push(c); }
+function box(r, t0, t1, x0, x1) {
+  // a data-space box grown about its centre to the minimum size in pixels
+  const kt = (st.t1 - st.t0) / PW(), kx = (y1 - y0) / PH, mt = D.conflict.min_px * kt, mx = D.conflict.min_px * kx;
+  const w = Math.max(t1 - t0, mt), h = Math.max(x1 - x0, mx);
+  r.setAttribute("x", (t0 + t1) / 2 - w / 2); r.setAttribute("width", w);
+  r.setAttribute("y", (x0 + x1) / 2 - h / 2); r.setAttribute("height", h);
+}
+function sizeConflicts() {
+  for (const r of conRects) box(r, r.con[5], r.con[6], r.con[3], r.con[4]);
+  for (const r of gStair.querySelectorAll("rect.overlap")) box(r, +r.dataset.t0, +r.dataset.t1, +r.dataset.x0, +r.dataset.x1);
 }
 function sx(t) { return M.l + (t - st.t0) / (st.t1 - st.t0) * PW(); }
 function sy(x) { return M.t + (x - y0) / (y1 - y0) * PH; }
@@ -186,6 +209,7 @@ function layout() {
   }
   el("rect", {x: M.l, y: M.t, width: PW(), height: PH, fill: "none", stroke: "#8a9199"}, gAxis);
   document.getElementById("range").textContent = hhmm(st.t0) + " – " + hhmm(st.t1);
+  sizeConflicts();
   for (const b of document.querySelectorAll("button.hour")) b.classList.toggle("on", +b.dataset.t0 === st.t0 && +b.dataset.t1 === st.t1);
 }
 function visible() {
@@ -255,7 +279,7 @@ function tipHtml(tr, t) {
   if (cs.length) {
     const ids = [...new Set(cs.map(c => c[0]))];
     h += "<br><span class='flag'>" + ids.length + " conflict" + (ids.length > 1 ? "s" : "") + "</span>: " +
-      ids.slice(0, 3).map(i => { const c = cs.find(z => z[0] === i); return "#" + i + " with " + (c[1] === tr.id ? c[2] : c[1]) + " at " + c[9] + " (delay " + c[7] + " s)"; }).join("; ");
+      ids.slice(0, 3).map(i => { const c = cs.find(z => z[0] === i); return "#" + i + " with " + (c[1] === tr.id ? c[2] : c[1]) + " at " + (c[11] || c[9]) + " (delay " + c[7] + " s)"; }).join("; ");
   }
   return h + "<br><i>click: blocking-time stairway</i>";
 }
@@ -263,28 +287,82 @@ function highlight(tr, cls) {
   for (const p of gHi.querySelectorAll("." + cls)) p.remove();
   if (!tr) return;
   const p = tr.path.cloneNode(); p.setAttribute("stroke", cls === "sel" ? "#000" : tr.path.getAttribute("stroke"));
-  p.setAttribute("stroke-width", cls === "sel" ? 2.6 : 3); p.setAttribute("class", cls); gHi.appendChild(p);
+  p.setAttribute("stroke-width", cls === "hov" ? 3 : 2.6); p.setAttribute("class", cls);
+  if (cls === "sel2") { p.setAttribute("stroke", "#000"); p.setAttribute("stroke-dasharray", "7 4"); }
+  gHi.appendChild(p);
+}
+function stair(tr, colour, edge, cls) {
+  // one train's blocking-time stairway: a box per window, opening to closing over the resource's chainage
+  const w = D.windows[tr.id];
+  if (!w) return 0;
+  const s = undelta(w[0], 10), lo = undelta(w[2], 1);
+  for (let i = 0; i < s.length; i++) {
+    const r = el("rect", {x: s[i], y: lo[i], width: w[1][i] / 10, height: Math.max(w[3][i], 25), fill: colour,
+      "fill-opacity": 0.45, stroke: edge, "stroke-width": 0.6, "vector-effect": "non-scaling-stroke", class: "window " + cls}, gStair);
+    r.dataset.train = tr.id;
+    const ti = el("title", {}, r); ti.textContent = tr.id + " · " + D.resources[w[4][i]] + ": " + hhmm(s[i], true) + "–" + hhmm(s[i] + w[1][i] / 10, true);
+  }
+  return s.length;
+}
+function clearSel() {
+  st.sel = null; st.con = null; gStair.textContent = "";
+  highlight(null, "sel"); highlight(null, "sel2");
+  for (const r of conRects) r.classList.remove("chosen");
 }
 function select(id) {
   const tr = id ? byId.get(id) : null;
-  st.sel = tr; gStair.textContent = "";
+  clearSel(); st.sel = tr;
   highlight(tr, "sel");
   const info = document.getElementById("selinfo");
   if (!tr) { info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
-  const w = D.windows[tr.id];
-  if (w) {
-    const s = undelta(w[0], 10), lo = undelta(w[2], 1);
-    for (let i = 0; i < s.length; i++) {
-      const r = el("rect", {x: s[i], y: lo[i], width: w[1][i] / 10, height: Math.max(w[3][i], 25), fill: "#f2b705",
-        "fill-opacity": 0.45, stroke: "#8a6500", "stroke-width": 0.6, "vector-effect": "non-scaling-stroke", class: "window"}, gStair);
-      const ti = el("title", {}, r); ti.textContent = D.resources[w[4][i]] + ": " + hhmm(s[i], true) + "–" + hhmm(s[i] + w[1][i] / 10, true);
-    }
-  }
-  info.textContent = tr.id + " (" + (w ? w[0].length : 0) + " blocking windows)";
+  const n = stair(tr, D.conflict.stair_a, "#8a6500", "a");
+  info.textContent = tr.id + " (" + n + " blocking windows)";
   history.replaceState(null, "", "#train=" + encodeURIComponent(tr.id));
+}
+function conText(rows) {
+  const c = rows[0], t0 = Math.min(...rows.map(r => r[5])), t1 = Math.max(...rows.map(r => r[6]));
+  return "#" + c[0] + ": " + c[1] + " before " + c[2] + " at " + c[9] + (rows.length > 1 ? " and " + (rows.length - 1) + " more" : "") +
+    (c[11] ? " · " + c[11] : "") + " · " + hhmm(t0, true) + "–" + hhmm(t1, true) + " · delay " + c[7] + " s [" + c[8] + "]";
+}
+function selectConflict(cid, zoom) {
+  const rows = byCon.get(cid);
+  if (!rows) return;
+  clearSel();
+  const c = rows[0], A = byId.get(c[1]), B = byId.get(c[2]);
+  st.con = cid;
+  if (A) stair(A, D.conflict.stair_a, "#8a6500", "a");
+  if (B) stair(B, D.conflict.stair_b, "#1d5f86", "b");
+  for (const r of rows) {  // the overlap on each resource, over both stairways
+    const o = el("rect", {fill: D.conflict.colour, "fill-opacity": 0.9, stroke: "#000", "stroke-width": 2,
+      "vector-effect": "non-scaling-stroke", class: "overlap"}, gStair);
+    o.dataset.t0 = r[5]; o.dataset.t1 = r[6]; o.dataset.x0 = r[3]; o.dataset.x1 = r[4];
+    el("title", {}, o).textContent = "overlap " + hhmm(r[5], true) + "–" + hhmm(r[6], true) + " on " + r[9];
+  }
+  highlight(A, "sel"); highlight(B, "sel2");
+  for (const r of conRects) r.classList.toggle("chosen", +r.dataset.cid === cid);
+  document.getElementById("selinfo").textContent = conText(rows);
+  history.replaceState(null, "", "#conflict=" + cid);
+  if (zoom) {
+    // both trains' windows on the conflict's resources, with a quarter of an hour around them
+    const t0 = Math.min(...rows.map(r => r[5])), t1 = Math.max(...rows.map(r => r[6]));
+    if (st.t1 - st.t0 > 2 * 3600) setView(t0 - 900, t1 + 900); else sizeConflicts();
+  } else sizeConflicts();
 }
 svg.addEventListener("mousemove", ev => {
   const r = svg.getBoundingClientRect(), px = ev.clientX - r.left, py = ev.clientY - r.top;
+  const box = ev.target.closest && ev.target.closest("rect.conflict");
+  st.hoverCon = box ? +box.dataset.cid : null;
+  if (box) {  // over a conflict: it, not the train under it
+    if (st.hover) { st.hover = null; highlight(null, "hov"); }
+    const rows = byCon.get(st.hoverCon);
+    tip.innerHTML = "<b>conflict " + conText(rows).replace(/ · /g, "<br>") + "</b><br>" + rows[0][10] +
+      (rows[0][12] !== null ? "<br>headway " + rows[0][12] + " s, minimum headway " + rows[0][13] + " s" : "") +
+      "<br><i>click: both trains' blocking-time stairways</i>";
+    tip.style.display = "block";
+    const left = px + 16 + 360 > W() ? px - 16 - tip.offsetWidth : px + 16;
+    tip.style.left = left + "px"; tip.style.top = Math.min(py + 12, H - tip.offsetHeight) + "px";
+    return;
+  }
   const tr = (px > M.l && py > M.t && py < H - M.b) ? nearest(px, py) : null;
   if (tr !== st.hover) { st.hover = tr; highlight(tr, "hov"); }
   if (!tr) { tip.style.display = "none"; return; }
@@ -294,7 +372,10 @@ svg.addEventListener("mousemove", ev => {
   tip.style.left = left + "px"; tip.style.top = Math.min(py + 12, H - tip.offsetHeight) + "px";
 });
 svg.addEventListener("mouseleave", () => { tip.style.display = "none"; st.hover = null; highlight(null, "hov"); });
-svg.addEventListener("click", () => select(st.hover ? st.hover.id : null));
+svg.addEventListener("click", ev => {
+  const box = ev.target.closest && ev.target.closest("rect.conflict");
+  if (box) { tip.style.display = "none"; selectConflict(+box.dataset.cid, true); } else select(st.hover ? st.hover.id : null);
+});
 svg.addEventListener("wheel", ev => {
   ev.preventDefault();
   const r = svg.getBoundingClientRect(), px = ev.clientX - r.left;
@@ -325,9 +406,10 @@ document.getElementById("find").addEventListener("change", ev => {
 });
 window.addEventListener("resize", layout);
 layout(); visible();
-const m = /train=([^&]+)/.exec(location.hash);
+const m = /train=([^&]+)/.exec(location.hash), mc = /conflict=(\d+)/.exec(location.hash);
 const want = m ? decodeURIComponent(m[1]) : D.select;
-if (want && byId.has(want)) select(want);
+if (mc && byCon.has(+mc[1])) selectConflict(+mc[1], true);
+else if (want && byId.has(want)) select(want);
 document.body.dataset.ready = "1";
 """
 
@@ -371,7 +453,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "<div class='bar'><span>zoom: <span id='hours'></span></span>"
         "<span>view <b id='range'></b></span></div>"
         "<div class='bar'>"
-        f"{keys} <span><span class='key' style='border-color:{CONFLICT_COLOUR};border-top-width:8px'></span>conflict</span>"
+        f"{keys} <span><span class='box' style='background:{CONFLICT_COLOUR}'></span>conflict (click)</span>"
         "<span>▭ loop stop</span>"
         "<label><input type='checkbox' id='show-down' checked> down</label>"
         "<label><input type='checkbox' id='show-up' checked> up</label>"
@@ -383,7 +465,10 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "aria-label='time-distance train graph'></svg><div id='tip'></div></div>"
         "<div id='info'><p>Hover a train for its number, type, times and margin; click it (or type its number) for its "
         "blocking-time stairway: one box per section or switch from the window's opening (entry − route setting − "
-        "approach) to its closing (tail clear + release). Red boxes: two trains' windows overlap (a conflict). "
+        "approach) to its closing (tail clear + release). Magenta boxes: two trains' windows overlap (a conflict); click "
+        f"one for both trains' stairways (<span class='box' style='background:{STAIR_COLOUR};opacity:.6'></span>the "
+        f"train that goes first, <span class='box' style='background:{STAIR_B_COLOUR};opacity:.6'></span>the one that "
+        "waits, its path dashed) with the overlap, or open the page at <code>#conflict=N</code>. "
         "Mouse wheel zooms the time axis, drag pans, double-click shows the whole day. "
         "A <i>rapid</i> passes at least one station; a <i>local</i> stops at every one.</p>"
         f"{('<ul>' + notes + '</ul>') if notes else ''}</div>"
