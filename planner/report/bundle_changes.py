@@ -1,0 +1,103 @@
+"""What changed in the bundles between two runs: members whose content differs, with the rows that differ.
+
+Part of :func:`planner.report.changes.compare_runs` (the ``bundle`` rows of the ``changes``
+dataset). Both bundles are verified against their own run's public key, whatever kind of key
+signed them (a comparison loads nothing onto a vehicle); a change of key kind is a row of its own.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from planner.report.changes import LineChanges
+
+
+MANIFEST_CONTENT = (("line_digest", "line database digest"), ("software_version", "software version"),
+                    ("schema_version", "bundle format version"), ("key_id", "signing key"),
+                    ("missing", "list of missing tables"))
+"""Manifest fields that say something about a bundle's content; the release fields (version, build time,
+expiry) change at every build, so two bundles that differ only there hold the same content."""
+
+
+def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
+    from planner.bundle.verify import read_bundle
+    from planner.errors import PlannerError
+
+    ob, nb = Path(old_dir) / "bundles", Path(new_dir) / "bundles"
+    pref = f"{ch.line_id}_"
+    names = sorted({p.name for d in (ob, nb) if d.is_dir() for p in d.glob(f"{pref}*.pdb")})
+    for name in names:
+        po, pn = ob / name, nb / name
+        if not po.is_file() or not pn.is_file():
+            ch.add("bundle", name, f"bundle {name} {'added' if pn.is_file() else 'removed'}", field_="row",
+                   before="" if pn.is_file() else name, after=name if pn.is_file() else "")
+            continue
+        if po.read_bytes() == pn.read_bytes():
+            continue
+        try:  # compared whatever kind of key signed them (a comparison loads nothing onto a vehicle)
+            a = read_bundle(po, ob / "signing_key.pub.pem", allow_dev=True)
+            b = read_bundle(pn, nb / "signing_key.pub.pem", allow_dev=True)
+        except PlannerError as e:  # named by run id, not by this machine's paths
+            why = str(e).replace(str(Path(old_dir)), ch.base_run).replace(str(Path(new_dir)), ch.run)
+            ch.add("bundle", name, f"bundle {name} changed but could not be compared: {why}", field_="sha256")
+            continue
+        d, t = _bundle_keys(name, ch.line_id)
+        if a.info.key_kind != b.info.key_kind:
+            ch.add("bundle", name, f"bundle {name}: signed with a {a.info.key_kind} key before, a {b.info.key_kind} "
+                   "key now", field_="key_kind", before=a.info.key_kind, after=b.info.key_kind, direction=d,
+                   train_type=t)
+        fa = {f.name: f for f in a.info.files}
+        fb = {f.name: f for f in b.info.files}
+        parts, rows_changed, bytes_changed = [], 0, 0
+        for m in sorted(set(fa) | set(fb)):
+            x, y = fa.get(m), fb.get(m)
+            if x and y and x.sha256 == y.sha256:
+                continue
+            tname = m.removesuffix(".parquet")
+            nd = _rows_differing(a.tables.get(tname), b.tables.get(tname))
+            rows_changed += nd
+            bytes_changed += abs((y.size if y else 0) - (x.size if x else 0))
+            parts.append(f"{tname} {nd} rows")
+        key_note = " (signed with another key)" if a.info.key_id != b.info.key_id else ""
+        if parts:
+            what = f"{len(parts)} table{'s' if len(parts) != 1 else ''} changed: {', '.join(parts)}"
+        else:
+            fields = [label for f, label in MANIFEST_CONTENT if getattr(a.info, f) != getattr(b.info, f)]
+            if not fields:  # the same content re-issued (build time, version, expiry): no change
+                continue
+            what = "no table changed, only the signed manifest's " + " and ".join(fields)
+        ch.add("bundle", name, f"bundle {name}: {what}; {a.info.size_bytes} → {b.info.size_bytes} bytes{key_note}",
+               field_="rows_differing", before=a.info.sha256, after=b.info.sha256, delta=float(rows_changed),
+               direction=d, train_type=t)
+
+
+def _bundle_keys(name: str, line_id: str) -> tuple[str | None, str | None]:
+    rest = name[len(line_id) + 1:].removesuffix(".pdb")
+    d, _, t = rest.partition("_")
+    return (d or None), (t or None)
+
+
+def _rows_differing(a, b) -> int:
+    """Rows in one table and not the other (as multisets of whole rows)."""
+    if a is None or b is None:
+        return (a.num_rows if a is not None else 0) + (b.num_rows if b is not None else 0)
+    from collections import Counter
+
+    import pandas as pd
+
+    def rows(t) -> Counter:
+        try:  # one 64-bit hash per row: fast for the large tables (b) and (d)
+            return Counter(pd.util.hash_pandas_object(t.to_pandas(), index=False).tolist())
+        except TypeError:  # list columns cannot be hashed by pandas
+            from planner.report.changes import _canon
+
+            return Counter(tuple(_canon(v) for v in r.values()) for r in t.to_pylist())
+
+    ca, cb = rows(a), rows(b)
+    return sum(((ca - cb) + (cb - ca)).values())
+
+
+# ---------------------------------------------------------------------------
+# The comparison
+# ---------------------------------------------------------------------------
