@@ -74,6 +74,7 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
     from planner.report.published_run import read_line_dataset, path_id
     from planner.report.train_graph import graph_data
     from planner.report.train_graph_page import write_page
+    from planner.job.train_views import timetable_href, train_views
 
     copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
@@ -84,7 +85,9 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
         data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
         if check and line.network is not None and (occ is None or con is None):
             data.notes.append("the run has no occupation/conflicts datasets for this line")
-        write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html")
+        write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html",
+                   timetable_href="../" + timetable_href(line.line_id))
+    train_views(job, line, stage, summary.reports[line.line_id], runner, summary)  # running-time tables, charts
 
 
 def _unit(step, key, fn, args):
@@ -167,7 +170,11 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                 note = f"Comparing with run {base} failed, so this run lists no changes: {failure}"
             else:
                 note = f"Line {line.line_id} could not be compared with run {base}."
-            top = changes_html(ch, first_run_note=note)
+            from planner.job.train_views import timetable_href
+
+            top = (f"<p class='sub'><a href='../index.html'>overview</a> · <a href='../graph/{line.line_id}_graph.html'>"
+                   f"train graph</a> · <a href='../{timetable_href(line.line_id)}'>running-time tables per train</a></p>"
+                   + changes_html(ch, first_run_note=note))
             rep = summary.reports.get(line.line_id)
             if rep is not None:
                 charts = None

@@ -27,7 +27,7 @@ class DatasetDoc:
 
 def datasets() -> list[DatasetDoc]:
     """Every dataset a nightly run publishes, in pipeline order."""
-    from planner.report import changes, margin_datasets as margins
+    from planner.report import changes, margin_datasets as margins, train_timetable
     from planner.datasets import closed_loop, conflicts, stops, tables
 
     occ, con = conflicts.OCCUPATION_SCHEMA, conflicts.CONFLICTS_SCHEMA
@@ -39,6 +39,7 @@ def datasets() -> list[DatasetDoc]:
                    "closed_loop"),
     ]
     out += [DatasetDoc(n, s, HIVE, "margins") for n, s in margins.SCHEMAS.items()]
+    out += [DatasetDoc(n, s, HIVE, "timetable") for n, s in train_timetable.SCHEMAS.items()]
     out += [DatasetDoc("conflicts", con, ("line",), "conflicts"), DatasetDoc("occupation", occ, HIVE, "conflicts")]
     out.append(DatasetDoc("changes", changes.CHANGES_SCHEMA, ("line",), "changes"))
     return out

@@ -269,7 +269,8 @@ function select(id) {
   st.sel = tr; gStair.textContent = "";
   highlight(tr, "sel");
   const info = document.getElementById("selinfo");
-  if (!tr) { info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
+  if (!tr) { const tt = document.getElementById("tt-link"); if (tt) tt.style.display = "none";
+    info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
   const w = D.windows[tr.id];
   if (w) {
     const s = undelta(w[0], 10), lo = undelta(w[2], 1);
@@ -280,6 +281,8 @@ function select(id) {
     }
   }
   info.textContent = tr.id + " (" + (w ? w[0].length : 0) + " blocking windows)";
+  const tt = document.getElementById("tt-link");
+  if (tt && D.tt) { tt.href = D.tt + "#train-" + encodeURIComponent(tr.id); tt.textContent = "running-time table of " + tr.id + " →"; tt.style.display = "inline"; }
   history.replaceState(null, "", "#train=" + encodeURIComponent(tr.id));
 }
 svg.addEventListener("mousemove", ev => {
@@ -332,7 +335,7 @@ document.body.dataset.ready = "1";
 
 
 def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = None,
-                train: str | None = None, title_note: str = "") -> str:
+                train: str | None = None, title_note: str = "", timetable_href: str | None = None) -> str:
     """The interactive train graph as one self-contained HTML page (inline data, CSS and script).
 
     Parameters
@@ -343,6 +346,9 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         Train selected when the page opens (its stairway shown).
     title_note : str
         Extra text for the subtitle (e.g. the run id).
+    timetable_href : str, optional
+        The line's running-time tables page (a run's ``timetable/<line>_timetable.html``, relative to this
+        page): a selected train gets a link to its table there (``#train-<id>``).
     """
     payload = page_payload(data)
     lo, hi = time_window(data, t0, t1)
@@ -350,6 +356,8 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         data.train(train)
     payload["view"] = [lo, hi]
     payload["select"] = train
+    if timetable_href:
+        payload["tt"] = timetable_href
     js = json.dumps(payload, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
     js = js.replace("</", "<\\/")  # never closes the script element
     n = len(data.trains)
@@ -376,7 +384,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "<label><input type='checkbox' id='show-up' checked> up</label>"
         "<label><input type='checkbox' id='show-conflicts' checked> conflicts</label>"
         "<label>train <input type='text' id='find' placeholder='e.g. 1001D' list='train-ids'></label>"
-        "<span>selected: <b id='selinfo'>none</b></span></div>"
+        "<span>selected: <b id='selinfo'>none</b> <a id='tt-link' href='#' style='display:none'></a></span></div>"
         "<datalist id='train-ids'>" + "".join(f"<option value='{e(t.train_id)}'>" for t in data.trains) + "</datalist>"
         "<div id='wrap'><svg id='graph' xmlns='http://www.w3.org/2000/svg' role='img' "
         "aria-label='time-distance train graph'></svg><div id='tip'></div></div>"
