@@ -171,7 +171,8 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
     job = dataclasses.replace(job, parallel=dataclasses.replace(job.parallel, n_jobs=1))
     progress = SimpleNamespace(step=lambda *a: contextlib.nullcontext(), advance=lambda *a: None)
     summary = SimpleNamespace(rows={})
-    train_views(job, tiny, run, compute_margins(tiny, conflicts=False), SimpleNamespace(progress=progress), summary)
+    runner = SimpleNamespace(progress=progress, run=lambda step, units: [u.fn(*u.args) for u in units])
+    train_views(job, tiny, run, compute_margins(tiny, conflicts=False), runner, summary)
     assert summary.rows == {"train_timetable": 6}
     data = graph_data(tiny)
     (run / "graph").mkdir()

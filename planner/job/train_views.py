@@ -10,7 +10,8 @@ timetabled leg × scheduled time) it records each leg's two runs
   anchors (:mod:`planner.report.timetable_page`);
 * ``charts/<line>/<leg>.html``, one speed–distance chart page per leg ×
   train type × scheduled time the tables link to (:mod:`planner.report.speed_chart`),
-  drawn on the job's workers.
+  drawn on the job's workers as cached units (:func:`_chart_key`), so a run after an edit redraws only
+  the legs it reaches.
 """
 from __future__ import annotations
 
@@ -65,8 +66,8 @@ def _chart_task(line, run, calls, pattern, evp, signals, trains, back):
 
 def train_views(job, line, stage: Path, report, runner, summary, run_label: str = "") -> None:
     """Dataset, page and charts of a line's trains (module doc)."""
-    from planner.io.parallel import map_tasks
     from planner.job.pipeline import _count
+    from planner.job.units import Unit
     from planner.report.speed_chart import write_chart
     from planner.report.timetable_page import render_page, write_page
     from planner.report.train_timetable import chart_name, leg_runs, timetable_rows, write_timetable
@@ -80,7 +81,7 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
                  ("train graph", f"../graph/{lid}_graph.html")]
         write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, run_label=run_label, links=links))
     pats = _patterns(stage, lid)
-    tasks, paths = [], []
+    units, paths = [], []
     back = "../../" + timetable_href(lid)
     for key, run in sorted(runs.items()):
         d, t, o, de, _ = key
@@ -90,15 +91,36 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
         trains = sorted(run.row.get("train_ids") if run.row.get("train_ids") is not None else [])
         lo, hi = float(run.position_m.min()), float(run.position_m.max())
         signals = [s.position_m for s in line.signals if s.direction == d and lo <= s.position_m <= hi]
-        tasks.append((line.window(o, de, t), run, calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de),
-                      signals, trains, back))
+        args = (line.window(o, de, t), run, calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de),
+                signals, trains, back)
+        units.append(Unit("charts", _chart_key(line, run, args[2:]), "charts", _chart_task, args))
         paths.append(stage / chart_name(lid, key))
-    with runner.progress.step("charts", len(tasks)):
-        n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
-        pages = map_tasks(_chart_task, tasks, n_jobs, 
-                          lambda done, total: done and runner.progress.advance("charts"))
-        for p, text in zip(paths, pages):
-            write_chart(p, text)
+    for p, text in zip(paths, runner.run("charts", units)):  # cached: an unchanged leg's chart is not redrawn
+        write_chart(p, text)
 
+
+def _chart_key(line, run, rest) -> str:
+    """The cache key of a chart: the code, what the leg's window of the line holds, both runs, the row's
+    figures the chart prints and everything else it draws (``rest``: calls, pattern, points, signals, trains)."""
+    import hashlib
+    import json
+
+    import numpy as np
+
+    from planner.job.publish import digest
+    from planner.job.units import code_digest, interstation_inputs
+
+    d, t, o, de, sched = run.key
+    h = hashlib.sha256()
+    for a in (run.position_m, run.t_s, run.v_ms, run.vmax_ms):
+        h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    calls, pattern, evp, signals, trains, back = rest
+    for a, (px, pv) in sorted((pattern or {}).items()):
+        h.update(json.dumps(float(a)).encode())
+        h.update(np.ascontiguousarray(px, float).tobytes() + np.ascontiguousarray(pv, float).tobytes())
+    figures = [float(run.row[c]) for c in ("min_running_time_s", "margin_s")] + [run.ratio, float(sched)]
+    return digest(["chart", code_digest(), interstation_inputs(line, t, o, de), h.hexdigest(), figures,
+                   [list(map(str, c[:2])) + [float(c[2])] for c in calls], [[float(p), str(i)] for p, i in evp or []],
+                   [float(x) for x in signals], list(trains), back])
 
 __all__ = ["timetable_href", "train_views"]
