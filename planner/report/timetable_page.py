@@ -21,10 +21,11 @@ from planner.report.train_timetable import clock
 _e = html.escape
 EXTRA_CSS = """
 .tt{margin:6px 0 22px}.tt h3{margin:18px 0 4px}.tt h3 a.self{color:#999;text-decoration:none;font-weight:400}
-td.pass{color:#666;font-style:italic}.late{color:#c62828}.early{color:#2e7d32}
+td.pass{color:#666;font-style:italic}td.f{white-space:normal;min-width:54px}.late{color:#c62828}.early{color:#2e7d32}
 .idx a{display:inline-block;min-width:52px;font-size:12.5px;margin:1px 3px}
 .idx h3{margin:10px 0 2px}
 :target h3{background:#fff4c2}
+@media (max-width:1200px){main{padding:12px 12px 40px}.tt table{font-size:11px}.tt th,.tt td{padding:2px 3px}}
 .top{font-size:12px;margin-left:10px}
 """
 
@@ -58,7 +59,6 @@ def _row(r: dict, rel: str) -> str:
         f'<td>{_e(r["scheduled_arrival"] or "")}</td>',
         f'<td>{"" if pas else _e(r["scheduled_departure"] or "")}</td>',
         f'<td>{_e(r["computed_arrival"] or "")}{_diff(r["computed_arrival_s"], r["scheduled_arrival_s"])}</td>',
-        f'<td>{"" if pas else _e(r["computed_departure"] or "")}</td>',
         f'<td>{_e(r["minimum_arrival"] or "")}</td>',
         f'<td>{_s(r["section_scheduled_s"], 0)}</td>',
         f'<td>{_s(r["section_minimum_s"])}</td>',
@@ -66,14 +66,14 @@ def _row(r: dict, rel: str) -> str:
         f'<td>{_s(r["supplement_percent"], 1)}</td>',
         f'<td>{_s(r["ratio_on_time"] * 100 if r["ratio_on_time"] == r["ratio_on_time"] else None, 0)}</td>',
         f'<td>{_s(r["leg_margin_s"], 1, True)}</td>',
-        f'<td>{_s(r["leg_remaining_margin_s"], 1, True)}{badge}</td>',
+        f'<td class="f">{_s(r["leg_remaining_margin_s"], 1, True)}{badge}</td>',
         f"<td>{chart}</td>",
     ]
     return "<tr>" + "".join(cells) + "</tr>"
 
 
 HEAD = ("<tr><th class='l'>station</th><th class='l'>call</th><th>scheduled arrival / pass</th>"
-        "<th>scheduled departure</th><th>computed arrival / pass (− scheduled, s)</th><th>computed departure</th>"
+        "<th>scheduled departure</th><th>computed arrival / pass (vs scheduled [s])</th>"
         "<th>minimum run arrival / pass</th><th>section scheduled [s]</th><th>section minimum [s]</th>"
         "<th>supplement [s]</th><th>supplement [%]</th><th>ratio on time [%]</th><th>leg margin [s]</th>"
         "<th>bad-day margin [s]</th><th>speed–distance</th></tr>")
@@ -118,7 +118,8 @@ def render_page(line_id: str, line_name: str, records: Sequence[dict], *, run_la
             f"<h1>{_e(title)}</h1>"
             '<p class="sub">Every train of the timetable, every station of its path. <b>Computed</b>: each leg (stop '
             "to next stop) run from its scheduled departure at the ratio the on-board logic picks for an on-time "
-            "departure (the nearest table (a) time to the scheduled one); <b>minimum</b>: the same leg at ratio "
+            "departure (the nearest table (a) time to the scheduled one); a train leaves each stop at its scheduled "
+            "time, so the computed departure is the scheduled one; <b>minimum</b>: the same leg at ratio "
             "100 %. Both at the tables' conditions (empty, full traction). <b>Supplement</b>: scheduled − minimum "
             "time of the section from the previous call; a leg's supplements add up to its margin. The bad-day margin "
             "and the flag are the margin report's. The same rows are the <code>train_timetable</code> dataset.</p>"
