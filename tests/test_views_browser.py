@@ -172,11 +172,15 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
     progress = SimpleNamespace(step=lambda *a: contextlib.nullcontext(), advance=lambda *a: None)
     summary = SimpleNamespace(rows={})
     runner = SimpleNamespace(progress=progress, run=lambda step, units: [u.fn(*u.args) for u in units])
-    train_views(job, tiny, run, compute_margins(tiny, conflicts=False), runner, summary)
+    legs = train_views(job, tiny, run, compute_margins(tiny, conflicts=False), runner, summary)
+    assert legs == {"101": [("A→B", "charts/tiny/down_EMU10_A-B_200s.html"),
+                            ("B→C", "charts/tiny/down_EMU10_B-C_270s.html")],
+                    "202": [("C→A", "charts/tiny/up_EMU6_C-A_500s.html")]}  # the timetable's legs (tests/linedb.py)
     assert summary.rows == {"train_timetable": 6}
     data = graph_data(tiny)
     (run / "graph").mkdir()
-    graph = write_page(data, run / "graph" / "tiny_graph.html", timetable_href="../" + timetable_href("tiny"))
+    graph = write_page(data, run / "graph" / "tiny_graph.html", timetable_href="../" + timetable_href("tiny"),
+                       charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()})
     page = browser.open(graph)
     _clean(page)
     assert page.eval("getComputedStyle(document.getElementById('tt-link')).display") == "none"  # nothing selected
@@ -187,6 +191,8 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
     page.mouse(x, y, "click")
     href = page.eval("document.getElementById('tt-link').href")
     assert href == (run / "timetable" / "tiny_timetable.html").as_uri() + "#train-202"
+    from_graph = page.eval("[...document.querySelectorAll('#chart-links a')].map(a => [a.innerText, a.href])")
+    assert from_graph == [["C→A", (run / "charts" / "tiny" / "up_EMU6_C-A_500s.html").as_uri()]]
     table = browser.open(href)
     assert table.errors == [] and table.failed == [] and table.requests == [href.split("#")[0]]  # no network
     assert table.eval("document.querySelector(':target').id") == "train-202"

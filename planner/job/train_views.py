@@ -64,8 +64,12 @@ def _chart_task(line, run, calls, pattern, evp, signals, trains, back):
     return chart_page(line, run, calls, trains, chart_svg(line, run, calls, pattern, evp, signals), back)
 
 
-def train_views(job, line, stage: Path, report, runner, summary, run_label: str = "") -> None:
-    """Dataset, page and charts of a line's trains (module doc)."""
+def train_views(job, line, stage: Path, report, runner, summary, run_label: str = "") -> dict[str, list]:
+    """Dataset, page and charts of a line's trains (module doc).
+
+    Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
+    legs with a chart in running order (the train graph links them).
+    """
     from planner.job.pipeline import _count
     from planner.job.units import Unit
     from planner.report.speed_chart import write_chart
@@ -97,6 +101,11 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
         paths.append(stage / chart_name(lid, key))
     for p, text in zip(paths, runner.run("charts", units)):  # cached: an unchanged leg's chart is not redrawn
         write_chart(p, text)
+    legs: dict[str, list] = {}
+    for r in recs:
+        if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
+            legs.setdefault(r["train_id"], []).append((f"{r['leg_origin']}→{r['station_id']}", r["chart"]))
+    return legs
 
 
 def _chart_key(line, run, rest) -> str:

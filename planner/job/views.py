@@ -9,7 +9,9 @@ Two hooks called by :mod:`planner.job.pipeline`:
   the line database, the code and the run-curve step (:func:`graph_unit`, run
   beside the closed loop), so an unchanged line reuses them; windows,
   conflicts and margins come from the run's own
-  ``occupation``, ``conflicts`` and ``margin_totals`` datasets.
+  ``occupation``, ``conflicts`` and ``margin_totals`` datasets; before it, the running-time tables per
+  train and the speed–distance charts (:func:`planner.job.train_views.train_views`), which a selected
+  train in the graph links to.
 * :func:`run_views`, after the manifest: compare the run with the previous
   published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
   dataset and put the section at the top of each margin report, add the
@@ -78,6 +80,7 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
 
     copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
+    legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary)  # tables, charts
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
         con = read_line_dataset(stage, "conflicts", line.line_id)
@@ -86,8 +89,8 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
         if check and line.network is not None and (occ is None or con is None):
             data.notes.append("the run has no occupation/conflicts datasets for this line")
         write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html",
-                   timetable_href="../" + timetable_href(line.line_id))
-    train_views(job, line, stage, summary.reports[line.line_id], runner, summary)  # running-time tables, charts
+                   timetable_href="../" + timetable_href(line.line_id),
+                   charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()})
 
 
 def _unit(step, key, fn, args):

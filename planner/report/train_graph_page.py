@@ -269,7 +269,7 @@ function select(id) {
   st.sel = tr; gStair.textContent = "";
   highlight(tr, "sel");
   const info = document.getElementById("selinfo");
-  if (!tr) { const tt = document.getElementById("tt-link"); if (tt) tt.style.display = "none";
+  if (!tr) { for (const id of ["tt-link", "chart-links"]) { const x = document.getElementById(id); if (x) x.style.display = "none"; }
     info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
   const w = D.windows[tr.id];
   if (w) {
@@ -283,6 +283,14 @@ function select(id) {
   info.textContent = tr.id + " (" + (w ? w[0].length : 0) + " blocking windows)";
   const tt = document.getElementById("tt-link");
   if (tt && D.tt) { tt.href = D.tt + "#train-" + encodeURIComponent(tr.id); tt.textContent = "running-time table of " + tr.id + " →"; tt.style.display = "inline"; }
+  const ch = document.getElementById("chart-links");
+  if (ch && D.charts) {
+    ch.textContent = "";
+    for (const [label, href] of (D.charts[tr.id] || [])) {
+      const a = document.createElement("a"); a.href = href; a.textContent = label; ch.append(" ", a);
+    }
+    ch.style.display = (D.charts[tr.id] || []).length ? "inline" : "none";
+  }
   history.replaceState(null, "", "#train=" + encodeURIComponent(tr.id));
 }
 svg.addEventListener("mousemove", ev => {
@@ -335,7 +343,8 @@ document.body.dataset.ready = "1";
 
 
 def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = None,
-                train: str | None = None, title_note: str = "", timetable_href: str | None = None) -> str:
+                train: str | None = None, title_note: str = "", timetable_href: str | None = None,
+                charts: dict[str, list[tuple[str, str]]] | None = None) -> str:
     """The interactive train graph as one self-contained HTML page (inline data, CSS and script).
 
     Parameters
@@ -349,6 +358,9 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
     timetable_href : str, optional
         The line's running-time tables page (a run's ``timetable/<line>_timetable.html``, relative to this
         page): a selected train gets a link to its table there (``#train-<id>``).
+    charts : dict, optional
+        ``train_id`` → ``[(label, href)]`` of its legs' speed–distance charts (relative to this page):
+        a selected train gets a link to each.
     """
     payload = page_payload(data)
     lo, hi = time_window(data, t0, t1)
@@ -358,6 +370,8 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
     payload["select"] = train
     if timetable_href:
         payload["tt"] = timetable_href
+    if charts:
+        payload["charts"] = {k: [list(x) for x in v] for k, v in charts.items()}
     js = json.dumps(payload, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
     js = js.replace("</", "<\\/")  # never closes the script element
     n = len(data.trains)
@@ -384,7 +398,8 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "<label><input type='checkbox' id='show-up' checked> up</label>"
         "<label><input type='checkbox' id='show-conflicts' checked> conflicts</label>"
         "<label>train <input type='text' id='find' placeholder='e.g. 1001D' list='train-ids'></label>"
-        "<span>selected: <b id='selinfo'>none</b> <a id='tt-link' href='#' style='display:none'></a></span></div>"
+        "<span>selected: <b id='selinfo'>none</b> <a id='tt-link' href='#' style='display:none'></a>"
+        "<span id='chart-links' style='display:none'> · speed–distance:</span></span></div>"
         "<datalist id='train-ids'>" + "".join(f"<option value='{e(t.train_id)}'>" for t in data.trains) + "</datalist>"
         "<div id='wrap'><svg id='graph' xmlns='http://www.w3.org/2000/svg' role='img' "
         "aria-label='time-distance train graph'></svg><div id='tip'></div></div>"
