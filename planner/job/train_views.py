@@ -79,8 +79,9 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
     lid = line.line_id
     with runner.progress.step("timetable"):
         runs = leg_runs(line, report.rows, ds_m=job.tables.ds_m)
-        _count(summary, write_timetable(line, runs, stage))
-        recs = timetable_rows(line, runs)
+        types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
+        _count(summary, write_timetable(line, runs, stage, types))
+        recs = timetable_rows(line, runs, types)
         links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
                  ("train graph", f"../graph/{lid}_graph.html")]
         write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, run_label=run_label, links=links))

@@ -285,11 +285,12 @@ function select(id) {
   if (tt && D.tt) { tt.href = D.tt + "#train-" + encodeURIComponent(tr.id); tt.textContent = "running-time table of " + tr.id + " →"; tt.style.display = "inline"; }
   const ch = document.getElementById("chart-links");
   if (ch && D.charts) {
-    ch.textContent = "";
-    for (const [label, href] of (D.charts[tr.id] || [])) {
+    ch.textContent = " · speed–distance charts:";
+    const mine = (D.charts.by_train[tr.id] || []).map(i => D.charts.legs[i]);
+    for (const [label, href] of mine) {
       const a = document.createElement("a"); a.href = href; a.textContent = label; ch.append(" ", a);
     }
-    ch.style.display = (D.charts[tr.id] || []).length ? "inline" : "none";
+    ch.style.display = mine.length ? "inline" : "none";
   }
   history.replaceState(null, "", "#train=" + encodeURIComponent(tr.id));
 }
@@ -370,8 +371,11 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
     payload["select"] = train
     if timetable_href:
         payload["tt"] = timetable_href
-    if charts:
-        payload["charts"] = {k: [list(x) for x in v] for k, v in charts.items()}
+    if charts:  # each leg's link once, trains by index (a leg is run by many trains)
+        legs = sorted({tuple(x) for v in charts.values() for x in v})
+        at = {x: i for i, x in enumerate(legs)}
+        payload["charts"] = {"legs": [list(x) for x in legs],
+                             "by_train": {k: [at[tuple(x)] for x in v] for k, v in charts.items()}}
     js = json.dumps(payload, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
     js = js.replace("</", "<\\/")  # never closes the script element
     n = len(data.trains)

@@ -159,11 +159,14 @@ def _flag(row: dict) -> str:
                                       for f in FLAGS}))
 
 
-def timetable_rows(line, runs: dict[tuple, LegRun]) -> list[dict]:
-    """One record per call of every train (columns of :data:`TIMETABLE_SCHEMA` plus direction, train_type)."""
+def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[dict]:
+    """One record per call of every train (columns of :data:`TIMETABLE_SCHEMA` plus direction, train_type),
+    of the given train types (default every one)."""
     nan = math.nan
     recs = []
     for tr in line.trains:
+        if train_types is not None and tr.train_type not in train_types:
+            continue
         last = len(tr.calls) - 1
         stops = [k for k, c in enumerate(tr.calls) if c.stops or k in (0, last)]
         leg_of = {}  # call index -> (start call index, end call index)
@@ -226,19 +229,20 @@ def timetable_rows(line, runs: dict[tuple, LegRun]) -> list[dict]:
     return recs
 
 
-def timetable_table(line, runs: dict[tuple, LegRun]) -> pa.Table:
+def timetable_table(line, runs: dict[tuple, LegRun], train_types=None) -> pa.Table:
     """The ``train_timetable`` rows of a line with the partition columns (``line, direction, train_type``)."""
     import pandas as pd
 
-    df = pd.DataFrame.from_records(timetable_rows(line, runs))
+    df = pd.DataFrame.from_records(timetable_rows(line, runs, train_types))
     df.insert(0, "line", line.line_id)
     df["seq"] = df["seq"].astype("int32")
     return pa.Table.from_pandas(df, preserve_index=False)
 
 
-def write_timetable(line, runs: dict[tuple, LegRun], out_dir: str | Path) -> list[Path]:
-    """Write the ``train_timetable`` dataset of a line under ``out_dir``; the files written."""
-    return write_partitioned(timetable_table(line, runs), Path(out_dir), "train_timetable",
+def write_timetable(line, runs: dict[tuple, LegRun], out_dir: str | Path, train_types=None) -> list[Path]:
+    """Write the ``train_timetable`` dataset of a line (its trains of ``train_types``, default all) under
+    ``out_dir``; the files written."""
+    return write_partitioned(timetable_table(line, runs, train_types), Path(out_dir), "train_timetable",
                              schema=TIMETABLE_SCHEMA, sort_by=("train_id", "seq"))
 
 
