@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
+from planner.errors import PlannerError
 from planner.io.parquet import declare, write_partitioned
 
 TIMETABLE_SCHEMA = declare(
@@ -143,7 +144,7 @@ def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
     for row in has.to_dict("records"):
         try:
             r = _leg_run(line, row, ds_m)
-        except Exception:  # noqa: BLE001 - a leg that stalls has no computed times; its rows stay null
+        except PlannerError:  # a leg that stalls at its on-time ratio: no computed times, its rows stay null
             continue
         out[r.key] = r
     return out
