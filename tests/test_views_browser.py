@@ -190,3 +190,60 @@ def test_graph_page_conflict_box_is_visible_and_a_click_shows_both_stairways_and
     page = browser.open(f"{(tmp_path / 'g.html').resolve().as_uri()}#conflict=1")
     assert page.eval("document.getElementById('selinfo').textContent").startswith("#1: T1 before T2 at J and 1 more")
     assert page.errors == []
+
+
+def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
+    """A run's pages hang together: click a train in the graph → its running-time table → a leg's chart."""
+    import contextlib
+    from types import SimpleNamespace
+
+    from planner.job.config import Job
+    from planner.job.train_views import timetable_href, train_views
+    from planner.report.margins import compute_margins
+    from planner.report.train_graph import graph_data
+    from planner.report.train_graph_page import write_page
+
+    run = tmp_path / "r0003-0123456789"
+    import dataclasses
+
+    job = Job(str(tmp_path / "job.toml"), str(tmp_path))
+    job = dataclasses.replace(job, parallel=dataclasses.replace(job.parallel, n_jobs=1))
+    progress = SimpleNamespace(step=lambda *a: contextlib.nullcontext(), advance=lambda *a: None)
+    summary = SimpleNamespace(rows={})
+    runner = SimpleNamespace(progress=progress, run=lambda step, units: [u.fn(*u.args) for u in units])
+    legs = train_views(job, tiny, run, compute_margins(tiny, conflicts=False), runner, summary)
+    assert legs == {"101": [("A→B", "charts/tiny/down_EMU10_A-B_200s.html"),
+                            ("B→C", "charts/tiny/down_EMU10_B-C_270s.html")],
+                    "202": [("C→A", "charts/tiny/up_EMU6_C-A_500s.html")]}  # the timetable's legs (tests/linedb.py)
+    assert summary.rows == {"train_timetable": 6}
+    data = graph_data(tiny)
+    (run / "graph").mkdir()
+    graph = write_page(data, run / "graph" / "tiny_graph.html", timetable_href="../" + timetable_href("tiny"),
+                       charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()})
+    page = browser.open(graph)
+    _clean(page)
+    assert page.eval("getComputedStyle(document.getElementById('tt-link')).display") == "none"  # nothing selected
+    t = (data.train("202").start_s + data.train("202").end_s) / 2
+    x, y = page.eval(f"(() => {{ const tr = byId.get('202'); const r = svg.getBoundingClientRect();"
+                     f" return [r.left + sx({t}), r.top + sy(xAt(tr, {t}))]; }})()")
+    page.mouse(x, y)
+    page.mouse(x, y, "click")
+    href = page.eval("document.getElementById('tt-link').href")
+    assert href == (run / "timetable" / "tiny_timetable.html").as_uri() + "#train-202"
+    from_graph = page.eval("[...document.querySelectorAll('#chart-links a')].map(a => [a.innerText, a.href])")
+    assert from_graph == [["C→A", (run / "charts" / "tiny" / "up_EMU6_C-A_500s.html").as_uri()]]
+    table = browser.open(href)
+    assert table.errors == [] and table.failed == [] and table.requests == [href.split("#")[0]]  # no network
+    assert table.eval("document.querySelector(':target').id") == "train-202"
+    assert table.eval("window.scrollY > 0 || document.body.scrollHeight <= innerHeight")
+    calls = table.eval("[...document.querySelectorAll('#train-202 tr')].slice(1).map(r => r.cells[1].innerText)")
+    assert calls == ["departs", "passes", "arrives"]
+    charts = table.eval("[...document.querySelectorAll('#train-202 a')].filter(a => a.innerText === 'chart')"
+                        ".map(a => a.href)")
+    assert charts == [(run / "charts" / "tiny" / "up_EMU6_C-A_500s.html").as_uri()]  # one leg, on the stop ending it
+    chart = browser.open(charts[0])
+    _clean(chart)
+    assert chart.eval("document.querySelectorAll('.fig svg').length") == 1
+    assert "202" in chart.eval("[...document.querySelectorAll('a')].map(a => a.innerText)")
+    back = chart.eval("[...document.querySelectorAll('a')].find(a => a.innerText === '202').href")
+    assert back == href

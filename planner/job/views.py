@@ -9,7 +9,9 @@ Two hooks called by :mod:`planner.job.pipeline`:
   the line database, the code and the run-curve step (:func:`graph_unit`, run
   beside the closed loop), so an unchanged line reuses them; windows,
   conflicts and margins come from the run's own
-  ``occupation``, ``conflicts`` and ``margin_totals`` datasets.
+  ``occupation``, ``conflicts`` and ``margin_totals`` datasets; before it, the running-time tables per
+  train and the speed–distance charts (:func:`planner.job.train_views.train_views`), which a selected
+  train in the graph links to.
 * :func:`run_views`, after the manifest: compare the run with the previous
   published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
   dataset and put the section at the top of each margin report, add the
@@ -75,9 +77,11 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
     from planner.report.published_run import read_line_dataset, path_id
     from planner.report.train_graph import graph_data
     from planner.report.train_graph_page import write_page
+    from planner.job.train_views import timetable_href, train_views
 
     copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
+    legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary)  # tables, charts
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
         con = read_line_dataset(stage, "conflicts", line.line_id)
@@ -85,7 +89,9 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
         data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
         if check and line.network is not None and (occ is None or con is None):
             data.notes.append("the run has no occupation/conflicts datasets for this line")
-        write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html")
+        write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html",
+                   timetable_href="../" + timetable_href(line.line_id),
+                   charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()})
 
 
 def _unit(step, key, fn, args):
@@ -182,7 +188,11 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                 note = f"Comparing with run {base} failed, so this run lists no changes: {failure}"
             else:
                 note = f"Line {line.line_id} could not be compared with run {base}."
-            top = changes_html(ch, first_run_note=note)
+            from planner.job.train_views import timetable_href
+
+            top = (f"<p class='sub'><a href='../index.html'>overview</a> · <a href='../graph/{line.line_id}_graph.html'>"
+                   f"train graph</a> · <a href='../{timetable_href(line.line_id)}'>running-time tables per train</a></p>"
+                   + changes_html(ch, first_run_note=note))
             rep = summary.reports.get(line.line_id)
             if rep is not None:
                 charts = None

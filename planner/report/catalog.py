@@ -27,7 +27,7 @@ class DatasetDoc:
 
 def datasets() -> list[DatasetDoc]:
     """Every dataset a nightly run publishes, in pipeline order."""
-    from planner.report import changes, margin_datasets as margins
+    from planner.report import changes, margin_datasets as margins, train_timetable
     from planner.datasets import closed_loop, conflicts, stops, tables
 
     occ, con = conflicts.OCCUPATION_SCHEMA, conflicts.CONFLICTS_SCHEMA
@@ -39,6 +39,7 @@ def datasets() -> list[DatasetDoc]:
                    "closed_loop"),
     ]
     out += [DatasetDoc(n, s, HIVE, "margins") for n, s in margins.SCHEMAS.items()]
+    out += [DatasetDoc(n, s, HIVE, "timetable") for n, s in train_timetable.SCHEMAS.items()]
     out += [DatasetDoc("conflicts", con, ("line",), "conflicts"),
             DatasetDoc("headways", conflicts.HEADWAYS_SCHEMA, ("line",), "conflicts"),
             DatasetDoc("occupation", occ, HIVE, "conflicts")]
@@ -70,6 +71,8 @@ def readme() -> str:
         "    <dataset>/line=L/direction=D/train_type=T/part-0.parquet",
         "    report/<line>_margins.html      the margin-time report, what changed since the last run on top",
         "    graph/<line>_graph.html         the interactive train graph (time-distance diagram)",
+        "    timetable/<line>_timetable.html running-time table of every train (#train-<id>), the train_timetable rows",
+        "    charts/<line>/<leg>.html        speed-distance chart per leg, train type and scheduled time",
         "    bundles/<line>_<dir>_<type>.pdb signed on-board DB bundles + signing_key.pub.pem",
         "  .cache/                           work cache keyed by input digests, verified on read (safe to delete)",
         "```",
@@ -83,6 +86,7 @@ def readme() -> str:
         "times, no time of day; `occupation` (blocking windows, for joins and arithmetic) keeps seconds",
         "after midnight only. Adhesion is in both units: the SI column and the job's own km/h/s value",
         "(`stop_summary.adhesion_kmh_s = 2.5` finds the 2.5 level exactly, no arithmetic).",
+        "`train_timetable` gives its clock times both as text `HH:MM:SS` and in seconds after midnight.",
         "",
         "Every row of every dataset also carries `run_id` and `run_date` (the last two columns), so",
         "two runs compare in one query, e.g. the bad-day margin of every timetabled leg in the last two",

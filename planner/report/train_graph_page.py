@@ -314,9 +314,21 @@ function select(id) {
   clearSel(); st.sel = tr;
   highlight(tr, "sel");
   const info = document.getElementById("selinfo");
-  if (!tr) { info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
+  if (!tr) { for (const id of ["tt-link", "chart-links"]) { const x = document.getElementById(id); if (x) x.style.display = "none"; }
+    info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
   const n = stair(tr, D.conflict.stair_a, "#8a6500", "a");
   info.textContent = tr.id + " (" + n + " blocking windows)";
+  const tt = document.getElementById("tt-link");
+  if (tt && D.tt) { tt.href = D.tt + "#train-" + encodeURIComponent(tr.id); tt.textContent = "running-time table of " + tr.id + " →"; tt.style.display = "inline"; }
+  const ch = document.getElementById("chart-links");
+  if (ch && D.charts) {
+    ch.textContent = " · speed–distance charts:";
+    const mine = (D.charts.by_train[tr.id] || []).map(i => D.charts.legs[i]);
+    for (const [label, href] of mine) {
+      const a = document.createElement("a"); a.href = href; a.textContent = label; ch.append(" ", a);
+    }
+    ch.style.display = mine.length ? "inline" : "none";
+  }
   history.replaceState(null, "", "#train=" + encodeURIComponent(tr.id));
 }
 function conText(rows) {
@@ -415,7 +427,8 @@ document.body.dataset.ready = "1";
 
 
 def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = None,
-                train: str | None = None, title_note: str = "") -> str:
+                train: str | None = None, title_note: str = "", timetable_href: str | None = None,
+                charts: dict[str, list[tuple[str, str]]] | None = None) -> str:
     """The interactive train graph as one self-contained HTML page (inline data, CSS and script).
 
     Parameters
@@ -426,6 +439,12 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         Train selected when the page opens (its stairway shown).
     title_note : str
         Extra text for the subtitle (e.g. the run id).
+    timetable_href : str, optional
+        The line's running-time tables page (a run's ``timetable/<line>_timetable.html``, relative to this
+        page): a selected train gets a link to its table there (``#train-<id>``).
+    charts : dict, optional
+        ``train_id`` → ``[(label, href)]`` of its legs' speed–distance charts (relative to this page):
+        a selected train gets a link to each.
     """
     payload = page_payload(data)
     lo, hi = time_window(data, t0, t1)
@@ -433,6 +452,13 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         data.train(train)
     payload["view"] = [lo, hi]
     payload["select"] = train
+    if timetable_href:
+        payload["tt"] = timetable_href
+    if charts:  # each leg's link once, trains by index (a leg is run by many trains)
+        legs = sorted({tuple(x) for v in charts.values() for x in v})
+        at = {x: i for i, x in enumerate(legs)}
+        payload["charts"] = {"legs": [list(x) for x in legs],
+                             "by_train": {k: [at[tuple(x)] for x in v] for k, v in charts.items()}}
     js = json.dumps(payload, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
     js = js.replace("</", "<\\/")  # never closes the script element
     n = len(data.trains)
@@ -459,13 +485,16 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "<label><input type='checkbox' id='show-up' checked> up</label>"
         "<label><input type='checkbox' id='show-conflicts' checked> conflicts</label>"
         "<label>train <input type='text' id='find' placeholder='e.g. 1001D' list='train-ids'></label>"
-        "<span>selected: <b id='selinfo'>none</b></span></div>"
+        "<span>selected: <b id='selinfo'>none</b> <a id='tt-link' href='#' style='display:none'></a>"
+        "<span id='chart-links' style='display:none'> · speed–distance:</span></span></div>"
         "<datalist id='train-ids'>" + "".join(f"<option value='{e(t.train_id)}'>" for t in data.trains) + "</datalist>"
         "<div id='wrap'><svg id='graph' xmlns='http://www.w3.org/2000/svg' role='img' "
         "aria-label='time-distance train graph'></svg><div id='tip'></div></div>"
         "<div id='info'><p>Hover a train for its number, type, times and margin; click it (or type its number) for its "
         "blocking-time stairway: one box per section or switch from the window's opening (entry − route setting − "
-        "approach) to its closing (tail clear + release). Magenta boxes: two trains' windows overlap (a conflict); click "
+        "approach) to its closing (tail clear + release)"
+        f"{', and a link to its running-time table and speed–distance charts' if timetable_href else ''}. "
+        "Magenta boxes: two trains' windows overlap (a conflict); click "
         f"one for both trains' stairways (<span class='box' style='background:{STAIR_COLOUR};opacity:.6'></span>the "
         f"train that goes first, <span class='box' style='background:{STAIR_B_COLOUR};opacity:.6'></span>the one that "
         "waits, its path dashed) with the overlap, or open the page at <code>#conflict=N</code>. "

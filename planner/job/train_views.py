@@ -1,0 +1,136 @@
+"""The nightly job's per-train views: the ``train_timetable`` dataset, its page and the speed–distance charts.
+
+Called by :func:`planner.job.views.line_views` once a line's margin report is
+computed. From the report's rows (the on-time ratio and the minimum of every
+timetabled leg × scheduled time) it records each leg's two runs
+(:func:`planner.report.train_timetable.leg_runs`), then writes
+
+* the ``train_timetable`` dataset (a row per call of every train);
+* ``timetable/<line>_timetable.html``, all trains on one page, ``#train-<id>``
+  anchors (:mod:`planner.report.timetable_page`);
+* ``charts/<line>/<leg>.html``, one speed–distance chart page per leg ×
+  train type × scheduled time the tables link to (:mod:`planner.report.speed_chart`),
+  drawn on the job's workers as cached units (:func:`_chart_key`), so a run after an edit redraws only
+  the legs it reaches.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from planner.line.units import KMH_S
+
+TIMETABLE_DIR = "timetable"
+
+
+def timetable_href(line_id: str) -> str:
+    """The running-time tables page of a line, relative to the run folder."""
+    from planner.io.paths import check_path_id
+
+    return f"{TIMETABLE_DIR}/{check_path_id(line_id, 'line id')}_timetable.html"
+
+
+def _patterns(stage: Path, line_id: str) -> dict:
+    """Stopping-pattern samples by arrival stop, lowest and highest adhesion, from the run's ``stop_samples``."""
+    from planner.report.published_run import read_line_dataset
+
+    ss = read_line_dataset(stage, "stop_samples", line_id)
+    pats: dict = {}
+    if ss is not None and len(ss):
+        ss = ss.assign(adhesion_kmh_s=(ss["adhesion_ms2"] / KMH_S).round(6))
+        for (d, t, s), g in ss.groupby(["direction", "train_type", "station_id"]):
+            lv = sorted(g["adhesion_kmh_s"].unique())
+            pats[(d, t, s)] = {a: (g.loc[g.adhesion_kmh_s == a, "position_m"].to_numpy(float),
+                                   g.loc[g.adhesion_kmh_s == a, "speed_kmh"].to_numpy(float))
+                               for a in (lv[0], lv[-1])}
+    return pats
+
+
+def _eval_points(job, line, train_type: str, origin: str, destination: str) -> list:
+    """The leg's evaluation points as the tables define them (one definition: ``train_evaluation_points``)."""
+    from planner.physics.track import SimSettings
+    from planner.tables.eval_points import train_evaluation_points
+
+    tp = job.tables
+    pts = train_evaluation_points(line, train_type, origin, destination, after_departure_m=tp.eval_offset_m,
+                                  interval_m=tp.eval_interval_m or None, auto_s=tp.eval_auto_s or None,
+                                  settings=SimSettings(ds_m=tp.ds_m))
+    return [(float(p.position_m), p.eval_point_id) for p in pts]
+
+
+def _chart_task(line, run, calls, pattern, evp, signals, trains, back):
+    """Worker: one chart page's text (``line``: the leg's window; the signals come from the whole line)."""
+    from planner.report.speed_chart import chart_page, chart_svg
+
+    return chart_page(line, run, calls, trains, chart_svg(line, run, calls, pattern, evp, signals), back)
+
+
+def train_views(job, line, stage: Path, report, runner, summary, run_label: str = "") -> dict[str, list]:
+    """Dataset, page and charts of a line's trains (module doc).
+
+    Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
+    legs with a chart in running order (the train graph links them).
+    """
+    from planner.job.pipeline import _count
+    from planner.job.units import Unit
+    from planner.report.speed_chart import write_chart
+    from planner.report.timetable_page import render_page, write_page
+    from planner.report.train_timetable import chart_name, leg_runs, timetable_rows, write_timetable
+
+    lid = line.line_id
+    with runner.progress.step("timetable"):
+        runs = leg_runs(line, report.rows, ds_m=job.tables.ds_m)
+        types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
+        _count(summary, write_timetable(line, runs, stage, types))
+        recs = timetable_rows(line, runs, types)
+        links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
+                 ("train graph", f"../graph/{lid}_graph.html")]
+        write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, run_label=run_label, links=links))
+    pats = _patterns(stage, lid)
+    units, paths = [], []
+    back = "../../" + timetable_href(lid)
+    for key, run in sorted(runs.items()):
+        d, t, o, de, _ = key
+        passes = list(run.row.get("passes") if run.row.get("passes") is not None else [])
+        calls = [(sid, stops, line.station(sid).stop_m(d) if stops else line.station(sid).position_m)
+                 for sid, stops in [(o, True)] + [(p, False) for p in passes] + [(de, True)]]
+        trains = sorted(run.row.get("train_ids") if run.row.get("train_ids") is not None else [])
+        lo, hi = float(run.position_m.min()), float(run.position_m.max())
+        signals = [s.position_m for s in line.signals if s.direction == d and lo <= s.position_m <= hi]
+        args = (line.window(o, de, t), run, calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de),
+                signals, trains, back)
+        units.append(Unit("charts", _chart_key(line, run, args[2:]), "charts", _chart_task, args))
+        paths.append(stage / chart_name(lid, key))
+    for p, text in zip(paths, runner.run("charts", units)):  # cached: an unchanged leg's chart is not redrawn
+        write_chart(p, text)
+    legs: dict[str, list] = {}
+    for r in recs:
+        if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
+            legs.setdefault(r["train_id"], []).append((f"{r['leg_origin']}→{r['station_id']}", r["chart"]))
+    return legs
+
+
+def _chart_key(line, run, rest) -> str:
+    """The cache key of a chart: the code, what the leg's window of the line holds, both runs, the row's
+    figures the chart prints and everything else it draws (``rest``: calls, pattern, points, signals, trains)."""
+    import hashlib
+    import json
+
+    import numpy as np
+
+    from planner.job.publish import digest
+    from planner.job.units import code_digest, interstation_inputs
+
+    d, t, o, de, sched = run.key
+    h = hashlib.sha256()
+    for a in (run.position_m, run.t_s, run.v_ms, run.vmax_ms):
+        h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    calls, pattern, evp, signals, trains, back = rest
+    for a, (px, pv) in sorted((pattern or {}).items()):
+        h.update(json.dumps(float(a)).encode())
+        h.update(np.ascontiguousarray(px, float).tobytes() + np.ascontiguousarray(pv, float).tobytes())
+    figures = [float(run.row[c]) for c in ("min_running_time_s", "margin_s")] + [run.ratio, float(sched)]
+    return digest(["chart", code_digest(), interstation_inputs(line, t, o, de), h.hexdigest(), figures,
+                   [list(map(str, c[:2])) + [float(c[2])] for c in calls], [[float(p), str(i)] for p, i in evp or []],
+                   [float(x) for x in signals], list(trains), back])
+
+__all__ = ["timetable_href", "train_views"]

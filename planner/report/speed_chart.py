@@ -1,0 +1,174 @@
+"""Speed–distance chart of one leg and scheduled time, as a self-contained page.
+
+One page per (leg, train type, scheduled running time) of the timetable,
+``charts/<line>/<direction>_<type>_<origin>-<destination>_<scheduled>s.html``,
+pre-rendered by the nightly job (a published run is static files) and linked
+from the per-train running-time table (:mod:`planner.report.timetable_page`).
+
+What it draws (matplotlib through :func:`planner.report.plots.pyplot`, inline SVG):
+
+* the run at the on-time ratio and the minimum run (ratio 1.0), the two
+  recorded runs of :class:`planner.report.train_timetable.LegRun`;
+* the permanent speed limits that apply to the train (and the line maximum) and
+  the on-board maximum it runs to (limit − the train's speed margin);
+* the stopping pattern at the arrival stop, lowest and highest adhesion of the
+  run's stopping-pattern sweep (``stop_samples``);
+* the stopping pattern (stops and passes) as station lines, signals, ATS-P
+  beacons and the evaluation points of the leg (``eval_points``);
+* below: the gradient [‰] and the curves (radius) along the leg.
+
+Curves are thinned for drawing with :func:`planner.report.train_graph.simplify`
+(0.2 km/h, 2 m), which keeps a page near 60 kB.
+"""
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+import numpy as np
+
+from planner.line.model import sign
+from planner.line.units import kmh
+
+TOL_V_KMH = 0.2
+TOL_X_M = 2.0
+
+
+def _thin(x_m: np.ndarray, v_kmh: np.ndarray):
+    from planner.report.train_graph import simplify
+
+    k = simplify(v_kmh, x_m, TOL_V_KMH, TOL_X_M)
+    return x_m[k] / 1000.0, v_kmh[k]
+
+
+def _steps(segs, lo: float, hi: float, fill: float):
+    """(x [km], y) of a piecewise-constant quantity over [lo, hi] with ``fill`` in the gaps."""
+    xs, ys = [lo], [fill]
+    for a, b, v in zip(segs.start_m, segs.end_m, segs.value):
+        if b <= lo or a >= hi:
+            continue
+        a, b = max(a, lo), min(b, hi)
+        xs += [a, a, b, b]
+        ys += [fill, v, v, fill]
+    xs.append(hi)
+    ys.append(fill)
+    return np.asarray(xs) / 1000.0, np.asarray(ys)
+
+
+def _limit_steps(line, direction: str, train_type: str, lo: float, hi: float):
+    """The permanent limit that applies at each point (the lowest of the overlapping ones, else the line maximum)."""
+    lims = [s for s in line.limits_for(direction, train_type) if s.end_m > lo and s.start_m < hi]
+    cuts = sorted({lo, hi, *[min(max(s.start_m, lo), hi) for s in lims], *[min(max(s.end_m, lo), hi) for s in lims]})
+    top = line.max_speed_ms if np.isfinite(line.max_speed_ms) else line.train_type(train_type).max_speed_ms
+    xs, ys = [], []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        m = 0.5 * (a + b)
+        v = min([s.limit_ms for s in lims if s.start_m <= m < s.end_m] + [top])
+        xs += [a, b]
+        ys += [kmh(v), kmh(v)]
+    return np.asarray(xs) / 1000.0, np.asarray(ys)
+
+
+def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) -> str:
+    """The chart of one leg (inline SVG).
+
+    ``run``: a :class:`planner.report.train_timetable.LegRun`; ``calls``: ``(station_id, stops, chainage_m)``
+    of the leg's path from origin to destination (the stop marker of a stop, the station of a pass); ``pattern``: ``{adhesion_kmh_s: (position_m, speed_kmh)}``;
+    ``eval_points``: ``[(position_m, id)]``; ``signals``: their chainages (default the line's on the leg).
+    """
+    from planner.report.plots import inline_svg, pyplot
+
+    plt = pyplot()
+    d, tt, o, de, sched = run.key
+    row = run.row
+    x = run.position_m
+    lo, hi = float(np.min(x)), float(np.max(x))
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(15.5, 7.0), sharex=True, gridspec_kw={"height_ratios": [4, 1.3]})
+    lx, ly = _limit_steps(line, d, tt, lo, hi)
+    ax.plot(lx, ly, color="#9e9e9e", lw=1.0, ls="--", label="permanent speed limit")
+    ax.step(x / 1000.0, kmh(run.vmax_ms), where="mid", color="0.55", lw=1.1, label="on-board maximum (limit − margin)")
+    t_r, t_m = float(run.t_s[0][-1]), float(run.t_s[1][-1])
+    ax.plot(*_thin(x, kmh(run.v_ms[1])), color="#1f5fa8", lw=1.8, label=f"minimum run: ratio 100 % — {t_m:.1f} s")
+    ax.plot(*_thin(x, kmh(run.v_ms[0])), color="#2e7d32", lw=1.6,
+            label=f"on-time departure: ratio {run.ratio:.0%} — {t_r:.1f} s\n  (scheduled {sched:.0f} s)")
+    for (a, (px, pv)), (col, what) in zip(sorted((pattern or {}).items()),
+                                          (("#c62828", "lowest"), ("#ef8f00", "highest"))):
+        ax.plot(np.asarray(px) / 1000.0, pv, color=col, lw=1.3, ls=(0, (4, 2)),
+                label=f"stopping pattern, {what} adhesion {a:.2g} km/h/s")
+    top = float(np.nanmax(ly)) * 1.14
+    ax.set_ylim(0, top)
+    for sid, stops, p in calls:
+        ax.axvline(p / 1000.0, color="k", lw=1.0 if stops else 0.7, ls="-" if stops else ":")
+        ax2.axvline(p / 1000.0, color="k", lw=1.0 if stops else 0.7, ls="-" if stops else ":")
+        ax.text(p / 1000.0, top * 0.985, f" {sid}{'' if stops else ' (pass)'} ", ha="center", va="top", fontsize=9,
+                bbox=dict(boxstyle="round,pad=0.2", fc="white" if stops else "#f3f3f3", ec="k", lw=0.6))
+    sig = signals if signals is not None else [s.position_m for s in line.signals
+                                               if s.direction == d and lo <= s.position_m <= hi]
+    if sig:
+        ax.plot(np.asarray(sig) / 1000.0, np.full(len(sig), top * 0.07), "v", color="#37474f", ms=6,
+                label="signal")
+    bea = [b.position_m for b in line.beacons_for(d) if lo <= b.position_m <= hi]
+    if bea:
+        ax.plot(np.asarray(bea) / 1000.0, np.full(len(bea), top * 0.03), "|", color="#6a1b9a", ms=8, mew=1.5,
+                label="ATS-P / TASC beacon")
+    if eval_points:
+        ep = np.asarray([p for p, _ in eval_points], float)
+        ax.plot(ep / 1000.0, np.full(len(ep), top * 0.11), "D", color="#f2b705", mec="#8d6e00", ms=4.5,
+                label="evaluation point")
+    ax.set_ylabel("speed [km/h]")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, frameon=False, borderaxespad=0.0)
+    gx, gy = _steps(line.gradients, lo, hi, 0.0)
+    ax2.fill_between(gx, 0.0, sign(d) * gy * 1000.0, step=None, color="#8d6e63", alpha=0.35, lw=0.8,
+                     label="gradient in the running direction [‰] (+ rising)")
+    ax2.axhline(0.0, color="0.4", lw=0.6)
+    ax2.set_ylabel("gradient [‰]")
+    for a, b, r in zip(line.curves.start_m, line.curves.end_m, line.curves.value):
+        if b <= lo or a >= hi:
+            continue
+        a, b = max(a, lo), min(b, hi)
+        ax2.axvspan(a / 1000.0, b / 1000.0, color="#5a7da8", alpha=0.18, lw=0)
+        ax2.text(0.5 * (a + b) / 1000.0, ax2.get_ylim()[1] * 0.9, f"R{r:.0f}", ha="center", va="top", fontsize=7.5,
+                 color="#34507a")
+    ax2.plot([], [], color="#5a7da8", alpha=0.4, lw=6, label="curve (radius [m])")
+    ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, frameon=False, borderaxespad=0.0)
+    ax2.set_xlabel("chainage [km]")
+    ax2.grid(alpha=0.3)
+    if d == "up":
+        ax.invert_xaxis()
+    fig.suptitle(f"{tt} {d} {o} → {de} ({(hi - lo) / 1000:.2f} km): scheduled {sched:.0f} s, minimum "
+                 f"{float(row['min_running_time_s']):.1f} s, margin {float(row['margin_s']):+.1f} s",
+                 x=0.01, ha="left", fontsize=11, fontweight="bold")
+    fig.subplots_adjust(left=0.055, right=0.75, top=0.93, bottom=0.09, hspace=0.06)
+    return inline_svg(fig)
+
+
+def chart_page(line, run, calls, trains, svg: str, back: str) -> str:
+    """The chart page: title, what is drawn, the trains that run the leg at this time (links back)."""
+    from planner.report.html import CSS
+
+    d, tt, o, de, sched = run.key
+    e = html.escape
+    links = ", ".join(f'<a href="{e(back)}#train-{e(t)}">{e(t)}</a>' for t in trains)
+    title = f"{tt} {d} {o} → {de}, scheduled {sched:.0f} s"
+    return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{e(title)} — speed–distance</title>'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}</style></head><body><main>'
+            f'<p class="sub"><a href="{e(back)}">← running-time tables of line {e(line.line_id)}</a></p>'
+            f"<h1>Speed–distance: {e(title)}</h1>"
+            f'<p class="sub">Run at the on-time ratio {run.ratio:.0%} (the ratio the on-board logic picks when the '
+            f"train leaves on time) and the minimum run (ratio 100 %), both at the tables' conditions (empty, full "
+            f"traction), from the departure stop marker to the arrival stop marker.</p>"
+            f'<div class="fig">{svg}</div>'
+            f'<p class="caption">Trains that run this leg with this scheduled time: {links or "none"}.</p>'
+            "</main></body></html>\n")
+
+
+def write_chart(path: Path, text: str) -> Path:
+    from planner.io.atomic import write_bytes_atomic
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_bytes_atomic(path, text.encode("utf-8"))
+    return path
+
+
+__all__ = ["chart_svg", "chart_page", "write_chart"]

@@ -1,0 +1,250 @@
+"""Running-time table per train: every station of its path, scheduled against computed times.
+
+What a planner reads as OpenTrack's timetable output or OSRD's simulation table:
+for every timetabled train, every call of its path (stops and passes) with
+
+* the **scheduled** arrival, departure and passing times (the timetable);
+* the **computed** ones: each leg (stop to next stop) run from its scheduled
+  departure at the ratio the on-board logic picks for an on-time departure
+  (``ratio_on_time`` of the ``margins`` dataset: the nearest table (a) time to
+  the scheduled one), so a computed arrival is where the train would be if it
+  left on time and held that ratio; departures are the scheduled ones (a
+  train leaves on time, and a leg's computed times never carry a delay of the
+  leg before);
+* the **minimum** run (ratio 1.0: table (a)'s first row), the same way;
+* the **running-time supplement** of each section (call to call): scheduled
+  section time − minimum section time; the supplements of a leg add up to its
+  margin (scheduled − minimum running time);
+* the leg's margin, remaining margin on a bad day and flags, from ``margins``,
+  on the row of the stop that ends the leg.
+
+Nothing here has physics of its own: the ratio and the leg's figures are the
+margin report's rows; the times at the passed stations come from the one
+run-curve integrator (:func:`planner.physics.run_curve.simulate`) on the leg's
+track at the table conditions (load 0, traction × 1), i.e. table (a)'s runs at
+those two ratios recorded along the way. The same recorded runs draw the
+speed–distance charts (:mod:`planner.report.speed_chart`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+
+from planner.errors import PlannerError
+from planner.io.parquet import declare, write_partitioned
+
+TIMETABLE_SCHEMA = declare(
+    [
+        ("train_id", pa.string(), "train number"),
+        ("seq", pa.int32(), "call order along the train's path, from 0"),
+        ("station_id", pa.string(), "station id"),
+        ("station_name", pa.string(), "station name"),
+        ("position_m", pa.float64(), "chainage of the station [m]"),
+        ("activity", pa.string(), "'departs' (first call), 'stops', 'passes' or 'arrives' (last call)"),
+        ("scheduled_arrival", pa.string(), "scheduled arrival or passing time HH:MM:SS (past 24 after midnight); null at the first call"),
+        ("scheduled_departure", pa.string(), "scheduled departure or passing time HH:MM:SS; null at the last call"),
+        ("computed_arrival", pa.string(),
+         "arrival or passing time of the run at the leg's ratio_on_time from the leg's scheduled departure, HH:MM:SS"),
+        ("computed_departure", pa.string(), "computed departure HH:MM:SS: the scheduled one (an on-time departure); "
+                                            "at a pass, the computed passing time"),
+        ("minimum_arrival", pa.string(), "arrival or passing time of the minimum run (ratio 1.0) from the leg's "
+                                         "scheduled departure, HH:MM:SS"),
+        ("scheduled_arrival_s", pa.float64(), "scheduled_arrival in seconds after midnight of the timetable day [s]"),
+        ("scheduled_departure_s", pa.float64(), "scheduled_departure in seconds after midnight [s]"),
+        ("computed_arrival_s", pa.float64(), "computed_arrival in seconds after midnight [s]"),
+        ("computed_departure_s", pa.float64(), "computed_departure in seconds after midnight [s]"),
+        ("minimum_arrival_s", pa.float64(), "minimum_arrival in seconds after midnight [s]"),
+        ("section_scheduled_s", pa.float64(),
+         "scheduled time of the section from the previous call (its departure or pass) to this one [s]; null at the first call"),
+        ("section_minimum_s", pa.float64(), "minimum running time of that section (ratio 1.0) [s]"),
+        ("supplement_s", pa.float64(),
+         "running-time supplement of the section: section_scheduled_s - section_minimum_s [s]; the supplements of a "
+         "leg add up to its margin"),
+        ("supplement_percent", pa.float64(), "supplement_s as a percentage of section_minimum_s [%]"),
+        ("leg_origin", pa.string(), "the stop where the leg this call belongs to starts (null at the first call)"),
+        ("ratio_on_time", pa.float64(), "the leg's ratio at an on-time departure (margins.ratio_on_time)"),
+        ("leg_scheduled_running_time_s", pa.float64(), "at the stop ending a leg: its scheduled running time [s]"),
+        ("leg_min_running_time_s", pa.float64(), "at the stop ending a leg: its minimum running time, table (a) [s]"),
+        ("leg_margin_s", pa.float64(), "at the stop ending a leg: scheduled - minimum running time (margins.margin_s) [s]"),
+        ("leg_remaining_margin_s", pa.float64(),
+         "at the stop ending a leg: scheduled - bad-day minimum (margins.remaining_margin_s) [s]; null: unassessed"),
+        ("leg_flag", pa.string(), "at the stop ending a leg: its worst margin-report flag, or 'ok'"),
+        ("chart", pa.string(), "the leg's speed-distance chart page, relative to the run folder"),
+    ],
+    name="train_timetable",
+    description="Running-time table per train: scheduled, computed (on-time ratio) and minimum times at every call.",
+)
+SCHEMAS = {"train_timetable": TIMETABLE_SCHEMA}
+CHARTS_DIR = "charts"
+"""Folder of the speed–distance chart pages in a run (``charts/<line>/<leg>.html``)."""
+
+
+def clock(t: float) -> str | None:
+    """Seconds after midnight → ``HH:MM:SS`` (hours past 24 after midnight); None when unknown."""
+    if t is None or not math.isfinite(t):
+        return None
+    n = int(round(t))
+    return f"{n // 3600:02d}:{n // 60 % 60:02d}:{n % 60:02d}"
+
+
+def leg_key(direction: str, train_type: str, origin: str, destination: str, scheduled_s: float) -> tuple:
+    return (direction, train_type, origin, destination, round(float(scheduled_s), 6))
+
+
+def chart_name(line_id: str, key: tuple) -> str:
+    """Relative path (from the run folder) of a leg's chart page."""
+    from planner.io.paths import check_path_id
+
+    d, t, o, de, s = key
+    s_txt = f"{s:.0f}" if float(s).is_integer() else f"{s:.1f}"
+    name = check_path_id(f"{d}_{t}_{o}-{de}_{s_txt}s", "chart name")
+    return f"{CHARTS_DIR}/{check_path_id(line_id, 'line id')}/{name}.html"
+
+
+@dataclass
+class LegRun:
+    """A leg's two recorded runs: at the on-time ratio (row 0) and the minimum, ratio 1.0 (row 1)."""
+
+    key: tuple
+    ratio: float
+    position_m: np.ndarray  # chainage of each grid node
+    t_s: np.ndarray  # (2, m) time since departure [s]
+    v_ms: np.ndarray  # (2, m) speed [m/s]
+    vmax_ms: np.ndarray  # on-board maximum per node [m/s]
+    row: dict  # the margins row
+
+    def time_at(self, chainage_m: float, run: int) -> float:
+        """Time since departure when the front passes ``chainage_m`` [s]."""
+        x, t = self.position_m, self.t_s[run]
+        order = np.argsort(x)
+        return float(np.interp(chainage_m, x[order], t[order]))
+
+
+def _leg_run(line, row: dict, ds_m: float) -> LegRun:
+    from planner.physics.run_curve import simulate
+    from planner.physics.track import SimSettings, make_track
+
+    track = make_track(line, row["train_type"], row["origin"], row["destination"], settings=SimSettings(ds_m=ds_m))
+    ratio = float(row["ratio_on_time"])
+    res = simulate(track, line.train_type(row["train_type"]), np.array([ratio, 1.0]), record=True)
+    key = leg_key(row["direction"], row["train_type"], row["origin"], row["destination"],
+                  row["scheduled_running_time_s"])
+    return LegRun(key, ratio, np.asarray(track.chainage_m, float), np.asarray(res.t_s, float),
+                  np.asarray(res.v_ms, float), np.asarray(track.vmax_ms, float), row)
+
+
+def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
+    """The recorded runs of every timetabled leg × scheduled time of a ``margins`` table (pandas)."""
+    out = {}
+    has = margins[margins["scheduled_running_time_s"].notna() & margins["ratio_on_time"].notna()]
+    for row in has.to_dict("records"):
+        try:
+            r = _leg_run(line, row, ds_m)
+        except PlannerError:  # a leg that stalls at its on-time ratio: no computed times, its rows stay null
+            continue
+        out[r.key] = r
+    return out
+
+
+def _flag(row: dict) -> str:
+    """The worst flag of a margins row given as a dict (null flags, an unassessed leg's, count as unset)."""
+    from types import SimpleNamespace
+
+    from planner.report.leg_flags import FLAGS, flag_of
+
+    return flag_of(SimpleNamespace(**{f: row.get(f) for f in FLAGS}))
+
+
+def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[dict]:
+    """One record per call of every train (columns of :data:`TIMETABLE_SCHEMA` plus direction, train_type),
+    of the given train types (default every one)."""
+    nan = math.nan
+    recs = []
+    for tr in line.trains:
+        if train_types is not None and tr.train_type not in train_types:
+            continue
+        last = len(tr.calls) - 1
+        stops = [k for k, c in enumerate(tr.calls) if c.stops or k in (0, last)]
+        leg_of = {}  # call index -> (start call index, end call index)
+        for a, b in zip(stops[:-1], stops[1:]):
+            for k in range(a + 1, b + 1):
+                leg_of[k] = (a, b)
+        prev_sched = prev_min = nan
+        for k, c in enumerate(tr.calls):
+            st = line.station(c.station_id)
+            act = "departs" if k == 0 else "arrives" if k == last else "stops" if c.stops else "passes"
+            arr_s = nan if k == 0 else float(c.arrival_s)
+            dep_s = nan if k == last else float(c.departure_s)
+            rec = {"direction": tr.direction, "train_type": tr.train_type, "train_id": tr.train_id, "seq": k,
+                   "station_id": c.station_id, "station_name": st.name, "position_m": float(st.position_m),
+                   "activity": act, "scheduled_arrival_s": arr_s, "scheduled_departure_s": dep_s,
+                   "computed_arrival_s": nan, "computed_departure_s": dep_s, "minimum_arrival_s": nan,
+                   "section_scheduled_s": nan, "section_minimum_s": nan, "supplement_s": nan,
+                   "supplement_percent": nan, "leg_origin": None, "ratio_on_time": nan,
+                   "leg_scheduled_running_time_s": nan, "leg_min_running_time_s": nan, "leg_margin_s": nan,
+                   "leg_remaining_margin_s": nan, "leg_flag": None, "chart": None}
+            if k in leg_of:
+                a, b = leg_of[k]
+                ca, cb = tr.calls[a], tr.calls[b]
+                dep0 = float(ca.departure_s)
+                key = leg_key(tr.direction, tr.train_type, ca.station_id, cb.station_id,
+                              float(cb.arrival_s) - dep0)
+                run = runs.get(key)
+                rec["leg_origin"] = ca.station_id
+                if run is not None:
+                    end = k == b
+                    # the stop itself: the run's end (the stop marker); a pass: the front at the station
+                    t_r = float(run.t_s[0][-1]) if end else run.time_at(st.position_m, 0)
+                    t_m = float(run.t_s[1][-1]) if end else run.time_at(st.position_m, 1)
+                    rec["computed_arrival_s"] = dep0 + t_r
+                    rec["minimum_arrival_s"] = dep0 + t_m
+                    if not end:
+                        rec["computed_departure_s"] = dep0 + t_r
+                    rec["ratio_on_time"] = run.ratio
+                    rec["chart"] = chart_name(line.line_id, key)
+                    sec_min = t_m - (0.0 if k - 1 == a else prev_min)
+                    sec_sched = float(c.arrival_s) - prev_sched
+                    rec["section_scheduled_s"] = sec_sched
+                    rec["section_minimum_s"] = sec_min
+                    rec["supplement_s"] = sec_sched - sec_min
+                    rec["supplement_percent"] = 100.0 * (sec_sched - sec_min) / sec_min if sec_min > 0 else nan
+                    prev_min = t_m
+                    if end:
+                        row = run.row
+                        rec["leg_scheduled_running_time_s"] = float(row["scheduled_running_time_s"])
+                        rec["leg_min_running_time_s"] = float(row["min_running_time_s"])
+                        rec["leg_margin_s"] = float(row["margin_s"])
+                        rm = row.get("remaining_margin_s")
+                        rec["leg_remaining_margin_s"] = float(rm) if rm is not None else nan
+                        rec["leg_flag"] = _flag(row)
+            prev_sched = dep_s if k != last else nan
+            for col in ("scheduled_arrival", "scheduled_departure", "computed_arrival", "computed_departure",
+                        "minimum_arrival"):
+                rec[col] = clock(rec[col + "_s"])
+            recs.append(rec)
+    return recs
+
+
+def timetable_table(line, runs: dict[tuple, LegRun], train_types=None) -> pa.Table:
+    """The ``train_timetable`` rows of a line with the partition columns (``line, direction, train_type``)."""
+    import pandas as pd
+
+    df = pd.DataFrame.from_records(timetable_rows(line, runs, train_types))
+    df.insert(0, "line", line.line_id)
+    df["seq"] = df["seq"].astype("int32")
+    return pa.Table.from_pandas(df, preserve_index=False)
+
+
+def write_timetable(line, runs: dict[tuple, LegRun], out_dir: str | Path, train_types=None) -> list[Path]:
+    """Write the ``train_timetable`` dataset of a line (its trains of ``train_types``, default all) under
+    ``out_dir``; the files written."""
+    return write_partitioned(timetable_table(line, runs, train_types), Path(out_dir), "train_timetable",
+                             schema=TIMETABLE_SCHEMA, sort_by=("train_id", "seq"))
+
+
+__all__ = ["TIMETABLE_SCHEMA", "SCHEMAS", "CHARTS_DIR", "clock", "leg_key", "chart_name", "LegRun", "leg_runs",
+           "timetable_rows", "timetable_table", "write_timetable"]

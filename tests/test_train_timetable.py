@@ -1,0 +1,120 @@
+"""The running-time table per train (``train_timetable``) on the tiny line: times, supplements, dataset, page.
+
+The computed times are checked against what other code computes independently: the minimum
+run against the margin report's table (a) minimum, the on-time run against table (a) built by
+:func:`planner.tables.build.interstation_tables` at that ratio, and the supplements of a leg
+against its margin (they must add up to it, by their definition).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from linedb import write_line_db
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    from planner import load_line
+
+    folder = tmp_path_factory.mktemp("line") / "tiny"
+    write_line_db(folder, nodes=None, edges=None)
+    return load_line(folder)
+
+
+@pytest.fixture(scope="module")
+def margins(tiny):
+    from planner.report.margins import compute_margins
+
+    return compute_margins(tiny, conflicts=False).rows
+
+
+@pytest.fixture(scope="module")
+def runs(tiny, margins):
+    from planner.report.train_timetable import leg_runs
+
+    return leg_runs(tiny, margins)
+
+
+@pytest.fixture(scope="module")
+def rows(tiny, runs):
+    from planner.report.train_timetable import timetable_rows
+
+    return timetable_rows(tiny, runs)
+
+
+def test_clock_text():
+    from planner.report.train_timetable import clock
+
+    assert clock(0.0) == "00:00:00"
+    assert clock(6 * 3600 + 5 * 60 + 7.4) == "06:05:07"
+    assert clock(59.6) == "00:01:00"  # rounded to the second, carried into the minute
+    assert clock(25 * 3600 + 61) == "25:01:01"  # past midnight, as timetables write it
+    assert clock(math.nan) is None
+
+
+def test_runs_are_table_a_runs(tiny, margins, runs):
+    from planner.tables.build import interstation_tables
+
+    has = margins[margins.scheduled_running_time_s.notna()]
+    assert len(runs) == len(has) == 3  # 101: A-B and B-C; 202: C-A, passing B
+    for run in runs.values():
+        d, t, o, de, sched = run.key
+        row = run.row
+        assert run.t_s[1][-1] == pytest.approx(row["min_running_time_s"], abs=1e-6)
+        it = interstation_tables(tiny, t, o, de, [1.0, run.ratio])
+        assert run.t_s[0][-1] == pytest.approx(float(it.time_a_s[1]), abs=1e-6)
+        assert np.all(np.diff(run.t_s, axis=1) >= 0)  # time never runs back along the leg
+
+
+def test_rows_of_a_train_with_a_pass(rows, runs):
+    r202 = [r for r in rows if r["train_id"] == "202"]
+    assert [r["activity"] for r in r202] == ["departs", "passes", "arrives"]
+    dep, pas, arr = r202
+    assert dep["scheduled_departure"] == "06:06:40" and dep["computed_departure_s"] == 22000.0
+    assert pas["scheduled_arrival"] == pas["scheduled_departure"] == "06:10:00"
+    # the pass lies between the departure and the computed arrival, for both runs
+    assert 22000.0 < pas["computed_arrival_s"] < arr["computed_arrival_s"]
+    assert 22000.0 < pas["minimum_arrival_s"] < arr["minimum_arrival_s"] <= arr["computed_arrival_s"]
+    assert pas["computed_departure_s"] == pas["computed_arrival_s"]
+    # one leg C-A: its two sections' supplements add up to its margin (scheduled - minimum)
+    assert pas["supplement_s"] + arr["supplement_s"] == pytest.approx(arr["leg_margin_s"], abs=1e-6)
+    assert arr["leg_scheduled_running_time_s"] == 500.0
+    assert pas["section_scheduled_s"] == 200.0 and arr["section_scheduled_s"] == 300.0
+    assert arr["chart"] == pas["chart"] == "charts/tiny/up_EMU6_C-A_500s.html"
+    assert pas["leg_flag"] is None and arr["leg_flag"] in ("ok", "tight", "infeasible", "unreachable")
+
+
+def test_rows_of_a_stopping_train(rows):
+    r101 = [r for r in rows if r["train_id"] == "101"]
+    assert [r["activity"] for r in r101] == ["departs", "stops", "arrives"]
+    b = r101[1]
+    # a stop: computed departure is the scheduled one (an on-time departure), arrival from the leg's run
+    assert b["computed_departure_s"] == b["scheduled_departure_s"] == 21830.0
+    assert b["supplement_s"] == pytest.approx(b["leg_margin_s"], abs=1e-6)  # one section per leg
+    assert b["computed_arrival"] == b["computed_arrival"] and len(b["computed_arrival"]) == 8
+
+
+def test_dataset_has_the_declared_columns(tiny, runs, tmp_path):
+    from planner.io.parquet import read_dataset
+    from planner.report.train_timetable import TIMETABLE_SCHEMA, write_timetable
+
+    files = write_timetable(tiny, runs, tmp_path)
+    assert files
+    t = read_dataset(tmp_path, "train_timetable")
+    assert set(TIMETABLE_SCHEMA.names) <= set(t.column_names)
+    assert t.num_rows == sum(len(tr.calls) for tr in tiny.trains)
+    df = t.to_pandas()
+    assert df.loc[df.train_id == "101", "scheduled_arrival"].tolist()[1:] == ["06:03:20", "06:08:20"]
+
+
+def test_page_has_an_anchor_per_train_and_chart_links(tiny, rows):
+    from planner.report.timetable_page import render_page
+
+    text = render_page("tiny", tiny.name, rows)
+    for tr in tiny.trains:
+        assert f'id="train-{tr.train_id}"' in text
+    assert 'href="../charts/tiny/up_EMU6_C-A_500s.html"' in text
+    assert "http" not in text.replace("http-equiv", "")  # self-contained: no link off the machine
