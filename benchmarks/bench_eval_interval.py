@@ -44,8 +44,8 @@ from planner.report.eval_study import (  # noqa: E402
     format_table,
     format_worst,
     run_setting,
-    write_html,
 )
+from planner.pages.eval_study import write_html  # noqa: E402
 
 NEAREST_BOUNDS = NEAREST_BOUNDS_S  # the bounds, one copy (planner.report.eval_study)
 

@@ -118,7 +118,7 @@ def main() -> None:
     a = ap.parse_args()
     from browser import find_chromium
 
-    from planner.report.train_graph_page import write_page
+    from planner.pages.train_graph import write_page
 
     if find_chromium() is None:
         print("chromium not found: install Debian's chromium package")

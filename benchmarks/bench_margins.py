@@ -35,7 +35,7 @@ def main() -> None:
 
     from planner import load_line
     from planner.report.margins import compute_margins
-    from planner.report.html import render_html, stop_markers
+    from planner.pages.margin_report import render_html, stop_markers
 
     line = load_line(a.line)
     t0, c0 = time.perf_counter(), _cpu()

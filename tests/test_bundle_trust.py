@@ -285,7 +285,7 @@ def test_run_overview_says_development_key_instead_of_failed(tmp_path, keys, sma
     production one as verified, and a tampered one as FAILED."""
     import re
 
-    from planner.report.overview import _bundles
+    from planner.pages.overview import _bundles
 
     run = tmp_path / "run"
     folder = run / "bundles"

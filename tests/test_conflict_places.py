@@ -149,7 +149,7 @@ def test_headways_dataset_is_written_with_its_schema(rep, tmp_path):
 
 def test_graph_page_of_a_run_written_before_the_place_columns(rep):
     from planner.report.train_graph import GraphData
-    from planner.report.train_graph_page import page_payload
+    from planner.pages.train_graph import page_payload
 
     old = rep.conflicts.drop(columns=["station_id", "station_name", "station_distance_m", "track",
                                       "headway_s", "min_headway_s"])

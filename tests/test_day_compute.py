@@ -120,7 +120,7 @@ def test_the_minimum_running_time_rises_by_at_least_the_speed_dip(straight, trai
 
 
 def test_the_restrictions_page_names_the_legs_slowed_and_the_trains_that_lose_their_margin(straight):
-    from planner.report.restrictions import render, restriction_losses, scheduled_legs
+    from planner.pages.restrictions import render, restriction_losses, scheduled_legs
 
     line = day_line(straight, day_of(straight, tsr("W", 4800.0, 5200.0, 45.0)))
     before = running_time(straight, "EMU10", "A", "B").time_s
@@ -144,7 +144,7 @@ def test_the_restrictions_page_names_the_legs_slowed_and_the_trains_that_lose_th
 
 
 def test_a_train_that_runs_the_leg_while_a_part_day_restriction_is_lifted_is_named(straight):
-    from planner.report.restrictions import passing_while_lifted, windows_of
+    from planner.pages.restrictions import passing_while_lifted, windows_of
 
     # train 101 leaves A at 06:00 local (21600 s) and is due at B at 06:10
     rec = {"day": "2026-11-30", "time_zone": "Asia/Tokyo", "restrictions": [

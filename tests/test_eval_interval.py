@@ -185,7 +185,8 @@ def test_study_page_states_the_issue_checks():
     nearest rule's best setting under 2x today's bundle (today's = the first result), met or
     not, with the worst runs' last point with authority and the gap between table entries
     there; and the adaptive mode's max at every setting, naming the settings above 1 s."""
-    from planner.report.eval_study import Setting, SettingResult, Worst, render_html
+    from planner.pages.eval_study import render_html
+    from planner.report.eval_study import Setting, SettingResult, Worst
 
     def st(mx):
         return {"n_runs": 10, "n_feasible": 10, "median_abs_error_s": 0.1, "p95_abs_error_s": 0.2,

@@ -18,7 +18,7 @@ from planner.report.train_graph import (
     service_of,
     simplify,
 )
-from planner.report.train_graph_page import page_payload, render_page
+from planner.pages.train_graph import page_payload, render_page
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "planner"
 
-FLOORS = ["errors", "io", "line", "physics", "tables", "stopping", "network", "datasets", "bundle", "report",
+FLOORS = ["errors", "io", "line", "physics", "tables", "stopping", "network", "datasets", "bundle", "report", "pages",
           "job", "api", "cli"]
 """Ground floor first; a floor imports only from itself and the floors before it."""
 

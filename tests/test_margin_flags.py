@@ -108,8 +108,8 @@ def test_datasets_leave_only_the_unknown_flags_null():
 def test_an_edited_timetable_below_the_minimum_is_impossible_on_every_page(tmp_path):
     from test_margins import APPROACH, SMALL_GRID, TRAINS, closed_form_line, row, t_run
 
-    from planner.report.html import render_html
-    from planner.report.overview import render_overview
+    from planner.pages.margin_report import render_html
+    from planner.pages.overview import render_overview
 
     # L1's first leg S0 -> S1: 100 s -> 80 s, below the closed-form minimum L/V + V = 81.78 s
     l1 = TRAINS[0]

@@ -20,7 +20,7 @@ import pytest
 
 from planner.job.config import load_job
 from planner.line.loader import load_line
-from planner.report.html import LOSS_COLUMNS, cost_breakdown
+from planner.pages.margin_report import LOSS_COLUMNS, cost_breakdown
 from planner.report.leg_margin import leg_result
 from planner.report.margin_rule import margin_columns
 from planner.report.margins import margin_options

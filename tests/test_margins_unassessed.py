@@ -21,7 +21,7 @@ from planner.errors import LineValidationError
 from planner.report.margin_datasets import write_margins
 from planner.report.margin_rule import MarginRule, margin_columns
 from planner.report.margins import compute_margins
-from planner.report.html import render_html
+from planner.pages.margin_report import render_html
 from test_margins import APPROACH, SMALL_GRID, closed_form_line
 
 

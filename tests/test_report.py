@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from planner.report.margins import compute_margins
-from planner.report.html import render_html, stop_markers, write_html
+from planner.pages.margin_report import render_html, stop_markers, write_html
 from test_margins import APPROACH, closed_form_line
 
 
@@ -127,7 +127,7 @@ def test_flagged_bad_day_cost_adds_up_as_shown(report, page):
 
 def test_shares_add_up_after_rounding():
     """Rounding each share on its own would show 0.1 + 0.1 + 0.1 = 0.2 (or 0.3 = 0.2)."""
-    from planner.report.html import added_up
+    from planner.pages.margin_report import added_up
 
     rng = __import__("numpy").random.default_rng(17)
     for _ in range(2000):

@@ -222,7 +222,7 @@ def test_cli_says_the_flag_and_exits_zero(tmp_path):
 
 def test_the_page_draws_no_curves_for_a_stalled_leg_asked_for(steep):
     """``--curves FRT:A-B`` on the stalled leg: there is no bad-day run to draw, so no curves (not a crash)."""
-    from planner.report.html import render_html, stop_markers
+    from planner.pages.margin_report import render_html, stop_markers
     from planner.report.margins import compute_margins
 
     rep = compute_margins(steep, train_types=["FRT"], ratios=SMALL_GRID, conflicts=False, chosen=("FRT", "A", "B"))

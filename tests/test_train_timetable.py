@@ -111,7 +111,7 @@ def test_dataset_has_the_declared_columns(tiny, runs, tmp_path):
 
 
 def test_page_has_an_anchor_per_train_and_chart_links(tiny, rows):
-    from planner.report.timetable_page import render_page
+    from planner.pages.timetable import render_page
 
     text = render_page("tiny", tiny.name, rows)
     for tr in tiny.trains:

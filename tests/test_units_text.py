@@ -22,7 +22,7 @@ def test_adhesion_levels_come_back_as_written():
 
 
 def test_report_totals_are_h_mm_ss():
-    from planner.report.html import totals_table
+    from planner.pages.margin_report import totals_table
 
     row = dict(level="line", direction="down", train_type="all", n_trains=178, n_legs=2000,
                min_running_time_s=258929.0, scheduled_running_time_s=300000.0, margin_s=41071.0,

@@ -46,7 +46,7 @@ def _clean(page) -> None:
 
 def test_graph_page_draws_hovers_selects_and_zooms(browser, tiny, tmp_path):
     from planner.report.train_graph import graph_data
-    from planner.report.train_graph_page import write_page
+    from planner.pages.train_graph import write_page
 
     data = graph_data(tiny)
     path = write_page(data, tmp_path / "g.html", train="202")
@@ -93,7 +93,7 @@ def _fake_run(tmp_path: Path, line) -> Path:
 
 
 def test_overview_page_lists_inputs_datasets_and_bundle_status(browser, tiny, tmp_path):
-    from planner.report.overview import write_overview
+    from planner.pages.overview import write_overview
 
     run = _fake_run(tmp_path, tiny)
     bundles = sorted(p.name for p in (run / "bundles").glob("*.pdb"))
@@ -131,7 +131,7 @@ def test_overview_page_lists_inputs_datasets_and_bundle_status(browser, tiny, tm
 
 def test_changes_section_renders_in_the_report_page(browser, tmp_path):
     from planner.report.changes import LineChanges
-    from planner.report.changes_html import changes_html
+    from planner.pages.changes import changes_html
 
     ch = LineChanges("tiny", "r0001-aaaaaaaaaa", "r0002-bbbbbbbbbb")
     cid = ch.add("line_table", "speed_limits", "speed restriction 4000–4200 m up civil: limit_kmh 70 → 65",
@@ -155,7 +155,7 @@ def _page(tmp_path: Path, body: str) -> Path:
 
 def test_graph_page_conflict_box_is_visible_and_a_click_shows_both_stairways_and_the_overlap(browser, tmp_path):
     from planner.report.train_graph import CONFLICT_COLOUR, COLOURS, graph_data
-    from planner.report.train_graph_page import write_page
+    from planner.pages.train_graph import write_page
     from test_conflict_places import three_trains
     from test_network import P, const_curves
 
@@ -201,7 +201,7 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
     from planner.job.train_views import timetable_href, train_views
     from planner.report.margins import compute_margins
     from planner.report.train_graph import graph_data
-    from planner.report.train_graph_page import write_page
+    from planner.pages.train_graph import write_page
 
     run = tmp_path / "r0003-0123456789"
     import dataclasses

@@ -19,7 +19,7 @@ def diff(
     """Compare two runs line by line: changed inputs, and legs, flags, conflicts and bundles they changed."""
     from planner.io.atomic import write_bytes_atomic
     from planner.report.changes import compare_runs, write_changes
-    from planner.report.changes_html import changes_html
+    from planner.pages.changes import changes_html
     from .checks import check_out_dir
 
     check_out_dir(out, "--out", "changes dataset and page")

@@ -26,7 +26,7 @@ def graph(
     from ..errors import InputError
     from planner.report.plots import train_graph_chart
     from planner.report.train_graph import graph_data, parse_hhmm
-    from planner.report.train_graph_page import write_page
+    from planner.pages.train_graph import write_page
 
     from .checks import check_out_dir
 

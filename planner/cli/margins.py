@@ -46,7 +46,7 @@ def margins(
     from planner.line.loader import load_line
     from planner.line.units import hms
     from planner.report.leg_flags import FLAG, FLAGS
-    from planner.report.html import write_html
+    from planner.pages.margin_report import write_html
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import compute_margins, margin_options
     from .tables import _progress

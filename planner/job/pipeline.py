@@ -109,7 +109,7 @@ class RunSummary:
     """Margin report of each line (kept for :func:`planner.job.views.run_views`, which puts the changes on top)."""
     charts: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
     """Each margin report's charts, being drawn (:class:`planner.io.parallel.Background` s giving parts of
-    :func:`planner.report.html.chart_svgs`)."""
+    :func:`planner.pages.margin_report.chart_svgs`)."""
     pending: list = field(default_factory=list, repr=False, compare=False)
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
 
@@ -453,8 +453,8 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
     # its charts (a few seconds of matplotlib) are drawn meanwhile, half on each of two workers
     from planner.io.parallel import background
-    from planner.report.html import stop_markers
-    from planner.report.html_charts import chart_svgs
+    from planner.pages.margin_report import stop_markers
+    from planner.pages.margin_charts import chart_svgs
     from planner.report.leg_flags import FLAGS
 
     summary.reports[line.line_id] = report

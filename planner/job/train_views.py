@@ -7,9 +7,9 @@ timetabled leg × scheduled time) it records each leg's two runs
 
 * the ``train_timetable`` dataset (a row per call of every train);
 * ``timetable/<line>_timetable.html``, all trains on one page, ``#train-<id>``
-  anchors (:mod:`planner.report.timetable_page`);
+  anchors (:mod:`planner.pages.timetable`);
 * ``charts/<line>/<leg>.html``, one speed–distance chart page per leg ×
-  train type × scheduled time the tables link to (:mod:`planner.report.speed_chart`),
+  train type × scheduled time the tables link to (:mod:`planner.pages.speed_chart`),
   drawn on the job's workers as cached units (:func:`_chart_key`), so a run after an edit redraws only
   the legs it reaches.
 """
@@ -59,7 +59,7 @@ def _eval_points(job, line, train_type: str, origin: str, destination: str) -> l
 
 def _chart_task(line, run, calls, pattern, evp, signals, trains, back):
     """Worker: one chart page's text (``line``: the leg's window; the signals come from the whole line)."""
-    from planner.report.speed_chart import chart_page, chart_svg
+    from planner.pages.speed_chart import chart_page, chart_svg
 
     return chart_page(line, run, calls, trains, chart_svg(line, run, calls, pattern, evp, signals), back)
 
@@ -72,8 +72,8 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
     """
     from planner.job.pipeline import _count
     from planner.job.units import Unit
-    from planner.report.speed_chart import write_chart
-    from planner.report.timetable_page import render_page, write_page
+    from planner.pages.speed_chart import write_chart
+    from planner.pages.timetable import render_page, write_page
     from planner.report.train_timetable import chart_name, leg_runs, timetable_rows, write_timetable
 
     lid = line.line_id

@@ -16,7 +16,7 @@ Two hooks called by :mod:`planner.job.pipeline`:
   published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
   dataset and put the section at the top of each margin report, add the
   datasets and timings to the manifest, then write the overview
-  ``index.html`` (:mod:`planner.report.overview`).
+  ``index.html`` (:mod:`planner.pages.overview`).
 """
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
     """Inputs copy and train graph page of one line (module doc); ``paths``: the result of :func:`graph_unit`."""
     from planner.report.published_run import read_line_dataset, path_id
     from planner.report.train_graph import graph_data
-    from planner.report.train_graph_page import write_page
+    from planner.pages.train_graph import write_page
     from planner.job.train_views import timetable_href, train_views
 
     copy_inputs(line, stage)
@@ -141,8 +141,8 @@ def _write_line_changes(ch, stage: Path) -> int:
 
 
 def _restrictions_pages(job, lines, stage: Path, manifest: dict, summary) -> None:
-    """``report/<line>_restrictions.html`` of each line with a daily feed (:mod:`planner.report.restrictions`)."""
-    from planner.report.restrictions import write_page
+    """``report/<line>_restrictions.html`` of each line with a daily feed (:mod:`planner.pages.restrictions`)."""
+    from planner.pages.restrictions import write_page
 
     day = manifest.get("operating_day") or {}
     for line, rec in zip(lines, day.get("lines", [])):
@@ -158,11 +158,11 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     """Changes since the previous run, report sections, manifest additions and the overview page (module doc)."""
     from planner.io.atomic import write_bytes_atomic
     from planner.report.changes import CATEGORIES
-    from planner.report.changes_html import changes_html
-    from planner.report.overview import write_overview
+    from planner.pages.changes import changes_html
+    from planner.pages.overview import write_overview
     from planner.job.publish import canonical_json, latest_run
-    from planner.report.html import stop_markers, write_html
-    from planner.report.html_charts import chart_sections
+    from planner.pages.margin_report import stop_markers, write_html
+    from planner.pages.margin_charts import chart_sections
 
     manifest_path = stage / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))

@@ -22,7 +22,7 @@
   their own run's public key.
 
 The result is one table (the ``changes`` dataset, :data:`CHANGES_SCHEMA`) and
-an HTML section (:func:`planner.report.changes_html.changes_html`) that the nightly
+an HTML section (:func:`planner.pages.changes.changes_html`) that the nightly
 job puts at the top of the margin report. ``planner diff RUN_A RUN_B`` prints the same.
 """
 from __future__ import annotations

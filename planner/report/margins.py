@@ -130,7 +130,7 @@ Layout
 * this module: the timetable as legs and the whole line (:func:`compute_margins`);
 * :mod:`planner.report.margin_datasets`: the ``margins`` and ``margin_totals``
   datasets, and the readers of the other steps' folders;
-* :mod:`planner.report.html` and :mod:`planner.report.plots`: the page and its charts.
+* :mod:`planner.pages.margin_report` and :mod:`planner.report.plots`: the page and its charts.
 """
 from __future__ import annotations
 

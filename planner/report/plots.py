@@ -10,7 +10,7 @@ km/h, km/h/s and km (:mod:`planner.line.units`).
 
 Charts
 ------
-* margin report (:mod:`planner.report.html`): :func:`margin_chart`,
+* margin report (:mod:`planner.pages.margin_report`): :func:`margin_chart`,
   :func:`curves_chart`, :func:`adhesion_chart`;
 * train graph (``planner graph``): :func:`train_graph_chart`;
 * station approach (``planner stops --plot``): :func:`approach_chart`;

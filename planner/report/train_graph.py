@@ -30,7 +30,7 @@ What the graph shows:
   to closing (tail clear + release).
 
 Outputs: :func:`planner.report.plots.train_graph_chart` (SVG or PNG by the file suffix, one direction or
-both), :func:`planner.report.train_graph_page.render_page` (one self-contained HTML page, no network, inline
+both), :func:`planner.pages.train_graph.render_page` (one self-contained HTML page, no network, inline
 SVG built by a small script from compact data: zoom to an hour, hover a train
 for number, type, times and margin, click it for its stairway).
 

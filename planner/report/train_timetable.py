@@ -23,7 +23,7 @@ margin report's rows; the times at the passed stations come from the one
 run-curve integrator (:func:`planner.physics.run_curve.simulate`) on the leg's
 track at the table conditions (load 0, traction × 1), i.e. table (a)'s runs at
 those two ratios recorded along the way. The same recorded runs draw the
-speed–distance charts (:mod:`planner.report.speed_chart`).
+speed–distance charts (:mod:`planner.pages.speed_chart`).
 """
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from planner.line.units import clock, hms
 
-from planner.report.html_charts import chart_sections
+from planner.pages.margin_charts import chart_sections
 from planner.report.leg_flags import FLAG, FLAGS, FLAGS_SHOWN, added_up, any_flag, flag_of, flags_of
 
 CSS = """
@@ -358,7 +358,7 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         ``margin_totals`` datasets (``..`` in a published run, ``.`` for ``planner margins --out``).
     top : str
         An HTML section put first, under the title (the nightly job's "what
-        changed since the last run", :func:`planner.report.changes_html.changes_html`).
+        changed since the last run", :func:`planner.pages.changes.changes_html`).
     charts : list of str, optional
         The chart sections, :func:`chart_sections` of the same report and markers, when
         they were drawn beforehand (the nightly job draws them on a worker); else drawn here.

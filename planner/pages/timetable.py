@@ -82,7 +82,7 @@ HEAD = ("<tr><th class='l'>station</th><th class='l'>call</th><th>scheduled arri
 def render_page(line_id: str, line_name: str, records: Sequence[dict], *, run_label: str = "",
                 links: Sequence[tuple[str, str]] = ()) -> str:
     """The page (module doc); ``records`` as :func:`timetable_rows` gives them, ``links``: (label, href) at the top."""
-    from planner.report.html import CSS
+    from planner.pages.margin_report import CSS
 
     by_train = {k: list(g) for k, g in groupby(records, key=lambda r: r["train_id"])}
     order = sorted(by_train, key=lambda t: (by_train[t][0]["direction"] != "down",
@@ -109,7 +109,7 @@ def render_page(line_id: str, line_name: str, records: Sequence[dict], *, run_la
             f"whole run {tot_sup:.1f} s.</p>"
             f'<div class="tw"><table>{HEAD}{"".join(_row(r, "../") for r in rs)}</table></div></section>')
     nav = " · ".join(f'<a href="{_e(h)}">{_e(lbl)}</a>' for lbl, h in links)
-    from planner.report.html import line_title
+    from planner.pages.margin_report import line_title
 
     title = f"Running-time tables — {line_title(line_name, line_id)}"
     return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>'

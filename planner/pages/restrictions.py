@@ -143,7 +143,7 @@ def _num(x, fmt: str = "{:+.1f}") -> str:
 def render(line, day: dict | None, rows, ds_m: float = 1.0) -> str:
     """The page as HTML; ``day``: the line's record in the run manifest's ``operating_day`` (with the
     window's keys of the day itself), ``rows``: the day's margin rows."""
-    from planner.report.overview import CSS, _table
+    from planner.pages.overview import CSS, _table
 
     recs = (day or {}).get("restrictions", [])
     title = f"Restrictions in force — {line.line_id}, operating day {(day or {}).get('day', '?')}"

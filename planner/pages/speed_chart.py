@@ -3,7 +3,7 @@
 One page per (leg, train type, scheduled running time) of the timetable,
 ``charts/<line>/<direction>_<type>_<origin>-<destination>_<scheduled>s.html``,
 pre-rendered by the nightly job (a published run is static files) and linked
-from the per-train running-time table (:mod:`planner.report.timetable_page`).
+from the per-train running-time table (:mod:`planner.pages.timetable`).
 
 What it draws (matplotlib through :func:`planner.report.plots.pyplot`, inline SVG):
 
@@ -145,7 +145,7 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
 
 def chart_page(line, run, calls, trains, svg: str, back: str) -> str:
     """The chart page: title, what is drawn, the trains that run the leg at this time (links back)."""
-    from planner.report.html import CSS
+    from planner.pages.margin_report import CSS
 
     d, tt, o, de, sched = run.key
     e = html.escape

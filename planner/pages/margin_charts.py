@@ -1,4 +1,4 @@
-"""The margin report's charts as page sections (:mod:`planner.report.html` puts them in the page).
+"""The margin report's charts as page sections (:mod:`planner.pages.margin_report` puts them in the page).
 
 :func:`chart_svgs` draws any of the four charts on its own (the nightly job draws
 them on two workers while it writes the rest); :func:`chart_sections` wraps
@@ -13,7 +13,7 @@ from planner.report.plots import adhesion_chart, curves_chart, margin_chart
 __all__ = ["CHARTS", "chart_sections", "chart_svgs"]
 
 
-def _esc(x) -> str:  # as the page's own escaping (planner.report.html)
+def _esc(x) -> str:  # as the page's own escaping (planner.pages.margin_report)
     return escape(str(x), quote=True)
 
 
