@@ -359,3 +359,16 @@ def test_a_station_added_by_position_gets_a_stop_node_on_the_line(tmp_path):
     halt = nodes[nodes["station_id"] == "HALT"]
     assert list(zip(halt["kind"], halt["position_m"])) == [("stop", 1200.0)]
     assert any("HALT" in n and "stop node" in n for n in s.notes)
+
+
+def test_a_platform_at_a_detector_is_a_stop_node():
+    """A stop at the very position of a detector keeps its station (the node is the stop): OSRD's one_line
+    infra has its stations at detectors, and a stop folded into the detector's boundary left a train with
+    nowhere to stop, failing the night."""
+    from planner.line.importers.network import Topology, network_tables
+
+    topo = Topology({"t": 1000.0})
+    topo.points += [("det", "boundary", "t", 500.0, None), ("STOP-S", "stop", "t", 500.0, "S")]
+    nodes, _ = network_tables(topo, {"t": (0.0, 1)}, "L", [])
+    at = nodes[nodes["position_m"] == 500.0]
+    assert list(zip(at["kind"], at["station_id"])) == [("stop", "S")]

@@ -147,6 +147,8 @@ def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interl
         if r in node_kind or k in node_kind:
             if kind == "end" and node_kind.get(r) == "end":
                 node_id[r] = pid
+            elif kind == "stop" and node_kind.get(r) == "boundary":  # a platform at a detector: a train must be
+                node_kind[r], node_id[r], station[r] = kind, pid, sid  # routed to the station, so the stop wins
             else:
                 skipped += kind != "end"
             continue
