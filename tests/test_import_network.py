@@ -357,7 +357,9 @@ def test_a_station_added_by_position_gets_a_stop_node_on_the_line(tmp_path):
                         extra=folder / "extra.toml", line_id="loop")
     nodes = pq.read_table(tmp_path / "line" / "nodes.parquet").to_pandas()
     halt = nodes[nodes["station_id"] == "HALT"]
-    assert list(zip(halt["kind"], halt["position_m"])) == [("stop", 1200.0)]
+    st = pq.read_table(tmp_path / "line" / "stations.parquet").to_pandas().set_index("station_id").loc["HALT"]
+    assert sorted(zip(halt["kind"], halt["position_m"])) == sorted({("stop", st.stop_down_m), ("stop", st.stop_up_m)})
+    assert st.stop_down_m != st.stop_up_m  # one node at each stop marker
     assert any("HALT" in n and "stop node" in n for n in s.notes)
 
 
@@ -368,7 +370,24 @@ def test_a_platform_at_a_detector_is_a_stop_node():
     from planner.line.importers.network import Topology, network_tables
 
     topo = Topology({"t": 1000.0})
-    topo.points += [("det", "boundary", "t", 500.0, None), ("STOP-S", "stop", "t", 500.0, "S")]
+    topo.points += [("det", "boundary", "t", 500.0, None), ("STOP-S", "stop", "t", 500.0, "S"),
+                    ("buffer", "end", "t", 0.0, None), ("STOP-T", "stop", "t", 0.0, "T")]  # a terminus at its buffer
     nodes, _ = network_tables(topo, {"t": (0.0, 1)}, "L", [])
-    at = nodes[nodes["position_m"] == 500.0]
-    assert list(zip(at["kind"], at["station_id"])) == [("stop", "S")]
+    for x, sid in ((500.0, "S"), (0.0, "T")):
+        at = nodes[nodes["position_m"] == x]
+        assert list(zip(at["kind"], at["station_id"])) == [("stop", sid)]
+
+
+def test_a_station_whose_only_platform_is_a_switch_gets_stops_at_its_markers():
+    """OSRD's overlapping_routes infra has an operational point on a switch: the switch keeps its node, and
+    the station gets its stop nodes at its stop markers instead (else no train could stop there)."""
+    from planner.line.importers.network import Topology, network_tables, stops_on_line
+
+    topo = Topology({"a": 1000.0, "b": 500.0})
+    topo.joins.append(("sw", "switch", [("a", 1000.0, 0), ("b", 0.0, 1)]))
+    topo.points.append(("STOP-S-a", "stop", "a", 1000.0, "S"))
+    notes: list[str] = []
+    stops_on_line(topo, {"a": (0.0, 1), "b": (1000.0, 1)}, [("S", 1100.0), ("S", 900.0)], notes)
+    nodes, _ = network_tables(topo, {"a": (0.0, 1), "b": (1000.0, 1)}, "L", notes)
+    assert sorted(nodes[nodes["station_id"] == "S"]["position_m"]) == [900.0, 1100.0]
+    assert nodes[nodes["position_m"] == 1000.0]["kind"].tolist() == ["switch"]

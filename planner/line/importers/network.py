@@ -147,8 +147,8 @@ def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interl
         if r in node_kind or k in node_kind:
             if kind == "end" and node_kind.get(r) == "end":
                 node_id[r] = pid
-            elif kind == "stop" and node_kind.get(r) == "boundary":  # a platform at a detector: a train must be
-                node_kind[r], node_id[r], station[r] = kind, pid, sid  # routed to the station, so the stop wins
+            elif kind == "stop" and node_kind.get(r) in ("boundary", "end"):  # a platform at a detector or a
+                node_kind[r], node_id[r], station[r] = kind, pid, sid  # buffer stop: trains are routed to its station
             else:
                 skipped += kind != "end"
             continue
@@ -366,31 +366,42 @@ def path_chainage(pieces) -> dict[str, tuple[float, int]]:
 
 
 def stops_of(stations: pd.DataFrame) -> list[tuple[str, float]]:
-    """``(station_id, position_m)`` of every row of a stations table (for :func:`stops_on_line`)."""
-    return [(str(a), float(b)) for a, b in zip(stations["station_id"], stations["position_m"])]
+    """``(station_id, chainage)`` of each stop marker of every row of a stations table, down then up (for
+    :func:`stops_on_line`): a train is routed to the stop node nearest its direction's marker, and the
+    markers, unlike the platform centre, seldom fall on a buffer stop or a switch of the source."""
+    out = []
+    for sid, c, down, up in zip(stations["station_id"], stations["position_m"], stations["stop_down_m"],
+                                stations["stop_up_m"]):
+        marks = [float(x) for x in (down, up) if x is not None and x == x] or [float(c)]
+        out += [(str(sid), x) for x in dict.fromkeys(marks)]
+    return out
 
 
 def stops_on_line(topo: Topology, on_line: dict[str, tuple[float, int]], stations, notes: list[str]) -> None:
     """A ``stop`` point on the line's own track for every station of the line the source gives no platform
-    (a station added by position in ``--extra``, or an operational point without parts).
+    (a station added by position in ``--extra``, an operational point without parts, or one whose only
+    part lies on a switch).
 
     ``stations``: ``(station_id, chainage)`` of every station of the imported line. Without its stop
     node a timetabled train could not be routed, and the night would fail on data the import accepted.
     """
-    have = {p[4] for p in topo.points if p[1] == "stop"}
-    added = []
+    joins = {_key(t, p) for _, _, members in topo.joins for t, p, _ in members}
+    # a source platform on a switch is that switch's node (no stop there): it counts as no platform
+    have = {p[4] for p in topo.points if p[1] == "stop" and _key(p[2], p[3]) not in joins}
+    added: dict[str, int] = {}
     for sid, x in stations:
         if sid in have:
             continue
         for t, (offset, sign) in sorted(on_line.items()):
             pos = (x - offset) * sign
             if -1e-6 <= pos <= topo.lengths[t] + 1e-6:
-                topo.points.append((f"STOP-{sid}", "stop", t, min(max(pos, 0.0), topo.lengths[t]), sid))
-                added.append(sid)
+                k = added[sid] = added.get(sid, 0) + 1
+                topo.points.append((f"STOP-{sid}" + (f"-{k}" if k > 1 else ""), "stop", t,
+                                    min(max(pos, 0.0), topo.lengths[t]), sid))
                 break
     if added:
         notes.append(f"track network: {len(added)} station(s) without a platform in the source ({', '.join(added)}) "
-                     "get a stop node on the line's own track at their chainage")
+                     "get a stop node on the line's own track at each of their stop markers")
 
 
 def railjson_network(src, net, pieces, op_ids: list[str], extra, line_id: str,
