@@ -77,14 +77,20 @@ def test_the_day_is_in_the_manifest_and_another_day_recomputes_what_its_restrict
     page = (run / "report" / "tiny_restrictions.html").read_text()
     assert "<b>R1</b>" in page and "EMU10 A→B" in page and "EMU6 B→A" in page and "B→C" not in page
     assert "href='report/tiny_restrictions.html'" in (run / "index.html").read_text()
+    # the overview verifies the day's bundles when vehicles load them (the day's start), not today: a run for a
+    # later day must not read as refused; and it names them without this machine's paths
+    overview = (run / "index.html").read_text()
+    assert "FAILED" not in overview and "checked at the start of operating day 2026-11-30" in overview
+    assert str(project) not in overview
 
     holiday = run_job(with_day(job, "2026-11-23"), show_progress=False)  # weekday service removed
     assert holiday.run_id != first.run_id and not holiday.up_to_date
     # R1 (1000-1400 m, both directions, every type) is not in force on the 23rd: it lies between A (200 m)
     # and B (2500 m) only, so 2 directions x 2 types of the 8 interstation units change (tables, stops,
     # closed loop each), and the line-level units (the trains that run changed too); B-C is reused
-    assert holiday.computed == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 1, "graph": 1}
-    assert holiday.reused == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 0, "graph": 0}
+    # no train runs, so there is no leg to chart (and the running-time tables are empty, not a crash)
+    assert holiday.computed == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 1, "graph": 1, "charts": 0}
+    assert holiday.reused == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 0, "graph": 0, "charts": 0}
     assert any("no train runs on 2026-11-23 (Monday)" in n for n in holiday.notes)
     assert _manifest(project)["operating_day"]["lines"][0]["trains_not_running"] == ["101", "202"]
     again = run_job(with_day(job, "2026-11-23"), show_progress=False)

@@ -68,7 +68,9 @@ def _table(head: Sequence[str], rows: Sequence[Sequence[str]], num: Sequence[int
     return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _bundles(run_dir: Path) -> list[list[str]]:
+def _bundles(run_dir: Path, at_s: int | None = None) -> list[list[str]]:
+    """Each bundle verified as a vehicle would, at ``at_s`` (the start of the run's operating day: bundles
+    for a day are loaded for that day, so a run for a later day must not read as refused; None: now)."""
     from planner.bundle.verify import verify_bundle
     from planner.errors import PlannerError
 
@@ -79,15 +81,16 @@ def _bundles(run_dir: Path) -> list[list[str]]:
         try:
             # a development-signed bundle verifies in full (signature, hashes, schema); it says so instead of
             # failing: vehicles refuse it, and `planner bundle verify` without --allow-dev does too
-            info = verify_bundle(b, pub, allow_dev=True)
+            info = verify_bundle(b, pub, allow_dev=True, at=at_s)
             status = ("<span class='ok'>verified</span>" if info.key_kind == "production" else
                       "<span class='dev'>verified, development key</span>: not for service (vehicles refuse it)")
             status += "" if info.complete else f" (partial: missing {_e(', '.join(info.missing))})"
             tables = ", ".join(f"{f.name.removesuffix('.parquet')} {f.rows}" for f in info.files)
             out.append([f"<code>{_e(b.name)}</code>", status, f"{info.size_bytes:,}", f"<code>{info.sha256[:16]}</code>",
                         f"{_e(info.line_id)} {_e(info.direction)} {_e(info.train_type)}", _e(tables)])
-        except PlannerError as e:
-            out.append([f"<code>{_e(b.name)}</code>", f"<span class='bad'>FAILED</span>: {_e(e)}", f"{b.stat().st_size:,}",
+        except PlannerError as e:  # named by the bundle's file name, not this machine's paths
+            why = str(e).replace(str(b), b.name)
+            out.append([f"<code>{_e(b.name)}</code>", f"<span class='bad'>FAILED</span>: {_e(why)}", f"{b.stat().st_size:,}",
                         f"<code>{_sha(b)[:16]}</code>", "", ""])
     return out
 
@@ -237,12 +240,15 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
                  + "<p class='sub'>Hive-partitioned Parquet; <code>README.md</code> in this folder shows how to read "
                  "them with pandas, pyarrow and DuckDB.</p>")
     # bundles
-    brows = _bundles(run_dir)
+    day = manifest.get("operating_day") or {}
+    brows = _bundles(run_dir, day.get("start_utc_s"))
     parts.append("<h2 id='bundles'>Bundles</h2>" + (_table(["bundle", "verify", "bytes", "SHA-256", "for", "tables (rows)"],
                                                            brows, num=(2,)) if brows else "<p>none</p>")
                  + "<p class='sub'>Verified with <code>bundles/signing_key.pub.pem</code> of this run, as "
                  "<code>planner bundle verify --allow-dev</code> does: signature, hashes, schema and consistency; a "
-                 "development key is named, since vehicles in service refuse it.</p>")
+                 "development key is named, since vehicles in service refuse it"
+                 + (f"; checked at the start of operating day {_e(day['day'])} ({_e(day.get('start', ''))}), when "
+                    "vehicles load them" if day.get("day") else "") + ".</p>")
     # schemas
     parts.append("<h2 id='schemas'>Dataset schemas</h2>")
     for name, d in docs.items():

@@ -233,7 +233,11 @@ def timetable_table(line, runs: dict[tuple, LegRun], train_types=None) -> pa.Tab
     """The ``train_timetable`` rows of a line with the partition columns (``line, direction, train_type``)."""
     import pandas as pd
 
-    df = pd.DataFrame.from_records(timetable_rows(line, runs, train_types))
+    recs = timetable_rows(line, runs, train_types)
+    if not recs:  # no train runs (an operating day without service, or no train of these types): no rows
+        keys = [pa.field(c, pa.string()) for c in ("line", "direction", "train_type")]
+        return pa.schema(keys + list(TIMETABLE_SCHEMA)).empty_table()
+    df = pd.DataFrame.from_records(recs)
     df.insert(0, "line", line.line_id)
     df["seq"] = df["seq"].astype("int32")
     return pa.Table.from_pandas(df, preserve_index=False)
