@@ -366,9 +366,8 @@ def path_chainage(pieces) -> dict[str, tuple[float, int]]:
 
 
 def stops_of(stations: pd.DataFrame) -> list[tuple[str, float]]:
-    """``(station_id, chainage)`` of each stop marker of every row of a stations table, down then up (for
-    :func:`stops_on_line`): a train is routed to the stop node nearest its direction's marker, and the
-    markers, unlike the platform centre, seldom fall on a buffer stop or a switch of the source."""
+    """``(station_id, chainage)`` of each stop marker of a stations table, for :func:`stops_on_line` (a train is
+    routed to the stop nearest its marker; markers seldom fall on a source's buffer stop or switch)."""
     out = []
     for sid, c, down, up in zip(stations["station_id"], stations["position_m"], stations["stop_down_m"],
                                 stations["stop_up_m"]):
@@ -378,15 +377,10 @@ def stops_of(stations: pd.DataFrame) -> list[tuple[str, float]]:
 
 
 def stops_on_line(topo: Topology, on_line: dict[str, tuple[float, int]], stations, notes: list[str]) -> None:
-    """A ``stop`` point on the line's own track for every station of the line the source gives no platform
-    (a station added by position in ``--extra``, an operational point without parts, or one whose only
-    part lies on a switch).
-
-    ``stations``: ``(station_id, chainage)`` of every station of the imported line. Without its stop
-    node a timetabled train could not be routed, and the night would fail on data the import accepted.
-    """
+    """A ``stop`` on the line's own track at each ``(station_id, chainage)`` of ``stations`` the source gives
+    no platform (added by position, no parts, or its only part on a switch, which keeps the node there):
+    without one a train calling there could not be routed, failing the night on data the import accepted."""
     joins = {_key(t, p) for _, _, members in topo.joins for t, p, _ in members}
-    # a source platform on a switch is that switch's node (no stop there): it counts as no platform
     have = {p[4] for p in topo.points if p[1] == "stop" and _key(p[2], p[3]) not in joins}
     added: dict[str, int] = {}
     for sid, x in stations:
