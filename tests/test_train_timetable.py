@@ -118,3 +118,19 @@ def test_page_has_an_anchor_per_train_and_chart_links(tiny, rows):
         assert f'id="train-{tr.train_id}"' in text
     assert 'href="../charts/tiny/up_EMU6_C-A_500s.html"' in text
     assert "http" not in text.replace("http-equiv", "")  # self-contained: no link off the machine
+
+
+def test_a_chart_is_named_safely_whatever_the_station_ids():
+    """Station ids may be any text (validation allows unicode, '/', '<'); a chart's file name may not: such a
+    leg is named by a digest of its ids, distinct per leg, and an ordinary leg keeps its readable name."""
+    from planner.io.paths import is_path_id
+    from planner.report.train_timetable import chart_name
+
+    plain = chart_name("L", ("down", "E10", "TKD", "OHS", 130.0))
+    assert plain == "charts/L/down_E10_TKD-OHS_130s.html"
+    odd = [chart_name("L", ("down", "E10", o, d, 130.0)) for o, d in (("A", "駅"), ("A", "../x"), ("../x", "A"),
+                                                                      ("A", "<b>x</b>"))]
+    assert len(set(odd)) == 4
+    for p in odd:
+        folder, name = p.rsplit("/", 1)
+        assert folder == "charts/L" and is_path_id(name.removesuffix(".html")) and name.startswith("down_E10_leg-")

@@ -97,12 +97,17 @@ def leg_key(direction: str, train_type: str, origin: str, destination: str, sche
 
 def chart_name(line_id: str, key: tuple) -> str:
     """Relative path (from the run folder) of a leg's chart page."""
-    from planner.io.paths import check_path_id
+    import hashlib
+
+    from planner.io.paths import check_path_id, is_path_id
 
     d, t, o, de, s = key
     s_txt = f"{s:.0f}" if float(s).is_integer() else f"{s:.1f}"
-    name = check_path_id(f"{d}_{t}_{o}-{de}_{s_txt}s", "chart name")
-    return f"{CHARTS_DIR}/{check_path_id(line_id, 'line id')}/{name}.html"
+    name = f"{d}_{t}_{o}-{de}_{s_txt}s"
+    if not is_path_id(name):  # station ids may be any text (unicode, '/', '<'): a digest names the leg
+        leg = hashlib.sha256("\0".join((o, de)).encode()).hexdigest()[:12]
+        name = f"{d}_{t}_leg-{leg}_{s_txt}s"
+    return f"{CHARTS_DIR}/{check_path_id(line_id, 'line id')}/{check_path_id(name, 'chart name')}.html"
 
 
 @dataclass
