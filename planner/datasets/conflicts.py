@@ -44,12 +44,7 @@ OCCUPATION_SCHEMA = declare([
     ("start_s", pa.float64(), "window opens: entry − setting − approach [s after midnight]"),
     ("end_s", pa.float64(), "window closes: clear + release [s after midnight]"),
 ], name="occupation", description="Blocking-time occupation windows of every train on every switch and section of its route")
-CONFLICTS_SCHEMA = declare([
-    ("conflict_id", pa.int32(), "conflict number, from 1 in time order; rows of one conflict share it"),
-    ("train_a", pa.string(), "train that goes first by the decision"),
-    ("train_b", pa.string(), "train that waits"),
-    ("direction_a", pa.string(), "running direction of train_a"),
-    ("direction_b", pa.string(), "running direction of train_b"),
+PLACE_COLUMNS = [
     ("resource_kind", pa.string(), "`node` (a switch) or `section` (a track piece, edge)"),
     ("resource_id", pa.string(), "node_id or edge_id"),
     ("interlocking", pa.string(), "interlocking controlling the resource"),
@@ -59,6 +54,15 @@ CONFLICTS_SCHEMA = declare([
     ("station_distance_m", pa.float64(), "distance from the station's position to the nearer end of the resource's extent; 0 when the extent spans it [m]"),
     ("from_m", pa.float64(), "lower chainage of the resource [m]"),
     ("to_m", pa.float64(), "upper chainage of the resource [m]"),
+]
+"""Where a conflict or a headway is: the resource, and the station, track and km it is named by."""
+CONFLICTS_SCHEMA = declare([
+    ("conflict_id", pa.int32(), "conflict number, from 1 in time order; rows of one conflict share it"),
+    ("train_a", pa.string(), "train that goes first by the decision"),
+    ("train_b", pa.string(), "train that waits"),
+    ("direction_a", pa.string(), "running direction of train_a"),
+    ("direction_b", pa.string(), "running direction of train_b"),
+    *PLACE_COLUMNS,
     ("a_start_s", pa.float64(), "train_a's window opens [s after midnight]"),
     ("a_end_s", pa.float64(), "train_a's window closes [s after midnight]"),
     ("b_start_s", pa.float64(), "train_b's window opens [s after midnight]"),
@@ -75,15 +79,7 @@ CONFLICTS_SCHEMA = declare([
     ("stretch", pa.string(), "for deadlocks: the single-track stretch first..last resource; else empty"),
 ], name="conflicts", description="Overlapping occupation windows of two trains, with the priority decision and the delay it causes")
 HEADWAYS_SCHEMA = declare([
-    ("resource_kind", pa.string(), "`node` (a switch) or `section` (a track piece, edge)"),
-    ("resource_id", pa.string(), "node_id or edge_id"),
-    ("interlocking", pa.string(), "interlocking controlling the resource"),
-    ("track", pa.string(), "track name of the section, or of the switch"),
-    ("station_id", pa.string(), "station the resource is named by: the one whose position (stations.parquet position_m) is nearest to the resource's extent from_m..to_m"),
-    ("station_name", pa.string(), "name of that station"),
-    ("station_distance_m", pa.float64(), "distance from the station's position to the nearer end of the resource's extent; 0 when the extent spans it [m]"),
-    ("from_m", pa.float64(), "lower chainage of the resource [m]"),
-    ("to_m", pa.float64(), "upper chainage of the resource [m]"),
+    *PLACE_COLUMNS,
     ("n_trains", pa.int32(), "trains whose route uses the resource"),
     ("train_a", pa.string(), "the earlier train of the tightest pair: of the trains whose window opens before train_b's, the one whose window closes last"),
     ("train_b", pa.string(), "the following train of the tightest pair (the smallest buffer_s on this resource)"),
