@@ -125,10 +125,22 @@ def test_approach_starts_at_the_last_tasc_beacon_before_the_marker():
         Beacon("T3", 950.0, "down", "tasc", "TASC:S2:1950", False),    # past the marker: next interstation
     )
     line = dataclasses.replace(line_a(), beacons=beacons)
-    r = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2, approach_m=123.0)
+    fit = LEVELS_MS2[2:]  # from T2 (520 m) the two lowest levels cannot stop: 556.8 m needed at 2.5 km/h/s
+    r = approach_patterns(line, "T", "S0", "S1", fit, approach_m=123.0)
     assert r.tasc_beacon_id == "T2"
     assert r.approach_start_m == 380.0 and r.approach_length_m == 520.0
     assert r.v_start_ms == pytest.approx(math.sqrt(760.0), abs=V_RUN_TOL)  # still below 100 km/h
+
+
+def test_a_tasc_beacon_too_close_for_the_train_moves_its_approach_back_and_says_so():
+    """The same beacon with every level of the sweep: from 520 m no stop fits at 2.5 km/h/s (556.8 m needed),
+    so the approach starts earlier (where the physics says, or 10 % beyond what the solver needed), every
+    level is feasible, and a note names the beacon: the sweep agrees with the margin report."""
+    line = dataclasses.replace(line_a(), beacons=(Beacon("T2", 380.0, "down", "tasc", "TASC:S1:0520", False),))
+    r = approach_patterns(line, "T", "S0", "S1", LEVELS_MS2, approach_m=123.0)
+    assert r.tasc_beacon_id == "" and r.approach_length_m > 1.09 * 556.8  # what was needed, plus the margin
+    assert r.n_feasible == len(r.patterns) == len(LEVELS_MS2)
+    assert [w for w in r.warnings if "TASC beacon T2 lies 520 m before the marker, too close" in w]
 
 
 def test_speed_limits_and_gradients_over_the_approach_both_directions():

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import math
 import warnings
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -301,20 +302,45 @@ def approach_patterns(
     held to the tail, minus the speed margin); the start speed is the
     minimum-time run's (ratio 1.0, load 0, traction 1.0) at the approach start.
     """
-    from planner.physics.run_curve import PHASE_NAMES, simulate
-    from planner.physics.track import SimSettings, make_track
-
     _approach.fixed_approach_m(line, approach_m)  # a bad value is an InputError before any work
     levels_ms2 = sorted(float(a) for a in adhesions_ms2)
     if not levels_ms2 or not all(math.isfinite(a) and a > 0.0 for a in levels_ms2):
         raise InputError(f"adhesion levels must be positive decelerations [m/s²], got {list(adhesions_ms2)!r}")
     train = line.train_type(train_type)
     levels_ms2 = list(_approach.train_adhesion_ms2(train, levels_ms2))  # none above what the train asks anyway
+    start = _approach.approach_start(line, origin, destination, approach_m, train_type=train_type,
+                                     adhesion_ms2=levels_ms2[0], settings=settings)
+    result = _patterns_from(line, train_type, origin, destination, levels_ms2, start, settings)
+    if start.source == "tasc" and result.n_feasible < len(result.patterns):
+        # a beacon placed for other trains may lie too close for this one: where no stop fits from it, the
+        # approach starts where the physics says, as without a beacon (the margin report moves it alike)
+        s_phys = _approach.physics_start_m(line, train_type, origin, destination, levels_ms2[0], settings)
+        need = max((p.braking_distance_m for p in result.patterns if not p.feasible
+                    and math.isfinite(p.braking_distance_m)), default=0.0)  # what the solver found it needs
+        length = start.s_m + result.approach_length_m
+        s_phys = min(s_phys, length - (1.0 + _approach.APPROACH_MARGIN) * need)
+        if 0.0 < s_phys < start.s_m:
+            moved = _patterns_from(line, train_type, origin, destination, levels_ms2,
+                                   _approach.ApproachStart(s_phys, "physics", ""), settings)
+            if moved.n_feasible > result.n_feasible:
+                note = (f"{train_type} {moved.direction} {origin}->{destination}: TASC "
+                        f"beacon {start.beacon_id} lies {result.approach_length_m:.0f} m before the marker, too close "
+                        f"for this train: its approach starts {moved.approach_length_m:.0f} m before (where it must start "
+                        "braking, plus the margin)")
+                return dataclasses.replace(moved, warnings=moved.warnings + (note,))
+    return result
+
+
+def _patterns_from(line: Line, train_type: str, origin: str, destination: str, levels_ms2: list[float],
+                   start, settings) -> ApproachResult:
+    """The patterns of :func:`approach_patterns` from the approach start ``start`` (an ApproachStart)."""
+    from planner.physics.run_curve import PHASE_NAMES, simulate
+    from planner.physics.track import SimSettings, make_track
+
+    train = line.train_type(train_type)
     levels_kmh_s = tuple(round(a / KMH_S, 9) for a in levels_ms2)
     ext = line.run_between(origin, destination)
     direction, sg, x0, stop, length = ext.direction, ext.sign, ext.start_m, ext.end_m, ext.length_m
-    start = _approach.approach_start(line, origin, destination, approach_m, train_type=train_type,
-                                     adhesion_ms2=levels_ms2[0], settings=settings)
     s_a = start.s_m
     X = length - s_a
     J = train.jerk_limit_ms3
