@@ -5,7 +5,8 @@ folder ``path`` (whose name becomes the ``line_id`` unless ``line`` is
 overridden). Override a table with a DataFrame (columns of the schema are
 written with their declared types), a ``pyarrow.Table`` (written verbatim, for
 wrong-type tests) or ``None`` (the file is not written). ``default_tables()``
-returns fresh copies of the default DataFrames to edit.
+returns fresh copies of the default DataFrames to edit. ``quick_job(lines, output_root, ...)``
+is the text of a job file that runs such lines end to end in seconds.
 
 The line: chainage 0 … 5000 m, stations A (200 m), B (2500 m), C (4800 m);
 two train types EMU10 (constant cruise) and EMU6 (sawtooth); one down and one
@@ -13,6 +14,7 @@ up train; a small track network.
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pandas as pd
@@ -123,3 +125,25 @@ def write_line_db(path: str | Path, **overrides) -> Path:
         table = content if isinstance(content, pa.Table) else to_arrow(name, content)
         pq.write_table(table, path / f"{name}.parquet")
     return path
+
+
+QUICK_SECTIONS = """[stops]
+adhesion_kmh_s = "2.5:3.5:0.5"
+[closed_loop]
+modes = ["nearest"]
+horizon_s = 6.0
+step_s = 3.0
+[bundles]
+allow_development_key = true
+[parallel]
+n_jobs = 1
+"""
+"""Everything but ``[job]`` of :func:`quick_job`: three adhesion levels, a short nearest-mode closed loop,
+the development key, one worker process."""
+
+
+def quick_job(lines: list, output_root: str, **job_keys) -> str:
+    """The text of a job file for end-to-end runs of tiny lines: ``[job]`` with ``lines``, ``output_root``
+    and ``job_keys`` (e.g. ``keep_runs=3``, ``run_date="2026-01-01"``), then :data:`QUICK_SECTIONS`."""
+    keys = {"lines": [str(x) for x in lines], "output_root": str(output_root), **job_keys}
+    return "[job]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in keys.items()) + QUICK_SECTIONS

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import os
-import textwrap
 from pathlib import Path
 
 import pandas as pd
@@ -157,7 +156,7 @@ def _job_text(overrides: dict) -> str:
     """The test job with ``overrides`` ((section, key) → value) set."""
     import tomllib
 
-    doc = tomllib.loads(textwrap.dedent(JOB))
+    doc = tomllib.loads(JOB)
     for (section, key), value in overrides.items():
         doc.setdefault(section, {})[key] = value
     return "".join(f"[{section}]\n" + "".join(f"{k} = {_toml(v)}\n" for k, v in body.items())
@@ -194,7 +193,7 @@ def root(tmp_path_factory) -> Path:
     p = tmp_path_factory.mktemp("edits")
     write_tiny(p / "lines" / "tiny")
     (p / "jobs").mkdir()
-    (p / "jobs" / "job.toml").write_text(textwrap.dedent(JOB))
+    (p / "jobs" / "job.toml").write_text(JOB)
     assert _outcome(p) == "published"
     return p
 

@@ -4,13 +4,13 @@ conflicts were not checked)."""
 from __future__ import annotations
 
 import json
-import textwrap
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from importsrc import EXTRA_TOML, write_railml
+from linedb import quick_job
 from test_import_network import write_loop_line
 from test_import_timetable import railml_with_timetable
 
@@ -32,21 +32,7 @@ def run_dir(tmp_path_factory):
         (root / "lines" / "l1" / f"{name}.parquet").unlink()
     (root / "jobs").mkdir()
     job = root / "jobs" / "job.toml"
-    job.write_text(textwrap.dedent(f"""
-        [job]
-        lines = ["lines/l1", {json.dumps(str(loop))}]
-        output_root = "out"
-        [stops]
-        adhesion_kmh_s = "2.5:3.5:0.5"
-        [closed_loop]
-        modes = ["nearest"]
-        horizon_s = 6.0
-        step_s = 3.0
-        [bundles]
-        allow_development_key = true
-        [parallel]
-        n_jobs = 1
-    """))
+    job.write_text(quick_job(["lines/l1", loop], "out"))
     run_job(load_job(job), show_progress=False)
     return root / "out" / "latest"
 

@@ -9,32 +9,16 @@ from __future__ import annotations
 
 import json
 import shutil
-import textwrap
 from pathlib import Path
 
 import pyarrow.dataset as ds
 import pytest
 
-from linedb import default_tables, write_line_db
+from linedb import default_tables, quick_job, write_line_db
 from planner.job.config import load_job
 from planner.job.publish import latest_run, list_runs
 
-JOB = """
-[job]
-lines = ["lines/tiny"]
-output_root = "out"
-keep_runs = 3
-[stops]
-adhesion_kmh_s = "2.5:3.5:0.5"
-[closed_loop]
-modes = ["nearest"]
-horizon_s = 6.0
-step_s = 3.0
-[bundles]
-allow_development_key = true
-[parallel]
-n_jobs = 1
-"""
+JOB = quick_job(["lines/tiny"], "out", keep_runs=3)
 
 
 def write_tiny(folder: Path, tables: dict | None = None) -> None:
@@ -54,7 +38,7 @@ def published(tmp_path_factory) -> Path:
     p = tmp_path_factory.mktemp("published")
     write_tiny(p / "lines" / "tiny")
     (p / "jobs").mkdir()
-    (p / "jobs" / "job.toml").write_text(textwrap.dedent(JOB))
+    (p / "jobs" / "job.toml").write_text(JOB)
     run(p)
     return p
 
@@ -131,7 +115,7 @@ def test_a_changes_write_that_fails_half_way_leaves_no_part_file(project, monkey
     real = changes.write_changes
 
     def half(ch, out_dir):
-        paths = real(ch, out_dir)  # the file is there ...
+        real(ch, out_dir)  # the file is there ...
         raise OSError(28, "No space left on device (simulated after the write)")  # ... then the write fails
 
     monkeypatch.setattr(changes, "write_changes", half)

@@ -8,14 +8,13 @@ from __future__ import annotations
 
 import ast
 import re
-import textwrap
 from pathlib import Path
 
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from linedb import write_line_db
+from linedb import quick_job, write_line_db
 
 README = Path(__file__).resolve().parents[1] / "outputs" / "README.md"
 
@@ -61,22 +60,7 @@ def published(tmp_path_factory):
     job = root / "jobs" / "job.toml"
     runs = []
     for day in ("2026-01-01", "2026-01-02"):
-        job.write_text(textwrap.dedent(f"""
-            [job]
-            lines = ["lines/tiny"]
-            output_root = "outputs"
-            run_date = "{day}"
-            [stops]
-            adhesion_kmh_s = "2.5:3.5:0.5"
-            [closed_loop]
-            modes = ["nearest"]
-            horizon_s = 6.0
-            step_s = 3.0
-            [bundles]
-            allow_development_key = true
-            [parallel]
-            n_jobs = 1
-        """))
+        job.write_text(quick_job(["lines/tiny"], "outputs", run_date=day))
         runs.append(run_job(load_job(job), show_progress=False).run_id)
     return root, runs
 
