@@ -404,13 +404,18 @@ def railjson_network(src, net, pieces, op_ids: list[str], extra, line_id: str,
     ``stations``: ``(station_id, chainage)`` of the imported line's stations (:func:`stops_on_line`)."""
     over = extra.stations if extra is not None else {}
     names = {n: str(over.get(n, {}).get("station_id", n)) for n in op_ids}
-    topo, on_line = railjson_topology(src, net, names), path_chainage(pieces)
+    return _network(railjson_topology(src, net, names), path_chainage(pieces), stations, line_id, notes,
+                    "switches", "the switches, links, detectors, buffer stops and operational points")
+
+
+def _network(topo: Topology, on_line: dict, stations, line_id: str, notes: list[str], switches: str,
+             sources: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """nodes and edges of an imported network (stop nodes for every station first), and a note counting them."""
     stops_on_line(topo, on_line, stations, notes)
     nodes, edges = network_tables(topo, on_line, str(line_id), notes)
     n_sw = int((nodes["kind"] == "switch").sum())
-    notes.append(f"track network: {len(nodes)} nodes ({n_sw} switches), {len(edges)} edges on "
-                 f"{edges['track'].nunique()} tracks, from the switches, links, detectors, buffer stops and "
-                 f"operational points")
+    notes.append(f"track network: {len(nodes)} nodes ({n_sw} {switches}), {len(edges)} edges on "
+                 f"{edges['track'].nunique()} tracks, from {sources}")
     return nodes, edges
 
 
@@ -591,10 +596,5 @@ def railml_network(doc, line_tracks, found: dict, extra, line_id: str,
     over = extra.stations if extra is not None else {}
     names = {k: str(over.get(k, {}).get("station_id", k)) for k in found}
     topo, on_line = railml_topology(doc, line_tracks, names, notes)
-    stops_on_line(topo, on_line, stations, notes)
-    nodes, edges = network_tables(topo, on_line, str(line_id), notes)
-    n_sw = int((nodes["kind"] == "switch").sum())
-    notes.append(f"track network: {len(nodes)} nodes ({n_sw} switches and crossings), {len(edges)} edges on "
-                 f"{edges['track'].nunique()} tracks, from the connections, switches, crossings, bufferStops, "
-                 f"trainDetectors and platforms")
-    return nodes, edges
+    return _network(topo, on_line, stations, line_id, notes, "switches and crossings",
+                    "the connections, switches, crossings, bufferStops, trainDetectors and platforms")
