@@ -150,7 +150,8 @@ def _restrictions_pages(job, lines, stage: Path, manifest: dict, summary) -> Non
             continue
         rep = summary.reports.get(line.line_id)
         write_page(line, {**{k: day.get(k) for k in ("day", "start", "end", "time_zone")}, **rec},
-                   None if rep is None else rep.rows, stage / "report" / f"{line.line_id}_restrictions.html",
+                   None if rep is None else rep.rows,
+                   stage / "report" / f"{check_path_id(line.line_id, 'line id')}_restrictions.html",
                    job.tables.ds_m)
 
 
