@@ -358,6 +358,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
             summary.notes.append(
                 f"{line.line_id}: no stopping pattern at {r.station_id} ({r.direction}, {r.train_type}, from "
                 f"{r.origin}) for adhesion {levels} km/h/s ({len(bad)} of {len(r.patterns)} levels): {first.reason}")
+        else:  # every level stops: what the sweep still says (an approach moved back from a TASC beacon)
+            summary.notes += [f"{line.line_id}: {w}" for w in r.warnings]
 
     # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts
     # and train graph trajectories depend on the line alone, so they run beside it (first: longest)
