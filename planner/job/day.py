@@ -15,7 +15,7 @@ feed is another run.
 from __future__ import annotations
 
 import dataclasses
-from datetime import date
+from datetime import date, timedelta
 from pathlib import Path
 
 from planner.errors import InputError
@@ -132,13 +132,23 @@ def day_inputs(job: Job, line: Line) -> DayInputs:
 
     Raises ``LineValidationError`` (every broken rule of the feed, one line each) or ``InputError``.
     """
-    w = window(job)
+    return _day_and_feed(job, line)[0]
+
+
+def _day_and_feed(job: Job, line: Line, w=None):
+    """:func:`day_inputs` on window ``w`` (default: the job's day) and the line's loaded feed (None without)."""
+    w = w or window(job)
     ids = [t.train_id for t in line.trains]
     name = feed_of(job, line)
     if name is None:  # a job without [day] feeds: the static line alone, every train every day
-        return DayInputs(w, (), tuple(ids))
+        return DayInputs(w, (), tuple(ids)), None
     path = job.resolve(name)
     feed = load_feed(path, line, time_zone(job))
+    return _inputs_on(feed, line, w, name), feed
+
+
+def _inputs_on(feed, line: Line, w, name: str) -> DayInputs:
+    ids = [t.train_id for t in line.trains]
     running = trains_running(feed.calendar, w.day, ids)
     keep = set(running)
     notes = list(feed.notes)
@@ -147,6 +157,32 @@ def day_inputs(job: Job, line: Line) -> DayInputs:
                      f"is a service missing for that day?")
     return DayInputs(w, restrictions_in_force(feed.restrictions, w), running,
                      tuple(t for t in ids if t not in keep), tuple(notes))
+
+
+def day_changes(job: Job, line: Line, d: DayInputs, feed) -> dict | None:
+    """The changes of ``line`` against the previous operating day (:func:`planner.report.day_changes.compare_days`)
+    from the same feed, with each added, lifted or changed restriction's time lost (or regained) per leg and
+    train type (:func:`planner.pages.restrictions.restriction_losses`); None for a line without a feed."""
+    from planner.pages.restrictions import restriction_losses
+    from planner.report.day_changes import calendar_covers, compare_days
+
+    if feed is None:
+        return None
+    w = d.window
+    prev = _inputs_on(feed, line, operating_day(w.day - timedelta(days=1), w.time_zone, w.start_hour),
+                      feed_of(job, line))
+    now_ids = {r.restriction_id: r for r in d.restrictions}
+    was_ids = {r.restriction_id: r for r in prev.restrictions}
+
+    def losses(rs, other):  # those not in force the same on the other day
+        rs = [r for r in rs if other.get(r.restriction_id) != r]
+        return restriction_losses(day_line(line, DayInputs(w, tuple(rs), ())), job.tables.ds_m) if rs else {}
+
+    return compare_days(prev, d, line, feed.calendar.train_service if feed.calendar else None,
+                        prev_covered=calendar_covers(feed.calendar, prev.window.day) or
+                        not calendar_covers(feed.calendar, w.day),
+                        losses_prev=losses(prev.restrictions, now_ids),
+                        losses_today=losses(d.restrictions, was_ids))
 
 
 def day_line(line: Line, d: DayInputs) -> Line:
@@ -188,10 +224,15 @@ def bundle_day(job: Job, line: Line, d: DayInputs):
 
 
 def plan_day(job: Job, lines: list[Line], notes: list[str]) -> tuple[dict, list[Line], list]:
-    """:func:`day_record`, each line as it is on the day (:func:`day_line`: what the run computes with) and
-    its bundles' day (:func:`bundle_day`)."""
-    ins = [day_inputs(job, line) for line in lines]
-    return (day_record(job, lines, notes, ins), [day_line(ln, d) for ln, d in zip(lines, ins)],
+    """:func:`day_record` (with each line's changes against the previous day: :func:`day_changes`), each line
+    as it is on the day (:func:`day_line`: what the run computes with) and its bundles' day (:func:`bundle_day`)."""
+    both = [_day_and_feed(job, line) for line in lines]
+    ins = [d for d, _ in both]
+    rec = day_record(job, lines, notes, ins)
+    for r, line, (d, feed) in zip(rec["lines"], lines, both):
+        if feed is not None:
+            r["changes"] = day_changes(job, line, d, feed)
+    return (rec, [day_line(ln, d) for ln, d in zip(lines, ins)],
             [bundle_day(job, ln, d) for ln, d in zip(lines, ins)])
 
 
@@ -210,5 +251,5 @@ def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInput
     return rec
 
 
-__all__ = ["bundle_day", "day_digest", "day_inputs", "day_line", "day_problems", "day_record", "feed_of", "line_digest",
+__all__ = ["bundle_day", "day_changes", "day_digest", "day_inputs", "day_line", "day_problems", "day_record", "feed_of", "line_digest",
            "plan_day", "resolve_day", "time_zone", "window", "with_day"]
