@@ -141,18 +141,28 @@ def _write_line_changes(ch, stage: Path) -> int:
 
 
 def _restrictions_pages(job, lines, stage: Path, manifest: dict, summary) -> None:
-    """``report/<line>_restrictions.html`` of each line with a daily feed (:mod:`planner.pages.restrictions`)."""
-    from planner.pages.restrictions import write_page
+    """``report/<line>_restrictions.html`` of each line with a daily feed (:mod:`planner.pages.restrictions`);
+    adds to the line's day record in ``manifest`` what the restrictions do to the impossible legs and which
+    legs of the trains added since the previous day are flagged (:mod:`planner.report.day_changes`)."""
+    from planner.pages.restrictions import effect, scheduled_legs, write_page
+    from planner.report.day_changes import flagged_legs
+    from planner.report.leg_flags import FLAGS
 
     day = manifest.get("operating_day") or {}
     for line, rec in zip(lines, day.get("lines", [])):
         if rec.get("feed") is None:
             continue
         rep = summary.reports.get(line.line_id)
-        write_page(line, {**{k: day.get(k) for k in ("day", "start", "end", "time_zone")}, **rec},
-                   None if rep is None else rep.rows,
+        rows = None if rep is None else rep.rows
+        legs = scheduled_legs(line, rows, job.tables.ds_m)
+        if rows is not None:
+            rec["restrictions_effect"] = effect(legs, rows)
+            added = (rec.get("changes") or {}).get("trains_added")
+            if added is not None:
+                added["flagged_legs"] = flagged_legs(rec["changes"], rows, FLAGS)
+        write_page(line, {**{k: day.get(k) for k in ("day", "start", "end", "time_zone")}, **rec}, rows,
                    stage / "report" / f"{check_path_id(line.line_id, 'line id')}_restrictions.html",
-                   job.tables.ds_m)
+                   job.tables.ds_m, legs)
 
 
 def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
@@ -205,6 +215,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                 write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
                            datasets_root=stage, top=top, charts=charts)
             prog.advance("changes")
+        _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))
     manifest["changes"] = {"base_run": base, "lines": counts,
@@ -216,7 +227,6 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     manifest["units_reused"] = dict(summary.reused)
     write_bytes_atomic(manifest_path, canonical_json(manifest) + b"\n")
     with prog.step("overview"):
-        _restrictions_pages(job, lines, stage, manifest, summary)
         # notes name the development key by its path: keep the page free of absolute paths
         notes = [n.replace(str(root), job.job.output_root) for n in summary.warnings + summary.notes]
         write_overview(stage, manifest, notes=notes)

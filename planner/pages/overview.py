@@ -2,9 +2,11 @@
 
 Sections, in the order someone opening a run reads them:
 
-1. the run: id, job, inputs digest, code digest, software versions, and what
-   changed since the previous run (counts per line, linked to the section at
-   the top of each margin report);
+1. the run: id, job, inputs digest, code digest, software versions; the
+   operating day it plans (what is in force, what the restrictions do to the
+   flags, what changed since the previous day), and what changed since the
+   previous run (counts per line, linked to the section at the top of each
+   margin report);
 2. flags (impossible, short on a bad day, tight, unreachable, inaccurate and
    unassessed legs, stalls, infeasible stops, conflicts) and the notes of the run;
 3. pages: the restrictions in force (a line with a daily feed), the margin report and the train graph of
@@ -156,6 +158,10 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
         f"Python {_e(sw.get('python', '?'))}, numpy {_e(sw.get('numpy', '?'))}, pyarrow {_e(sw.get('pyarrow', '?'))}"
         + _kernels(sw) + "</p>",
     ]
+    # the operating day, for someone who has never seen one (planner.pages.day_changes)
+    from planner.pages.day_changes import overview_html
+
+    parts.append(overview_html(manifest.get("operating_day")))
     # flags
     flags = manifest.get("flags", {})
     labels = {f.name: f.card for f in FLAGS_SHOWN} | {

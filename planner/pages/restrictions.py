@@ -93,7 +93,8 @@ def scheduled_legs(line, rows, ds_m: float = 1.0) -> list[dict]:
             cache[k] = (min_time_s(static, k[0], k[2], k[3], ds_m), min_time_s(line, k[0], k[2], k[3], ds_m))
         before, after = cache[k]
         out.append({**{c: r.get(c) for c in ("train_type", "direction", "origin", "destination", "n_trains",
-                                             "remaining_margin_s", "arrival_error_s", "arrival_error_degraded_s")},
+                                             "remaining_margin_s", "arrival_error_s", "arrival_error_degraded_s",
+                                             "impossible")},
                     "train_ids": [] if r.get("train_ids") is None else list(r["train_ids"]), "restrictions": ids,
                     "scheduled_s": float(sched),
                     "min_before_s": before, "min_after_s": after, "margin_before_s": float(sched) - before,
@@ -140,9 +141,20 @@ def _num(x, fmt: str = "{:+.1f}") -> str:
     return "" if x is None or (isinstance(x, float) and math.isnan(x)) else fmt.format(x)
 
 
-def render(line, day: dict | None, rows, ds_m: float = 1.0) -> str:
+def effect(legs: list[dict], rows) -> dict:
+    """What the day's restrictions do to the impossible legs (the overview says it): the margin rows flagged
+    impossible, those of them the restrictions reach that are possible without them, and their train runs."""
+    mine = [x for x in legs if x.get("impossible") and x["margin_before_s"] >= 0]
+    return {"impossible": int(rows["impossible"].sum()) if rows is not None and len(rows) else 0,
+            "impossible_by_restrictions": len(mine),
+            "train_runs_by_restrictions": sum(int(x["n_trains"] or 0) for x in mine)}
+
+
+def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict] | None = None) -> str:
     """The page as HTML; ``day``: the line's record in the run manifest's ``operating_day`` (with the
-    window's keys of the day itself), ``rows``: the day's margin rows."""
+    window's keys of the day itself and its ``changes`` against the previous day), ``rows``: the day's margin
+    rows; ``scheduled``: :func:`scheduled_legs` of them when already computed."""
+    from planner.pages.day_changes import section_html
     from planner.pages.overview import CSS, _table
 
     recs = (day or {}).get("restrictions", [])
@@ -153,9 +165,11 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0) -> str:
              f"{len(recs)} temporary restriction(s) in force, each for the whole day in the tables and bundles "
              f"(on the safe side); trains running {_e((day or {}).get('trains_running', '?'))}, not running "
              f"{len((day or {}).get('trains_not_running', []))}. <a href='../index.html'>run overview</a> · "
-             f"<a href='{_e(line.line_id)}_margins.html'>margin report</a></p>"]
+             f"<a href='{_e(line.line_id)}_margins.html'>margin report</a>"
+             + (" · <a href='#changes'>since the previous day</a>" if (day or {}).get("changes") else "") + "</p>"]
+    changes = section_html(day)
     if not recs:
-        parts.append("<p>No temporary restriction is in force on this day.</p></main></body></html>\n")
+        parts.append("<p>No temporary restriction is in force on this day.</p>" + changes + "</main></body></html>\n")
         return "\n".join(parts)
     losses = restriction_losses(line, ds_m)
     trows = []
@@ -173,7 +187,7 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0) -> str:
                                               "alone)"], trows, num=(1, 2))
                  + "<p class='sub'>Time lost: ratio 1.0, load 0, nominal traction, the restriction alone against "
                  "the static line, per interstation its stretch (+ one train length) reaches.</p>")
-    legs = scheduled_legs(line, rows, ds_m)
+    legs = scheduled_legs(line, rows, ds_m) if scheduled is None else scheduled
     lost = [x for x in legs if x["margin_after_s"] < 0 <= x["margin_before_s"]]
     wins = windows_of(day or {})
     lrows = []
@@ -204,16 +218,17 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0) -> str:
                  "that run the leg (departure to scheduled arrival) entirely outside the validity of its "
                  "restrictions (one in force for part of the day): the tables count it for the whole day, so their "
                  "margin here is understated (the safe side).</p>")
+    parts.append(changes)
     parts.append("</main></body></html>\n")
     return "\n".join(parts)
 
 
-def write_page(line, day: dict | None, rows, out: Path, ds_m: float = 1.0) -> Path:
+def write_page(line, day: dict | None, rows, out: Path, ds_m: float = 1.0, legs: list[dict] | None = None) -> Path:
     """Write the page atomically to ``out``."""
     from planner.io.atomic import write_bytes_atomic
 
-    write_bytes_atomic(out, render(line, day, rows, ds_m).encode("utf-8"))
+    write_bytes_atomic(out, render(line, day, rows, ds_m, legs).encode("utf-8"))
     return out
 
 
-__all__ = ["min_time_s", "passing_while_lifted", "render", "restriction_losses", "scheduled_legs", "write_page"]
+__all__ = ["effect", "min_time_s", "passing_while_lifted", "render", "restriction_losses", "scheduled_legs", "write_page"]
