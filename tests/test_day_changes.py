@@ -146,6 +146,19 @@ def test_the_legs_of_added_trains_that_are_flagged():
     assert flagged_legs(c, None, ("impossible",)) == [] and flagged_legs({"trains_added": None}, rows, ()) == []
 
 
+def test_the_summary_names_the_restrictions_and_counts_the_trains():
+    from planner.pages.day_changes import summary
+
+    r = [{"restriction_id": f"R{i}"} for i in range(6)]
+    c = {"restrictions_added": r[:1], "restrictions_lifted": r, "restrictions_changed": [], "trains_compared": True,
+         "trains_added": {"count": 2, "flagged_legs": [{"flag": "impossible"}, {"flag": "short_bad_day"},
+                                                       {"flag": "impossible"}]},
+         "trains_cancelled": {"count": 1}}
+    assert summary(c) == ("R0 added; R0, R1, R2, R3 and 2 more lifted; 2 trains added (3 of their legs flagged: "
+                          "2 impossible, 1 short on a bad day), 1 train cancelled")
+    assert summary({"trains_compared": False}) == "no restriction added or lifted; trains not compared"
+
+
 def test_a_line_without_a_feed_has_no_section():
     from planner.pages.day_changes import overview_html, section_html
 
@@ -187,8 +200,8 @@ def test_a_run_shows_the_changes_on_the_restrictions_page_and_the_overview(tmp_p
     assert "flagged_legs" in c["trains_added"] and "restrictions_effect" in rec
     page = (run / "report" / "tiny_restrictions.html").read_text()
     assert "Since the previous operating day (Sunday 2026-11-29)</h2>" in page
-    assert "1 added" in page and "1 train added" in page and "EMU10</b>: A→B +" in page
+    assert "R1 added; 1 train added" in page and "EMU10</b>: A→B +" in page
     overview = (run / "index.html").read_text()
     assert "Operating day Monday 2026-11-30" in overview
-    assert "Since Sunday 2026-11-29: restrictions: 1 added; 1 train added" in overview
+    assert "Since Sunday 2026-11-29: R1 added; 1 train added" in overview
     assert "href='report/tiny_restrictions.html#changes'" in overview

@@ -9,10 +9,12 @@ from the restrictions page). A line without a daily feed has neither, and no sec
 from __future__ import annotations
 
 import html
+from collections import Counter
 from datetime import date
 from typing import Any
 
 from planner.report.day_changes import counts
+from planner.report.leg_flags import FLAG
 
 
 def _e(x: Any) -> str:
@@ -21,6 +23,11 @@ def _e(x: Any) -> str:
 
 def _n(k: int, one: str, many: str | None = None) -> str:
     return f"{k} {one if k == 1 else (many or one + 's')}"
+
+
+def _flag(name: str) -> str:
+    """A flag as the margin report's badge says it (``short on a bad day``)."""
+    return FLAG[name].badge if name in FLAG else name.replace("_", " ")
 
 
 def _first_up(s: str) -> str:
@@ -35,10 +42,10 @@ def _per_type(legs: list[dict], sign: str = "+") -> str:
     return "<br>".join(f"<b>{_e(tt)}</b>: {_e(', '.join(v))}" for tt, v in by.items()) or "no leg"
 
 
-def _restriction_row(what: str, r: dict, legs: list[dict], sign: str) -> list[str]:
+def _restriction_row(what: str, r: dict, legs: list[dict], sign: str, day: str) -> list[str]:
     return [what, f"<b>{_e(r['restriction_id'])}</b>", f"{r['start_m']:.0f}–{r['end_m']:.0f}", f"{r['limit_kmh']:g}",
             _e(r["direction"]), _e(r.get("train_type") or "all"),
-            _e(f"{r['valid_from']} → {r['valid_until']}") + ("" if r.get("whole_day", True) else " (part of the day)"),
+            _e(f"{r['valid_from']} → {r['valid_until']}") + ("" if r.get("whole_day", True) else f" (part of {_e(day)})"),
             "temporary beacon" if r["has_beacon"] else "DB-fed pattern", _e(r.get("reason", "")), _per_type(legs, sign)]
 
 
@@ -59,7 +66,7 @@ def _trains_row(what: str, t: dict | None) -> list[str]:
     elif not t["flagged_legs"]:
         flagged = "<span class='ok'>none flagged</span>" if t["count"] else ""
     else:
-        flagged = "<br>".join(f"<span class='bad'>{_e(f['flag'].replace('_', ' '))}</span> {_e(f['train_type'])} "
+        flagged = "<br>".join(f"<span class='bad'>{_e(_flag(f['flag']))}</span> {_e(f['train_type'])} "
                               f"{_e(f['origin'])}→{_e(f['destination'])}: {_e(len(f['trains']))} "
                               f"({_ids(f['trains'], 4)})" for f in t["flagged_legs"])
     return [what, f"{t['count']}" + (f": {_ids(t['train_ids'])}" if t["count"] else ""), _e(by), legs, flagged]
@@ -87,11 +94,13 @@ def section_html(day: dict | None) -> str:
                                                if c.get("restrictions_kept") else "") + "</p>"]
     if c.get("note"):
         parts.append(f"<p class='warn'>{_e(c['note'])}</p>")
-    rows = [_restriction_row("<span class='bad'>added</span>", r, r["legs"], "+") for r in c["restrictions_added"]]
-    rows += [_restriction_row("<span class='ok'>lifted</span>", r, r["legs"], "−") for r in c["restrictions_lifted"]]
+    pw, this = c["previous_weekday"], "this day"
+    rows = [_restriction_row("<span class='bad'>added</span>", r, r["legs"], "+", this) for r in c["restrictions_added"]]
+    rows += [_restriction_row("<span class='ok'>lifted</span>", r, r["legs"], "−", pw) for r in c["restrictions_lifted"]]
     for x in c["restrictions_changed"]:
-        rows.append(_restriction_row(f"changed ({_e(', '.join(x['fields']))}): was", x["before"], x["legs_before"], "+"))
-        rows.append(_restriction_row("changed: now", x["after"], x["legs_after"], "+"))
+        rows.append(_restriction_row(f"changed ({_e(', '.join(x['fields']))}): was", x["before"], x["legs_before"],
+                                     "+", pw))
+        rows.append(_restriction_row("changed: now", x["after"], x["legs_after"], "+", this))
     if rows:
         from planner.pages.overview import _table
 
@@ -112,16 +121,26 @@ def section_html(day: dict | None) -> str:
     return "\n".join(parts)
 
 
+def _named(rs: list[dict], k: int = 4) -> str:
+    ids = [r["restriction_id"] for r in rs]
+    return ", ".join(ids[:k]) + (f" and {len(ids) - k} more" if len(ids) > k else "")
+
+
 def summary(c: dict) -> str:
-    """One sentence: what changed (``92 trains added, no restriction added or lifted``)."""
+    """One sentence: what changed (``TSR-2026-101 lifted; 92 trains added``)."""
     n = counts(c)
-    r = [f"{n[k]} {k.split('_')[1]}" for k in ("restrictions_added", "restrictions_lifted", "restrictions_changed")
-         if n[k]]
-    rs = ("restrictions: " + ", ".join(r)) if r else "no restriction added or lifted"
+    r = [f"{_named(c[k])} {k.split('_')[1]}" for k in ("restrictions_added", "restrictions_lifted",
+                                                          "restrictions_changed") if n[k]]
+    rs = "; ".join(r) if r else "no restriction added or lifted"
     if not c.get("trains_compared"):
         return rs + "; trains not compared"
     t = [f"{_n(n['trains_added'], 'train')} added"] if n["trains_added"] else []
     t += [f"{_n(n['trains_cancelled'], 'train')} cancelled"] if n["trains_cancelled"] else []
+    flagged = (c.get("trains_added") or {}).get("flagged_legs")
+    if flagged:
+        kinds = Counter(_flag(f["flag"]) for f in flagged)
+        t[0] += f" ({_n(len(flagged), 'of their legs', 'of their legs')} flagged: " + ", ".join(
+            f"{v} {k}" for k, v in kinds.items()) + ")"
     return rs + "; " + (", ".join(t) if t else "the same trains run")
 
 
