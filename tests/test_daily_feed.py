@@ -329,6 +329,8 @@ def test_restrictions_show_prints_the_day(tmp_path):
         "  restrictions in force: 1",
         "    R1: 1000–1400 m 45 km/h both, 2026-11-30T01:00 → 2026-12-02T05:00 (part of the day; DB-fed pattern): "
         "renewal",
+        # R1 starts at 01:00 on the 30th, inside Sunday's operating day, not Saturday's; no train runs either day
+        "  since Saturday 2026-11-28: R1 added; the same trains run",
         "  note: tiny: no train runs on 2026-11-29 (Sunday) by the calendar of feeds/tiny: is a service missing "
         "for that day?",
     ]

@@ -44,16 +44,19 @@ def show_cmd(
     job_file: Path = typer.Argument(..., help="Job file (TOML) naming the lines and their daily feeds ([day])."),
     day: str = typer.Option("", "--day", metavar="YYYY-MM-DD", help="This operating day instead of the job's."),
 ) -> None:
-    """The operating day's window, and per line the restrictions in force and the trains that do not run."""
+    """The operating day's window, and per line the restrictions in force, the trains that do not run and what
+    changed since the previous operating day."""
     from planner.job.config import load_job
-    from planner.job.day import day_inputs, resolve_day, with_day
+    from planner.job.day import day_and_feed, day_changes, resolve_day, with_day
     from planner.line.loader import load_line
     from planner.line.operating_day import whole_day
+    from planner.pages.day_changes import summary
 
     job = load_job(job_file)
     job = resolve_day(with_day(job, day) if day else job)
     for p in job.job.lines:
-        d = day_inputs(job, load_line(job.resolve(p)))
+        line = load_line(job.resolve(p))
+        d, feed = day_and_feed(job, line)
         w = d.window
         typer.echo(f"{p}: operating day {w.day} ({w.day:%A}) {w.start_local} to {w.end_local} "
                    f"({w.length_s / 3600:g} h)")
@@ -66,5 +69,9 @@ def show_cmd(
                        f"{' ' + r.train_type if r.train_type else ''}, {r.valid_from} → {r.valid_until}"
                        f" ({'whole day' if whole_day(r, w) else 'part of the day'}; "
                        f"{'temporary beacon' if r.has_beacon else 'DB-fed pattern'}): {r.reason}")
+        c = day_changes(job, line, d, feed)
+        if c is not None:
+            typer.echo(f"  since {c['previous_weekday']} {c['previous_day']}: {summary(c)}"
+                       + (f" ({c['note']})" if c["note"] else ""))
         for n in d.notes:
             typer.echo(f"  note: {n}")

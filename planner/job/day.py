@@ -132,10 +132,10 @@ def day_inputs(job: Job, line: Line) -> DayInputs:
 
     Raises ``LineValidationError`` (every broken rule of the feed, one line each) or ``InputError``.
     """
-    return _day_and_feed(job, line)[0]
+    return day_and_feed(job, line)[0]
 
 
-def _day_and_feed(job: Job, line: Line, w=None):
+def day_and_feed(job: Job, line: Line, w=None):
     """:func:`day_inputs` on window ``w`` (default: the job's day) and the line's loaded feed (None without)."""
     w = w or window(job)
     ids = [t.train_id for t in line.trains]
@@ -226,7 +226,7 @@ def bundle_day(job: Job, line: Line, d: DayInputs):
 def plan_day(job: Job, lines: list[Line], notes: list[str]) -> tuple[dict, list[Line], list]:
     """:func:`day_record` (with each line's changes against the previous day: :func:`day_changes`), each line
     as it is on the day (:func:`day_line`: what the run computes with) and its bundles' day (:func:`bundle_day`)."""
-    both = [_day_and_feed(job, line) for line in lines]
+    both = [day_and_feed(job, line) for line in lines]
     ins = [d for d, _ in both]
     rec = day_record(job, lines, notes, ins)
     for r, line, (d, feed) in zip(rec["lines"], lines, both):
@@ -251,5 +251,5 @@ def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInput
     return rec
 
 
-__all__ = ["bundle_day", "day_changes", "day_digest", "day_inputs", "day_line", "day_problems", "day_record", "feed_of", "line_digest",
+__all__ = ["bundle_day", "day_and_feed", "day_changes", "day_digest", "day_inputs", "day_line", "day_problems", "day_record", "feed_of", "line_digest",
            "plan_day", "resolve_day", "time_zone", "window", "with_day"]
