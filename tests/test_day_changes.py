@@ -163,10 +163,14 @@ def test_a_line_without_a_feed_has_no_section():
     from planner.pages.day_changes import overview_html, section_html
 
     assert section_html(None) == "" and section_html({"restrictions": []}) == ""
-    day = {"day": "2026-11-30", "start_hour": 3, "time_zone": TZ,
-           "lines": [{"line_id": "x", "feed": None, "restrictions": [], "trains_running": 2}]}
-    assert "x</b>: no daily feed" in overview_html(day) and "Since" not in overview_html(day)
-    assert overview_html(None) == ""
+    bare = {"line_id": "x", "feed": None, "restrictions": [], "trains_running": 2}
+    fed = {"line_id": "y", "feed": "feeds/y", "restrictions": [], "trains_running": 2,
+           "changes": {"previous_day": "2026-11-29", "previous_weekday": "Sunday", "trains_compared": True}}
+    day = {"day": "2026-11-30", "start_hour": 3, "time_zone": TZ, "lines": [bare, fed]}
+    page = overview_html(day)
+    assert "x</b>: no daily feed" in page and page.count("Since ") == 1 and "Since Sunday 2026-11-29" in page
+    # a job without feeds plans the static line: no operating day to explain
+    assert overview_html({**day, "lines": [bare]}) == "" and overview_html(None) == ""
 
 
 def test_a_run_shows_the_changes_on_the_restrictions_page_and_the_overview(tmp_path):

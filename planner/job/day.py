@@ -251,5 +251,5 @@ def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInput
     return rec
 
 
-__all__ = ["bundle_day", "day_and_feed", "day_changes", "day_digest", "day_inputs", "day_line", "day_problems", "day_record", "feed_of", "line_digest",
-           "plan_day", "resolve_day", "time_zone", "window", "with_day"]
+__all__ = ["bundle_day", "day_and_feed", "day_changes", "day_digest", "day_inputs", "day_line", "day_problems",
+           "day_record", "feed_of", "line_digest", "plan_day", "resolve_day", "time_zone", "window", "with_day"]

@@ -43,9 +43,10 @@ def _per_type(legs: list[dict], sign: str = "+") -> str:
 
 
 def _restriction_row(what: str, r: dict, legs: list[dict], sign: str, day: str) -> list[str]:
+    part = "" if r.get("whole_day", True) else f" (part of {_e(day)})"
     return [what, f"<b>{_e(r['restriction_id'])}</b>", f"{r['start_m']:.0f}–{r['end_m']:.0f}", f"{r['limit_kmh']:g}",
             _e(r["direction"]), _e(r.get("train_type") or "all"),
-            _e(f"{r['valid_from']} → {r['valid_until']}") + ("" if r.get("whole_day", True) else f" (part of {_e(day)})"),
+            _e(f"{r['valid_from']} → {r['valid_until']}") + part,
             "temporary beacon" if r["has_beacon"] else "DB-fed pattern", _e(r.get("reason", "")), _per_type(legs, sign)]
 
 
@@ -89,14 +90,17 @@ def section_html(day: dict | None) -> str:
         return ""
     prev = f"{c['previous_weekday']} {c['previous_day']}"
     n = counts(c)
+    kept = (f" In force both days, unchanged: {_e(_kept(c, c['previous_weekday']))}."
+            if c.get("restrictions_kept") else "")
     parts = [f"<h2 id='changes'>Since the previous operating day ({_e(prev)})</h2>",
-             "<p>" + _e(_first_up(summary(c))) + ". " + (f"In force both days, unchanged: {_e(_kept(c, c['previous_weekday']))}."
-                                               if c.get("restrictions_kept") else "") + "</p>"]
+             f"<p>{_e(_first_up(summary(c)))}.{kept}</p>"]
     if c.get("note"):
         parts.append(f"<p class='warn'>{_e(c['note'])}</p>")
     pw, this = c["previous_weekday"], "this day"
-    rows = [_restriction_row("<span class='bad'>added</span>", r, r["legs"], "+", this) for r in c["restrictions_added"]]
-    rows += [_restriction_row("<span class='ok'>lifted</span>", r, r["legs"], "−", pw) for r in c["restrictions_lifted"]]
+    rows = [_restriction_row("<span class='bad'>added</span>", r, r["legs"], "+", this)
+            for r in c["restrictions_added"]]
+    rows += [_restriction_row("<span class='ok'>lifted</span>", r, r["legs"], "−", pw)
+             for r in c["restrictions_lifted"]]
     for x in c["restrictions_changed"]:
         rows.append(_restriction_row(f"changed ({_e(', '.join(x['fields']))}): was", x["before"], x["legs_before"],
                                      "+", pw))
@@ -159,8 +163,8 @@ def _effect(eff: dict) -> str:
 def overview_html(day: dict | None) -> str:
     """The operating day at the top of the run overview, for someone who has never seen one: what the day is,
     what is in force, what the restrictions do to the flags, and what changed since the day before."""
-    if not day or not day.get("day"):
-        return ""
+    if not day or not day.get("day") or not any(x.get("feed") for x in day.get("lines", [])):
+        return ""  # a job without daily feeds plans the static line: no day to explain
     d = date.fromisoformat(day["day"])
     h = int(day.get("start_hour", 0))
     parts = [f"<h2 id='day'>Operating day {_e(f'{d:%A} {d.isoformat()}')}</h2>",
@@ -173,8 +177,8 @@ def overview_html(day: dict | None) -> str:
         if rec.get("feed") is None:
             parts.append(f"<p><b>{_e(lid)}</b>: no daily feed: the static line, every timetable train.</p>")
             continue
-        nr, nrun, nnot = len(rec.get("restrictions", [])), rec.get("trains_running", 0), len(
-            rec.get("trains_not_running", []))
+        nr, nrun = len(rec.get("restrictions", [])), rec.get("trains_running", 0)
+        nnot = len(rec.get("trains_not_running", []))
         text = (f"<b>{_e(lid)}</b> — {_e(f'{d:%A} {d.isoformat()}')}: {_n(nr, 'temporary restriction')} in force, "
                 f"{_n(nrun, 'train')} run" + (f" ({nnot} of the timetable do not)" if nnot else "") + "; ")
         eff = rec.get("restrictions_effect")

@@ -231,4 +231,5 @@ def write_page(line, day: dict | None, rows, out: Path, ds_m: float = 1.0, legs:
     return out
 
 
-__all__ = ["effect", "min_time_s", "passing_while_lifted", "render", "restriction_losses", "scheduled_legs", "write_page"]
+__all__ = ["effect", "min_time_s", "passing_while_lifted", "render", "restriction_losses", "scheduled_legs",
+           "write_page"]
