@@ -90,7 +90,7 @@ def section_html(day: dict | None) -> str:
         return ""
     prev = f"{c['previous_weekday']} {c['previous_day']}"
     n = counts(c)
-    kept = (f" In force both days, unchanged: {_e(_kept(c, c['previous_weekday']))}."
+    kept = (f" In force both days: {_e(_kept(c, c['previous_weekday']))}."
             if c.get("restrictions_kept") else "")
     parts = [f"<h2 id='changes'>Since the previous operating day ({_e(prev)})</h2>",
              f"<p>{_e(_first_up(summary(c)))}.{kept}</p>"]
