@@ -154,6 +154,8 @@ def day_inputs(job: Job, line: Line) -> DayInputs:
 def day_line(line: Line, d: DayInputs) -> Line:
     """``line`` as it is on the day: every temporary restriction in force at some instant of the day added to
     its speed limits (whole day, on the safe side: see docs/operating-day.md), and only the trains that run.
+    Per train (margins, conflicts, train graph) the restrictions lifted while a train runs a leg are taken
+    off again for that leg (:func:`lifted_restrictions`).
 
     Every unit is given a slice of this line (:meth:`Line.window`), so a unit's cache key (the digest of its
     slice) includes exactly the restrictions that reach it; the static line's ``source_digest`` is kept (it

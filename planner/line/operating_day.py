@@ -212,19 +212,6 @@ def reaches(r: "TemporaryRestriction", direction: str, train_type: str) -> bool:
     return r.direction in ("both", direction) and (r.train_type is None or r.train_type == train_type)
 
 
-def applies_to_train(r: "TemporaryRestriction", pass_time_s: float, direction: str | None = None,
-                     train_type: str | None = None) -> bool:
-    """Whether ``r`` applies to a train that passes its stretch at ``pass_time_s`` (UTC epoch seconds).
-
-    Per train, a restriction applies by the time the train passes: in force at
-    that instant (valid_from ≤ t < valid_until), and, when ``direction`` /
-    ``train_type`` are given, for that direction and train type.
-    """
-    if direction is not None and train_type is not None and not reaches(r, direction, train_type):
-        return False
-    return r.valid_from_s <= pass_time_s < r.valid_until_s
-
-
 def leg_restrictions(restrictions: Iterable["TemporaryRestriction"], window: OperatingDay, line: "Line",
                      train_type: str, direction: str, origin: str, destination: str,
                      departure_s: float | None = None, arrival_s: float | None = None) -> tuple:
@@ -324,7 +311,7 @@ class DayInputs:
                 "trains_running": len(self.trains), "trains_not_running": list(self.cancelled)}
 
 
-__all__ = ["DEFAULT_START_HOUR", "DayInputs", "OperatingDay", "TEMPORARY_KIND", "applies_to_train",
+__all__ = ["DEFAULT_START_HOUR", "DayInputs", "OperatingDay", "TEMPORARY_KIND",
            "current_operating_day", "in_force", "leg_restrictions", "local_instant", "local_text",
            "next_operating_day", "operating_day", "reaches", "restrictions_in_force", "service_runs",
            "timetable_instant", "trains_running", "whole_day", "without_temporary", "zone"]

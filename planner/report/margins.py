@@ -18,7 +18,12 @@ stop to the next stop of a train type in a direction:
 
 Trains with the same leg and the same scheduled time share one row
 (``n_trains``, ``train_ids``); a leg with two different scheduled times in
-the timetable gets two rows.
+the timetable gets two rows. On an operating day with a temporary restriction
+in force for part of the day, the trains that run a leg while it is lifted
+(:func:`planner.line.operating_day.leg_restrictions`: in force at no instant of
+their run of the leg) get a row of their own, computed on the day's line without
+it, with its own tables and closed loop (:mod:`planner.report.margin_legs`);
+``restrictions`` names the temporary restrictions each row is computed with.
 
 What each row holds, and how
 ----------------------------
@@ -127,7 +132,9 @@ Layout
   colour, and the words of ``flag_reason`` and ``bad_day_cause`` (pure);
 * :mod:`planner.report.leg_margin`: one leg with the simulator, the tables
   (read from ``--tables`` or computed), the stopping patterns and the closed loop;
-* this module: the timetable as legs and the whole line (:func:`compute_margins`);
+* :mod:`planner.report.margin_legs`: the timetable as legs, and the groups the rows are computed in
+  (leg × scheduled time × restrictions lifted for its trains);
+* this module: the whole line (:func:`compute_margins`);
 * :mod:`planner.report.margin_datasets`: the ``margins`` and ``margin_totals``
   datasets, and the readers of the other steps' folders;
 * :mod:`planner.pages.margin_report` and :mod:`planner.report.plots`: the page and its charts.
