@@ -252,3 +252,19 @@ def test_a_run_computes_trains_passing_while_lifted_without_the_restriction(proj
     # the restrictions page names the trains computed without it
     page = (monday / "report" / "tiny_restrictions.html").read_text()
     assert "without R1" in page and "understated" not in page
+
+
+def test_the_train_timetable_takes_each_trains_own_row(straight):
+    from planner.report.train_timetable import leg_runs, timetable_rows
+
+    line, d = day(straight, PM)
+    rows = margins(line, lifted_restrictions(line, d)).rows
+    runs = leg_runs(line, rows)
+    ends = {r["train_id"]: r for r in timetable_rows(line, runs) if r["station_id"] == "B"}
+    plain = {r["train_id"]: r for r in timetable_rows(straight, leg_runs(straight, margins(straight).rows))
+             if r["station_id"] == "B"}
+    # 101 passes before noon: its leg is the static line's (its minimum arrival too), on a chart of its own
+    assert ends["101"]["leg_min_running_time_s"] == plain["101"]["leg_min_running_time_s"]
+    assert ends["101"]["minimum_arrival_s"] == plain["101"]["minimum_arrival_s"]
+    assert ends["101"]["chart"].endswith("_600s_without-PM.html") and ends["103"]["chart"].endswith("_600s.html")
+    assert ends["103"]["minimum_arrival_s"] > plain["103"]["minimum_arrival_s"]
