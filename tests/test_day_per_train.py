@@ -268,3 +268,16 @@ def test_the_train_timetable_takes_each_trains_own_row(straight):
     assert ends["101"]["minimum_arrival_s"] == plain["101"]["minimum_arrival_s"]
     assert ends["101"]["chart"].endswith("_600s_without-PM.html") and ends["103"]["chart"].endswith("_600s.html")
     assert ends["103"]["minimum_arrival_s"] > plain["103"]["minimum_arrival_s"]
+
+
+def test_the_changes_between_runs_keep_a_legs_rows_apart():
+    from planner.report.changes import _legs_by_key
+
+    leg = dict(direction="down", train_type="E10", origin="A", destination="B", scheduled_running_time_s=165.0)
+    frame = pd.DataFrame([{**leg, "restrictions": ["PM", "W"], "min_running_time_s": 218.0},
+                          {**leg, "restrictions": ["W"], "min_running_time_s": 160.0}])
+    got = _legs_by_key(frame)
+    key = ("down", "E10", "A", "B", 165.0)
+    # the row of the trains meeting every restriction keeps the leg's key (it compares with another day's row)
+    assert got[key]["min_running_time_s"] == 218.0 and got[key + ("without PM",)]["min_running_time_s"] == 160.0
+    assert _legs_by_key(frame.drop(columns="restrictions").iloc[:1]) == {key: {**leg, "min_running_time_s": 218.0}}
