@@ -141,22 +141,3 @@ def test_the_restrictions_page_names_the_legs_slowed_and_the_trains_that_lose_th
              reason="test")]}, rows)
     assert "1 leg row(s), 1 train run(s) lose their margin" in page and "still makes it" in page
     assert f"EMU10 A→B: +{after - before:.1f} s" in page
-
-
-def test_a_train_that_runs_the_leg_while_a_part_day_restriction_is_lifted_is_named(straight):
-    from planner.pages.restrictions import passing_while_lifted, windows_of
-
-    # train 101 leaves A at 06:00 local (21600 s) and is due at B at 06:10
-    rec = {"day": "2026-11-30", "time_zone": "Asia/Tokyo", "restrictions": [
-        dict(restriction_id="PM", valid_from="2026-11-30T14:20", valid_until="2026-12-02T16:00"),
-        dict(restriction_id="AM", valid_from="2026-11-30T06:05", valid_until="2026-12-02T16:00"),
-        dict(restriction_id="EARLY", valid_from="2026-11-29T05:00", valid_until="2026-11-30T06:00")]}
-    wins = windows_of(rec)
-    assert wins["PM"][0] == 1795996800 + 14 * 3600 + 20 * 60 - 9 * 3600  # 2026-11-30T00:00Z = 1795996800
-    leg = {"origin": "A", "train_ids": ["101"], "scheduled_s": 600.0}
-    assert passing_while_lifted(straight, {**leg, "restrictions": ["PM"]}, wins, "2026-11-30", "Asia/Tokyo") == ["101"]
-    assert passing_while_lifted(straight, {**leg, "restrictions": ["AM"]}, wins, "2026-11-30", "Asia/Tokyo") == []
-    # ended at 06:00 sharp, as the train leaves: lifted (validity is half-open)
-    early = {**leg, "restrictions": ["EARLY"]}
-    assert passing_while_lifted(straight, early, wins, "2026-11-30", "Asia/Tokyo") == ["101"]
-    assert passing_while_lifted(straight, {**leg, "restrictions": ["PM", "AM"]}, wins, "2026-11-30", "Asia/Tokyo") == []

@@ -13,7 +13,6 @@ import pytest
 
 from planner.line.daily import Calendar, Service, TemporaryRestriction
 from planner.line.operating_day import (
-    applies_to_train,
     current_operating_day,
     local_instant,
     next_operating_day,
@@ -103,14 +102,6 @@ def test_restrictions_in_force_at_the_window_edges():
     assert got == (last_second, first_second, whole, inside)
     assert [whole_day(r, w) for r in got] == [False, False, True, False]
     assert whole_day(_r(s, e), w)
-
-
-def test_a_restriction_applies_to_a_train_by_the_time_it_passes():
-    r = _r(1000, 2000, direction="down", train_type="E8")
-    assert applies_to_train(r, 1000) and applies_to_train(r, 1999.5)
-    assert not applies_to_train(r, 999.9) and not applies_to_train(r, 2000)
-    assert applies_to_train(r, 1500, "down", "E8")
-    assert not applies_to_train(r, 1500, "up", "E8") and not applies_to_train(r, 1500, "down", "E10")
 
 
 def test_calendar_gtfs_semantics():

@@ -25,10 +25,12 @@ from planner.line.loader import source_digest
 from planner.line.model import Line
 from planner.line.operating_day import (
     DayInputs,
+    leg_restrictions,
     next_operating_day,
     operating_day,
     restrictions_in_force,
     trains_running,
+    whole_day,
     zone,
 )
 
@@ -188,6 +190,8 @@ def day_changes(job: Job, line: Line, d: DayInputs, feed) -> dict | None:
 def day_line(line: Line, d: DayInputs) -> Line:
     """``line`` as it is on the day: every temporary restriction in force at some instant of the day added to
     its speed limits (whole day, on the safe side: see docs/operating-day.md), and only the trains that run.
+    Per train (margins, conflicts, train graph) the restrictions lifted while a train runs a leg are taken
+    off again for that leg (:func:`lifted_restrictions`).
 
     Every unit is given a slice of this line (:meth:`Line.window`), so a unit's cache key (the digest of its
     slice) includes exactly the restrictions that reach it; the static line's ``source_digest`` is kept (it
@@ -197,6 +201,40 @@ def day_line(line: Line, d: DayInputs) -> Line:
     return dataclasses.replace(
         line, speed_limits=line.speed_limits + tuple(r.as_speed_limit() for r in d.restrictions),
         trains=tuple(t for t in line.trains if t.train_id in keep))
+
+
+def lifted_restrictions(line: Line, d: DayInputs) -> dict[tuple[str, int], tuple[str, ...]]:
+    """Per train and leg of the day's line (``(train_id, leg_seq)``, the legs of
+    :func:`planner.report.margin_legs.timetable_legs`): the ids of the day's temporary restrictions that
+    reach the leg but do not apply to the train, lifted the whole time it runs the leg
+    (:func:`~planner.line.operating_day.leg_restrictions`, the per-train rule). Only legs that have
+    some; empty when every restriction of the day is in force for the whole day (nothing is looked at).
+
+    Margins, conflicts and the train graph compute such a train's leg on the day's line without them,
+    and their cache keys include this map: it is exactly what a train sees beyond the day's line.
+    """
+    from planner.report.margin_legs import timetable_legs
+
+    w = d.window
+    part = [r for r in d.restrictions if not whole_day(r, w)]
+    if not part:
+        return {}
+    out = {}
+    for lg in timetable_legs(line):
+        key = (lg.train_type, lg.direction, lg.origin, lg.destination)
+        near = leg_restrictions(part, w, line, *key)
+        if not near:
+            continue
+        on = {r.restriction_id for r in leg_restrictions(near, w, line, *key, lg.departure_s, lg.arrival_s)}
+        off = tuple(r.restriction_id for r in near if r.restriction_id not in on)
+        if off:
+            out[(lg.train_id, lg.leg_seq)] = off
+    return out
+
+
+def lifted_key(lifted: dict) -> list:
+    """The lifted map as plain, ordered data for a cache key."""
+    return sorted([tid, seq, list(ids)] for (tid, seq), ids in lifted.items())
 
 
 def line_digest(line: Line) -> str:
@@ -223,17 +261,19 @@ def bundle_day(job: Job, line: Line, d: DayInputs):
                      tuple((r.restriction_id, r.valid_from_s, r.valid_until_s) for r in d.restrictions))
 
 
-def plan_day(job: Job, lines: list[Line], notes: list[str]) -> tuple[dict, list[Line], list]:
+def plan_day(job: Job, lines: list[Line], notes: list[str]) -> tuple[dict, list[Line], list, list[dict]]:
     """:func:`day_record` (with each line's changes against the previous day: :func:`day_changes`), each line
-    as it is on the day (:func:`day_line`: what the run computes with) and its bundles' day (:func:`bundle_day`)."""
+    as it is on the day (:func:`day_line`: what the run computes with), its bundles' day (:func:`bundle_day`)
+    and the restrictions lifted per train (:func:`lifted_restrictions`)."""
     both = [day_and_feed(job, line) for line in lines]
     ins = [d for d, _ in both]
     rec = day_record(job, lines, notes, ins)
     for r, line, (d, feed) in zip(rec["lines"], lines, both):
         if feed is not None:
             r["changes"] = day_changes(job, line, d, feed)
-    return (rec, [day_line(ln, d) for ln, d in zip(lines, ins)],
-            [bundle_day(job, ln, d) for ln, d in zip(lines, ins)])
+    days = [day_line(ln, d) for ln, d in zip(lines, ins)]
+    return (rec, days, [bundle_day(job, ln, d) for ln, d in zip(lines, ins)],
+            [lifted_restrictions(ln, d) for ln, d in zip(days, ins)])
 
 
 def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInputs] | None = None) -> dict:
@@ -252,4 +292,5 @@ def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInput
 
 
 __all__ = ["bundle_day", "day_and_feed", "day_changes", "day_digest", "day_inputs", "day_line", "day_problems",
-           "day_record", "feed_of", "line_digest", "plan_day", "resolve_day", "time_zone", "window", "with_day"]
+           "day_record", "feed_of", "lifted_key", "lifted_restrictions", "line_digest", "plan_day", "resolve_day",
+           "time_zone", "window", "with_day"]

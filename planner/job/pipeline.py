@@ -42,7 +42,7 @@ from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomi
 from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
-from planner.job.day import day_digest, line_digest, plan_day, resolve_day
+from planner.job.day import day_digest, lifted_key, line_digest, plan_day, resolve_day
 from planner.line.model import DIRECTIONS, Line
 from planner.job.cache import Cache
 from planner.job.keys import signing_key_path
@@ -247,7 +247,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
 
             notes: list[str] = []
             # the day's feeds validated against their lines before any unit; each line as it is that day
-            day, lines, bundle_days = plan_day(job, lines, notes)
+            day, lines, bundle_days, lifted = plan_day(job, lines, notes)
             key_path, development = signing_key_path(job, notes)
             key = load_private_key(key_path)
             release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
@@ -270,8 +270,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 try:
                     # a writer thread: a step's datasets are written while the workers compute the next
                     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
-                        for line, bday in zip(lines, bundle_days):
-                            _run_line(job, line, stage, runner, summary, key, key_path, writes, bday)
+                        for line, bday, off in zip(lines, bundle_days, lifted):
+                            _run_line(job, line, stage, runner, summary, key, key_path, writes, bday, off)
                     summary.computed, summary.reused = runner.computed, runner.reused
                     if cache.rejected:  # once per run, with the count
                         summary.warnings.append(cache.rejected_note())
@@ -303,7 +303,9 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
-              writes: ThreadPoolExecutor, bday=None) -> None:
+              writes: ThreadPoolExecutor, bday=None, lifted=None) -> None:
+    """One line's units; ``lifted``: the restrictions lifted per train (:func:`planner.job.day.lifted_restrictions`),
+    for the per-train units (margins, conflicts, train graph)."""
     from planner.tables.ratios import leg_ratio_grid
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
@@ -365,10 +367,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # and train graph trajectories depend on the line alone, so they run beside it (first: longest)
     from planner.job.views import graph_unit
 
-    side = [("graph", [graph_unit(job, line)])]
+    side = [("graph", [graph_unit(job, line, lifted)])]
     checks_conflicts = job.conflicts.enabled and line.network is not None
     if checks_conflicts:
-        side.insert(0, ("conflicts", [_conflicts_unit_of(job, line)]))
+        side.insert(0, ("conflicts", [_conflicts_unit_of(job, line, lifted)]))
     cp = job.closed_loop
     c_units = [
         Unit("closed_loop",
@@ -396,7 +398,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         conflicts = _conflicts_step(line, stage, summary, got["conflicts"])
     _margins_step(job, line, stage, runner, summary,
                   [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts,
-                  given.result())
+                  given.result(), lifted)
     _bundles_step(stage, runner, summary, key, bundles)
     from planner.job.verdicts import record_verdicts
 
@@ -428,23 +430,24 @@ def _line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
     return runner.run(step, [Unit(step, key, step, fn, args)])[0]
 
 
-def _margins_unit(line, options, types, stage, n_jobs, given=None):
+def _margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None):
     from planner.report.margins import compute_margins
 
     # conflicts come from their own step (_conflicts_step); ``given``: the tables read beforehand
     return compute_margins(line, **(options | {"conflicts": False}), train_types=types, tables_dir=stage,
-                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given)
+                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given, lifted=lifted)
 
 
 def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
-                  unit_keys: list[str], conflicts, given=None) -> None:
+                  unit_keys: list[str], conflicts, given=None, lifted=None) -> None:
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import margin_options
 
-    key = digest(["margins", code_digest(), line_digest(line), unit_keys, _result_params(job)])
+    key = digest(["margins", code_digest(), line_digest(line), lifted_key(lifted or {}), unit_keys,
+                  _result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     report = _line_unit(runner, "margins", key, _margins_unit, line, margin_options(job, line), _types(job, line),
-                        stage, n_jobs, given)
+                        stage, n_jobs, given, lifted)
     if conflicts is not None:
         report.conflicts, report.conflicts_note = conflicts, ""
     elif not job.conflicts.enabled:
@@ -504,17 +507,19 @@ def _bundles_step(stage: Path, runner: Runner, summary: RunSummary, key, bundles
     summary.bundles += [Path(i.path).name for i in infos]
 
 
-def _conflicts_unit(line, params):
+def _conflicts_unit(line, params, lifted=None):
     from planner.datasets.conflicts import check_conflicts
+    from planner.network.arrivals import train_curves
 
-    return check_conflicts(line, params)
+    return check_conflicts(line, params, curves=train_curves(line, lifted))
 
 
-def _conflicts_unit_of(job: Job, line: Line) -> Unit:
-    """The unit of the line's route conflicts (its whole timetable)."""
+def _conflicts_unit_of(job: Job, line: Line, lifted=None) -> Unit:
+    """The unit of the line's route conflicts (its whole timetable; each train's run with the restrictions
+    that apply to it: ``lifted``, :func:`planner.job.day.lifted_restrictions`)."""
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
-    key = digest(["conflicts", code_digest(), line_digest(line), params, job.tables.ds_m])
-    return Unit("conflicts", key, "conflicts", _conflicts_unit, (line, params))
+    key = digest(["conflicts", code_digest(), line_digest(line), lifted_key(lifted or {}), params, job.tables.ds_m])
+    return Unit("conflicts", key, "conflicts", _conflicts_unit, (line, params, lifted))
 
 
 def _conflicts_step(line: Line, stage: Path, summary: RunSummary, report):

@@ -74,7 +74,7 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
     from planner.job.units import Unit
     from planner.pages.speed_chart import write_chart
     from planner.pages.timetable import render_page, write_page
-    from planner.report.train_timetable import chart_name, leg_runs, timetable_rows, write_timetable
+    from planner.report.train_timetable import chart_name, leg_line, leg_runs, timetable_rows, write_timetable
 
     lid = line.line_id
     with runner.progress.step("timetable"):
@@ -89,14 +89,14 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
     units, paths = [], []
     back = "../../" + timetable_href(lid)
     for key, run in sorted(runs.items()):
-        d, t, o, de, _ = key
+        d, t, o, de = key[:4]
         passes = list(run.row.get("passes") if run.row.get("passes") is not None else [])
         calls = [(sid, stops, line.station(sid).stop_m(d) if stops else line.station(sid).position_m)
                  for sid, stops in [(o, True)] + [(p, False) for p in passes] + [(de, True)]]
         trains = sorted(run.row.get("train_ids") if run.row.get("train_ids") is not None else [])
         lo, hi = float(run.position_m.min()), float(run.position_m.max())
         signals = [s.position_m for s in line.signals if s.direction == d and lo <= s.position_m <= hi]
-        args = (line.window(o, de, t), run, calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de),
+        args = (leg_line(line, key).window(o, de, t), run, calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de),
                 signals, trains, back)
         units.append(Unit("charts", _chart_key(line, run, args[2:]), "charts", _chart_task, args))
         paths.append(stage / chart_name(lid, key))
@@ -120,7 +120,9 @@ def _chart_key(line, run, rest) -> str:
     from planner.job.publish import digest
     from planner.job.units import code_digest, interstation_inputs
 
-    d, t, o, de, sched = run.key
+    from planner.report.train_timetable import leg_line
+
+    d, t, o, de, sched = run.key[:5]
     h = hashlib.sha256()
     for a in (run.position_m, run.t_s, run.v_ms, run.vmax_ms):
         h.update(np.ascontiguousarray(a, dtype=float).tobytes())
@@ -129,7 +131,7 @@ def _chart_key(line, run, rest) -> str:
         h.update(json.dumps(float(a)).encode())
         h.update(np.ascontiguousarray(px, float).tobytes() + np.ascontiguousarray(pv, float).tobytes())
     figures = [float(run.row[c]) for c in ("min_running_time_s", "margin_s")] + [run.ratio, float(sched)]
-    return digest(["chart", code_digest(), interstation_inputs(line, t, o, de), h.hexdigest(), figures,
+    return digest(["chart", code_digest(), interstation_inputs(leg_line(line, run.key), t, o, de), h.hexdigest(), figures,
                    [list(map(str, c[:2])) + [float(c[2])] for c in calls], [[float(p), str(i)] for p, i in evp or []],
                    [float(x) for x in signals], list(trains), back])
 

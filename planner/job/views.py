@@ -48,8 +48,10 @@ def copy_inputs(line, stage: Path) -> Path:
     return dst
 
 
-def _graph_unit(line, check: bool):
-    """Thinned predicted trajectories of every train (with loop stops when the line has a network)."""
+def _graph_unit(line, check: bool, lifted=None):
+    """Thinned predicted trajectories of every train (with loop stops when the line has a network), each
+    train's run with the restrictions that apply to it (``lifted``, :func:`planner.job.day.lifted_restrictions`)."""
+    from planner.network.arrivals import train_curves
     from planner.report.train_graph import loop_stations, train_paths
 
     loops = {}
@@ -57,19 +59,19 @@ def _graph_unit(line, check: bool):
         from planner.network.routes import plan_routes
 
         loops = loop_stations(line, plan_routes(line))
-    return train_paths(line, loops=loops)
+    return train_paths(line, train_curves(line, lifted), loops=loops)
 
 
-def graph_unit(job, line):
+def graph_unit(job, line, lifted=None):
     """The unit of a line's train graph trajectories (:func:`_graph_unit`), keyed by the line and the code."""
     from planner.report.train_graph import TOL_T_S, TOL_X_M
     from planner.job.units import code_digest
-    from planner.job.day import line_digest
+    from planner.job.day import lifted_key, line_digest
     from planner.job.publish import digest
 
     check = bool(job.conflicts.enabled)
-    key = digest(["graph", code_digest(), line_digest(line), check, TOL_T_S, TOL_X_M])
-    return _unit("graph", key, _graph_unit, (line, check))
+    key = digest(["graph", code_digest(), line_digest(line), lifted_key(lifted or {}), check, TOL_T_S, TOL_X_M])
+    return _unit("graph", key, _graph_unit, (line, check, lifted))
 
 
 def line_views(job, line, stage: Path, runner, summary, paths) -> None:

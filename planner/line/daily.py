@@ -33,15 +33,13 @@ from planner.errors import InputError, LineValidationError, Violation
 from planner.io.paths import PATH_ID_RULE, is_path_id
 from planner.line.conform import TableView, conform, fmt
 from planner.line.model import Line, SpeedLimit
-from planner.line.operating_day import local_instant, local_text, whole_day, zone
+from planner.line.operating_day import TEMPORARY_KIND, local_instant, local_text, whole_day, zone
 from planner.line.schema import LIMIT_DIRECTIONS, TableSpec, _schema
 from planner.line.units import KMH, kmh
 
 S, D, I32, B = pa.string(), pa.float64(), pa.int32(), pa.bool_()
 WEEKDAYS = ("monday", "tuesday", "wednesday", "thursday", "friday", "saturday", "sunday")
 EXCEPTION_ADDED, EXCEPTION_REMOVED = 1, 2
-TEMPORARY_KIND = "temporary"
-"""``kind`` of a temporary restriction seen as a :class:`planner.line.model.SpeedLimit`."""
 
 _LOCAL = ("local date-time in the line's time zone, ISO 8601 without offset (2026-11-30T01:00)")
 _DATE = "date YYYY-MM-DD"

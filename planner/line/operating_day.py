@@ -26,14 +26,18 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass
+from dataclasses import replace as dataclass_replace
 from datetime import date, datetime, time, timedelta, timezone
 from typing import TYPE_CHECKING, Iterable
 from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
-if TYPE_CHECKING:  # the feed's dataclasses; this module only reads their fields
+if TYPE_CHECKING:  # the feed's dataclasses and the line; this module only reads their fields
     from planner.line.daily import Calendar, TemporaryRestriction
+    from planner.line.model import Line
 
 UTC = timezone.utc
+TEMPORARY_KIND = "temporary"
+"""``kind`` of a temporary restriction seen as a :class:`planner.line.model.SpeedLimit`."""
 DEFAULT_START_HOUR = 3
 """Hour (local) at which an operating day starts and the previous one ends."""
 
@@ -208,17 +212,50 @@ def reaches(r: "TemporaryRestriction", direction: str, train_type: str) -> bool:
     return r.direction in ("both", direction) and (r.train_type is None or r.train_type == train_type)
 
 
-def applies_to_train(r: "TemporaryRestriction", pass_time_s: float, direction: str | None = None,
-                     train_type: str | None = None) -> bool:
-    """Whether ``r`` applies to a train that passes its stretch at ``pass_time_s`` (UTC epoch seconds).
+def leg_restrictions(restrictions: Iterable["TemporaryRestriction"], window: OperatingDay, line: "Line",
+                     train_type: str, direction: str, origin: str, destination: str,
+                     departure_s: float | None = None, arrival_s: float | None = None) -> tuple:
+    """The temporary restrictions that apply to a train on one leg: **the** per-train rule (margins,
+    conflicts and the train graph all take it from here).
 
-    Per train, a restriction applies by the time the train passes: in force at
-    that instant (valid_from ≤ t < valid_until), and, when ``direction`` /
-    ``train_type`` are given, for that direction and train type.
+    A restriction applies to a train of ``train_type`` running ``direction`` from stop ``origin`` to the
+    next stop ``destination`` when
+
+    - it reaches the leg: its stretch overlaps what the run can see (:meth:`Line.window_m`: the stop
+      markers widened by a train length; the same test :meth:`Line.window` slices the line with), for
+      that direction and train type (:func:`reaches`); and
+    - it is in force **by the time the train passes**: at some instant of the train's time on the leg,
+      [departure from ``origin``, arrival at ``destination``] (timetable times of the operating day,
+      :func:`timetable_instant`). A leg lasts minutes and the whole leg is taken, so a restriction that
+      starts or ends while the train is on the leg applies (the safe side at the boundary).
+
+    A restriction in force for the whole operating day (:func:`whole_day`) applies to every train of
+    the day without looking at its times, so a day whose restrictions are all whole-day computes
+    exactly as the whole-day rule did. With ``departure_s`` None the times are not looked at: the
+    restrictions that reach the leg at some time of the day (what the day's line has on it).
+
+    Returns
+    -------
+    tuple of TemporaryRestriction
+        In the order given.
     """
-    if direction is not None and train_type is not None and not reaches(r, direction, train_type):
-        return False
-    return r.valid_from_s <= pass_time_s < r.valid_until_s
+    lo, hi = line.window_m(origin, destination, train_type)
+    near = [r for r in restrictions if reaches(r, direction, train_type) and r.end_m > lo and r.start_m < hi]
+    if departure_s is None or all(whole_day(r, window) for r in near):
+        return tuple(near)
+    t0 = timetable_instant(window.day, window.time_zone, departure_s)
+    t1 = timetable_instant(window.day, window.time_zone, arrival_s if arrival_s is not None else departure_s)
+    return tuple(r for r in near if whole_day(r, window) or (r.valid_from_s <= t1 and r.valid_until_s > t0))
+
+
+def without_temporary(line: "Line", ids: Iterable[str]) -> "Line":
+    """``line`` without the temporary restrictions whose id is in ``ids`` (the line's own limits and the
+    other temporary ones stay): the line a train sees while those are lifted."""
+    drop = set(ids)
+    if not drop:
+        return line
+    return dataclass_replace(line, speed_limits=tuple(s for s in line.speed_limits
+                                                      if s.kind != TEMPORARY_KIND or s.restriction_id not in drop))
 
 
 # --------------------------------------------------------------------------- the day's timetable
@@ -274,6 +311,7 @@ class DayInputs:
                 "trains_running": len(self.trains), "trains_not_running": list(self.cancelled)}
 
 
-__all__ = ["DEFAULT_START_HOUR", "DayInputs", "OperatingDay", "applies_to_train", "current_operating_day",
-           "in_force", "local_instant", "local_text", "next_operating_day", "operating_day", "reaches",
-           "restrictions_in_force", "service_runs", "timetable_instant", "trains_running", "whole_day", "zone"]
+__all__ = ["DEFAULT_START_HOUR", "DayInputs", "OperatingDay", "TEMPORARY_KIND",
+           "current_operating_day", "in_force", "leg_restrictions", "local_instant", "local_text",
+           "next_operating_day", "operating_day", "reaches", "restrictions_in_force", "service_runs",
+           "timetable_instant", "trains_running", "whole_day", "without_temporary", "zone"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Iterable, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -114,8 +114,11 @@ def build_trajectory(line: Line, train: Train, curves: RunCurveSource) -> Trajec
     Parameters
     ----------
     curves : RunCurveSource
-        Gives (chainage_m, time_s) per interstation.
+        Gives (chainage_m, time_s) per interstation; one with a ``for_train`` method (:class:`TrainCurves`)
+        gives the source of this train (its runs with the temporary restrictions that apply to it).
     """
+    if hasattr(curves, "for_train"):
+        curves = curves.for_train(train)
     sgn = sign(train.direction)
     last = len(train.calls) - 1
     calls = [c for k, c in enumerate(train.calls) if c.stops or k in (0, last)]
@@ -265,6 +268,64 @@ class SimulatorCurves:
         k = min(max(k, 1), len(ends) - 1)
         w = (scheduled_s - ends[k - 1]) / (ends[k] - ends[k - 1])
         return x, (1.0 - w) * T[k - 1] + w * T[k]
+
+
+class TrainCurves:
+    """Run curves per train: those of the day's line, except on the legs where some of its temporary
+    restrictions are lifted while the train runs them (``lifted``, by ``(train_id, leg_seq)`` as
+    :func:`planner.job.day.lifted_restrictions` gives it): there the curves of the line without them
+    (:func:`planner.line.daily.without_temporary`), one :class:`SimulatorCurves` per set lifted, with the
+    same mode, ratios and step, simulated on first use.
+
+    Used as a :data:`RunCurveSource` it is the day's line's (``base``); :func:`build_trajectory` asks
+    :meth:`for_train` for each train's own.
+    """
+
+    def __init__(self, base: SimulatorCurves, lifted: Mapping[tuple[str, int], tuple[str, ...]]):
+        self.base = base
+        self._by_train: dict[str, dict[int, tuple[str, ...]]] = {}
+        for (tid, seq), ids in lifted.items():
+            self._by_train.setdefault(tid, {})[seq] = tuple(ids)
+        self._sub: dict[tuple[str, ...], SimulatorCurves] = {}
+
+    def prepare(self, keys, progress=None) -> None:
+        self.base.prepare(keys, progress=progress)
+
+    def __call__(self, train_type: str, origin: str, destination: str, scheduled_s: float) -> RunCurve:
+        return self.base(train_type, origin, destination, scheduled_s)
+
+    def without(self, ids: tuple[str, ...]) -> SimulatorCurves:
+        """The curves of the line without the temporary restrictions ``ids``."""
+        from planner.line.operating_day import without_temporary
+
+        if ids not in self._sub:
+            b = self.base
+            self._sub[ids] = SimulatorCurves(without_temporary(b.line, ids), mode=b.mode, ratios=b.ratios,
+                                             ds_m=b.ds_m, n_jobs=1)
+        return self._sub[ids]
+
+    def for_train(self, train: Train) -> RunCurveSource:
+        """The source of one train: by its legs (stop to stop, in order, as :func:`interstation_keys`)."""
+        seqs = self._by_train.get(train.train_id)
+        if not seqs:
+            return self.base
+        last = len(train.calls) - 1
+        calls = [c for k, c in enumerate(train.calls) if c.stops or k in (0, last)]
+        off = {(a.station_id, b.station_id): seqs[i] for i, (a, b) in enumerate(zip(calls[:-1], calls[1:]))
+               if i in seqs}
+
+        def source(train_type: str, origin: str, destination: str, scheduled_s: float) -> RunCurve:
+            ids = off.get((origin, destination))
+            return (self.without(ids) if ids else self.base)(train_type, origin, destination, scheduled_s)
+
+        return source
+
+
+def train_curves(line: Line, lifted: Mapping[tuple[str, int], tuple[str, ...]] | None = None, **kw):
+    """The run-curve source of a day's conflict check and train graph: :class:`SimulatorCurves` of the line
+    (``kw``), wrapped in :class:`TrainCurves` when some trains run a leg while a restriction is lifted."""
+    base = SimulatorCurves(line, **kw)
+    return TrainCurves(base, lifted) if lifted else base
 
 
 def interstation_keys(trains: Iterable[Train]) -> list[tuple[str, str, str]]:

@@ -11,7 +11,9 @@ Then **the scheduled legs it reaches** (rows of the day's margin report, stop to
 several interstations included): the trains, the scheduled running time, the minimum without and with
 the day's restrictions, the margin before and after, the bad-day remaining margin and the closed-loop
 arrival error of the on-board logic (nominal and bad day: its recovery); a leg whose margin the
-restrictions turn negative "loses its margin", one whose margin stays ≥ 0 "still makes it".
+restrictions turn negative "loses its margin", one whose margin stays ≥ 0 "still makes it". Each row's
+trains are computed with the restrictions that apply to them by the time they pass (the row's
+``restrictions``); a part-day restriction lifted while they run the leg is named, and not in their minimum.
 
 The day's line is the static line plus the temporary restrictions (kind ``temporary``,
 :func:`planner.job.day.day_line`); the static line is the same without them. Times come from the one
@@ -74,8 +76,13 @@ def restriction_losses(line, ds_m: float = 1.0) -> dict[str, list[tuple[str, str
 
 
 def scheduled_legs(line, rows, ds_m: float = 1.0) -> list[dict]:
-    """The margin report's rows (a DataFrame) whose leg a temporary restriction reaches, with the minimum
-    without them and the margin it had."""
+    """The margin report's rows (a DataFrame) whose leg a temporary restriction of the day reaches, with the
+    minimum without them and the margin it had.
+
+    Each row is computed with the restrictions that apply to its trains by the time they pass (its
+    ``restrictions`` column, :func:`planner.line.operating_day.leg_restrictions`); those of the leg's
+    restrictions not in it were lifted while the row's trains ran the leg (``lifted``): the row's minimum
+    is the static line's there. Rows of a run before that column (None) had every restriction applied."""
     temps = [s for s in line.speed_limits if s.kind == TEMPORARY]
     static = _without(line)
     out, cache = [], {}
@@ -86,54 +93,23 @@ def scheduled_legs(line, rows, ds_m: float = 1.0) -> list[dict]:
         if sched is None or (isinstance(sched, float) and math.isnan(sched)):
             continue
         k = (r["train_type"], r["direction"], r["origin"], r["destination"])
-        ids = [s.restriction_id for s in temps if reaches_leg(line, s, *k)]
-        if not ids:
+        reach = [s.restriction_id for s in temps if reaches_leg(line, s, *k)]
+        if not reach:
             continue
-        if k not in cache:
-            cache[k] = (min_time_s(static, k[0], k[2], k[3], ds_m), min_time_s(line, k[0], k[2], k[3], ds_m))
-        before, after = cache[k]
+        got = r.get("restrictions")
+        ids = reach if got is None else [str(x) for x in got]
+        if (k, tuple(ids)) not in cache:
+            cache[(k, tuple(ids))] = (min_time_s(static, k[0], k[2], k[3], ds_m),
+                                      min_time_s(_without(line, ids), k[0], k[2], k[3], ds_m))
+        before, after = cache[(k, tuple(ids))]
         out.append({**{c: r.get(c) for c in ("train_type", "direction", "origin", "destination", "n_trains",
                                              "remaining_margin_s", "arrival_error_s", "arrival_error_degraded_s",
                                              "impossible")},
                     "train_ids": [] if r.get("train_ids") is None else list(r["train_ids"]), "restrictions": ids,
-                    "scheduled_s": float(sched),
+                    "lifted": [x for x in reach if x not in ids], "scheduled_s": float(sched),
                     "min_before_s": before, "min_after_s": after, "margin_before_s": float(sched) - before,
                     "margin_after_s": float(sched) - after})
     out.sort(key=lambda x: (x["margin_after_s"] >= 0, x["margin_after_s"]))
-    return out
-
-
-def windows_of(day: dict) -> dict[str, tuple[int, int]]:
-    """Restriction id → its validity [UTC epoch s], from the manifest record's local texts."""
-    from planner.line.daily import parse_local
-
-    tz = day.get("time_zone") or "UTC"
-    out = {}
-    for r in day.get("restrictions", []):
-        a, b = parse_local(r["valid_from"], late=False, tz=tz)[0], parse_local(r["valid_until"], late=True, tz=tz)[0]
-        if a is not None and b is not None:
-            out[r["restriction_id"]] = (a, b)
-    return out
-
-
-def passing_while_lifted(line, leg: dict, windows: dict, day: str, tz: str) -> list[str]:
-    """The leg's trains that run it (departure to scheduled arrival) entirely while every restriction of the
-    leg is lifted: the whole-day rule understates their margin (docs/operating-day.md)."""
-    from datetime import date
-
-    from planner.line.operating_day import timetable_instant
-
-    trains = {t.train_id: t for t in line.trains}
-    out = []
-    for tid in leg["train_ids"]:
-        t = trains.get(tid)
-        dep = next((c.departure_s for c in t.calls if c.station_id == leg["origin"]), None) if t else None
-        if dep is None or math.isnan(dep):
-            continue
-        t0 = timetable_instant(date.fromisoformat(day), tz, dep)
-        t1 = t0 + leg["scheduled_s"]
-        if all(rid in windows and (t1 <= windows[rid][0] or t0 >= windows[rid][1]) for rid in leg["restrictions"]):
-            out.append(tid)
     return out
 
 
@@ -163,7 +139,7 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
              f"<style>{CSS}</style></head><body><main><h1>{_e(title)}</h1>",
              f"<p class='sub'>{_e((day or {}).get('start', ''))} to {_e((day or {}).get('end', ''))}; "
              f"{len(recs)} temporary restriction(s) in force, each for the whole day in the tables and bundles "
-             f"(on the safe side); trains running {_e((day or {}).get('trains_running', '?'))}, not running "
+             f"(on the safe side), per train by the time it passes in the margins, conflicts and train graph; trains running {_e((day or {}).get('trains_running', '?'))}, not running "
              f"{len((day or {}).get('trains_not_running', []))}. <a href='../index.html'>run overview</a> · "
              f"<a href='{_e(line.line_id)}_margins.html'>margin report</a>"
              + (" · <a href='#changes'>since the previous day</a>" if (day or {}).get("changes") else "") + "</p>"]
@@ -189,35 +165,33 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
                  "the static line, per interstation its stretch (+ one train length) reaches.</p>")
     legs = scheduled_legs(line, rows, ds_m) if scheduled is None else scheduled
     lost = [x for x in legs if x["margin_after_s"] < 0 <= x["margin_before_s"]]
-    wins = windows_of(day or {})
     lrows = []
     for x in legs:
         ids = x["train_ids"]
-        lifted = passing_while_lifted(line, x, wins, day["day"], day.get("time_zone") or "UTC") \
-            if (day or {}).get("day") else []
         verdict = ("<span class='bad'>loses its margin</span>" if x in lost else
                    "<span class='bad'>had none</span>" if x["margin_after_s"] < 0 else
                    "<span class='ok'>still makes it</span>")
-        lrows.append([_e(f"{x['train_type']} {x['origin']}→{x['destination']}"), _e(", ".join(x["restrictions"])),
+        lrows.append([_e(f"{x['train_type']} {x['origin']}→{x['destination']}"), _e(", ".join(x["restrictions"]) or "none"),
                       f"{x['n_trains']}: " + _e(", ".join(ids[:6]) + (" …" if len(ids) > 6 else "")),
                       _num(x["scheduled_s"], "{:.0f}"), _num(x["min_before_s"], "{:.1f}"),
                       _num(x["min_after_s"], "{:.1f}"), _num(x["margin_before_s"]), _num(x["margin_after_s"]),
                       _num(x["remaining_margin_s"]), _num(x["arrival_error_s"]), _num(x["arrival_error_degraded_s"]),
-                      verdict, _e(f"{len(lifted)}: {', '.join(lifted[:4])}{' …' if len(lifted) > 4 else ''}"
-                                  if lifted else "0")])
+                      verdict, _e(f"without {', '.join(x['lifted'])}" if x["lifted"] else "")])
     n_lost = sum(int(x["n_trains"] or 0) for x in lost)
     parts.append(f"<h2 id='trains'>Scheduled legs slowed: {len(lost)} leg row(s), {n_lost} train run(s) lose "
                  f"their margin</h2>"
                  + _table(["leg", "restrictions", "trains", "scheduled [s]", "minimum without [s]",
                            "minimum with [s]", "margin without [s]", "margin with [s]", "bad-day remaining [s]",
-                           "closed-loop arrival error [s]", "bad day [s]", "", "run it while lifted"], lrows,
+                           "closed-loop arrival error [s]", "bad day [s]", "", "lifted while they pass"], lrows,
                           num=tuple(range(3, 11)))
                  + "<p class='sub'>Margin = scheduled − minimum running time. The closed-loop arrival error "
                  "(actual − scheduled, + late) is the on-board logic's run on the day's tables departing on time, "
-                 "nominal and on the bad day: what is left after its recovery. <i>Run it while lifted</i>: trains "
-                 "that run the leg (departure to scheduled arrival) entirely outside the validity of its "
-                 "restrictions (one in force for part of the day): the tables count it for the whole day, so their "
-                 "margin here is understated (the safe side).</p>")
+                 "nominal and on the bad day: what is left after its recovery. Each row's trains are computed with "
+                 "the restrictions in force at some instant of their run of the leg (departure to scheduled "
+                 "arrival), for their direction and train type; <i>lifted while they pass</i>: the leg's "
+                 "restrictions (in force for part of the day) that are not, so the row is computed without "
+                 "them (its minimum and margin are the static line's there). The tables and bundles still "
+                 "count a part-day restriction for the whole day.</p>")
     parts.append(changes)
     parts.append("</main></body></html>\n")
     return "\n".join(parts)
@@ -231,5 +205,4 @@ def write_page(line, day: dict | None, rows, out: Path, ds_m: float = 1.0, legs:
     return out
 
 
-__all__ = ["effect", "min_time_s", "passing_while_lifted", "render", "restriction_losses", "scheduled_legs",
-           "write_page"]
+__all__ = ["effect", "min_time_s", "render", "restriction_losses", "scheduled_legs", "write_page"]

@@ -79,7 +79,7 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
     from planner.report.plots import inline_svg, pyplot
 
     plt = pyplot()
-    d, tt, o, de, sched = run.key
+    d, tt, o, de, sched = run.key[:5]
     row = run.row
     x = run.position_m
     lo, hi = float(np.min(x)), float(np.max(x))
@@ -147,7 +147,7 @@ def chart_page(line, run, calls, trains, svg: str, back: str) -> str:
     """The chart page: title, what is drawn, the trains that run the leg at this time (links back)."""
     from planner.pages.margin_report import CSS
 
-    d, tt, o, de, sched = run.key
+    d, tt, o, de, sched = run.key[:5]
     e = html.escape
     links = ", ".join(f'<a href="{e(back)}#train-{e(t)}">{e(t)}</a>' for t in trains)
     title = f"{tt} {d} {o} → {de}, scheduled {sched:.0f} s"

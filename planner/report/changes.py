@@ -345,11 +345,35 @@ def _str(v) -> str | None:
 # ---------------------------------------------------------------------------
 # Outputs
 # ---------------------------------------------------------------------------
+def _lifted(r) -> str:
+    return r.get("_lifted", "")
+
+
+def _legs_by_key(frame) -> dict[tuple, dict]:
+    """Margins rows by :data:`LEG_KEY`. A leg × scheduled time with a row of its own for the trains that pass
+    while some of the day's restrictions are lifted (fewer ``restrictions``) keys that row by what it lacks
+    too, so the row of the trains that meet every restriction compares with the leg's row of another day."""
+    recs = _records(frame)
+    keys = [tuple(_canon(v) for v in k) for k in frame[list(LEG_KEY)].itertuples(index=False, name=None)]
+    if "restrictions" not in frame.columns:
+        return dict(zip(keys, recs))
+    sets = [set(r["restrictions"] or ()) for r in recs]
+    full: dict[tuple, set] = {}
+    for k, got in zip(keys, sets):
+        full[k] = full.get(k, set()) | got
+    out = {}
+    for k, got, r in zip(keys, sets, recs):
+        off = ", ".join(sorted(full[k] - got))
+        out[k + (f"without {off}",) if off else k] = {**r, "_lifted": off}
+    return out
+
+
 def _leg_label(r) -> str:
     via = f" via {len(r['passes'])} passes" if r.get("passes") is not None and len(r["passes"]) else ""
     sched = _num(r.get("scheduled_running_time_s"))
+    off = f", trains passing without {_lifted(r)}" if _lifted(r) else ""
     return (f"{r['train_type']} {r['direction']} {r['origin']}→{r['destination']}{via} "
-            + (f"(scheduled {sched:g} s)" if math.isfinite(sched) else "(not timetabled)"))
+            + (f"(scheduled {sched:g} s{off})" if math.isfinite(sched) else "(not timetabled)"))
 
 
 def _causes(reach: dict[int, dict], r: dict, lo: float, hi: float, length_m: float) -> list[int]:
@@ -378,9 +402,7 @@ def _leg_changes(ch: LineChanges, old, new, reach: dict[int, dict], threshold_s:
     if old is None or new is None:
         ch.notes.append("margins not in both runs: legs not compared")
         return
-    key = list(LEG_KEY)
-    o = {tuple(_canon(v) for v in k): r for k, r in zip(old[key].itertuples(index=False, name=None), _records(old))}
-    n = {tuple(_canon(v) for v in k): r for k, r in zip(new[key].itertuples(index=False, name=None), _records(new))}
+    o, n = _legs_by_key(old), _legs_by_key(new)
     for k in sorted(set(o) | set(n), key=lambda k: tuple(str(x) for x in k)):
         a, b = o.get(k), n.get(k)
         r = b or a

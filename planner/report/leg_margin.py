@@ -94,6 +94,8 @@ class LegResult:
     tables: object = None  # the RunningTimeTables used (read or computed)
     energy_a_kwh: np.ndarray | None = None
     flags: tuple = ()  # physical verdicts (planner.tables.flags.LegFlag): why the leg is unassessed
+    lifted: tuple = ()  # ids of the day's temporary restrictions lifted for this group's trains (margin_legs)
+    restrictions: tuple = ()  # ids of the temporary restrictions the leg was computed with
 
 
 def _closed_loop(track, train, tables, designated: np.ndarray, rule: MarginRule, record: bool = False):

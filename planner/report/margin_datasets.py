@@ -27,8 +27,12 @@ MARGINS_SCHEMA = declare(
         ("length_m", pa.float64(), "leg length, stop marker to stop marker [m]"),
         ("scheduled_running_time_s", pa.float64(),
          "scheduled running time, arrival at the next stop - departure [s]; null: no train of this type runs the leg"),
-        ("n_trains", pa.int32(), "timetabled trains with this leg and scheduled time"),
+        ("n_trains", pa.int32(), "timetabled trains with this leg, scheduled time and restrictions"),
         ("train_ids", pa.list_(pa.string()), "those trains, sorted"),
+        ("restrictions", pa.list_(pa.string()),
+         "ids of the temporary restrictions (daily feed) this row is computed with: those reaching the leg that "
+         "apply to its trains by the time they pass (a leg has a row of its own for trains that run it while "
+         "some are lifted); empty without any"),
         ("min_running_time_s", pa.float64(), "minimum running time: ratio 1.0, load 0, traction x 1.0 (table (a)) [s]"),
         ("min_running_time_rounded_s", pa.float64(), "minimum running time rounded up to the 10 s timetable unit [s]"),
         ("margin_s", pa.float64(), "scheduled - minimum running time [s]"),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -231,7 +232,7 @@ COUNTED = ("impossible", "short_bad_day", "infeasible", "tight", "unreachable", 
 """The flags counted in the totals (``n_<flag>``)."""
 
 
-def margin_totals(rows, train_legs):
+def margin_totals(rows, train_legs, key_extra: Sequence[str] = ()):
     """Totals per train, per direction × train type and per direction (pure pandas).
 
     Parameters
@@ -243,6 +244,9 @@ def margin_totals(rows, train_legs):
     train_legs : pandas.DataFrame
         One row per train and leg: ``train_id, direction, train_type, origin,
         destination, scheduled_running_time_s, departure_s, leg_seq``.
+    key_extra : sequence of str
+        More columns of both that tell a train's row apart (the margin report's lifted restrictions,
+        when a leg has rows for trains computed without some of them).
 
     Returns
     -------
@@ -262,7 +266,7 @@ def margin_totals(rows, train_legs):
     """
     import pandas as pd
 
-    key = ["direction", "train_type", "origin", "destination", "scheduled_running_time_s"]
+    key = ["direction", "train_type", "origin", "destination", "scheduled_running_time_s", *key_extra]
     cols = key + [c for c in TOTAL_SUM_COLS if c not in key] + ["supplement_met", *COUNTED]
     r = rows[rows["scheduled_running_time_s"].notna()][cols]
     legs = train_legs.merge(r, on=key, how="left", validate="many_to_one")

@@ -18,7 +18,12 @@ stop to the next stop of a train type in a direction:
 
 Trains with the same leg and the same scheduled time share one row
 (``n_trains``, ``train_ids``); a leg with two different scheduled times in
-the timetable gets two rows.
+the timetable gets two rows. On an operating day with a temporary restriction
+in force for part of the day, the trains that run a leg while it is lifted
+(:func:`planner.line.operating_day.leg_restrictions`: in force at no instant of
+their run of the leg) get a row of their own, computed on the day's line without
+it, with its own tables and closed loop (:mod:`planner.report.margin_legs`);
+``restrictions`` names the temporary restrictions each row is computed with.
 
 What each row holds, and how
 ----------------------------
@@ -127,7 +132,9 @@ Layout
   colour, and the words of ``flag_reason`` and ``bad_day_cause`` (pure);
 * :mod:`planner.report.leg_margin`: one leg with the simulator, the tables
   (read from ``--tables`` or computed), the stopping patterns and the closed loop;
-* this module: the timetable as legs and the whole line (:func:`compute_margins`);
+* :mod:`planner.report.margin_legs`: the timetable as legs, and the groups the rows are computed in
+  (leg × scheduled time × restrictions lifted for its trains);
+* this module: the whole line (:func:`compute_margins`);
 * :mod:`planner.report.margin_datasets`: the ``margins`` and ``margin_totals``
   datasets, and the readers of the other steps' folders;
 * :mod:`planner.pages.margin_report` and :mod:`planner.report.plots`: the page and its charts.
@@ -147,6 +154,15 @@ from planner.line.model import DIRECTIONS, Line, sign
 from planner.line.units import KMH, KMH_S, kmh, kmh_s
 from planner.report.leg_flags import flag_reasons
 from planner.report.leg_margin import LegResult, leg_result, passed_stations
+from planner.report.margin_legs import (
+    Lifted,
+    TrainLeg,
+    applied_restrictions,
+    group_window,
+    lifted_of,
+    scheduled_times,
+    timetable_legs,
+)
 from planner.report.margin_datasets import (
     MARGINS_SCHEMA,
     closed_loop_index,
@@ -157,53 +173,6 @@ from planner.report.margin_datasets import (
 from planner.report.margin_rule import TOTALS_COLUMNS, MarginRule, margin_columns, margin_totals
 from planner.stopping.approach import DEFAULT_APPROACH_M
 from planner.stopping.sweep import DEFAULT_ADHESION_KMH_S, adhesion_levels
-
-
-# =====================================================================================
-# The timetable as legs
-# =====================================================================================
-
-@dataclass(frozen=True)
-class TrainLeg:
-    """One run of a timetabled train from a stop to its next stop."""
-
-    train_id: str
-    train_type: str
-    direction: str
-    leg_seq: int
-    origin: str
-    destination: str
-    departure_s: float
-    arrival_s: float
-
-    @property
-    def scheduled_s(self) -> float:
-        """Scheduled running time: arrival at the next stop − departure [s]."""
-        return self.arrival_s - self.departure_s
-
-
-def timetable_legs(line: Line) -> list[TrainLeg]:
-    """Every stop-to-stop run of the timetable (passes are run through; first and last call are stops).
-
-    Raises
-    ------
-    InputError
-        A leg without a departure or arrival time, or not later than its departure.
-    """
-    out = []
-    for tr in line.trains:
-        last = len(tr.calls) - 1
-        calls = [c for k, c in enumerate(tr.calls) if c.stops or k in (0, last)]
-        for i, (a, b) in enumerate(zip(calls[:-1], calls[1:])):
-            leg = TrainLeg(tr.train_id, tr.train_type, tr.direction, i, a.station_id, b.station_id,
-                           float(a.departure_s), float(b.arrival_s))
-            if not (math.isfinite(leg.scheduled_s) and leg.scheduled_s > 0):
-                raise InputError(
-                    f"timetable.parquet train {tr.train_id} calls seq {a.seq}->{b.seq} "
-                    f"({a.station_id}->{b.station_id}): needs a departure and a later arrival "
-                    f"(found departure_s={a.departure_s}, arrival_s={b.arrival_s})")
-            out.append(leg)
-    return out
 
 
 # =====================================================================================
@@ -312,6 +281,7 @@ def compute_margins(
     n_jobs: int = 1,
     progress: Callable[[int, int], None] | None = None,
     given: tuple[dict, dict] | None = None,
+    lifted: Lifted | None = None,
 ) -> MarginReport:
     """The margin report of a whole line (module doc for every column).
 
@@ -358,6 +328,11 @@ def compute_margins(
     given : (tables, energy), optional
         :func:`given_tables` of the same line, types and ``tables_dir``, read beforehand
         (the nightly job reads them while the closed loop runs); else read here.
+    lifted : mapping, optional
+        ``(train_id, leg_seq)`` → ids of the line's temporary restrictions lifted while that train runs
+        that leg (:func:`planner.job.day.lifted_restrictions`): such trains' legs are rows of their own,
+        computed on the line without them (:mod:`planner.report.margin_legs`; the given tables and
+        closed loop, made with them, are not used there).
 
     Returns
     -------
@@ -371,7 +346,7 @@ def compute_margins(
     adh = stops_adhesion(Path(stops_dir), line.line_id) if stops_dir is not None \
         else np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float)
     legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
-    sched = _scheduled_times(line, types, legs)
+    sched = scheduled_times(line, types, legs, lifted)
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
     cl_index = closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
     cl_worst = closed_loop_worst(Path(closed_loop_dir), line.line_id) if closed_loop_dir else {}
@@ -388,24 +363,30 @@ def compute_margins(
 
     keys = sorted(sched, key=lambda k: (DIRECTIONS.index(k[0]), k[1],
                                         sign(k[0]) * line.station(k[2]).position_m,
-                                        sign(k[0]) * line.station(k[3]).position_m))
+                                        sign(k[0]) * line.station(k[3]).position_m, k[4]))
     # each task ships the slice of the line its leg can see (Line.window), not the whole line and
-    # timetable: on a 10x line pickling the whole line per leg made this step quadratic
-    tasks = [(line.window(k[2], k[3], k[1]), k[1], k[2], k[3], sorted(sched[k]), tabs.get(k), energy.get(k),
-              kw | {"closed_loop_errors": known_errors(k)}) for k in keys]
+    # timetable: on a 10x line pickling the whole line per leg made this step quadratic; a group
+    # with restrictions lifted computes its own tables and closed loop (the given ones have them)
+    windows = {k: group_window(line, k) for k in keys}
+    tasks = [(windows[k], k[1], k[2], k[3], sorted(sched[k]), None if k[4] else tabs.get(k[:4]),
+              None if k[4] else energy.get(k[:4]), kw | {"closed_loop_errors": {} if k[4] else known_errors(k[:4])})
+             for k in keys]
     results: list[LegResult] = map_tasks(_leg_task, tasks, n_jobs, progress)
-    for r in results:  # the window holds only the leg's two stations: the ones it passes come from the line
+    for k, r in zip(keys, results):  # the window holds only the leg's two stations: the passed ones from the line
         r.passes = passed_stations(line, r.origin, r.destination)
+        r.lifted, r.restrictions = k[4], applied_restrictions(windows[k], k[0], k[1])
 
-    rows, sweep = _rows(line, results, legs, rule, cl_worst)
+    rows, sweep, row_lifted = _rows(line, results, legs, rule, cl_worst, lifted)
     tl = pd.DataFrame.from_records(
         [{"train_id": lg.train_id, "direction": lg.direction, "train_type": lg.train_type, "origin": lg.origin,
           "destination": lg.destination, "scheduled_running_time_s": lg.scheduled_s,
-          "departure_s": lg.departure_s, "leg_seq": lg.leg_seq} for lg in legs],
+          "departure_s": lg.departure_s, "leg_seq": lg.leg_seq, "lifted": ",".join(lifted_of(lg, lifted))}
+         for lg in legs],
         columns=["train_id", "direction", "train_type", "origin", "destination", "scheduled_running_time_s",
-                 "departure_s", "leg_seq"])
+                 "departure_s", "leg_seq", "lifted"])
     # the same float key on both sides (scheduled times come from the same subtraction)
-    totals = margin_totals(rows, tl) if len(tl) else pd.DataFrame(columns=TOTALS_COLUMNS)
+    totals = margin_totals(rows.assign(lifted=row_lifted), tl, key_extra=("lifted",)) if len(tl) \
+        else pd.DataFrame(columns=TOTALS_COLUMNS)
     totals.insert(0, "line", line.line_id)
     curves, chosen_key = _chosen_curves(line, rows, results, chosen, kw)
     con, note = _conflicts(line, conflicts, conflict_params)
@@ -417,19 +398,6 @@ def compute_margins(
                  "tables_computed": sum(r.tables_source == "computed" for r in results),
                  "closed_loop_dataset": bool(cl_index)},
     )
-
-
-def _scheduled_times(line: Line, types: Sequence[str], legs: Sequence[TrainLeg]) -> dict[tuple, set]:
-    """``{(direction, train_type, origin, destination): {scheduled times [s]}}``: every interstation of
-    each type (empty set: no train runs it) and every timetabled leg."""
-    sched: dict[tuple, set] = {}
-    for t in types:
-        for d in DIRECTIONS:
-            for a, b in line.interstations(d):
-                sched.setdefault((d, t, a.station_id, b.station_id), set())
-    for lg in legs:
-        sched.setdefault((lg.direction, lg.train_type, lg.origin, lg.destination), set()).add(lg.scheduled_s)
-    return sched
 
 
 def given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, dict]:
@@ -452,17 +420,19 @@ def given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, di
 
 
 def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], rule: MarginRule,
-          cl_worst: dict | None = None):
-    """The ``margins`` rows (one per leg and scheduled time, with margins and flags) and the sweep records."""
+          cl_worst: dict | None = None, lifted: Lifted | None = None):
+    """The ``margins`` rows (one per leg, scheduled time and lifted restrictions, with margins and flags),
+    the sweep records and each row's lifted restrictions (ids joined by commas: the totals' join key)."""
     import pandas as pd
 
     trains_of: dict[tuple, list[str]] = {}
     for lg in legs:
         trains_of.setdefault((lg.direction, lg.train_type, lg.origin, lg.destination,
-                              round(lg.scheduled_s, 6)), []).append(lg.train_id)
-    recs, sweep = [], []
+                              round(lg.scheduled_s, 6), lifted_of(lg, lifted)), []).append(lg.train_id)
+    recs, sweep, row_lifted = [], [], []
     for r in results:
         base = _leg_columns(line, r)
+        row_lifted += [",".join(r.lifted)] * max(len(r.schedules), 1)
         for a, t in zip(r.sweep_adhesion_kmh_s, r.sweep_duration_s):
             sweep.append({"direction": r.direction, "train_type": r.train_type, "origin": r.origin,
                           "destination": r.destination, "adhesion_kmh_s": float(a), "stop_time_s": float(t)})
@@ -472,7 +442,7 @@ def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], ru
                                 "arrival_error_degraded_s": math.nan, "energy_at_ratio_kwh": math.nan})
         for sc in r.schedules:
             ids = sorted(trains_of.get((r.direction, r.train_type, r.origin, r.destination,
-                                        round(sc["scheduled_s"], 6)), []))
+                                        round(sc["scheduled_s"], 6), r.lifted), []))
             recs.append(base | {"scheduled_running_time_s": sc["scheduled_s"], "n_trains": len(ids),
                                 "train_ids": ids, "ratio_on_time": sc["ratio_on_time"],
                                 "arrival_error_s": sc["arrival_error_s"],
@@ -495,7 +465,7 @@ def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], ru
                                                               rule.arrival_error_threshold_s)
     rows["energy_saved_kwh"] = rows["energy_at_full_ratio_kwh"] - rows["energy_at_ratio_kwh"]
     rows["energy_saved_percent"] = 100.0 * rows["energy_saved_kwh"] / rows["energy_at_full_ratio_kwh"]
-    return rows[["line", "direction", "train_type"] + [f.name for f in MARGINS_SCHEMA]], sweep
+    return rows[["line", "direction", "train_type"] + [f.name for f in MARGINS_SCHEMA]], sweep, row_lifted
 
 
 def _leg_columns(line: Line, r: LegResult) -> dict:
@@ -503,6 +473,7 @@ def _leg_columns(line: Line, r: LegResult) -> dict:
     return {
         "line": line.line_id, "direction": r.direction, "train_type": r.train_type,
         "origin": r.origin, "destination": r.destination, "passes": list(r.passes),
+        "restrictions": list(r.restrictions),
         "length_m": r.length_m, "min_running_time_s": r.min_time_s,
         "degraded_min_running_time_s": r.degraded_min_s, "slowest_running_time_s": r.slowest_time_s,
         "degraded_loss_running_s": r.degraded_loss_running_s, "degraded_loss_stop_s": r.degraded_loss_stop_s,
@@ -539,9 +510,10 @@ def _chosen_curves(line: Line, rows, results: Sequence[LegResult], chosen, kw: d
         return None, None
     k = (pick.direction, pick.train_type, pick.origin, pick.destination)
     s = [] if not np.isfinite(pick.scheduled_running_time_s) else [float(pick.scheduled_running_time_s)]
-    done = next(r for r in results if (r.direction, r.train_type, r.origin, r.destination) == k)
-    lr = leg_result(line, k[1], k[2], k[3], s, tables=done.tables, energy_a_kwh=done.energy_a_kwh,
-                    record=True, **kw)
+    done = next(r for r in results if (r.direction, r.train_type, r.origin, r.destination) == k
+                and list(r.restrictions) == list(pick.restrictions))
+    lr = leg_result(group_window(line, (*k, done.lifted)), k[1], k[2], k[3], s, tables=done.tables,
+                    energy_a_kwh=done.energy_a_kwh, record=True, **kw)
     if lr.curves is None:  # a stalled leg has no bad-day curve to draw
         return None, None
     return lr.curves, {"direction": k[0], "train_type": k[1], "origin": k[2], "destination": k[3],

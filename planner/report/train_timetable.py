@@ -91,8 +91,32 @@ def clock(t: float) -> str | None:
     return f"{n // 3600:02d}:{n // 60 % 60:02d}:{n % 60:02d}"
 
 
-def leg_key(direction: str, train_type: str, origin: str, destination: str, scheduled_s: float) -> tuple:
-    return (direction, train_type, origin, destination, round(float(scheduled_s), 6))
+def leg_key(direction: str, train_type: str, origin: str, destination: str, scheduled_s: float,
+            lifted: tuple[str, ...] = ()) -> tuple:
+    """A margins row's leg: direction, type, stops, scheduled time and, for the row of trains that pass while
+    some of the day's temporary restrictions are lifted, their ids (:mod:`planner.report.margin_legs`)."""
+    key = (direction, train_type, origin, destination, round(float(scheduled_s), 6))
+    return key + (tuple(lifted),) if lifted else key
+
+
+def leg_line(line, key: tuple):
+    """The line the run of leg ``key`` is on: the day's line, less the restrictions its key lifts."""
+    from planner.line.operating_day import without_temporary
+
+    return without_temporary(line, key[5]) if len(key) > 5 else line
+
+
+def row_lifted(line, row: dict) -> tuple[str, ...]:
+    """The temporary restrictions reaching a margins row's leg that its ``restrictions`` leave out."""
+    from planner.report.margin_legs import applied_restrictions
+
+    got = row.get("restrictions")
+    if got is None:  # a run before the column: every restriction applied
+        return ()
+    d, t = row["direction"], row["train_type"]
+    have = {str(x) for x in got}
+    return tuple(x for x in applied_restrictions(line.window(row["origin"], row["destination"], t), d, t)
+                 if x not in have)
 
 
 def chart_name(line_id: str, key: tuple) -> str:
@@ -101,11 +125,12 @@ def chart_name(line_id: str, key: tuple) -> str:
 
     from planner.io.paths import check_path_id, is_path_id
 
-    d, t, o, de, s = key
+    d, t, o, de, s = key[:5]
     s_txt = f"{s:.0f}" if float(s).is_integer() else f"{s:.1f}"
-    name = f"{d}_{t}_{o}-{de}_{s_txt}s"
+    off = "".join(f"_without-{x}" for x in (key[5] if len(key) > 5 else ()))
+    name = f"{d}_{t}_{o}-{de}_{s_txt}s{off}"
     if not is_path_id(name):  # station ids may be any text (unicode, '/', '<'): a digest names the leg
-        leg = hashlib.sha256("\0".join((o, de)).encode()).hexdigest()[:12]
+        leg = hashlib.sha256("\0".join((o, de) + (key[5] if len(key) > 5 else ())).encode()).hexdigest()[:12]
         name = f"{d}_{t}_leg-{leg}_{s_txt}s"
     return f"{CHARTS_DIR}/{check_path_id(line_id, 'line id')}/{check_path_id(name, 'chart name')}.html"
 
@@ -133,11 +158,12 @@ def _leg_run(line, row: dict, ds_m: float) -> LegRun:
     from planner.physics.run_curve import simulate
     from planner.physics.track import SimSettings, make_track
 
+    key = leg_key(row["direction"], row["train_type"], row["origin"], row["destination"],
+                  row["scheduled_running_time_s"], row_lifted(line, row))
+    line = leg_line(line, key)
     track = make_track(line, row["train_type"], row["origin"], row["destination"], settings=SimSettings(ds_m=ds_m))
     ratio = float(row["ratio_on_time"])
     res = simulate(track, line.train_type(row["train_type"]), np.array([ratio, 1.0]), record=True)
-    key = leg_key(row["direction"], row["train_type"], row["origin"], row["destination"],
-                  row["scheduled_running_time_s"])
     return LegRun(key, ratio, np.asarray(track.chainage_m, float), np.asarray(res.t_s, float),
                   np.asarray(res.v_ms, float), np.asarray(track.vmax_ms, float), row)
 
@@ -169,6 +195,9 @@ def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[di
     of the given train types (default every one)."""
     nan = math.nan
     recs = []
+    # a leg with a row for the trains that pass while a restriction is lifted: each train its own row's run
+    own = {(k[:5], tid): r for k, r in runs.items()
+           for tid in (r.row.get("train_ids") if r.row.get("train_ids") is not None else ())}
     for tr in line.trains:
         if train_types is not None and tr.train_type not in train_types:
             continue
@@ -198,7 +227,7 @@ def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[di
                 dep0 = float(ca.departure_s)
                 key = leg_key(tr.direction, tr.train_type, ca.station_id, cb.station_id,
                               float(cb.arrival_s) - dep0)
-                run = runs.get(key)
+                run = own.get((key, tr.train_id), runs.get(key))
                 rec["leg_origin"] = ca.station_id
                 if run is not None:
                     end = k == b
@@ -210,7 +239,7 @@ def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[di
                     if not end:
                         rec["computed_departure_s"] = dep0 + t_r
                     rec["ratio_on_time"] = run.ratio
-                    rec["chart"] = chart_name(line.line_id, key)
+                    rec["chart"] = chart_name(line.line_id, run.key)
                     sec_min = t_m - (0.0 if k - 1 == a else prev_min)
                     sec_sched = float(c.arrival_s) - prev_sched
                     rec["section_scheduled_s"] = sec_sched
