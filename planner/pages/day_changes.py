@@ -169,9 +169,10 @@ def overview_html(day: dict | None) -> str:
     h = int(day.get("start_hour", 0))
     parts = [f"<h2 id='day'>Operating day {_e(f'{d:%A} {d.isoformat()}')}</h2>",
              f"<p class='sub'>This run plans one operating day: {h:02d}:00 to {h:02d}:00 the next morning, local time "
-             f"({_e(day.get('time_zone', ''))}). The tables, stopping patterns, bundles, margins and train graph use "
-             "what is in force that day: the temporary speed restrictions of the line's daily feed (each for the whole "
-             "day, on the safe side) and the trains its calendar runs.</p>"]
+             f"({_e(day.get('time_zone', ''))}). Everything the run computes uses what is in force that day: the "
+             "trains its calendar runs and the temporary speed restrictions of the line's daily feed, which the "
+             "tables, stopping patterns and bundles count for the whole day (on the safe side) and the margins, "
+             "conflicts and train graph apply per train, by the time it passes.</p>"]
     for rec in day.get("lines", []):
         lid = rec["line_id"]
         if rec.get("feed") is None:

@@ -139,7 +139,8 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
              f"<style>{CSS}</style></head><body><main><h1>{_e(title)}</h1>",
              f"<p class='sub'>{_e((day or {}).get('start', ''))} to {_e((day or {}).get('end', ''))}; "
              f"{len(recs)} temporary restriction(s) in force, each for the whole day in the tables and bundles "
-             f"(on the safe side), per train by the time it passes in the margins, conflicts and train graph; trains running {_e((day or {}).get('trains_running', '?'))}, not running "
+             f"(on the safe side), per train by the time it passes in the margins, conflicts and train graph; "
+             f"trains running {_e((day or {}).get('trains_running', '?'))}, not running "
              f"{len((day or {}).get('trains_not_running', []))}. <a href='../index.html'>run overview</a> · "
              f"<a href='{_e(line.line_id)}_margins.html'>margin report</a>"
              + (" · <a href='#changes'>since the previous day</a>" if (day or {}).get("changes") else "") + "</p>"]
