@@ -113,7 +113,7 @@ def test_the_first_day_of_a_feed_does_not_compare_the_trains(tiny):
 
 def test_the_effects_are_the_restrictions_losses_lost_when_added_regained_when_lifted(tiny):
     from planner.job.day import day_line
-    from planner.pages.restrictions import restriction_losses
+    from planner.report.restriction_effects import restriction_losses
 
     new = tsr("NEW", MON.start_s, MON.end_s, kmh=30.0)              # 1000–1400 m: between A (200) and B (2500)
     gone = tsr("GONE", SUN.start_s, SUN.end_s, kmh=30.0, a=3500.0, b=3900.0)  # between B and C

@@ -120,7 +120,8 @@ def test_the_minimum_running_time_rises_by_at_least_the_speed_dip(straight, trai
 
 
 def test_the_restrictions_page_names_the_legs_slowed_and_the_trains_that_lose_their_margin(straight):
-    from planner.pages.restrictions import render, restriction_losses, scheduled_legs
+    from planner.pages.restrictions import render
+    from planner.report.restriction_effects import restriction_losses, scheduled_legs
 
     line = day_line(straight, day_of(straight, tsr("W", 4800.0, 5200.0, 45.0)))
     before = running_time(straight, "EMU10", "A", "B").time_s

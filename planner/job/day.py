@@ -164,8 +164,8 @@ def _inputs_on(feed, line: Line, w, name: str) -> DayInputs:
 def day_changes(job: Job, line: Line, d: DayInputs, feed) -> dict | None:
     """The changes of ``line`` against the previous operating day (:func:`planner.report.day_changes.compare_days`)
     from the same feed, with each added, lifted or changed restriction's time lost (or regained) per leg and
-    train type (:func:`planner.pages.restrictions.restriction_losses`); None for a line without a feed."""
-    from planner.pages.restrictions import restriction_losses
+    train type (:func:`planner.report.restriction_effects.restriction_losses`); None for a line without a feed."""
+    from planner.report.restriction_effects import restriction_losses
     from planner.report.day_changes import calendar_covers, compare_days
 
     if feed is None:

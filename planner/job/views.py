@@ -146,7 +146,8 @@ def _restrictions_pages(job, lines, stage: Path, manifest: dict, summary) -> Non
     """``report/<line>_restrictions.html`` of each line with a daily feed (:mod:`planner.pages.restrictions`);
     adds to the line's day record in ``manifest`` what the restrictions do to the impossible legs and which
     legs of the trains added since the previous day are flagged (:mod:`planner.report.day_changes`)."""
-    from planner.pages.restrictions import effect, scheduled_legs, write_page
+    from planner.pages.restrictions import write_page
+    from planner.report.restriction_effects import effect, scheduled_legs
     from planner.report.day_changes import flagged_legs
     from planner.report.leg_flags import FLAGS
 

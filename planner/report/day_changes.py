@@ -11,7 +11,7 @@ second run. Restrictions are matched by id:
 * **kept**: in force on both, the same; whether each covered the whole day or part of it is kept
   (a restriction that starts in the afternoon of D − 1 is part of D − 1, all of D).
 
-Their effects are the minimum running times of :func:`planner.pages.restrictions.restriction_losses`
+Their effects are the minimum running times of :func:`planner.report.restriction_effects.restriction_losses`
 (each restriction alone against the static line, per interstation it reaches and train type): the time
 an added restriction costs, the time a lifted one gives back. The caller computes them (the one
 integrator) and passes them in, so this module stays a pure comparison.
@@ -34,7 +34,7 @@ RESTRICTION_FIELDS = ("start_m", "end_m", "limit_kmh", "direction", "train_type"
 
 Losses = Mapping[str, Sequence[tuple[str, str, str, str, float]]]
 """Restriction id → (train type, direction, origin, destination, time [s]) per interstation it reaches:
-what :func:`planner.pages.restrictions.restriction_losses` returns."""
+what :func:`planner.report.restriction_effects.restriction_losses` returns."""
 
 
 def calendar_covers(calendar, day: date) -> bool:
