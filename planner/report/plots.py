@@ -301,8 +301,10 @@ def adhesion_chart(report) -> tuple[str, str]:
 # --- the train graph ------------------------------------------------------------------
 
 def train_graph_chart(data, path: str | Path, *, direction: str = "both", t0: float | None = None,
-               t1: float | None = None, train: str | None = None) -> Path:
+               t1: float | None = None, train: str | None = None, run_label: str = "") -> Path:
     """The train graph as an SVG or PNG file (by the suffix), written atomically.
+
+    The legend stands right of the plot, outside it, so it covers no train.
 
     Parameters
     ----------
@@ -311,6 +313,8 @@ def train_graph_chart(data, path: str | Path, *, direction: str = "both", t0: fl
         Time window [s after midnight] (default: the whole day, whole hours).
     train : str, optional
         A train to highlight, with its blocking-time stairway.
+    run_label : str
+        The run and its operating day (:func:`planner.pages.train_graph.run_label`), a second title line.
     """
     from matplotlib.collections import LineCollection, PatchCollection
     from matplotlib.patches import Rectangle
@@ -388,10 +392,16 @@ def train_graph_chart(data, path: str | Path, *, direction: str = "both", t0: fl
                                               alpha=0.45, zorder=1))
             ax.plot([], [], "s", color=STAIR_COLOUR, label=f"{sel.train_id}: blocking-time stairway")
         ax.plot(sel.t_s, sel.x_m, color="black", lw=2.2, zorder=5, label=f"train {sel.train_id}")
-    ax.legend(loc="upper right", fontsize=7, framealpha=0.9)
+    # outside the axes, right of them: the figure widens by the legend's width, so the plot keeps its size
+    leg = ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), borderaxespad=0.0, fontsize=7, framealpha=0.9)
     dirs = "both directions" if direction == "both" else direction
-    ax.set_title(f"{data.line_name} ({data.line_id}) — train graph, {dirs}, {hhmm(lo)}–{hhmm(hi)}")
+    from planner.line.model import line_title
+
+    ax.set_title(f"{line_title(data.line_name, data.line_id)} — train graph, {dirs}, {hhmm(lo)}–{hhmm(hi)}"
+                 + (f"\n{run_label}" if run_label else ""))
     ax.set_xlabel("time")
+    fig.canvas.draw()
+    fig.set_figwidth(width + leg.get_window_extent().width / fig.dpi + 0.1)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format=fmt, metadata={"Date": None, "Creator": "planner"} if fmt == "svg" else {"Software": None})

@@ -54,7 +54,7 @@ from planner.line.model import Line, Train, sign
 
 __all__ = [
     "TOL_T_S", "TOL_X_M", "TrainPath", "GraphData", "service_of", "simplify", "train_paths",
-    "graph_data", "parse_hhmm", "hhmm", "time_window", "clip_path",
+    "graph_data", "parse_hhmm", "hhmm", "time_window", "start_window", "match_train", "clip_path",
 ]
 
 TOL_T_S = 1.0
@@ -244,8 +244,10 @@ class GraphData:
     notes: list[str] = field(default_factory=list)
 
     def train(self, train_id: str) -> TrainPath:
+        """The train of that id, matched as :func:`match_train` does (case-insensitive when unambiguous)."""
+        found = match_train([t.train_id for t in self.trains], train_id)
         for t in self.trains:
-            if t.train_id == train_id:
+            if t.train_id == found:
                 return t
         raise InputError(f"--train {train_id}: no such train on line {self.line_id} "
                          f"(e.g. {', '.join(t.train_id for t in self.trains[:3])})")
@@ -364,6 +366,42 @@ def time_window(data: GraphData, t0: float | None, t1: float | None) -> tuple[fl
     if not hi > lo:
         raise InputError(f"--from {hhmm(lo)} --to {hhmm(hi)}: the end must be after the start")
     return float(lo), float(hi)
+
+
+START_HOURS = 2.0
+"""Length of the window the page opens on [h]: about 35 trains on the sample's busiest morning hours, a
+train every 20-30 px at 1400 px (the whole day, 356 trains in 20 h, is a mesh of 4 px)."""
+
+
+def start_window(data: GraphData, hours: float = START_HOURS) -> tuple[float, float]:
+    """The readable window a page opens on: ``hours`` long, starting on a whole hour inside the day's whole
+    hours, the one that holds the most trains among those starting before noon (the morning peak; all of them
+    when the day starts after noon; the earliest on a tie). A day no longer than that is shown whole.
+
+    A train counts in a window when its run overlaps it (it is drawn there)."""
+    lo, hi = time_window(data, None, None)
+    span = hours * 3600.0
+    if hi - lo <= span or not data.trains:
+        return lo, hi
+    starts = np.arange(lo, hi - span + 1.0, 3600.0)
+    if (starts < 12 * 3600.0).any():
+        starts = starts[starts < 12 * 3600.0]
+    a = np.array([t.start_s for t in data.trains])
+    b = np.array([t.end_s for t in data.trains])
+    n = [int(np.count_nonzero((a < s + span) & (b > s))) for s in starts]
+    best = float(starts[int(np.argmax(n))])
+    return best, best + span
+
+
+def match_train(ids: Iterable[str], text: str) -> str | None:
+    """The id of ``ids`` that ``text`` names: the same, else the only one equal ignoring case; None otherwise
+    (the page's search box and ``#train=`` match the same way)."""
+    ids = list(ids)
+    text = str(text).strip()
+    if text in ids:
+        return text
+    folded = [i for i in ids if i.lower() == text.lower()]  # as the page's toLowerCase
+    return folded[0] if len(folded) == 1 else None
 
 
 def clip_path(t: np.ndarray, x: np.ndarray, lo: float, hi: float):
