@@ -10,7 +10,6 @@ import pytest
 
 from linedb import write_line_db
 from planner.errors import InputError
-from planner.report.plots import train_graph_chart as draw_chart
 from planner.report.train_graph import (
     TOL_T_S,
     TOL_X_M,
@@ -19,6 +18,7 @@ from planner.report.train_graph import (
     service_of,
     simplify,
 )
+from planner.report.train_graph import train_graph_chart as draw_chart
 from planner.pages.train_graph import page_payload, render_page
 
 

@@ -15,7 +15,8 @@ def graph(
     out: Path = typer.Option(..., "--out", help="Output folder for <line>_graph.html and the charts."),
     t_from: Optional[str] = typer.Option(None, "--from", help="Start of the time window HH:MM (default: first departure)."),
     t_to: Optional[str] = typer.Option(None, "--to", help="End of the time window HH:MM (default: last arrival)."),
-    train: Optional[str] = typer.Option(None, "--train", help="Train to highlight, with its blocking-time stairway."),
+    train: Optional[str] = typer.Option(None, "--train", help="Train to highlight, with its blocking-time stairway "
+                                        "(its id in any case); the page opens on its run."),
     run: Optional[Path] = typer.Option(None, "--run", help="A published run (e.g. outputs/latest) of this line database: "
                                        "its occupation, conflicts and margin_totals datasets are used."),
     fmt: str = typer.Option("svg", "--format", help="Chart format: svg or png."),
@@ -24,8 +25,7 @@ def graph(
     from .. import load_line
     from planner.report.published_run import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
-    from planner.report.plots import train_graph_chart
-    from planner.report.train_graph import graph_data, match_train, parse_hhmm
+    from planner.report.train_graph import graph_data, match_train, parse_hhmm, train_graph_chart
     from planner.pages.train_graph import run_label, write_page
 
     from .checks import check_out_dir
