@@ -208,13 +208,14 @@ function clearSel() {
   for (const r of conRects) r.classList.remove("chosen");
 }
 function zoomTo(tr) { setView(tr.t0 - 600, tr.t1 + 600); }
+function refit() { if (fitHeight() !== H) layout(); }  // the selection's links may wrap the bar above the plot
 function select(id) {
   const tr = id ? findTrain(id) : null;
   clearSel(); st.sel = tr;
   highlight(tr, "sel");
   const info = document.getElementById("selinfo");
   if (!tr) { for (const id of ["tt-link", "chart-links"]) { const x = document.getElementById(id); if (x) x.style.display = "none"; }
-    info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
+    info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); refit(); return; }
   const n = stair(tr, D.conflict.stair_a, "#8a6500", "a");
   info.textContent = tr.id + " (" + n + " blocking windows)";
   const tt = document.getElementById("tt-link");
@@ -229,6 +230,7 @@ function select(id) {
     ch.style.display = mine.length ? "inline" : "none";
   }
   history.replaceState(null, "", "#train=" + encodeURIComponent(tr.id));
+  refit();
 }
 function conText(rows) {
   const c = rows[0], t0 = Math.min(...rows.map(r => r[5])), t1 = Math.max(...rows.map(r => r[6]));
