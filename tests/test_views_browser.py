@@ -190,6 +190,11 @@ def test_graph_page_conflict_box_is_visible_and_a_click_shows_both_stairways_and
     page = browser.open(f"{(tmp_path / 'g.html').resolve().as_uri()}#conflict=1")
     assert page.eval("document.getElementById('selinfo').textContent").startswith("#1: T1 before T2 at J and 1 more")
     assert page.errors == []
+    # opened on a view that does not hold the conflict (the first minute; #2 overlaps from 110 to 120 s): it moves there
+    far = write_page(data, tmp_path / "g2.html", t0=0.0, t1=60.0)
+    page = browser.open(f"{far.resolve().as_uri()}#conflict=2")
+    t0, t1 = page.eval("[st.t0, st.t1]")
+    assert t0 <= 110 and t1 >= 120 and page.errors == []
 
 
 def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):

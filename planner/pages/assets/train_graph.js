@@ -256,9 +256,10 @@ function selectConflict(cid, zoom) {
   document.getElementById("selinfo").textContent = conText(rows);
   history.replaceState(null, "", "#conflict=" + cid);
   if (zoom) {
-    // both trains' windows on the conflict's resources, with a quarter of an hour around them
+    // both trains' windows on the conflict's resources, with a quarter of an hour around them (when the view is
+    // wider than two hours or does not hold the overlap)
     const t0 = Math.min(...rows.map(r => r[5])), t1 = Math.max(...rows.map(r => r[6]));
-    if (st.t1 - st.t0 > 2 * 3600) setView(t0 - 900, t1 + 900); else sizeConflicts();
+    if (st.t1 - st.t0 > 2 * 3600 || t0 < st.t0 || t1 > st.t1) setView(t0 - 900, t1 + 900); else sizeConflicts();
   } else sizeConflicts();
 }
 svg.addEventListener("mousemove", ev => {
