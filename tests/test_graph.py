@@ -246,7 +246,7 @@ def test_titles_name_the_line_once_and_the_run(tmp_path):
     label = run_label("r0007-0123456789", "2026-11-27", {"day": "2026-11-30", "time_zone": "Asia/Tokyo",
                                                         "start": "2026-11-30T03:00:00+09:00",
                                                         "end": "2026-12-01T03:00:00+09:00"})
-    assert label == "run r0007-0123456789 of 2026-11-27 · operating day Mon 2026-11-30 (Asia/Tokyo, 03:00 to 03:00)"
+    assert label == "run r0007-0123456789 of 2026-11-27 · operating day Mon 2026-11-30 (from 03:00, Asia/Tokyo)"
     assert run_label(None) == "" and run_label("r1") == "run r1"
     g = day_graph("Minato Line (two)")  # a name that already ends with the id: said once
     page = render_page(g, run_label=label, links=[("overview", "../index.html")])

@@ -202,7 +202,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
 
 
 def run_label(run_id: str | None, run_date: str | None = None, day: Mapping[str, Any] | None = None) -> str:
-    """``run r0007-… of 2026-11-27 · operating day Mon 2026-11-30 (Asia/Tokyo, 03:00 to 03:00)`` from a
+    """``run r0007-… of 2026-11-27 · operating day Mon 2026-11-30 (from 03:00, Asia/Tokyo)`` from a
     run's manifest fields (``run_id``, ``run_date``, ``operating_day``); the parts not known are left out."""
     import datetime
 
@@ -215,9 +215,8 @@ def run_label(run_id: str | None, run_date: str | None = None, day: Mapping[str,
             d = f"{datetime.date.fromisoformat(d):%a} {d}"
         except ValueError:
             pass
-        where = [str(day["time_zone"])] if day.get("time_zone") else []
-        if day.get("start") and day.get("end"):
-            where.append(f"{str(day['start'])[11:16]} to {str(day['end'])[11:16]}")
+        where = [f"from {str(day['start'])[11:16]}"] if day.get("start") else []  # to the same hour the next day
+        where += [str(day["time_zone"])] if day.get("time_zone") else []
         parts.append(f"operating day {d}" + (f" ({', '.join(where)})" if where else ""))
     return " · ".join(parts)
 
