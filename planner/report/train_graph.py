@@ -372,7 +372,7 @@ def time_window(data: GraphData, t0: float | None, t1: float | None) -> tuple[fl
 START_HOURS = 2.0
 """Length of the window the page opens on [h]: the sample's 07:00-09:00 draws 63 trains, a train of each
 direction about every 4 minutes, 40 px apart on a 1400 px window (the whole day, 356 trains in 20 h,
-puts them 4 px apart)."""
+puts them 7 px apart)."""
 
 
 def start_window(data: GraphData, hours: float = START_HOURS) -> tuple[float, float]:
