@@ -14,8 +14,8 @@ default), to show how the page scales.
 
     python benchmarks/bench_graph_page.py [--trains 2000] [--repeat 5] [--shots DIR]
 
-``--shots DIR`` also saves screenshots of the whole day, the 08:00 hour and a
-selected train's stairway.
+``--shots DIR`` also saves screenshots of the opening view (the morning peak), the whole day, the
+08:00 hour and a selected train's stairway.
 """
 from __future__ import annotations
 
@@ -144,6 +144,8 @@ def shots(path: Path, folder: Path) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     with Browser(1500, 900) as b:
         p = b.open(path)
+        p.screenshot(folder / "graph_peak.png")  # the page opens on the morning peak
+        p.eval("document.querySelector('#hours button.day').click()")
         p.screenshot(folder / "graph_day.png")
         p.eval("document.querySelector('button.hour[data-t0=\"28800\"]').click()")
         p.screenshot(folder / "graph_0800.png")

@@ -1,6 +1,7 @@
 """The train graph's data: thinning, locals/rapids, trajectories from the network module, page payload, charts."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -9,7 +10,6 @@ import pytest
 
 from linedb import write_line_db
 from planner.errors import InputError
-from planner.report.plots import train_graph_chart as draw_chart
 from planner.report.train_graph import (
     TOL_T_S,
     TOL_X_M,
@@ -18,6 +18,7 @@ from planner.report.train_graph import (
     service_of,
     simplify,
 )
+from planner.report.train_graph import train_graph_chart as draw_chart
 from planner.pages.train_graph import page_payload, render_page
 
 
@@ -180,3 +181,94 @@ def test_page_payload_windows_decode(data):
     assert np.allclose(np.cumsum(start) / 10 + np.array(dur) / 10, w.end_s, atol=0.11)
     assert np.cumsum(lo).tolist() == [260, 1000, 1000] and length == [740, 0, 3860]
     assert [pl["resources"][k] for k in res] == ["E1", "N3", "E3"]
+
+
+# --- a synthetic day: the window the page opens on, ids in any case, titles and the legend --------------------
+def _train(train_id: str, direction: str, t0: float, t1: float):
+    from planner.report.train_graph import TrainPath
+
+    a, b = ("A", "B") if direction == "down" else ("B", "A")
+    x = [0.0, 5000.0] if direction == "down" else [5000.0, 0.0]
+    return TrainPath(train_id, "EMU", direction, "local", np.array([t0, t1]), np.array(x),
+                     ((a, math.nan, t0, True), (b, t1, math.nan, True)))
+
+
+def day_graph(name: str = "Two Stations (two)"):
+    """A day from 05:10 to 22:40: one train 05-06, three from 07:05 to 08:10, one 08:30-09:00, six after noon, one
+    late; by hand the two whole hours before noon holding the most trains are 07:00-09:00 (4: m1, m2, m3, M4),
+    against 06:00-08:00 (3) and 08:00-10:00 (2: m3 still running at 08:00, M4); 13:00-15:00 holds 6 but is after noon."""
+    from planner.report.train_graph import GraphData
+
+    h = 3600.0
+    trains = [_train("E1", "down", 5 * h + 600, 5 * h + 2400),
+              _train("m1", "down", 7 * h + 300, 7 * h + 2100), _train("m2", "up", 7 * h + 1200, 7 * h + 3000),
+              _train("m3", "down", 7 * h + 2400, 8 * h + 600), _train("M4", "up", 8 * h + 1800, 9 * h)]
+    trains += [_train(f"P{i}", "down", 13 * h + 600 * i, 13 * h + 600 * i + 1800) for i in range(6)]
+    trains.append(_train("L1", "up", 22 * h, 22 * h + 2400))
+    return GraphData("two", name, 0.0, 5000.0, [("A", "Alpha", 0.0), ("B", "Beta", 5000.0)], trains)
+
+
+def test_the_page_opens_on_the_morning_peak_not_the_whole_day():
+    from planner.report.train_graph import start_window, time_window
+
+    g = day_graph()
+    assert time_window(g, None, None) == (5 * 3600.0, 23 * 3600.0)  # the whole day: one click away
+    assert start_window(g) == (7 * 3600.0, 9 * 3600.0)
+    assert start_window(g, hours=1.0) == (7 * 3600.0, 8 * 3600.0)  # 07-08: m1, m2, m3 (3) against 08-09: m3, M4
+    late = dataclasses.replace(g, trains=g.trains[5:])  # no train before noon: the busiest window of the afternoon
+    assert start_window(late) == (13 * 3600.0, 15 * 3600.0)
+    short = dataclasses.replace(g, trains=g.trains[1:4])  # 07:05-08:10: two whole hours, shown whole
+    assert start_window(short) == (7 * 3600.0, 9 * 3600.0) == time_window(short, None, None)
+    pl = json.loads(render_page(g).split("id='graph-data'>")[1].split("</script>")[0])
+    assert pl["view"] == [7 * 3600.0, 9 * 3600.0] and pl["day"] == [5 * 3600, 23 * 3600]
+    # a train given: its run with ten minutes either side; a window given: that window
+    pl = json.loads(render_page(g, train="m4").split("id='graph-data'>")[1].split("</script>")[0])
+    assert pl["view"] == [8 * 3600.0 + 1200, 9 * 3600.0 + 600] and pl["select"] == "M4"
+    pl = json.loads(render_page(g, t0=6 * 3600.0, t1=10 * 3600.0).split("id='graph-data'>")[1].split("</script>")[0])
+    assert pl["view"] == [6 * 3600.0, 10 * 3600.0]
+
+
+def test_train_ids_match_in_any_case_when_only_one_train_fits():
+    from planner.report.train_graph import match_train
+
+    ids = ["1001D", "ab", "AB", "m1"]
+    assert match_train(ids, "1001d") == "1001D" and match_train(ids, " M1 ") == "m1"
+    assert match_train(ids, "ab") == "ab" and match_train(ids, "AB") == "AB"  # the exact one first
+    assert match_train(ids, "Ab") is None and match_train(ids, "1001") is None  # two fit / none fits
+    assert day_graph().train("e1").train_id == "E1"
+    with pytest.raises(InputError, match="--train Ab"):
+        dataclasses.replace(day_graph(), trains=[_train("ab", "down", 0, 60), _train("AB", "up", 0, 60)]).train("Ab")
+
+
+def test_titles_name_the_line_once_and_the_run(tmp_path):
+    from planner.pages.train_graph import run_label
+
+    label = run_label("r0007-0123456789", "2026-11-27", {"day": "2026-11-30", "time_zone": "Asia/Tokyo",
+                                                        "start": "2026-11-30T03:00:00+09:00",
+                                                        "end": "2026-12-01T03:00:00+09:00"})
+    assert label == "run r0007-0123456789 of 2026-11-27 · operating day Mon 2026-11-30 (from 03:00, Asia/Tokyo)"
+    assert run_label(None) == "" and run_label("r1") == "run r1"
+    g = day_graph("Minato Line (two)")  # a name that already ends with the id: said once
+    page = render_page(g, run_label=label, links=[("overview", "../index.html")])
+    assert "<h1>Train graph — Minato Line (two)</h1>" in page and "(two) (two)" not in page
+    assert "operating day Mon 2026-11-30" in page and "<a href='../index.html'>overview</a>" in page
+    assert "Train graph — Two Stations (two)</h1>" in render_page(day_graph("Two Stations"))
+    svg = draw_chart(g, tmp_path / "g.svg", run_label=label).read_text()
+    assert "Minato Line (two) — train graph" in svg and "(two) (two)" not in svg and "operating day Mon" in svg
+
+
+def test_the_chart_legend_stands_outside_the_plot(tmp_path):
+    """No train is under the legend: its box starts right of the axes' box (matplotlib's SVG: the axes background
+    is the axes' first patch, the legend frame the legend group's first)."""
+    import re
+
+    svg = draw_chart(day_graph(), tmp_path / "g.svg", t0=7 * 3600.0, t1=9 * 3600.0).read_text()
+
+    def xs(group: str) -> list[float]:
+        body = svg[svg.index(f'<g id="{group}">'):]
+        d = re.search(r'<path d="([^"]*)"', body).group(1)
+        return [float(a) for a, _ in re.findall(r"(-?[\d.]+) (-?[\d.]+)", d)]
+
+    axes = xs("axes_1")
+    legend = xs("legend_1")
+    assert min(legend) > max(axes)

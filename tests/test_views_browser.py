@@ -190,6 +190,11 @@ def test_graph_page_conflict_box_is_visible_and_a_click_shows_both_stairways_and
     page = browser.open(f"{(tmp_path / 'g.html').resolve().as_uri()}#conflict=1")
     assert page.eval("document.getElementById('selinfo').textContent").startswith("#1: T1 before T2 at J and 1 more")
     assert page.errors == []
+    # opened on a view that does not hold the conflict (the first minute; #2 overlaps from 110 to 120 s): it moves there
+    far = write_page(data, tmp_path / "g2.html", t0=0.0, t1=60.0)
+    page = browser.open(f"{far.resolve().as_uri()}#conflict=2")
+    t0, t1 = page.eval("[st.t0, st.t1]")
+    assert t0 <= 110 and t1 >= 120 and page.errors == []
 
 
 def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
@@ -199,6 +204,7 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
 
     from planner.job.config import Job
     from planner.job.train_views import timetable_href, train_views
+    from planner.job.views import graph_links
     from planner.report.margins import compute_margins
     from planner.report.train_graph import graph_data
     from planner.pages.train_graph import write_page
@@ -219,9 +225,15 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
     data = graph_data(tiny)
     (run / "graph").mkdir()
     graph = write_page(data, run / "graph" / "tiny_graph.html", timetable_href="../" + timetable_href("tiny"),
-                       charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()})
+                       charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()},
+                       links=graph_links("tiny"))
     page = browser.open(graph)
     _clean(page)
+    # the top links: overview, margin report and tables of the same run (line_views writes them: index.html and
+    # report/ are the run_views' pages, not made here)
+    assert page.eval("[...document.querySelectorAll('#top a')].map(a => [a.innerText, a.href])") == [
+        ["overview", (run / "index.html").as_uri()], ["margin report", (run / "report" / "tiny_margins.html").as_uri()],
+        ["running-time tables", (run / "timetable" / "tiny_timetable.html").as_uri()]]
     assert page.eval("getComputedStyle(document.getElementById('tt-link')).display") == "none"  # nothing selected
     t = (data.train("202").start_s + data.train("202").end_s) / 2
     x, y = page.eval(f"(() => {{ const tr = byId.get('202'); const r = svg.getBoundingClientRect();"
@@ -247,3 +259,57 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
     assert "202" in chart.eval("[...document.querySelectorAll('a')].map(a => a.innerText)")
     back = chart.eval("[...document.querySelectorAll('a')].find(a => a.innerText === '202').href")
     assert back == href
+    # and back from the table to the graph, on that train's run
+    to_graph = table.eval("document.querySelector('#train-202 a[href*=\"_graph.html\"]').href")
+    assert to_graph == graph.as_uri() + "#train=202"
+    again = browser.open(to_graph)
+    assert again.errors == [] and again.eval("st.sel.id") == "202"
+    tr = data.train("202")
+    # its run with ten minutes either side, moved to start at 06:00, where the day starts (202 leaves at 06:05)
+    assert tr.start_s - 600 < 21600 and again.eval("[st.t0, st.t1]") == [21600, 21600 + tr.end_s - tr.start_s + 1200]
+
+
+def _view(page) -> list:
+    return page.eval("[st.t0, st.t1]")
+
+
+def test_graph_opens_on_the_peak_fills_the_window_and_zooms_to_a_train_named_in_any_case(browser, tmp_path):
+    """The day of tests/test_graph.py's day_graph: the page opens on 07:00-09:00 (worked by hand there), the whole
+    day one click away; #train=ID (any case) selects that train and shows its run, as the search box does; the
+    plot reaches the bottom of the window at any window height."""
+    from test_graph import day_graph
+
+    from planner.pages.train_graph import write_page
+
+    path = write_page(day_graph(), tmp_path / "two_graph.html")
+    page = browser.open(path)
+    _clean(page)
+    h = 3600
+    assert _view(page) == [7 * h, 9 * h] and page.eval("document.getElementById('range').textContent") == "07:00 – 09:00"
+    assert page.eval("document.querySelector('#hours button.on').textContent") == "morning peak 07:00–09:00"
+    page.eval("document.querySelector('#hours button.day').click()")
+    assert _view(page) == [5 * h, 23 * h]  # the whole day, one click
+    # the plot fills the window below the bars: its bottom within the last 20 px of the viewport, at 800 and 1100 px
+    bottom = "document.getElementById('wrap').getBoundingClientRect().bottom"
+    assert 800 - 20 <= page.eval(bottom) <= 800
+    browser.send("Emulation.setDeviceMetricsOverride", {"width": 1200, "height": 1100, "deviceScaleFactor": 1,
+                                                         "mobile": False}, session=page.session)
+    page.eval("new Promise(r => requestAnimationFrame(() => setTimeout(r, 0)))")
+    assert 1100 - 20 <= page.eval(bottom) <= 1100 and page.eval("innerHeight") == 1100
+    # #train=m4 opens on train M4 (08:30-09:00) with ten minutes either side, highlighted
+    page = browser.open(f"{path.resolve().as_uri()}#train=m4")
+    assert page.errors == [] and page.requests == [path.resolve().as_uri()]
+    assert page.eval("document.getElementById('selinfo').textContent").startswith("M4")
+    assert _view(page) == [8 * h + 1200, 9 * h + 600]
+    assert page.eval("document.querySelector('#highlight path.sel').dataset.train") == "M4"
+    # a link within the page (the hash changes): that train, its run
+    page.eval("location.hash = '#train=E1'; new Promise(r => setTimeout(r, 50))")
+    assert page.eval("st.sel.id") == "E1" and _view(page) == [5 * h, 5 * h + 3000]  # 05:00 is the day's start
+    # the search box: any case too; an unknown id is marked, the selection stays
+    page.eval("const f = document.getElementById('find'); f.value = ' M1 '; f.dispatchEvent(new Event('change'))")
+    assert page.eval("st.sel.id") == "m1" and _view(page) == [7 * h - 300, 7 * h + 2700]
+    page.eval("const g = document.getElementById('find'); g.value = 'zz'; g.dispatchEvent(new Event('change'))")
+    assert page.eval("st.sel.id") == "m1" and page.eval("document.getElementById('find').style.background") != ""
+    page = browser.open(f"{path.resolve().as_uri()}#train=nope")
+    assert page.eval("document.getElementById('selinfo').textContent") == "no train nope on this line"
+    assert _view(page) == [7 * h, 9 * h] and page.errors == []

@@ -15,7 +15,8 @@ def graph(
     out: Path = typer.Option(..., "--out", help="Output folder for <line>_graph.html and the charts."),
     t_from: Optional[str] = typer.Option(None, "--from", help="Start of the time window HH:MM (default: first departure)."),
     t_to: Optional[str] = typer.Option(None, "--to", help="End of the time window HH:MM (default: last arrival)."),
-    train: Optional[str] = typer.Option(None, "--train", help="Train to highlight, with its blocking-time stairway."),
+    train: Optional[str] = typer.Option(None, "--train", help="Train to highlight, with its blocking-time stairway "
+                                        "(its id in any case); the page opens on its run."),
     run: Optional[Path] = typer.Option(None, "--run", help="A published run (e.g. outputs/latest) of this line database: "
                                        "its occupation, conflicts and margin_totals datasets are used."),
     fmt: str = typer.Option("svg", "--format", help="Chart format: svg or png."),
@@ -24,9 +25,8 @@ def graph(
     from .. import load_line
     from planner.report.published_run import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
-    from planner.report.plots import train_graph_chart
-    from planner.report.train_graph import graph_data, parse_hhmm
-    from planner.pages.train_graph import write_page
+    from planner.report.train_graph import graph_data, match_train, parse_hhmm, train_graph_chart
+    from planner.pages.train_graph import run_label, write_page
 
     from .checks import check_out_dir
 
@@ -36,12 +36,13 @@ def graph(
     t0 = parse_hhmm(t_from, "--from") if t_from else None
     t1 = parse_hhmm(t_to, "--to") if t_to else None
     line = load_line(line_dir)
-    if train and train not in {t.train_id for t in line.trains}:  # before the run curves are simulated
+    if train and match_train([t.train_id for t in line.trains], train) is None:  # before the run curves are simulated
         raise InputError(f"--train {train}: no such train on line {line.line_id} "
                          f"(e.g. {', '.join(t.train_id for t in line.trains[:3])})")
-    kw = {}
+    kw, label = {}, ""
     if run is not None:
         m = read_manifest(run)
+        label = run_label(m.get("run_id"), m.get("run_date"), m.get("operating_day"))
         rec = next((x for x in m.get("lines", []) if x.get("line_id") == line.line_id), None)
         if rec is None or rec.get("source_digest") != line.source_digest:
             raise InputError(f"--run {run}: this run did not plan {line_dir} as it is now (line {line.line_id}, "
@@ -50,9 +51,10 @@ def graph(
               (("windows", "occupation"), ("conflicts", "conflicts"), ("margin_totals", "margin_totals"))}
     data = graph_data(line, **kw)
     name = path_id(line.line_id)  # becomes a file name: checked again here
-    files = [write_page(data, out / f"{name}_graph.html", t0=t0, t1=t1, train=train)]
+    files = [write_page(data, out / f"{name}_graph.html", t0=t0, t1=t1, train=train, run_label=label)]
     for d in ("both", "down", "up"):
-        files.append(train_graph_chart(data, out / f"{name}_{d}.{fmt}", direction=d, t0=t0, t1=t1, train=train))
+        files.append(train_graph_chart(data, out / f"{name}_{d}.{fmt}", direction=d, t0=t0, t1=t1, train=train,
+                                       run_label=label))
     nc = int(data.conflicts.conflict_id.nunique()) if data.conflicts is not None and len(data.conflicts) else 0
     typer.echo(f"line {line.line_id}: {len(data.trains)} trains, {nc} conflicts")
     for n in data.notes:

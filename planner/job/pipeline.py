@@ -103,6 +103,8 @@ class RunSummary:
     warnings: list[str] = field(default_factory=list)
     release: Any = None
     """The :class:`planner.bundle.container.Release` the run's bundles were issued with."""
+    run_date: str = ""
+    """The run's date, YYYY-MM-DD (stamped on every dataset row; the pages show it)."""
     wall_s: float = 0.0
     """Wall time of the whole run [s]: less than the steps' sum, as some steps run beside others."""
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
@@ -262,7 +264,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                              "re-issued")
             run_id = next_run_id(root, inputs)
             stage = staging_dir(root, run_id)
-            summary = RunSummary(run_id, None, False, notes=notes)
+            summary = RunSummary(run_id, None, False, notes=notes, run_date=run_date)
             runner = Runner(job, cache, prog)
             summary.release = release
             # every dataset file carries the run's id and date from its first write (nothing is rewritten)

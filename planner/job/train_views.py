@@ -84,7 +84,8 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
         recs = timetable_rows(line, runs, types)
         links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
                  ("train graph", f"../graph/{lid}_graph.html")]
-        write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, run_label=run_label, links=links))
+        write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, run_label=run_label, links=links,
+                                                           graph_href=f"../graph/{lid}_graph.html"))
     pats = _patterns(stage, lid)
     units, paths = [], []
     back = "../../" + timetable_href(lid)

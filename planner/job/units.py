@@ -49,6 +49,11 @@ def code_files() -> list[Path]:
     return sorted(Path(planner.__file__).resolve().parent.rglob("*.py"))
 
 
+def asset_files() -> list[Path]:
+    """The package's data files that pages are made of (``assets/`` folders: scripts, styles), sorted."""
+    return sorted(p for p in Path(planner.__file__).resolve().parent.rglob("assets/*") if p.is_file())
+
+
 def code_digest() -> str:
     """SHA-256 over the planner package's source files (names and bytes), its version and its compilers'."""
     global _CODE_DIGEST
@@ -59,7 +64,7 @@ def code_digest() -> str:
         for kind, backend in sorted(kernel_backends().items()):  # built at install or just in time: same
             h.update(f"{kind}={backend}".encode() + b"\0")  # bits (tests/test_compiled.py), kept apart anyway
         pkg = Path(planner.__file__).resolve().parent
-        for p in code_files():
+        for p in code_files() + asset_files():  # a page's script is code too: a new one republishes the run
             h.update(p.relative_to(pkg).as_posix().encode() + b"\0")
             h.update(p.read_bytes())
         _CODE_DIGEST = h.hexdigest()

@@ -83,7 +83,8 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
 
     copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
-    legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary)  # tables, charts
+    label = _run_label(job, summary)
+    legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary, label)  # tables, charts
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
         con = read_line_dataset(stage, "conflicts", line.line_id)
@@ -91,9 +92,28 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
         data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
         if check and line.network is not None and (occ is None or con is None):
             data.notes.append("the run has no occupation/conflicts datasets for this line")
-        write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html",
+        lid = path_id(line.line_id)
+        write_page(data, stage / "graph" / f"{lid}_graph.html", run_label=label,
                    timetable_href="../" + timetable_href(line.line_id),
-                   charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()})
+                   charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()},
+                   links=graph_links(line.line_id))
+
+
+def graph_links(line_id: str) -> list[tuple[str, str]]:
+    """The run's pages a line's train graph links to at its top (relative to ``graph/``)."""
+    from planner.report.published_run import path_id
+    from planner.job.train_views import timetable_href
+
+    return [("overview", "../index.html"), ("margin report", f"../report/{path_id(line_id)}_margins.html"),
+            ("running-time tables", "../" + timetable_href(line_id))]
+
+
+def _run_label(job, summary) -> str:
+    """The run and its operating day, as the run's pages name them under their title."""
+    from planner.job.day import window
+    from planner.pages.train_graph import run_label
+
+    return run_label(summary.run_id, getattr(summary, "run_date", ""), window(job).record() if job.day.day else None)
 
 
 def _unit(step, key, fn, args):
@@ -235,4 +255,4 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
         write_overview(stage, manifest, notes=notes)
 
 
-__all__ = ["copy_inputs", "line_views", "run_views"]
+__all__ = ["copy_inputs", "graph_links", "line_views", "run_views"]

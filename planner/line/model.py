@@ -358,3 +358,13 @@ def did_you_mean(text: str, ids) -> str:
     ids = [str(i) for i in ids]
     close = difflib.get_close_matches(str(text).upper(), [i.upper() for i in ids], n=1, cutoff=0.5)
     return f"; did you mean {next(i for i in ids if i.upper() == close[0])}?" if close else ""
+
+
+def line_title(name: str, line_id: str) -> str:
+    """``name (line_id)``, without repeating the id when the name already ends with it in brackets."""
+    name, line_id = str(name).strip(), str(line_id).strip()
+    if not name or name == line_id:
+        return line_id
+    if name.endswith(f"({line_id})"):
+        return name
+    return f"{name} ({line_id})"

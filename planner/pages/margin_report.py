@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.line.model import line_title  # noqa: F401 - the pages import it from here too
 from planner.line.units import clock, hms
 
 from planner.pages.margin_charts import chart_sections
@@ -317,16 +318,6 @@ def conflicts_section(report) -> str:
 
 
 # --- the page -------------------------------------------------------------------------
-
-def line_title(name: str, line_id: str) -> str:
-    """``name (line_id)``, without repeating the id when the name already ends with it in brackets."""
-    name, line_id = str(name).strip(), str(line_id).strip()
-    if not name or name == line_id:
-        return line_id
-    if name.endswith(f"({line_id})"):
-        return name
-    return f"{name} ({line_id})"
-
 
 def energy_change(saved_percent: float) -> str:
     """Energy at the on-time ratio against ratio 100 %, in words: ``12 % saved``, ``3 % more``, ``±0 %``.

@@ -80,8 +80,11 @@ HEAD = ("<tr><th class='l'>station</th><th class='l'>call</th><th>scheduled arri
 
 
 def render_page(line_id: str, line_name: str, records: Sequence[dict], *, run_label: str = "",
-                links: Sequence[tuple[str, str]] = ()) -> str:
-    """The page (module doc); ``records`` as :func:`timetable_rows` gives them, ``links``: (label, href) at the top."""
+                links: Sequence[tuple[str, str]] = (), graph_href: str = "") -> str:
+    """The page (module doc); ``records`` as :func:`timetable_rows` gives them, ``links``: (label, href) at the top,
+    ``graph_href``: the line's train graph page, which each train links to (``#train=<id>``: its run there)."""
+    from urllib.parse import quote
+
     from planner.pages.margin_report import CSS
 
     by_train = {k: list(g) for k, g in groupby(records, key=lambda r: r["train_id"])}
@@ -104,7 +107,8 @@ def render_page(line_id: str, line_name: str, records: Sequence[dict], *, run_la
             f'<section class="tt" id="train-{_e(t)}"><h3>{_e(t)} · {_e(first["train_type"])} {_e(first["direction"])}: '
             f'{_e(first["station_id"])} {_e(first["scheduled_departure"] or "")} → {_e(last["station_id"])} '
             f'{_e(last["scheduled_arrival"] or "")} <a class="self" href="#train-{_e(t)}">#</a>'
-            f'<a class="top" href="#top">index</a></h3>'
+            + (f'<a class="top" href="{_e(graph_href)}#train={_e(quote(t, safe=""))}">in the train graph</a>'
+               if graph_href else "") + f'<a class="top" href="#top">index</a></h3>'
             f'<p class="caption">{n_stop} intermediate stops, {n_pass} passes; running-time supplement over the '
             f"whole run {tot_sup:.1f} s.</p>"
             f'<div class="tw"><table>{HEAD}{"".join(_row(r, "../") for r in rs)}</table></div></section>')

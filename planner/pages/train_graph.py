@@ -13,14 +13,15 @@ import html
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from planner.line.model import line_title
 from planner.report.train_graph import (COLOURS, CONFLICT_COLOUR, CONFLICT_MIN_PX, STAIR_B_COLOUR, STAIR_COLOUR, GraphData,
-                                        time_window)
+                                        start_window, time_window)
 
-__all__ = ["page_payload", "render_page", "write_page"]
+__all__ = ["page_payload", "render_page", "run_label", "write_page"]
 
 
 def _delta(values: np.ndarray, scale: float) -> list[int]:
@@ -90,368 +91,57 @@ def page_payload(data: GraphData) -> dict[str, Any]:
     }
 
 
-PAGE_CSS = """
-*{box-sizing:border-box}
-body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;color:#1d2327;background:#f6f7f9}
-header{padding:10px 18px 6px}h1{font-size:20px;margin:0 0 4px}.sub{color:#555;font-size:13px;margin:0}
-.bar{display:flex;flex-wrap:wrap;gap:6px 14px;align-items:center;padding:6px 18px;font-size:13px;border-bottom:1px solid #d5d9de;background:#fff}
-.bar button{font:inherit;font-size:12px;padding:2px 7px;border:1px solid #b9bec4;background:#f6f7f9;border-radius:4px;cursor:pointer}
-.bar button.on{background:#1f5fa8;color:#fff;border-color:#1f5fa8}
-.bar input[type=text]{font:inherit;font-size:12px;width:90px;padding:2px 4px}
-.key{display:inline-block;width:18px;height:0;border-top:3px solid;vertical-align:middle;margin-right:3px}
-.box{display:inline-block;width:12px;height:12px;border:1.5px solid #000;vertical-align:middle;margin-right:3px}
-#wrap{position:relative;margin:8px 18px;background:#fff;border:1px solid #d5d9de;border-radius:6px}
-#graph{display:block;width:100%;user-select:none;cursor:crosshair}
-#tip{position:absolute;pointer-events:none;background:rgba(255,255,255,.97);border:1px solid #8a9199;border-radius:5px;
- padding:6px 9px;font-size:12px;line-height:1.35;box-shadow:0 2px 8px rgba(0,0,0,.18);display:none;max-width:360px;z-index:5}
-#tip b{font-size:13px}#tip table{border-collapse:collapse;margin-top:3px}#tip td{padding:0 6px 0 0;white-space:nowrap}
-#info{margin:0 18px 20px;font-size:13px}#info code{font-size:12px}
-.flag{color:#c62828;font-weight:600}
-rect.conflict{cursor:pointer}rect.conflict.chosen{stroke-width:3}
-"""
+def _asset(name: str) -> str:
+    """A file of ``planner/pages/assets`` (package data: the page's stylesheet and script)."""
+    from importlib.resources import files
 
-PAGE_JS = r"""
-"use strict";
-const D = JSON.parse(document.getElementById("graph-data").textContent);
-const NS = "http://www.w3.org/2000/svg";
-const svg = document.getElementById("graph");
-const tip = document.getElementById("tip");
-const M = {l: 150, r: 16, t: 14, b: 30};
-const H = 640;
-const st = {t0: D.view[0], t1: D.view[1], sel: null, con: null, hover: null, hoverCon: null,
-  show: {down: true, up: true, conflicts: true}};
-function el(name, attrs, parent) {
-  const e = document.createElementNS(NS, name);
-  for (const k in attrs) e.setAttribute(k, attrs[k]);
-  if (parent) parent.appendChild(e);
-  return e;
-}
-function undelta(a, s) { const o = new Float64Array(a.length); let v = 0; for (let i = 0; i < a.length; i++) { v += a[i]; o[i] = v / s; } return o; }
-function hhmm(t, sec) {
-  if (t === null || !isFinite(t)) return "–";
-  t = Math.round(t); const h = Math.floor(t / 3600), m = Math.floor(t / 60) % 60, s = t % 60;
-  const p = n => String(n).padStart(2, "0");
-  return p(h) + ":" + p(m) + (sec ? ":" + p(s) : "");
-}
-for (const tr of D.trains) {
-  tr.T = undelta(tr.t, 10); tr.X = undelta(tr.x, 1);
-  tr.t0 = tr.T[0]; tr.t1 = tr.T[tr.T.length - 1];
-}
-const byId = new Map(D.trains.map(t => [t.id, t]));
-const W = () => svg.clientWidth || 1200;
-const PW = () => W() - M.l - M.r, PH = H - M.t - M.b;
-const y0 = D.line.start_m, y1 = D.line.end_m;
-svg.setAttribute("height", H);
-// layers: axes, stairway, trains (one viewBox-scaled group), conflicts, highlight, ticks
-const gGrid = el("g", {id: "grid"}, svg);
-const inner = el("svg", {id: "plot", x: M.l, y: M.t, preserveAspectRatio: "none", overflow: "hidden"}, svg);
-const gStair = el("g", {id: "stair"}, inner);
-const gTrains = el("g", {id: "trains", fill: "none"}, inner);
-const gLoops = el("g", {id: "loops"}, inner);
-const gCon = el("g", {id: "conflicts"}, inner);
-const gHi = el("g", {id: "highlight", fill: "none"}, inner);
-const gAxis = el("g", {id: "axis"}, svg);
-const paths = [];
-for (const tr of D.trains) {
-  let d = "M" + tr.T[0].toFixed(1) + " " + tr.X[0].toFixed(0);
-  for (let i = 1; i < tr.T.length; i++) d += "L" + tr.T[i].toFixed(1) + " " + tr.X[i].toFixed(0);
-  const rapid = tr.svc === "rapid";
-  const p = el("path", {d: d, stroke: D.colours[tr.dir + " " + tr.svc], "stroke-width": rapid ? 1.6 : 1.0,
-    "vector-effect": "non-scaling-stroke", "data-train": tr.id, class: "train " + tr.dir + " " + tr.svc}, gTrains);
-  tr.path = p; paths.push(p);
-}
-const pos = new Map(D.stations.map(s => [s[0], s[2]]));
-for (const tr of D.trains) for (const c of tr.calls) if (tr.loops.includes(c[0]) && c[1] !== null && c[2] !== null) {
-  const r = el("rect", {x: c[1], y: pos.get(c[0]) - 60, width: Math.max(c[2] - c[1], 1), height: 120,
-    fill: "none", stroke: "#333", "stroke-width": 1, "vector-effect": "non-scaling-stroke", class: "loop " + tr.dir}, gLoops);
-  r.dataset.train = tr.id;
-}
-// conflicts: one box per (conflict, resource), at least D.conflict.min_px on each side (sized in layout)
-const conRects = [];
-for (const c of D.conflicts) {
-  const r = el("rect", {fill: D.conflict.colour, "fill-opacity": 0.85, stroke: "#000", "stroke-width": 1.5,
-    "vector-effect": "non-scaling-stroke", class: "conflict"}, gCon);
-  r.dataset.a = c[1]; r.dataset.b = c[2]; r.dataset.cid = c[0]; r.con = c; conRects.push(r);
-}
-const byCon = new Map();
-for (const c of D.conflicts) { if (!byCon.has(c[0])) byCon.set(c[0], []); byCon.get(c[0]).push(c); }
-function box(r, t0, t1, x0, x1) {
-  // a data-space box grown about its centre to the minimum size in pixels
-  const kt = (st.t1 - st.t0) / PW(), kx = (y1 - y0) / PH, mt = D.conflict.min_px * kt, mx = D.conflict.min_px * kx;
-  const w = Math.max(t1 - t0, mt), h = Math.max(x1 - x0, mx);
-  r.setAttribute("x", (t0 + t1) / 2 - w / 2); r.setAttribute("width", w);
-  r.setAttribute("y", (x0 + x1) / 2 - h / 2); r.setAttribute("height", h);
-}
-function sizeConflicts() {
-  for (const r of conRects) box(r, r.con[5], r.con[6], r.con[3], r.con[4]);
-  for (const r of gStair.querySelectorAll("rect.overlap")) box(r, +r.dataset.t0, +r.dataset.t1, +r.dataset.x0, +r.dataset.x1);
-}
-function sx(t) { return M.l + (t - st.t0) / (st.t1 - st.t0) * PW(); }
-function sy(x) { return M.t + (x - y0) / (y1 - y0) * PH; }
-function layout() {
-  const w = W();
-  svg.setAttribute("viewBox", "0 0 " + w + " " + H);
-  inner.setAttribute("width", PW()); inner.setAttribute("height", PH);
-  inner.setAttribute("viewBox", st.t0 + " " + y0 + " " + (st.t1 - st.t0) + " " + (y1 - y0));
-  gGrid.textContent = ""; gAxis.textContent = "";
-  for (const s of D.stations) {
-    el("line", {x1: M.l, x2: w - M.r, y1: sy(s[2]), y2: sy(s[2]), stroke: "#d5d9de"}, gGrid);
-    const t = el("text", {x: M.l - 6, y: sy(s[2]) + 4, "text-anchor": "end", "font-size": 12}, gAxis);
-    t.textContent = s[1] + " (" + s[0] + ")";
-  }
-  const span = st.t1 - st.t0;
-  const step = span > 6 * 3600 ? 3600 : span > 2 * 3600 ? 1800 : span > 3600 ? 600 : span > 1200 ? 300 : 60;
-  for (let t = Math.ceil(st.t0 / step) * step; t <= st.t1; t += step) {
-    const hour = t % 3600 === 0;
-    el("line", {x1: sx(t), x2: sx(t), y1: M.t, y2: H - M.b, stroke: hour ? "#b9bec4" : "#eceef1"}, gGrid);
-    const lab = el("text", {x: sx(t), y: H - M.b + 16, "text-anchor": "middle", "font-size": 11, class: "tick"}, gAxis);
-    lab.textContent = hhmm(t);
-  }
-  el("rect", {x: M.l, y: M.t, width: PW(), height: PH, fill: "none", stroke: "#8a9199"}, gAxis);
-  document.getElementById("range").textContent = hhmm(st.t0) + " – " + hhmm(st.t1);
-  sizeConflicts();
-  for (const b of document.querySelectorAll("button.hour")) b.classList.toggle("on", +b.dataset.t0 === st.t0 && +b.dataset.t1 === st.t1);
-}
-function visible() {
-  for (const tr of D.trains) tr.path.style.display = st.show[tr.dir] ? "" : "none";
-  for (const r of gLoops.children) r.style.display = st.show[byId.get(r.dataset.train).dir] ? "" : "none";
-  gCon.style.display = st.show.conflicts ? "" : "none";
-}
-function setView(t0, t1) {
-  const full = D.day[1] - D.day[0];
-  const span = Math.min(Math.max(t1 - t0, 300), full);
-  t0 = Math.min(Math.max(t0, D.day[0]), D.day[1] - span);
-  st.t0 = t0; st.t1 = t0 + span; layout();
-}
-function xAt(tr, t) {
-  const T = tr.T; let lo = 0, hi = T.length - 1;
-  if (t < T[0] || t > T[hi]) return null;
-  while (hi - lo > 1) { const m = (lo + hi) >> 1; if (T[m] <= t) lo = m; else hi = m; }
-  const f = T[hi] > T[lo] ? (t - T[lo]) / (T[hi] - T[lo]) : 0;
-  return tr.X[lo] + f * (tr.X[hi] - tr.X[lo]);
-}
-function nearest(px, py) {
-  // pixel distance from the pointer to each drawn train's polyline near the pointer's time
-  const kt = PW() / (st.t1 - st.t0), kx = PH / (y1 - y0);
-  const t = st.t0 + (px - M.l) / kt, tol = 8;
-  let best = null, bd = tol;
-  for (const tr of D.trains) {
-    if (!st.show[tr.dir] || tr.t1 < t - tol / kt - 600 || tr.t0 > t + tol / kt + 600) continue;
-    const T = tr.T, X = tr.X;
-    let lo = 0, hi = T.length - 1;
-    const ta = t - tol / kt - 1;
-    while (hi - lo > 1) { const m = (lo + hi) >> 1; if (T[m] <= ta) lo = m; else hi = m; }
-    for (let i = lo; i < T.length - 1 && T[i] <= t + tol / kt + 1; i++) {
-      const ax = M.l + (T[i] - st.t0) * kt, ay = M.t + (X[i] - y0) * kx;
-      const bx = M.l + (T[i + 1] - st.t0) * kt, by = M.t + (X[i + 1] - y0) * kx;
-      const dx = bx - ax, dy = by - ay, L = dx * dx + dy * dy;
-      const u = L > 0 ? Math.max(0, Math.min(1, ((px - ax) * dx + (py - ay) * dy) / L)) : 0;
-      const d = Math.hypot(px - ax - u * dx, py - ay - u * dy);
-      if (d < bd) { bd = d; best = tr; }
-    }
-  }
-  return best;
-}
-function calls(tr) {
-  const first = tr.calls[0], last = tr.calls[tr.calls.length - 1];
-  return [first[0], first[2], last[0], last[1]];
-}
-function tipHtml(tr, t) {
-  const [o, dep, d, arr] = calls(tr);
-  const stops = tr.calls.filter(c => c[3]).length;
-  let h = "<b>" + tr.id + "</b> · " + tr.type + " · " + tr.svc + " · " + tr.dir + "<br>" +
-    o + " " + hhmm(dep) + " → " + d + " " + hhmm(arr) + " · " + stops + " of " + tr.calls.length + " calls stop";
-  const x = xAt(tr, t);
-  if (x !== null) {
-    let near = D.stations[0]; for (const s of D.stations) if (Math.abs(s[2] - x) < Math.abs(near[2] - x)) near = s;
-    h += "<br>at " + hhmm(t, true) + ": " + (x / 1000).toFixed(2) + " km (" + (Math.abs(near[2] - x) < 150 ? "at " : "near ") + near[0] + ")";
-  }
-  if (tr.m) {
-    h += "<table><tr><td>margin</td><td>" + tr.m.margin_s + " s</td><td>bad day</td><td>" + tr.m.remaining_margin_s +
-      " s</td></tr><tr><td>least on a leg</td><td>" + tr.m.min_remaining_margin_s + " s</td><td>legs</td><td>" + tr.m.n_legs + "</td></tr></table>";
-    const f = []; if (tr.m.n_impossible) f.push(tr.m.n_impossible + " impossible");
-    if (tr.m.n_short_bad_day) f.push(tr.m.n_short_bad_day + " short on a bad day"); if (tr.m.n_tight) f.push(tr.m.n_tight + " tight");
-    if (tr.m.n_unreachable) f.push(tr.m.n_unreachable + " unreachable");
-    if (f.length) h += "<span class='flag'>" + f.join(", ") + "</span><br>";
-  } else h += "<br>margin: not given";
-  if (tr.loops.length) h += "<br>stands on the loop at " + tr.loops.join(", ");
-  const cs = D.conflicts.filter(c => c[1] === tr.id || c[2] === tr.id);
-  if (cs.length) {
-    const ids = [...new Set(cs.map(c => c[0]))];
-    h += "<br><span class='flag'>" + ids.length + " conflict" + (ids.length > 1 ? "s" : "") + "</span>: " +
-      ids.slice(0, 3).map(i => { const c = cs.find(z => z[0] === i); return "#" + i + " with " + (c[1] === tr.id ? c[2] : c[1]) + " at " + (c[11] || c[9]) + " (delay " + c[7] + " s)"; }).join("; ");
-  }
-  return h + "<br><i>click: blocking-time stairway</i>";
-}
-function highlight(tr, cls) {
-  for (const p of gHi.querySelectorAll("." + cls)) p.remove();
-  if (!tr) return;
-  const p = tr.path.cloneNode(); p.setAttribute("stroke", cls === "sel" ? "#000" : tr.path.getAttribute("stroke"));
-  p.setAttribute("stroke-width", cls === "hov" ? 3 : 2.6); p.setAttribute("class", cls);
-  if (cls === "sel2") { p.setAttribute("stroke", "#000"); p.setAttribute("stroke-dasharray", "7 4"); }
-  gHi.appendChild(p);
-}
-function stair(tr, colour, edge, cls) {
-  // one train's blocking-time stairway: a box per window, opening to closing over the resource's chainage
-  const w = D.windows[tr.id];
-  if (!w) return 0;
-  const s = undelta(w[0], 10), lo = undelta(w[2], 1);
-  for (let i = 0; i < s.length; i++) {
-    const r = el("rect", {x: s[i], y: lo[i], width: w[1][i] / 10, height: Math.max(w[3][i], 25), fill: colour,
-      "fill-opacity": 0.45, stroke: edge, "stroke-width": 0.6, "vector-effect": "non-scaling-stroke", class: "window " + cls}, gStair);
-    r.dataset.train = tr.id;
-    const ti = el("title", {}, r); ti.textContent = tr.id + " · " + D.resources[w[4][i]] + ": " + hhmm(s[i], true) + "–" + hhmm(s[i] + w[1][i] / 10, true);
-  }
-  return s.length;
-}
-function clearSel() {
-  st.sel = null; st.con = null; gStair.textContent = "";
-  highlight(null, "sel"); highlight(null, "sel2");
-  for (const r of conRects) r.classList.remove("chosen");
-}
-function select(id) {
-  const tr = id ? byId.get(id) : null;
-  clearSel(); st.sel = tr;
-  highlight(tr, "sel");
-  const info = document.getElementById("selinfo");
-  if (!tr) { for (const id of ["tt-link", "chart-links"]) { const x = document.getElementById(id); if (x) x.style.display = "none"; }
-    info.textContent = "none"; history.replaceState(null, "", location.pathname + location.search); return; }
-  const n = stair(tr, D.conflict.stair_a, "#8a6500", "a");
-  info.textContent = tr.id + " (" + n + " blocking windows)";
-  const tt = document.getElementById("tt-link");
-  if (tt && D.tt) { tt.href = D.tt + "#train-" + encodeURIComponent(tr.id); tt.textContent = "running-time table of " + tr.id + " →"; tt.style.display = "inline"; }
-  const ch = document.getElementById("chart-links");
-  if (ch && D.charts) {
-    ch.textContent = " · speed–distance charts:";
-    const mine = (D.charts.by_train[tr.id] || []).map(i => D.charts.legs[i]);
-    for (const [label, href] of mine) {
-      const a = document.createElement("a"); a.href = href; a.textContent = label; ch.append(" ", a);
-    }
-    ch.style.display = mine.length ? "inline" : "none";
-  }
-  history.replaceState(null, "", "#train=" + encodeURIComponent(tr.id));
-}
-function conText(rows) {
-  const c = rows[0], t0 = Math.min(...rows.map(r => r[5])), t1 = Math.max(...rows.map(r => r[6]));
-  return "#" + c[0] + ": " + c[1] + " before " + c[2] + " at " + c[9] + (rows.length > 1 ? " and " + (rows.length - 1) + " more" : "") +
-    (c[11] ? " · " + c[11] : "") + " · " + hhmm(t0, true) + "–" + hhmm(t1, true) + " · delay " + c[7] + " s [" + c[8] + "]";
-}
-function selectConflict(cid, zoom) {
-  const rows = byCon.get(cid);
-  if (!rows) return;
-  clearSel();
-  const c = rows[0], A = byId.get(c[1]), B = byId.get(c[2]);
-  st.con = cid;
-  if (A) stair(A, D.conflict.stair_a, "#8a6500", "a");
-  if (B) stair(B, D.conflict.stair_b, "#1d5f86", "b");
-  for (const r of rows) {  // the overlap on each resource, over both stairways
-    const o = el("rect", {fill: D.conflict.colour, "fill-opacity": 0.9, stroke: "#000", "stroke-width": 2,
-      "vector-effect": "non-scaling-stroke", class: "overlap"}, gStair);
-    o.dataset.t0 = r[5]; o.dataset.t1 = r[6]; o.dataset.x0 = r[3]; o.dataset.x1 = r[4];
-    el("title", {}, o).textContent = "overlap " + hhmm(r[5], true) + "–" + hhmm(r[6], true) + " on " + r[9];
-  }
-  highlight(A, "sel"); highlight(B, "sel2");
-  for (const r of conRects) r.classList.toggle("chosen", +r.dataset.cid === cid);
-  document.getElementById("selinfo").textContent = conText(rows);
-  history.replaceState(null, "", "#conflict=" + cid);
-  if (zoom) {
-    // both trains' windows on the conflict's resources, with a quarter of an hour around them
-    const t0 = Math.min(...rows.map(r => r[5])), t1 = Math.max(...rows.map(r => r[6]));
-    if (st.t1 - st.t0 > 2 * 3600) setView(t0 - 900, t1 + 900); else sizeConflicts();
-  } else sizeConflicts();
-}
-svg.addEventListener("mousemove", ev => {
-  const r = svg.getBoundingClientRect(), px = ev.clientX - r.left, py = ev.clientY - r.top;
-  const box = ev.target.closest && ev.target.closest("rect.conflict");
-  st.hoverCon = box ? +box.dataset.cid : null;
-  if (box) {  // over a conflict: it, not the train under it
-    if (st.hover) { st.hover = null; highlight(null, "hov"); }
-    const rows = byCon.get(st.hoverCon);
-    tip.innerHTML = "<b>conflict " + conText(rows).replace(/ · /g, "<br>") + "</b><br>" + rows[0][10] +
-      (rows[0][12] !== null ? "<br>headway " + rows[0][12] + " s, minimum headway " + rows[0][13] + " s" : "") +
-      "<br><i>click: both trains' blocking-time stairways</i>";
-    tip.style.display = "block";
-    const left = px + 16 + 360 > W() ? px - 16 - tip.offsetWidth : px + 16;
-    tip.style.left = left + "px"; tip.style.top = Math.min(py + 12, H - tip.offsetHeight) + "px";
-    return;
-  }
-  const tr = (px > M.l && py > M.t && py < H - M.b) ? nearest(px, py) : null;
-  if (tr !== st.hover) { st.hover = tr; highlight(tr, "hov"); }
-  if (!tr) { tip.style.display = "none"; return; }
-  const t = st.t0 + (px - M.l) / PW() * (st.t1 - st.t0);
-  tip.innerHTML = tipHtml(tr, t); tip.style.display = "block";
-  const left = px + 16 + 360 > W() ? px - 16 - tip.offsetWidth : px + 16;
-  tip.style.left = left + "px"; tip.style.top = Math.min(py + 12, H - tip.offsetHeight) + "px";
-});
-svg.addEventListener("mouseleave", () => { tip.style.display = "none"; st.hover = null; highlight(null, "hov"); });
-svg.addEventListener("click", ev => {
-  const box = ev.target.closest && ev.target.closest("rect.conflict");
-  if (box) { tip.style.display = "none"; selectConflict(+box.dataset.cid, true); } else select(st.hover ? st.hover.id : null);
-});
-svg.addEventListener("wheel", ev => {
-  ev.preventDefault();
-  const r = svg.getBoundingClientRect(), px = ev.clientX - r.left;
-  const f = Math.exp(ev.deltaY * 0.0015), t = st.t0 + (px - M.l) / PW() * (st.t1 - st.t0);
-  setView(t - (t - st.t0) * f, t + (st.t1 - t) * f);
-}, {passive: false});
-let drag = null;
-svg.addEventListener("mousedown", ev => { drag = {x: ev.clientX, t0: st.t0, t1: st.t1}; });
-window.addEventListener("mouseup", () => { drag = null; });
-window.addEventListener("mousemove", ev => {
-  if (!drag) return; const dt = (ev.clientX - drag.x) / PW() * (drag.t1 - drag.t0);
-  if (Math.abs(ev.clientX - drag.x) > 2) setView(drag.t0 - dt, drag.t1 - dt);
-});
-svg.addEventListener("dblclick", () => setView(D.day[0], D.day[1]));
-const hours = document.getElementById("hours");
-const all = document.createElement("button"); all.textContent = "day"; all.className = "hour";
-all.dataset.t0 = D.day[0]; all.dataset.t1 = D.day[1]; hours.appendChild(all);
-for (let t = D.day[0]; t < D.day[1]; t += 3600) {
-  const b = document.createElement("button"); b.textContent = hhmm(t).slice(0, 2); b.className = "hour";
-  b.dataset.t0 = t; b.dataset.t1 = t + 3600; b.title = hhmm(t) + "–" + hhmm(t + 3600); hours.appendChild(b);
-}
-hours.addEventListener("click", ev => { const b = ev.target.closest("button"); if (b) setView(+b.dataset.t0, +b.dataset.t1); });
-for (const k of ["down", "up", "conflicts"]) document.getElementById("show-" + k).addEventListener("change", ev => { st.show[k] = ev.target.checked; visible(); });
-document.getElementById("find").addEventListener("change", ev => {
-  const tr = byId.get(ev.target.value.trim());
-  ev.target.style.background = tr || !ev.target.value ? "" : "#fdecea";
-  if (tr) { select(tr.id); setView(tr.t0 - 600, tr.t1 + 600); }
-});
-window.addEventListener("resize", layout);
-layout(); visible();
-const m = /train=([^&]+)/.exec(location.hash), mc = /conflict=(\d+)/.exec(location.hash);
-const want = m ? decodeURIComponent(m[1]) : D.select;
-if (mc && byCon.has(+mc[1])) selectConflict(+mc[1], true);
-else if (want && byId.has(want)) select(want);
-document.body.dataset.ready = "1";
-"""
+    return files("planner.pages").joinpath("assets", name).read_text(encoding="utf-8")
+
+
+PAGE_CSS = _asset("train_graph.css")
+PAGE_JS = _asset("train_graph.js")
 
 
 def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = None,
-                train: str | None = None, title_note: str = "", timetable_href: str | None = None,
-                charts: dict[str, list[tuple[str, str]]] | None = None) -> str:
+                train: str | None = None, run_label: str = "", timetable_href: str | None = None,
+                charts: dict[str, list[tuple[str, str]]] | None = None,
+                links: Sequence[tuple[str, str]] = ()) -> str:
     """The interactive train graph as one self-contained HTML page (inline data, CSS and script).
 
     Parameters
     ----------
     t0, t1 : float, optional
-        Initial time window [s after midnight] (default: the whole day).
+        Initial time window [s after midnight]. Default: the selected train's run with ten minutes either
+        side, else :func:`planner.report.train_graph.start_window` (the morning peak, two hours); the
+        whole day is one click away, and ``#train=ID`` in the address opens on that train.
     train : str, optional
-        Train selected when the page opens (its stairway shown).
-    title_note : str
-        Extra text for the subtitle (e.g. the run id).
+        Train selected when the page opens (its stairway shown); matched as
+        :func:`planner.report.train_graph.match_train` does.
+    run_label : str
+        The run and its operating day (:func:`run_label`), under the title.
     timetable_href : str, optional
         The line's running-time tables page (a run's ``timetable/<line>_timetable.html``, relative to this
         page): a selected train gets a link to its table there (``#train-<id>``).
     charts : dict, optional
         ``train_id`` → ``[(label, href)]`` of its legs' speed–distance charts (relative to this page):
         a selected train gets a link to each.
+    links : sequence of (label, href)
+        The run's other pages, at the top (overview, margin report, running-time tables).
     """
     payload = page_payload(data)
-    lo, hi = time_window(data, t0, t1)
-    if train:
-        data.train(train)
-    payload["view"] = [lo, hi]
-    payload["select"] = train
+    sel = data.train(train) if train else None
+    if t0 is not None or t1 is not None:
+        lo, hi = time_window(data, t0, t1)
+        name = "chosen"
+    elif sel is not None:
+        lo, hi = sel.start_s - 600.0, sel.end_s + 600.0
+        name = sel.train_id
+    else:
+        lo, hi = start_window(data)
+        name = "morning peak"
+    payload["view"] = payload["start_view"] = [lo, hi]
+    payload["start_view_name"] = name
+    payload["select"] = sel.train_id if sel is not None else None
     if timetable_href:
         payload["tt"] = timetable_href
     if charts:  # each leg's link once, trains by index (a leg is run by many trains)
@@ -466,18 +156,21 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
     nc = int(data.conflicts.conflict_id.nunique()) if data.conflicts is not None and len(data.conflicts) else 0
     nc_text = f"{nc} conflicts" if data.conflicts is not None else "conflicts not checked"
     e = html.escape
+    title = line_title(data.line_name, data.line_id)
     keys = " ".join(f"<span><span class='key' style='border-color:{c}'></span>{e(d)} {e(s)} ({svc[(d, s)]})</span>"
                     for (d, s), c in COLOURS.items())
     notes = "".join(f"<li>{e(x)}</li>" for x in data.notes)
+    nav = " · ".join(f"<a href='{e(h)}'>{e(lbl)}</a>" for lbl, h in links)
+    top = " · ".join(x for x in (nav, f"<span id='run'>{e(run_label)}</span>" if run_label else "") if x)
     return (
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
         "<meta name='viewport' content='width=device-width, initial-scale=1'>"
-        f"<title>Train graph — {e(data.line_name)}</title><style>{PAGE_CSS}</style></head><body>"
-        f"<header><h1>Train graph — {e(data.line_name)} <span style='color:#777;font-weight:400'>({e(data.line_id)})</span></h1>"
+        f"<title>Train graph — {e(title)}</title><style>{PAGE_CSS}</style></head><body>"
+        f"<header>{f'<p class=sub id=top>{top}</p>' if top else ''}<h1>Train graph — {e(title)}</h1>"
         f"<p class='sub'>{n} trains · {nc_text} · stations at their chainage, time along the axis; "
-        f"each line is the train front's predicted run{(' · ' + e(title_note)) if title_note else ''}</p></header>"
-        "<div class='bar'><span>zoom: <span id='hours'></span></span>"
-        "<span>view <b id='range'></b></span></div>"
+        "each line is the train front's predicted run</p></header>"
+        "<div class='bar'><span>view: <span id='hours'></span></span>"
+        "<span>showing <b id='range'></b></span></div>"
         "<div class='bar'>"
         f"{keys} <span><span class='box' style='background:{CONFLICT_COLOUR}'></span>conflict (click)</span>"
         "<span>▭ loop stop</span>"
@@ -490,20 +183,42 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "<datalist id='train-ids'>" + "".join(f"<option value='{e(t.train_id)}'>" for t in data.trains) + "</datalist>"
         "<div id='wrap'><svg id='graph' xmlns='http://www.w3.org/2000/svg' role='img' "
         "aria-label='time-distance train graph'></svg><div id='tip'></div></div>"
-        "<div id='info'><p>Hover a train for its number, type, times and margin; click it (or type its number) for its "
-        "blocking-time stairway: one box per section or switch from the window's opening (entry − route setting − "
-        "approach) to its closing (tail clear + release)"
+        "<div id='info'><p>Hover a train for its number, type, times and margin; click it (or type its number, in "
+        "any case) for its blocking-time stairway: one box per section or switch from the window's opening (entry − "
+        "route setting − approach) to its closing (tail clear + release)"
         f"{', and a link to its running-time table and speed–distance charts' if timetable_href else ''}. "
         "Magenta boxes: two trains' windows overlap (a conflict); click "
         f"one for both trains' stairways (<span class='box' style='background:{STAIR_COLOUR};opacity:.6'></span>the "
         f"train that goes first, <span class='box' style='background:{STAIR_B_COLOUR};opacity:.6'></span>the one that "
-        "waits, its path dashed) with the overlap, or open the page at <code>#conflict=N</code>. "
+        "waits, its path dashed) with the overlap. The page opens on the morning peak; <i>whole day</i> shows "
+        "every train, an hour's button that hour. Open it at <code>#train=ID</code> for a train's run or at "
+        "<code>#conflict=N</code> for a conflict. "
         "Mouse wheel zooms the time axis, drag pans, double-click shows the whole day. "
         "A <i>rapid</i> passes at least one station; a <i>local</i> stops at every one.</p>"
         f"{('<ul>' + notes + '</ul>') if notes else ''}</div>"
         f"<script type='application/json' id='graph-data'>{js}</script>"
         f"<script>{PAGE_JS}</script></body></html>\n"
     )
+
+
+def run_label(run_id: str | None, run_date: str | None = None, day: Mapping[str, Any] | None = None) -> str:
+    """``run r0007-… of 2026-11-27 · operating day Mon 2026-11-30 (from 03:00, Asia/Tokyo)`` from a
+    run's manifest fields (``run_id``, ``run_date``, ``operating_day``); the parts not known are left out."""
+    import datetime
+
+    parts = []
+    if run_id:
+        parts.append(f"run {run_id}" + (f" of {run_date}" if run_date else ""))
+    if day and day.get("day"):
+        d = str(day["day"])
+        try:
+            d = f"{datetime.date.fromisoformat(d):%a} {d}"
+        except ValueError:
+            pass
+        where = [f"from {str(day['start'])[11:16]}"] if day.get("start") else []  # to the same hour the next day
+        where += [str(day["time_zone"])] if day.get("time_zone") else []
+        parts.append(f"operating day {d}" + (f" ({', '.join(where)})" if where else ""))
+    return " · ".join(parts)
 
 
 def write_page(data: GraphData, path: str | Path, **kw) -> Path:

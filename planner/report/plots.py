@@ -12,7 +12,7 @@ Charts
 ------
 * margin report (:mod:`planner.pages.margin_report`): :func:`margin_chart`,
   :func:`curves_chart`, :func:`adhesion_chart`;
-* train graph (``planner graph``): :func:`train_graph_chart`;
+* train graph (``planner graph``): :func:`planner.report.train_graph.train_graph_chart`;
 * station approach (``planner stops --plot``): :func:`approach_chart`;
 * one run (``planner runtime --plot``): :func:`run_curve_chart`;
 * time-keeping run (``planner timekeeping --plot``): :func:`timekeeping_chart`;
@@ -26,7 +26,6 @@ distance to the stop marker [m], the way a braking curve is read.
 from __future__ import annotations
 
 import io
-import math
 import os
 from pathlib import Path
 
@@ -296,107 +295,6 @@ def adhesion_chart(report) -> tuple[str, str]:
         hardest = (f"The hardest approach for {tt} is {d} {o} → {de}: the stopping pattern takes {t1:.1f} s "
                    f"at {a1:g} km/h/s and {t0:.1f} s at {a0:g} km/h/s (+{t0 - t1:.1f} s).")
     return inline_svg(fig), hardest
-
-
-# --- the train graph ------------------------------------------------------------------
-
-def train_graph_chart(data, path: str | Path, *, direction: str = "both", t0: float | None = None,
-               t1: float | None = None, train: str | None = None) -> Path:
-    """The train graph as an SVG or PNG file (by the suffix), written atomically.
-
-    Parameters
-    ----------
-    direction : {"both", "down", "up"}
-    t0, t1 : float, optional
-        Time window [s after midnight] (default: the whole day, whole hours).
-    train : str, optional
-        A train to highlight, with its blocking-time stairway.
-    """
-    from matplotlib.collections import LineCollection, PatchCollection
-    from matplotlib.patches import Rectangle
-
-    from planner.io.atomic import write_bytes_atomic
-    from planner.report.train_graph import COLOURS, CONFLICT_COLOUR, STAIR_COLOUR, clip_path, hhmm, time_window
-
-    plt = _agg()
-
-    path = Path(path)
-    fmt = path.suffix.lower().lstrip(".")
-    if fmt not in ("svg", "png"):
-        raise InputError(f"{path}: the chart is written as .svg or .png, not {path.suffix or 'no suffix'}")
-    if direction not in ("both", "down", "up"):
-        raise InputError(f"direction must be both, down or up, not {direction!r}")
-    lo, hi = time_window(data, t0, t1)
-    sel = data.train(train) if train else None
-    hours = (hi - lo) / 3600.0
-    width = float(min(max(8.0, 2.2 * hours + 2.0), 48.0))
-    plt.rcParams.update({"svg.hashsalt": "planner-graph", "svg.fonttype": "none", "font.size": 8})
-    fig, ax = plt.subplots(figsize=(width, 7.5), dpi=100)
-    ax.set_xlim(lo, hi)
-    ax.set_ylim(data.end_m, data.start_m)  # origin at the top
-    for sid, name, x in data.stations:
-        ax.axhline(x, color="#c8ccd1", lw=0.6, zorder=0)
-    ax.set_yticks([x for _, _, x in data.stations])
-    ax.set_yticklabels([f"{name} ({sid})" for sid, name, _ in data.stations])
-    step = 3600 if hours > 3 else 600 if hours > 1 else 300
-    ticks = np.arange(math.ceil(lo / step) * step, hi + 1, step)
-    ax.set_xticks(ticks)
-    ax.set_xticklabels([hhmm(t) for t in ticks])
-    if step < 3600:
-        ax.set_xticks(np.arange(math.ceil(lo / 3600) * 3600, hi + 1, 3600), minor=True)
-    ax.grid(axis="x", color="#e3e6ea", lw=0.5)
-    ax.grid(axis="x", which="minor", color="#b9bec4", lw=0.8)
-    groups: dict[tuple[str, str], list] = {}
-    for tp in data.trains:
-        if direction != "both" and tp.direction != direction:
-            continue
-        if tp.end_s < lo or tp.start_s > hi:
-            continue
-        t, x = clip_path(tp.t_s, tp.x_m, lo, hi)
-        groups.setdefault((tp.direction, tp.service), []).append(np.column_stack([t, x]))
-    for (d, svc), segs in sorted(groups.items()):
-        ax.add_collection(LineCollection(segs, colors=COLOURS[(d, svc)], linewidths=1.2 if svc == "rapid" else 0.8,
-                                         label=f"{d} {svc} ({len(segs)})", zorder=2))
-    # loop stops: a ring where a train stands on the loop
-    pos = {sid: x for sid, _, x in data.stations}
-    for tp in data.trains:
-        if not tp.loop_stations or (direction != "both" and tp.direction != direction):
-            continue
-        for sid, arr, dep, _ in tp.calls:
-            if sid in tp.loop_stations and lo <= arr <= hi:
-                ax.plot([(arr + dep) / 2], [pos[sid]], marker="o", ms=5, mfc="none", mec="#333", mew=0.8, zorder=3)
-    con = data.conflicts
-    if con is not None and len(con):
-        c = con if direction == "both" else con[(con.direction_a == direction) | (con.direction_b == direction)]
-        c = c[(c.overlap_end_s >= lo) & (c.overlap_start_s <= hi)]
-        rects = [Rectangle((r.overlap_start_s, r.from_m), max(r.overlap_end_s - r.overlap_start_s, 1.0),
-                           max(r.to_m - r.from_m, 1.0)) for r in c.itertuples()]
-        if rects:
-            ax.add_collection(PatchCollection(rects, facecolor=CONFLICT_COLOUR, edgecolor="black", lw=0.8,
-                                              alpha=0.85, zorder=4))
-            # a marker of fixed size at each overlap, so a few seconds over a few hundred metres stay visible
-            ax.scatter((c.overlap_start_s + c.overlap_end_s) / 2, (c.from_m + c.to_m) / 2, s=36, marker="s",
-                       c=CONFLICT_COLOUR, edgecolors="black", linewidths=0.8, zorder=4,
-                       label=f"conflict: windows overlap ({c.conflict_id.nunique()})")
-    if sel is not None:
-        w = data.windows
-        if w is not None and len(w):
-            mine = w[w.train_id == sel.train_id]
-            rects = [Rectangle((r.start_s, min(r.from_m, r.to_m)), r.end_s - r.start_s,
-                               max(abs(r.to_m - r.from_m), 20.0)) for r in mine.itertuples()]
-            ax.add_collection(PatchCollection(rects, facecolor=STAIR_COLOUR, edgecolor="#8a6500", lw=0.4,
-                                              alpha=0.45, zorder=1))
-            ax.plot([], [], "s", color=STAIR_COLOUR, label=f"{sel.train_id}: blocking-time stairway")
-        ax.plot(sel.t_s, sel.x_m, color="black", lw=2.2, zorder=5, label=f"train {sel.train_id}")
-    ax.legend(loc="upper right", fontsize=7, framealpha=0.9)
-    dirs = "both directions" if direction == "both" else direction
-    ax.set_title(f"{data.line_name} ({data.line_id}) — train graph, {dirs}, {hhmm(lo)}–{hhmm(hi)}")
-    ax.set_xlabel("time")
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format=fmt, metadata={"Date": None, "Creator": "planner"} if fmt == "svg" else {"Software": None})
-    plt.close(fig)
-    return write_bytes_atomic(path, buf.getvalue()) or path
 
 
 # --- a station approach, one run, a time-keeping run ------------------------------------

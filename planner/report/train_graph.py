@@ -29,7 +29,7 @@ What the graph shows:
   one box per section/switch from window opening (entry − setting − approach)
   to closing (tail clear + release).
 
-Outputs: :func:`planner.report.plots.train_graph_chart` (SVG or PNG by the file suffix, one direction or
+Outputs: :func:`train_graph_chart` (SVG or PNG by the file suffix, one direction or
 both), :func:`planner.pages.train_graph.render_page` (one self-contained HTML page, no network, inline
 SVG built by a small script from compact data: zoom to an hour, hover a train
 for number, type, times and margin, click it for its stairway).
@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
@@ -54,7 +55,7 @@ from planner.line.model import Line, Train, sign
 
 __all__ = [
     "TOL_T_S", "TOL_X_M", "TrainPath", "GraphData", "service_of", "simplify", "train_paths",
-    "graph_data", "parse_hhmm", "hhmm", "time_window", "clip_path",
+    "graph_data", "parse_hhmm", "hhmm", "time_window", "start_window", "match_train", "clip_path", "train_graph_chart",
 ]
 
 TOL_T_S = 1.0
@@ -244,8 +245,10 @@ class GraphData:
     notes: list[str] = field(default_factory=list)
 
     def train(self, train_id: str) -> TrainPath:
+        """The train of that id, matched as :func:`match_train` does (case-insensitive when unambiguous)."""
+        found = match_train([t.train_id for t in self.trains], train_id)
         for t in self.trains:
-            if t.train_id == train_id:
+            if t.train_id == found:
                 return t
         raise InputError(f"--train {train_id}: no such train on line {self.line_id} "
                          f"(e.g. {', '.join(t.train_id for t in self.trains[:3])})")
@@ -366,8 +369,154 @@ def time_window(data: GraphData, t0: float | None, t1: float | None) -> tuple[fl
     return float(lo), float(hi)
 
 
+START_HOURS = 2.0
+"""Length of the window the page opens on [h]: the sample's 07:00-09:00 draws 63 trains, a train of each
+direction about every 4 minutes, 40 px apart on a 1400 px window (the whole day, 356 trains in 20 h,
+puts them 7 px apart)."""
+
+
+def start_window(data: GraphData, hours: float = START_HOURS) -> tuple[float, float]:
+    """The readable window a page opens on: ``hours`` long, starting on a whole hour inside the day's whole
+    hours, the one that holds the most trains among those starting before noon (the morning peak; all of them
+    when the day starts after noon; the earliest on a tie). A day no longer than that is shown whole.
+
+    A train counts in a window when its run overlaps it (it is drawn there)."""
+    lo, hi = time_window(data, None, None)
+    span = hours * 3600.0
+    if hi - lo <= span or not data.trains:
+        return lo, hi
+    starts = np.arange(lo, hi - span + 1.0, 3600.0)
+    if (starts < 12 * 3600.0).any():
+        starts = starts[starts < 12 * 3600.0]
+    a = np.array([t.start_s for t in data.trains])
+    b = np.array([t.end_s for t in data.trains])
+    n = [int(np.count_nonzero((a < s + span) & (b > s))) for s in starts]
+    best = float(starts[int(np.argmax(n))])
+    return best, best + span
+
+
+def match_train(ids: Iterable[str], text: str) -> str | None:
+    """The id of ``ids`` that ``text`` names: the same, else the only one equal ignoring case; None otherwise
+    (the page's search box and ``#train=`` match the same way)."""
+    ids = list(ids)
+    text = str(text).strip()
+    if text in ids:
+        return text
+    folded = [i for i in ids if i.lower() == text.lower()]  # as the page's toLowerCase
+    return folded[0] if len(folded) == 1 else None
+
+
 def clip_path(t: np.ndarray, x: np.ndarray, lo: float, hi: float):
     """The part of a polyline inside [lo, hi] in time, one point beyond each end kept (for clipping)."""
     i0 = max(int(np.searchsorted(t, lo, side="left")) - 1, 0)
     i1 = min(int(np.searchsorted(t, hi, side="right")) + 1, len(t))
     return t[i0:i1], x[i0:i1]
+
+
+# ---------------------------------------------------------------------------
+# Chart
+# ---------------------------------------------------------------------------
+def train_graph_chart(data, path: str | Path, *, direction: str = "both", t0: float | None = None,
+               t1: float | None = None, train: str | None = None, run_label: str = "") -> Path:
+    """The train graph as an SVG or PNG file (by the suffix), written atomically; the legend right of the plot.
+
+    Parameters
+    ----------
+    direction : {"both", "down", "up"}
+    t0, t1 : float, optional
+        Time window [s after midnight] (default: the whole day, whole hours).
+    train : str, optional
+        A train to highlight, with its blocking-time stairway.
+    run_label : str
+        The run and its operating day (:func:`planner.pages.train_graph.run_label`), a second title line.
+    """
+    import io
+
+    from matplotlib.collections import LineCollection, PatchCollection
+    from matplotlib.patches import Rectangle
+
+    from planner.io.atomic import write_bytes_atomic
+    from planner.line.model import line_title
+    from planner.report.plots import _agg
+
+    plt = _agg()
+
+    path = Path(path)
+    fmt = path.suffix.lower().lstrip(".")
+    if fmt not in ("svg", "png"):
+        raise InputError(f"{path}: the chart is written as .svg or .png, not {path.suffix or 'no suffix'}")
+    if direction not in ("both", "down", "up"):
+        raise InputError(f"direction must be both, down or up, not {direction!r}")
+    lo, hi = time_window(data, t0, t1)
+    sel = data.train(train) if train else None
+    hours = (hi - lo) / 3600.0
+    width = float(min(max(8.0, 2.2 * hours + 2.0), 48.0))
+    plt.rcParams.update({"svg.hashsalt": "planner-graph", "svg.fonttype": "none", "font.size": 8})
+    fig, ax = plt.subplots(figsize=(width, 7.5), dpi=100)
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(data.end_m, data.start_m)  # origin at the top
+    for sid, name, x in data.stations:
+        ax.axhline(x, color="#c8ccd1", lw=0.6, zorder=0)
+    ax.set_yticks([x for _, _, x in data.stations])
+    ax.set_yticklabels([f"{name} ({sid})" for sid, name, _ in data.stations])
+    step = 3600 if hours > 3 else 600 if hours > 1 else 300
+    ticks = np.arange(math.ceil(lo / step) * step, hi + 1, step)
+    ax.set_xticks(ticks)
+    ax.set_xticklabels([hhmm(t) for t in ticks])
+    if step < 3600:
+        ax.set_xticks(np.arange(math.ceil(lo / 3600) * 3600, hi + 1, 3600), minor=True)
+    ax.grid(axis="x", color="#e3e6ea", lw=0.5)
+    ax.grid(axis="x", which="minor", color="#b9bec4", lw=0.8)
+    groups: dict[tuple[str, str], list] = {}
+    for tp in data.trains:
+        if direction != "both" and tp.direction != direction:
+            continue
+        if tp.end_s < lo or tp.start_s > hi:
+            continue
+        t, x = clip_path(tp.t_s, tp.x_m, lo, hi)
+        groups.setdefault((tp.direction, tp.service), []).append(np.column_stack([t, x]))
+    for (d, svc), segs in sorted(groups.items()):
+        ax.add_collection(LineCollection(segs, colors=COLOURS[(d, svc)], linewidths=1.2 if svc == "rapid" else 0.8,
+                                         label=f"{d} {svc} ({len(segs)})", zorder=2))
+    # loop stops: a ring where a train stands on the loop
+    pos = {sid: x for sid, _, x in data.stations}
+    for tp in data.trains:
+        if not tp.loop_stations or (direction != "both" and tp.direction != direction):
+            continue
+        for sid, arr, dep, _ in tp.calls:
+            if sid in tp.loop_stations and lo <= arr <= hi:
+                ax.plot([(arr + dep) / 2], [pos[sid]], marker="o", ms=5, mfc="none", mec="#333", mew=0.8, zorder=3)
+    con = data.conflicts
+    if con is not None and len(con):
+        c = con if direction == "both" else con[(con.direction_a == direction) | (con.direction_b == direction)]
+        c = c[(c.overlap_end_s >= lo) & (c.overlap_start_s <= hi)]
+        rects = [Rectangle((r.overlap_start_s, r.from_m), max(r.overlap_end_s - r.overlap_start_s, 1.0),
+                           max(r.to_m - r.from_m, 1.0)) for r in c.itertuples()]
+        if rects:
+            ax.add_collection(PatchCollection(rects, facecolor=CONFLICT_COLOUR, edgecolor="black", lw=0.8,
+                                              alpha=0.85, zorder=4))
+            # a marker of fixed size at each overlap, so a few seconds over a few hundred metres stay visible
+            ax.scatter((c.overlap_start_s + c.overlap_end_s) / 2, (c.from_m + c.to_m) / 2, s=36, marker="s",
+                       c=CONFLICT_COLOUR, edgecolors="black", linewidths=0.8, zorder=4,
+                       label=f"conflict: windows overlap ({c.conflict_id.nunique()})")
+    if sel is not None:
+        w = data.windows
+        if w is not None and len(w):
+            mine = w[w.train_id == sel.train_id]
+            rects = [Rectangle((r.start_s, min(r.from_m, r.to_m)), r.end_s - r.start_s,
+                               max(abs(r.to_m - r.from_m), 20.0)) for r in mine.itertuples()]
+            ax.add_collection(PatchCollection(rects, facecolor=STAIR_COLOUR, edgecolor="#8a6500", lw=0.4,
+                                              alpha=0.45, zorder=1))
+            ax.plot([], [], "s", color=STAIR_COLOUR, label=f"{sel.train_id}: blocking-time stairway")
+        ax.plot(sel.t_s, sel.x_m, color="black", lw=2.2, zorder=5, label=f"train {sel.train_id}")
+    leg = ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), borderaxespad=0.0, fontsize=7, framealpha=0.9)
+    dirs = "both directions" if direction == "both" else direction
+    ax.set_title(f"{line_title(data.line_name, data.line_id)} — train graph, {dirs}, {hhmm(lo)}–{hhmm(hi)}"
+                 + (f"\n{run_label}" if run_label else ""))
+    ax.set_xlabel("time")
+    fig.set_figwidth(width + leg.get_window_extent().width / fig.dpi + 0.1)  # outside: the plot keeps its size
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt, metadata={"Date": None, "Creator": "planner"} if fmt == "svg" else {"Software": None})
+    plt.close(fig)
+    return write_bytes_atomic(path, buf.getvalue()) or path
