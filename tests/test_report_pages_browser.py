@@ -203,3 +203,16 @@ def test_chart_shows_the_days_temporary_restriction_apart_from_the_permanent_lim
     other = wide.open(run / "charts" / "tiny" / "down_EMU10_B-C_270s.html")
     assert "TSR-T1" not in other.eval("document.body.textContent")
     assert "No temporary speed restriction of the day reaches this leg" in other.eval("document.body.innerText")
+
+
+def test_overview_says_the_operating_day_and_the_run_date(wide, tmp_path):
+    from planner.pages.overview import write_overview
+
+    run = tmp_path / RUN
+    run.mkdir()
+    manifest = {"run_id": RUN, "run_date": "2026-11-27", "operating_day": DAY, "job": "nightly", "lines": []}
+    page = wide.open(write_overview(run, manifest))
+    _clean(page)
+    _fits(page, 1400)
+    assert page.eval("document.querySelector('p.date').innerText") == (
+        "O" + DAY_WORDS[1:] + " · run date 2026-11-27 (stamped on every dataset row)")

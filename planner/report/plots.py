@@ -120,8 +120,9 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
                              squeeze=False)
     lo = min(min(stations.values()), 0.0) / 1000.0
     hi = max(stations.values()) / 1000.0
-    ymin = min(0.0, float(np.nanmin(rows.remaining_margin_s))) - 3
     ymax = max(float(np.nanmax(rows.margin_s)), float(np.nanmax(rows.supplement_required_s))) + 4
+    ymin = min(0.0, float(np.nanmin(rows.remaining_margin_s)))
+    ymin -= max(3.0, 0.12 * (ymax - ymin))  # room for the label under the lowest bar
     for ax, (title, sub) in zip(axes[:, 0], groups):
         # several scheduled times on one leg: draw the one with the least remaining margin
         sub = sub.sort_values("remaining_margin_s", kind="stable").drop_duplicates(["origin", "destination"])
