@@ -8,8 +8,9 @@ date in the SVG metadata.
 
 Sections, in the order a timetable planner reads them:
 
-1. headline: line, directions, train types, the conditions assumed, counts
-   of flags, totals per direction and train type, and what stands out;
+1. headline: the run's other pages, its id and operating day (in a run), line,
+   directions, train types, the conditions assumed, counts of flags, the flagged
+   legs with their trains, totals per direction and train type, and what stands out;
 2. margin per interstation along the line, one chart per direction with a
    row per train type: the margin (scheduled − minimum), the margin that
    remains on a bad day (scheduled − degraded minimum), the supplement the
