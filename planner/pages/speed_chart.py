@@ -117,7 +117,8 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
     ax.set_ylim(0, top)
     for k, s in enumerate(temps):
         a, b, v = max(s.start_m, lo) / 1000.0, min(s.end_m, hi) / 1000.0, kmh(s.limit_ms)
-        ax.axvspan(a, b, ymax=0.8, facecolor=(0.94, 0.42, 0.0, 0.07), hatch="//", edgecolor="#eb9452", lw=0)
+        # an opaque fill: an alpha would fade the hatch with it
+        ax.axvspan(a, b, ymax=0.8, facecolor="#fff3e8", hatch="//", edgecolor="#f2b48a", lw=0)
         ax.plot([a, a, b, b], [top * 0.8, v, v, top * 0.8], color="#e65100", lw=1.8,
                 label="temporary speed restriction (the day's feed)" if k == 0 else None)
         ax.text(0.5 * (a + b), top * 0.8, f"{s.restriction_id}\n{v:.0f} km/h", ha="center", va="bottom",
