@@ -137,7 +137,9 @@ def passing_while_lifted(line, leg: dict, windows: dict, day: str, tz: str) -> l
 
 
 def _num(x, fmt: str = "{:+.1f}") -> str:
-    return "" if x is None or (isinstance(x, float) and math.isnan(x)) else fmt.format(x)
+    from planner.line.units import fixed  # never -0.0
+
+    return fixed(x, int(fmt.rsplit(".", 1)[1][0]), "+" in fmt, none="")
 
 
 def render(line, day: dict | None, rows, ds_m: float = 1.0) -> str:
