@@ -87,11 +87,12 @@ def _published(root: Path) -> dict[str, str]:
             rel = p.relative_to(run).as_posix()
             if rel == "index.html" or rel.startswith("changes/"):
                 continue  # the overview shows each step's timings; changes compare with an earlier run
-            if rel.startswith("report/") and rel.endswith(".html"):
+            if rel.endswith(".html"):
                 import re  # the report's "what changed since the last run" section, likewise
 
-                text = re.sub(r"<style>[^<]*</style><section class='changes'.*?</section>", "", p.read_text(),
-                              flags=re.S)
+                text = p.read_text().replace(run.resolve().name, "RUN")  # every page names its run at the top
+                if rel.startswith("report/"):
+                    text = re.sub(r"<style>[^<]*</style><section class='changes'.*?</section>", "", text, flags=re.S)
                 out[rel] = hashlib.sha256(text.encode()).hexdigest()
                 continue
             if rel == "manifest.json":

@@ -241,20 +241,21 @@ def test_train_ids_match_in_any_case_when_only_one_train_fits():
 
 
 def test_titles_name_the_line_once_and_the_run(tmp_path):
-    from planner.pages.train_graph import run_label
+    from planner.pages.run_head import run_words
 
-    label = run_label("r0007-0123456789", "2026-11-27", {"day": "2026-11-30", "time_zone": "Asia/Tokyo",
-                                                        "start": "2026-11-30T03:00:00+09:00",
-                                                        "end": "2026-12-01T03:00:00+09:00"})
-    assert label == "run r0007-0123456789 of 2026-11-27 · operating day Mon 2026-11-30 (from 03:00, Asia/Tokyo)"
-    assert run_label(None) == "" and run_label("r1") == "run r1"
+    label = run_words("r0007-0123456789", {"day": "2026-11-30", "time_zone": "Asia/Tokyo",
+                                           "start": "2026-11-30T03:00:00+09:00",
+                                           "end": "2026-12-01T03:00:00+09:00"}, "2026-11-27")
+    assert label == ("run r0007-0123456789 of 2026-11-27 · operating day Monday 2026-11-30, 03:00 to 03:00 the next "
+                     "day (Asia/Tokyo)")
+    assert run_words(None, None) == "" and run_words("r1", None) == "run r1"
     g = day_graph("Minato Line (two)")  # a name that already ends with the id: said once
     page = render_page(g, run_label=label, links=[("overview", "../index.html")])
     assert "<h1>Train graph — Minato Line (two)</h1>" in page and "(two) (two)" not in page
-    assert "operating day Mon 2026-11-30" in page and "<a href='../index.html'>overview</a>" in page
+    assert "operating day Monday 2026-11-30" in page and "<a href='../index.html'>overview</a>" in page
     assert "Train graph — Two Stations (two)</h1>" in render_page(day_graph("Two Stations"))
     svg = draw_chart(g, tmp_path / "g.svg", run_label=label).read_text()
-    assert "Minato Line (two) — train graph" in svg and "(two) (two)" not in svg and "operating day Mon" in svg
+    assert "Minato Line (two) — train graph" in svg and "(two) (two)" not in svg and "operating day Monday" in svg
 
 
 def test_the_chart_legend_stands_outside_the_plot(tmp_path):

@@ -65,8 +65,12 @@ def _run(job_path: Path):
 
 
 def _tree_digest(folder: Path) -> dict[str, str]:
+    """SHA-256 of every file under ``folder``; in a page (.html), the run's id (the folder's name, which every
+    page names at its top) is read as ``RUN``, so pages of two runs compare by what they show."""
     return {
-        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        p.relative_to(folder).as_posix():
+            hashlib.sha256(p.read_bytes().replace(folder.name.encode(), b"RUN") if p.suffix == ".html"
+                           else p.read_bytes()).hexdigest()
         for p in sorted(folder.rglob("*")) if p.is_file()
     }
 
@@ -92,7 +96,7 @@ def _assert_same_but_run_id(run_a: Path, run_b: Path, skip: str = "", no_changes
             for k in [k for k in d if k.startswith("changes/")]:
                 d.pop(k)
             for k in [k for k in d if k.startswith("report/") and k.endswith("_margins.html")]:
-                text = (folder / k).read_text()
+                text = (folder / k).read_text().replace(folder.name, "RUN")
                 text = re.sub(r"<style>[^<]*</style><section class='changes'.*?</section>", "", text, flags=re.S)
                 d[k] = hashlib.sha256(text.encode()).hexdigest()
     if skip:

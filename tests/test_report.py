@@ -111,7 +111,7 @@ def _shown_cost(cell: str) -> tuple[float, list[float]]:
 def flagged_costs(page: str) -> list[tuple[float, list[float]]]:
     """The bad-day cost cells of the page's flagged-legs table."""
     table = page.split("<h3>Flagged legs", 1)[1].split("</table>", 1)[0]
-    return [_shown_cost(c) for c in re.findall(r"<td>(-?\d+\.\d = [^<]+)</td>", table)]
+    return [_shown_cost(c) for c in re.findall(r"<td[^>]*>(-?\d+\.\d = [^<]+)</td>", table)]
 
 
 def test_flagged_bad_day_cost_adds_up_as_shown(report, page):

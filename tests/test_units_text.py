@@ -31,3 +31,15 @@ def test_report_totals_are_h_mm_ss():
     html = totals_table(pd.DataFrame([row]))
     assert "<td>71:55:29</td><td>83:20:00</td><td>11:24:31</td>" in html
     assert "<td>−0:01:23</td>" in html and "258929" not in html
+
+
+def test_numbers_shown_as_zero_carry_no_sign():
+    """Issue 36: a margin of -0.03 s printed "-0.0"; every page prints it 0.0 (the margin report, the
+    running-time tables, the charts and the restrictions page share planner.line.units.fixed)."""
+    from planner.line.units import fixed
+    from planner.pages.restrictions import _num
+
+    assert [fixed(x) for x in (-0.03, -0.049, 0.04, 0.0, -0.0)] == ["0.0"] * 5
+    assert [fixed(x, 1, True) for x in (-0.03, 0.04, 0.05001, -0.05001)] == ["0.0", "0.0", "+0.1", "-0.1"]
+    assert fixed(-0.4, 0, True) == "0" and fixed(-57.04) == "-57.0" and fixed(math.nan) == "–"
+    assert _num(-0.03) == "0.0" and _num(12.34) == "+12.3" and _num(-0.4, "{:.0f}") == "0" and _num(None) == ""

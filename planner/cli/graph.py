@@ -26,7 +26,8 @@ def graph(
     from planner.report.published_run import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
     from planner.report.train_graph import graph_data, match_train, parse_hhmm, train_graph_chart
-    from planner.pages.train_graph import run_label, write_page
+    from planner.pages.run_head import run_words
+    from planner.pages.train_graph import write_page
 
     from .checks import check_out_dir
 
@@ -42,7 +43,7 @@ def graph(
     kw, label = {}, ""
     if run is not None:
         m = read_manifest(run)
-        label = run_label(m.get("run_id"), m.get("run_date"), m.get("operating_day"))
+        label = run_words(m.get("run_id"), m.get("operating_day"), m.get("run_date"))
         rec = next((x for x in m.get("lines", []) if x.get("line_id") == line.line_id), None)
         if rec is None or rec.get("source_digest") != line.source_digest:
             raise InputError(f"--run {run}: this run did not plan {line_dir} as it is now (line {line.line_id}, "

@@ -57,22 +57,26 @@ def _eval_points(job, line, train_type: str, origin: str, destination: str) -> l
     return [(float(p.position_m), p.eval_point_id) for p in pts]
 
 
-def _chart_task(line, run, calls, pattern, evp, signals, trains, back):
-    """Worker: one chart page's text (``line``: the leg's window; the signals come from the whole line)."""
-    from planner.pages.speed_chart import chart_page, chart_svg
+def _chart_task(line, run, calls, pattern, evp, signals):
+    """Worker: one leg's chart, inline SVG (``line``: the leg's window; the signals come from the whole line).
+    The page around it (the run's id and day, the trains) is put together in the job's process, so a leg whose
+    chart is unchanged is not redrawn for a new run."""
+    from planner.pages.speed_chart import chart_svg
 
-    return chart_page(line, run, calls, trains, chart_svg(line, run, calls, pattern, evp, signals), back)
+    return chart_svg(line, run, calls, pattern, evp, signals)
 
 
-def train_views(job, line, stage: Path, report, runner, summary, run_label: str = "") -> dict[str, list]:
-    """Dataset, page and charts of a line's trains (module doc).
+def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
+                day: dict | None = None) -> dict[str, list]:
+    """Dataset, page and charts of a line's trains (module doc); ``run_id`` and ``day`` (the operating day's
+    record) are named at the top of each page.
 
     Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
     legs with a chart in running order (the train graph links them).
     """
     from planner.job.pipeline import _count
     from planner.job.units import Unit
-    from planner.pages.speed_chart import write_chart
+    from planner.pages.speed_chart import chart_page, write_chart
     from planner.pages.timetable import render_page, write_page
     from planner.report.train_timetable import chart_name, leg_line, leg_runs, timetable_rows, write_timetable
 
@@ -84,11 +88,14 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
         recs = timetable_rows(line, runs, types)
         links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
                  ("train graph", f"../graph/{lid}_graph.html")]
-        write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, run_label=run_label, links=links,
+        write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, links=links, run_id=run_id, day=day,
+                                                           run_date=getattr(summary, "run_date", None),
                                                            graph_href=f"../graph/{lid}_graph.html"))
     pats = _patterns(stage, lid)
-    units, paths = [], []
+    units, pages = [], []
     back = "../../" + timetable_href(lid)
+    nav = [("running-time tables", back), ("margin report", f"../../report/{lid}_margins.html"),
+           ("train graph", f"../../graph/{lid}_graph.html"), ("overview", "../../index.html")]
     for key, run in sorted(runs.items()):
         d, t, o, de = key[:4]
         passes = list(run.row.get("passes") if run.row.get("passes") is not None else [])
@@ -98,11 +105,13 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
         lo, hi = float(run.position_m.min()), float(run.position_m.max())
         signals = [s.position_m for s in line.signals if s.direction == d and lo <= s.position_m <= hi]
         args = (leg_line(line, key).window(o, de, t), run, calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de),
-                signals, trains, back)
+                signals)
         units.append(Unit("charts", _chart_key(line, run, args[2:]), "charts", _chart_task, args))
-        paths.append(stage / chart_name(lid, key))
-    for p, text in zip(paths, runner.run("charts", units)):  # cached: an unchanged leg's chart is not redrawn
-        write_chart(p, text)
+        pages.append((stage / chart_name(lid, key), args[0], run, calls, trains))
+    # cached: an unchanged leg's chart is not redrawn; its page is written again with this run's id and day
+    for (p, win, run, calls, trains), svg in zip(pages, runner.run("charts", units)):
+        write_chart(p, chart_page(win, run, calls, trains, svg, back, nav=nav, run_id=run_id, day=day,
+                                   run_date=getattr(summary, "run_date", None)))
     legs: dict[str, list] = {}
     for r in recs:
         if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
@@ -112,7 +121,7 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
 
 def _chart_key(line, run, rest) -> str:
     """The cache key of a chart: the code, what the leg's window of the line holds, both runs, the row's
-    figures the chart prints and everything else it draws (``rest``: calls, pattern, points, signals, trains)."""
+    figures the chart prints and everything else it draws (``rest``: calls, pattern, points, signals)."""
     import hashlib
     import json
 
@@ -127,13 +136,13 @@ def _chart_key(line, run, rest) -> str:
     h = hashlib.sha256()
     for a in (run.position_m, run.t_s, run.v_ms, run.vmax_ms):
         h.update(np.ascontiguousarray(a, dtype=float).tobytes())
-    calls, pattern, evp, signals, trains, back = rest
+    calls, pattern, evp, signals = rest
     for a, (px, pv) in sorted((pattern or {}).items()):
         h.update(json.dumps(float(a)).encode())
         h.update(np.ascontiguousarray(px, float).tobytes() + np.ascontiguousarray(pv, float).tobytes())
     figures = [float(run.row[c]) for c in ("min_running_time_s", "margin_s")] + [run.ratio, float(sched)]
     return digest(["chart", code_digest(), interstation_inputs(leg_line(line, run.key), t, o, de), h.hexdigest(), figures,
                    [list(map(str, c[:2])) + [float(c[2])] for c in calls], [[float(p), str(i)] for p, i in evp or []],
-                   [float(x) for x in signals], list(trains), back])
+                   [float(x) for x in signals]])
 
 __all__ = ["timetable_href", "train_views"]

@@ -83,8 +83,11 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
 
     copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
+    from planner.job.day import window
+
     label = _run_label(job, summary)
-    legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary, label)  # tables, charts
+    legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary,  # tables, charts
+                       run_id=summary.run_id, day=window(job).record() if job.day.day else None)
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
         con = read_line_dataset(stage, "conflicts", line.line_id)
@@ -111,9 +114,9 @@ def graph_links(line_id: str) -> list[tuple[str, str]]:
 def _run_label(job, summary) -> str:
     """The run and its operating day, as the run's pages name them under their title."""
     from planner.job.day import window
-    from planner.pages.train_graph import run_label
+    from planner.pages.run_head import run_words
 
-    return run_label(summary.run_id, getattr(summary, "run_date", ""), window(job).record() if job.day.day else None)
+    return run_words(summary.run_id, window(job).record() if job.day.day else None, getattr(summary, "run_date", None))
 
 
 def _unit(step, key, fn, args):
@@ -223,10 +226,13 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
             else:
                 note = f"Line {line.line_id} could not be compared with run {base}."
             from planner.job.train_views import timetable_href
+            from planner.pages.run_head import nav_html
 
-            top = (f"<p class='sub'><a href='../index.html'>overview</a> · <a href='../graph/{line.line_id}_graph.html'>"
-                   f"train graph</a> · <a href='../{timetable_href(line.line_id)}'>running-time tables per train</a></p>"
-                   + changes_html(ch, first_run_note=note))
+            tables = "../" + timetable_href(line.line_id)
+            nav = nav_html([("overview", "../index.html"), ("train graph", f"../graph/{line.line_id}_graph.html"),
+                            ("running-time tables per train", tables)],
+                           manifest.get("run_id"), manifest.get("operating_day"), manifest.get("run_date"))
+            top = changes_html(ch, first_run_note=note)
             rep = summary.reports.get(line.line_id)
             if rep is not None:
                 charts = None
@@ -236,7 +242,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                         svgs.update(part.result())
                     charts = chart_sections(rep, stop_markers(line), svgs)
                 write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
-                           datasets_root=stage, top=top, charts=charts)
+                           datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
     summary.rows.update(rows)

@@ -61,3 +61,19 @@ def hms(d_s, sign: bool = False) -> str:
     s = ("−" if t < 0 else "+") if sign else ("−" if t < 0 else "")
     t = abs(t)
     return f"{s}{t // 3600}:{t // 60 % 60:02d}:{t % 60:02d}"
+
+
+def fixed(x, nd: int = 1, sign: bool = False, none: str = "–") -> str:
+    """A number as fixed-point text for a person to read: ``nd`` decimals, ``sign`` a leading + or -; a value
+    that rounds to zero is written ``0.0``, never ``-0.0`` (nor ``+0.0``: a sign there would say which side of
+    zero it is, which the shown digits do not); ``none`` for no value (None, NaN, inf).
+
+    >>> fixed(-0.032), fixed(-0.032, sign=True), fixed(2.25, 1, True), fixed(-57.04), fixed(float("nan"))
+    ('0.0', '0.0', '+2.2', '-57.0', '–')
+    """
+    if x is None or x != x or x in (float("inf"), float("-inf")):
+        return none
+    t = f"{float(x):.{nd}f}"
+    if float(t) == 0.0:
+        return t.lstrip("-")
+    return f"{float(x):+.{nd}f}" if sign else t

@@ -8,8 +8,9 @@ date in the SVG metadata.
 
 Sections, in the order a timetable planner reads them:
 
-1. headline: line, directions, train types, the conditions assumed, counts
-   of flags, totals per direction and train type, and what stands out;
+1. headline: the run's other pages, its id and operating day (in a run), line,
+   directions, train types, the conditions assumed, counts of flags, the flagged
+   legs with their trains, totals per direction and train type, and what stands out;
 2. margin per interstation along the line, one chart per direction with a
    row per train type: the margin (scheduled − minimum), the margin that
    remains on a bad day (scheduled − degraded minimum), the supplement the
@@ -32,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.line.model import line_title  # noqa: F401 - the pages import it from here too
-from planner.line.units import clock, hms
+from planner.line.units import clock, fixed, hms
 
 from planner.pages.margin_charts import chart_sections
 from planner.report.leg_flags import FLAG, FLAGS, FLAGS_SHOWN, added_up, any_flag, flag_of, flags_of
@@ -55,11 +56,15 @@ p,li{line-height:1.45;font-size:14px}.sub{color:#555;margin:0 0 14px;font-size:1
 table{border-collapse:collapse;background:#fff;font-size:12px;width:100%}
 th,td{border:1px solid #dde1e5;padding:3px 5px;text-align:right;white-space:nowrap}
 th{background:#eef1f4;position:sticky;top:0;font-weight:600;white-space:normal;vertical-align:bottom}
-td.l,th.l{text-align:left}td.why{white-space:normal}
+td.l,th.l{text-align:left}td.why{white-space:normal}td.fl,td.lg{white-space:normal}td.fl{min-width:6.5em}
+.nw{white-space:nowrap}.via{color:#777;white-space:nowrap}.ids{color:#333}.more{border-bottom:1px dotted #777;cursor:help}
+.nav .run{color:#333}
+@media (max-width:1300px){td.cost{white-space:normal;min-width:7em}}
+@media (max-width:1100px){main{padding:12px 12px 40px}table{font-size:11px}th,td{padding:2px 3px}td.w{white-space:normal}}
 tr.unassessed td{background:#e3e7ea}tr.impossible td{background:#f8d7d3}tr.short_bad_day td{background:#fdecea}
 tr.tight td{background:#fff4e0}tr.unreachable td{background:#f3e5f5}tr.inaccurate td{background:#fff8e1}
 tr.sep td{background:#d5d9de;text-align:left;font-weight:600}
-.badge{display:inline-block;border-radius:4px;padding:0 5px;margin-right:3px;color:#fff;font-size:11px;font-weight:600}
+.badge{display:inline-block;border-radius:4px;padding:0 5px;margin:1px 0;color:#fff;font-size:11px;font-weight:600}
 """ + "".join(f".b-{f.name}{{background:{f.colour}}}" for f in FLAGS_SHOWN) + """
 .b-short{background:#fff;color:#8a5a00;border:1px solid #c89b3c}
 .neg{color:#c62828;font-weight:600}
@@ -76,10 +81,8 @@ def _e(x) -> str:
 
 
 def _f(x, nd: int = 1, sign: bool = False) -> str:
-    """Number for a table cell; '–' for NaN/None."""
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "–"
-    return f"{x:+.{nd}f}" if sign else f"{x:.{nd}f}"
+    """Number for a table cell (never ``-0.0``); '–' for NaN/None."""
+    return fixed(x, nd, sign)
 
 
 def _hms(t: float) -> str:
@@ -87,8 +90,24 @@ def _hms(t: float) -> str:
 
 
 def _leg(r) -> str:
-    via = f" <span style='color:#777'>(passes {len(r.passes)})</span>" if len(r.passes) else ""
-    return f"{_e(r.origin)} → {_e(r.destination)}{via}"
+    via = f" <span class='via'>(passes {len(r.passes)})</span>" if len(r.passes) else ""
+    return f"<span class='nw'>{_e(r.origin)} → {_e(r.destination)}</span>{via}"
+
+
+def _ids(r) -> list[str]:
+    ids = getattr(r, "train_ids", None)
+    return [str(t) for t in ids] if ids is not None else []
+
+
+def trains_html(ids, href: str = "", first: int = 6) -> str:
+    """A leg's trains: the first ``first`` (each a link to its running-time table when ``href``, the tables
+    page) and ``… N more``, which names them all on hover."""
+    ids = list(ids)
+    one = (lambda t: f"<a href='{_e(href)}#train-{_e(t)}'>{_e(t)}</a>") if href else _e
+    text = ", ".join(one(t) for t in ids[:first])
+    if len(ids) > first:
+        text += f" <span class='more' title='{_e(', '.join(ids))}'>… {len(ids) - first} more</span>"
+    return text
 
 
 # --- tables ------------------------------------------------------------------------
@@ -104,14 +123,16 @@ def cost_breakdown(r, nd: int = 1) -> str:
     if not all(math.isfinite(x) for x in [cost] + parts):
         return f"{_f(cost, nd)} = " + " + ".join(_f(x, nd) for x in parts)
     t, shown = added_up(cost, parts, nd)
-    text = f"{t:.{nd}f} = {shown[0]:.{nd}f}"
+    text = f"{fixed(t, nd)} = {fixed(shown[0], nd)}"
     for x in shown[1:]:
-        text += f" − {abs(x):.{nd}f}" if x < 0 else f" + {x:.{nd}f}"
+        v = fixed(x, nd, True)
+        text += f" − {v[1:]}" if v.startswith("-") else f" + {v.lstrip('+')}"
     return text
 
 
-def flagged_summary(sched) -> str:
-    """The flagged legs on the first screen: what each lacks and where the bad day's time goes."""
+def flagged_summary(sched, trains_href: str = "") -> str:
+    """The flagged legs on the first screen: what each lacks, where the bad day's time goes and which trains
+    run it (linked to their running-time tables when ``trains_href``)."""
     # unassessed legs have their own section, listed first; this one lists the legs judged
     f = sched[any_flag(sched) & ~sched.unassessed.astype(bool)]
     if f.empty:
@@ -119,20 +140,22 @@ def flagged_summary(sched) -> str:
     f = f.sort_values(["remaining_margin_s", "direction", "train_type", "origin"], kind="stable")
     med = float(sched.margin_percent.median())
     out = [f"<h3>Flagged legs ({len(f)} of {len(sched)}; the median margin of the day is {med:.1f} %)</h3>"
-           "<div class='tw'><table><tr><th class='l'>flag</th>"
+           "<div class='tw'><table class='flagged'><tr><th class='l'>flag</th>"
            "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
            "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop + stop model</th>"
            "<th>remaining on a bad day [s]</th></tr>"]
     for r in f.itertuples(index=False):
         flag = flag_of(r)
         why = getattr(r, "flag_reason", "") or ""
+        ids = _ids(r)
         out.append(
-            f"<tr class='{flag}'><td class='l'>{_badges(r)}</td>"
-            f"<td class='l'>{_e(r.direction)}</td><td class='l'>{_e(r.train_type)}</td><td class='l'>{_leg(r)}</td>"
+            f"<tr class='{flag}'><td class='l fl'>{_badges(r)}</td>"
+            f"<td class='l'>{_e(r.direction)}</td><td class='l'>{_e(r.train_type)}</td><td class='l lg'>{_leg(r)}</td>"
             f"<td>{r.n_trains}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
             f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
-            f"<td>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td></tr>"
-            + (f"<tr class='{flag}'><td colspan='9' class='l why'>↳ {_e(why)}</td></tr>" if why else ""))
+            f"<td class='cost'>{cost_breakdown(r)}</td><td>{_f(r.remaining_margin_s, 1, True)}</td></tr>"
+            f"<tr class='{flag}'><td colspan='9' class='l why'>{'↳ ' + _e(why) + '<br>' if why else ''}"
+            f"<span class='ids'>trains: {trains_html(ids, trains_href) or '–'}</span></td></tr>")
     out.append("</table></div>")
     return "\n".join(out)
 
@@ -174,33 +197,35 @@ ROW_HEAD = ("<tr><th class='l'>flags</th><th class='l'>dir</th><th class='l'>typ
 def _badges(r) -> str:
     """The row's flags as badges, worst first, each with what it says on hover."""
     tip = f" title='{_e(r.flag_reason)}'" if getattr(r, "flag_reason", "") else ""
-    return "".join(f"<span{tip} class='badge b-{f}'>{_e(FLAG[f].badge)}</span>" for f in flags_of(r))
+    return " ".join(f"<span{tip} class='badge b-{f}'>{_e(FLAG[f].badge)}</span>" for f in flags_of(r))
 
 
 def _row_html(r) -> str:
     flag = flag_of(r)
     badges = _badges(r)
     if np.isfinite(r.scheduled_running_time_s) and not bool(r.supplement_met):
-        badges += "<span class='badge b-short'>supplement short</span>"
+        badges += " <span class='badge b-short'>supplement short</span>"
     rem = r.remaining_margin_s
     rem_s = _f(rem, 1, sign=True)
     if math.isfinite(rem) and rem < 0:
         rem_s = f"<span class='neg'>{rem_s}</span>"
-    tip = "; ".join(x for x in (getattr(r, "flag_reason", "") or (r.unassessed_reason if r.unassessed else ""),
+    ids = _ids(r)
+    run_by = f"{len(ids)} train{'s' if len(ids) != 1 else ''}: " + ", ".join(ids[:12]) + (
+        f" … {len(ids) - 12} more" if len(ids) > 12 else "")
+    tip = "; ".join(x for x in (run_by, getattr(r, "flag_reason", "") or (r.unassessed_reason if r.unassessed else ""),
                                 r.note) if x)
-    note = f" title='{_e(tip)}'" if tip else ""
     cls = f" class='{flag}'" if flag != "ok" else ""
     return (
-        f"<tr{cls}{note}><td class='l'>{badges}</td><td class='l'>{_e(r.direction)}</td>"
-        f"<td class='l'>{_e(r.train_type)}</td><td class='l'>{_leg(r)}</td><td>{r.n_trains}</td>"
+        f"<tr{cls} title='{_e(tip)}'><td class='l fl'>{badges}</td><td class='l'>{_e(r.direction)}</td>"
+        f"<td class='l'>{_e(r.train_type)}</td><td class='l lg'>{_leg(r)}</td><td>{r.n_trains}</td>"
         f"<td>{r.length_m / 1000:.2f}</td><td>{_f(r.min_running_time_s)}</td>"
         f"<td>{_f(r.min_running_time_rounded_s, 0)}</td><td>{_f(r.scheduled_running_time_s, 0)}</td>"
-        f"<td>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
+        f"<td class='w'>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
         f"<td>{_f(r.supplement_required_s)}</td><td>{_f(r.degraded_min_running_time_s)}</td>"
-        f"<td>{rem_s}</td><td>{cost_breakdown(r)}</td>"
+        f"<td>{rem_s}</td><td class='cost'>{cost_breakdown(r)}</td>"
         f"<td>{'–' if not math.isfinite(r.ratio_on_time) else f'{r.ratio_on_time:.0%}'}</td>"
-        f"<td>{_f(r.arrival_error_s, 1, True)} / {_f(r.arrival_error_degraded_s, 1, True)}</td>"
-        f"<td>{energy_change(r.energy_saved_percent)}</td></tr>"
+        f"<td class='w'>{_f(r.arrival_error_s, 1, True)} / {_f(r.arrival_error_degraded_s, 1, True)}</td>"
+        f"<td class='w'>{energy_change(r.energy_saved_percent)}</td></tr>"
     )
 
 
@@ -245,8 +270,8 @@ def totals_table(totals, scopes=("line", "type")) -> str:
             f"<tr{bold}><td class='l'>{_e(r.direction)}</td><td class='l'>"
             f"{'all types' if r.level == 'line' else _e(r.train_type)}</td><td>{r.n_trains}</td><td>{r.n_legs}</td>"
             f"<td>{hms(r.min_running_time_s)}</td><td>{hms(r.scheduled_running_time_s)}</td>"
-            f"<td>{hms(r.margin_s)}</td><td>{r.margin_percent:.1f}</td><td>{hms(r.remaining_margin_s, sign=True)}</td>"
-            f"<td>{r.min_remaining_margin_s:+.1f}</td><td>{r.n_impossible}</td><td>{r.n_short_bad_day}</td>"
+            f"<td>{hms(r.margin_s)}</td><td>{_f(r.margin_percent)}</td><td>{hms(r.remaining_margin_s, sign=True)}</td>"
+            f"<td>{_f(r.min_remaining_margin_s, 1, True)}</td><td>{r.n_impossible}</td><td>{r.n_short_bad_day}</td>"
             f"<td>{r.n_tight}</td>"
             f"<td>{r.n_unreachable}</td><td>{r.n_supplement_short}</td><td>{r.energy_saved_kwh:.0f}</td></tr>")
     out.append("</table></div>")
@@ -269,8 +294,8 @@ def train_table(totals) -> str:
             f"<tr{cls}><td class='l'>{_e(r.train_id)}</td><td class='l'>{_e(r.direction)}</td>"
             f"<td class='l'>{_e(r.train_type)}</td><td class='l'>{_e(r.origin)} → {_e(r.destination)}</td>"
             f"<td>{_hms(r.first_departure_s)}</td><td>{r.n_legs}</td><td>{r.min_running_time_s:.0f}</td>"
-            f"<td>{r.scheduled_running_time_s:.0f}</td><td>{r.margin_s:.0f}</td><td>{r.margin_percent:.1f}</td>"
-            f"<td>{r.remaining_margin_s:+.0f}</td><td>{r.min_remaining_margin_s:+.1f}</td>"
+            f"<td>{r.scheduled_running_time_s:.0f}</td><td>{_f(r.margin_s, 0)}</td><td>{_f(r.margin_percent)}</td>"
+            f"<td>{_f(r.remaining_margin_s, 0, True)}</td><td>{_f(r.min_remaining_margin_s, 1, True)}</td>"
             f"<td>{r.n_impossible}</td><td>{r.n_short_bad_day}</td><td>{r.n_tight}</td><td>{r.n_unreachable}</td></tr>")
     out.append("</table></div>")
     return "\n".join(out)
@@ -335,7 +360,7 @@ def energy_change(saved_percent: float) -> str:
 
 
 def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str = ".", top: str = "",
-                charts: list[str] | None = None) -> str:
+                charts: list[str] | None = None, *, nav: str = "", trains_href: str = "") -> str:
     """The whole report page as one HTML string (module doc for the sections).
 
     Parameters
@@ -353,14 +378,19 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     charts : list of str, optional
         The chart sections, :func:`chart_sections` of the same report and markers, when
         they were drawn beforehand (the nightly job draws them on a worker); else drawn here.
+    nav : str
+        The line above the title: links to the run's other pages, its run id and operating day
+        (:func:`planner.pages.run_head.nav_html`).
+    trains_href : str
+        The running-time tables page (relative to this page): each flagged leg's trains link to their tables.
     """
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
     trains = report.totals[report.totals.level == "train"]
     rule, adh = report.rule, report.adhesion_kmh_s
-    parts = _headline(report, sched, trains, top)
+    parts = _headline(report, sched, trains, top, nav)
     parts.append("<ul>" + "".join(f"<li>{x}</li>" for x in _findings(sched, trains)) + "</ul>")
-    parts.append(flagged_summary(sched))
+    parts.append(flagged_summary(sched, trains_href))
     parts.append(bad_day_shares(sched, rule, adh))
     parts.append("<h3>Totals per direction and train type (every timetabled train run, the whole day)</h3>")
     parts.append(totals_table(report.totals))
@@ -374,7 +404,7 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
         "pattern against the tables' constant stopping brake; negative when the pattern stops sooner). "
         "<i>ratio</i>: the target-speed ratio the vehicle picks at an on-time "
         "departure. <i>arrival error</i>: closed loop of the on-board logic, positive = late. <i>energy saved</i>: "
-        "traction energy at that ratio against ratio 100 %. Hover a row for notes.</p>")
+        "traction energy at that ratio against ratio 100 %. Hover a row for the trains that run it and its notes; a flag badge for what the flag says.</p>")
     parts.append(rows_table(rows))
     parts.append(f"<details><summary>Totals per train ({len(trains)} trains; with impossible legs first, then legs short on a bad day)</summary>"
                  f"{train_table(report.totals)}</details>")
@@ -384,8 +414,8 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     return "\n".join(parts)
 
 
-def _headline(report, sched, trains, top: str) -> list[str]:
-    """The page's head, title, conditions, the ``top`` section and the flag cards."""
+def _headline(report, sched, trains, top: str, nav: str = "") -> list[str]:
+    """The page's head, the ``nav`` line, title, conditions, the ``top`` section and the flag cards."""
     rows = report.rows
     sched = rows[rows.scheduled_running_time_s.notna()]
     counts = {f: int(np.sum(any_flag(rows if f in ("unassessed", "inaccurate") else sched, (f,)))) for f in FLAGS}
@@ -397,7 +427,7 @@ def _headline(report, sched, trains, top: str) -> list[str]:
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
              f"<meta name='viewport' content='width=device-width, initial-scale=1'>"
              f"<title>Margin report — {_e(line_title(report.line_name, report.line_id))}</title>"
-             f"<style>{CSS}</style></head><body><main>"]
+             f"<style>{CSS}</style></head><body><main>{nav}"]
     parts.append(f"<h1>Running-time margins — {_e(line_title(report.line_name, report.line_id))}</h1>")
     parts.append(
         f"<p class='sub'>Directions {dirs} · train types {types} · {len(sched)} timetabled legs "
@@ -433,12 +463,12 @@ def _findings(sched, trains) -> list[str]:
         find.append(f"Least margin on a bad day: <b>{_e(w.train_type)} {_e(w.direction)} {_e(w.origin)} → "
                     f"{_e(w.destination)}</b>, scheduled {w.scheduled_running_time_s:.0f} s against a minimum of "
                     f"{w.min_running_time_s:.1f} s and a bad-day minimum of {w.degraded_min_running_time_s:.1f} s "
-                    f"({w.remaining_margin_s:+.1f} s).")
+                    f"({_f(w.remaining_margin_s, 1, True)} s).")
         find.append(f"Median margin {sched.margin_s.median():.1f} s ({sched.margin_percent.median():.1f} %); "
                     f"a bad day costs a median {sched.degraded_loss_load_s.median():.1f} s for the load, "
                     f"{sched.degraded_loss_traction_s.median():.1f} s for the weak traction and "
                     f"{sched.degraded_loss_stop_s.median():.1f} s in the stop (low adhesion), so the median "
-                    f"remaining margin is {sched.remaining_margin_s.median():+.1f} s.")
+                    f"remaining margin is {_f(sched.remaining_margin_s.median(), 1, True)} s.")
         tr = trains[trains.bad_day_shortfall_s > 0]
         if len(tr):
             w = tr.sort_values(["bad_day_shortfall_s", "train_id"], ascending=[False, True], kind="stable").iloc[0]
@@ -527,11 +557,12 @@ def stop_markers(line) -> dict[str, dict[str, float]]:
 
 
 def write_html(report, line, path: str | Path, datasets_root: str | Path | None = None, top: str = "",
-               charts: list[str] | None = None) -> Path:
+               charts: list[str] | None = None, **kw) -> Path:
     """Write the page to ``path`` atomically (temp file in the same folder, then rename).
 
     ``datasets_root``: the folder holding the ``margins`` datasets (default: the page's folder);
-    the page links to it by a relative path. ``top`` and ``charts`` as in :func:`render_html`.
+    the page links to it by a relative path. ``top``, ``charts`` and ``kw`` (``nav``, ``trains_href``) as in
+    :func:`render_html`.
     """
     import os
 
@@ -540,5 +571,5 @@ def write_html(report, line, path: str | Path, datasets_root: str | Path | None 
     path = Path(path)
     href = "." if datasets_root is None else Path(os.path.relpath(Path(datasets_root), path.parent)).as_posix()
     write_bytes_atomic(path, render_html(report, stop_markers(line), datasets_href=href, top=top,
-                                               charts=charts).encode("utf-8"))
+                                         charts=charts, **kw).encode("utf-8"))
     return path

@@ -52,6 +52,7 @@ th{background:#eef1f4;font-weight:600}td.n{text-align:right;font-variant-numeric
 code{font-size:12px}.ok{color:#2e7d32;font-weight:600}.bad{color:#c62828;font-weight:600}.dev{color:#b26a00;font-weight:600}
 a{color:#1f5fa8}details{margin:6px 0}summary{cursor:pointer;font-weight:600;font-size:14px}
 .links a{display:inline-block;margin:2px 12px 2px 0;font-size:14px}
+p.date{font-size:15px;margin:2px 0 6px}
 """
 
 
@@ -141,6 +142,18 @@ def _kernels(sw: dict) -> str:
     return f", numba {_e(sw.get('numba', '?'))} ({_e(how)})"
 
 
+def _dates(manifest: dict[str, Any]) -> str:
+    """The run's operating day (what it plans) and run date (the date stamped on its rows), as a line."""
+    from planner.pages.run_head import day_words
+
+    day = day_words(manifest.get("operating_day"))
+    words = [f"<b>{_e(day[0].upper() + day[1:])}</b>" if day else ""]
+    if manifest.get("run_date"):
+        words.append(f"run date {_e(manifest['run_date'])} (stamped on every dataset row)")
+    words = [w for w in words if w]
+    return f"<p class='date'>{' · '.join(words)}</p>" if words else ""
+
+
 def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = ()) -> str:
     """The overview page of a run folder as HTML (module doc for the sections)."""
     from planner.report.catalog import datasets
@@ -153,6 +166,7 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
         "<meta name='viewport' content='width=device-width, initial-scale=1'>"
         f"<title>Run {_e(run_id)} — planner</title><style>{CSS}</style></head><body><main>",
         f"<h1>Run <code>{_e(run_id)}</code> <span style='color:#777;font-weight:400'>job {_e(manifest.get('job', ''))}</span></h1>",
+        _dates(manifest),
         f"<p class='sub'>inputs digest <code>{_e(manifest.get('inputs_digest', ''))}</code> · code digest "
         f"<code>{_e(str(manifest.get('code_digest', ''))[:16])}</code> · planner {_e(sw.get('planner', '?'))}, "
         f"Python {_e(sw.get('python', '?'))}, numpy {_e(sw.get('numpy', '?'))}, pyarrow {_e(sw.get('pyarrow', '?'))}"

@@ -20,7 +20,6 @@ The figures are computed in :mod:`planner.report.restriction_effects`; this modu
 from __future__ import annotations
 
 import html
-import math
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +31,9 @@ def _e(x: Any) -> str:
 
 
 def _num(x, fmt: str = "{:+.1f}") -> str:
-    return "" if x is None or (isinstance(x, float) and math.isnan(x)) else fmt.format(x)
+    from planner.line.units import fixed  # never -0.0
+
+    return fixed(x, int(fmt.rsplit(".", 1)[1][0]), "+" in fmt, none="")
 
 
 def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict] | None = None) -> str:

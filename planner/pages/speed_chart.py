@@ -11,11 +11,18 @@ What it draws (matplotlib through :func:`planner.report.plots.pyplot`, inline SV
   recorded runs of :class:`planner.report.train_timetable.LegRun`;
 * the permanent speed limits that apply to the train (and the line maximum) and
   the on-board maximum it runs to (limit − the train's speed margin);
+* apart from them (orange, hatched, named by id): the day's temporary speed
+  restrictions (kind ``temporary``, from the daily feed) in force at some time
+  of the run's operating day, which the run applies all day;
 * the stopping pattern at the arrival stop, lowest and highest adhesion of the
   run's stopping-pattern sweep (``stop_samples``);
 * the stopping pattern (stops and passes) as station lines, signals, ATS-P
   beacons and the evaluation points of the leg (``eval_points``);
 * below: the gradient [‰] and the curves (radius) along the leg.
+
+The page around the chart names the run and its operating day and links to the run's
+other pages (:func:`planner.pages.run_head.nav_html`); the chart itself is a cached unit
+of the nightly job, the page is written by every run.
 
 Curves are thinned for drawing with :func:`planner.report.train_graph.simplify`
 (0.2 km/h, 2 m), which keeps a page near 60 kB.
@@ -27,8 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.line.daily import TEMPORARY_KIND
 from planner.line.model import sign
-from planner.line.units import kmh
+from planner.line.units import fixed, kmh
 
 TOL_V_KMH = 0.2
 TOL_X_M = 2.0
@@ -55,9 +63,18 @@ def _steps(segs, lo: float, hi: float, fill: float):
     return np.asarray(xs) / 1000.0, np.asarray(ys)
 
 
+def temporary_limits(line, direction: str, train_type: str, lo: float, hi: float) -> list:
+    """The day's temporary restrictions (kind ``temporary``, from the daily feed) that reach into [lo, hi] for
+    this direction and train type, by position."""
+    return sorted((s for s in line.limits_for(direction, train_type)
+                   if s.kind == TEMPORARY_KIND and s.end_m > lo and s.start_m < hi), key=lambda s: (s.start_m, s.ident))
+
+
 def _limit_steps(line, direction: str, train_type: str, lo: float, hi: float):
-    """The permanent limit that applies at each point (the lowest of the overlapping ones, else the line maximum)."""
-    lims = [s for s in line.limits_for(direction, train_type) if s.end_m > lo and s.start_m < hi]
+    """The permanent limit that applies at each point (the lowest of the overlapping ones, else the line maximum);
+    the day's temporary restrictions are drawn apart (:func:`temporary_limits`)."""
+    lims = [s for s in line.limits_for(direction, train_type)
+            if s.kind != TEMPORARY_KIND and s.end_m > lo and s.start_m < hi]
     cuts = sorted({lo, hi, *[min(max(s.start_m, lo), hi) for s in lims], *[min(max(s.end_m, lo), hi) for s in lims]})
     top = line.max_speed_ms if np.isfinite(line.max_speed_ms) else line.train_type(train_type).max_speed_ms
     xs, ys = [], []
@@ -95,8 +112,18 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
                                           (("#c62828", "lowest"), ("#ef8f00", "highest"))):
         ax.plot(np.asarray(px) / 1000.0, pv, color=col, lw=1.3, ls=(0, (4, 2)),
                 label=f"stopping pattern, {what} adhesion {a:.2g} km/h/s")
-    top = float(np.nanmax(ly)) * 1.14
+    temps = temporary_limits(line, d, tt, lo, hi)
+    top = float(np.nanmax(ly)) * (1.3 if temps else 1.14)  # room for the restrictions' ids under the stations
     ax.set_ylim(0, top)
+    for k, s in enumerate(temps):
+        a, b, v = max(s.start_m, lo) / 1000.0, min(s.end_m, hi) / 1000.0, kmh(s.limit_ms)
+        # an opaque fill: an alpha would fade the hatch with it
+        ax.axvspan(a, b, ymax=0.8, facecolor="#fff3e8", hatch="//", edgecolor="#f2b48a", lw=0)
+        ax.plot([a, a, b, b], [top * 0.8, v, v, top * 0.8], color="#e65100", lw=1.8,
+                label="temporary speed restriction (the day's feed)" if k == 0 else None)
+        ax.text(0.5 * (a + b), top * 0.8, f"{s.restriction_id}\n{v:.0f} km/h", ha="center", va="bottom",
+                fontsize=8, color="#bf360c", fontweight="bold",
+                bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="#e65100", lw=0.6, alpha=0.9))
     for sid, stops, p in calls:
         ax.axvline(p / 1000.0, color="k", lw=1.0 if stops else 0.7, ls="-" if stops else ":")
         ax2.axvline(p / 1000.0, color="k", lw=1.0 if stops else 0.7, ls="-" if stops else ":")
@@ -128,8 +155,8 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
             continue
         a, b = max(a, lo), min(b, hi)
         ax2.axvspan(a / 1000.0, b / 1000.0, color="#5a7da8", alpha=0.18, lw=0)
-        ax2.text(0.5 * (a + b) / 1000.0, ax2.get_ylim()[1] * 0.9, f"R{r:.0f}", ha="center", va="top", fontsize=7.5,
-                 color="#34507a")
+        ax2.text(0.5 * (a + b) / 1000.0, 0.94, f"R{r:.0f}", ha="center", va="top", fontsize=7.5, color="#34507a",
+                 transform=ax2.get_xaxis_transform())
     ax2.plot([], [], color="#5a7da8", alpha=0.4, lw=6, label="curve (radius [m])")
     ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, frameon=False, borderaxespad=0.0)
     ax2.set_xlabel("chainage [km]")
@@ -137,29 +164,41 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
     if d == "up":
         ax.invert_xaxis()
     fig.suptitle(f"{tt} {d} {o} → {de} ({(hi - lo) / 1000:.2f} km): scheduled {sched:.0f} s, minimum "
-                 f"{float(row['min_running_time_s']):.1f} s, margin {float(row['margin_s']):+.1f} s",
+                 f"{float(row['min_running_time_s']):.1f} s, margin {fixed(float(row['margin_s']), 1, True)} s",
                  x=0.01, ha="left", fontsize=11, fontweight="bold")
     fig.subplots_adjust(left=0.055, right=0.75, top=0.93, bottom=0.09, hspace=0.06)
     return inline_svg(fig)
 
 
-def chart_page(line, run, calls, trains, svg: str, back: str) -> str:
-    """The chart page: title, what is drawn, the trains that run the leg at this time (links back)."""
+def chart_page(line, run, calls, trains, svg: str, back: str, *, nav=(), run_id: str | None = None,
+               day: dict | None = None, run_date: str | None = None) -> str:
+    """The chart page: the run's other pages (``nav``: (label, href)), its id and operating day (``day``: its
+    record), title, what is drawn, the day's temporary restrictions on the leg, the trains that run the leg at
+    this time (links back to their tables, ``back``)."""
     from planner.pages.margin_report import CSS
+    from planner.pages.run_head import nav_html
 
     d, tt, o, de, sched = run.key[:5]
     e = html.escape
     links = ", ".join(f'<a href="{e(back)}#train-{e(t)}">{e(t)}</a>' for t in trains)
     title = f"{tt} {d} {o} → {de}, scheduled {sched:.0f} s"
+    x = run.position_m
+    temps = temporary_limits(line, d, tt, float(np.min(x)), float(np.max(x)))
+    tsr = "; ".join(f"<b>{e(s.restriction_id)}</b> {kmh(s.limit_ms):.0f} km/h on km {s.start_m / 1000:.3f}–"
+                    f"{s.end_m / 1000:.3f}" + ("" if s.has_beacon else " (no beacon: the on-board database feeds it)")
+                    for s in temps)
     return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{e(title)} — speed–distance</title>'
             f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}</style></head><body><main>'
-            f'<p class="sub"><a href="{e(back)}">← running-time tables of line {e(line.line_id)}</a></p>'
-            f"<h1>Speed–distance: {e(title)}</h1>"
+            + nav_html(nav or [(f"running-time tables of line {line.line_id}", back)], run_id, day, run_date)
+            + f"<h1>Speed–distance: {e(title)}</h1>"
             f'<p class="sub">Run at the on-time ratio {run.ratio:.0%} (the ratio the on-board logic picks when the '
             f"train leaves on time) and the minimum run (ratio 100 %), both at the tables' conditions (empty, full "
             f"traction), from the departure stop marker to the arrival stop marker.</p>"
             f'<div class="fig">{svg}</div>'
-            f'<p class="caption">Trains that run this leg with this scheduled time: {links or "none"}.</p>'
+            + (f'<p class="caption">Temporary speed restrictions of the day on this leg (orange, hatched; in force '
+               f"at some time of the operating day, so applied all day, on the safe side): {tsr}.</p>" if tsr else
+               '<p class="caption">No temporary speed restriction of the day reaches this leg.</p>')
+            + f'<p class="caption">Trains that run this leg with this scheduled time: {links or "none"}.</p>'
             "</main></body></html>\n")
 
 

@@ -16,6 +16,8 @@ from itertools import groupby
 from pathlib import Path
 from typing import Sequence
 
+from planner.line.units import fixed
+from planner.report.leg_flags import FLAG
 from planner.report.train_timetable import clock
 
 _e = html.escape
@@ -31,12 +33,7 @@ td.pass{color:#666;font-style:italic}td.f{white-space:normal;min-width:54px}.lat
 
 
 def _s(x, nd: int = 1, sign: bool = False) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return ""
-    v = round(float(x), nd)
-    if v == 0:
-        v = 0.0  # never "-0.0"
-    return f"{v:+.{nd}f}" if sign else f"{v:.{nd}f}"
+    return fixed(x, nd, sign, none="")  # never "-0.0"
 
 
 def _diff(computed, scheduled) -> str:
@@ -51,7 +48,8 @@ def _diff(computed, scheduled) -> str:
 def _row(r: dict, rel: str) -> str:
     pas = r["activity"] == "passes"
     flag = r.get("leg_flag") or ""
-    badge = f' <span class="badge b-{_e(flag)}">{_e(flag)}</span>' if flag and flag != "ok" else ""
+    badge = (f' <span class="badge b-{_e(flag)}">{_e(FLAG[flag].badge if flag in FLAG else flag)}</span>'
+             if flag and flag != "ok" else "")
     chart = (f'<a href="{_e(rel + r["chart"])}">chart</a>' if r.get("chart") and r.get("leg_flag") else "")
     cells = [
         f'<td class="l{" pass" if pas else ""}">{_e(r["station_id"])} {_e(r["station_name"])}</td>',
@@ -75,13 +73,15 @@ def _row(r: dict, rel: str) -> str:
 HEAD = ("<tr><th class='l'>station</th><th class='l'>call</th><th>scheduled arrival / pass</th>"
         "<th>scheduled departure</th><th>computed arrival / pass (vs scheduled [s])</th>"
         "<th>minimum run arrival / pass</th><th>section scheduled [s]</th><th>section minimum [s]</th>"
-        "<th>supplement [s]</th><th>supplement [%]</th><th>ratio on time [%]</th><th>leg margin [s]</th>"
+        "<th>supple&shy;ment [s]</th><th>supple&shy;ment [%]</th><th>ratio on time [%]</th><th>leg margin [s]</th>"
         "<th>bad-day margin [s]</th><th>speed–distance</th></tr>")
 
 
-def render_page(line_id: str, line_name: str, records: Sequence[dict], *, run_label: str = "",
-                links: Sequence[tuple[str, str]] = (), graph_href: str = "") -> str:
+def render_page(line_id: str, line_name: str, records: Sequence[dict], *, links: Sequence[tuple[str, str]] = (),
+                run_id: str | None = None, day: dict | None = None, run_date: str | None = None,
+                graph_href: str = "") -> str:
     """The page (module doc); ``records`` as :func:`timetable_rows` gives them, ``links``: (label, href) at the top,
+    with the run's id, date and operating day (``day``: its record, :func:`planner.pages.run_head.nav_html`);
     ``graph_href``: the line's train graph page, which each train links to (``#train=<id>``: its run there)."""
     from urllib.parse import quote
 
@@ -112,13 +112,13 @@ def render_page(line_id: str, line_name: str, records: Sequence[dict], *, run_la
             f'<p class="caption">{n_stop} intermediate stops, {n_pass} passes; running-time supplement over the '
             f"whole run {tot_sup:.1f} s.</p>"
             f'<div class="tw"><table>{HEAD}{"".join(_row(r, "../") for r in rs)}</table></div></section>')
-    nav = " · ".join(f'<a href="{_e(h)}">{_e(lbl)}</a>' for lbl, h in links)
     from planner.pages.margin_report import line_title
+    from planner.pages.run_head import nav_html
 
     title = f"Running-time tables — {line_title(line_name, line_id)}"
     return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>'
             f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}{EXTRA_CSS}</style>'
-            f'</head><body><main id="top"><p class="sub">{nav}{" · " if nav and run_label else ""}{_e(run_label)}</p>'
+            f'</head><body><main id="top">{nav_html(links, run_id, day, run_date)}'
             f"<h1>{_e(title)}</h1>"
             '<p class="sub">Every train of the timetable, every station of its path. <b>Computed</b>: each leg (stop '
             "to next stop) run from its scheduled departure at the ratio the on-board logic picks for an on-time "

@@ -13,7 +13,7 @@ import html
 import json
 import math
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from planner.line.model import line_title
 from planner.report.train_graph import (COLOURS, CONFLICT_COLOUR, CONFLICT_MIN_PX, STAIR_B_COLOUR, STAIR_COLOUR, GraphData,
                                         start_window, time_window)
 
-__all__ = ["page_payload", "render_page", "run_label", "write_page"]
+__all__ = ["page_payload", "render_page", "write_page"]
 
 
 def _delta(values: np.ndarray, scale: float) -> list[int]:
@@ -118,7 +118,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         Train selected when the page opens (its stairway shown); matched as
         :func:`planner.report.train_graph.match_train` does.
     run_label : str
-        The run and its operating day (:func:`run_label`), under the title.
+        The run and its operating day (:func:`planner.pages.run_head.run_words`), under the title.
     timetable_href : str, optional
         The line's running-time tables page (a run's ``timetable/<line>_timetable.html``, relative to this
         page): a selected train gets a link to its table there (``#train-<id>``).
@@ -199,26 +199,6 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         f"<script type='application/json' id='graph-data'>{js}</script>"
         f"<script>{PAGE_JS}</script></body></html>\n"
     )
-
-
-def run_label(run_id: str | None, run_date: str | None = None, day: Mapping[str, Any] | None = None) -> str:
-    """``run r0007-… of 2026-11-27 · operating day Mon 2026-11-30 (from 03:00, Asia/Tokyo)`` from a
-    run's manifest fields (``run_id``, ``run_date``, ``operating_day``); the parts not known are left out."""
-    import datetime
-
-    parts = []
-    if run_id:
-        parts.append(f"run {run_id}" + (f" of {run_date}" if run_date else ""))
-    if day and day.get("day"):
-        d = str(day["day"])
-        try:
-            d = f"{datetime.date.fromisoformat(d):%a} {d}"
-        except ValueError:
-            pass
-        where = [f"from {str(day['start'])[11:16]}"] if day.get("start") else []  # to the same hour the next day
-        where += [str(day["time_zone"])] if day.get("time_zone") else []
-        parts.append(f"operating day {d}" + (f" ({', '.join(where)})" if where else ""))
-    return " · ".join(parts)
 
 
 def write_page(data: GraphData, path: str | Path, **kw) -> Path:

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.errors import InputError
-from planner.line.units import KMH, KMH_S, KMH_S2, kmh
+from planner.line.units import KMH, KMH_S, KMH_S2, fixed, kmh
 from planner.report.leg_flags import FLAGS_SHOWN, flag_of
 
 FLAG_COLOURS = {f.name: f.colour for f in FLAGS_SHOWN} | {"ok": "#2e7d32"}
@@ -119,8 +119,9 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
                              squeeze=False)
     lo = min(min(stations.values()), 0.0) / 1000.0
     hi = max(stations.values()) / 1000.0
-    ymin = min(0.0, float(np.nanmin(rows.remaining_margin_s))) - 3
     ymax = max(float(np.nanmax(rows.margin_s)), float(np.nanmax(rows.supplement_required_s))) + 4
+    ymin = min(0.0, float(np.nanmin(rows.remaining_margin_s)))
+    ymin -= max(3.0, 0.12 * (ymax - ymin))  # room for the label under the lowest bar
     for ax, (title, sub) in zip(axes[:, 0], groups):
         # several scheduled times on one leg: draw the one with the least remaining margin
         sub = sub.sort_values("remaining_margin_s", kind="stable").drop_duplicates(["origin", "destination"])
@@ -135,7 +136,7 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
             ax.bar(x0 + pad + 0.25 * w, r.remaining_margin_s, width=0.5 * w, align="edge", color=col, alpha=0.9)
             ax.plot([x0 + pad, x0 + pad + w], [r.supplement_required_s] * 2, color="k", lw=1.4)
             y = r.remaining_margin_s
-            ax.text(x0 + pad + 0.5 * w, y + (0.6 if y >= 0 else -0.6), f"{y:+.1f}", ha="center",
+            ax.text(x0 + pad + 0.5 * w, y + (0.6 if y >= 0 else -0.6), fixed(y, 1, True), ha="center",
                     va="bottom" if y >= 0 else "top", fontsize=7.5, fontweight="bold",
                     color="#8e1b1b" if y < 0 else "#1d2327")
         ax.axhline(0, color="k", lw=0.8)
@@ -162,14 +163,14 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
                Patch(color=FLAG_COLOURS["short_bad_day"], label="negative: short on a bad day"),
                Patch(color=FLAG_COLOURS["impossible"], label="impossible: margin < 0"),
                Line2D([], [], color="k", lw=1.4, label="supplement the rule asks for")]
-    fig.legend(handles=handles, loc="lower center", ncol=6, fontsize=8.5, frameon=False)
+    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8.5, frameon=False)  # 6 in a row are too wide
     first, last = order[0][0], order[-1][0]
     if direction == "up":
         first, last = last, first
     fig.suptitle(f"{direction}: {first} → {last}, running left to right", x=0.01, y=1 - 0.12 / fig.get_figheight(),
                  ha="left", va="top", fontsize=11, fontweight="bold")
     h = fig.get_figheight()  # fixed margins in inches: tight_layout costs seconds per chart
-    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 1.05 / h, bottom=0.95 / h, hspace=0.62)
+    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 1.05 / h, bottom=1.25 / h, hspace=0.62)
     return inline_svg(fig)
 
 
@@ -190,7 +191,7 @@ def curves_chart(report) -> str:
     if "sched_speed_kmh" in c:
         ax.plot(km, c["sched_speed_kmh"], color="#2e7d32", lw=1.5,
                 label=f"as scheduled: on-board logic, departs at ratio {row.ratio_on_time:.0%}\n  "
-                      f"{row.scheduled_running_time_s:.0f} s scheduled, arrives {row.arrival_error_s:+.1f} s")
+                      f"{row.scheduled_running_time_s:.0f} s scheduled, arrives {fixed(row.arrival_error_s, 1, True)} s")
     dkm = c["degraded_position_m"] / 1000.0
     ax.plot(dkm, c["degraded_speed_kmh"], color="#c62828", lw=1.5,
             label=f"bad day: load {report.rule.bad_load:.0%}, traction ×{report.rule.bad_traction:g},\n  "
@@ -234,7 +235,7 @@ def curves_chart(report) -> str:
         ax.invert_xaxis()
     fig.suptitle(f"{k['train_type']} {k['direction']} {row.origin} → {row.destination} "
                  f"({row.length_m / 1000:.2f} km): scheduled {row.scheduled_running_time_s:.0f} s, "
-                 f"remaining margin on a bad day {row.remaining_margin_s:+.1f} s",
+                 f"remaining margin on a bad day {fixed(row.remaining_margin_s, 1, True)} s",
                  x=0.01, ha="left", fontsize=11, fontweight="bold")
     fig.subplots_adjust(left=0.055, right=0.71, top=0.93, bottom=0.08, hspace=0.08)
     return inline_svg(fig)

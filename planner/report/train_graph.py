@@ -428,7 +428,7 @@ def train_graph_chart(data, path: str | Path, *, direction: str = "both", t0: fl
     train : str, optional
         A train to highlight, with its blocking-time stairway.
     run_label : str
-        The run and its operating day (:func:`planner.pages.train_graph.run_label`), a second title line.
+        The run and its operating day (:func:`planner.pages.run_head.run_words`), a second title line.
     """
     import io
 
