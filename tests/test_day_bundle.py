@@ -4,6 +4,7 @@ flagged for overwrites beside the line's own; verify refuses the bundle outside 
 from __future__ import annotations
 
 from datetime import date
+from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
@@ -28,8 +29,7 @@ DAY_START = R1_FROM + 2 * 3600  # 2026-11-30T03:00 JST = 2026-11-29T18:00:00Z
 DAY_END = DAY_START + 86400
 
 
-@pytest.fixture
-def built(tmp_path):
+def _build(tmp_path, key, version: int = 1, out: str = "b"):
     from planner.line.operating_day import DayInputs
 
     line = load_line(write_line_db(tmp_path / "tiny", nodes=None, edges=None))
@@ -40,11 +40,15 @@ def built(tmp_path):
     rs = restrictions_in_force(feed.restrictions, w)
     day = BundleDay("2026-11-30", TZ, w.start_s, w.end_s,
                     tuple((r.restriction_id, r.valid_from_s, r.valid_until_s) for r in rs))
+    return build_line(day_line(line, DayInputs(w, rs, ())), tmp_path / out, key,
+                      release=Release(version, DAY_START - 6 * 3600 + version), directions=["down"],
+                      train_types=["EMU10"], day=day)[0]
+
+
+@pytest.fixture
+def built(tmp_path):
     key = Ed25519PrivateKey.generate()
-    infos = build_line(day_line(line, DayInputs(w, rs, ())), tmp_path / "b", key,
-                       release=Release(1, DAY_START - 6 * 3600), directions=["down"], train_types=["EMU10"],
-                       day=day)
-    return infos[0], key.public_key()
+    return _build(tmp_path, key), key.public_key()
 
 
 def test_the_manifest_names_the_day_its_window_and_the_restrictions_included(built):
@@ -82,3 +86,31 @@ def test_verify_refuses_the_bundle_outside_its_day(built):
         assert str(e.value).endswith(f"bundle is for operating day 2026-11-30 (2026-11-29T18:00:00Z to "
                                      f"2026-11-30T18:00:00Z), checked at {when}: outside its window, that day's "
                                      f"bundle is needed (refused)")
+
+
+def test_two_runs_day_bound_bundles_are_compared_whenever_the_comparison_runs(tmp_path):
+    """A change report compares yesterday's bundle (outside its day by now) with tonight's (not yet in its day):
+    by content, whatever the clock says, while a vehicle's check refuses both outside the window."""
+    from cryptography.hazmat.primitives import serialization
+
+    from planner.report.bundle_changes import bundle_changes
+    from planner.report.changes import LineChanges
+
+    key = Ed25519PrivateKey.generate()
+    pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
+    old, new = (_build(tmp_path / n, key, v, "bundles") for n, v in (("old", 1), ("new", 2)))  # the next release, same content
+    for info in (old, new):
+        (Path(info.path).parent / "signing_key.pub.pem").write_bytes(pem)
+    old, new = Path(old.path), Path(new.path)
+    assert old.read_bytes() != new.read_bytes()
+    for at in (DAY_START - 86400, DAY_END + 86400):  # a vehicle's check: refused outside the day
+        with pytest.raises(BundleError, match="outside its window"):
+            verify_bundle(old, key.public_key(), at=at, allow_dev=True)
+    ch = LineChanges("tiny", "r0001", "r0002")
+    bundle_changes(ch, old.parent.parent, new.parent.parent)
+    assert old.name == "tiny_down_EMU10.pdb" and ch.rows == []  # compared (not "could not be compared") and the same content: no change
+    raw = bytearray(new.read_bytes())
+    raw[raw.find(b"timetable") + 600] ^= 1  # one bit of tonight's flipped: it fails its checks and says so
+    new.write_bytes(bytes(raw))
+    bundle_changes(ch, old.parent.parent, new.parent.parent)
+    assert len(ch.rows) == 1 and "could not be compared" in ch.rows[0]["detail"]

@@ -73,12 +73,16 @@ class Expect:
         The vehicle's time [Unix seconds] for the expiry check; None: the clock now.
     allow_dev : bool
         Accept a bundle signed with a development key (test benches only).
+    check_time : bool
+        Check expiry and the operating day's window at ``at_s``. False only for reading a bundle that is not
+        loaded onto a vehicle (comparing two runs' bundles: yesterday's is outside its day by design).
     """
 
     target: str | None = None
     min_version: int = 0
     at_s: int | None = None
     allow_dev: bool = False
+    check_time: bool = True
 
     @staticmethod
     def parse_target(text: str) -> str:
@@ -104,6 +108,8 @@ def _check_expect(m: dict, expect: Expect, pub_id: str, where: str) -> None:
     if m["bundle_version"] < expect.min_version:
         raise fail(where, f"bundle version {m['bundle_version']} is older than the installed version "
                           f"{expect.min_version} (rollback refused)")
+    if not expect.check_time:
+        return
     now = int(time.time()) if expect.at_s is None else int(expect.at_s)
     if now >= parse_time(m["expires"]):
         raise fail(where, f"bundle expired at {m['expires']} (checked at {format_time(now)}; built "

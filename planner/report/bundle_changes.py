@@ -1,8 +1,9 @@
 """What changed in the bundles between two runs: members whose content differs, with the rows that differ.
 
 Part of :func:`planner.report.changes.compare_runs` (the ``bundle`` rows of the ``changes``
-dataset). Both bundles are verified against their own run's public key, whatever kind of key
-signed them (a comparison loads nothing onto a vehicle); a change of key kind is a row of its own.
+dataset). Both bundles are verified against their own run's public key (signature, digests, tables),
+whatever kind of key signed them and whenever they are valid (a comparison loads nothing onto a vehicle:
+the previous run's bundles are for the previous operating day); a change of key kind is a row of its own.
 """
 from __future__ import annotations
 
@@ -21,8 +22,10 @@ expiry) change at every build, so two bundles that differ only there hold the sa
 
 
 def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
-    from planner.bundle.verify import read_bundle
+    from planner.bundle.verify import Expect, read_bundle
     from planner.errors import PlannerError
+
+    whenever = Expect(allow_dev=True, check_time=False)
 
     ob, nb = Path(old_dir) / "bundles", Path(new_dir) / "bundles"
     pref = f"{ch.line_id}_"
@@ -36,8 +39,8 @@ def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
         if po.read_bytes() == pn.read_bytes():
             continue
         try:  # compared whatever kind of key signed them (a comparison loads nothing onto a vehicle)
-            a = read_bundle(po, ob / "signing_key.pub.pem", allow_dev=True)
-            b = read_bundle(pn, nb / "signing_key.pub.pem", allow_dev=True)
+            a = read_bundle(po, ob / "signing_key.pub.pem", expect=whenever)
+            b = read_bundle(pn, nb / "signing_key.pub.pem", expect=whenever)
         except PlannerError as e:  # named by run id, not by this machine's paths
             why = str(e).replace(str(Path(old_dir)), ch.base_run).replace(str(Path(new_dir)), ch.run)
             ch.add("bundle", name, f"bundle {name} changed but could not be compared: {why}", field_="sha256")
