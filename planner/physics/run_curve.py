@@ -342,7 +342,7 @@ class _Integrator:
         par[K.P_RATIO] = state.ratio
         par[K.P_CAP2] = par[K.P_CAPV] = np.inf  # cruise cap (Command.cap_ms): none until a controller sets one
         par[K.P_SHED] = float(train.service_brake_ms2)  # deceleration onto a lowered target
-        st = self.st = np.empty((7, n))
+        st = self.st = np.empty((K.S_ROWS, n))
         st[K.S_T], st[K.S_V] = state.t_s, state.v_ms
         st[K.S_W] = st[K.S_V] * st[K.S_V] if state.w_ms2 is None else state.w_ms2
         st[K.S_WORK] = 0.0  # traction work / M_e [J/kg]
