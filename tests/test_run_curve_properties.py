@@ -145,7 +145,7 @@ _RECORDED = ("time_s", "energy_kwh", "stop_m", "t_s", "v_ms", "a_ms2", "phase", 
        drop=st.floats(0.05, 0.4))
 def test_a_run_has_the_same_bits_alone_and_anywhere_in_a_batch(case, ratios, loads, frac, drop):
     """Each run's arithmetic is its own (the kernel steps runs together in lanes only to overlap their
-    chains): 11 runs (a full lane group and a partial one) give, to the bit, what each gives alone, and in
+    chains): 11 runs (two lane groups, 6 and 5) give, to the bit, what each gives alone, and in
     reversed order what they give in order. With a lowered ratio the over-the-ceiling rounding is switched
     for the whole batch (kernel doc), so there only the order is varied: the same runs, the same bits."""
     line, tt, direction = case

@@ -203,7 +203,7 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
     Returns whether any run ended still above its ceiling (having been above it and not met it on
     the last step) and the first step after which a run's time is not finite (k_to if none).
 
-    Lanes: the runs go :data:`~planner.physics.kernel_abi.LANES` at a time, and each step is done in
+    Lanes: the runs go up to :data:`~planner.physics.kernel_abi.LANES` at a time, and each step is done in
     three stages, each a loop over the lanes (the predictor; the corrector and the ceiling; the
     split, time and work). A run's step is one chain of dependent square roots and divisions, but
     the lanes' chains are independent, so within a stage the processor overlaps them; values pass
@@ -214,8 +214,10 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
     n = st.shape[1]
     amax, band, sawtooth = cst[0], cst[1], cst[2] != 0.0
     still_over = False
-    for a in range(0, n, LANES):
-        b = min(a + LANES, n)
+    groups = (n + LANES - 1) // LANES
+    width = (n + groups - 1) // groups if groups else 1  # groups of even widths: 9 runs go 5 + 4, not 8 + 1
+    for a in range(0, n, width):
+        b = min(a + width, n)
         for i in range(a, b):  # the tractive-effort piece of each run's speed, then hunted step by step
             st[X_J, i] = _bracket(st[S_V, i], tab)
         for k in range(k_from, k_to):
