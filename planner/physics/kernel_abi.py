@@ -38,7 +38,8 @@ S_T, S_V, S_W, S_WORK, S_C0, S_WLAST, S_BAD = range(7)
  X_OVER) = range(7, 21)
 S_ROWS = 21
 LANES = 8
-"""Runs a sweep of the kernel steps together (kernel._sweep)."""
+"""At most this many runs are stepped together by the kernel (``kernel._sweep``): enough independent
+chains for the processor to overlap (4, 8 and 16 measured alike), in even groups (9 runs: 5 + 4)."""
 L_PHASE, L_COAST = range(2)
 # flags: any run may be above its ceiling; last node the stall check passed; stall window (from, to)
 # and the first run found stalled there
