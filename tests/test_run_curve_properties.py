@@ -130,3 +130,36 @@ def test_lower_ratio_never_arrives_earlier(case, ratios, load):
     r = np.sort(ratios)
     t = simulate(tr, tt, r, load=load).time_s
     assert np.all(np.diff(t) <= TOL_T)  # higher ratio → not later
+
+
+def _same_bits(a, b):
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+_RECORDED = ("time_s", "energy_kwh", "stop_m", "t_s", "v_ms", "a_ms2", "phase", "ratio")
+
+
+@PROPS
+@given(case=small_lines(), ratios=st.lists(st.floats(0.2, 1.0), min_size=11, max_size=11).map(np.array),
+       loads=st.lists(st.floats(0, 1), min_size=11, max_size=11).map(np.array), frac=st.floats(0.1, 0.8),
+       drop=st.floats(0.05, 0.4))
+def test_a_run_has_the_same_bits_alone_and_anywhere_in_a_batch(case, ratios, loads, frac, drop):
+    """Each run's arithmetic is its own (the kernel steps runs together in lanes only to overlap their
+    chains): 11 runs (two lane groups, 6 and 5) give, to the bit, what each gives alone, and in
+    reversed order what they give in order. With a lowered ratio the over-the-ceiling rounding is switched
+    for the whole batch (kernel doc), so there only the order is varied: the same runs, the same bits."""
+    line, tt, direction = case
+    x = round(frac * line.end_m)
+    tr = make_track(line, "T", *stations(direction), nodes_m=[x])
+    batch = simulate(tr, tt, ratios, load=loads, record=True)
+    for i in (0, 5, 7, 8, 10):
+        alone = simulate(tr, tt, ratios[i:i + 1], load=loads[i:i + 1], record=True)
+        for name in _RECORDED:
+            assert _same_bits(getattr(batch, name)[i:i + 1], getattr(alone, name)), (i, name)
+    lowered = [(float(x), ratios * (1.0 - drop))]
+    fwd = simulate(tr, tt, ratios, load=loads, changes=lowered, record=True)
+    back = slice(None, None, -1)
+    rev = simulate(tr, tt, ratios[back].copy(), load=loads[back].copy(),
+                   changes=[(float(x), lowered[0][1][back].copy())], record=True)
+    for name in _RECORDED:
+        assert _same_bits(getattr(fwd, name), getattr(rev, name)[back]), name

@@ -7,6 +7,8 @@ every grid step between two such nodes for the whole batch, compiled with
 numba. The arithmetic is the module doc's method, written per run and in the
 same order of operations as the former numpy step, so results are the same to
 the bit (the bit-identity battery in ``benchmarks/bench_kernel.py`` checks it).
+Runs are stepped several at a time in lanes (:func:`_sweep`), which changes
+the order in which the processor meets the runs' operations, never a run's own.
 
 Two batch-wide switches of the numpy step are kept as they were, because they
 pick between two roundings of the same formula: whether any run may be above
@@ -16,7 +18,8 @@ steps (its window names the stretch in the error message).
 
 Layout of the arrays (row constants in :mod:`~planner.physics.kernel_abi`): ``trk`` (7, m) per node of the
 track, ``seg`` (m,) the ceiling segment of each node, ``par`` (9, n) per run
-and constant between events, ``st`` (7, n) the runs' state, ``lane`` (2, n)
+and constant between events, ``st`` (``S_ROWS``, n) the runs' state (``S_*``) and the sweep's
+scratch (``X_*``), ``lane`` (2, n)
 int8 phase code and sawtooth coasting flag, ``e`` (segments, n) the
 ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
 ``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves.
@@ -42,7 +45,8 @@ from planner.physics.kernel_abi import (  # noqa: F401  (the rows are read throu
     F_K_OK, F_MAYBE_OVER, F_STALL_FROM, F_STALL_RUN, F_STALL_TO, L_COAST, L_PHASE, P_CAP2, P_CAPV, P_R2,
     P_RAM, P_RATIO, P_RBM, P_RCM, P_SHED, P_TFI, PHASE_BRAKE, PHASE_COAST, PHASE_HOLD, PHASE_POWER, PHASE_STOP,
     R_A, R_CAP, R_RATIO, R_T, R_V, S_BAD, S_C0, S_T, S_V, S_W, S_WLAST, S_WORK, SAWTOOTH_MIN_FRACTION, SOURCES,
-    T_AG, T_AHEAD, T_S, T_STEEP, T_STOP2, T_VINT, T_VN2,
+    T_AG, T_AHEAD, T_S, T_STEEP, T_STOP2, T_VINT, T_VN2, LANES, X_A0, X_C1, X_CO, X_CROSS, X_CS0, X_CS1, X_FRAC, X_J,
+    X_LB, X_OVER, X_SLOPE, X_VP, X_W1, X_WEND,
 )
 
 _JIT = dict(nogil=True, error_model="numpy")
@@ -195,96 +199,122 @@ def _band_edge(k, trk, ratio, capv, band):
 
 @njit(**_JIT)
 def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec, rec_p, record):
-    """Every run on its own from node k_from to k_to, its state in registers, with the batch-wide
-    ``use_over`` switch fixed. Returns whether any run ended still above its ceiling (having been
-    above it and not met it on the last step) and the first step after which a run's time is not
-    finite (k_to if none)."""
-    n, m = st.shape[1], trk.shape[1]
+    """Every run on its own from node k_from to k_to, with the batch-wide ``use_over`` switch fixed.
+    Returns whether any run ended still above its ceiling (having been above it and not met it on
+    the last step) and the first step after which a run's time is not finite (k_to if none).
+
+    Lanes: the runs go up to :data:`~planner.physics.kernel_abi.LANES` at a time, and each step is done in
+    three stages, each a loop over the lanes (the predictor; the corrector and the ceiling; the
+    split, time and work). A run's step is one chain of dependent square roots and divisions, but
+    the lanes' chains are independent, so within a stage the processor overlaps them; values pass
+    from stage to stage through the scratch rows ``X_*`` of ``st``. Each run's operations are its
+    own and in the same order as alone, so the same bits; and each stage is written once (the
+    compile cost of one step, not of one copy per lane).
+    """
+    n = st.shape[1]
     amax, band, sawtooth = cst[0], cst[1], cst[2] != 0.0
-    first_bad = k_to
     still_over = False
-    for i in range(n):
-        ram, rbm, rcm, tfi = par[P_RAM, i], par[P_RBM, i], par[P_RCM, i], par[P_TFI, i]
-        r2, cap2, ratio, capv, shed = par[P_R2, i], par[P_CAP2, i], par[P_RATIO, i], par[P_CAPV, i], par[P_SHED, i]
-        w, v, c0, t, work = st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i]
-        co, ph = lane[L_COAST, i] != 0, lane[L_PHASE, i]
-        bad_at = st[S_BAD, i]
-        above = False
-        j = _bracket(v, tab)  # the tractive-effort piece of the run's speed, then hunted step by step
+    groups = (n + LANES - 1) // LANES
+    width = (n + groups - 1) // groups if groups else 1  # groups of even widths: 9 runs go 5 + 4, not 8 + 1
+    for a in range(0, n, width):
+        b = min(a + width, n)
+        for i in range(a, b):  # the tractive-effort piece of each run's speed, then hunted step by step
+            st[X_J, i] = _bracket(st[S_V, i], tab)
         for k in range(k_from, k_to):
             ds = trk[T_S, k + 1] - trk[T_S, k]
             st1 = trk[T_STOP2, k + 1]
-            c1 = _ceiling2(k + 1, i, trk, seg, e, r2, cap2, st1)
-            lb = _band_edge(k, trk, ratio, capv, band) if sawtooth else 0.0
-            co = co and (not sawtooth or w > lb * lb)  # a coasting run powers again at the band's edge
-            coasting_step = co
-            # free running: Heun's step in w = v² (predictor ṽ₁)
-            ef, j = _interp(v, tab, j)
-            a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, ram, rbm, rcm, tfi, ef)
-            if co:
-                a0 = cs0
-            vp = math.sqrt(_mx(w + (2.0 * ds) * a0, 0.0))
-            ef, j = _interp(vp, tab, j)
-            a1, cs1 = _accel(vp, trk[T_AG, k + 1], trk[T_STEEP, k + 1], amax, ram, rbm, rcm, tfi, ef)
-            if co:
-                a1 = cs1
-            slope, wend, cross, frac, w1, over = _guided(w, c0, c1, st1, a0, a1, shed, ds, use_over)
-            # split at the crossing: time Δt = 2Δs/(v₀ + v₁) and traction work / M_e of each piece
-            xc = frac * ds
-            wc = w + slope * xc
-            vc = math.sqrt(wc)
-            # no crossing and no run above its ceiling: the step ends where it would free, w1 = wc
-            v1 = vc if not (cross or use_over) else math.sqrt(w1)
-            rest = ds - xc
-            dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
-            cb = 0.5 * (cs0 + cs1)
-            if not use_over:
-                dwork = xc * (0.5 * slope - cb) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
-            else:
-                dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
-            band_x = False
-            if sawtooth:
-                hit = cross and c1 <= c0 * (1 + 1e-12)
-                if hit:  # meets a level or falling ceiling: coasts from there, still capped by it
-                    wco = _mn(wc + 2.0 * cs1 * rest, c1)
-                    vco = math.sqrt(wco)
-                    dt = 2.0 * (xc / (v + vc) + rest / (vc + vco))
-                    dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (wco - wc) - rest * cb, 0.0)
-                    w1, v1 = wco, vco
-                band_x = co and not cross and wend < lb * lb
-                if band_x:  # below the band's lower edge: coast to it, power the rest of the step
-                    co = False
-                    lb2 = lb * lb
-                    xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
-                    sub = ds - xb
-                    ef, j = _interp(lb, tab, j)
-                    aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
-                    vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
-                    ef, j = _interp(vq, tab, j)
-                    ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
-                    w1 = _mn(lb2 + (aa + ab) * sub, c1)
-                    v1 = math.sqrt(w1)
-                    dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
-                    dwork = _mx(0.5 * (w1 - lb2) - sub * 0.5 * (cbl + cq), 0.0)
-                co = co or hit
-            ph = _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth)
-            above = over and not cross
-            if record:
-                jr = k + 1 - k0
-                rec[R_T, i, jr], rec[R_V, i, jr], rec[R_A, i, jr] = t + dt, v1, (w1 - w) / (2.0 * ds)
-                rec[R_RATIO, i, jr], rec[R_CAP, i, jr] = ratio, capv
-                rec_p[i, jr] = ph
-            if k + 2 == m:
-                st[S_WLAST, i] = w  # entering the last step, onto the marker
-            w, v, c0, t = w1, v1, c1, t + dt
-            work += dwork
-            if not math.isfinite(t) and k < bad_at:
-                bad_at = k
-        st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[S_WORK, i], st[S_BAD, i] = w, v, c0, t, work, bad_at
+            for i in range(a, b):  # the ceiling ahead, the coasting band and Heun's predictor ṽ₁
+                w, v = st[S_W, i], st[S_V, i]
+                c1 = _ceiling2(k + 1, i, trk, seg, e, par[P_R2, i], par[P_CAP2, i], st1)
+                lb = _band_edge(k, trk, par[P_RATIO, i], par[P_CAPV, i], band) if sawtooth else 0.0
+                # a coasting run powers again at the band's edge
+                co = lane[L_COAST, i] != 0 and (not sawtooth or w > lb * lb)
+                ef, j = _interp(v, tab, np.int64(st[X_J, i]))
+                a0, cs0 = _accel(v, trk[T_AG, k], trk[T_STEEP, k], amax, par[P_RAM, i], par[P_RBM, i],
+                                 par[P_RCM, i], par[P_TFI, i], ef)
+                if co:
+                    a0 = cs0
+                st[X_VP, i] = math.sqrt(_mx(w + (2.0 * ds) * a0, 0.0))
+                st[X_C1, i], st[X_LB, i], st[X_CO, i], st[X_J, i], st[X_A0, i], st[X_CS0, i] = (
+                    c1, lb, 1.0 if co else 0.0, j, a0, cs0)
+            for i in range(a, b):  # the corrector, and free running capped by the ceiling or braking onto it
+                vp, co = st[X_VP, i], st[X_CO, i] != 0.0
+                ef, j = _interp(vp, tab, np.int64(st[X_J, i]))
+                a1, cs1 = _accel(vp, trk[T_AG, k + 1], trk[T_STEEP, k + 1], amax, par[P_RAM, i], par[P_RBM, i],
+                                 par[P_RCM, i], par[P_TFI, i], ef)
+                if co:
+                    a1 = cs1
+                slope, wend, cross, frac, w1, over = _guided(st[S_W, i], st[S_C0, i], st[X_C1, i], st1, st[X_A0, i],
+                                                             a1, par[P_SHED, i], ds, use_over)
+                st[X_J, i], st[X_CS1, i], st[X_SLOPE, i], st[X_WEND, i], st[X_FRAC, i], st[X_W1, i] = (
+                    j, cs1, slope, wend, frac, w1)
+                st[X_CROSS, i], st[X_OVER, i] = 1.0 if cross else 0.0, 1.0 if over else 0.0
+            for i in range(a, b):  # split at the crossing: time Δt = 2Δs/(v₀ + v₁) and traction work / M_e
+                w, v, c0, t = st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i]
+                c1, lb, co, j = st[X_C1, i], st[X_LB, i], st[X_CO, i] != 0.0, np.int64(st[X_J, i])
+                cs0, cs1, slope, wend, frac, w1 = (st[X_CS0, i], st[X_CS1, i], st[X_SLOPE, i], st[X_WEND, i],
+                                                   st[X_FRAC, i], st[X_W1, i])
+                cross, over = st[X_CROSS, i] != 0.0, st[X_OVER, i] != 0.0
+                coasting_step = co
+                xc = frac * ds
+                wc = w + slope * xc
+                vc = math.sqrt(wc)
+                # no crossing and no run above its ceiling: the step ends where it would free, w1 = wc
+                v1 = vc if not (cross or use_over) else math.sqrt(w1)
+                rest = ds - xc
+                dt = 2.0 * (xc / (v + vc) + rest / (vc + v1))
+                cb = 0.5 * (cs0 + cs1)
+                if not use_over:
+                    dwork = xc * (0.5 * slope - cb) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
+                else:
+                    dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (w1 - wc) - rest * cb, 0.0)
+                band_x = False
+                if sawtooth:
+                    hit = cross and c1 <= c0 * (1 + 1e-12)
+                    if hit:  # meets a level or falling ceiling: coasts from there, still capped by it
+                        wco = _mn(wc + 2.0 * cs1 * rest, c1)
+                        vco = math.sqrt(wco)
+                        dt = 2.0 * (xc / (v + vc) + rest / (vc + vco))
+                        dwork = _mx(0.5 * (wc - w) - xc * cb, 0.0) + _mx(0.5 * (wco - wc) - rest * cb, 0.0)
+                        w1, v1 = wco, vco
+                    band_x = co and not cross and wend < lb * lb
+                    if band_x:  # below the band's lower edge: coast to it, power the rest of the step
+                        co = False
+                        lb2 = lb * lb
+                        xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
+                        sub = ds - xb
+                        ram, rbm, rcm, tfi = par[P_RAM, i], par[P_RBM, i], par[P_RCM, i], par[P_TFI, i]
+                        ef, j = _interp(lb, tab, j)
+                        aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
+                        vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
+                        ef, j = _interp(vq, tab, j)
+                        ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
+                        w1 = _mn(lb2 + (aa + ab) * sub, c1)
+                        v1 = math.sqrt(w1)
+                        dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
+                        dwork = _mx(0.5 * (w1 - lb2) - sub * 0.5 * (cbl + cq), 0.0)
+                    co = co or hit
+                ph = _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth)
+                if record:
+                    jr = k + 1 - k0
+                    rec[R_T, i, jr], rec[R_V, i, jr], rec[R_A, i, jr] = t + dt, v1, (w1 - w) / (2.0 * ds)
+                    rec[R_RATIO, i, jr], rec[R_CAP, i, jr] = par[P_RATIO, i], par[P_CAPV, i]
+                    rec_p[i, jr] = ph
+                if k + 2 == trk.shape[1]:
+                    st[S_WLAST, i] = w  # entering the last step, onto the marker
+                t = t + dt
+                st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[X_J, i] = w1, v1, c1, t, j
+                st[S_WORK, i] += dwork
+                if not math.isfinite(t) and k < st[S_BAD, i]:
+                    st[S_BAD, i] = k
+                lane[L_PHASE, i], lane[L_COAST, i] = ph, 1 if co else 0
+                if k + 1 == k_to:
+                    still_over = still_over or (over and not cross)
+    first_bad = k_to
+    for i in range(n):
+        bad_at = st[S_BAD, i]
         if bad_at < k_to:  # a time once not finite stays so: stalled from bad_at, or before this sweep
             first_bad = min(first_bad, max(int(bad_at), k_from))
-        lane[L_PHASE, i], lane[L_COAST, i] = ph, 1 if co else 0
-        still_over = still_over or above
     return still_over, first_bad
 
 

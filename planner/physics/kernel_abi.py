@@ -31,6 +31,15 @@ P_RAM, P_RBM, P_RCM, P_TFI, P_R2, P_CAP2, P_RATIO, P_CAPV, P_SHED = range(9)
 # rows of st (per run): time, speed, speed², traction work / M_e, ceiling² at the node, speed² entering
 # the last step, the first step after which its time was not finite (+inf: none)
 S_T, S_V, S_W, S_WORK, S_C0, S_WLAST, S_BAD = range(7)
+# then the sweep's scratch rows (kernel._sweep: what one stage of a run's step hands the next):
+# tractive-effort piece, ceiling² ahead, band edge, coasting, a₀, coasting a₀, ṽ₁, coasting a₁, slope,
+# unbounded end, crossing, fraction before it, end, above the ceiling
+(X_J, X_C1, X_LB, X_CO, X_A0, X_CS0, X_VP, X_CS1, X_SLOPE, X_WEND, X_CROSS, X_FRAC, X_W1,
+ X_OVER) = range(7, 21)
+S_ROWS = 21
+LANES = 8
+"""At most this many runs are stepped together by the kernel (``kernel._sweep``): enough independent
+chains for the processor to overlap (4, 8 and 16 measured alike), in even groups (9 runs: 5 + 4)."""
 L_PHASE, L_COAST = range(2)
 # flags: any run may be above its ceiling; last node the stall check passed; stall window (from, to)
 # and the first run found stalled there

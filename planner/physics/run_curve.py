@@ -183,6 +183,7 @@ class _Prep:
         # alone is steeper than a_max (R ≥ 0, so a_coast ≤ a_track)
         trk[K.T_STEEP] = ag >= train.max_accel_ms2
         self.trk, self.seg, self.bounds = trk, seg.astype(np.int64), bounds.astype(np.int64)
+        K.check_layout(trk=self.trk, seg=self.seg, bounds=self.bounds)
 
     @staticmethod
     def of(track: Track, train: TrainType) -> "_Prep":
@@ -198,6 +199,25 @@ class _Prep:
 
 _PREPARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 """Per track (while it lives), its :class:`_Prep` per train constants; kept out of the track, so never pickled with it."""
+
+
+def _effort_table(train: TrainType) -> np.ndarray:
+    """The tractive-effort table for the kernel's ``np.interp`` (rows: speed, effort, slope of each piece),
+    made once per train type object (while it lives) and its curve's arrays, not at every batch."""
+    speed, effort = train.traction_speed_ms, train.traction_effort_N
+    hit = _EFFORT.get(train)
+    if hit is not None and hit[0] is speed and hit[1] is effort:
+        return hit[2]
+    tab = np.zeros((3, len(speed)))
+    tab[0], tab[1] = speed, effort
+    tab[2, :-1] = np.diff(tab[1]) / np.diff(tab[0])
+    K.check_layout(tab=tab)
+    _EFFORT[train] = (speed, effort, tab)
+    return tab
+
+
+_EFFORT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Per train type object (compared by identity), its curve's arrays and :func:`_effort_table`."""
 
 
 def _stall_error(track, train, load, tf, s, j: int, k_ok: int, k: int) -> StallError:
@@ -221,7 +241,7 @@ def _as_batch(x, n: int, name: str) -> np.ndarray:
 
 
 def _check_ratio(r: np.ndarray, what: str) -> None:
-    if not np.all((r > 0) & (r <= 1.0 + 1e-12)):
+    if not ((r > 0) & (r <= 1.0 + 1e-12)).all():
         bad = r[~((r > 0) & (r <= 1.0 + 1e-12))][0]
         raise InputError(f"{what} must lie in (0, 1], got {bad}")
 
@@ -286,7 +306,7 @@ def simulate(track: Track, train: TrainType, ratio, *, load=0.0, traction_factor
     _check_ratio(ratio, "ratio")
     load = _as_batch(load, n, "load")
     tf = _as_batch(traction_factor, n, "traction_factor")
-    if np.any(load < 0) or np.any(tf <= 0):
+    if (load < 0).any() or (tf <= 0).any():
         raise InputError("load must be ≥ 0 and traction_factor > 0")
     if start is None:
         k0 = 0
@@ -342,7 +362,7 @@ class _Integrator:
         par[K.P_RATIO] = state.ratio
         par[K.P_CAP2] = par[K.P_CAPV] = np.inf  # cruise cap (Command.cap_ms): none until a controller sets one
         par[K.P_SHED] = float(train.service_brake_ms2)  # deceleration onto a lowered target
-        st = self.st = np.empty((7, n))
+        st = self.st = np.empty((K.S_ROWS, n))
         st[K.S_T], st[K.S_V] = state.t_s, state.v_ms
         st[K.S_W] = st[K.S_V] * st[K.S_V] if state.w_ms2 is None else state.w_ms2
         st[K.S_WORK] = 0.0  # traction work / M_e [J/kg]
@@ -352,18 +372,15 @@ class _Integrator:
         # a sawtooth vehicle that arrived anywhere but in full notch is in its coasting band
         lane[K.L_COAST] = ((state.phase != PHASE_POWER) if state.coasting is None else state.coasting) & sawtooth
         self.cst = np.array([train.max_accel_ms2, train.coast_band_ms, float(sawtooth)])
-        # the tractive-effort table (speed, effort, slope of each piece) for the kernel's np.interp
-        tab = self.tab = np.zeros((3, len(train.traction_speed_ms)))
-        tab[0], tab[1] = train.traction_speed_ms, train.traction_effort_N
-        tab[2, :-1] = np.diff(tab[1]) / np.diff(tab[0])
+        self.tab = _effort_table(train)
         # above the ceiling only after a lowered target (or a start state); the stall check's last node
         self.flags = np.array([1, k0, -1, -1, -1], dtype=np.int64)
         self.e = np.empty((len(self.prep.bounds), n))  # the ceiling's segment table (kernel.set_targets)
         self.record = record
         mr = self.m - k0 if record else 1
         self.rec, self.rec_p = np.zeros((5, n if record else 1, mr)), np.empty((n if record else 1, mr), np.int8)
-        K.check_layout(trk=self.prep.trk, seg=self.prep.seg, bounds=self.prep.bounds, par=par, st=st, lane=lane,
-                       e=self.e, cst=self.cst, tab=tab, flags=self.flags, rec=self.rec, rec_p=self.rec_p)
+        K.check_layout(par=par, st=st, lane=lane, e=self.e, cst=self.cst, flags=self.flags, rec=self.rec,
+                       rec_p=self.rec_p)  # the track's and the train's tables are checked where they are cached
         _KERNEL.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
         st[K.S_WLAST] = st[K.S_W]
         if record:
