@@ -127,6 +127,14 @@ def test_overview_page_lists_inputs_datasets_and_bundle_status(browser, tiny, tm
     assert "graph/tiny_graph.html" not in links  # only pages that exist are linked
     steps = page.eval("[...document.querySelectorAll('#steps + table tbody tr')].map(r => r.innerText)")
     assert any(s.startswith("tables\t12.5\t2\t6\tpartly reused") for s in steps), steps
+    # each flag card opens where its legs are listed; a dataset opens its columns, not a folder listing
+    cards = page.eval("Object.fromEntries([...document.querySelectorAll('#flags + .cards a.card')]"
+                      ".map(a => [a.querySelector('.l').innerText.split(' ')[1], a.getAttribute('href')]))")
+    assert cards["infeasible"] == "report/tiny_margins.html#flagged", cards
+    assert cards["tight:"] == "report/tiny_margins.html#flagged", cards
+    hrefs = page.eval("[...document.querySelectorAll('#datasets + table tbody tr')].map(r => r.cells[0]"
+                      ".querySelector('a').getAttribute('href'))")
+    assert hrefs and all(h.startswith("#ds-") for h in hrefs), hrefs
 
 
 def test_changes_section_renders_in_the_report_page(browser, tmp_path):

@@ -139,7 +139,7 @@ def flagged_summary(sched, trains_href: str = "") -> str:
         return "<p><b>No leg is flagged</b>: every timetabled leg keeps its time on a bad day.</p>"
     f = f.sort_values(["remaining_margin_s", "direction", "train_type", "origin"], kind="stable")
     med = float(sched.margin_percent.median())
-    out = [f"<h3>Flagged legs ({len(f)} of {len(sched)}; the median margin of the day is {med:.1f} %)</h3>"
+    out = [f"<h3 id='flagged'>Flagged legs ({len(f)} of {len(sched)}; the median margin of the day is {med:.1f} %)</h3>"
            "<div class='tw'><table class='flagged'><tr><th class='l'>flag</th>"
            "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
            "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop + stop model</th>"
@@ -304,10 +304,10 @@ def train_table(totals) -> str:
 def conflicts_section(report) -> str:
     con = report.conflicts
     if con is None:
-        return (f"<h2>Route conflicts</h2><p>Not checked: {_e(report.conflicts_note)}.</p>"
+        return (f"<h2 id='conflicts'>Route conflicts</h2><p>Not checked: {_e(report.conflicts_note)}.</p>"
                 if report.conflicts_note else "")
     if len(con) == 0:
-        return "<h2>Route conflicts</h2><p>The conflict check found no overlapping occupation windows.</p>"
+        return "<h2 id='conflicts'>Route conflicts</h2><p>The conflict check found no overlapping occupation windows.</p>"
     from planner.datasets.conflicts import conflict_list, largest
 
     c = conflict_list(con)
@@ -337,7 +337,7 @@ def conflicts_section(report) -> str:
         out.append("</table></div>")
         return "\n".join(out)
 
-    return ("<h2>Route conflicts</h2>" + head + table(largest(c, 10))
+    return ("<h2 id='conflicts'>Route conflicts</h2>" + head + table(largest(c, 10))
             + (f"<details><summary>All {len(c)} conflicts in time order</summary>{table(c.sort_values('t0', kind='stable'))}"
                "</details>" if len(c) > 10 else ""))
 
@@ -395,7 +395,7 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     parts.append("<h3>Totals per direction and train type (every timetabled train run, the whole day)</h3>")
     parts.append(totals_table(report.totals))
     parts += chart_sections(report, markers) if charts is None else charts
-    parts.append("<h2>Every leg</h2>")
+    parts.append("<h2 id='legs'>Every leg</h2>")
     parts.append(
         "<p class='caption'>One row per leg and scheduled time (trains with the same leg and time share a row). "
         "<i>min ↑10 s</i>: the minimum rounded up to the 10-second timetable unit. <i>bad-day cost</i>: bad-day "

@@ -41,7 +41,8 @@ main{max-width:1200px;margin:0 auto;padding:16px 26px 60px}
 h1{font-size:24px;margin:6px 0 2px}h2{font-size:18px;margin:28px 0 8px;border-bottom:2px solid #d5d9de;padding-bottom:3px}
 h3{font-size:15px;margin:14px 0 4px}p,li{font-size:14px;line-height:1.45}.sub{color:#555;font-size:13px;margin:0 0 10px}
 .cards{display:flex;flex-wrap:wrap;gap:10px;margin:10px 0}
-.card{background:#fff;border:1px solid #d5d9de;border-radius:8px;padding:8px 14px;min-width:130px}
+.card{background:#fff;border:1px solid #d5d9de;border-radius:8px;padding:8px 14px;min-width:130px;color:inherit;
+text-decoration:none}a.card:hover{box-shadow:0 1px 4px rgba(0,0,0,.25)}
 .card .n{font-size:24px;font-weight:700}.card .l{font-size:12px;color:#555}
 .card.bad{border-left:6px solid #c62828}.card.warn{border-left:6px solid #ef8f00}.card.ok{border-left:6px solid #2e7d32}
 .card.info{border-left:6px solid #5a7da8}
@@ -194,11 +195,21 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
                  "disabled": "[conflicts] enabled = false"}
     cards += [("warn", "–", f"conflicts not checked: {unchecked[x['conflicts']]} ({x['line_id']})")
               for x in manifest.get("lines", []) if x.get("conflicts") in unchecked]
+    # each card opens where its legs are listed: the margin report's flagged legs or conflicts (a run of one line),
+    # the pages of the lines (several), the notes of the run (stalls, stops: the notes say where)
+    from planner.report.published_run import path_id
+
+    lids = [x["line_id"] for x in manifest.get("lines", [])]
+    report = f"report/{path_id(lids[0])}_margins.html" if len(lids) == 1 else None
+    where = {"conflicts": f"{report}#conflicts" if report else "#pages", "infeasible_stops": "#notes",
+             "stalls": "#notes", "no_stop": "#notes"}
+    hrefs = [where.get(k, f"{report}#flagged" if report else "#pages") for k in order]
+    hrefs += ["#inputs"] * (len(cards) - len(hrefs))
     parts.append("<h2 id='flags'>Flags</h2><div class='cards'>" + "".join(
-        f"<div class='card {c}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></div>" for c, n, l in cards)
-        + "</div>")
+        f"<a class='card {c}' href='{_e(h)}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></a>"
+        for (c, n, l), h in zip(cards, hrefs)) + "</div>")
     if notes:
-        parts.append("<details><summary>Notes of the run (" + str(len(notes)) + ")</summary><ul>"
+        parts.append("<details id='notes'><summary>Notes of the run (" + str(len(notes)) + ")</summary><ul>"
                      + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul></details>")
     # changes
     ch = manifest.get("changes") or {}
@@ -252,11 +263,12 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     drows = []
     for name, d in docs.items():
         present = (run_dir / name).is_dir()
-        drows.append([f"<code>{_e(name)}</code>" if not present else f"<a href='{_e(name)}/'><code>{_e(name)}</code></a>",
+        drows.append([f"<a href='#ds-{_e(name)}'><code>{_e(name)}</code></a>",  # its columns, not a folder listing
                       f"{counts[name]:,}" if name in counts else ("0" if present else "not written"),
-                      _e(d.step), _e(", ".join(d.partitions)), f"<a href='#ds-{_e(name)}'>schema</a>"])
-    parts.append("<h2 id='datasets'>Datasets</h2>" + _table(["dataset", "rows", "step", "partitioned by", ""], drows,
-                                                             num=(1,))
+                      _e(d.step), _e(", ".join(d.partitions)),
+                      f"<code>{_e(name)}/</code>" if present else ""])
+    parts.append("<h2 id='datasets'>Datasets</h2>" + _table(["dataset (its columns)", "rows", "step", "partitioned by",
+                                                             "folder"], drows, num=(1,))
                  + "<p class='sub'>Hive-partitioned Parquet; <code>README.md</code> in this folder shows how to read "
                  "them with pandas, pyarrow and DuckDB.</p>")
     # bundles
