@@ -62,7 +62,7 @@ def test_headline_counts(report, page):
 
 
 def test_flagged_rows_first(page):
-    table = page[page.index("<h2>Every leg</h2>"):page.index("Totals per train")]
+    table = page[page.index("<h2 id='legs'>Every leg</h2>"):page.index("Totals per train")]
     first_flag = table.index("Flagged legs (4)")
     others = table.index("Other legs (1)")
     assert first_flag < others
@@ -83,7 +83,7 @@ def test_conflicts_section(report, line):
                              min_headway_s=40.0, rule="timetable-order",
                              decision="L1 first", delay_s=10.0, deadlock=False, stretch="")])
     page = render_html(dataclasses.replace(report, conflicts=con), stop_markers(line))
-    sec = page[page.index("<h2>Route conflicts</h2>"):]
+    sec = page[page.index("<h2 id='conflicts'>Route conflicts</h2>"):]
     assert "1 conflict between 1 pairs of trains on 1 resource (1 timetable-order)" in sec
     assert "Start (S0) track D1, km 0.000–0.100" in sec  # where: station, track, km
     assert "<td>30.0</td><td>40.0</td>" in sec  # headway, minimum headway
@@ -110,7 +110,7 @@ def _shown_cost(cell: str) -> tuple[float, list[float]]:
 
 def flagged_costs(page: str) -> list[tuple[float, list[float]]]:
     """The bad-day cost cells of the page's flagged-legs table."""
-    table = page.split("<h3>Flagged legs", 1)[1].split("</table>", 1)[0]
+    table = page.split("<h3 id='flagged'>Flagged legs", 1)[1].split("</table>", 1)[0]
     return [_shown_cost(c) for c in re.findall(r"<td[^>]*>(-?\d+\.\d = [^<]+)</td>", table)]
 
 
