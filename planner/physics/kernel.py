@@ -19,7 +19,8 @@ track, ``seg`` (m,) the ceiling segment of each node, ``par`` (9, n) per run
 and constant between events, ``st`` (7, n) the runs' state, ``lane`` (2, n)
 int8 phase code and sawtooth coasting flag, ``e`` (segments, n) the
 ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
-``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves.
+``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves (with 7 rows, also each
+step's time and traction work increments).
 
 Built ahead of time at install (:mod:`planner.io.compiled`: ``planner
 kernels build``, which ``make install`` runs), so a process loads machine code
@@ -41,7 +42,8 @@ from numba import types as nt
 from planner.physics.kernel_abi import (  # noqa: F401  (the rows are read through this module too)
     F_K_OK, F_MAYBE_OVER, F_STALL_FROM, F_STALL_RUN, F_STALL_TO, L_COAST, L_PHASE, P_CAP2, P_CAPV, P_R2,
     P_RAM, P_RATIO, P_RBM, P_RCM, P_SHED, P_TFI, PHASE_BRAKE, PHASE_COAST, PHASE_HOLD, PHASE_POWER, PHASE_STOP,
-    R_A, R_CAP, R_RATIO, R_T, R_V, S_BAD, S_C0, S_T, S_V, S_W, S_WLAST, S_WORK, SAWTOOTH_MIN_FRACTION, SOURCES,
+    R_A, R_CAP, R_DT, R_DWORK, R_RATIO, R_T, R_V, S_BAD, S_C0, S_T, S_V, S_W, S_WLAST, S_WORK, SAWTOOTH_MIN_FRACTION,
+    SOURCES,
     T_AG, T_AHEAD, T_S, T_STEEP, T_STOP2, T_VINT, T_VN2,
 )
 
@@ -274,6 +276,8 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
                 rec[R_T, i, jr], rec[R_V, i, jr], rec[R_A, i, jr] = t + dt, v1, (w1 - w) / (2.0 * ds)
                 rec[R_RATIO, i, jr], rec[R_CAP, i, jr] = ratio, capv
                 rec_p[i, jr] = ph
+                if rec.shape[0] > R_DWORK:  # the step's own increments (planner.physics.reuse)
+                    rec[R_DT, i, jr], rec[R_DWORK, i, jr] = dt, dwork
             if k + 2 == m:
                 st[S_WLAST, i] = w  # entering the last step, onto the marker
             w, v, c0, t = w1, v1, c1, t + dt

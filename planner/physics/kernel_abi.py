@@ -35,8 +35,9 @@ L_PHASE, L_COAST = range(2)
 # flags: any run may be above its ceiling; last node the stall check passed; stall window (from, to)
 # and the first run found stalled there
 F_MAYBE_OVER, F_K_OK, F_STALL_FROM, F_STALL_TO, F_STALL_RUN = range(5)
-# rows of rec (record=True): time, speed, acceleration, ratio, cruise cap at each node
-R_T, R_V, R_A, R_RATIO, R_CAP = range(5)
+# rows of rec (record=True): time, speed, acceleration, ratio, cruise cap at each node; a rec of 7 rows
+# also gets the time and the traction work / M_e of the step arriving there, as added to the run's sums
+R_T, R_V, R_A, R_RATIO, R_CAP, R_DT, R_DWORK = range(7)
 
 SOURCES = ("planner.physics.kernel", __name__, "planner.io.compiled")
 """What a build of the kernel is made of (their digest names the built module)."""

@@ -1,0 +1,177 @@
+"""Exact reuse of identical runs: a batch steps each distinct state once.
+
+Two runs of one batch that stand at the same grid node with the same bits in everything the
+kernel's step reads of a run have the same future, bit for bit. What it reads
+(:func:`planner.physics.kernel.advance`): of the state, speed², speed, the ceiling² at the node,
+the stall marker (``st`` rows ``S_W``, ``S_V``, ``S_C0``, ``S_BAD``), the phase code and the coasting
+flag (``lane``); every per-run constant (its ``par`` column: Davis terms, traction, ratio, cruise
+cap, shedding rate) and its column of the ceiling's segment table ``e``; and what the whole batch
+shares (the track, the train, the batch-wide switches). The step is a function of exactly these
+(the tractive-effort piece it hunts from is found again from the speed), so two runs equal in
+them at node k are equal in them at every later node. The batch-wide switches (above-ceiling
+mode, stall checks) are the same for both, and the same with either one dropped: each is a
+maximum, minimum or "any" over the runs' states, in which two equal runs count alike.
+
+What two such runs do not share are their sums, time and traction work, each added up step by
+step (``t ← t + Δt``): the kernel never reads them (a time that is not finite stops the batch as a
+stall). So at a *check node* (every :data:`CHECK_EVERY` nodes, counted from the grid's start)
+the batch keeps one run of each set of equal ones in the kernel (the *leader*: the lowest index)
+and the others *follow* it: the kernel records each leader's increments Δt and Δwork step by step
+(``rec`` rows ``R_DT``, ``R_DWORK``) and a follower adds the same increments to its own sums in the
+same order, one at a time: the same additions of the same bits as stepping it would make. Its
+time and energy are therefore those of stepping it, to the bit, and everything else of its state
+is its leader's. At a node with an event (snapshot, ratio change, controller) and at the end
+every run has its own columns again (:meth:`Reuse.expand`), so the events and the result see the
+batch as if each run had been stepped. Equality is decided on the bits themselves (a hash only
+sorts candidates; a run is merged only with a run whose key bits it equals), never by a tolerance.
+
+A batch stepped with and without reuse gives byte-identical results (``tests/test_reuse.py``:
+every table of the sample line and of random small lines). It pays where runs meet: the rows of
+table (b) with the same ratio after a point, which hold the same target or brake on the same
+curve; table (d)'s states at the last point (``benchmarks/bench_reuse.py`` measures it).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from planner.physics import kernel_abi as K
+
+ENABLED = True
+"""Reuse identical runs in :func:`planner.physics.run_curve.simulate` (off: every run is stepped;
+the results are the same bytes, this is for the tests and the benchmark that show it)."""
+CHECK_EVERY = 64
+"""Nodes between two looks for runs that have met (counted from the grid's first node)."""
+MIN_RUNS = 8
+"""Smaller batches are stepped run by run: looking for equal runs costs more than it can save."""
+
+_MIX = np.uint64(0x9E3779B97F4A7C15)
+_DYN_ROWS = [K.S_W, K.S_V, K.S_C0, K.S_BAD]
+"""The state rows a step reads (with ``lane`` and the constants); ``S_T``, ``S_WORK`` are sums it
+never reads, ``S_WLAST`` is written on the last step before anything reads it."""
+
+
+def equal_groups(keys: np.ndarray) -> np.ndarray:
+    """For each row of ``keys`` (n, c) uint64, the lowest index of a row with the same bits.
+
+    A hash of each row sorts candidates; a row is then given the first row of its hash's
+    run only if all its bits equal that row's (else itself), so rows are never put together
+    unless they are equal, and equal rows are (but for a hash collision, which only loses
+    a merge).
+    """
+    n = keys.shape[0]
+    h = keys[:, 0].copy()
+    for j in range(1, keys.shape[1]):
+        h *= _MIX
+        h ^= keys[:, j]
+    order = np.argsort(h, kind="stable")
+    hs = h[order]
+    first_of_run = np.ones(n, bool)
+    first_of_run[1:] = hs[1:] != hs[:-1]
+    first = order[np.maximum.accumulate(np.where(first_of_run, np.arange(n), 0))]
+    rep = np.empty(n, np.int64)
+    rep[order] = first
+    same = (keys == keys[rep]).all(axis=1)
+    return np.where(same, rep, np.arange(n))
+
+
+def _bits(a: np.ndarray) -> np.ndarray:
+    """Rows of a float64 (r, n) array as the (n, r) uint64 of their bits."""
+    return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64).T
+
+
+class Reuse:
+    """The leaders and followers of one :class:`planner.physics.run_curve._Integrator` batch
+    between two event nodes (module doc)."""
+
+    def __init__(self, integ):
+        self.it = integ
+
+    def advance(self, k: int, k_to: int) -> None:
+        """Every run from node ``k`` to ``k_to`` (no event strictly between), each distinct state
+        stepped once; the batch's arrays hold every run's own state again afterwards, or the
+        stall flags name the batch's run (as the kernel would have named it)."""
+        it = self.it
+        prep = it.prep
+        if k >= k_to:
+            return
+        n = it.n
+        # the constants' class of each run: par and e columns, bit for bit
+        self.cls = equal_groups(np.column_stack([_bits(it.par), _bits(it.e)]))
+        if (self.cls == np.arange(n)).all():  # no two runs share their constants: none can meet
+            it.kernel.advance(k, k_to, it.k0, prep.trk, prep.seg, it.par, it.st, it.lane, it.e, it.cst, it.tab,
+                              it.flags, it.rec, it.rec_p, False)
+            return
+        self.cls = self.cls.astype(np.uint64)
+        self.act = np.arange(n)
+        self.par, self.st, self.lane, self.e = it.par, it.st.copy(), it.lane.copy(), it.e
+        self.f_idx = np.empty(0, np.int64)
+        self.f_lead = np.empty(0, np.int64)
+        self.f_t, self.f_w = np.empty(0), np.empty(0)
+        self._merge()
+        dummy, dummy_p = np.zeros((7, 1, 1)), np.zeros((1, 1), np.int8)
+        while k < k_to:
+            kn = min(k_to, (k // CHECK_EVERY + 1) * CHECK_EVERY)
+            rec = self.f_idx.size > 0
+            na = self.act.size
+            if rec:
+                r, r_p = np.empty((7, na, kn - k + 1)), np.empty((na, kn - k + 1), np.int8)
+            else:
+                r, r_p = dummy, dummy_p
+            it.kernel.advance(k, kn, k, prep.trk, prep.seg, self.par, self.st, self.lane, self.e, it.cst,
+                              it.tab, it.flags, r, r_p, rec)
+            if it.flags[K.F_STALL_TO] >= 0:  # the lowest index stalled is a leader (followers' indices are higher)
+                it.flags[K.F_STALL_RUN] = self.act[it.flags[K.F_STALL_RUN]]
+                return
+            if rec:
+                self._follow(r[K.R_DT, :, 1:], r[K.R_DWORK, :, 1:])
+            k = kn
+            if k < k_to:
+                self._merge()
+        self.expand()
+
+    def _follow(self, dt: np.ndarray, dw: np.ndarray) -> None:
+        """Each follower adds its leader's increments of the last stretch to its sums, one step at a time,
+        in step order: ``t ← t + Δt``, as the kernel adds them."""
+        lead = self.f_lead
+        for inc, sums in ((dt, self.f_t), (dw, self.f_w)):
+            steps = inc.T[:, lead]  # (steps, followers)
+            for row in steps:
+                sums += row
+
+    def _merge(self) -> None:
+        """Drop from the kernel's batch every run equal to a lower one (module doc); it follows that one."""
+        st, lane = self.st, self.lane
+        na = self.act.size
+        keys = np.empty((na, 7), np.uint64)
+        keys[:, :4] = _bits(st[_DYN_ROWS])
+        keys[:, 4] = lane[K.L_PHASE].astype(np.uint8)
+        keys[:, 5] = lane[K.L_COAST].astype(np.uint8)
+        keys[:, 6] = self.cls[self.act]
+        rep = equal_groups(keys)
+        keep = rep == np.arange(na)
+        if keep.all():
+            return
+        gone = np.flatnonzero(~keep)
+        # the runs that meet a leader here follow it from here, with their own sums so far
+        self.f_idx = np.concatenate([self.f_idx, self.act[gone]])
+        self.f_lead = np.concatenate([rep[self.f_lead], rep[gone]])
+        self.f_t = np.concatenate([self.f_t, st[K.S_T, gone]])
+        self.f_w = np.concatenate([self.f_w, st[K.S_WORK, gone]])
+        new_pos = np.cumsum(keep) - 1
+        self.f_lead = new_pos[self.f_lead]
+        self.act = self.act[keep]
+        self.par = np.ascontiguousarray(self.par[:, keep])
+        self.st = np.ascontiguousarray(st[:, keep])
+        self.lane = np.ascontiguousarray(lane[:, keep])
+        self.e = np.ascontiguousarray(self.e[:, keep])
+
+    def expand(self) -> None:
+        """Every run's own state in the batch's arrays: a follower's is its leader's with its own sums."""
+        it = self.it
+        it.st[:, self.act] = self.st
+        it.lane[:, self.act] = self.lane
+        if self.f_idx.size:
+            it.st[:, self.f_idx] = self.st[:, self.f_lead]
+            it.st[K.S_T, self.f_idx] = self.f_t
+            it.st[K.S_WORK, self.f_idx] = self.f_w
+            it.lane[:, self.f_idx] = self.lane[:, self.f_lead]
