@@ -383,12 +383,28 @@ def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, 
         k = k_end
 
 
+@njit(**_JIT)
+def follow(rec, lead, t, work):
+    """Each follower adds its leader's recorded increments (``rec`` rows ``R_DT``, ``R_DWORK``, columns
+    1 on; its leader's row ``lead``) to its own time and traction work, one step at a time in step
+    order: the additions stepping it would make (:mod:`planner.physics.reuse`)."""
+    steps = rec.shape[2]
+    for f in range(lead.shape[0]):
+        i = lead[f]
+        tf, wf = t[f], work[f]
+        for j in range(1, steps):
+            tf = tf + rec[R_DT, i, j]
+            wf = wf + rec[R_DWORK, i, j]
+        t[f], work[f] = tf, wf
+
+
 _F1, _F2, _F3 = nt.float64[::1], nt.float64[:, ::1], nt.float64[:, :, ::1]
 _I1, _B2 = nt.int64[::1], nt.int8[:, ::1]
 SIGNATURES = {
     "advance": nt.void(nt.int64, nt.int64, nt.int64, _F2, _I1, _F2, _F2, _B2, _F2, _F1, _F2, _I1, _F3, _B2,
                        nt.boolean),
     "set_targets": nt.void(nt.int64, _F2, _I1, _I1, _F2, _F2, _F2),
+    "follow": nt.void(_F3, _I1, _F1, _F1),
 }
 """The one signature of each entry point (the arrays C-contiguous, as
 :func:`planner.physics.kernel_abi.check_layout` requires)."""

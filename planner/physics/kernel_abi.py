@@ -44,7 +44,8 @@ SOURCES = ("planner.physics.kernel", __name__, "planner.io.compiled")
 
 _LAYOUT = {"trk": (np.float64, 2), "seg": (np.int64, 1), "bounds": (np.int64, 1), "par": (np.float64, 2),
            "st": (np.float64, 2), "lane": (np.int8, 2), "e": (np.float64, 2), "cst": (np.float64, 1),
-           "tab": (np.float64, 2), "flags": (np.int64, 1), "rec": (np.float64, 3), "rec_p": (np.int8, 2)}
+           "tab": (np.float64, 2), "flags": (np.int64, 1), "rec": (np.float64, 3), "rec_p": (np.int8, 2),
+           "lead": (np.int64, 1), "sums": (np.float64, 1)}
 
 
 def check_layout(**arrays: np.ndarray) -> None:
@@ -60,7 +61,8 @@ _loaded: ModuleType | None = None
 
 
 def load() -> ModuleType:
-    """The kernel's entry points (``advance``, ``set_targets``): its build for these sources, else the source."""
+    """The kernel's entry points (``advance``, ``set_targets``, ``follow``): its build for these sources, else
+    the source."""
     global _loaded
     if _loaded is None:
         built = compiled.load("integrator", SOURCES)

@@ -39,8 +39,10 @@ from planner.physics import kernel_abi as K
 ENABLED = True
 """Reuse identical runs in :func:`planner.physics.run_curve.simulate` (off: every run is stepped;
 the results are the same bytes, this is for the tests and the benchmark that show it)."""
-CHECK_EVERY = 64
-"""Nodes between two looks for runs that have met (counted from the grid's first node)."""
+CHECK_EVERY = 32
+"""Nodes between two looks for runs that have met (counted from the grid's first node), in a batch of at
+least :data:`BIG_BATCH` runs (:func:`check_every`)."""
+BIG_BATCH = 1000
 MIN_RUNS = 8
 """Smaller batches are stepped run by run: looking for equal runs costs more than it can save."""
 
@@ -48,6 +50,12 @@ _MIX = np.uint64(0x9E3779B97F4A7C15)
 _DYN_ROWS = [K.S_W, K.S_V, K.S_C0, K.S_BAD]
 """The state rows a step reads (with ``lane`` and the constants); ``S_T``, ``S_WORK`` are sums it
 never reads, ``S_WLAST`` is written on the last step before anything reads it."""
+
+
+def check_every(n: int) -> int:
+    """Nodes to the next look for runs that have met, in a batch of ``n`` runs in the kernel: a look
+    costs a fixed part and a part per run, a step a part per run, so small batches look less often."""
+    return CHECK_EVERY if n >= BIG_BATCH else 4 * CHECK_EVERY
 
 
 def equal_groups(keys: np.ndarray) -> np.ndarray:
@@ -110,7 +118,8 @@ class Reuse:
         self._merge()
         dummy, dummy_p = np.zeros((7, 1, 1)), np.zeros((1, 1), np.int8)
         while k < k_to:
-            kn = min(k_to, (k // CHECK_EVERY + 1) * CHECK_EVERY)
+            every = check_every(self.act.size)
+            kn = min(k_to, (k // every + 1) * every)
             rec = self.f_idx.size > 0
             na = self.act.size
             if rec:
@@ -123,20 +132,17 @@ class Reuse:
                 it.flags[K.F_STALL_RUN] = self.act[it.flags[K.F_STALL_RUN]]
                 return
             if rec:
-                self._follow(r[K.R_DT, :, 1:], r[K.R_DWORK, :, 1:])
+                self._follow(r)
             k = kn
             if k < k_to:
                 self._merge()
         self.expand()
 
-    def _follow(self, dt: np.ndarray, dw: np.ndarray) -> None:
-        """Each follower adds its leader's increments of the last stretch to its sums, one step at a time,
-        in step order: ``t ← t + Δt``, as the kernel adds them."""
-        lead = self.f_lead
-        for inc, sums in ((dt, self.f_t), (dw, self.f_w)):
-            steps = inc.T[:, lead]  # (steps, followers)
-            for row in steps:
-                sums += row
+    def _follow(self, rec: np.ndarray) -> None:
+        """Each follower adds its leader's increments of the last stretch to its sums (kernel ``follow``)."""
+        K.check_layout(rec=rec, lead=self.f_lead, sums=self.f_t)
+        K.check_layout(sums=self.f_w)
+        self.it.kernel.follow(rec, self.f_lead, self.f_t, self.f_w)
 
     def _merge(self) -> None:
         """Drop from the kernel's batch every run equal to a lower one (module doc); it follows that one."""
