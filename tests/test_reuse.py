@@ -57,17 +57,15 @@ def _both(monkeypatch, fn, merges: bool | None = True):
     return out
 
 
-def test_equal_groups_puts_together_only_equal_rows(monkeypatch):
+def test_equal_groups_puts_together_only_equal_columns():
     from planner.physics import reuse
 
-    keys = np.array([[1, 2], [3, 4], [1, 2], [5, 6], [3, 4], [1, 2], [1, 3]], np.uint64)
+    keys = np.array([[1, 2], [3, 4], [1, 2], [5, 6], [3, 4], [1, 2], [1, 3]], np.uint64).T
     assert reuse.equal_groups(keys).tolist() == [0, 1, 0, 3, 1, 0, 6]
-    # a hash that collides everywhere (every row's hash is its last word): still only equal rows meet
-    monkeypatch.setattr(reuse, "_MIX", np.uint64(0))
-    keys = np.array([[1, 2], [3, 2], [1, 2], [4, 2], [3, 2]], np.uint64)
-    rep = reuse.equal_groups(keys)
-    assert all((keys[rep[i]] == keys[i]).all() and rep[i] <= i for i in range(len(keys)))
-    assert rep.tolist()[:3] == [0, 1, 0]
+    # a hash that collides everywhere (multiplier 0: every hash is the last word's): still only equal
+    # columns meet, each with the first of its kind
+    keys = np.array([[1, 2], [3, 2], [1, 2], [4, 2], [3, 2], [4, 2]], np.uint64).T
+    assert reuse.equal_groups(keys, mix=np.uint64(0)).tolist() == [0, 1, 0, 3, 1, 3]
 
 
 @pytest.fixture(scope="module")

@@ -398,6 +398,37 @@ def follow(rec, lead, t, work):
         t[f], work[f] = tf, wf
 
 
+@njit(**_JIT)
+def groups(keys, mix, table, rep):
+    """For each run (column of ``keys``, (c, n) uint64), the lowest run whose column has the same
+    bits into ``rep``, else itself (:mod:`planner.physics.reuse`). An open-addressing hash table
+    (``table``: a power of two ≥ 2n slots, −1 = empty) finds candidates; a run is given one only
+    if every word is equal, so a hash collision (``mix``: the hash's multiplier) can only miss a
+    pair, never join two different runs."""
+    c, n = keys.shape
+    mask = table.shape[0] - 1
+    for i in range(n):
+        h = keys[0, i]
+        for r in range(1, c):
+            h = (h * mix) ^ keys[r, i]
+        h ^= h >> np.uint64(29)
+        slot = np.int64(h & np.uint64(mask))
+        rep[i] = i
+        while table[slot] >= 0:
+            j = table[slot]
+            same = True
+            for r in range(c):
+                if keys[r, i] != keys[r, j]:
+                    same = False
+                    break
+            if same:
+                rep[i] = j
+                break
+            slot = (slot + 1) & mask
+        if rep[i] == i:
+            table[slot] = i
+
+
 _F1, _F2, _F3 = nt.float64[::1], nt.float64[:, ::1], nt.float64[:, :, ::1]
 _I1, _B2 = nt.int64[::1], nt.int8[:, ::1]
 SIGNATURES = {
@@ -405,6 +436,7 @@ SIGNATURES = {
                        nt.boolean),
     "set_targets": nt.void(nt.int64, _F2, _I1, _I1, _F2, _F2, _F2),
     "follow": nt.void(_F3, _I1, _F1, _F1),
+    "groups": nt.void(nt.uint64[:, ::1], nt.uint64, _I1, _I1),
 }
 """The one signature of each entry point (the arrays C-contiguous, as
 :func:`planner.physics.kernel_abi.check_layout` requires)."""

@@ -58,33 +58,21 @@ def check_every(n: int) -> int:
     return CHECK_EVERY if n >= BIG_BATCH else 4 * CHECK_EVERY
 
 
-def equal_groups(keys: np.ndarray) -> np.ndarray:
-    """For each row of ``keys`` (n, c) uint64, the lowest index of a row with the same bits.
-
-    A hash of each row sorts candidates; a row is then given the first row of its hash's
-    run only if all its bits equal that row's (else itself), so rows are never put together
-    unless they are equal, and equal rows are (but for a hash collision, which only loses
-    a merge).
-    """
-    n = keys.shape[0]
-    h = keys[:, 0].copy()
-    for j in range(1, keys.shape[1]):
-        h *= _MIX
-        h ^= keys[:, j]
-    order = np.argsort(h, kind="stable")
-    hs = h[order]
-    first_of_run = np.ones(n, bool)
-    first_of_run[1:] = hs[1:] != hs[:-1]
-    first = order[np.maximum.accumulate(np.where(first_of_run, np.arange(n), 0))]
+def equal_groups(keys: np.ndarray, mix: np.uint64 = _MIX) -> np.ndarray:
+    """For each column of ``keys`` (c, n) uint64, the lowest index of a column with the same bits
+    (kernel ``groups``: a hash table finds candidates, equal words decide; ``mix`` is the hash's
+    multiplier, which the tests set to 0 to make every hash collide)."""
+    keys = np.ascontiguousarray(keys, dtype=np.uint64)
+    n = keys.shape[1]
     rep = np.empty(n, np.int64)
-    rep[order] = first
-    same = (keys == keys[rep]).all(axis=1)
-    return np.where(same, rep, np.arange(n))
+    table = np.full(1 << max(int(2 * n - 1).bit_length(), 1), -1, np.int64)
+    K.load().groups(keys, np.uint64(mix), table, rep)
+    return rep
 
 
 def _bits(a: np.ndarray) -> np.ndarray:
-    """Rows of a float64 (r, n) array as the (n, r) uint64 of their bits."""
-    return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64).T
+    """A float64 array's bits as uint64 (a view where it can be)."""
+    return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
 
 
 class Reuse:
@@ -104,7 +92,7 @@ class Reuse:
             return
         n = it.n
         # the constants' class of each run: par and e columns, bit for bit
-        self.cls = equal_groups(np.column_stack([_bits(it.par), _bits(it.e)]))
+        self.cls = equal_groups(np.concatenate([_bits(it.par), _bits(it.e)]))
         if (self.cls == np.arange(n)).all():  # no two runs share their constants: none can meet
             it.kernel.advance(k, k_to, it.k0, prep.trk, prep.seg, it.par, it.st, it.lane, it.e, it.cst, it.tab,
                               it.flags, it.rec, it.rec_p, False)
@@ -148,11 +136,10 @@ class Reuse:
         """Drop from the kernel's batch every run equal to a lower one (module doc); it follows that one."""
         st, lane = self.st, self.lane
         na = self.act.size
-        keys = np.empty((na, 7), np.uint64)
-        keys[:, :4] = _bits(st[_DYN_ROWS])
-        keys[:, 4] = lane[K.L_PHASE].astype(np.uint8)
-        keys[:, 5] = lane[K.L_COAST].astype(np.uint8)
-        keys[:, 6] = self.cls[self.act]
+        keys = np.empty((7, na), np.uint64)
+        keys[:4] = _bits(st)[_DYN_ROWS]
+        keys[4:6] = lane.view(np.uint8)
+        keys[6] = self.cls[self.act]
         rep = equal_groups(keys)
         keep = rep == np.arange(na)
         if keep.all():
