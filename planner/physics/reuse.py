@@ -39,7 +39,7 @@ from planner.physics import kernel_abi as K
 ENABLED = True
 """Reuse identical runs in :func:`planner.physics.run_curve.simulate` (off: every run is stepped;
 the results are the same bytes, this is for the tests and the benchmark that show it)."""
-CHECK_EVERY = 32
+CHECK_EVERY = 16
 """Nodes between two looks for runs that have met (counted from the grid's first node), in a batch of at
 least :data:`BIG_BATCH` runs (:func:`check_every`)."""
 BIG_BATCH = 1000
