@@ -6,7 +6,10 @@ on-board controller, the ceiling's segment table ``E``); :func:`advance` does
 every grid step between two such nodes for the whole batch, compiled with
 numba. The arithmetic is the module doc's method, written per run and in the
 same order of operations as the former numpy step, so results are the same to
-the bit (the bit-identity battery in ``benchmarks/bench_kernel.py`` checks it).
+the bit (the bit-identity battery in ``benchmarks/bench_kernel.py`` checks it). Two small entry points
+serve :mod:`planner.physics.reuse` (runs that meet stepped once): :func:`groups` finds runs
+whose key words are equal, :func:`follow` adds a stepped run's recorded increments to the
+sums of the runs that follow it.
 
 Two batch-wide switches of the numpy step are kept as they were, because they
 pick between two roundings of the same formula: whether any run may be above

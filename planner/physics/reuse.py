@@ -14,7 +14,7 @@ maximum, minimum or "any" over the runs' states, in which two equal runs count a
 
 What two such runs do not share are their sums, time and traction work, each added up step by
 step (``t ← t + Δt``): the kernel never reads them (a time that is not finite stops the batch as a
-stall). So at a *check node* (every :data:`CHECK_EVERY` nodes, counted from the grid's start)
+stall, and a finite time plus the same finite increment stays finite). So at a *check node* (every :data:`CHECK_EVERY` nodes, counted from the grid's start)
 the batch keeps one run of each set of equal ones in the kernel (the *leader*: the lowest index)
 and the others *follow* it: the kernel records each leader's increments Δt and Δwork step by step
 (``rec`` rows ``R_DT``, ``R_DWORK``) and a follower adds the same increments to its own sums in the
@@ -43,8 +43,9 @@ CHECK_EVERY = 16
 """Nodes between two looks for runs that have met (counted from the grid's first node), in a batch of at
 least :data:`BIG_BATCH` runs (:func:`check_every`)."""
 BIG_BATCH = 1000
+"""Runs in the kernel from which a batch looks every :data:`CHECK_EVERY` nodes, not every 4 × that."""
 MIN_RUNS = 8
-"""Smaller batches are stepped run by run: looking for equal runs costs more than it can save."""
+"""Smaller batches are not searched for equal runs: looking costs more than it can save."""
 
 _MIX = np.uint64(0x9E3779B97F4A7C15)
 _DYN_ROWS = [K.S_W, K.S_V, K.S_C0, K.S_BAD]

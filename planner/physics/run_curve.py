@@ -44,7 +44,9 @@ The loop is :class:`_Integrator`: it handles the nodes where something can
 change (snapshots, ratio changes, the controller hook, the ceiling's segment
 table) and hands every grid step between two such nodes to the compiled
 kernel :func:`planner.physics.kernel.advance` (free running, ceiling and
-brake, sawtooth band, phase codes, recording). It is the one integrator: the
+brake, sawtooth band, phase codes, recording); runs of the batch that meet in
+the same state are stepped once from there, with the same results to the bit
+(:mod:`planner.physics.reuse`). It is the one integrator: the
 tables, the closed loop of every on-board mode (the ratio modes and the
 time-keeping mode, through :class:`Command`), the margins and the run-curve
 API all run through it.
