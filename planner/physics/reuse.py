@@ -44,6 +44,9 @@ CHECK_EVERY = 16
 least :data:`BIG_BATCH` runs (:func:`check_every`)."""
 BIG_BATCH = 1000
 """Runs in the kernel from which a batch looks every :data:`CHECK_EVERY` nodes, not every 4 × that."""
+MERGE_SHARE = 16
+"""Runs that have met leave the kernel's batch once they are at least 1/MERGE_SHARE of it (the batch's
+arrays are copied without them); fewer stay in it, stepped, until then."""
 MIN_RUNS = 8
 """Smaller batches are not searched for equal runs: looking costs more than it can save."""
 
@@ -143,8 +146,8 @@ class Reuse:
         keys[6] = self.cls[self.act]
         rep = equal_groups(keys)
         keep = rep == np.arange(na)
-        if keep.all():
-            return
+        if (na - np.count_nonzero(keep)) * MERGE_SHARE < na:
+            return  # too few to be worth copying the batch without them: they are found again at the next look
         gone = np.flatnonzero(~keep)
         # the runs that meet a leader here follow it from here, with their own sums so far
         self.f_idx = np.concatenate([self.f_idx, self.act[gone]])
