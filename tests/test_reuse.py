@@ -148,10 +148,9 @@ def test_closed_loop_and_changes_are_the_same_bytes(tiny, monkeypatch):
             assert _same(off, on) == []
         track = make_track(tiny, tt, "A", "B", nodes_m=[500.0, 900.0, 1300.0])
         r = np.repeat([1.0, 0.8, 0.6], 4)
-        runs = lambda: simulate(track, tiny.train_type(tt), r, changes=[(500.0, np.tile([0.7, 0.9, 0.7, 1.0], 3)),  # noqa: E731
-                                                                         (1300.0, np.full(12, 0.6))],
-                                snapshots_m=[500.0, 900.0, 1300.0])
-        off, on = _both(monkeypatch, runs)
+        changes = [(500.0, np.tile([0.7, 0.9, 0.7, 1.0], 3)), (1300.0, np.full(12, 0.6))]
+        off, on = _both(monkeypatch, lambda: simulate(track, tiny.train_type(tt), r, changes=changes,
+                                                      snapshots_m=[500.0, 900.0, 1300.0]))
         assert _same(off, on) == []
 
 

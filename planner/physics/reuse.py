@@ -14,16 +14,17 @@ maximum, minimum or "any" over the runs' states, in which two equal runs count a
 
 What two such runs do not share are their sums, time and traction work, each added up step by
 step (``t ← t + Δt``): the kernel never reads them (a time that is not finite stops the batch as a
-stall, and a finite time plus the same finite increment stays finite). So at a *check node* (every :data:`CHECK_EVERY` nodes, counted from the grid's start)
-the batch keeps one run of each set of equal ones in the kernel (the *leader*: the lowest index)
-and the others *follow* it: the kernel records each leader's increments Δt and Δwork step by step
-(``rec`` rows ``R_DT``, ``R_DWORK``) and a follower adds the same increments to its own sums in the
-same order, one at a time: the same additions of the same bits as stepping it would make. Its
-time and energy are therefore those of stepping it, to the bit, and everything else of its state
-is its leader's. At a node with an event (snapshot, ratio change, controller) and at the end
-every run has its own columns again (:meth:`Reuse.expand`), so the events and the result see the
-batch as if each run had been stepped. Equality is decided on the bits themselves (a hash only
-sorts candidates; a run is merged only with a run whose key bits it equals), never by a tolerance.
+stall, and a finite time plus the same finite increment stays finite). So at a *check node*
+(:func:`check_every`, counted from the grid's start) the batch keeps one run of each set of
+equal ones in the kernel (the *leader*: the lowest index) and the others *follow* it: the kernel
+records each leader's increments Δt and Δwork step by step (``rec`` rows ``R_DT``, ``R_DWORK``)
+and a follower adds the same increments to its own sums in the same order, one at a time
+(kernel ``follow``): the same additions of the same bits as stepping it would make. Its time
+and energy are therefore those of stepping it, to the bit, and everything else of its state is
+its leader's. At a node with an event (snapshot, ratio change, controller) and at the end every
+run has its own columns again (:meth:`Reuse.expand`), so the events and the result see the batch
+as if each run had been stepped. Equality is decided on the bits themselves (a hash only finds
+candidates; a run follows only a run whose key words it equals), never by a tolerance.
 
 A batch stepped with and without reuse gives byte-identical results (``tests/test_reuse.py``:
 every table of the sample line and of random small lines). It pays where runs meet: the rows of
