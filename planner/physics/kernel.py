@@ -8,7 +8,10 @@ numba. The arithmetic is the module doc's method, written per run and in the
 same order of operations as the former numpy step, so results are the same to
 the bit (the bit-identity battery in ``benchmarks/bench_kernel.py`` checks it).
 Runs are stepped several at a time in lanes (:func:`_sweep`), which changes
-the order in which the processor meets the runs' operations, never a run's own.
+the order in which the processor meets the runs' operations, never a run's own. Two small entry
+points serve :mod:`planner.physics.reuse` (runs that meet stepped once): :func:`groups` finds runs
+whose key words are equal, :func:`follow` adds a stepped run's recorded increments to the
+sums of the runs that follow it.
 
 Two batch-wide switches of the numpy step are kept as they were, because they
 pick between two roundings of the same formula: whether any run may be above
@@ -22,7 +25,8 @@ and constant between events, ``st`` (``S_ROWS``, n) the runs' state (``S_*``) an
 scratch (``X_*``), ``lane`` (2, n)
 int8 phase code and sawtooth coasting flag, ``e`` (segments, n) the
 ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
-``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves.
+``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves (with 7 rows, also each
+step's time and traction work increments).
 
 Built ahead of time at install (:mod:`planner.io.compiled`: ``planner
 kernels build``, which ``make install`` runs), so a process loads machine code
@@ -44,7 +48,8 @@ from numba import types as nt
 from planner.physics.kernel_abi import (  # noqa: F401  (the rows are read through this module too)
     F_K_OK, F_MAYBE_OVER, F_STALL_FROM, F_STALL_RUN, F_STALL_TO, L_COAST, L_PHASE, P_CAP2, P_CAPV, P_R2,
     P_RAM, P_RATIO, P_RBM, P_RCM, P_SHED, P_TFI, PHASE_BRAKE, PHASE_COAST, PHASE_HOLD, PHASE_POWER, PHASE_STOP,
-    R_A, R_CAP, R_RATIO, R_T, R_V, S_BAD, S_C0, S_T, S_V, S_W, S_WLAST, S_WORK, SAWTOOTH_MIN_FRACTION, SOURCES,
+    R_A, R_CAP, R_DT, R_DWORK, R_RATIO, R_T, R_V, S_BAD, S_C0, S_T, S_V, S_W, S_WLAST, S_WORK, SAWTOOTH_MIN_FRACTION,
+    SOURCES,
     T_AG, T_AHEAD, T_S, T_STEEP, T_STOP2, T_VINT, T_VN2, LANES, X_A0, X_C1, X_CO, X_CROSS, X_CS0, X_CS1, X_FRAC, X_J,
     X_LB, X_OVER, X_SLOPE, X_VP, X_W1, X_WEND,
 )
@@ -300,6 +305,8 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
                     rec[R_T, i, jr], rec[R_V, i, jr], rec[R_A, i, jr] = t + dt, v1, (w1 - w) / (2.0 * ds)
                     rec[R_RATIO, i, jr], rec[R_CAP, i, jr] = par[P_RATIO, i], par[P_CAPV, i]
                     rec_p[i, jr] = ph
+                    if rec.shape[0] > R_DWORK:  # the step's own increments (planner.physics.reuse)
+                        rec[R_DT, i, jr], rec[R_DWORK, i, jr] = dt, dwork
                 if k + 2 == trk.shape[1]:
                     st[S_WLAST, i] = w  # entering the last step, onto the marker
                 t = t + dt
@@ -409,12 +416,60 @@ def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, 
         k = k_end
 
 
+@njit(**_JIT)
+def follow(rec, lead, t, work):
+    """Each follower adds its leader's recorded increments (``rec`` rows ``R_DT``, ``R_DWORK``, columns
+    1 on; its leader's row ``lead``) to its own time and traction work, one step at a time in step
+    order: the additions stepping it would make (:mod:`planner.physics.reuse`)."""
+    steps = rec.shape[2]
+    for f in range(lead.shape[0]):
+        i = lead[f]
+        tf, wf = t[f], work[f]
+        for j in range(1, steps):
+            tf = tf + rec[R_DT, i, j]
+            wf = wf + rec[R_DWORK, i, j]
+        t[f], work[f] = tf, wf
+
+
+@njit(**_JIT)
+def groups(keys, mix, table, rep):
+    """For each run (column of ``keys``, (c, n) uint64), the lowest run whose column has the same
+    bits into ``rep``, else itself (:mod:`planner.physics.reuse`). An open-addressing hash table
+    (``table``: a power of two ≥ 2n slots, −1 = empty) finds candidates; a run is given one only
+    if every word is equal, so a hash collision (``mix``: the hash's multiplier) can only miss a
+    pair, never join two different runs."""
+    c, n = keys.shape
+    mask = table.shape[0] - 1
+    for i in range(n):
+        h = keys[0, i]
+        for r in range(1, c):
+            h = (h * mix) ^ keys[r, i]
+        h ^= h >> np.uint64(29)
+        slot = np.int64(h & np.uint64(mask))
+        rep[i] = i
+        while table[slot] >= 0:
+            j = table[slot]
+            same = True
+            for r in range(c):
+                if keys[r, i] != keys[r, j]:
+                    same = False
+                    break
+            if same:
+                rep[i] = j
+                break
+            slot = (slot + 1) & mask
+        if rep[i] == i:
+            table[slot] = i
+
+
 _F1, _F2, _F3 = nt.float64[::1], nt.float64[:, ::1], nt.float64[:, :, ::1]
 _I1, _B2 = nt.int64[::1], nt.int8[:, ::1]
 SIGNATURES = {
     "advance": nt.void(nt.int64, nt.int64, nt.int64, _F2, _I1, _F2, _F2, _B2, _F2, _F1, _F2, _I1, _F3, _B2,
                        nt.boolean),
     "set_targets": nt.void(nt.int64, _F2, _I1, _I1, _F2, _F2, _F2),
+    "follow": nt.void(_F3, _I1, _F1, _F1),
+    "groups": nt.void(nt.uint64[:, ::1], nt.uint64, _I1, _I1),
 }
 """The one signature of each entry point (the arrays C-contiguous, as
 :func:`planner.physics.kernel_abi.check_layout` requires)."""

@@ -44,7 +44,9 @@ The loop is :class:`_Integrator`: it handles the nodes where something can
 change (snapshots, ratio changes, the controller hook, the ceiling's segment
 table) and hands every grid step between two such nodes to the compiled
 kernel :func:`planner.physics.kernel.advance` (free running, ceiling and
-brake, sawtooth band, phase codes, recording). It is the one integrator: the
+brake, sawtooth band, phase codes, recording); runs of the batch that meet in
+the same state are stepped once from there, with the same results to the bit
+(:mod:`planner.physics.reuse`). It is the one integrator: the
 tables, the closed loop of every on-board mode (the ratio modes and the
 time-keeping mode, through :class:`Command`), the margins and the run-curve
 API all run through it.
@@ -63,7 +65,7 @@ import numpy as np
 from planner.errors import InputError, StallError
 from planner.line.model import TrainType
 from planner.line.units import KWH
-from planner.physics import dynamics, kernel_abi as K, speed_profile
+from planner.physics import dynamics, kernel_abi as K, reuse, speed_profile
 from planner.physics.kernel_abi import (  # noqa: F401  (the phase codes and the band's floor are part of this API)
     PHASE_BRAKE, PHASE_COAST, PHASE_HOLD, PHASE_POWER, PHASE_STOP, SAWTOOTH_MIN_FRACTION,
 )
@@ -343,6 +345,8 @@ class _Integrator:
     ``e`` the ceiling's segment table, ``flags`` the batch-wide switches.
     """
 
+    kernel = _KERNEL
+
     def __init__(self, track: Track, train: TrainType, load: np.ndarray, tf: np.ndarray, state: RunState,
                  k0: int, record: bool):
         self.track, self.train, self.load, self.tf = track, train, load, tf
@@ -450,11 +454,17 @@ class _Integrator:
     # -- the loop -------------------------------------------------------------------------
     def run(self) -> None:
         m, k = self.m, self.k0
+        # runs that meet in the same state are stepped once from there (planner.physics.reuse); not
+        # while recording every run's curve
+        same = reuse.Reuse(self) if reuse.ENABLED and not self.record and self.n >= reuse.MIN_RUNS else None
         for k_next in sorted(j for j in self.events if k < j < m - 1) + [m - 1]:
             if k in self.events:
                 self._events(k)
-            _KERNEL.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane,
-                            self.e, self.cst, self.tab, self.flags, self.rec, self.rec_p, self.record)
+            if same is not None:
+                same.advance(k, k_next)
+            else:
+                _KERNEL.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane,
+                                self.e, self.cst, self.tab, self.flags, self.rec, self.rec_p, self.record)
             if self.flags[K.F_STALL_TO] >= 0:
                 f = self.flags
                 raise _stall_error(self.track, self.train, self.load, self.tf, self.s, int(f[K.F_STALL_RUN]),
