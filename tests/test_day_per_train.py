@@ -252,6 +252,9 @@ def test_a_run_computes_trains_passing_while_lifted_without_the_restriction(proj
     # the restrictions page names the trains computed without it
     page = (monday / "report" / "tiny_restrictions.html").read_text()
     assert "without R1" in page and "understated" not in page
+    # the margin report names the restriction a row's trains run with
+    report = (monday / "report" / "tiny_margins.html").read_text()
+    assert "(with R1)" in report and "(with R1)" not in (before / "report" / "tiny_margins.html").read_text()
 
 
 def test_the_train_timetable_takes_each_trains_own_row(straight):

@@ -77,7 +77,7 @@ def test_side_by_side_gives_one_row_per_leg_with_both_runs(published, monkeypatc
     want = _margins(root / "outputs" / r2)
     want = want[want.scheduled_running_time_s.notna()]
     assert list(got.columns) == ["direction", "train_type", "origin", "destination", "scheduled_running_time_s",
-                                 "before_s", "after_s", "change_s"]
+                                 "restrictions", "before_s", "after_s", "change_s"]
     # side by side: one row per timetabled leg, not one per leg and run stacked
     assert len(got) == len(want) > 0
     keys = ["direction", "train_type", "origin", "destination", "scheduled_running_time_s"]

@@ -90,8 +90,13 @@ def _hms(t: float) -> str:
 
 
 def _leg(r) -> str:
+    """The leg, the stations it passes, and the day's temporary restrictions its trains run with (a leg whose
+    trains pass partly while a part-day restriction is lifted has a row with it and one without)."""
     via = f" <span class='via'>(passes {len(r.passes)})</span>" if len(r.passes) else ""
-    return f"<span class='nw'>{_e(r.origin)} → {_e(r.destination)}</span>{via}"
+    temp = getattr(r, "restrictions", None)
+    temp = [] if temp is None else list(temp)
+    tsr = f" <span class='via'>(with {_e(', '.join(map(str, temp)))})</span>" if temp else ""
+    return f"<span class='nw'>{_e(r.origin)} → {_e(r.destination)}</span>{via}{tsr}"
 
 
 def _ids(r) -> list[str]:
