@@ -195,9 +195,11 @@ def chart_page(line, run, calls, trains, svg: str, back: str, *, nav=(), run_id:
             f"train leaves on time) and the minimum run (ratio 100 %), both at the tables' conditions (empty, full "
             f"traction), from the departure stop marker to the arrival stop marker.</p>"
             f'<div class="fig">{svg}</div>'
-            + (f'<p class="caption">Temporary speed restrictions of the day on this leg (orange, hatched; in force '
-               f"at some time of the operating day, so applied all day, on the safe side): {tsr}.</p>" if tsr else
-               '<p class="caption">No temporary speed restriction of the day reaches this leg.</p>')
+            + (f'<p class="caption">Temporary speed restrictions of the day on this leg (orange, hatched), in force '
+               f"while these trains run it, so in their runs (the tables and bundles count a restriction in force at "
+               f"any time of the operating day for the whole day, on the safe side): {tsr}.</p>" if tsr else
+               '<p class="caption">No temporary speed restriction of the day is in force on this leg while these '
+               'trains run it.</p>')
             + f'<p class="caption">Trains that run this leg with this scheduled time: {links or "none"}.</p>'
             "</main></body></html>\n")
 
