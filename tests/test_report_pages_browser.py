@@ -202,7 +202,7 @@ def test_chart_shows_the_days_temporary_restriction_apart_from_the_permanent_lim
     # a leg it does not reach says so
     other = wide.open(run / "charts" / "tiny" / "down_EMU10_B-C_270s.html")
     assert "TSR-T1" not in other.eval("document.body.textContent")
-    assert "No temporary speed restriction of the day reaches this leg" in other.eval("document.body.innerText")
+    assert "No temporary speed restriction of the day is in force on this leg" in other.eval("document.body.innerText")
 
 
 def test_overview_says_the_operating_day_and_the_run_date(wide, tmp_path):
