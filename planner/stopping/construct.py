@@ -410,8 +410,8 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     found by bisection to round-off), each trial
     finishing the construction with the entries already chosen at the step-downs
     further back (else the paper's rule); :func:`planner.stopping.kernel.kernel` repeats the whole
-    construction once when there are several step-downs, so each choice sees the
-    others' (coordinate descent).
+    construction when there are several step-downs, so each choice sees the
+    others' (coordinate descent, while a pass makes the pattern faster).
     """
     _copy(st, ns, W, PAPER)
     f0 = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, False, 0.0)
