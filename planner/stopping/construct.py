@@ -35,6 +35,7 @@ from planner.stopping.pieces import (
 
 _INF = math.inf
 _BAD = 1e9  # the entry choice's objective from here on: the braking does not fit, or no join
+_SCAN = 8  # samples of the entry deceleration before Brent's search (_best_entry)
 _MAX_STEPS = 10_000  # guard against a construction that fails to make progress (never hit in tests)
 
 # slots of the node store, and the field rows of a slot
@@ -403,27 +404,45 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     end past the restriction start, ``v = C`` met there easing off. The optimum
     enters still braking with ``b_s`` up to the deceleration limits on both sides
     of the restriction start (:func:`_enter_braking` joins it, with or without a
-    cruise): one-dimensional minimisation of the duration over ``b_s`` (Brent's
-    method, golden section with parabolic steps, to 0.5 % of its range; the
-    duration is flat at an inner optimum, so its error is some 1e-4 s; an
+    cruise): one-dimensional minimisation of the duration over ``b_s`` (a scan of
+    ``_SCAN`` entries, then Brent's method, golden section with parabolic steps, on
+    the bracket around the best, to 0.1 % of the range; the duration is flat at an
+    inner optimum, so its error is some 1e-6 s; an
     optimum on the edge of the entries that work, where it is not flat, is
     found by bisection to round-off), each trial
     finishing the construction with the entries already chosen at the step-downs
     further back (else the paper's rule); :func:`planner.stopping.kernel.kernel` repeats the whole
-    construction once when there are several step-downs, so each choice sees the
-    others' (coordinate descent).
+    construction when there are several step-downs, so each choice sees the
+    others' (coordinate descent, while a pass makes the pattern faster).
     """
     _copy(st, ns, W, PAPER)
     f0 = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, False, 0.0)
     r_c = _region_of(Yb, capnext[r])
     hi = _pmin(A[r_c], A[r_c - 1])
-    a, b, xtol = 0.0, hi, 5e-3 * hi
+    xtol = 1e-3 * hi
     g = 0.5 * (3.0 - math.sqrt(5.0))
-    x = w = v = a + g * (b - a)
-    fa = fb = 0.0  # the objective at the bracket's ends, where known (0: not evaluated)
-    fx = fw = fv = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, True, x)
+    # a coarse scan first: the duration can dip narrowly near b_s = 0 with a second, shallower
+    # valley or a region where the join fails further up; Brent's search then runs on the bracket
+    # around the best sample (its ends' objective known: an edge of the entries that work is seen)
+    x, fx, k_x, f_prev, fa, fb = 0.0, _INF, 0, 0.0, 0.0, 0.0
+    for k in range(1, _SCAN + 1):
+        f_k = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, True, hi * k / _SCAN)
+        if f_k < fx:
+            x, fx, k_x, fa, fb = hi * k / _SCAN, f_k, k, f_prev, 0.0
+        elif k == k_x + 1:
+            fb = f_k
+        f_prev = f_k
+    a, b = hi * (k_x - 1) / _SCAN, _pmin(hi * (k_x + 1) / _SCAN, hi)
+    if k_x == 0:  # nothing works: Brent's search as before, from the golden point of the whole range
+        a, b, fa, fb = 0.0, hi, 0.0, 0.0
+        x = a + g * (b - a)
+        fx = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, True, x)
+    if k_x == 1:
+        fa = 0.0  # b_s = 0 is the paper's rule, f0, not a failed join
+    w = v = x
+    fw = fv = fx
     d = e = 0.0
-    for _ in range(12):
+    for _ in range(20):
         m = 0.5 * (a + b)
         tol = xtol + 1e-10 * abs(x)
         if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):

@@ -22,6 +22,17 @@ from planner.stopping.pieces import STEPS, ST, NS, V, _pmax, _pmin, b1, f8, i8, 
 _INF = math.inf
 
 
+_PASSES = 3  # coordinate-descent passes over several step-downs' entries after the first (kernel)
+
+
+@jit(f8(ST, NS, f8, V, f8))
+def _score(st, ns, X, C, y_r):
+    """The built pattern's duration up to a constant (the start cruise taken out), as the entry choice
+    scores it (:func:`planner.stopping.construct._objective`); a braking that does not fit counts first."""
+    t = st[W, TAU, ns[W] - 1] - y_r / C[C.size - 1]
+    return t if y_r <= X else 1e9 + (y_r - X)
+
+
 # --------------------------------------------------------------------------------------
 # The request: checks, regions, forward breakpoints
 # --------------------------------------------------------------------------------------
@@ -215,18 +226,31 @@ def kernel(v0, X, J, n_dl, n, optimize, work):
     cap_nodes = 8 * k + 64
     st = work[o:o + N_SLOTS * 6 * cap_nodes].reshape((N_SLOTS, 6, cap_nodes))
     status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, capnext, pend, optimize)
-    if status == DONE:
+    if status == DONE and optimize:
         chosen = 0
-        paper = False
         for e in entry:
             if not math.isnan(e):
                 chosen += 1
-            if e == 0.0:
-                paper = True
-        if chosen > 1 and paper:
-            # several step-downs and one kept the paper's rule, maybe because the others were still
-            # at it: choose each again, knowing the others' choice
-            status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, capnext, pend, True)
+        if chosen > 1:
+            # several step-downs, each entry chosen while those nearer the start were still at the
+            # paper's rule: choose each again, knowing the others' choice (coordinate descent), as
+            # long as a pass makes the pattern faster; a pass that does not is undone (the best
+            # entries rebuilt, the step-downs at them). The temporaries of _regions keep the best.
+            best = tmp[:k]
+            best[:] = entry
+            f_best = _score(st, ns, X, C, y_r)
+            better = False
+            for _ in range(_PASSES):
+                status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, capnext, pend, True)
+                f = _score(st, ns, X, C, y_r) if status == DONE else _INF
+                better = f < f_best
+                if not better:
+                    break
+                f_best = f
+                best[:] = entry
+            if not better:
+                entry[:] = best
+                status, y_r = _construct(st, ns, J, X, Yb, A, C, entry, capnext, pend, False)
     if status != DONE:
         out[0] = INTERNAL
         return -int(out[0])

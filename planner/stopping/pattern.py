@@ -76,10 +76,10 @@ it with ``a = 0``; the optimum enters still braking with some ``b_s`` (a free
 variable), eases off inside to ``b_m`` and brakes on: ``b_m = 0`` with a cruise
 at ``C - b_s²/2J`` where there is room, else ``b_m > 0`` (met while braking).
 The construction takes ``b_s`` by a one-dimensional minimisation of the
-duration (:func:`planner.stopping.construct._best_entry`, Brent's method, each
+duration (:func:`planner.stopping.construct._best_entry`, a scan, Brent's, each
 trial finishing the construction; an optimum on the edge of the entries whose
 braking fits is found to round-off by bisection), and with several step-downs
-runs once more so that each choice sees the others'. ``rule="paper"`` keeps the
+chooses each again, seeing the others', while that makes it faster. ``rule="paper"`` keeps the
 paper's rule for comparison. ``tests/test_stopping_lp.py`` checks the result
 against an independent time-discretised MILP (no slower; its bound comes down
 onto it as the grid is refined).
