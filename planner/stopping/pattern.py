@@ -493,11 +493,8 @@ def solve_stop(
     if p < 0:
         return _not_solved(-p, work, n, v0, X, J, n_dl)
     # out[2:5]: T, brake start, braking distance; from out[HEAD]: t, x, v, a (p + 1 each) and j (p)
-    o = 16 * n + 16  # byte offset of out[2] (out is work[2 n:])
-    T, brake, dist = _HEAD3.unpack_from(mem, o)
-    m_, p_ = _UNPACK.get(p) or _unpacker(p)
-    o += 8 * (codes.HEAD - 2)
-    s = 8 * (p + 1)
+    u, t_, x_, v_, a_, j_ = _UNPACK.get(p) or _unpacker(p)
+    f = u.unpack_from(mem, 16 * n + 16)  # one read from out[2] (out is work[2 n:])
     r = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
     d = r.__dict__
     d["feasible"] = True
@@ -505,14 +502,14 @@ def solve_stop(
     d["v_start_ms"] = v0
     d["x_stop_m"] = X
     d["jerk_max_ms3"] = J
-    d["duration_s"] = T
-    d["brake_start_m"] = brake
-    d["braking_distance_m"] = dist
-    d["t_s"] = m_.unpack_from(mem, o)
-    d["x_m"] = m_.unpack_from(mem, o + s)
-    d["v_ms"] = m_.unpack_from(mem, o + 2 * s)
-    d["a_ms2"] = m_.unpack_from(mem, o + 3 * s)
-    d["j_ms3"] = p_.unpack_from(mem, o + 4 * s)
+    d["duration_s"] = f[0]
+    d["brake_start_m"] = f[1]
+    d["braking_distance_m"] = f[2]
+    d["t_s"] = f[t_]
+    d["x_m"] = f[x_]
+    d["v_ms"] = f[v_]
+    d["a_ms2"] = f[a_]
+    d["j_ms3"] = f[j_]
     return r
 
 
@@ -532,15 +529,18 @@ def _packer(n_steps: int) -> struct.Struct:
     return _PACK.setdefault(n_steps, struct.Struct(f"={2 * n_steps}d"))
 
 
-def _unpacker(n_pieces: int) -> tuple[struct.Struct, struct.Struct]:
-    """Read the breakpoints (``n_pieces + 1`` floats) and the jerks (``n_pieces``) of a pattern, as tuples
-    (kept per size)."""
-    return _UNPACK.setdefault(n_pieces, (struct.Struct(f"={n_pieces + 1}d"), struct.Struct(f"={n_pieces}d")))
+def _unpacker(n_pieces: int) -> tuple:
+    """Reads a pattern of ``n_pieces`` from ``out[2]`` in one go: the duration, brake start and braking
+    distance, then (from ``out[HEAD]``) the breakpoints t, x, v, a (``n_pieces + 1`` floats each) and the
+    jerks (``n_pieces``); with the slices of the five tuples in what it reads (kept per size)."""
+    q = n_pieces + 1
+    u = struct.Struct(f"=3d{8 * (codes.HEAD - 5)}x{4 * q + n_pieces}d")
+    rows = (slice(3 + i * q, 3 + (i + 1) * q) for i in range(4))
+    return _UNPACK.setdefault(n_pieces, (u, *rows, slice(3 + 4 * q, 3 + 4 * q + n_pieces)))
 
 
 _PACK: dict[int, struct.Struct] = {}
-_UNPACK: dict[int, tuple[struct.Struct, struct.Struct]] = {}
-_HEAD3 = struct.Struct("=3d")
+_UNPACK: dict[int, tuple] = {}
 
 
 def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
