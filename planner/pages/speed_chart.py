@@ -76,14 +76,15 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
     of the leg's path from origin to destination (the stop marker of a stop, the station of a pass); ``pattern``: ``{adhesion_kmh_s: (position_m, speed_kmh)}``;
     ``eval_points``: ``[(position_m, id)]``; ``signals``: their chainages (default the line's on the leg).
     """
-    from planner.report.plots import inline_svg, pyplot
+    from planner.report.plots import inline_svg, reused_subplots
 
-    plt = pyplot()
     d, tt, o, de, sched = run.key
     row = run.row
     x = run.position_m
     lo, hi = float(np.min(x)), float(np.max(x))
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(15.5, 7.0), sharex=True, gridspec_kw={"height_ratios": [4, 1.3]})
+    # one figure per process, emptied for each chart (a job draws one chart per leg): same bytes, less time
+    fig, (ax, ax2) = reused_subplots("speed_chart", 2, 1, figsize=(15.5, 7.0), sharex=True,
+                                     gridspec_kw={"height_ratios": [4, 1.3]})
     lx, ly = _limit_steps(line, d, tt, lo, hi)
     ax.plot(lx, ly, color="#9e9e9e", lw=1.0, ls="--", label="permanent speed limit")
     ax.step(x / 1000.0, kmh(run.vmax_ms), where="mid", color="0.55", lw=1.1, label="on-board maximum (limit − margin)")
@@ -140,7 +141,7 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
                  f"{float(row['min_running_time_s']):.1f} s, margin {float(row['margin_s']):+.1f} s",
                  x=0.01, ha="left", fontsize=11, fontweight="bold")
     fig.subplots_adjust(left=0.055, right=0.75, top=0.93, bottom=0.09, hspace=0.06)
-    return inline_svg(fig)
+    return inline_svg(fig, close=False)
 
 
 def chart_page(line, run, calls, trains, svg: str, back: str) -> str:
