@@ -17,6 +17,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from planner.line.units import KMH_S
 
 TIMETABLE_DIR = "timetable"
@@ -37,11 +39,14 @@ def _patterns(stage: Path, line_id: str) -> dict:
     pats: dict = {}
     if ss is not None and len(ss):
         ss = ss.assign(adhesion_kmh_s=(ss["adhesion_ms2"] / KMH_S).round(6))
-        for (d, t, s), g in ss.groupby(["direction", "train_type", "station_id"]):
-            lv = sorted(g["adhesion_kmh_s"].unique())
-            pats[(d, t, s)] = {a: (g.loc[g.adhesion_kmh_s == a, "position_m"].to_numpy(float),
-                                   g.loc[g.adhesion_kmh_s == a, "speed_kmh"].to_numpy(float))
-                               for a in (lv[0], lv[-1])}
+        x, v = ss["position_m"].to_numpy(float), ss["speed_kmh"].to_numpy(float)
+        levels: dict = {}  # (direction, type, station) -> {adhesion: row positions, in the dataset's order}
+        groups = ss.groupby(["direction", "train_type", "station_id", "adhesion_kmh_s"]).indices
+        for (d, t, s, a), rows in groups.items():
+            levels.setdefault((d, t, s), {})[np.float64(a)] = rows
+        for k, by in levels.items():
+            lv = sorted(by)
+            pats[k] = {a: (x[by[a]], v[by[a]]) for a in (lv[0], lv[-1])}
     return pats
 
 
@@ -80,8 +85,8 @@ def train_views(job, line, stage: Path, report, runner, summary, run_label: str 
     with runner.progress.step("timetable"):
         runs = leg_runs(line, report.rows, ds_m=job.tables.ds_m)
         types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
-        _count(summary, write_timetable(line, runs, stage, types))
-        recs = timetable_rows(line, runs, types)
+        recs = timetable_rows(line, runs, types)  # made once: the dataset's rows and the page's
+        _count(summary, write_timetable(line, runs, stage, types, recs))
         links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
                  ("train graph", f"../graph/{lid}_graph.html")]
         write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, run_label=run_label, links=links))
