@@ -1,6 +1,6 @@
 """The speed–distance chart drawn on the reused figure is the same bytes as one drawn on a new figure.
 
-:func:`planner.report.plots.reused_subplots` empties one figure per process for every chart; whatever
+:func:`planner.pages.speed_chart.reused_subplots` empties one figure per process for every chart; whatever
 the previous chart left (another direction, so an inverted x axis, other limits, a stopping pattern
 and evaluation points or none, so other legends and data limits) must not reach the next one.
 """
@@ -36,8 +36,8 @@ def charts(tmp_path_factory):
 
 def _fresh(args) -> str:
     """The chart on a new figure: the reused one closed first (it is made again)."""
-    from planner.pages.speed_chart import chart_svg
-    from planner.report.plots import pyplot, reused_subplots
+    from planner.pages.speed_chart import chart_svg, reused_subplots
+    from planner.report.plots import pyplot
 
     fig, _ = reused_subplots("speed_chart")
     pyplot().close(fig)

@@ -28,7 +28,6 @@ from __future__ import annotations
 import io
 import math
 import os
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -80,50 +79,6 @@ def inline_svg(fig, *, close: bool = True) -> str:
         plt.close(fig)
     s = buf.getvalue()
     return s[s.index("<svg"):]
-
-
-_REUSED = threading.local()
-
-
-def reused_subplots(name: str, *args, **kwargs):
-    """``plt.subplots(*args, **kwargs)`` made once per thread and ``name``, then given again emptied.
-
-    For a chart drawn many times over (the speed–distance chart of every leg): making the figure, its
-    axes and their ticks is about a tenth of such a chart's time. Emptied means as new for a chart that
-    sets the same axes properties each time: every line, text, collection, patch and legend removed,
-    the data limits, autoscaling, colour cycle, axis labels and the x direction reset, so the figure
-    draws the same bytes as a new one (``tests/test_speed_chart.py`` draws charts in turn and compares
-    each with one drawn on a new figure). Save it with ``inline_svg(fig, close=False)``.
-    """
-    from matplotlib.transforms import Bbox
-
-    plt = pyplot()
-    made = getattr(_REUSED, "figures", None)
-    if made is None:
-        made = _REUSED.figures = {}
-    got = made.get(name)
-    if got is None or not plt.fignum_exists(got[0].number):
-        got = made[name] = plt.subplots(*args, **kwargs)
-        return got
-    fig, axes = got
-    for ax in np.ravel(axes):
-        for artist in [*ax.lines, *ax.texts, *ax.collections, *ax.patches]:
-            artist.remove()
-        if ax.legend_ is not None:
-            ax.legend_.remove()
-        ax.set_prop_cycle(None)
-        ax.dataLim.set(Bbox.null())
-        ax.ignore_existing_data_limits = True
-        ax.set_autoscale_on(True)
-        ax.set_xlabel("")
-        ax.set_ylabel("")
-        if ax.xaxis_inverted():
-            ax.invert_xaxis()
-        if ax.yaxis_inverted():
-            ax.invert_yaxis()
-    for ax in np.ravel(axes):
-        ax.autoscale_view()
-    return got
 
 
 def save_png(fig, path: str | os.PathLike, *, dpi: float | None = None) -> Path:
