@@ -17,6 +17,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from planner.line.units import KMH_S
 
 TIMETABLE_DIR = "timetable"
@@ -31,17 +33,33 @@ def timetable_href(line_id: str) -> str:
 
 def _patterns(stage: Path, line_id: str) -> dict:
     """Stopping-pattern samples by arrival stop, lowest and highest adhesion, from the run's ``stop_samples``."""
-    from planner.report.published_run import read_line_dataset
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.dataset as ds
 
-    ss = read_line_dataset(stage, "stop_samples", line_id)
+    if not (stage / "stop_samples").is_dir():
+        return {}
+    # only the columns drawn, the keys dictionary-encoded (pandas categories): a string object per sample
+    # and column was most of the main process's peak memory on a line ten times the sample
+    t = ds.dataset(stage / "stop_samples", format="parquet", partitioning="hive").to_table(
+        columns=["direction", "train_type", "station_id", "adhesion_ms2", "position_m", "speed_kmh"],
+        filter=pc.field("line") == line_id)
+    for name in ("direction", "train_type", "station_id"):
+        col = t.column(name)
+        if not pa.types.is_dictionary(col.type):
+            t = t.set_column(t.column_names.index(name), name, pc.dictionary_encode(col))
+    ss = t.to_pandas()
     pats: dict = {}
-    if ss is not None and len(ss):
+    if len(ss):
         ss = ss.assign(adhesion_kmh_s=(ss["adhesion_ms2"] / KMH_S).round(6))
-        for (d, t, s), g in ss.groupby(["direction", "train_type", "station_id"]):
-            lv = sorted(g["adhesion_kmh_s"].unique())
-            pats[(d, t, s)] = {a: (g.loc[g.adhesion_kmh_s == a, "position_m"].to_numpy(float),
-                                   g.loc[g.adhesion_kmh_s == a, "speed_kmh"].to_numpy(float))
-                               for a in (lv[0], lv[-1])}
+        x, v = ss["position_m"].to_numpy(float), ss["speed_kmh"].to_numpy(float)
+        levels: dict = {}  # (direction, type, station) -> {adhesion: row positions, in the dataset's order}
+        groups = ss.groupby(["direction", "train_type", "station_id", "adhesion_kmh_s"], observed=True).indices
+        for (d, tt, s, a), rows in groups.items():
+            levels.setdefault((d, tt, s), {})[np.float64(a)] = rows
+        for k, by in levels.items():
+            lv = sorted(by)
+            pats[k] = {a: (x[by[a]], v[by[a]]) for a in (lv[0], lv[-1])}
     return pats
 
 
@@ -84,8 +102,8 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     with runner.progress.step("timetable"):
         runs = leg_runs(line, report.rows, ds_m=job.tables.ds_m)
         types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
-        _count(summary, write_timetable(line, runs, stage, types))
-        recs = timetable_rows(line, runs, types)
+        recs = timetable_rows(line, runs, types)  # made once: the dataset's rows and the page's
+        _count(summary, write_timetable(line, runs, stage, types, recs))
         links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
                  ("train graph", f"../graph/{lid}_graph.html")]
         write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, links=links, run_id=run_id, day=day,

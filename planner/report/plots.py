@@ -67,13 +67,15 @@ def _agg():
     return plt
 
 
-def inline_svg(fig) -> str:
-    """A matplotlib figure as an inline <svg> element (deterministic); closes the figure."""
+def inline_svg(fig, *, close: bool = True) -> str:
+    """A matplotlib figure as an inline <svg> element (deterministic); closes the figure unless ``close`` is false
+    (a figure drawn again, :func:`planner.pages.speed_chart.chart_svg`)."""
     import matplotlib.pyplot as plt
 
     buf = io.StringIO()
     fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": "planner"})
-    plt.close(fig)
+    if close:
+        plt.close(fig)
     s = buf.getvalue()
     return s[s.index("<svg"):]
 

@@ -263,11 +263,12 @@ def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[di
     return recs
 
 
-def timetable_table(line, runs: dict[tuple, LegRun], train_types=None) -> pa.Table:
-    """The ``train_timetable`` rows of a line with the partition columns (``line, direction, train_type``)."""
+def timetable_table(line, runs: dict[tuple, LegRun], train_types=None, records: list[dict] | None = None) -> pa.Table:
+    """The ``train_timetable`` rows of a line with the partition columns (``line, direction, train_type``);
+    ``records``: what :func:`timetable_rows` gives for the same arguments, when already made (not changed here)."""
     import pandas as pd
 
-    recs = timetable_rows(line, runs, train_types)
+    recs = timetable_rows(line, runs, train_types) if records is None else records
     if not recs:  # no train runs (an operating day without service, or no train of these types): no rows
         keys = [pa.field(c, pa.string()) for c in ("line", "direction", "train_type")]
         return pa.schema(keys + list(TIMETABLE_SCHEMA)).empty_table()
@@ -277,10 +278,11 @@ def timetable_table(line, runs: dict[tuple, LegRun], train_types=None) -> pa.Tab
     return pa.Table.from_pandas(df, preserve_index=False)
 
 
-def write_timetable(line, runs: dict[tuple, LegRun], out_dir: str | Path, train_types=None) -> list[Path]:
+def write_timetable(line, runs: dict[tuple, LegRun], out_dir: str | Path, train_types=None,
+                    records: list[dict] | None = None) -> list[Path]:
     """Write the ``train_timetable`` dataset of a line (its trains of ``train_types``, default all) under
-    ``out_dir``; the files written."""
-    return write_partitioned(timetable_table(line, runs, train_types), Path(out_dir), "train_timetable",
+    ``out_dir``; the files written. ``records``: as for :func:`timetable_table`."""
+    return write_partitioned(timetable_table(line, runs, train_types, records), Path(out_dir), "train_timetable",
                              schema=TIMETABLE_SCHEMA, sort_by=("train_id", "seq"))
 
 
