@@ -429,6 +429,7 @@ class _Integrator:
                 cmd = self.controller(float(s[k]), self.state(k))
                 if cmd is None:  # nothing to change here
                     continue
+                was = par[K.P_RATIO].copy(), par[K.P_CAPV].copy()
                 if isinstance(cmd, Command):
                     if cmd.cap_ms is not None:
                         cap_ms = _as_batch(cmd.cap_ms, n, "controller cap_ms")
@@ -447,6 +448,11 @@ class _Integrator:
             _check_ratio(new, what)
             par[K.P_RATIO] = new
             changed = True
+            if kind == "decide":
+                # told to go faster (a higher ratio or cap): a sawtooth run in its coasting band
+                # powers from here, as a driver told to catch up does, instead of coasting on
+                # until the band's lower edge (which a falling grade may never let it reach)
+                self.lane[K.L_COAST, (new > was[0]) | (par[K.P_CAPV] > was[1])] = 0
         if changed:
             _KERNEL.set_targets(k, self.prep.trk, self.prep.seg, self.prep.bounds, par, self.st, self.e)
             self.flags[K.F_MAYBE_OVER] = 1
