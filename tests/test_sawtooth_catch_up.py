@@ -88,3 +88,16 @@ def test_a_late_sawtooth_train_keeps_time_in_closed_loop():
     assert r.v_ms[at_change] <= C and r.v_ms[at_change] > V - 10 / 3.6  # in its band, below C
     assert r.changes[-1].shortfall_s == 0.0  # the look-ahead sees it can (flat out powers)
     assert abs(r.arrival_error_s) < 0.2
+
+
+def test_a_raised_ratio_keeps_the_band():
+    """A raised ratio (the ratio modes, aiming by tables (b)-(d), which step their ratio changes with the
+    band kept) does not end the coasting: ratio 0.95 (target C), then 1.0 at S_UP, coasts on at C."""
+    line = _line("sawtooth")
+    tr = make_track(line, "T", "S0", "S1", nodes_m=[S_UP])
+
+    def raise_ratio(s_m, state):
+        return np.full(state.t_s.size, 0.95 if s_m == 0.0 else 1.0)
+
+    res = simulate(tr, line.train_type("T"), 1.0, controller=raise_ratio, decision_m=[0.0, S_UP])
+    assert abs(float(res.time_s[0]) - coasting_on()) < TOL_S

@@ -429,14 +429,20 @@ class _Integrator:
                 cmd = self.controller(float(s[k]), self.state(k))
                 if cmd is None:  # nothing to change here
                     continue
-                was = par[K.P_RATIO].copy(), par[K.P_CAPV].copy()
                 if isinstance(cmd, Command):
+                    was_cap = par[K.P_CAPV].copy()
                     if cmd.cap_ms is not None:
                         cap_ms = _as_batch(cmd.cap_ms, n, "controller cap_ms")
                         if np.any(~(cap_ms > 0)):
                             raise InputError(f"controller cap at {s[k]} m must be > 0 m/s")
                         par[K.P_CAP2] = cap_ms * cap_ms
                         par[K.P_CAPV] = np.sqrt(par[K.P_CAP2])
+                        # told to go faster (a higher cruise cap: the time-keeping mode's catching
+                        # up): a sawtooth run in its coasting band powers from here, as a driver does,
+                        # instead of coasting on to the band's lower edge, which a falling grade may
+                        # never let it reach. Not on a raised ratio: tables (b)-(d) step their ratio
+                        # changes with the band kept, and the ratio modes aim by them.
+                        self.lane[K.L_COAST, par[K.P_CAPV] > was_cap] = 0
                     if cmd.shed_ms2 is not None:
                         shed = _as_batch(cmd.shed_ms2, n, "controller shed_ms2")
                         if np.any(~(shed > 0)):
@@ -448,11 +454,6 @@ class _Integrator:
             _check_ratio(new, what)
             par[K.P_RATIO] = new
             changed = True
-            if kind == "decide":
-                # told to go faster (a higher ratio or cap): a sawtooth run in its coasting band
-                # powers from here, as a driver told to catch up does, instead of coasting on
-                # until the band's lower edge (which a falling grade may never let it reach)
-                self.lane[K.L_COAST, (new > was[0]) | (par[K.P_CAPV] > was[1])] = 0
         if changed:
             _KERNEL.set_targets(k, self.prep.trk, self.prep.seg, self.prep.bounds, par, self.st, self.e)
             self.flags[K.F_MAYBE_OVER] = 1
