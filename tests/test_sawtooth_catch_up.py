@@ -3,9 +3,10 @@
 The integrator applies a controller's command at a decision node (``simulate(controller=...)``).
 A sawtooth vehicle in its coasting band powers again only at the band's lower edge; where the
 run cannot slow to it (here: level track and no resistance, so coasting holds the speed; on
-the sample, E6 on -4 permille), a run told to go faster would coast on for ever. A command that
-raises a run's ratio or cruise cap ends its coasting: it powers from there, as a driver or ATO
-told to catch up does. Closed forms below; the default test train has a = 1 m/s² at full power
+the sample, E6 on -4 permille), a run told to go as fast as it can would coast on for ever. A
+command that raises a run's cruise cap to the line's speed (the time-keeping mode, late) ends its
+coasting: it powers from there, as a driver or ATO told to catch up does. A cap raised below it, or
+a raised ratio, keeps the band. Closed forms below; the default test train has a = 1 m/s² at full power
 (300 kN on 300 t, no resistance) and brakes at 1 m/s².
 """
 from __future__ import annotations
@@ -100,4 +101,16 @@ def test_a_raised_ratio_keeps_the_band():
         return np.full(state.t_s.size, 0.95 if s_m == 0.0 else 1.0)
 
     res = simulate(tr, line.train_type("T"), 1.0, controller=raise_ratio, decision_m=[0.0, S_UP])
+    assert abs(float(res.time_s[0]) - coasting_on()) < TOL_S
+
+
+def test_a_cap_raised_below_the_line_speed_keeps_the_band():
+    """Cap C, then 97 km/h at S_UP (below V, and C is inside its band): the run coasts on at C."""
+    line = _line("sawtooth")
+    tr = make_track(line, "T", "S0", "S1", nodes_m=[S_UP])
+
+    def nudge(s_m, state):
+        return Command(np.ones(state.t_s.size), np.full(state.t_s.size, C if s_m == 0.0 else 97 / 3.6))
+
+    res = simulate(tr, line.train_type("T"), 1.0, controller=nudge, decision_m=[0.0, S_UP])
     assert abs(float(res.time_s[0]) - coasting_on()) < TOL_S
