@@ -429,7 +429,6 @@ class _Integrator:
                 cmd = self.controller(float(s[k]), self.state(k))
                 if cmd is None:  # nothing to change here
                     continue
-                raised = None
                 if isinstance(cmd, Command):
                     was_cap = par[K.P_CAPV].copy()
                     if cmd.cap_ms is not None:
@@ -438,7 +437,12 @@ class _Integrator:
                             raise InputError(f"controller cap at {s[k]} m must be > 0 m/s")
                         par[K.P_CAP2] = cap_ms * cap_ms
                         par[K.P_CAPV] = np.sqrt(par[K.P_CAP2])
-                        raised = par[K.P_CAPV] > was_cap
+                        # the cap lifted (the time-keeping mode's "late: flat out"): a sawtooth run
+                        # in its coasting band powers from here, as a driver does, instead of coasting
+                        # on to the band's lower edge, which a falling grade may never let it reach. A
+                        # cap raised to a finite speed keeps the band (the cap aims the band's middle),
+                        # and so does a raised ratio (tables (b)-(d) step ratio changes with the band kept).
+                        self.lane[K.L_COAST, np.isinf(par[K.P_CAPV]) & (par[K.P_CAPV] > was_cap)] = 0
                     if cmd.shed_ms2 is not None:
                         shed = _as_batch(cmd.shed_ms2, n, "controller shed_ms2")
                         if np.any(~(shed > 0)):
@@ -450,13 +454,6 @@ class _Integrator:
             _check_ratio(new, what)
             par[K.P_RATIO] = new
             changed = True
-            if kind == "decide" and raised is not None:
-                # a cruise cap raised to the line's speed (the time-keeping mode's "late: as fast as
-                # you can"): a sawtooth run in its coasting band powers from here, as a driver does,
-                # instead of coasting on to the band's lower edge, which a falling grade may never
-                # let it reach. A cap raised below it keeps the band (the cap aims the band's middle),
-                # and so does a raised ratio (tables (b)-(d) step ratio changes with the band kept).
-                self.lane[K.L_COAST, raised & (par[K.P_CAPV] >= new * self.prep.trk[K.T_VINT, k])] = 0
         if changed:
             _KERNEL.set_targets(k, self.prep.trk, self.prep.seg, self.prep.bounds, par, self.st, self.e)
             self.flags[K.F_MAYBE_OVER] = 1
