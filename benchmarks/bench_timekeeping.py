@@ -11,15 +11,20 @@ the issue's targets (max arrival error ≤ 0.5 s, stop error ≤ 0.2 m). The def
 sweep is issue 37's: 1 s steps (3,488 feasible runs perturbed), where one run (E8 down
 MDR→TKD, 173 s) once arrived 1.12 s early: a trim shed that ran above a restriction's
 braking curve (``tests/test_timekeeping_drive.py`` pins it). Every error above 0.04 s is E6's, the
-sample's one sawtooth vehicle (measured, 1 s steps: perturbed 3,488 feasible runs, max 0.389 s,
+sample's one sawtooth vehicle (measured before the fix below, 1 s steps: perturbed 3,488 feasible runs, max 0.389 s,
 p99 0.235 s, E10 max 0.040 s, E8 0.000 s; nominal 4,026 runs, max 0.643 s, p99 0.236 s, E10 and
-E8 0.000 s). The nominal outlier (E6 down MDR→TKD, designated 160 s, 0.643 s late) is its
+E8 0.000 s). The nominal outlier (E6 down MDR→TKD, designated 160 s, 0.643 s late) was its
 coasting band: late from 1781 m (the target infeasible, so "flat out"), it was in its band at
 17.2 m/s and coasted 300 m on −4 ‰ without reaching the band's lower edge (16.67 m/s), so it never
-powered again, while the flat-out look-ahead planned at departure had another phase of the band.
-With the band narrowed to 0.3 m/s the same runs (158-162 s) keep time within 0.011 s, with constant-
-speed control exactly: a late sawtooth vehicle should power out of its band, which the integrator's
-controller commands (ratio, cap, shed) cannot yet ask for.
+powered again (with the band narrowed to 0.3 m/s the runs at 158-162 s kept time within 0.011 s,
+with constant-speed control exactly). Now a lifted cap (flat out) ends the coasting, so the train
+powers from there, and the flat-out look-ahead powers from the measured state likewise
+(``tests/test_sawtooth_catch_up.py``). Measured after, 1 s steps: nominal max 0.407 s, p99 0.234 s
+(5 of E6's 1,342 runs changed: MDR→TKD 159-161 s, KTA→AOB 131 s, NKN→OHS 120 s; 160 s now
+0.053 s early); perturbed max 0.389 s, p99 0.235 s, as before (E6 median 0.079 → 0.080 s).
+The largest left (E6 down AOB→SNZ, 171 s) is unchanged by it. Ending the band on every raised cap instead changed
+1,139 of E6's nominal runs (762 worse, median 0.071 → 0.090 s); on a cap raised to the line's
+speed, 272 (185 worse): the cap aims the band's middle, so a finite raise keeps the band.
 
 Run: ``.venv/bin/python benchmarks/bench_timekeeping.py [--scenarios perturbed,nominal]
 [--step 1] [--jobs N]``

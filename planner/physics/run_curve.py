@@ -430,12 +430,19 @@ class _Integrator:
                 if cmd is None:  # nothing to change here
                     continue
                 if isinstance(cmd, Command):
+                    was_cap = par[K.P_CAPV].copy()
                     if cmd.cap_ms is not None:
                         cap_ms = _as_batch(cmd.cap_ms, n, "controller cap_ms")
                         if np.any(~(cap_ms > 0)):
                             raise InputError(f"controller cap at {s[k]} m must be > 0 m/s")
                         par[K.P_CAP2] = cap_ms * cap_ms
                         par[K.P_CAPV] = np.sqrt(par[K.P_CAP2])
+                        # the cap lifted (the time-keeping mode's "late: flat out"): a sawtooth run
+                        # in its coasting band powers from here, as a driver does, instead of coasting
+                        # on to the band's lower edge, which a falling grade may never let it reach. A
+                        # cap raised to a finite speed keeps the band (the cap aims the band's middle),
+                        # and so does a raised ratio (tables (b)-(d) step ratio changes with the band kept).
+                        self.lane[K.L_COAST, np.isinf(par[K.P_CAPV]) & (par[K.P_CAPV] > was_cap)] = 0
                     if cmd.shed_ms2 is not None:
                         shed = _as_batch(cmd.shed_ms2, n, "controller shed_ms2")
                         if np.any(~(shed > 0)):

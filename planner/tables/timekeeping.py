@@ -332,7 +332,10 @@ class TimekeepingController:
         from planner.physics.run_curve import RunState, simulate
 
         t, v, ph = state.t_s[runs], state.v_ms[runs], state.phase[runs]
-        start = RunState(np.full(runs.size, self.s[k]), t, v, ph, np.ones(runs.size))
+        # flat out powers from here: a sawtooth run in its coasting band does too once commanded
+        # faster (simulate ends its coasting), so the look-ahead does not coast on in the band either
+        start = RunState(np.full(runs.size, self.s[k]), t, v, ph, np.ones(runs.size),
+                         coasting=np.zeros(runs.size, dtype=bool))
         res = simulate(self.track, self.model, 1.0, load=self.model_load, traction_factor=self.theta[runs],
                        start=start, record=True)
         self.theta_plan[runs] = self.theta[runs]
