@@ -112,12 +112,14 @@ def segment_lp(p, N, v0, X, J, decel_limits, speed_limits, *, refine=1, with_swi
     return feasible
 
 
-def segment_lp_min_time(p, N, v0, X, J, decel_limits, speed_limits, *, refine=1, tol=2e-5, stretch="braking"):
+def segment_lp_min_time(p, N, v0, X, J, decel_limits, speed_limits, *, refine=1, tol=2e-5, stretch="braking",
+                        with_switches=False):
     """The bound's minimum time [s] (feasible; the infeasible end of the bisection within ``tol``).
 
     Raises RuntimeError when no T up to 5 % above the pattern's is feasible (the grid cannot follow).
     """
-    feasible = segment_lp(p, N, v0, X, J, decel_limits, speed_limits, refine=refine, stretch=stretch)
+    feasible = segment_lp(p, N, v0, X, J, decel_limits, speed_limits, refine=refine, stretch=stretch,
+                          with_switches=with_switches)
     T_s = p.duration_s
     lo, hi = T_s * (1.0 - 1e-4), T_s * (1.0 + 1e-3)
     while feasible(lo):

@@ -70,10 +70,14 @@ def test_the_solver_is_not_beaten_and_is_reached(i):
 def test_an_independent_grid_comes_down_onto_the_solver(i):
     """Without the pattern's switches on the grid, the bound is reached independently. A segment the
     pattern brakes through at its limit from its start has one duration, which this grid does not
-    hold (one case of the 40): there the bound has not converged and the check does not apply."""
+    hold: then no T near the pattern's is feasible, the bound has not converged and the check does
+    not apply. (Feasibility is not monotone in T here: the event nodes move with it.)"""
     p, case = CASES[i]
     T = p.duration_s
     free = [segment_lp(p, N_STEPS, *case, refine=REFINE, stretch=s) for s in STRETCH]
-    if not any(f(T + 0.5) for f in free):
+    if any(f(T + converged_tol(T)) for f in free):
+        return
+    further = [d for d in (0.003, 0.01, 0.03, 0.1, 0.3, 1.0) if any(f(T + d) for f in free)]
+    if not further:
         pytest.skip("the grid cannot follow this pattern (a segment braked at its limit throughout)")
-    assert any(f(T + converged_tol(T)) for f in free), f"no admissible trajectory within {converged_tol(T):.4f} s"
+    raise AssertionError(f"the bound is {further[0]:.3f} s above the solver's {T:.5f} s, not within {converged_tol(T):.4f} s")
