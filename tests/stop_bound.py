@@ -90,6 +90,8 @@ def segment_lp(p, N, v0, X, J, decel_limits, speed_limits, *, refine=1, with_swi
     ``stretch``: which segments take the difference T - (the pattern's): ``"braking"`` all but a
     cruise at the cap, in proportion; ``"last"`` the one ending at the stop only (a segment the
     pattern brakes through at its limit from its start has a fixed duration, longest and shortest).
+    ``feasible`` raises RuntimeError when HiGHS neither solves nor refutes an LP in 20 s (it can stall
+    on a rare one): the caller decides (the property test fails, the bisection calls it infeasible).
     """
     events, _, caps = _regions(v0, X, decel_limits, speed_limits)
     segments = segment_grid(p, events, caps, N, refine, with_switches)
@@ -107,7 +109,7 @@ def segment_lp(p, N, v0, X, J, decel_limits, speed_limits, *, refine=1, with_swi
         if np.any(dur <= 0.0):
             return False
         hs = np.concatenate([dj * s[1] for dj, s in zip(dur, segments)])
-        return node_lp_feasible(T, hs / T, nodes, v0, X, J, decel_limits, speed_limits)
+        return node_lp_feasible(T, hs / T, nodes, v0, X, J, decel_limits, speed_limits, time_limit=20.0)
 
     return feasible
 
@@ -118,8 +120,15 @@ def segment_lp_min_time(p, N, v0, X, J, decel_limits, speed_limits, *, refine=1,
 
     Raises RuntimeError when no T up to 5 % above the pattern's is feasible (the grid cannot follow).
     """
-    feasible = segment_lp(p, N, v0, X, J, decel_limits, speed_limits, refine=refine, stretch=stretch,
-                          with_switches=with_switches)
+    proved = segment_lp(p, N, v0, X, J, decel_limits, speed_limits, refine=refine, stretch=stretch,
+                        with_switches=with_switches)
+
+    def feasible(T):  # an LP HiGHS stalls on counts as infeasible: the bound is a feasible T all the same
+        try:
+            return proved(T)
+        except RuntimeError:
+            return False
+
     T_s = p.duration_s
     lo, hi = T_s * (1.0 - 1e-4), T_s * (1.0 + 1e-3)
     while feasible(lo):
