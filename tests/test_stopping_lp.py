@@ -461,7 +461,7 @@ def node_grid(N, fractions):
     return np.diff(t), nodes
 
 
-def node_lp_feasible(T, unit_steps, nodes, v0, X, J, decel_limits, speed_limits):
+def node_lp_feasible(T, unit_steps, nodes, v0, X, J, decel_limits, speed_limits, time_limit=None):
     """Is there a trajectory of duration T, jerk constant on each step (``unit_steps`` fractions of T),
     that is at event point k exactly at node ``nodes[k]`` and meets every limit?
 
@@ -502,7 +502,9 @@ def node_lp_feasible(T, unit_steps, nodes, v0, X, J, decel_limits, speed_limits)
         for c, val in ((ia + i + 1, 1.0), (ia + i, -1.0), (ij + i, -h)):
             rows.append(r + 2), cols.append(c), vals.append(val)
     M = coo_matrix((vals, (rows, cols)), shape=(3 * N, nvar)).tocsr()
-    res = linprog(np.zeros(nvar), A_eq=M, b_eq=np.zeros(3 * N), bounds=np.column_stack([lb, ub]), method="highs")
+    options = {} if time_limit is None else {"time_limit": time_limit}  # HiGHS can stall on a rare LP
+    res = linprog(np.zeros(nvar), A_eq=M, b_eq=np.zeros(3 * N), bounds=np.column_stack([lb, ub]), method="highs",
+                  options=options)
     if res.status not in (0, 2):
         raise RuntimeError(f"LP neither solved nor proved infeasible: {res.message}")
     return res.status == 0
