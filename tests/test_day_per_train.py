@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from linedb import default_tables, write_line_db
+from linedb import default_tables, quick_job, write_line_db
 from planner.job.day import day_line, lifted_restrictions
 from planner.line.daily import TemporaryRestriction
 from planner.line.loader import load_line
@@ -187,23 +187,10 @@ def project(tmp_path_factory):
               valid_from="2026-11-30T06:05", valid_until="2026-12-02T05:00", reason="renewal", has_beacon=False)
     write_feed(root / "feeds" / "tiny", restrictions=[r1], **calendar_rows())
     (root / "jobs").mkdir()
-    (root / "jobs" / "job.toml").write_text(textwrap.dedent("""
-        [job]
-        lines = ["lines/tiny"]
-        output_root = "out"
-        [stops]
-        adhesion_kmh_s = "2.5:3.5:0.5"
-        [closed_loop]
-        modes = ["nearest"]
-        horizon_s = 3.0
-        step_s = 3.0
-        [bundles]
-        allow_development_key = true
-        [parallel]
-        n_jobs = 1
+    (root / "jobs" / "job.toml").write_text(quick_job([root / "lines" / "tiny"], root / "out") + textwrap.dedent(f"""
         [day]
         time_zone = "Asia/Tokyo"
-        feeds = ["feeds/tiny"]
+        feeds = ["{root / 'feeds' / 'tiny'}"]
     """))
     from planner.job.config import load_job
     from planner.job.day import with_day
