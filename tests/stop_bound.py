@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from tests.test_stopping_lp import _regions, node_lp_feasible
+from tests.test_stopping_lp import _regions, min_feasible_time, node_lp_feasible
 
 
 def crossing_times(p, events):
@@ -130,20 +130,10 @@ def segment_lp_min_time(p, N, v0, X, J, decel_limits, speed_limits, *, refine=1,
             return False
 
     T_s = p.duration_s
-    lo, hi = T_s * (1.0 - 1e-4), T_s * (1.0 + 1e-3)
-    while feasible(lo):
-        lo -= hi - lo
-    while not feasible(hi):
-        hi += hi - lo
-        if hi > 1.05 * T_s:
-            raise RuntimeError(f"no admissible trajectory on the grid up to {hi:.3f} s (pattern {T_s:.3f} s)")
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if feasible(mid):
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    T = min_feasible_time(feasible, T_s * (1.0 - 1e-4), T_s * (1.0 + 1e-3), tol, give_up=1.05 * T_s)
+    if T is None:
+        raise RuntimeError(f"no admissible trajectory on the grid up to 5 % above the pattern's {T_s:.3f} s")
+    return T
 
 
 def random_approach(rng):

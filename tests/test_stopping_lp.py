@@ -331,6 +331,24 @@ def refined_steps(N, crossing_guess, fine):
     return np.asarray(steps), [int(np.searchsorted(starts, f, side="right") - 1) for f in crossing_guess]
 
 
+def min_feasible_time(feasible, lo, hi, tol, give_up=None):
+    """The least T (to ``tol``, the feasible end) with ``feasible(T)``: [lo, hi] widened by its own width
+    until ``lo`` is infeasible and ``hi`` feasible, then bisected. None when ``hi`` passes ``give_up``."""
+    while feasible(lo):
+        lo -= hi - lo
+    while not feasible(hi):
+        hi += hi - lo
+        if give_up is not None and hi > give_up:
+            return None
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if feasible(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
 def pinned_lp_min_time(N, v0, X, J, decel_limits, speed_limits, T_guess, crossing_guess, *, window=3,
                        tol=1e-4, bracket=(0.995, 1.005), fine=1):
     """The LP's minimum time by bisection on T; at every T the crossing steps are searched in a window
@@ -351,18 +369,7 @@ def pinned_lp_min_time(N, v0, X, J, decel_limits, speed_limits, T_guess, crossin
                 return True
         return False
 
-    lo, hi = bracket[0] * T_guess, bracket[1] * T_guess
-    while feasible(lo):
-        lo -= (hi - lo)
-    while not feasible(hi):
-        hi += (hi - lo)
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if feasible(mid):
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    return min_feasible_time(feasible, bracket[0] * T_guess, bracket[1] * T_guess, tol)
 
 
 def crossing_fractions(p, events):
@@ -520,20 +527,8 @@ def node_lp_min_time(N, v0, X, J, decel_limits, speed_limits, T_guess, fractions
     def feasible(T):
         return node_lp_feasible(T, unit, nodes, v0, X, J, decel_limits, speed_limits)
 
-    lo, hi = T_guess * (1.0 - 1e-3), T_guess * (1.0 + 1e-3)
-    while feasible(lo):
-        lo -= hi - lo
-    while not feasible(hi):
-        hi += hi - lo
-        if hi > 1.05 * T_guess:
-            return math.nan
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if feasible(mid):
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    T = min_feasible_time(feasible, T_guess * (1.0 - 1e-3), T_guess * (1.0 + 1e-3), tol, give_up=1.05 * T_guess)
+    return math.nan if T is None else T
 
 
 def test_case_study_bound_comes_down_onto_the_solver():
