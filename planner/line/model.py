@@ -189,6 +189,16 @@ class Train:
     direction: str
     calls: tuple[Call, ...]
 
+    def stop_indices(self) -> list[int]:
+        """Indices of the calls that end or begin a leg: every stop, and the first and last call (a run
+        starts and ends there even when the timetable marks them as passes)."""
+        last = len(self.calls) - 1
+        return [k for k, c in enumerate(self.calls) if c.stops or k in (0, last)]
+
+    def stop_calls(self) -> list[Call]:
+        """The calls of :meth:`stop_indices`: consecutive pairs are the train's legs, in running order."""
+        return [self.calls[k] for k in self.stop_indices()]
+
 
 @dataclass(frozen=True)
 class Node:

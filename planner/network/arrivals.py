@@ -120,8 +120,7 @@ def build_trajectory(line: Line, train: Train, curves: RunCurveSource) -> Trajec
     if hasattr(curves, "for_train"):
         curves = curves.for_train(train)
     sgn = sign(train.direction)
-    last = len(train.calls) - 1
-    calls = [c for k, c in enumerate(train.calls) if c.stops or k in (0, last)]
+    calls = train.stop_calls()
     us: list[np.ndarray] = []
     ts: list[np.ndarray] = []
     dep = calls[0].departure_s
@@ -309,8 +308,7 @@ class TrainCurves:
         seqs = self._by_train.get(train.train_id)
         if not seqs:
             return self.base
-        last = len(train.calls) - 1
-        calls = [c for k, c in enumerate(train.calls) if c.stops or k in (0, last)]
+        calls = train.stop_calls()
         off = {(a.station_id, b.station_id): seqs[i] for i, (a, b) in enumerate(zip(calls[:-1], calls[1:]))
                if i in seqs}
 
@@ -332,7 +330,6 @@ def interstation_keys(trains: Iterable[Train]) -> list[tuple[str, str, str]]:
     """(train_type, origin, destination) of every interstation run (stop to stop) in the timetable."""
     out = []
     for t in trains:
-        last = len(t.calls) - 1
-        calls = [c for k, c in enumerate(t.calls) if c.stops or k in (0, last)]
+        calls = t.stop_calls()
         out += [(t.train_type, a.station_id, b.station_id) for a, b in zip(calls[:-1], calls[1:])]
     return out

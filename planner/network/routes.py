@@ -333,7 +333,7 @@ def _search(g: TrackGraph, train: Train, waypoints: list[tuple[str, list[int]]])
 
 
 def _route_for(g: TrackGraph, train: Train, loops: set[int]) -> Route:
-    calls = [c for k, c in enumerate(train.calls) if c.stops or k in (0, len(train.calls) - 1)]
+    calls = train.stop_calls()
     if len(calls) < 2:
         raise InputError(f"timetable.parquet train {train.train_id}: needs at least an origin and a destination")
     wps: list[tuple[str, list[int]]] = []

@@ -53,8 +53,7 @@ def timetable_legs(line: Line) -> list[TrainLeg]:
     """
     out = []
     for tr in line.trains:
-        last = len(tr.calls) - 1
-        calls = [c for k, c in enumerate(tr.calls) if c.stops or k in (0, last)]
+        calls = tr.stop_calls()
         for i, (a, b) in enumerate(zip(calls[:-1], calls[1:])):
             leg = TrainLeg(tr.train_id, tr.train_type, tr.direction, i, a.station_id, b.station_id,
                            float(a.departure_s), float(b.arrival_s))

@@ -202,7 +202,7 @@ def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[di
         if train_types is not None and tr.train_type not in train_types:
             continue
         last = len(tr.calls) - 1
-        stops = [k for k, c in enumerate(tr.calls) if c.stops or k in (0, last)]
+        stops = tr.stop_indices()
         leg_of = {}  # call index -> (start call index, end call index)
         for a, b in zip(stops[:-1], stops[1:]):
             for k in range(a + 1, b + 1):
