@@ -430,8 +430,8 @@ class _Integrator:
                 if cmd is None:  # nothing to change here
                     continue
                 if isinstance(cmd, Command):
-                    was_cap = par[K.P_CAPV].copy()
                     if cmd.cap_ms is not None:
+                        was_cap = par[K.P_CAPV].copy()
                         cap_ms = _as_batch(cmd.cap_ms, n, "controller cap_ms")
                         if np.any(~(cap_ms > 0)):
                             raise InputError(f"controller cap at {s[k]} m must be > 0 m/s")
