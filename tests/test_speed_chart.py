@@ -1,20 +1,26 @@
-"""The speed–distance chart drawn on the reused figure is the same bytes as one drawn on a new figure.
+"""The speed–distance chart of a leg, written as SVG by :mod:`planner.pages.svg_plot`.
 
-:func:`planner.pages.speed_chart.reused_subplots` empties one figure per process for every chart; whatever
-the previous chart left (another direction, so an inverted x axis, other limits, a stopping pattern
-and evaluation points or none, so other legends and data limits) must not reach the next one.
+Checked from the outside, on the SVG a browser gets: it parses as XML, a run's points land at the pixels the
+axis limits predict (the leg's ends sit 1/22 of the frame in from its sides: matplotlib's 5 % margins),
+the ``up`` direction mirrors x, every drawn thing is in the legend, the day's restriction is drawn with its id,
+ids are escaped, and the same inputs give the same bytes whatever was drawn before.
 """
 from __future__ import annotations
+
+import dataclasses
+import re
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
 
 from linedb import write_line_db
 
+SVG = "{http://www.w3.org/2000/svg}"
+
 
 @pytest.fixture(scope="module")
-def charts(tmp_path_factory):
-    """Every leg's chart inputs of the tiny line, half with a stopping pattern and evaluation points."""
+def tiny(tmp_path_factory):
     from planner import load_line
     from planner.report.margins import compute_margins
     from planner.report.train_timetable import leg_runs
@@ -22,7 +28,13 @@ def charts(tmp_path_factory):
     folder = tmp_path_factory.mktemp("line") / "tiny"
     write_line_db(folder, nodes=None, edges=None)
     line = load_line(folder)
-    runs = leg_runs(line, compute_margins(line, conflicts=False).rows)
+    return line, leg_runs(line, compute_margins(line, conflicts=False).rows)
+
+
+@pytest.fixture(scope="module")
+def charts(tiny):
+    """Every leg's chart inputs of the tiny line, half with a stopping pattern and evaluation points."""
+    line, runs = tiny
     out = []
     for i, (key, run) in enumerate(sorted(runs.items())):
         d, _, o, de, _ = key
@@ -34,26 +46,161 @@ def charts(tmp_path_factory):
     return out
 
 
-def _fresh(args) -> str:
-    """The chart on a new figure: the reused one closed first (it is made again)."""
-    from planner.pages.speed_chart import chart_svg, reused_subplots
-    from planner.report.plots import pyplot
+def _parse(fragment: str):
+    """(svg root, legend labels) of a chart; both parts must be well-formed XML."""
+    root = ET.fromstring(f"<div>{fragment}</div>")
+    svg = root.find(f"{SVG}svg")
+    legend = [("".join(s.itertext())).strip() for s in root.find("div").findall("span")]
+    return svg, legend
 
-    fig, _ = reused_subplots("speed_chart")
-    pyplot().close(fig)
-    return chart_svg(*args)
+
+def _polyline(svg, colour: str) -> np.ndarray:
+    """The points (user units) of the one polyline drawn in ``colour``."""
+    got = [p for p in svg.iter(f"{SVG}polyline") if p.get("stroke") == colour]
+    assert len(got) == 1, f"{len(got)} polylines in {colour}"
+    return np.array([[float(v) for v in pt.split(",")] for pt in got[0].get("points").split()])
+
+
+def _texts(svg) -> list[str]:
+    return ["".join(t.itertext()) for t in svg.iter(f"{SVG}text")] + \
+        [t.text for t in svg.iter(f"{SVG}tspan")]
+
+
+def _down_ab(charts):
+    return next(c for c in charts if c[1].key[:4] == ("down", "EMU10", "A", "B"))
 
 
 def test_the_tiny_line_has_legs_both_ways(charts):
     assert {c[1].key[0] for c in charts} == {"down", "up"}
 
 
-def test_charts_drawn_in_turn_match_charts_on_new_figures(charts):
+def test_the_minimum_run_lands_where_the_axes_put_it(charts):
+    from planner.pages.speed_chart import SPEED_BOX, chart_svg
+
+    line, run, calls, *_ = _down_ab(charts)
+    svg, _ = _parse(chart_svg(line, run, calls))
+    left, top, w, h = SPEED_BOX
+    pts = _polyline(svg, "#1f5fa8")  # the minimum run
+    # departure at the stop marker at 0 km/h: 1/22 of the width in from the left (5 % margins of the leg), bottom
+    assert pts[0] == pytest.approx([left + w / 22, top + h], abs=0.06)
+    assert pts[-1] == pytest.approx([left + w * 21 / 22, top + h], abs=0.06)
+    # the y axis runs from 0 to 1.14 × the line's 100 km/h (no restriction on the leg): the highest point
+    v_top = 114.0
+    peak = float(np.max(run.v_ms[1])) * 3.6
+    assert float(np.min(pts[:, 1])) == pytest.approx(top + h * (1 - peak / v_top), abs=0.2 / v_top * h + 0.06)
+    # x of every point within the leg, linear in chainage: the fastest node's chainage lands at its pixel
+    k = int(np.argmax(run.v_ms[1]))
+    lo, hi = run.position_m.min(), run.position_m.max()
+    px = left + w * (1 / 22 + 20 / 22 * (run.position_m[k] - lo) / (hi - lo))
+    near = pts[np.argmin(pts[:, 1])]
+    assert abs(near[0] - px) < w * 20 / 22 * 50.0 / (hi - lo)  # within 50 m: a flat top spans several nodes
+
+
+def test_up_mirrors_x(charts):
+    from planner.pages.speed_chart import SPEED_BOX, chart_svg
+
+    line, run, calls, *_ = _down_ab(charts)
+    up = dataclasses.replace(run, key=("up",) + tuple(run.key[1:]))
+    a = _polyline(_parse(chart_svg(line, run, calls))[0], "#1f5fa8")
+    b = _polyline(_parse(chart_svg(line, up, calls))[0], "#1f5fa8")
+    left, _, w, _ = SPEED_BOX
+    assert len(a) == len(b)
+    assert np.allclose(a[:, 0] + b[:, 0], 2 * left + w, atol=0.11)
+    assert b[0, 0] == pytest.approx(left + w * 21 / 22, abs=0.06)  # the departure on the right: x runs leftwards
+
+
+def test_every_drawn_thing_is_in_the_legend(charts):
     from planner.pages.speed_chart import chart_svg
 
-    fresh = [_fresh(c) for c in charts]
-    assert len(set(fresh)) == len(fresh)  # different charts: a figure left unchanged would be noticed
-    order = list(range(len(charts)))[::-1] + list(range(len(charts))) + list(np.random.default_rng(1).permutation(
-        len(charts)))
+    line, run, calls, *_ = _down_ab(charts)
+    x, v = run.position_m, run.v_ms[1] * 3.6
+    _, legend = _parse(chart_svg(line, run, calls, {1.0: (x[-50:], v[-50:]), 2.5: (x[-30:], v[-30:])},
+                                 [(1500.0, "E1")]))
+    t_m, t_r = float(run.t_s[1][-1]), float(run.t_s[0][-1])
+    want = ["permanent speed limit", "on-board maximum (limit − margin)", f"minimum run: ratio 100 % — {t_m:.1f} s",
+            f"on-time departure: ratio {run.ratio:.0%} — {t_r:.1f} s (scheduled {run.key[4]:.0f} s)",
+            "stopping pattern, lowest adhesion 1 km/h/s", "stopping pattern, highest adhesion 2.5 km/h/s",
+            "signal", "ATS-P / TASC beacon", "evaluation point",  # SG1 at 1000 m, B1/B2 at 900/1000 m (down)
+            "gradient in the running direction [‰] (+ rising)", "curve (radius [m])"]  # R600 at 1200–1600 m
+    assert legend == want
+    # and what the legend names is drawn: one signal (triangle), two beacons (ticks), one evaluation point
+    svg, _ = _parse(chart_svg(line, run, calls, None, [(1500.0, "E1")]))
+    paths = {p.get("fill") if p.get("fill") != "none" else p.get("stroke"): p.get("d") for p in svg.iter(f"{SVG}path")}
+    assert paths["#37474f"].count("M") == 1 and paths["#6a1b9a"].count("M") == 2 and paths["#f2b705"].count("M") == 1
+    assert "R600" in _texts(svg)
+
+
+def test_the_days_restriction_is_hatched_and_named(charts):
+    from planner.line.daily import TemporaryRestriction
+    from planner.line.units import KMH
+    from planner.pages.speed_chart import SPEED_BOX, chart_svg
+
+    line, run, calls, *_ = _down_ab(charts)
+    tsr = TemporaryRestriction("TSR-T1", 600.0, 900.0, 40.0 * KMH, "down", None, "2026-11-29T14:20",
+                               "2026-12-02T16:00", 0, 1, "rail defect", False)
+    line = dataclasses.replace(line, speed_limits=line.speed_limits + (tsr.as_speed_limit(),))
+    svg, legend = _parse(chart_svg(line, run, calls))
+    assert "TSR-T1" in _texts(svg) and "40 km/h" in _texts(svg)
+    assert any(s.startswith("temporary speed restriction") for s in legend)
+    band = [r for r in svg.iter(f"{SVG}rect") if (r.get("fill") or "").startswith("url(#")]
+    assert len(band) == 1
+    assert svg.find(f".//{SVG}pattern[@id='{band[0].get('fill')[5:-1]}']") is not None  # the hatch is defined
+    left, top, w, h = SPEED_BOX
+    lo, hi = run.position_m.min(), run.position_m.max()
+    px = [left + w * (1 / 22 + 20 / 22 * (c - lo) / (hi - lo)) for c in (600.0, 900.0)]
+    assert float(band[0].get("x")) == pytest.approx(px[0], abs=0.06)
+    assert float(band[0].get("width")) == pytest.approx(px[1] - px[0], abs=0.11)
+    # the band reaches 0.8 of the axis, which now runs to 1.3 × 100 km/h (room for the id)
+    assert float(band[0].get("y")) == pytest.approx(top + 0.2 * h, abs=0.06)
+    lim = _polyline(svg, "#e65100")
+    assert sorted(set(np.round(lim[:, 1], 1)))[-1] == pytest.approx(top + h * (1 - 40 / 130), abs=0.06)
+
+
+def test_ids_are_escaped(charts):
+    from planner.pages.speed_chart import chart_svg
+
+    line, run, calls, *_ = _down_ab(charts)
+    odd = '<&"A\'>'
+    out = chart_svg(line, run, [(odd, True, calls[0][2])] + calls[1:])
+    assert odd not in out
+    svg, _ = _parse(out)  # parses: nothing unescaped
+    assert odd in _texts(svg)  # the station's label reads as given
+
+
+def test_same_inputs_same_bytes_whatever_was_drawn_before(charts):
+    from planner.pages.speed_chart import chart_svg
+
+    first = [chart_svg(*c) for c in charts]
+    assert len(set(first)) == len(first)  # different charts
+    order = list(range(len(charts)))[::-1] + list(np.random.default_rng(1).permutation(len(charts)))
     for i in order:
-        assert chart_svg(*charts[i]) == fresh[i], f"chart {charts[i][1].key} differs after another chart"
+        assert chart_svg(*charts[i]) == first[i], f"chart {charts[i][1].key} differs after another chart"
+    for c in first:
+        _parse(c)
+        assert not re.search(r'id="[^"]*[0-9a-f]{8,}', c)  # no hashed or random ids
+
+
+@pytest.mark.parametrize("lo,hi,target,ticks", [
+    (0.0, 128.0, 7, [0, 20, 40, 60, 80, 100, 120]),
+    (0.0, 128.0, 6, [0, 25, 50, 75, 100, 125]),
+    (-0.35, 7.65, 10, [0, 1, 2, 3, 4, 5, 6, 7]),
+    (26.02, 27.68, 10, [26.2, 26.4, 26.6, 26.8, 27.0, 27.2, 27.4, 27.6]),
+    (0.0, 0.9, 4, [0.0, 0.25, 0.5, 0.75]),
+    (-0.2, 0.9, 4, [0.0, 0.5])])
+def test_nice_ticks(lo, hi, target, ticks):
+    from planner.pages.svg_plot import nice_ticks
+
+    got, dec = nice_ticks(lo, hi, target)
+    assert got == pytest.approx(ticks)
+    assert dec == {0.2: 1, 0.25: 2, 0.5: 1}.get(round(ticks[1] - ticks[0], 6), 0)
+
+
+def test_mid_steps_change_halfway_between_points():
+    from planner.pages.svg_plot import Figure
+
+    fig = Figure(100, 100)
+    p = fig.panel((0, 0, 100, 100), (0, 10), (0, 10))
+    p.steps_mid([0, 2, 4, 6, 10], [5, 5, 7, 7, 7], color="#000")
+    pts = _polyline(ET.fromstring(fig.svg()), "#000")
+    # (0, 5) … (3, 5) | (3, 7) … (10, 7) in data; y up from the bottom
+    assert pts.tolist() == [[0, 50], [30, 50], [30, 30], [100, 30]]

@@ -5,7 +5,8 @@ One page per (leg, train type, scheduled running time) of the timetable,
 pre-rendered by the nightly job (a published run is static files) and linked
 from the per-train running-time table (:mod:`planner.pages.timetable`).
 
-What it draws (matplotlib through :func:`planner.report.plots.pyplot`, inline SVG):
+What it draws (an inline SVG written directly by :mod:`planner.pages.svg_plot`, its legend in HTML
+under it; up legs with the chainage running right to left, so the train runs left to right):
 
 * the run at the on-time ratio and the minimum run (ratio 1.0), the two
   recorded runs of :class:`planner.report.train_timetable.LegRun`;
@@ -24,13 +25,15 @@ The page around the chart names the run and its operating day and links to the r
 other pages (:func:`planner.pages.run_head.nav_html`); the chart itself is a cached unit
 of the nightly job, the page is written by every run.
 
-Curves are thinned for drawing with :func:`planner.report.train_graph.simplify`
-(0.2 km/h, 2 m), which keeps a page near 60 kB.
+The runs and the stopping patterns are thinned for drawing with :func:`planner.report.train_graph.simplify`
+(0.2 km/h, 2 m) and the on-board maximum written as its steps only, which keeps a page near 20 kB.
+Written directly, a chart costs ~3 ms of CPU against ~75 ms with matplotlib (its text layout, legends,
+ticks and ``savefig``; 74 charts on the sample, thousands on a network), and the same inputs give the
+same bytes.
 """
 from __future__ import annotations
 
 import html
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -87,133 +90,132 @@ def _limit_steps(line, direction: str, train_type: str, lo: float, hi: float):
     return np.asarray(xs) / 1000.0, np.asarray(ys)
 
 
-_REUSED = threading.local()
+W, H = 1200.0, 590.0
+"""The chart's size in user units (its ``viewBox``; it is drawn at the width of the page)."""
+SPEED_BOX = (64.0, 34.0, 1120.0, 380.0)
+GRADIENT_BOX = (64.0, 424.0, 1120.0, 120.0)
+"""(left, top, width, height) of the speed panel and of the gradient panel under it."""
+COLOURS = {"minimum": "#1f5fa8", "on_time": "#2e7d32", "limit": "#9e9e9e", "vmax": "#8c8c8c",
+               "temporary": "#e65100", "signal": "#37474f", "beacon": "#6a1b9a", "eval": "#f2b705",
+               "gradient": "#8d6e63", "curve": "#5a7da8"}
+"""Colour of each thing drawn (the stopping patterns': :data:`PATTERN_STYLES`)."""
+PATTERN_STYLES = (("#c62828", "lowest"), ("#ef8f00", "highest"))
+"""Colour and name of the stopping pattern at the lowest and highest adhesion."""
 
 
-def reused_subplots(name: str, *args, **kwargs):
-    """``plt.subplots(*args, **kwargs)`` made once per thread and ``name``, then given again emptied.
+def _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, legend):
+    """The upper panel: limits, runs, patterns, restrictions, stations, signals, beacons, points; ``legend``
+    gets (swatch, label) of what is drawn."""
+    from planner.pages.svg_plot import swatch
 
-    For a chart drawn many times over (the speed–distance chart of every leg): making the figure, its
-    axes and their ticks anew took a fifth to a third of such a chart's CPU time. Emptied means as new for a chart that
-    sets the same axes properties each time: every line, text, collection, patch and legend removed,
-    the data limits, autoscaling, colour cycle, axis labels and the x direction reset, so the figure
-    draws the same bytes as a new one (``tests/test_speed_chart.py`` draws charts in turn and compares
-    each with one drawn on a new figure). Save it with ``planner.report.plots.inline_svg(fig, close=False)``.
-    """
-    from planner.report.plots import pyplot
+    d, tt, _, _, sched = run.key[:5]
+    x = run.position_m
+    lo, hi = float(np.min(x)), float(np.max(x))
+    lx, ly = _limit_steps(line, d, tt, lo, hi)
+    temps = temporary_limits(line, d, tt, lo, hi)
+    top = float(np.nanmax(ly)) * (1.3 if temps else 1.14)  # room for the restrictions' ids under the stations
+    p = fig.panel(SPEED_BOX, xlim, (0.0, top), x_inverted=d == "up", ylabel="speed [km/h]", xticks=False,
+                  ytarget=7)
+    c = COLOURS
+    hatch = fig.hatch("tsr", fill="#fff3e8", stroke="#f2b48a") if temps else None
+    for s in temps:  # under the curves: an opaque hatched band, the limit line over it
+        p.span(max(s.start_m, lo) / 1000.0, min(s.end_m, hi) / 1000.0, fill=hatch, y0=0.0, y1=top * 0.8)
+    p.polyline(lx, ly, color=c["limit"], width=1.0, dash=(3.7, 1.6))
+    legend.append((swatch("line", color=c["limit"], width=1.0, dash=(3.7, 1.6)), "permanent speed limit"))
+    p.steps_mid(x / 1000.0, kmh(run.vmax_ms), color=c["vmax"], width=1.1)
+    legend.append((swatch("line", color=c["vmax"], width=1.1), "on-board maximum (limit − margin)"))
+    t_r, t_m = float(run.t_s[0][-1]), float(run.t_s[1][-1])
+    p.polyline(*_thin(x, kmh(run.v_ms[1])), color=c["minimum"], width=1.8)
+    legend.append((swatch("line", color=c["minimum"], width=1.8), f"minimum run: ratio 100 % — {t_m:.1f} s"))
+    p.polyline(*_thin(x, kmh(run.v_ms[0])), color=c["on_time"], width=1.6)
+    legend.append((swatch("line", color=c["on_time"], width=1.6),
+                   f"on-time departure: ratio {run.ratio:.0%} — {t_r:.1f} s (scheduled {sched:.0f} s)"))
+    for (a, (px, pv)), (col, what) in zip(sorted((pattern or {}).items()), PATTERN_STYLES):
+        p.polyline(*_thin(np.asarray(px, float), np.asarray(pv, float)), color=col, width=1.3, dash=(5.2, 2.6))
+        legend.append((swatch("line", color=col, width=1.3, dash=(5.2, 2.6)),
+                       f"stopping pattern, {what} adhesion {a:.2g} km/h/s"))
+    for s in temps:
+        a, b, v = max(s.start_m, lo) / 1000.0, min(s.end_m, hi) / 1000.0, kmh(s.limit_ms)
+        p.polyline([a, a, b, b], [top * 0.8, v, v, top * 0.8], color=c["temporary"], width=1.8)
+        p.text(0.5 * (a + b), top * 0.8, [s.restriction_id, f"{v:.0f} km/h"], size=9, color="#bf360c", bold=True,
+               va="bottom", box=("white", c["temporary"]))
+    if temps:
+        legend.append((swatch("patch", color="#fff3e8", hatch="#f2b48a"), "temporary speed restriction (the day's "
+                       "feed), hatched, with its id and limit"))
+    for sid, stops, pos in calls:
+        p.vline(pos / 1000.0, color="#000", width=1.0 if stops else 0.7, dash=None if stops else (1.0, 1.65))
+        p.text(pos / 1000.0, top * 0.985, f"{sid}{'' if stops else ' (pass)'}", size=10,
+               box=("white" if stops else "#f3f3f3", "#000"))
+    sig = signals if signals is not None else [s.position_m for s in line.signals
+                                               if s.direction == d and lo <= s.position_m <= hi]
+    if len(sig):
+        p.markers(np.asarray(sig, float) / 1000.0, np.full(len(sig), top * 0.07), "v", size=8, fill=c["signal"])
+        legend.append((swatch("marker", shape="v", color=c["signal"]), "signal"))
+    bea = [b.position_m for b in line.beacons_for(d) if lo <= b.position_m <= hi]
+    if bea:
+        p.markers(np.asarray(bea, float) / 1000.0, np.full(len(bea), top * 0.03), "|", size=9, fill=c["beacon"],
+                  width=1.5)
+        legend.append((swatch("marker", shape="|", color=c["beacon"], width=1.5), "ATS-P / TASC beacon"))
+    if eval_points:
+        ep = np.asarray([q for q, _ in eval_points], float)
+        p.markers(ep / 1000.0, np.full(len(ep), top * 0.11), "D", size=7, fill=c["eval"], stroke="#8d6e00",
+                  width=0.8)
+        legend.append((swatch("marker", shape="D", color=c["eval"], edge="#8d6e00"), "evaluation point"))
+    return p
 
-    plt = pyplot()
-    made = getattr(_REUSED, "figures", None)
-    if made is None:
-        made = _REUSED.figures = {}
-    got = made.get(name)
-    if got is None or not plt.fignum_exists(got[0].number):
-        got = made[name] = plt.subplots(*args, **kwargs)
-        return got
-    fig, axes = got
-    for ax in np.ravel(axes):
-        for artist in [*ax.lines, *ax.texts, *ax.collections, *ax.patches]:
-            artist.remove()
-        if ax.legend_ is not None:
-            ax.legend_.remove()
-        ax.set_prop_cycle(None)
-        ax.dataLim.set_points(np.array([[np.inf, np.inf], [-np.inf, -np.inf]]))  # Bbox.null()
-        ax.ignore_existing_data_limits = True
-        ax.set_autoscale_on(True)
-        ax.set_xlabel("")
-        ax.set_ylabel("")
-        if ax.xaxis_inverted():
-            ax.invert_xaxis()
-        if ax.yaxis_inverted():
-            ax.invert_yaxis()
-    for ax in np.ravel(axes):
-        ax.autoscale_view()
-    return got
+
+def _gradient_panel(fig, line, d: str, lo: float, hi: float, calls, xlim, legend):
+    """The lower panel: the gradient in the running direction [‰] and the curves with their radius."""
+    from planner.pages.svg_plot import swatch
+
+    c = COLOURS
+    gx, gy = _steps(line.gradients, lo, hi, 0.0)
+    g = sign(d) * gy * 1000.0
+    g_lo, g_hi = min(0.0, float(np.min(g))), max(0.0, float(np.max(g)))
+    pad = 0.05 * (g_hi - g_lo) if g_hi > g_lo else 1.0
+    p = fig.panel(GRADIENT_BOX, xlim, (g_lo - pad, g_hi + pad), x_inverted=d == "up", ylabel="gradient [‰]",
+                  xlabel="chainage [km]", ytarget=4)
+    curves = [(max(a, lo), min(b, hi), r) for a, b, r in zip(line.curves.start_m, line.curves.end_m,
+                                                             line.curves.value) if b > lo and a < hi]
+    for a, b, _ in curves:
+        p.span(a / 1000.0, b / 1000.0, fill=c["curve"], opacity=0.18)
+    p.fill_between(gx, 0.0, g, color=c["gradient"], opacity=0.35, edge_width=0.8)
+    p.hline(0.0, color="#666", width=0.6)
+    for _, stops, pos in calls:
+        p.vline(pos / 1000.0, color="#000", width=1.0 if stops else 0.7, dash=None if stops else (1.0, 1.65))
+    for a, b, r in curves:
+        p.text(0.5 * (a + b) / 1000.0, 0.96, f"R{r:.0f}", size=8.5, color="#34507a", y_frac=True)
+    legend.append((swatch("patch", color=c["gradient"], opacity=0.35), "gradient in the running direction [‰] "
+                   "(+ rising)"))
+    if curves:
+        legend.append((swatch("patch", color=c["curve"], opacity=0.4), "curve (radius [m])"))
+    return p
 
 
 def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) -> str:
-    """The chart of one leg (inline SVG).
+    """The chart of one leg: an inline SVG (:mod:`planner.pages.svg_plot`) and its legend in HTML under it.
 
     ``run``: a :class:`planner.report.train_timetable.LegRun`; ``calls``: ``(station_id, stops, chainage_m)``
     of the leg's path from origin to destination (the stop marker of a stop, the station of a pass); ``pattern``: ``{adhesion_kmh_s: (position_m, speed_kmh)}``;
     ``eval_points``: ``[(position_m, id)]``; ``signals``: their chainages (default the line's on the leg).
+    The same inputs give the same bytes.
     """
-    from planner.report.plots import inline_svg
+    from planner.pages.svg_plot import Figure, legend_html
 
     d, tt, o, de, sched = run.key[:5]
     row = run.row
     x = run.position_m
     lo, hi = float(np.min(x)), float(np.max(x))
-    # one figure per process, emptied for each chart (a job draws one chart per leg): same bytes, less time
-    fig, (ax, ax2) = reused_subplots("speed_chart", 2, 1, figsize=(15.5, 7.0), sharex=True,
-                                     gridspec_kw={"height_ratios": [4, 1.3]})
-    lx, ly = _limit_steps(line, d, tt, lo, hi)
-    ax.plot(lx, ly, color="#9e9e9e", lw=1.0, ls="--", label="permanent speed limit")
-    ax.step(x / 1000.0, kmh(run.vmax_ms), where="mid", color="0.55", lw=1.1, label="on-board maximum (limit − margin)")
-    t_r, t_m = float(run.t_s[0][-1]), float(run.t_s[1][-1])
-    ax.plot(*_thin(x, kmh(run.v_ms[1])), color="#1f5fa8", lw=1.8, label=f"minimum run: ratio 100 % — {t_m:.1f} s")
-    ax.plot(*_thin(x, kmh(run.v_ms[0])), color="#2e7d32", lw=1.6,
-            label=f"on-time departure: ratio {run.ratio:.0%} — {t_r:.1f} s\n  (scheduled {sched:.0f} s)")
-    for (a, (px, pv)), (col, what) in zip(sorted((pattern or {}).items()),
-                                          (("#c62828", "lowest"), ("#ef8f00", "highest"))):
-        ax.plot(np.asarray(px) / 1000.0, pv, color=col, lw=1.3, ls=(0, (4, 2)),
-                label=f"stopping pattern, {what} adhesion {a:.2g} km/h/s")
-    temps = temporary_limits(line, d, tt, lo, hi)
-    top = float(np.nanmax(ly)) * (1.3 if temps else 1.14)  # room for the restrictions' ids under the stations
-    ax.set_ylim(0, top)
-    for k, s in enumerate(temps):
-        a, b, v = max(s.start_m, lo) / 1000.0, min(s.end_m, hi) / 1000.0, kmh(s.limit_ms)
-        # an opaque fill: an alpha would fade the hatch with it
-        ax.axvspan(a, b, ymax=0.8, facecolor="#fff3e8", hatch="//", edgecolor="#f2b48a", lw=0)
-        ax.plot([a, a, b, b], [top * 0.8, v, v, top * 0.8], color="#e65100", lw=1.8,
-                label="temporary speed restriction (the day's feed)" if k == 0 else None)
-        ax.text(0.5 * (a + b), top * 0.8, f"{s.restriction_id}\n{v:.0f} km/h", ha="center", va="bottom",
-                fontsize=8, color="#bf360c", fontweight="bold",
-                bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="#e65100", lw=0.6, alpha=0.9))
-    for sid, stops, p in calls:
-        ax.axvline(p / 1000.0, color="k", lw=1.0 if stops else 0.7, ls="-" if stops else ":")
-        ax2.axvline(p / 1000.0, color="k", lw=1.0 if stops else 0.7, ls="-" if stops else ":")
-        ax.text(p / 1000.0, top * 0.985, f" {sid}{'' if stops else ' (pass)'} ", ha="center", va="top", fontsize=9,
-                bbox=dict(boxstyle="round,pad=0.2", fc="white" if stops else "#f3f3f3", ec="k", lw=0.6))
-    sig = signals if signals is not None else [s.position_m for s in line.signals
-                                               if s.direction == d and lo <= s.position_m <= hi]
-    if sig:
-        ax.plot(np.asarray(sig) / 1000.0, np.full(len(sig), top * 0.07), "v", color="#37474f", ms=6,
-                label="signal")
-    bea = [b.position_m for b in line.beacons_for(d) if lo <= b.position_m <= hi]
-    if bea:
-        ax.plot(np.asarray(bea) / 1000.0, np.full(len(bea), top * 0.03), "|", color="#6a1b9a", ms=8, mew=1.5,
-                label="ATS-P / TASC beacon")
-    if eval_points:
-        ep = np.asarray([p for p, _ in eval_points], float)
-        ax.plot(ep / 1000.0, np.full(len(ep), top * 0.11), "D", color="#f2b705", mec="#8d6e00", ms=4.5,
-                label="evaluation point")
-    ax.set_ylabel("speed [km/h]")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, frameon=False, borderaxespad=0.0)
-    gx, gy = _steps(line.gradients, lo, hi, 0.0)
-    ax2.fill_between(gx, 0.0, sign(d) * gy * 1000.0, step=None, color="#8d6e63", alpha=0.35, lw=0.8,
-                     label="gradient in the running direction [‰] (+ rising)")
-    ax2.axhline(0.0, color="0.4", lw=0.6)
-    ax2.set_ylabel("gradient [‰]")
-    for a, b, r in zip(line.curves.start_m, line.curves.end_m, line.curves.value):
-        if b <= lo or a >= hi:
-            continue
-        a, b = max(a, lo), min(b, hi)
-        ax2.axvspan(a / 1000.0, b / 1000.0, color="#5a7da8", alpha=0.18, lw=0)
-        ax2.text(0.5 * (a + b) / 1000.0, 0.94, f"R{r:.0f}", ha="center", va="top", fontsize=7.5, color="#34507a",
-                 transform=ax2.get_xaxis_transform())
-    ax2.plot([], [], color="#5a7da8", alpha=0.4, lw=6, label="curve (radius [m])")
-    ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, frameon=False, borderaxespad=0.0)
-    ax2.set_xlabel("chainage [km]")
-    ax2.grid(alpha=0.3)
-    if d == "up":
-        ax.invert_xaxis()
-    fig.suptitle(f"{tt} {d} {o} → {de} ({(hi - lo) / 1000:.2f} km): scheduled {sched:.0f} s, minimum "
-                 f"{float(row['min_running_time_s']):.1f} s, margin {fixed(float(row['margin_s']), 1, True)} s",
-                 x=0.01, ha="left", fontsize=11, fontweight="bold")
-    fig.subplots_adjust(left=0.055, right=0.75, top=0.93, bottom=0.09, hspace=0.06)
-    return inline_svg(fig, close=False)
+    m = 0.05 * (hi - lo) / 1000.0  # matplotlib's margins: the leg's ends off the frame
+    xlim = (lo / 1000.0 - m, hi / 1000.0 + m)
+    fig = Figure(W, H, ident="sc")
+    legend: list = []
+    _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, legend)
+    _gradient_panel(fig, line, d, lo, hi, calls, xlim, legend)
+    title = (f"{tt} {d} {o} → {de} ({(hi - lo) / 1000:.2f} km): scheduled {sched:.0f} s, minimum "
+             f"{float(row['min_running_time_s']):.1f} s, margin {fixed(float(row['margin_s']), 1, True)} s")
+    fig.title(8, 20, title)
+    return fig.svg(label=f"speed–distance chart: {title}") + legend_html(legend)
 
 
 def chart_page(line, run, calls, trains, svg: str, back: str, *, nav=(), run_id: str | None = None,
@@ -223,6 +225,7 @@ def chart_page(line, run, calls, trains, svg: str, back: str, *, nav=(), run_id:
     this time (links back to their tables, ``back``)."""
     from planner.pages.margin_report import CSS
     from planner.pages.run_head import nav_html
+    from planner.pages.svg_plot import LEGEND_CSS
 
     d, tt, o, de, sched = run.key[:5]
     e = html.escape
@@ -234,7 +237,7 @@ def chart_page(line, run, calls, trains, svg: str, back: str, *, nav=(), run_id:
                     f"{s.end_m / 1000:.3f}" + ("" if s.has_beacon else " (no beacon: the on-board database feeds it)")
                     for s in temps)
     return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{e(title)} — speed–distance</title>'
-            f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}</style></head><body><main>'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}{LEGEND_CSS}</style></head><body><main>'
             + nav_html(nav or [(f"running-time tables of line {line.line_id}", back)], run_id, day, run_date)
             + f"<h1>Speed–distance: {e(title)}</h1>"
             f'<p class="sub">Run at the on-time ratio {run.ratio:.0%} (the ratio the on-board logic picks when the '

@@ -1,4 +1,6 @@
-"""Every chart of the planner, drawn with matplotlib (the one module that imports it).
+"""The planner's charts drawn with matplotlib (the one module that imports it); the speed–distance chart of
+each leg, drawn thousands of times a night on a network, is written as SVG directly
+(:mod:`planner.pages.svg_plot`, :mod:`planner.pages.speed_chart`).
 
 Takes computed results (a margin report, train-graph data, a station-approach
 sweep, one run or one time-keeping run, the evaluation-interval study) and gives
@@ -67,15 +69,13 @@ def _agg():
     return plt
 
 
-def inline_svg(fig, *, close: bool = True) -> str:
-    """A matplotlib figure as an inline <svg> element (deterministic); closes the figure unless ``close`` is false
-    (a figure drawn again, :func:`planner.pages.speed_chart.chart_svg`)."""
+def inline_svg(fig) -> str:
+    """A matplotlib figure as an inline <svg> element (deterministic); closes the figure."""
     import matplotlib.pyplot as plt
 
     buf = io.StringIO()
     fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": "planner"})
-    if close:
-        plt.close(fig)
+    plt.close(fig)
     s = buf.getvalue()
     return s[s.index("<svg"):]
 
