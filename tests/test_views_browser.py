@@ -263,7 +263,7 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
     assert charts == [(run / "charts" / "tiny" / "up_EMU6_C-A_500s.html").as_uri()]  # one leg, on the stop ending it
     chart = browser.open(charts[0])
     _clean(chart)
-    assert chart.eval("document.querySelectorAll('.fig svg').length") == 1
+    assert chart.eval("document.querySelectorAll('.fig > svg').length") == 1
     assert "202" in chart.eval("[...document.querySelectorAll('a')].map(a => a.innerText)")
     back = chart.eval("[...document.querySelectorAll('a')].find(a => a.innerText === '202').href")
     assert back == href
