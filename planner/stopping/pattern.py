@@ -84,8 +84,8 @@ paper's rule for comparison. ``tests/test_stopping_lp.py`` checks the result
 against an independent time-discretised MILP (no slower; its bound comes down
 onto it as the grid is refined).
 
-Code. This module is the public face (the result, input checks, the deceleration rule,
-:func:`solve_stop`); the construction runs compiled with numba: :mod:`planner.stopping.kernel`
+Code. This module is the public face (input checks, the deceleration rule, :func:`solve_stop`; the
+result, :class:`StopPattern`, is :mod:`planner.stopping.result`); the construction runs compiled with numba: :mod:`planner.stopping.kernel`
 (request, regions, forward breakpoints), :mod:`planner.stopping.construct` (motions, fixes, entry
 choice), :mod:`planner.stopping.pieces` (closed forms and roots of a piece). They are built at install
 (``planner kernels build``, :mod:`planner.io.compiled`); without a build they compile on the first

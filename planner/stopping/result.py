@@ -1,10 +1,20 @@
 """The stopping solver's result: :class:`StopPattern` and its samples (docs/design.md §5).
 
 :func:`planner.stopping.pattern.solve_stop` makes the patterns; this module is what they are.
-A solved pattern keeps its breakpoints as the solver wrote them, one copy of its output
-(``bytes``), and turns them into the five tuples the first time one of them is read: most
-patterns of a sweep are only timed, and building five tuples of floats per solve was as
-long as the solve itself. What is read is the same either way, bit for bit.
+
+A solved pattern is made without its constructor: it holds one copy of the solver's output and
+builds its fields from it when they are first read, in two groups, the eight numbers and words
+(feasibility, reason, request, duration, brake start, braking distance) and the five breakpoint
+tuples. Building all thirteen fields and five tuples took as long as the solve itself, and most
+callers read only the numbers (the margins) or nothing but the verdict. What is read is the same,
+bit for bit, as what the constructor would have been given; equality, hashing, ``repr``,
+``dataclasses.asdict``/``replace``, copying and pickling all go through the fields.
+
+A solved pattern's ``_raw`` slot: ``(True, "", v_start_ms, x_stop_m, jerk_max_ms3, out)``, ``out``
+the solver's output from ``out[2]`` as native doubles (``bytes``; the layout is
+:mod:`planner.stopping.codes`'): the duration, brake start and braking distance, ``HEAD - 5``
+floats not read, then the breakpoints t, x, v, a (``n + 1`` each) and the jerks (``n``) of its
+``n`` pieces. A pattern made by the constructor has no ``_raw`` and all its fields.
 """
 from __future__ import annotations
 
@@ -40,21 +50,20 @@ class PatternSamples(NamedTuple):
 
 
 _NO_DEFAULT = object()
-BREAKPOINTS = ("t_s", "x_m", "v_ms", "a_ms2", "j_ms3")
 
 
 class _Solved:
     """A StopPattern field, a non-data descriptor: where the instance holds the field it is a plain
     attribute. A pattern made by the constructor holds all its fields and never comes here; one from
-    :func:`~planner.stopping.pattern.solve_stop` holds only its ``_raw`` (:data:`RAW`) until a field is
-    first read: then that field (the five breakpoint tuples: all five) is set from it, as the constructor
-    would have set it, and returned. Read on the class, the field's default (none: AttributeError, as for
-    a plain field)."""
+    :func:`~planner.stopping.pattern.solve_stop` holds only its ``_raw`` (module docstring) until a field is
+    first read: then that field's group (the eight numbers and words, or the five breakpoint tuples) is
+    set from it, as the constructor would have set it, and the field returned. Read on the class, the
+    field's default (none: AttributeError, as for a plain field)."""
 
-    __slots__ = ("name", "at", "default")
+    __slots__ = ("name", "group", "default")
 
-    def __init__(self, at: int, default=_NO_DEFAULT) -> None:
-        self.at, self.default = at, default
+    def __init__(self, group: int, default=_NO_DEFAULT) -> None:
+        self.group, self.default = group, default
 
     def __set_name__(self, owner, name: str) -> None:
         self.name = name
@@ -64,37 +73,30 @@ class _Solved:
             if self.default is _NO_DEFAULT:
                 raise AttributeError(self.name)
             return self.default
-        raw, at, d = obj._raw, self.at, obj.__dict__  # frozen: the fields go into __dict__, not setattr
-        if at < 5:
-            v = raw[at]
-        elif at < 8:
-            v = _DOUBLE(raw[5], 8 * (at - 5))[0]
+        raw = obj._raw
+        if self.group:
+            u, t, x, v, a, j = _UNPACK.get(len(raw[5])) or _unpacker(len(raw[5]))
+            f = u(raw[5])
+            got = {"t_s": f[t], "x_m": f[x], "v_ms": f[v], "a_ms2": f[a], "j_ms3": f[j]}
         else:
-            d.update(zip(BREAKPOINTS, breakpoints(raw[5])))
-            return d[self.name]
-        d[self.name] = v
-        return v
+            T, s0, y = _SCALARS(raw[5])
+            got = {"feasible": raw[0], "reason": raw[1], "v_start_ms": raw[2], "x_stop_m": raw[3],
+                   "jerk_max_ms3": raw[4], "duration_s": T, "brake_start_m": s0, "braking_distance_m": y}
+        obj.__dict__.update(got)  # frozen: the fields go into __dict__, not through setattr
+        return got[self.name]
 
 
-RAW = "(True, '', v_start_ms, x_stop_m, jerk_max_ms3, out)"
-"""A solved pattern's ``_raw``: ``out`` the solver's output from ``out[2]`` as native doubles (bytes,
-:mod:`planner.stopping.codes`): the duration, brake start and braking distance, ``HEAD - 5`` floats
-skipped, then the breakpoints t, x, v, a (``n + 1`` each) and the jerks (``n``) of its ``n`` pieces."""
-
-
-def breakpoints(out: bytes) -> tuple[tuple[float, ...], ...]:
-    """The five breakpoint tuples (t, x, v, a, j) in a solved pattern's output ``out`` (:data:`RAW`)."""
-    n = (len(out) // 8 - HEAD - 2) // 5
-    u = _UNPACK.get(n)
-    if u is None:
-        u = _UNPACK.setdefault(n, struct.Struct(f"={8 * (HEAD - 2)}x{5 * n + 4}d"))
-    f = u.unpack(out)
+def _unpacker(size: int) -> tuple:
+    """Reads the breakpoints from a solved pattern's ``out`` of ``size`` bytes (module docstring): the unpack
+    and the slices of t, x, v, a (``n + 1`` each) and j (``n``) in what it returns (kept per size)."""
+    n = (size // 8 - HEAD - 2) // 5
     q = n + 1
-    return f[:q], f[q:2 * q], f[2 * q:3 * q], f[3 * q:4 * q], f[4 * q:]
+    u = struct.Struct(f"={8 * (HEAD - 2)}x{5 * n + 4}d").unpack
+    return _UNPACK.setdefault(size, (u, *(slice(i * q, (i + 1) * q) for i in range(4)), slice(4 * q, 5 * q - 1)))
 
 
-_DOUBLE = struct.Struct("=d").unpack_from
-_UNPACK: dict[int, struct.Struct] = {}
+_SCALARS = struct.Struct("=3d").unpack_from
+_UNPACK: dict[int, tuple] = {}
 
 
 @dataclass(frozen=True)
@@ -126,27 +128,28 @@ class StopPattern:
 
     Notes
     -----
-    A pattern from :func:`~planner.stopping.pattern.solve_stop` reads its five breakpoint tuples from
-    the solver's output the first time one is read (module docstring); until then they are not in
-    ``vars(pattern)``. Equality, hashing, ``dataclasses.asdict`` and ``replace`` read them as
-    attributes, so they see the same values as for a pattern made by the constructor.
+    A pattern from :func:`~planner.stopping.pattern.solve_stop` builds its fields from the solver's
+    output when they are first read (:mod:`planner.stopping.result`); until then they are not in
+    ``vars(pattern)``. Everything else reads them as attributes and sees what the constructor would
+    have been given.
     """
 
     __slots__ = ("__dict__", "__weakref__", "_raw")  # _raw: a solved pattern's output (not a field)
 
+    # each field a _Solved of its group (0: the numbers and words, 1: the breakpoints) and default, if any
     feasible: bool = _Solved(0)
-    reason: str = _Solved(1)
-    v_start_ms: float = _Solved(2)
-    x_stop_m: float = _Solved(3)
-    jerk_max_ms3: float = _Solved(4)
-    duration_s: float = _Solved(5, math.nan)
-    brake_start_m: float = _Solved(6, math.nan)
-    braking_distance_m: float = _Solved(7, math.nan)
-    t_s: tuple[float, ...] = _Solved(8, ())
-    x_m: tuple[float, ...] = _Solved(8, ())
-    v_ms: tuple[float, ...] = _Solved(8, ())
-    a_ms2: tuple[float, ...] = _Solved(8, ())
-    j_ms3: tuple[float, ...] = _Solved(8, ())
+    reason: str = _Solved(0)
+    v_start_ms: float = _Solved(0)
+    x_stop_m: float = _Solved(0)
+    jerk_max_ms3: float = _Solved(0)
+    duration_s: float = _Solved(0, math.nan)
+    brake_start_m: float = _Solved(0, math.nan)
+    braking_distance_m: float = _Solved(0, math.nan)
+    t_s: tuple[float, ...] = _Solved(1, ())
+    x_m: tuple[float, ...] = _Solved(1, ())
+    v_ms: tuple[float, ...] = _Solved(1, ())
+    a_ms2: tuple[float, ...] = _Solved(1, ())
+    j_ms3: tuple[float, ...] = _Solved(1, ())
 
     def __getstate__(self) -> dict:
         """Pickled and copied as its fields (a solved pattern's read first), never its ``_raw``."""
@@ -203,4 +206,4 @@ class StopPattern:
 
 
 set_raw = StopPattern._raw.__set__
-"""Stores a solved pattern's output in its ``_raw`` slot (the class is frozen: no setattr)."""
+"""Sets a solved pattern's ``_raw`` slot (module docstring; the class is frozen: no setattr)."""
