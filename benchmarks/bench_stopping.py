@@ -5,8 +5,9 @@ thousand seeded random station approaches with up to six event points (positions
 where a deceleration or speed limit changes), split by the number of event points;
 on position-independent approaches (the problem Ruckig solves), ``solve_stop`` against
 Ruckig on the same problems in the same process, both ways fair (:func:`versus_ruckig`:
-the whole call from Python on both sides, and the compiled core alone on both sides; CPU
-time, alternated), against issue 38's 3x and issue 20's 5 µs target;
+the whole call from Python on both sides, the compiled core alone on both sides, and the
+whole call reading the duration on both sides; CPU time, alternated), against issue 38's
+3x and issue 20's 5 µs target;
 the solver before it was compiled (``planner/stopping/pattern.py`` at
 :data:`BEFORE`, read from git) on the same approaches, with the largest duration
 difference; and what compiling the kernel just in time costs a fresh process (what
@@ -118,13 +119,16 @@ def position_independent(rng: random.Random):
 def versus_ruckig(cases) -> None:
     """solve_stop against Ruckig on the position-independent ``cases``, both ways fair, against issue 38's 3x.
 
-    (a) the whole call from Python on both sides: ``solve_stop`` (checks, packing, the kernel, the
+    (a) the whole call from Python on both sides: ``solve_stop`` (checks, writing the rows, the kernel, the
     StopPattern) against setting Ruckig's inputs from Python and ``calculate``; (b) the core on both
     sides: Ruckig's ``calculate(inp, traj)`` alone, its inputs set beforehand, against the compiled
-    stopping kernel alone (``pattern._k.kernel``), its array filled beforehand. Per case each of the four
-    runs ``REPEAT`` times in a block timed in CPU time (``time.process_time``) and wall time, the four
-    blocks alternated (order reversed every other case) so all see the same machine load; medians over
-    the cases of the time per call.
+    stopping kernel alone (``pattern._k.kernel``), its array filled beforehand; (c) as (a), then reading
+    the duration on both sides (``p.duration_s``, ``traj.duration``): a StopPattern reads each field from
+    its copy of the kernel's output when first read (:mod:`planner.stopping.result`), so (a) alone would
+    leave that out. And every field of ours read once after (a) (the five breakpoint tuples built), to
+    say what a caller who reads everything pays. Per case each of the seven runs ``REPEAT`` times in a
+    block timed in CPU time (``time.process_time``) and wall time, the blocks alternated (order reversed
+    every other case) so all see the same machine load; medians over the cases of the time per call.
     """
     import numpy as np
 
@@ -141,7 +145,8 @@ def versus_ruckig(cases) -> None:
     calc, kern = otg.calculate, pattern._k.kernel
     work = np.zeros(codes.work_size(2))
     cpu, wall = time.process_time, time.perf_counter
-    t = {key: ([], []) for key in ("whole ours", "whole ruckig", "core ours", "core ruckig")}
+    keys = ("whole ours", "whole ruckig", "core ours", "core ruckig", "read ours", "read ruckig", "all ours")
+    t = {key: ([], []) for key in keys}
     worst = 0.0
     for i, (v0, X, J, dl, sl) in enumerate(cases):
         A, C = dl[0][1], sl[0][1]
@@ -165,12 +170,31 @@ def versus_ruckig(cases) -> None:
             for _ in range(REPEAT):
                 calc(inp, traj)
 
+        def read_ours():
+            for _ in range(REPEAT):
+                solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl).duration_s
+
+        def read_ruckig():
+            for _ in range(REPEAT):
+                inp.current_velocity, inp.target_position = [v0], [X]
+                inp.max_velocity, inp.max_acceleration, inp.min_acceleration = [C], [A], [-A]
+                inp.max_jerk = [J]
+                calc(inp, traj)
+                traj.duration
+
+        def all_ours():
+            for _ in range(REPEAT):
+                p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+                p.feasible, p.reason, p.v_start_ms, p.x_stop_m, p.jerk_max_ms3, p.duration_s, p.brake_start_m
+                p.braking_distance_m, p.t_s, p.x_m, p.v_ms, p.a_ms2, p.j_ms3
+
         inp.current_velocity, inp.target_position = [v0], [X]
         inp.max_velocity, inp.max_acceleration, inp.min_acceleration = [C], [A], [-A]
         inp.max_jerk = [J]
         work[:4] = (0.0, A, 0.0, C)
         runs = [("whole ours", whole_ours), ("whole ruckig", whole_ruckig), ("core ours", core_ours),
-                ("core ruckig", core_ruckig)]
+                ("core ruckig", core_ruckig), ("read ours", read_ours), ("read ruckig", read_ruckig),
+                ("all ours", all_ours)]
         for key, f in runs[::-1] if i % 2 else runs:
             w0, c0 = wall(), cpu()
             f()
@@ -187,15 +211,19 @@ def versus_ruckig(cases) -> None:
             ("a", "whole ours", "whole ruckig", "whole call from Python: solve_stop vs setting Ruckig's "
                                                 "inputs + calculate"),
             ("b", "core ours", "core ruckig", "core: the compiled stopping kernel, its array filled "
-                                              "beforehand, vs calculate, its inputs set beforehand")):
+                                              "beforehand, vs calculate, its inputs set beforehand"),
+            ("c", "read ours", "read ruckig", "(a) and reading the duration: solve_stop(...).duration_s vs "
+                                              "Ruckig's + traj.duration")):
         r = med[ours][0] / med[theirs][0]
         print(f"  ({what}) {how}: {med[ours][0]:.2f} ({med[ours][1]:.2f}) vs {med[theirs][0]:.2f} "
               f"({med[theirs][1]:.2f}): ratio {r:.2f} (CPU), issue 38's target <= {RATIO_TARGET:g}x "
               f"{'met' if r <= RATIO_TARGET else 'NOT met'}")
     print(f"  where (a)'s time goes (medians, CPU): around the compiled core, solve_stop spends "
-          f"{med['whole ours'][0] - med['core ours'][0]:.2f} µs in Python (the call, checks, packing the rows, "
-          f"the StopPattern's 13 fields and 5 tuples), Ruckig {med['whole ruckig'][0] - med['core ruckig'][0]:.2f} µs "
-          f"(setting 7 inputs; its result stays in the Trajectory it fills)")
+          f"{med['whole ours'][0] - med['core ours'][0]:.2f} µs in Python (the call, checks, writing the rows, "
+          f"the StopPattern holding a copy of the kernel's output), Ruckig "
+          f"{med['whole ruckig'][0] - med['core ruckig'][0]:.2f} µs (setting 7 inputs; its result stays in the "
+          f"Trajectory it fills); reading every field of ours once after (a) costs "
+          f"{med['all ours'][0] - med['whole ours'][0]:.2f} µs more (the 13 fields, the five breakpoint tuples)")
     mo = med["whole ours"][0]
     print(f"  issue 20's target <= {TARGET_US:g} µs per solve_stop here: {'met' if mo <= TARGET_US else 'NOT met'}; "
           f"largest |duration - Ruckig's| {worst:.1e} s")
@@ -257,7 +285,7 @@ def kernel_split(cases, solve_times: list[float]) -> None:
     rest = statistics.median(a - b for a, b in zip(solve_times, kern)) * 1e6
     print(f"  of which the compiled kernel median {mk:.2f} µs (paper rule and no step-down: ~1 µs; a speed "
           f"step-down adds ~10 trial constructions of the entry choice), the Python around it (checks, "
-          f"packing the rows, the StopPattern's tuples) median {rest:.2f} µs; each figure includes "
+          f"writing the rows, the StopPattern) median {rest:.2f} µs; each figure includes "
           f"~{empty * 1e6:.2f} µs of timer")
 
 

@@ -206,6 +206,57 @@ def test_an_infeasible_verdict_is_the_constructors_own(v0, X, sl):
         p.reason = ""  # type: ignore[misc]
 
 
+def test_a_solved_pattern_reads_as_the_constructors_own():
+    """solve_stop's pattern builds its fields from the solver's output when they are first read
+    (planner.stopping.result): whichever field is read first, and read or not before it is pickled,
+    copied, cached or replaced, it is the pattern the constructor makes from the closed form. v0 = 20 m/s,
+    X = 400 m, J = 0.8 m/s³, A = 1 m/s²: cruise to 187.5 m, ramp 1.25 s, hold to 0.625 m/s, ramp 1.25 s
+    (every time and speed exact in binary)."""
+    import copy
+    import dataclasses
+    import pickle
+
+    from planner.job.cache import decode, encode
+
+    def solve():
+        return solve_stop(20.0, 400.0, jerk_max=0.8, decel_limits=[(0.0, 1.0)], speed_limits=[(0.0, 25.0)])
+
+    ramp = 0.8 * 1.25 ** 3 / 6.0  # the distance the ramps lose to, or gain on, a jump in deceleration
+    q = solve()
+    assert q.t_s == (0.0, 9.375, 10.625, 29.375, 30.625) and q.v_ms == (20.0, 20.0, 19.375, 0.625, 0.0)
+    assert q.a_ms2 == (0.0, 0.0, -1.0, -1.0, 0.0) and q.j_ms3 == (0.0, -0.8, 0.0, 0.8)
+    assert q.x_m == pytest.approx((0.0, 187.5, 187.5 + 20.0 * 1.25 - ramp, 400.0 - ramp, 400.0), abs=1e-12)
+    assert (q.duration_s, q.brake_start_m, q.braking_distance_m) == (30.625, 187.5, 212.5)
+    ref = StopPattern(*(getattr(q, f.name) for f in dataclasses.fields(StopPattern)))
+    names = [f.name for f in dataclasses.fields(StopPattern)]
+
+    def breakpoints_first():
+        p = solve()
+        return p if p.j_ms3 else None
+
+    def numbers_first():
+        p = solve()
+        return p if p.feasible else None
+
+    def in_order():
+        p = solve()
+        for name in names:
+            getattr(p, name)
+        assert list(vars(p).items()) == list(vars(ref).items())
+        return p
+
+    ways = [breakpoints_first, numbers_first, in_order, lambda: pickle.loads(pickle.dumps(solve())),
+            lambda: copy.copy(solve()), lambda: copy.deepcopy(solve()), lambda: decode(encode(solve())),
+            lambda: dataclasses.replace(solve()), lambda: pickle.loads(pickle.dumps(numbers_first()))]
+    for way in ways:
+        p = way()
+        assert type(p) is StopPattern and p.n_pieces == 4
+        assert dataclasses.astuple(p) == dataclasses.astuple(ref) and p == ref and hash(p) == hash(ref)
+        assert repr(p) == repr(ref)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        solve().duration_s = 1.0  # type: ignore[misc]
+
+
 # --------------------------------------------------------------------------------------
 # input checks
 # --------------------------------------------------------------------------------------

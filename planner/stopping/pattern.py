@@ -84,8 +84,8 @@ paper's rule for comparison. ``tests/test_stopping_lp.py`` checks the result
 against an independent time-discretised MILP (no slower; its bound comes down
 onto it as the grid is refined).
 
-Code. This module is the public face (the result, input checks, the deceleration rule,
-:func:`solve_stop`); the construction runs compiled with numba: :mod:`planner.stopping.kernel`
+Code. This module is the public face (input checks, the deceleration rule, :func:`solve_stop`; the
+result, :class:`StopPattern`, is :mod:`planner.stopping.result`); the construction runs compiled with numba: :mod:`planner.stopping.kernel`
 (request, regions, forward breakpoints), :mod:`planner.stopping.construct` (motions, fixes, entry
 choice), :mod:`planner.stopping.pieces` (closed forms and roots of a piece). They are built at install
 (``planner kernels build``, :mod:`planner.io.compiled`); without a build they compile on the first
@@ -96,17 +96,17 @@ References: docs/design.md §5 (event-point constant-jerk stopping pattern metho
 from __future__ import annotations
 
 import math
-import struct
 import threading
-from dataclasses import dataclass, fields
-from typing import NamedTuple, Sequence
+from dataclasses import fields
+from typing import Sequence
 
 import numpy as np
 
 from planner.io import compiled
 from planner.physics.dynamics import track_accel_ms2
-from planner.errors import InfeasibleError, InputError
+from planner.errors import InputError
 from planner.stopping import codes
+from planner.stopping.result import PatternSamples, StopPattern, set_raw
 
 __all__ = [
     "PatternSamples",
@@ -114,121 +114,6 @@ __all__ = [
     "decel_limit_profile",
     "solve_stop",
 ]
-
-
-# --------------------------------------------------------------------------------------
-# Result
-# --------------------------------------------------------------------------------------
-
-
-class PatternSamples(NamedTuple):
-    """A stopping pattern sampled in time (exact evaluation of the cubic pieces).
-
-    Attributes
-    ----------
-    t_s, x_m, v_ms, a_ms2, j_ms3 : ndarray
-        Time [s], position from the pattern start [m], speed [m/s], acceleration
-        [m/s²] (negative when braking) and jerk [m/s³] (of the piece the sample
-        lies in; the end point takes the last piece's jerk).
-    """
-
-    t_s: np.ndarray
-    x_m: np.ndarray
-    v_ms: np.ndarray
-    a_ms2: np.ndarray
-    j_ms3: np.ndarray
-
-
-@dataclass(frozen=True)
-class StopPattern:
-    """A minimum-time jerk-limited stopping pattern, or why there is none.
-
-    Attributes
-    ----------
-    feasible : bool
-        True when a pattern meeting every limit exists.
-    reason : str
-        ``""`` when feasible; otherwise one line saying why (distance needed, ...).
-    v_start_ms, x_stop_m, jerk_max_ms3 : float
-        The request: start speed [m/s], stop position [m], jerk limit [m/s³].
-    duration_s : float
-        Pattern duration [s] (NaN when infeasible).
-    brake_start_m : float
-        Position where deceleration first begins, from the pattern start [m]
-        (NaN when infeasible).
-    braking_distance_m : float
-        Distance from the brake start to the stop that the limits need [m]; also
-        set when infeasible (it is then larger than ``x_stop_m``), NaN when
-        unknown (start speed above the first limit).
-    t_s, x_m, v_ms, a_ms2 : tuple of float
-        Breakpoints: state at the start of every piece, plus the end state
-        (length ``n_pieces + 1``).
-    j_ms3 : tuple of float
-        Jerk of every piece [m/s³] (length ``n_pieces``).
-    """
-
-    feasible: bool
-    reason: str
-    v_start_ms: float
-    x_stop_m: float
-    jerk_max_ms3: float
-    duration_s: float = math.nan
-    brake_start_m: float = math.nan
-    braking_distance_m: float = math.nan
-    t_s: tuple[float, ...] = ()
-    x_m: tuple[float, ...] = ()
-    v_ms: tuple[float, ...] = ()
-    a_ms2: tuple[float, ...] = ()
-    j_ms3: tuple[float, ...] = ()
-
-    @property
-    def n_pieces(self) -> int:
-        """Number of constant-jerk pieces."""
-        return len(self.j_ms3)
-
-    def sample(self, dt_s: float) -> PatternSamples:
-        """Sample the pattern every ``dt_s`` seconds, always including the end point.
-
-        Parameters
-        ----------
-        dt_s : float
-            Sampling interval [s], > 0.
-
-        Returns
-        -------
-        PatternSamples
-            Exact values of the cubic pieces at ``t = 0, dt, 2 dt, ..., T``.
-
-        Raises
-        ------
-        InfeasibleError
-            When the pattern is infeasible (there is nothing to sample).
-        InputError
-            When ``dt_s`` is not a positive number.
-        """
-        if not self.feasible:
-            raise InfeasibleError(f"no stopping pattern to sample: {self.reason}")
-        if not (dt_s > 0.0) or not math.isfinite(dt_s):
-            raise InputError(f"sample: dt_s must be a positive number of seconds, got {dt_s!r}")
-        T = self.duration_s
-        t = np.arange(0.0, T, dt_s) if T > 0.0 else np.zeros(0)
-        if t.size and T - t[-1] < 1e-9 * max(1.0, T):
-            t = t[:-1]
-        t = np.append(t, T)
-        starts = np.asarray(self.t_s[:-1])
-        if starts.size == 0:  # zero-length pattern (already standing at the stop)
-            z = np.zeros_like(t)
-            return PatternSamples(t, z + self.x_m[-1], z, z, z)
-        idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, starts.size - 1)
-        tau = t - starts[idx]
-        x0 = np.asarray(self.x_m[:-1])[idx]
-        v0 = np.asarray(self.v_ms[:-1])[idx]
-        a0 = np.asarray(self.a_ms2[:-1])[idx]
-        j = np.asarray(self.j_ms3)[idx]
-        a = a0 + j * tau
-        v = v0 + tau * (a0 + j * tau / 2.0)
-        x = x0 + tau * (v0 + tau * (a0 / 2.0 + j * tau / 6.0))
-        return PatternSamples(t, x, v, a, j)
 
 
 # --------------------------------------------------------------------------------------
@@ -460,31 +345,27 @@ def solve_stop(
     else:
         raise InputError(f"rule must be 'min-time' or 'paper', got {rule!r}")
     k = _k or _compiled()
-    flat = None
-    if type(decel_limits) is list and type(speed_limits) is list:  # the common case, packed straight in
-        try:
-            v0, X, J = float(v_start), float(x_stop), float(jerk_max)
-            flat = []
-            for row in decel_limits:
-                if type(row) is not tuple:
-                    raise TypeError
-                x, val = row  # exactly a pair
-                flat += row
-            for row in speed_limits:
-                if type(row) is not tuple:
-                    raise TypeError
-                x, val = row
-                flat += row
-            n_dl = len(decel_limits)
-            n = n_dl + len(speed_limits)
-            w = getattr(_local, "work", None)
-            if w is None or n > w[1]:
-                w = _work(n)
-            work, _, mem = w
-            (_PACK.get(n) or _packer(n)).pack_into(mem, 0, *flat)  # as float(...) gives them; else refused
-        except (TypeError, ValueError, struct.error):
-            flat = None
-    if flat is None:  # anything else, checked (the first fault raised, in argument order) and converted
+    try:  # the common case: lists of (x, value) tuples, written straight into this thread's array
+        if type(decel_limits) is not list or type(speed_limits) is not list:
+            raise TypeError
+        v0, X, J = float(v_start), float(x_stop), float(jerk_max)
+        n_dl = len(decel_limits)
+        n = n_dl + len(speed_limits)
+        work, room, mem = _local.work  # AttributeError in a thread's first solve (_work makes it)
+        if n > room:
+            raise ValueError
+        i = 0
+        for row in decel_limits:
+            if type(row) is not tuple:
+                raise TypeError
+            mem[i], mem[i + 1] = row  # exactly a pair, each as float(...) gives it, else refused
+            i += 2
+        for row in speed_limits:
+            if type(row) is not tuple:
+                raise TypeError
+            mem[i], mem[i + 1] = row
+            i += 2
+    except (TypeError, ValueError, AttributeError):  # anything else: checked (the first fault raised)
         v0, X, J, steps, n_dl = _request(v_start, x_stop, jerk_max, decel_limits, speed_limits)
         n = steps.shape[0]
         work, _, mem = _work(n)
@@ -492,24 +373,12 @@ def solve_stop(
     p = k.kernel(v0, X, J, n_dl, n, optimize, work)
     if p < 0:
         return _not_solved(-p, work, n, v0, X, J, n_dl)
-    # out[2:5]: T, brake start, braking distance; from out[HEAD]: t, x, v, a (p + 1 each) and j (p)
-    u, t_, x_, v_, a_, j_ = _UNPACK.get(p) or _unpacker(p)
-    f = u.unpack_from(mem, 16 * n + 16)  # one read from out[2] (out is work[2 n:])
-    r = _new(StopPattern)  # as StopPattern(...) would, minus its ~1.5 µs of frozen per-field setattr
-    d = r.__dict__
-    d["feasible"] = True
-    d["reason"] = ""
-    d["v_start_ms"] = v0
-    d["x_stop_m"] = X
-    d["jerk_max_ms3"] = J
-    d["duration_s"] = f[0]
-    d["brake_start_m"] = f[1]
-    d["braking_distance_m"] = f[2]
-    d["t_s"] = f[t_]
-    d["x_m"] = f[x_]
-    d["v_ms"] = f[v_]
-    d["a_ms2"] = f[a_]
-    d["j_ms3"] = f[j_]
+    # the pattern holds a copy of the kernel's output, each field read from it when first read (the
+    # constructor would spend ~1.5 µs on frozen setattr; this module ~1 µs on floats and tuples no one
+    # may read): out[2:HEAD] (T, brake start, braking distance, ...), then t, x, v, a (p + 1 each), j (p)
+    r = _new(StopPattern)
+    o = 2 * n + 2  # out[2] (out is work[2 n:])
+    set_raw(r, (True, "", v0, X, J, mem[o:o + _TAIL + 5 * p].tobytes()))  # planner.stopping.result.RAW
     return r
 
 
@@ -524,23 +393,7 @@ def _work(n_steps: int) -> tuple[np.ndarray, int, memoryview]:
     return w
 
 
-def _packer(n_steps: int) -> struct.Struct:
-    """Packs the ``2 n_steps`` floats of the step rows into the kernel's array (one per size, kept)."""
-    return _PACK.setdefault(n_steps, struct.Struct(f"={2 * n_steps}d"))
-
-
-def _unpacker(n_pieces: int) -> tuple:
-    """Reads a pattern of ``n_pieces`` from ``out[2]`` in one go: the duration, brake start and braking
-    distance, then (from ``out[HEAD]``) the breakpoints t, x, v, a (``n_pieces + 1`` floats each) and the
-    jerks (``n_pieces``); with the slices of the five tuples in what it reads (kept per size)."""
-    q = n_pieces + 1
-    u = struct.Struct(f"=3d{8 * (codes.HEAD - 5)}x{4 * q + n_pieces}d")
-    rows = (slice(3 + i * q, 3 + (i + 1) * q) for i in range(4))
-    return _UNPACK.setdefault(n_pieces, (u, *rows, slice(3 + 4 * q, 3 + 4 * q + n_pieces)))
-
-
-_PACK: dict[int, struct.Struct] = {}
-_UNPACK: dict[int, tuple] = {}
+_TAIL = codes.HEAD - 2 + 4  # out[2:HEAD] and the breakpoints' 4 beyond 5 per piece
 
 
 def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
