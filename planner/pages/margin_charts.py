@@ -84,7 +84,8 @@ def chart_sections(report, markers: dict[str, dict[str, float]], svgs: dict | No
         f"(scheduled − bad-day minimum); below zero the leg is short on a bad day (dark red where the margin "
         "itself is below zero: impossible). Black line: the supplement the rule asks "
         f"for ({rule.supplement_percent:g} % of the minimum + {rule.supplement_min_per_100km:g} min/100 km). "
-        "Where a leg has several scheduled times, the one with the least remaining margin is drawn.</p>")
+        "Where a leg has several scheduled times, the one with the least remaining margin is drawn. Hover a bar "
+        "for the leg's times.</p>")
     for d in ("down", "up"):
         if d in markers:
             svg = svgs[f"margin:{d}"]
@@ -224,9 +225,15 @@ C_LEFT, C_SPEED, C_BEHIND = 78.0, (34.0, 330.0), (376.0, 200.0)
 time-behind panel under it."""
 
 
+TOL_V_KMH, TOL_T_S, TOL_X_M = 0.05, 0.01, 0.5
+"""How far a drawn run may stray from the computed one: 0.05 km/h, 0.01 s or 0.5 m, a quarter of a pixel
+or less on a wide screen, so the curves look as smooth as every computed point (~100 points a run of
+3,000 instead of 3,000: a few kB)."""
+
+
 def _thin(x_m, y, tol_y: float):
-    """(x [km], y) thinned for drawing (:func:`planner.report.train_graph.simplify`, as the speed chart)."""
-    from planner.pages.speed_chart import TOL_X_M
+    """(x [km], y) thinned for drawing (:func:`planner.report.train_graph.simplify`, as the speed chart, within
+    ``tol_y`` or :data:`TOL_X_M`)."""
     from planner.report.train_graph import simplify
 
     x_m, y = np.asarray(x_m, float), np.asarray(y, float)
@@ -238,8 +245,6 @@ def _thin(x_m, y, tol_y: float):
 
 def curves_chart(report) -> str:
     """Run curves of the chosen leg and where along it the time goes (inline SVG and its legends)."""
-    from planner.pages.speed_chart import TOL_V_KMH
-
     c, k = report.curves, report.chosen
     if not c or not k:
         return ""
@@ -302,7 +307,7 @@ def curves_chart(report) -> str:
     q = sp.panel((C_LEFT, C_BEHIND[0], width, C_BEHIND[1]), xlim, padded(np.nanmin(ys), np.nanmax(ys)),
                  x_inverted=inv, ylabel="time behind the\nminimum run [s]", xlabel="chainage [km]", ytarget=5)
     for bx, by, col, dash in behind:
-        q.polyline(*_thin(bx, by, 0.02), color=col, width=1.5, dash=dash)
+        q.polyline(*_thin(bx, by, TOL_T_S), color=col, width=1.5, dash=dash)
     q.hline(row.margin_s, color=BLUE, width=1.0, dash=(3.7, 1.6))
     q.text(km[0], row.margin_s, f"scheduled margin {row.margin_s:.1f} s", size=9, color=BLUE, anchor="start",
            va="bottom", dx=6.0, dy=-1.0)
