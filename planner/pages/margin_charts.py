@@ -14,9 +14,9 @@ legend, if any, in HTML under it, so the page stays self-contained and the brows
 * :func:`adhesion_chart`: stopping time against adhesion for every approach of the chosen train type,
   a panel per direction, and the sentence naming the hardest approach.
 
-Chainage runs left to right in the running direction (``up`` mirrored). Drawing the four costs a few
-ms of CPU (with matplotlib it was ~1.2 s, and importing it ~0.3 s in every worker that drew them). The
-same report gives the same bytes.
+Chainage runs left to right in the running direction (``up`` mirrored). Drawing the four costs ~30 ms
+of CPU on the sample (with matplotlib it was ~1.2 s, and importing it ~0.3 s in every worker that drew
+them), ~100 kB against ~300 kB. The same report gives the same bytes.
 """
 from __future__ import annotations
 
