@@ -47,7 +47,7 @@ def test_sections_and_charts(page):
     for title in ("Running-time margins", "Margin per interstation along the line", "Run curves:",
                   "Stopping time against adhesion", "Every leg", "Totals per train", "How the numbers are made"):
         assert title in page
-    assert page.count("<svg") == 4  # margin chart per direction, run curves, adhesion
+    assert page.count("<div class='fig'><svg") == 4  # margin chart per direction, run curves, adhesion (legends: HTML)
     assert "down: S0 → S2, running left to right" in page
     assert "up: S2 → S0, running left to right" in page
 

@@ -77,9 +77,6 @@ def warm_worker() -> None:
     import planner.stopping.sweep  # noqa: F401
     import planner.tables.build  # noqa: F401
     import planner.tables.closed_loop  # noqa: F401
-    from planner.report.plots import pyplot
-
-    pyplot()  # matplotlib, for the margin report's charts (drawn on the workers at the end)
 
 STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
          "overview", "publish")
@@ -458,7 +455,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
     _count(summary, write_margins(report, stage))
     # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
-    # its charts (a few seconds of matplotlib) are drawn meanwhile, half on each of two workers
+    # its charts are drawn meanwhile, half on each of two workers
     from planner.io.parallel import background
     from planner.pages.margin_report import stop_markers
     from planner.pages.margin_charts import chart_svgs

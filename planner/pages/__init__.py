@@ -2,7 +2,7 @@
 
 Each module writes one kind of self-contained HTML page (no network) of a published run:
 ``overview`` (the run's ``index.html``), ``margin_report`` with its chart sections
-(``margin_charts``) and the "what changed" section (``changes``), ``train_graph`` (the
+(``margin_charts``; every chart of these pages is SVG written by ``svg_plot``, no matplotlib) and the "what changed" section (``changes``), ``train_graph`` (the
 interactive time-distance diagram), ``timetable`` (the running-time table per train),
 ``speed_chart`` (a speed-distance chart per leg) and ``restrictions`` (the restrictions in force
 on the operating day). The numbers come from ``planner.report`` (margins, train graph data,

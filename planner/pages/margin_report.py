@@ -2,9 +2,9 @@
 
 :func:`render_html` turns a :class:`planner.report.margins.MarginReport` into a
 single HTML document that needs no network: inline CSS, charts as inline SVG
-drawn by :mod:`planner.report.plots` (matplotlib's SVG backend), no scripts. It is deterministic
-(same report, same bytes): no timestamps, SVG ids from a fixed hash salt, no
-date in the SVG metadata.
+written by :mod:`planner.pages.margin_charts` (with :mod:`planner.pages.svg_plot`; their legends in
+HTML), no scripts. It is deterministic (same report, same bytes): no timestamps, SVG ids fixed by
+the code.
 
 Sections, in the order a timetable planner reads them:
 
@@ -36,6 +36,7 @@ from planner.line.model import line_title  # noqa: F401 - the pages import it fr
 from planner.line.units import clock, fixed, hms
 
 from planner.pages.margin_charts import chart_sections
+from planner.pages.svg_plot import LEGEND_CSS
 from planner.report.leg_flags import FLAG, FLAGS, FLAGS_SHOWN, added_up, any_flag, flag_of, flags_of
 
 CSS = """
@@ -432,7 +433,7 @@ def _headline(report, sched, trains, top: str, nav: str = "") -> list[str]:
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
              f"<meta name='viewport' content='width=device-width, initial-scale=1'>"
              f"<title>Margin report — {_e(line_title(report.line_name, report.line_id))}</title>"
-             f"<style>{CSS}</style></head><body><main>{nav}"]
+             f"<style>{CSS}{LEGEND_CSS}</style></head><body><main>{nav}"]
     parts.append(f"<h1>Running-time margins — {_e(line_title(report.line_name, report.line_id))}</h1>")
     parts.append(
         f"<p class='sub'>Directions {dirs} · train types {types} · {len(sched)} timetabled legs "

@@ -1,16 +1,21 @@
-"""Line charts written directly as SVG: linear axes, nice ticks, lines, markers, spans and labels.
+"""The pages' charts written directly as SVG: linear axes, nice ticks, lines, bars, markers, spans and labels.
 
-For a chart drawn many times over (the speed–distance chart of every leg, :mod:`planner.pages.speed_chart`),
-where matplotlib's text layout, legends, ticks and ``savefig`` cost ~80 ms a chart and the data nothing:
-here a chart is a few hundred strings joined, about 3 ms. What it gives up is text metrics: a label's box is
+Every chart of the pages the nightly job writes is drawn here: the speed–distance chart of every leg
+(:mod:`planner.pages.speed_chart`) and the margin report's four (:mod:`planner.pages.margin_charts`).
+matplotlib's text layout, legends, ticks and ``savefig`` cost ~80 ms a chart and the data nothing (and
+importing it ~0.3 s of CPU in every process that draws); here a chart is a few hundred strings joined,
+a few milliseconds. What it gives up is text metrics: a label's box is
 sized from an estimate of the text's width (:func:`text_width`), so a legend is not drawn in the SVG but
 written in HTML beside it (:func:`legend_html`), where the browser lays it out.
 
 A :class:`Figure` of ``width`` × ``height`` user units (its ``viewBox``; it scales to the width of its box,
 ``width="100%"``) holds :class:`Panel` s, each a plot frame at a fixed place with linear x and y axes
 (:class:`Scale`, x reversible: a run in the ``up`` direction runs left to right), grid and ticks at
-nice numbers (:func:`nice_ticks`: 1, 2, 2.5 or 5 × 10ⁿ). Panels may share x limits (a second panel under
-the first). Everything drawn in data coordinates is clipped to its panel.
+nice numbers (:func:`nice_ticks`: 1, 2, 2.5 or 5 × 10ⁿ), limits padded as matplotlib's autoscale does
+(:func:`padded`). Panels may share x limits (panels stacked) or y limits (side by side, the tick labels
+on the first only). A panel draws lines, steps, fills, bars (:meth:`Panel.rects`, each with its tooltip),
+markers, bands and labels, and may carry its own title and labelled ticks along its top edge (station
+codes). Everything drawn in data coordinates is clipped to its panel.
 
 Output is deterministic and small: coordinates rounded to 0.1 unit (:func:`num`), consecutive
 points that round to the same place written once, ids fixed by the caller (no random or hash-salted
@@ -73,6 +78,19 @@ def nice_ticks(lo: float, hi: float, target: int = 6) -> tuple[list[float], int]
     return ticks, dec
 
 
+def padded(lo: float, hi: float, frac: float = 0.05) -> tuple[float, float]:
+    """Axis limits around data from ``lo`` to ``hi``: ``frac`` of the span added at each end (matplotlib's
+    autoscale margins); a single value gets ±0.5 (±5 % of itself when large), no data (NaN) (0, 1)."""
+    lo, hi = float(lo), float(hi)
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return 0.0, 1.0
+    if hi <= lo:
+        m = max(0.5, 0.05 * abs(lo))
+        return lo - m, lo + m
+    m = frac * (hi - lo)
+    return lo - m, hi + m
+
+
 _WIDTHS = {" ": 0.32, ".": 0.32, ",": 0.32, ":": 0.34, "(": 0.39, ")": 0.39, "-": 0.36, "/": 0.34, "|": 0.34,
            "i": 0.28, "l": 0.28, "j": 0.28, "I": 0.3, "f": 0.35, "t": 0.39, "r": 0.41, "m": 0.97, "w": 0.82,
            "M": 0.86, "W": 0.99}
@@ -107,24 +125,34 @@ class Scale:
 
 class Panel:
     """A plot frame at ``box`` = (left, top, width, height) with x limits ``xlim`` and y limits ``ylim``
-    (data units); ``x_inverted``: x grows to the left. Draw with the methods below (data coordinates),
+    (data units); ``x_inverted``: x grows to the left; ``xticks``/``yticks``: label the ticks (a panel sharing
+    the axis of another leaves them to it); ``grid``: ``both``, ``x``, ``y`` or ``None``; ``ylabel`` may
+    hold ``\n`` (one line each, the last nearest the axis). Draw with the methods below (data coordinates),
     then :meth:`Figure.svg` writes grid, data (clipped to the frame), frame, ticks and labels."""
 
     def __init__(self, index: int, box, xlim, ylim, *, x_inverted=False, xlabel="", ylabel="", xticks=True,
-                 xtarget=10, ytarget=6):
+                 yticks=True, xtarget=10, ytarget=6, grid="both"):
         self.index, self.box = index, tuple(float(b) for b in box)
         left, top, w, h = self.box
         self.xlim, self.ylim = tuple(map(float, xlim)), tuple(map(float, ylim))
         self.x = Scale(*self.xlim, left + w, left) if x_inverted else Scale(*self.xlim, left, left + w)
         self.y = Scale(*self.ylim, top + h, top)
-        self.xlabel, self.ylabel, self.xticks = xlabel, ylabel, xticks
+        self.xlabel, self.ylabel, self.xticks, self.yticks, self.grid = xlabel, ylabel, xticks, yticks, grid
         self.targets = (xtarget, ytarget)
         self.data: list[str] = []
         self.labels: list[str] = []
 
     # --- data, clipped to the frame -----------------------------------------------------------------------------
     def polyline(self, x, y, *, color: str, width: float = 1.0, dash=None, opacity=None):
-        """A line through (x, y)."""
+        """A line through (x, y), broken where a value is not finite (NaN: no value there, as matplotlib)."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        ok = np.isfinite(x) & np.isfinite(y)
+        if not ok.all():  # each finite run on its own
+            cuts = np.flatnonzero(np.diff(ok.astype(np.int8))) + 1
+            for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(x)]):
+                if ok[a]:
+                    self.polyline(x[a:b], y[a:b], color=color, width=width, dash=dash, opacity=opacity)
+            return
         if len(x):
             self.data.append(f'<polyline points="{_pairs(self.x(x), self.y(y))}" fill="none" stroke="{color}" '
                              f'stroke-width="{width:g}"{_dash(dash)}{_opacity("stroke-opacity", opacity)}/>')
@@ -161,6 +189,22 @@ class Panel:
         self.data.append(f'<rect x="{num(a)}" y="{num(top)}" width="{num(b - a)}" height="{num(bot - top)}" '
                          f'fill="{fill}"{_opacity("fill-opacity", opacity)}/>')
 
+    def rects(self, x0, x1, y0, y1, *, fill: str, stroke: str | None = None, width: float = 0.6, opacity=None,
+              tips=None):
+        """Boxes from (x0[i], y0[i]) to (x1[i], y1[i]) (data; either corner first): bars. ``tips``: a text per
+        box, its tooltip (an SVG ``<title>``). A box with a value that is not finite is not drawn."""
+        x0, x1, y0, y1 = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, float)) for v in (x0, x1, y0, y1)))
+        tips = [None] * len(x0) if tips is None else list(tips)
+        ok = np.isfinite(x0) & np.isfinite(x1) & np.isfinite(y0) & np.isfinite(y1)
+        x0, x1, y0, y1 = self.x(x0[ok]), self.x(x1[ok]), self.y(y0[ok]), self.y(y1[ok])
+        tips = [t for t, k in zip(tips, ok.tolist()) if k]
+        edge = f' stroke="{stroke}" stroke-width="{width:g}"' if stroke else ""
+        paint = f'fill="{fill}"{_opacity("fill-opacity", opacity)}{edge}'
+        for a, b, c, d, tip in zip(np.minimum(x0, x1).tolist(), np.maximum(x0, x1).tolist(),
+                                   np.minimum(y0, y1).tolist(), np.maximum(y0, y1).tolist(), tips):
+            rect = f'<rect x="{num(a)}" y="{num(c)}" width="{num(b - a)}" height="{num(d - c)}" {paint}'
+            self.data.append(f"{rect}><title>{esc(tip)}</title></rect>" if tip else f"{rect}/>")
+
     def vline(self, x: float, *, color: str, width: float = 1.0, dash=None):
         """A vertical line across the frame at x."""
         px, (_, top, _, h) = num(self.x(x)), self.box
@@ -174,13 +218,16 @@ class Panel:
                          f'stroke-width="{width:g}"{_dash(dash)}/>')
 
     def markers(self, x, y, shape: str, *, size: float, fill: str, stroke: str | None = None, width: float = 1.0):
-        """A marker at each (x, y), one path: ``shape`` ``v`` (triangle down), ``D`` (diamond), ``|`` (tick);
-        ``size`` its height in user units."""
+        """A marker at each (x, y), one path: ``shape`` ``v`` (triangle down), ``D`` (diamond), ``|`` (tick),
+        ``o`` (circle); ``size`` its height in user units."""
         s = size / 2
         rel = {"v": f"m{num(-s)},{num(-s)}h{num(size)}l{num(-s)},{num(size)}z",
+               "o": f"m{num(-s)},0a{num(s)},{num(s)} 0 1,0 {num(size)},0a{num(s)},{num(s)} 0 1,0 {num(-size)},0z",
                "D": f"m0,{num(-s)}l{num(s * 0.75)},{num(s)}l{num(-s * 0.75)},{num(s)}l{num(-s * 0.75)},{num(-s)}z",
                "|": f"m0,{num(-s)}v{num(size)}"}[shape]
-        d = "".join(f"M{num(a)},{num(b)}{rel}" for a, b in zip(self.x(x).tolist(), self.y(y).tolist()))
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        ok = np.isfinite(x) & np.isfinite(y)  # no marker where there is no value
+        d = "".join(f"M{num(a)},{num(b)}{rel}" for a, b in zip(self.x(x[ok]).tolist(), self.y(y[ok]).tolist()))
         if not d:
             return
         paint = (f'fill="none" stroke="{fill}" stroke-width="{width:g}"' if shape == "|" else
@@ -189,13 +236,15 @@ class Panel:
 
     # --- labels, over the data, not clipped ---------------------------------------------------------------------
     def text(self, x: float, y: float, lines, *, size: float = 9, color: str = "#1d2327", anchor: str = "middle",
-             va: str = "top", bold: bool = False, box: tuple[str, str] | None = None, y_frac: bool = False):
-        """A label at data (x, y) (``y_frac``: y as a fraction of the frame's height from the bottom):
-        ``lines`` a string or several; ``va`` which side of the text is at y (``top``, ``bottom``); ``box``:
-        (fill, stroke) of a rounded box around it, sized by :func:`text_width`."""
+             va: str = "top", bold: bool = False, box: tuple[str, str] | None = None, x_frac: bool = False,
+             y_frac: bool = False, dx: float = 0.0, dy: float = 0.0):
+        """A label at data (x, y) (``x_frac``/``y_frac``: x or y as a fraction of the frame's width from the left
+        or height from the bottom), moved by (dx, dy) user units (y down): ``lines`` a string or several; ``va``
+        which side of the text is at y (``top``, ``bottom``); ``box``: (fill, stroke) of a rounded box around
+        it, sized by :func:`text_width`."""
         lines = [lines] if isinstance(lines, str) else list(lines)
-        px = float(self.x(x))
-        py = self.box[1] + self.box[3] * (1 - y) if y_frac else float(self.y(y))
+        px = (self.box[0] + self.box[2] * x if x_frac else float(self.x(x))) + dx
+        py = (self.box[1] + self.box[3] * (1 - y) if y_frac else float(self.y(y))) + dy
         lh = 1.2 * size
         pad = 0.3 * size if box else 0.0
         h = lh * len(lines)
@@ -212,6 +261,24 @@ class Panel:
         out.append(f'<text font-size="{size:g}" fill="{color}" text-anchor="{anchor}"{weight}>{spans}</text>')
         self.labels.append("".join(out))
 
+    def title(self, s: str, *, loc: str = "left", size: float = 11, bold: bool = True, pad: float = 7.0):
+        """A line of text over the frame (``loc`` ``left`` or ``center``), its baseline ``pad`` above it."""
+        left, top, w, _ = self.box
+        x, anchor = (left, "start") if loc == "left" else (left + w / 2, "middle")
+        weight = ' font-weight="bold"' if bold else ""
+        self.labels.append(f'<text x="{num(x)}" y="{num(top - pad)}" font-size="{size:g}" text-anchor="{anchor}"'
+                           f'{weight}>{esc(s)}</text>')
+
+    def top_ticks(self, x, labels, *, size: float = 9):
+        """Ticks on the frame's top edge at data x, each with its label over it (station codes)."""
+        top = self.box[1]
+        px = [num(v) for v in self.x(np.asarray(x, float)).tolist()]
+        marks = "".join(f"M{a},{num(top)}v-4" for a in px)
+        text = "".join(f'<text x="{a}" y="{num(top - 7)}" text-anchor="middle">{esc(s)}</text>'
+                       for a, s in zip(px, labels))
+        self.labels.append(f'<path d="{marks}" stroke="#222" stroke-width="0.8"/>'
+                           f'<g font-size="{size:g}" fill="#222">{text}</g>')
+
     # --- frame ----------------------------------------------------------------------------------------------------
     def _axes(self) -> tuple[str, str]:
         """(grid, frame with ticks and axis labels)."""
@@ -222,26 +289,31 @@ class Panel:
         yt, ydec = nice_ticks(*self.ylim, self.targets[1])
         for t in xt:
             px = num(self.x(t))
-            grid.append(f"M{px},{num(top)}V{num(bottom)}")
+            if self.grid in ("both", "x"):
+                grid.append(f"M{px},{num(top)}V{num(bottom)}")
             frame.append(f"M{px},{num(bottom)}v4")
         for t in yt:
             py = num(self.y(t))
-            grid.append(f"M{num(left)},{py}H{num(left + w)}")
+            if self.grid in ("both", "y"):
+                grid.append(f"M{num(left)},{py}H{num(left + w)}")
             frame.append(f"M{num(left)},{py}h-4")
         text = []
         if self.xticks:
             text += [f'<text x="{num(self.x(t))}" y="{num(bottom + 16)}" text-anchor="middle">{t:.{xdec}f}</text>'
                      for t in xt]
-        text += [f'<text x="{num(left - 7)}" y="{num(float(self.y(t)) + 3.5)}" text-anchor="end">'
-                 f'{(t + 0.0):.{ydec}f}</text>' for t in yt]
+        if self.yticks:
+            text += [f'<text x="{num(left - 7)}" y="{num(float(self.y(t)) + 3.5)}" text-anchor="end">'
+                     f'{(t + 0.0):.{ydec}f}</text>' for t in yt]
         if self.xlabel:
             text.append(f'<text x="{num(left + w / 2)}" y="{num(bottom + 34)}" text-anchor="middle">'
                         f'{esc(self.xlabel)}</text>')
         if self.ylabel:
-            cx, cy = num(left - 44), num(top + h / 2)
+            rows = self.ylabel.split("\n")
+            cx, cy = num(left - 44 - 12 * (len(rows) - 1)), num(top + h / 2)
+            body = "".join(f'<tspan x="{cx}" dy="{0 if k == 0 else 12}">{esc(s)}</tspan>' for k, s in enumerate(rows))
             text.append(f'<text x="{cx}" y="{cy}" text-anchor="middle" transform="rotate(-90 {cx} {cy})">'
-                        f'{esc(self.ylabel)}</text>')
-        return (f'<path d="{"".join(grid)}" stroke="#e3e3e3" stroke-width="0.8"/>',
+                        f'{body if len(rows) > 1 else esc(self.ylabel)}</text>')
+        return (f'<path d="{"".join(grid)}" stroke="#e3e3e3" stroke-width="0.8"/>' if grid else "",
                 f'<rect x="{num(left)}" y="{num(top)}" width="{num(w)}" height="{num(h)}" fill="none" stroke="#222" '
                 f'stroke-width="0.8"/><path d="{"".join(frame)}" stroke="#222" stroke-width="0.8"/>'
                 f'<g font-size="10" fill="#222">{"".join(text)}</g>')
@@ -297,7 +369,7 @@ class Figure:
 def swatch(kind: str, *, color: str, width: float = 1.5, dash=None, opacity=None, shape: str = "", edge=None,
            hatch: str | None = None) -> str:
     """A legend's sample as a small inline SVG (28 × 12 px): ``kind`` ``line`` (a stroke, ``dash``), ``marker``
-    (``shape`` as :meth:`Panel.markers`, ``edge`` its outline) or ``patch`` (a filled box, ``hatch`` the
+    (``shape`` as :meth:`Panel.markers`, ``edge`` its outline; ``o``: on a line) or ``patch`` (a filled box, ``hatch`` the
     colour of diagonal lines over it)."""
     if kind == "line":
         body = (f'<line x1="1" y1="6" x2="27" y2="6" stroke="{color}" stroke-width="{width:g}"{_dash(dash)}'
@@ -305,6 +377,8 @@ def swatch(kind: str, *, color: str, width: float = 1.5, dash=None, opacity=None
     elif kind == "marker":
         body = {"v": f'<path d="M10,2.5h8l-4,7z" fill="{color}"/>',
                 "D": f'<path d="M14,2l3,4l-3,4l-3,-4z" fill="{color}" stroke="{edge or color}" stroke-width="1"/>',
+                "o": f'<line x1="1" y1="6" x2="27" y2="6" stroke="{color}" stroke-width="{width:g}"/>'
+                     f'<circle cx="14" cy="6" r="2.6" fill="{color}"/>',
                 "|": f'<path d="M14,1.5v9" stroke="{color}" stroke-width="{width:g}"/>'}[shape]
     else:
         lines = (f'<path d="M2,12l10,-10M9,12l10,-10M16,12l10,-10" stroke="{hatch}" stroke-width="1.1"/>'
@@ -319,10 +393,12 @@ LEGEND_CSS = (".lg{display:flex;flex-wrap:wrap;gap:2px 18px;margin:6px 4px 2px;f
 """The legend's style (:func:`legend_html`), for the page's ``<style>``."""
 
 
-def legend_html(items) -> str:
+def legend_html(items, head: str = "") -> str:
     """A legend in HTML: ``items`` (swatch from :func:`swatch`, label), laid out by the browser (wraps on a
-    narrow screen). Labels are escaped."""
-    return '<div class="lg">' + "".join(f"<span>{sw}{esc(label)}</span>" for sw, label in items) + "</div>"
+    narrow screen), after ``head`` in bold when given (which panel it is for). Labels are escaped."""
+    return ('<div class="lg">' + (f"<b>{esc(head)}</b>" if head else "")
+            + "".join(f"<span>{sw}{esc(label)}</span>" for sw, label in items) + "</div>")
 
 
-__all__ = ["Figure", "Panel", "Scale", "nice_ticks", "text_width", "esc", "num", "swatch", "legend_html", "LEGEND_CSS"]
+__all__ = ["Figure", "Panel", "Scale", "nice_ticks", "padded", "text_width", "esc", "num", "swatch", "legend_html",
+           "LEGEND_CSS"]

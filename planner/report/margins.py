@@ -137,7 +137,7 @@ Layout
 * this module: the whole line (:func:`compute_margins`);
 * :mod:`planner.report.margin_datasets`: the ``margins`` and ``margin_totals``
   datasets, and the readers of the other steps' folders;
-* :mod:`planner.pages.margin_report` and :mod:`planner.report.plots`: the page and its charts.
+* :mod:`planner.pages.margin_report` and :mod:`planner.pages.margin_charts`: the page and its charts.
 """
 from __future__ import annotations
 

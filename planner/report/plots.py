@@ -1,27 +1,25 @@
-"""The planner's charts drawn with matplotlib (the one module that imports it); the speed–distance chart of
-each leg, drawn thousands of times a night on a network, is written as SVG directly
-(:mod:`planner.pages.svg_plot`, :mod:`planner.pages.speed_chart`).
+"""The planner's charts drawn with matplotlib (the one module that imports it, with the train graph's file
+chart): the file charts of the CLI and the evaluation-interval study. The charts of the pages the nightly
+job writes are SVG written directly (:mod:`planner.pages.svg_plot`: the speed–distance chart of each leg
+and the margin report's, :mod:`planner.pages.margin_charts`), so the nightly job never imports matplotlib.
 
-Takes computed results (a margin report, train-graph data, a station-approach
-sweep, one run or one time-keeping run, the evaluation-interval study) and gives
-charts: inline SVG strings for the self-contained HTML pages, or PNG/SVG files
-written atomically (temp file, then rename). Every chart is deterministic: the
+Takes computed results (a station-approach sweep, one run or one time-keeping run, the
+evaluation-interval study) and gives charts: PNG files written atomically (temp file,
+then rename), or inline SVG for the study's page. Every chart is deterministic: the
 same result gives the same bytes (fixed SVG hash salt, no date or software
 metadata). Units appear only here, at the edge: the results are SI, the axes
 km/h, km/h/s and km (:mod:`planner.line.units`).
 
 Charts
 ------
-* margin report (:mod:`planner.pages.margin_report`): :func:`margin_chart`,
-  :func:`curves_chart`, :func:`adhesion_chart`;
 * train graph (``planner graph``): :func:`planner.report.train_graph.train_graph_chart`;
 * station approach (``planner stops --plot``): :func:`approach_chart`;
 * one run (``planner runtime --plot``): :func:`run_curve_chart`;
 * time-keeping run (``planner timekeeping --plot``): :func:`timekeeping_chart`;
-* evaluation-interval study: :func:`interval_study_chart`.
+* evaluation-interval study (:mod:`planner.pages.eval_study`): :func:`interval_study_chart`.
 
 Position axes: one per kind of chart, labelled with its unit. A chart of a run along the line
-(the margin report's, ``runtime --plot``, ``timekeeping --plot``) is against the chainage [km],
+(``runtime --plot``, ``timekeeping --plot``, like the margin report's) is against the chainage [km],
 running left to right in the running direction; a chart of a stop (``stops --plot``) against the
 distance to the stop marker [m], the way a braking curve is read.
 """
@@ -34,13 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from planner.errors import InputError
-from planner.line.units import KMH, KMH_S, KMH_S2, fixed, kmh
-from planner.report.leg_flags import FLAGS_SHOWN, flag_of
+from planner.line.units import KMH, KMH_S, KMH_S2, kmh
 
-FLAG_COLOURS = {f.name: f.colour for f in FLAGS_SHOWN} | {"ok": "#2e7d32"}
-"""Colour of a leg by its worst flag (the badges' colours)."""
-MARGIN_COLOUR = "#b0c4de"
-"""Bar colour of the nominal margin."""
 SVG_SALT = "planner-margins"
 """Fixed ``svg.hashsalt``: matplotlib's SVG ids become deterministic."""
 
@@ -48,7 +41,7 @@ SVG_SALT = "planner-margins"
 # --- drawing and saving ---------------------------------------------------------------
 
 def pyplot():
-    """matplotlib's pyplot on the Agg backend, with the HTML pages' style (fixed SVG hash salt)."""
+    """matplotlib's pyplot on the Agg backend, with the study page's style (fixed SVG hash salt)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -95,209 +88,6 @@ def save_png(fig, path: str | os.PathLike, *, dpi: float | None = None) -> Path:
     finally:
         plt.close(fig)
     return Path(path)
-
-
-# --- the margin report ------------------------------------------------------------------
-
-def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
-    """Bar chart of the margin per leg along the line for one direction (inline SVG).
-
-    One row of axes per train type (legs passing stations in their own row);
-    bars span the leg from stop marker to stop marker, running left to right.
-    """
-    plt = pyplot()
-    rows = report.rows[(report.rows.direction == direction) & report.rows.scheduled_running_time_s.notna()]
-    if rows.empty:
-        return ""
-    groups = []
-    for t in sorted(rows.train_type.unique()):
-        sub = rows[rows.train_type == t]
-        plain, passing = sub[sub.passes.map(len) == 0], sub[sub.passes.map(len) > 0]
-        if len(plain):
-            groups.append((f"{t}: stop to next station", plain))
-        if len(passing):
-            groups.append((f"{t}: legs passing stations", passing))
-    fig, axes = plt.subplots(len(groups), 1, figsize=(13.5, 2.6 * len(groups) + 1.7), sharex=True,
-                             squeeze=False)
-    lo = min(min(stations.values()), 0.0) / 1000.0
-    hi = max(stations.values()) / 1000.0
-    ymax = max(float(np.nanmax(rows.margin_s)), float(np.nanmax(rows.supplement_required_s))) + 4
-    ymin = min(0.0, float(np.nanmin(rows.remaining_margin_s)))
-    ymin -= max(3.0, 0.12 * (ymax - ymin))  # room for the label under the lowest bar
-    for ax, (title, sub) in zip(axes[:, 0], groups):
-        # several scheduled times on one leg: draw the one with the least remaining margin
-        sub = sub.sort_values("remaining_margin_s", kind="stable").drop_duplicates(["origin", "destination"])
-        for r in sub.itertuples(index=False):
-            a = stations[r.origin] / 1000.0
-            b = stations[r.destination] / 1000.0
-            x0, x1 = min(a, b), max(a, b)
-            pad = 0.04 * (x1 - x0)
-            w = x1 - x0 - 2 * pad
-            ax.bar(x0 + pad, r.margin_s, width=w, align="edge", color=MARGIN_COLOUR, edgecolor="#7d93ad", lw=0.6)
-            col = FLAG_COLOURS[flag_of(r)]
-            ax.bar(x0 + pad + 0.25 * w, r.remaining_margin_s, width=0.5 * w, align="edge", color=col, alpha=0.9)
-            ax.plot([x0 + pad, x0 + pad + w], [r.supplement_required_s] * 2, color="k", lw=1.4)
-            y = r.remaining_margin_s
-            ax.text(x0 + pad + 0.5 * w, y + (0.6 if y >= 0 else -0.6), fixed(y, 1, True), ha="center",
-                    va="bottom" if y >= 0 else "top", fontsize=7.5, fontweight="bold",
-                    color="#8e1b1b" if y < 0 else "#1d2327")
-        ax.axhline(0, color="k", lw=0.8)
-        ax.set_ylim(ymin, ymax)
-        ax.set_ylabel("seconds")
-        ax.set_title(title, loc="left", fontsize=9.5, fontweight="bold", pad=16)
-        ax.grid(axis="y", alpha=0.3)
-        for sid, x in stations.items():
-            ax.axvline(x / 1000.0, color="0.85", lw=0.6, zorder=0)
-    order = sorted(stations.items(), key=lambda kv: kv[1])
-    for ax in axes[:, 0]:  # station codes above every panel, not only the first
-        top = ax.secondary_xaxis("top")
-        top.set_xticks([x / 1000.0 for _, x in order], [s for s, _ in order], fontsize=8)
-    axes[-1, 0].set_xlabel("chainage [km] (stop markers of this direction)")
-    axes[-1, 0].set_xlim(lo - 0.3, hi + 0.3)
-    if direction == "up":
-        axes[-1, 0].invert_xaxis()  # run left to right
-    from matplotlib.patches import Patch
-    from matplotlib.lines import Line2D
-
-    handles = [Patch(color=MARGIN_COLOUR, label="margin = scheduled − minimum"),
-               Patch(color=FLAG_COLOURS["ok"], label="remaining on a bad day (≥ tight threshold)"),
-               Patch(color=FLAG_COLOURS["tight"], label="remaining < tight threshold"),
-               Patch(color=FLAG_COLOURS["short_bad_day"], label="negative: short on a bad day"),
-               Patch(color=FLAG_COLOURS["impossible"], label="impossible: margin < 0"),
-               Line2D([], [], color="k", lw=1.4, label="supplement the rule asks for")]
-    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8.5, frameon=False)  # 6 in a row are too wide
-    first, last = order[0][0], order[-1][0]
-    if direction == "up":
-        first, last = last, first
-    fig.suptitle(f"{direction}: {first} → {last}, running left to right", x=0.01, y=1 - 0.12 / fig.get_figheight(),
-                 ha="left", va="top", fontsize=11, fontweight="bold")
-    h = fig.get_figheight()  # fixed margins in inches: tight_layout costs seconds per chart
-    fig.subplots_adjust(left=0.06, right=0.99, top=1 - 1.05 / h, bottom=1.25 / h, hspace=0.62)
-    return inline_svg(fig)
-
-
-def curves_chart(report) -> str:
-    """Run curves of the chosen leg and where along it the time goes (inline SVG)."""
-    c, k = report.curves, report.chosen
-    if not c or not k:
-        return ""
-    plt = pyplot()
-    row = report.rows[(report.rows.direction == k["direction"]) & (report.rows.train_type == k["train_type"])
-                      & (report.rows.origin == k["origin"]) & (report.rows.destination == k["destination"])]
-    row = row.iloc[0]
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(15.5, 7.4), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
-    km = c["position_m"] / 1000.0
-    ax.step(km, c["vmax_kmh"], where="mid", color="0.55", lw=1.1, label="on-board maximum (limit − margin)")
-    ax.plot(km, c["min_speed_kmh"], color="#1f5fa8", lw=1.8,
-            label=f"minimum: ratio 100 %, nominal — {row.min_running_time_s:.1f} s")
-    if "sched_speed_kmh" in c:
-        ax.plot(km, c["sched_speed_kmh"], color="#2e7d32", lw=1.5,
-                label=f"as scheduled: on-board logic, departs at ratio {row.ratio_on_time:.0%}\n  "
-                      f"{row.scheduled_running_time_s:.0f} s scheduled, arrives {fixed(row.arrival_error_s, 1, True)} s")
-    dkm = c["degraded_position_m"] / 1000.0
-    ax.plot(dkm, c["degraded_speed_kmh"], color="#c62828", lw=1.5,
-            label=f"bad day: load {report.rule.bad_load:.0%}, traction ×{report.rule.bad_traction:g},\n  "
-                  f"ratio 100 % — {row.degraded_min_running_time_s:.1f} s")
-    if "pattern_position_m" in c:
-        ax.plot(c["pattern_position_m"] / 1000.0, c["pattern_speed_kmh"], color="#c62828", lw=1.5, ls="--",
-                label=f"stopping pattern at adhesion {row.adhesion_min_ms2 / KMH_S:g} km/h/s\n  — {row.stop_time_degraded_s:.1f} s")
-    ps = c["pattern_start_m"] / 1000.0
-    ax.axvline(ps, color="#c62828", lw=0.8, ls=":")
-    ax.text(ps, 3, " pattern start", color="#c62828", fontsize=8, ha="left", va="bottom")
-    ax.set_ylabel("speed [km/h]")
-    ax.set_ylim(0, float(np.nanmax(c["vmax_kmh"])) * 1.12)
-    ax.grid(alpha=0.3)
-    # legends beside the axes, never over the curves
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, ncol=1, frameon=False,
-              borderaxespad=0.0)
-    for x, name in ((km[0], row.origin), (km[-1], row.destination)):
-        ax.axvline(x, color="k", lw=1.0)
-        ax.text(x, ax.get_ylim()[1] * 0.985, f" {name} ", ha="center", va="top", fontsize=9,
-                bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="k", lw=0.6))
-    # where the time goes: time behind the minimum run at each point
-    tmin = c["min_time_s"]
-    if "sched_time_s" in c:
-        ax2.plot(km, c["sched_time_s"] - tmin, color="#2e7d32", lw=1.5, label="as scheduled − minimum")
-    dt = c["degraded_time_s"] - tmin[: len(c["degraded_time_s"])]
-    ax2.plot(dkm, dt, color="#c62828", lw=1.5, label="degraded − minimum")
-    if "pattern_position_m" in c:
-        x_p = c["pattern_position_m"]
-        order = np.argsort(c["position_m"])
-        tm_p = np.interp(x_p, c["position_m"][order], tmin[order])
-        ax2.plot(x_p / 1000.0, c["pattern_time_s"] - tm_p, color="#c62828", lw=1.5, ls="--")
-    ax2.axhline(row.margin_s, color="#1f5fa8", lw=1.0, ls="--")
-    ax2.text(km[0], row.margin_s, f"  scheduled margin {row.margin_s:.1f} s", color="#1f5fa8", fontsize=8,
-             va="bottom", ha="left")
-    ax2.axvline(ps, color="#c62828", lw=0.8, ls=":")
-    ax2.set_ylabel("time behind the\nminimum run [s]")
-    ax2.set_xlabel("chainage [km]")
-    ax2.grid(alpha=0.3)
-    ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.2, frameon=False, borderaxespad=0.0)
-    if k["direction"] == "up":
-        ax.invert_xaxis()
-    fig.suptitle(f"{k['train_type']} {k['direction']} {row.origin} → {row.destination} "
-                 f"({row.length_m / 1000:.2f} km): scheduled {row.scheduled_running_time_s:.0f} s, "
-                 f"remaining margin on a bad day {fixed(row.remaining_margin_s, 1, True)} s",
-                 x=0.01, ha="left", fontsize=11, fontweight="bold")
-    fig.subplots_adjust(left=0.055, right=0.71, top=0.93, bottom=0.08, hspace=0.08)
-    return inline_svg(fig)
-
-
-def adhesion_chart(report) -> tuple[str, str]:
-    """Stopping-pattern time against adhesion for every approach of the chosen leg's train type.
-
-    Returns the SVG and the hardest approach's description.
-    """
-    k = report.chosen
-    sw = report.sweep
-    if sw is None or len(sw) == 0 or not k:
-        return "", ""
-    plt = pyplot()
-    tt = k["train_type"]
-    rows = report.rows
-    plain = rows[(rows.train_type == tt) & (rows.passes.map(len) == 0)][
-        ["direction", "origin", "destination"]].drop_duplicates()
-    sw = sw.merge(plain, on=["direction", "origin", "destination"])
-    sw = sw[sw.train_type == tt]
-    fig, axes = plt.subplots(1, 2, figsize=(13.5, 4.4), sharey=True)
-    hardest = ""
-    worst = (-1.0, None)
-    for ax, d in zip(axes, ("down", "up")):
-        sub = sw[sw.direction == d]
-        losses = []
-        for (o, de), g in sub.groupby(["origin", "destination"], sort=True):
-            g = g.sort_values("adhesion_kmh_s")
-            a = g.adhesion_kmh_s.to_numpy()
-            t = g.stop_time_s.to_numpy()
-            if not np.isfinite(t[-1]):
-                continue
-            losses.append((float(np.nanmax(t - t[-1])), o, de, a, t))
-        losses.sort(key=lambda x: -x[0])
-        for i, (loss, o, de, a, t) in enumerate(losses):
-            is_chosen = (d, o, de) == (k["direction"], k["origin"], k["destination"])
-            hard = i == 0
-            col = "#c62828" if hard else ("#1f5fa8" if is_chosen else "0.7")
-            lw = 2.0 if (hard or is_chosen) else 1.0
-            ax.plot(a, t - t[-1], color=col, lw=lw, marker="o" if (hard or is_chosen) else None, ms=3,
-                    zorder=3 if (hard or is_chosen) else 2)
-            if hard or is_chosen:
-                # described in a corner (the flat, good-adhesion side), not at the crowded line ends
-                ax.text(0.02, 0.95 - 0.07 * (0 if hard else 1), f"{o} → {de}: {t[-1]:.1f} s at {a[-1]:g}, "
-                        f"{t[0]:.1f} s at {a[0]:g} km/h/s", transform=ax.transAxes, fontsize=8.5, color=col,
-                        va="top", ha="left", fontweight="bold")
-            if loss > worst[0]:
-                worst = (loss, (d, o, de, t[0], t[-1], a[0], a[-1]))
-        ax.set_title(f"{tt} {d}: every approach (grey), hardest (red), the leg above (blue)", fontsize=9.5)
-        ax.set_xlabel("adhesion-limited deceleration [km/h/s]")
-        ax.grid(alpha=0.3)
-        ax.invert_xaxis()  # worse adhesion to the right
-    axes[0].set_ylabel("stopping time lost against\nthe best adhesion [s]")
-    fig.tight_layout()
-    if worst[1] is not None:
-        d, o, de, t0, t1, a0, a1 = worst[1]
-        hardest = (f"The hardest approach for {tt} is {d} {o} → {de}: the stopping pattern takes {t1:.1f} s "
-                   f"at {a1:g} km/h/s and {t0:.1f} s at {a0:g} km/h/s (+{t0 - t1:.1f} s).")
-    return inline_svg(fig), hardest
 
 
 # --- a station approach, one run, a time-keeping run ------------------------------------
