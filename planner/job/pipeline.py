@@ -23,7 +23,9 @@ the workers start while the lines are read; the line's conflicts and train
 graph trajectories share the closed loop's pass of the workers; the tables and
 stops datasets are written on a thread while the workers compute the next
 steps; the bundles are built on a worker beside the margins; the margin
-report's charts are drawn on two workers while the main process writes the rest.
+report's charts and the legs' speed–distance charts are drawn on the workers while
+the main process writes the tables page, the train graph and the margin report;
+the chart pages are written last, each as its chart arrives.
 A step's time in the summary is the sum of its intervals, so the steps add up
 to more than the run's wall time.
 """
@@ -112,6 +114,9 @@ class RunSummary:
     charts: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
     """Each margin report's charts, being drawn (:class:`planner.io.parallel.Background` s giving parts of
     :func:`planner.pages.margin_report.chart_svgs`)."""
+    chart_pages: list = field(default_factory=list, repr=False, compare=False)
+    """Each line's speed–distance chart pages, being drawn (:class:`planner.job.train_views.ChartPages`;
+    written by :func:`planner.job.views.run_views`)."""
     pending: list = field(default_factory=list, repr=False, compare=False)
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
 

@@ -11,7 +11,8 @@ Two hooks called by :mod:`planner.job.pipeline`:
   conflicts and margins come from the run's own
   ``occupation``, ``conflicts`` and ``margin_totals`` datasets; before it, the running-time tables per
   train and the speed–distance charts (:func:`planner.job.train_views.train_views`), which a selected
-  train in the graph links to.
+  train in the graph links to; the charts are drawn on the workers while the rest is written, and
+  their pages are written by :func:`run_views` once the other pages are.
 * :func:`run_views`, after the manifest: compare the run with the previous
   published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
   dataset and put the section at the top of each margin report, add the
@@ -86,8 +87,11 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
     from planner.job.day import window
 
     label = _run_label(job, summary)
+    # the chart pages are written by run_views, once the rest of the run's pages are: the charts are drawn meanwhile
     legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary,  # tables, charts
-                       run_id=summary.run_id, day=window(job).record() if job.day.day else None)
+                       run_id=summary.run_id, day=window(job).record() if job.day.day else None,
+                       later=summary.chart_pages)
+    summary.pending += summary.chart_pages[-1:]
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
         con = read_line_dataset(stage, "conflicts", line.line_id)
@@ -245,6 +249,8 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
+    for pages in summary.chart_pages:  # the speed–distance charts, drawn while the pages above were written
+        pages.finish()
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))
     manifest["changes"] = {"base_run": base, "lines": counts,
