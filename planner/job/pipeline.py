@@ -19,10 +19,11 @@ so a re-run with nothing changed computes nothing, and editing one speed
 restriction recomputes only the interstations (and approaches) it reaches.
 
 What does not depend on a step runs beside it, so that both cores stay busy:
-the workers start while the lines are read; the line's conflicts and train
-graph trajectories share the closed loop's pass of the workers; the tables and
-stops datasets are written on a thread while the workers compute the next
-steps; the bundles are built on a worker beside the margins; the margin
+the workers start while the lines are read; the line's conflicts share the
+closed loop's pass of the workers; the tables and stops datasets are written on
+a thread while the workers compute the next steps; the bundles and the train
+graph's trajectories start on the workers when the closed loop ends, while this
+process writes it and the margins read it back; the margin
 report's charts and the legs' speed–distance charts are drawn on the workers while
 the main process writes the tables page, the train graph and the margin report;
 the chart pages are written last, each as its chart arrives.
@@ -370,11 +371,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         else:  # every level stops: what the sweep still says (an approach moved back from a TASC beacon)
             summary.notes += [f"{line.line_id}: {w}" for w in r.warnings]
 
-    # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts
-    # and train graph trajectories depend on the line alone, so they run beside it (first: longest)
-    from planner.job.views import graph_unit
-
-    side = [("graph", [graph_unit(job, line, lifted)])]
+    # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts depend
+    # on the line alone, so they run beside it (first: the longest unit)
+    side = []
     checks_conflicts = job.conflicts.enabled and line.network is not None
     if checks_conflicts:
         side.insert(0, ("conflicts", [_conflicts_unit_of(job, line, lifted)]))
@@ -391,11 +390,17 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
-    _count(summary, tables_written.result())
-    _count(summary, stops_written.result())
     # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
-    # margins (the worker loads the key from its file)
+    # margins (the worker loads the key from its file); the train graph's trajectories (the line alone,
+    # taken by line_views) on the other, while this process writes the closed loop and reads it back
+    # for the margins
+    _count(summary, stops_written.result())
     bundles = _start_bundles(job, line, stage, runner, summary, key_path, bday)
+    from planner.job.views import graph_unit
+
+    graph = runner.start("graph", [graph_unit(job, line, lifted)])
+    summary.pending.append(graph)
+    _count(summary, tables_written.result())
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
@@ -412,7 +417,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     record_verdicts(line.line_id, summary, tables, loops, summary.reports[line.line_id])
     from planner.job.views import line_views  # inputs copy, train graph page
 
-    line_views(job, line, stage, runner, summary, got["graph"])
+    line_views(job, line, stage, runner, summary, graph.results()[0][0])
 
 
 def conflicts_status(job: Job, line: Line) -> str:
@@ -461,9 +466,8 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         report.conflicts_note = "not checked ([conflicts] enabled = false in the job file)"
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
-    _count(summary, write_margins(report, stage))
     # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
-    # its charts (a few seconds of matplotlib) are drawn meanwhile, half on each of two workers
+    # its charts (a few seconds of matplotlib) are drawn meanwhile, half on each of two workers, from now on
     from planner.io.parallel import background
     from planner.pages.margin_report import stop_markers
     from planner.pages.margin_charts import chart_svgs
@@ -475,6 +479,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
                                                name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
                                     for names in halves]
     summary.pending += summary.charts[line.line_id]
+    _count(summary, write_margins(report, stage))
     for flag in FLAGS:  # legs the margin report flags, each flag its own card on the overview
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 

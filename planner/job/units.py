@@ -208,7 +208,7 @@ class Runner:
         with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
                      lost_timeout_s=p.dask_lost_timeout_s) as pool:
             unit = started.unit
-            if pool.n_jobs == 1 or len(started.todo) == 1:
+            if pool.n_jobs == 1 or (len(started.todo) == 1 and wait):  # one unit waited for: here
                 started.gen = (_call(unit(t).fn, unit(t).args) for t in started.todo)
             else:  # a local pool's tasks start now and go on after the context (joblib's generator)
                 started.gen = pool.imap(_call, [(unit(t).fn, unit(t).args) for t in started.todo])

@@ -7,7 +7,7 @@ Two hooks called by :mod:`planner.job.pipeline`:
   changed), and write its interactive train graph
   (``graph/<line_id>_graph.html``). The trajectories are a cached unit keyed by
   the line database, the code and the run-curve step (:func:`graph_unit`, run
-  beside the closed loop), so an unchanged line reuses them; windows,
+  on a worker beside the bundles), so an unchanged line reuses them; windows,
   conflicts and margins come from the run's own
   ``occupation``, ``conflicts`` and ``margin_totals`` datasets; before it, the running-time tables per
   train and the speed–distance charts (:func:`planner.job.train_views.train_views`), which a selected
