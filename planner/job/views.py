@@ -200,7 +200,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     from planner.io.atomic import write_bytes_atomic
     from planner.report.changes import CATEGORIES
     from planner.pages.changes import changes_html
-    from planner.pages.overview import write_overview
+    from planner.pages.overview import bundle_rows, write_overview
     from planner.job.publish import canonical_json, latest_run
     from planner.pages.margin_report import stop_markers, write_html
     from planner.pages.margin_charts import chart_sections
@@ -249,6 +249,8 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
+    with prog.step("overview"):  # its bundles verified while the charts are drawn
+        brows = bundle_rows(stage, manifest)
     for pages in summary.chart_pages:  # the speed–distance charts, drawn while the pages above were written
         pages.finish()
     summary.rows.update(rows)
@@ -264,7 +266,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     with prog.step("overview"):
         # notes name the development key by its path: keep the page free of absolute paths
         notes = [n.replace(str(root), job.job.output_root) for n in summary.warnings + summary.notes]
-        write_overview(stage, manifest, notes=notes)
+        write_overview(stage, manifest, notes=notes, bundles=brows)
 
 
 __all__ = ["copy_inputs", "graph_links", "line_views", "run_views"]
