@@ -19,14 +19,14 @@ so a re-run with nothing changed computes nothing, and editing one speed
 restriction recomputes only the interstations (and approaches) it reaches.
 
 What does not depend on a step runs beside it, so that both cores stay busy:
-the workers start while the lines are read; the line's conflicts share the
-closed loop's pass of the workers; the tables and stops datasets are written on
-a thread while the workers compute the next steps; the bundles and the train
-graph's trajectories start on the workers when the closed loop ends, while this
-process writes it and the margins read it back; the margin
-report's charts and the legs' speed–distance charts are drawn on the workers while
-the main process writes the tables page, the train graph and the margin report;
-the chart pages are written last, each as its chart arrives.
+the workers start while the lines are read; the stopping patterns share the
+tables' pass of the workers, and the line's conflicts the closed loop's; the
+tables and stops datasets are written on a thread while the workers compute the
+next steps; the bundles and the train graph's trajectories start on the workers
+when the closed loop ends, while this process writes it and the margins read it
+back; the margin report's charts and the legs' speed–distance charts are drawn
+on the workers while the main process writes the tables page, the train graph
+and the margin report; the chart pages are written last, each as its chart arrives.
 A step's time in the summary is the sum of its intervals, so the steps add up
 to more than the run's wall time.
 """
@@ -336,11 +336,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
               tp.eval_auto_s))
         for k in tasks
     ]
-    tables = runner.run("tables", t_units)
-    from planner.datasets.tables import write_tables
-
-    tables_written = _on_writer(writes, write_tables, tables, stage)
-
     # stopping patterns, one unit per arrival
     sp = job.stops
     levels = adhesion_levels(sp.adhesion_kmh_s)
@@ -350,9 +345,13 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
              f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
         for k in tasks
     ]
-    stops = runner.run("stops", s_units)
+    # the stops do not depend on the tables: one pass of the workers, the stops' short units filling the
+    # tables' last ones (one worker idled at the end of each step)
+    tables, stops = runner.run_steps([("tables", t_units), ("stops", s_units)])
     from planner.datasets.stops import write_stops
+    from planner.datasets.tables import write_tables
 
+    tables_written = _on_writer(writes, write_tables, tables, stage)
     stops_written = _on_writer(writes, write_stops, stops, stage)
     from planner.report.margins import given_tables
 

@@ -261,17 +261,22 @@ class Started:
         return self.out
 
     def discard(self) -> None:
-        """Wait for the workers' results and drop them, errors included (a run that failed before it needed
-        them; waiting, not aborting: see :meth:`planner.io.parallel.Background.discard`)."""
+        """The run failed before it needed the results: wait for the workers (waiting, not aborting: see
+        :meth:`planner.io.parallel.Background.discard`) and keep what they finished in the cache, as far as it
+        can be stored; errors are dropped (the run's own error is the one reported)."""
         gen, self.gen = self.gen, None
-        if gen is not None:
-            try:
-                for _ in gen:
+        if gen is None:
+            return
+        try:
+            for t, res in zip(self.todo, gen):
+                try:
+                    self.runner.cache.put(self.groups[t[0]][0], self.unit(t).key, res)
+                except Exception:  # noqa: BLE001 - e.g. the full disk the run failed on
                     pass
-            except Exception:  # noqa: BLE001 - the run is failing already; these results are not wanted
-                pass
-            finally:
-                gen.close()
+        except Exception:  # noqa: BLE001 - a unit that failed: the run is failing already
+            pass
+        finally:
+            gen.close()
 
 
 # --- test hook -----------------------------------------------------------------------
