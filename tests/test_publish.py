@@ -74,7 +74,6 @@ def test_staged_files_are_flushed_once_by_publish_before_the_rename(tmp_path, mo
 
     events = []
     monkeypatch.setattr(atomic, "_fsync_file", lambda p: events.append(("fsync", os.path.basename(p))))
-    monkeypatch.setattr(pub, "_fsync_file", lambda p: events.append(("fsync", os.path.basename(p))))
     real_rename = os.rename
     monkeypatch.setattr(pub.os, "rename", lambda a, b: (events.append(("rename", "")), real_rename(a, b)))
     rid = next_run_id(tmp_path, "a" * 40)

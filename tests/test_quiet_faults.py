@@ -303,8 +303,9 @@ def test_a_worker_killed_under_a_unit_is_one_line_on_stderr(tmp_path):
         n_jobs = 2
     """)
     code, err = _planner_run(job, before=KILLED_WORKER)
+    # the tiny line's 4 tables units share one pass of the workers with its 4 stopping-pattern units
     line = _the_one_line(code, err, "a local worker process died under a task (exit code {SIGKILL(-9)",
-                         "of 4 task(s) done", "[parallel] n_jobs")
+                         "of 8 task(s) done", "[parallel] n_jobs")
     # loky may report the sibling worker it terminated with the killed one: every exit code named is SIGKILL's
     import re
 

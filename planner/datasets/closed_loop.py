@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 from typing import Callable, Sequence
 
+import numpy as np
 import pyarrow as pa
 
 from planner.datasets.tables import load_tables
@@ -138,14 +139,19 @@ def datasets(results: Sequence[ClosedLoopResult]) -> dict[str, pa.Table]:
     for r in results:
         part = {"line": r.line_id, "direction": r.direction, "train_type": r.train_type,
                 "scenario": r.scenario, "mode": r.mode}
-        feas, err = r.feasible, r.error_s
-        for i in range(r.designated_s.size):
-            add(runs, part | {
-                "origin": r.origin, "destination": r.destination,
-                "designated_s": float(r.designated_s[i]), "actual_s": float(r.actual_s[i]),
-                "error_s": float(err[i]), "feasible": bool(feas[i]), "min_time_s": r.min_time_s,
-                "eval_point_ids": list(r.eval_point_ids), "ratios": [float(x) for x in r.ratios[i]],
-            })
+        n = r.designated_s.size
+        if n:  # a column at a time (a dict per run was most of the step's time in the job's process), the
+            # same Python values as row by row, so Arrow infers the same columns
+            cols = {**{k: [v] * n for k, v in part.items()},
+                    "origin": [r.origin] * n, "destination": [r.destination] * n,
+                    "designated_s": np.asarray(r.designated_s, float).tolist(),
+                    "actual_s": np.asarray(r.actual_s, float).tolist(),
+                    "error_s": np.asarray(r.error_s, float).tolist(),
+                    "feasible": np.asarray(r.feasible, bool).tolist(), "min_time_s": [r.min_time_s] * n,
+                    "eval_point_ids": [list(r.eval_point_ids) for _ in range(n)],
+                    "ratios": np.asarray(r.ratios, float).reshape(n, -1).tolist()}
+            for k, v in cols.items():
+                runs.setdefault(k, []).extend(v)
         row = summary_row(r)
         if not math.isfinite(row["flag_position_m"]):  # no place: null, not NaN
             row["flag_position_m"] = None

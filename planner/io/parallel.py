@@ -277,7 +277,7 @@ class Background:
 def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = -1) -> Background:
     """Start ``fn(*args)`` beside the main process (:class:`Background`): on a local worker with the
     ``local`` backend and ``n_jobs != 1``, else later, in this process. For work of the main process
-    that nothing needs until a later step (the nightly job's bundles and margin charts)."""
+    that nothing needs until a later step (the nightly job's bundles)."""
     return Background(fn, args, n_jobs if name == "local" else 1)
 
 

@@ -19,11 +19,15 @@ so a re-run with nothing changed computes nothing, and editing one speed
 restriction recomputes only the interstations (and approaches) it reaches.
 
 What does not depend on a step runs beside it, so that both cores stay busy:
-the workers start while the lines are read; the line's conflicts and train
-graph trajectories share the closed loop's pass of the workers; the tables and
-stops datasets are written on a thread while the workers compute the next
-steps; the bundles are built on a worker beside the margins; the margin
-report's charts are drawn on two workers while the main process writes the rest.
+the workers start while the lines are read; the stopping patterns share the
+tables' pass of the workers, and the line's conflicts the closed loop's; the
+tables and stops datasets are written on a thread while the workers compute the
+next steps; the bundles and the train graph's trajectories start on the workers
+when the closed loop ends, while this process writes it and the margins read it
+back; the legs' speed–distance charts are drawn on the workers while the main
+process writes the tables page, the train graph and the margin report (whose
+few charts it draws itself); the chart pages are written last, each as its
+chart arrives.
 A step's time in the summary is the sum of its intervals, so the steps add up
 to more than the run's wall time.
 """
@@ -106,9 +110,9 @@ class RunSummary:
     """Wall time of the whole run [s]: less than the steps' sum, as some steps run beside others."""
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
     """Margin report of each line (kept for :func:`planner.job.views.run_views`, which puts the changes on top)."""
-    charts: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
-    """Each margin report's charts, being drawn (:class:`planner.io.parallel.Background` s giving parts of
-    :func:`planner.pages.margin_report.chart_svgs`)."""
+    chart_pages: list = field(default_factory=list, repr=False, compare=False)
+    """Each line's speed–distance chart pages, being drawn (:class:`planner.job.train_views.ChartPages`;
+    written by :func:`planner.job.views.run_views`)."""
     pending: list = field(default_factory=list, repr=False, compare=False)
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
 
@@ -277,7 +281,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                     _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date, day)
                     from planner.job.views import run_views  # changes since the last run, overview page
 
-                    run_views(job, lines, stage, root, prog, summary)  # takes the charts drawn meanwhile
+                    run_views(job, lines, stage, root, prog, summary)  # takes the speed charts drawn meanwhile
                 except Exception:
                     for pending in summary.pending:  # work on a worker: let it finish first
                         pending.discard()
@@ -327,11 +331,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
               tp.eval_auto_s))
         for k in tasks
     ]
-    tables = runner.run("tables", t_units)
-    from planner.datasets.tables import write_tables
-
-    tables_written = _on_writer(writes, write_tables, tables, stage)
-
     # stopping patterns, one unit per arrival
     sp = job.stops
     levels = adhesion_levels(sp.adhesion_kmh_s)
@@ -341,9 +340,13 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
              f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
         for k in tasks
     ]
-    stops = runner.run("stops", s_units)
+    # the stops do not depend on the tables: one pass of the workers, the stops' short units filling the
+    # tables' last ones (one worker idled at the end of each step)
+    tables, stops = runner.run_steps([("tables", t_units), ("stops", s_units)])
     from planner.datasets.stops import write_stops
+    from planner.datasets.tables import write_tables
 
+    tables_written = _on_writer(writes, write_tables, tables, stage)
     stops_written = _on_writer(writes, write_stops, stops, stage)
     from planner.report.margins import given_tables
 
@@ -362,11 +365,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         else:  # every level stops: what the sweep still says (an approach moved back from a TASC beacon)
             summary.notes += [f"{line.line_id}: {w}" for w in r.warnings]
 
-    # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts
-    # and train graph trajectories depend on the line alone, so they run beside it (first: longest)
-    from planner.job.views import graph_unit
-
-    side = [("graph", [graph_unit(job, line, lifted)])]
+    # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts depend
+    # on the line alone, so they run beside it (first: the longest unit)
+    side = []
     checks_conflicts = job.conflicts.enabled and line.network is not None
     if checks_conflicts:
         side.insert(0, ("conflicts", [_conflicts_unit_of(job, line, lifted)]))
@@ -383,11 +384,17 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
-    _count(summary, tables_written.result())
-    _count(summary, stops_written.result())
     # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
-    # margins (the worker loads the key from its file)
+    # margins (the worker loads the key from its file); the train graph's trajectories (the line alone,
+    # taken by line_views) on the other, while this process writes the closed loop and reads it back
+    # for the margins
+    _count(summary, stops_written.result())
     bundles = _start_bundles(job, line, stage, runner, summary, key_path, bday)
+    from planner.job.views import graph_unit
+
+    graph = runner.start("graph", [graph_unit(job, line, lifted)])
+    summary.pending.append(graph)
+    _count(summary, tables_written.result())
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
@@ -404,7 +411,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     record_verdicts(line.line_id, summary, tables, loops, summary.reports[line.line_id])
     from planner.job.views import line_views  # inputs copy, train graph page
 
-    line_views(job, line, stage, runner, summary, got["graph"])
+    line_views(job, line, stage, runner, summary, graph.results()[0][0])
 
 
 def conflicts_status(job: Job, line: Line) -> str:
@@ -453,20 +460,12 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
         report.conflicts_note = "not checked ([conflicts] enabled = false in the job file)"
     else:
         report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
-    _count(summary, write_margins(report, stage))
-    # the page itself is written once, by job.views.run_views, with what changed since the last run on top;
-    # its charts are drawn meanwhile, half on each of two workers
-    from planner.io.parallel import background
-    from planner.pages.margin_report import stop_markers
-    from planner.pages.margin_charts import chart_svgs
+    # the page itself is written once, by job.views.run_views, with what changed since the last run on top
+    # (its charts are drawn there: tens of milliseconds, less than sending the report to a worker)
     from planner.report.leg_flags import FLAGS
 
     summary.reports[line.line_id] = report
-    halves = (("margin:down", "curves"), ("margin:up", "adhesion"))
-    summary.charts[line.line_id] = [background(chart_svgs, (report, stop_markers(line), names),
-                                               name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
-                                    for names in halves]
-    summary.pending += summary.charts[line.line_id]
+    _count(summary, write_margins(report, stage))
     for flag in FLAGS:  # legs the margin report flags, each flag its own card on the overview
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
 

@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 
-from planner.io.atomic import _fsync_dir, _fsync_file
+from planner.io.atomic import _fsync_dir, fsync_tree
 from planner.job.cache import Cache  # noqa: F401  (the cache lived here; planner.cache is its home now)
 from planner.errors import JobError
 
@@ -191,20 +191,13 @@ def staging_dir(root: Path, run_id: str) -> Path:
     return p
 
 
-def _fsync_tree(folder: Path) -> None:
-    for dirpath, _dirs, files in os.walk(folder):
-        for f in files:
-            _fsync_file(os.path.join(dirpath, f))
-        _fsync_dir(Path(dirpath))
-
-
 def publish(root: Path, staging: Path, run_id: str, keep: int) -> Path:
     """Make a complete staged run visible: rename it, swap ``latest``, prune old runs.
 
     Returns the published run folder.
     """
     root = Path(root)
-    _fsync_tree(staging)
+    fsync_tree(staging)  # every file and folder on disk before the run becomes visible
     final = root / run_id
     os.rename(staging, final)
     tmp_link = root / f".latest-{run_id}.tmp"

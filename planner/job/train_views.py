@@ -85,30 +85,26 @@ def _chart_task(line, run, calls, pattern, evp, signals):
 
 
 def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
-                day: dict | None = None) -> dict[str, list]:
+                day: dict | None = None, later: list | None = None) -> dict[str, list]:
     """Dataset, page and charts of a line's trains (module doc); ``run_id`` and ``day`` (the operating day's
     record) are named at the top of each page.
+
+    The charts start on the workers first; the dataset and the tables page are written meanwhile. With a
+    list ``later`` the chart pages are left to a :class:`ChartPages` appended to it (the job writes its
+    other pages while the charts are drawn, then calls :meth:`ChartPages.finish`); else they are written
+    before this returns.
 
     Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
     legs with a chart in running order (the train graph links them).
     """
     from planner.job.pipeline import _count
     from planner.job.units import Unit
-    from planner.pages.speed_chart import chart_page, write_chart
     from planner.pages.timetable import render_page, write_page
     from planner.report.train_timetable import chart_name, leg_line, leg_runs, timetable_rows, write_timetable
 
     lid = line.line_id
     with runner.progress.step("timetable"):
         runs = leg_runs(line, report.rows, ds_m=job.tables.ds_m)
-        types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
-        recs = timetable_rows(line, runs, types)  # made once: the dataset's rows and the page's
-        _count(summary, write_timetable(line, runs, stage, types, recs))
-        links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
-                 ("train graph", f"../graph/{lid}_graph.html")]
-        write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, links=links, run_id=run_id, day=day,
-                                                           run_date=getattr(summary, "run_date", None),
-                                                           graph_href=f"../graph/{lid}_graph.html"))
     pats = _patterns(stage, lid)
     units, pages = [], []
     back = "../../" + timetable_href(lid)
@@ -127,14 +123,55 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
         units.append(Unit("charts", _chart_key(line, run, args[2:]), "charts", _chart_task, args))
         pages.append((stage / chart_name(lid, key), args[0], run, calls, trains))
     # cached: an unchanged leg's chart is not redrawn; its page is written again with this run's id and day
-    for (p, win, run, calls, trains), svg in zip(pages, runner.run("charts", units)):
-        write_chart(p, chart_page(win, run, calls, trains, svg, back, nav=nav, run_id=run_id, day=day,
-                                   run_date=getattr(summary, "run_date", None)))
+    charts = ChartPages(runner.start("charts", units) if later is not None else runner.run("charts", units), pages,
+                        back, nav, run_id, day, getattr(summary, "run_date", None))
+    with runner.progress.step("timetable"):  # while the workers draw the charts
+        types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
+        recs = timetable_rows(line, runs, types)  # made once: the dataset's rows and the page's
+        _count(summary, write_timetable(line, runs, stage, types, recs))
+        links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
+                 ("train graph", f"../graph/{lid}_graph.html")]
+        write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, links=links, run_id=run_id, day=day,
+                                                           run_date=getattr(summary, "run_date", None),
+                                                           graph_href=f"../graph/{lid}_graph.html"))
+    if later is None:
+        charts.finish()
+    else:
+        later.append(charts)
     legs: dict[str, list] = {}
     for r in recs:
         if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
             legs.setdefault(r["train_id"], []).append((f"{r['leg_origin']}→{r['station_id']}", r["chart"]))
     return legs
+
+
+class ChartPages:
+    """A line's speed–distance chart pages (:func:`train_views`): each written as its chart arrives."""
+
+    def __init__(self, started, pages: list, back: str, nav: list, run_id, day, run_date):
+        self.started, self.pages = started, pages  # a list of the charts' SVGs, or Runner.start's handle
+        self.page = dict(back=back, nav=nav, run_id=run_id, day=day, run_date=run_date)
+
+    def _write(self, _g: int, i: int, svg: str) -> None:
+        from planner.pages.speed_chart import chart_page, write_chart
+
+        p, win, run, calls, trains = self.pages[i]
+        kw = self.page
+        write_chart(p, chart_page(win, run, calls, trains, svg, kw["back"], nav=kw["nav"], run_id=kw["run_id"],
+                                  day=kw["day"], run_date=kw["run_date"]))
+
+    def finish(self) -> None:
+        """Write every page, waiting for the charts still being drawn."""
+        if isinstance(self.started, list):
+            for i, svg in enumerate(self.started):
+                self._write(0, i, svg)
+        else:
+            self.started.results(each=self._write)
+
+    def discard(self) -> None:
+        """The run failed: wait for the charts being drawn, write nothing."""
+        if not isinstance(self.started, list):
+            self.started.discard()
 
 
 def _chart_key(line, run, rest) -> str:

@@ -171,48 +171,112 @@ class Runner:
         it. Each step's progress bar and timing run from the common start to
         its own last unit.
         """
-        from planner.io.parallel import backend
+        return self.start_steps(groups, wait=True).results()
 
-        results: list[list] = [[None] * len(units) for _, units in groups]
-        todo: list[tuple[int, int]] = []
+    def start(self, step: str, units: Sequence[Unit]) -> "Started":
+        """:meth:`run` without waiting: the units start on the local workers now and this process goes on
+        with work of its own; :meth:`Started.results` takes them (stored in the cache as they are taken).
+        For a step whose results nothing needs until later (the speed–distance charts, drawn while the
+        pages are written). With one job or the Dask backend (whose client lives only while it is
+        used) the units are computed here, as by :meth:`run`."""
+        return self.start_steps([(step, units)], wait=False)
+
+    def start_steps(self, groups: Sequence[tuple[str, Sequence[Unit]]], wait: bool) -> "Started":
+        """The units of ``groups`` looked up in the cache and the rest started (:meth:`run_steps`, :meth:`start`)."""
+        from planner.io.parallel import LocalPool, backend
+
+        started = Started(self, groups)
         for g, (step, units) in enumerate(groups):
             missing = 0
             for i, u in enumerate(units):
                 obj = self.cache.get(step, u.key)
                 if obj is None:
-                    todo.append((g, i))
+                    started.todo.append((g, i))
                     missing += 1
                 else:
-                    results[g][i] = obj
+                    started.out[g][i] = obj
             self.reused[step] = self.reused.get(step, 0) + len(units) - missing
             self.computed[step] = self.computed.get(step, 0) + missing
             self.progress.start(step, len(units), done=len(units) - missing)
-        left = [sum(1 for t in todo if t[0] == g) for g in range(len(groups))]
+        started.left = [sum(1 for t in started.todo if t[0] == g) for g in range(len(groups))]
         for g, (step, _) in enumerate(groups):
-            if not left[g]:
+            if not started.left[g]:
                 self.progress.finish(step)
-        if todo:
-            p = self.job.parallel
-            with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
-                         lost_timeout_s=p.dask_lost_timeout_s) as pool:
-                unit = lambda t: groups[t[0]][1][t[1]]  # noqa: E731
-                if pool.n_jobs == 1 or len(todo) == 1:
-                    gen = (_call(unit(t).fn, unit(t).args) for t in todo)
-                else:
-                    gen = pool.imap(_call, [(unit(t).fn, unit(t).args) for t in todo])
+        if not started.todo:
+            return started
+        p = self.job.parallel
+        with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
+                     lost_timeout_s=p.dask_lost_timeout_s) as pool:
+            unit = started.unit
+            if pool.n_jobs == 1 or (len(started.todo) == 1 and wait):  # one unit waited for: here
+                started.gen = (_call(unit(t).fn, unit(t).args) for t in started.todo)
+            else:  # a local pool's tasks start now and go on after the context (joblib's generator)
+                started.gen = pool.imap(_call, [(unit(t).fn, unit(t).args) for t in started.todo])
+            if wait or not isinstance(pool, LocalPool):
+                started.results()
+        return started
+
+
+class Started:
+    """Units started by :meth:`Runner.start_steps`: the cached results, the rest coming from the workers."""
+
+    def __init__(self, runner: Runner, groups: Sequence[tuple[str, Sequence[Unit]]]):
+        self.runner, self.groups = runner, groups
+        self.out: list[list] = [[None] * len(units) for _, units in groups]
+        self.todo: list[tuple[int, int]] = []
+        self.left: list[int] = []
+        self.gen = None
+
+    def unit(self, t: tuple[int, int]) -> Unit:
+        return self.groups[t[0]][1][t[1]]
+
+    def results(self, each: Callable[[int, int, Any], None] | None = None) -> list[list]:
+        """A result list per step, waiting for the workers; each result is stored in the cache as it
+        arrives, then ``each(group, index, result)`` is called (first for the results found in the cache,
+        then for the others as they arrive: a page per result written while the workers draw the next)."""
+        gen, self.gen = self.gen, None
+        if each is not None:
+            waiting = set(self.todo) if gen is not None else set()
+            for g, res in enumerate(self.out):
+                for i, r in enumerate(res):
+                    if (g, i) not in waiting:
+                        each(g, i, r)
+        if gen is None:
+            return self.out
+        r = self.runner
+        try:
+            for (g, i), res in zip(self.todo, gen):
+                step = self.groups[g][0]
+                r.cache.put(step, self.unit((g, i)).key, res)  # survives a later failure
+                _kill_point()
+                self.out[g][i] = res
+                r.progress.advance(step)
+                self.left[g] -= 1
+                if not self.left[g]:
+                    r.progress.finish(step)
+                if each is not None:
+                    each(g, i, res)
+        finally:
+            gen.close()  # a failed run (a full disk): stop the workers' tasks now, in this thread
+        return self.out
+
+    def discard(self) -> None:
+        """The run failed before it needed the results: wait for the workers (waiting, not aborting: see
+        :meth:`planner.io.parallel.Background.discard`) and keep what they finished in the cache, as far as it
+        can be stored; errors are dropped (the run's own error is the one reported)."""
+        gen, self.gen = self.gen, None
+        if gen is None:
+            return
+        try:
+            for t, res in zip(self.todo, gen):
                 try:
-                    for (g, i), res in zip(todo, gen):
-                        step = groups[g][0]
-                        self.cache.put(step, unit((g, i)).key, res)  # survives a later failure
-                        _kill_point()
-                        results[g][i] = res
-                        self.progress.advance(step)
-                        left[g] -= 1
-                        if not left[g]:
-                            self.progress.finish(step)
-                finally:
-                    gen.close()  # a failed run (a full disk): stop the workers' tasks now, in this thread
-        return results
+                    self.runner.cache.put(self.groups[t[0]][0], self.unit(t).key, res)
+                except Exception:  # noqa: BLE001 - e.g. the full disk the run failed on
+                    pass
+        except Exception:  # noqa: BLE001 - a unit that failed: the run is failing already
+            pass
+        finally:
+            gen.close()
 
 
 # --- test hook -----------------------------------------------------------------------

@@ -7,11 +7,12 @@ Two hooks called by :mod:`planner.job.pipeline`:
   changed), and write its interactive train graph
   (``graph/<line_id>_graph.html``). The trajectories are a cached unit keyed by
   the line database, the code and the run-curve step (:func:`graph_unit`, run
-  beside the closed loop), so an unchanged line reuses them; windows,
+  on a worker beside the bundles), so an unchanged line reuses them; windows,
   conflicts and margins come from the run's own
   ``occupation``, ``conflicts`` and ``margin_totals`` datasets; before it, the running-time tables per
   train and the speed–distance charts (:func:`planner.job.train_views.train_views`), which a selected
-  train in the graph links to.
+  train in the graph links to; the charts are drawn on the workers while the rest is written, and
+  their pages are written by :func:`run_views` once the other pages are.
 * :func:`run_views`, after the manifest: compare the run with the previous
   published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
   dataset and put the section at the top of each margin report, add the
@@ -86,8 +87,11 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
     from planner.job.day import window
 
     label = _run_label(job, summary)
+    # the chart pages are written by run_views, once the rest of the run's pages are: the charts are drawn meanwhile
     legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary,  # tables, charts
-                       run_id=summary.run_id, day=window(job).record() if job.day.day else None)
+                       run_id=summary.run_id, day=window(job).record() if job.day.day else None,
+                       later=summary.chart_pages)
+    summary.pending += summary.chart_pages[-1:]
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
         con = read_line_dataset(stage, "conflicts", line.line_id)
@@ -196,7 +200,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     from planner.io.atomic import write_bytes_atomic
     from planner.report.changes import CATEGORIES
     from planner.pages.changes import changes_html
-    from planner.pages.overview import write_overview
+    from planner.pages.overview import bundle_rows, write_overview
     from planner.job.publish import canonical_json, latest_run
     from planner.pages.margin_report import stop_markers, write_html
     from planner.pages.margin_charts import chart_sections
@@ -235,16 +239,15 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
             top = changes_html(ch, first_run_note=note)
             rep = summary.reports.get(line.line_id)
             if rep is not None:
-                charts = None
-                if line.line_id in summary.charts:  # drawn on workers meanwhile
-                    svgs: dict = {}
-                    for part in summary.charts[line.line_id]:
-                        svgs.update(part.result())
-                    charts = chart_sections(rep, stop_markers(line), svgs)
+                charts = chart_sections(rep, stop_markers(line))
                 write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
+    with prog.step("overview"):  # its bundles verified while the charts are drawn
+        brows = bundle_rows(stage, manifest)
+    for pages in summary.chart_pages:  # the speed–distance charts, drawn while the pages above were written
+        pages.finish()
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))
     manifest["changes"] = {"base_run": base, "lines": counts,
@@ -258,7 +261,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     with prog.step("overview"):
         # notes name the development key by its path: keep the page free of absolute paths
         notes = [n.replace(str(root), job.job.output_root) for n in summary.warnings + summary.notes]
-        write_overview(stage, manifest, notes=notes)
+        write_overview(stage, manifest, notes=notes, bundles=brows)
 
 
 __all__ = ["copy_inputs", "graph_links", "line_views", "run_views"]

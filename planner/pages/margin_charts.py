@@ -1,7 +1,7 @@
 """The margin report's charts, drawn as SVG by :mod:`planner.pages.svg_plot`, and their page sections.
 
-:func:`chart_svgs` draws any of the four charts on its own (the nightly job draws them on two workers
-while it writes the rest); :func:`chart_sections` wraps them in their headings and captions
+:func:`chart_svgs` draws any of the four charts on its own (tens of milliseconds all four);
+:func:`chart_sections` wraps them in their headings and captions
 (:mod:`planner.pages.margin_report` puts them in the page). Each chart is an inline ``<svg>`` with its
 legend, if any, in HTML under it, so the page stays self-contained and the browser lays the legend out:
 

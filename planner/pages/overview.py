@@ -155,8 +155,17 @@ def _dates(manifest: dict[str, Any]) -> str:
     return f"<p class='date'>{' · '.join(words)}</p>" if words else ""
 
 
-def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = ()) -> str:
-    """The overview page of a run folder as HTML (module doc for the sections)."""
+def bundle_rows(run_dir: str | Path, manifest: dict[str, Any]) -> list[list[str]]:
+    """The bundles section's rows: each bundle of the run folder verified (:func:`_bundles`) at the start of
+    the manifest's operating day."""
+    return _bundles(Path(run_dir), (manifest.get("operating_day") or {}).get("start_utc_s"))
+
+
+def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = (),
+                    bundles: list[list[str]] | None = None) -> str:
+    """The overview page of a run folder as HTML (module doc for the sections); ``bundles``: the bundles
+    section's rows when verified beforehand (:func:`bundle_rows`; the nightly job does it while the charts
+    are drawn)."""
     from planner.report.catalog import datasets
 
     run_dir = Path(run_dir)
@@ -255,8 +264,8 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
                                                        num=(1, 2, 3))
                  + "<p class='sub'>A unit is reused when its key (digest of exactly the inputs it depends on) is in "
                  "the work cache; the publish step runs after this page is written. Some steps run beside others "
-                 "(the conflicts and the train graph's trajectories beside the closed loop, the bundles and the "
-                 "margin report's charts beside the margins), so the times add up to more than the run took.</p>")
+                 "(the conflicts and the train graph's trajectories beside the closed loop, the bundles beside the "
+                 "margins, the speed–distance charts beside the pages), so the times add up to more than the run took.</p>")
     # datasets
     docs = {d.name: d for d in datasets()}
     counts = manifest.get("rows", {})
@@ -273,7 +282,7 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
                  "them with pandas, pyarrow and DuckDB.</p>")
     # bundles
     day = manifest.get("operating_day") or {}
-    brows = _bundles(run_dir, day.get("start_utc_s"))
+    brows = bundle_rows(run_dir, manifest) if bundles is None else bundles
     parts.append("<h2 id='bundles'>Bundles</h2>" + (_table(["bundle", "verify", "bytes", "SHA-256", "for", "tables (rows)"],
                                                            brows, num=(2,)) if brows else "<p>none</p>")
                  + "<p class='sub'>Verified with <code>bundles/signing_key.pub.pem</code> of this run, as "
@@ -294,7 +303,8 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     return "\n".join(parts)
 
 
-def write_overview(run_dir: str | Path, manifest: dict[str, Any] | None = None, *, notes: Sequence[str] = ()) -> Path:
+def write_overview(run_dir: str | Path, manifest: dict[str, Any] | None = None, *, notes: Sequence[str] = (),
+                   bundles: list[list[str]] | None = None) -> Path:
     """Write ``index.html`` into a run folder atomically (the manifest read from the folder when not given)."""
     from planner.io.atomic import write_bytes_atomic
 
@@ -304,5 +314,5 @@ def write_overview(run_dir: str | Path, manifest: dict[str, Any] | None = None, 
 
         manifest = read_manifest(run_dir)
     path = run_dir / "index.html"
-    write_bytes_atomic(path, render_overview(run_dir, manifest, notes=notes).encode("utf-8"))
+    write_bytes_atomic(path, render_overview(run_dir, manifest, notes=notes, bundles=bundles).encode("utf-8"))
     return path
