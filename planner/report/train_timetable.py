@@ -150,8 +150,9 @@ class LegRun:
     def time_at(self, chainage_m: float, run: int) -> float:
         """Time since departure when the front passes ``chainage_m`` [s]."""
         x, t = self.position_m, self.t_s[run]
-        order = np.argsort(x)
-        return float(np.interp(chainage_m, x[order], t[order]))
+        if len(x) > 1 and x[-1] < x[0]:  # an up run: chainage falls along the grid (monotone, so reversed is sorted)
+            x, t = x[::-1], t[::-1]
+        return float(np.interp(chainage_m, x, t))
 
 
 def _leg_run(line, row: dict, ds_m: float) -> LegRun:
