@@ -207,6 +207,13 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
 
     manifest_path = stage / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+    # the overview's bundles verified (signature, digests, tables: a few tenths of a second) on a worker
+    # while this process compares the runs and writes the pages
+    from planner.io.parallel import background
+
+    verified = background(bundle_rows, (stage, {"operating_day": manifest.get("operating_day")}),
+                          name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+    summary.pending.append(verified)
     base = latest_run(root)
     rows: dict[str, int] = {}
     counts: dict[str, dict[str, int]] = {}
@@ -244,8 +251,8 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
-    with prog.step("overview"):  # its bundles verified while the charts are drawn
-        brows = bundle_rows(stage, manifest)
+    with prog.step("overview"):  # its bundles verified meanwhile
+        brows = verified.result()
     for pages in summary.chart_pages:  # the speed–distance charts, drawn while the pages above were written
         pages.finish()
     summary.rows.update(rows)
