@@ -386,6 +386,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
+    # what the rest of the line needs of the units and their results; the rest is let go here, so that
+    # the whole line's tables, stops and closed loop are not held through the margins and the pages
+    unit_keys = [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units]
+    flagged = [[r for r in results if r.flags] for results in (tables, loops)]  # the verdicts' (record_verdicts)
+    del side_results, loop_batches, t_units, s_units, c_units, tables, stops, windows
     _count(summary, tables_written.result())
     _count(summary, stops_written.result())
     # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
@@ -394,17 +399,17 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
+    del loops
 
     conflicts = None
     if checks_conflicts:
-        conflicts = _conflicts_step(line, stage, summary, got["conflicts"])
-    _margins_step(job, line, stage, runner, summary,
-                  [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts,
-                  given.result(), lifted)
+        conflicts = _conflicts_step(line, stage, summary, got.pop("conflicts"))
+    _margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted)
+    del given  # the tables read back for the margins
     _bundles_step(stage, runner, summary, key, bundles)
     from planner.job.verdicts import record_verdicts
 
-    record_verdicts(line.line_id, summary, tables, loops, summary.reports[line.line_id])
+    record_verdicts(line.line_id, summary, *flagged, summary.reports[line.line_id])
     from planner.job.views import line_views  # inputs copy, train graph page
 
     line_views(job, line, stage, runner, summary, got["graph"])
