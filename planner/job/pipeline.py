@@ -39,6 +39,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from planner import __version__
 from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomic
+from planner.io.memory import give_back
 from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
@@ -400,12 +401,14 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     _count(summary, write_closed_loop(loops, stage))
     del loops
+    give_back()  # the pages of what was let go (planner.io.memory)
 
     conflicts = None
     if checks_conflicts:
         conflicts = _conflicts_step(line, stage, summary, got.pop("conflicts"))
     _margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted)
     del given  # the tables read back for the margins
+    give_back()
     _bundles_step(stage, runner, summary, key, bundles)
     from planner.job.verdicts import record_verdicts
 
@@ -484,8 +487,11 @@ def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, 
     worker: module level, the key read from its file there)."""
     from planner.bundle.container import build_line
 
-    return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage, train_types=types,
-                      day=day)
+    try:
+        return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
+                          train_types=types, day=day)
+    finally:
+        give_back()  # the worker's pages of the line's tables, for the units after it
 
 
 def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
@@ -518,7 +524,10 @@ def _conflicts_unit(line, params, lifted=None):
     from planner.datasets.conflicts import check_conflicts
     from planner.network.arrivals import train_curves
 
-    return check_conflicts(line, params, curves=train_curves(line, lifted))
+    try:
+        return check_conflicts(line, params, curves=train_curves(line, lifted))
+    finally:
+        give_back()  # the worker's pages of the whole line's run curves, for the units after it
 
 
 def _conflicts_unit_of(job: Job, line: Line, lifted=None) -> Unit:
