@@ -11,7 +11,7 @@ hex digits of the key) laid out as::
 The payload is an NPZ archive (numpy's zip of ``.npy`` members, read with
 ``allow_pickle=False``): member ``tree`` holds the result's structure as UTF-8
 JSON and the other members its numeric arrays. DataFrames are stored column by
-column (numeric columns as arrays, text and list columns in the JSON).
+column (numeric columns as arrays, text columns as one Arrow stream each, list columns in the JSON).
 Dataclasses and named tuples are rebuilt only when the JSON names a class of
 the ``planner`` package of that kind, with exactly its fields; nothing read
 back can import or run anything else. A planted pickle is just bytes that fail
