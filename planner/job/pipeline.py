@@ -384,14 +384,16 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
               tp.ds_m))
         for k, u, tab in zip(tasks, t_units, tables)
     ]
+    # what the rest of the line needs of the tables and stops (the verdicts: record_verdicts); the rest is let
+    # go before the closed loop, so that the whole line's results are not held through the later steps
+    flagged_tables = [r for r in tables if r.flags]
+    del tables, stops
     *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
-    # what the rest of the line needs of the units and their results; the rest is let go here, so that
-    # the whole line's tables, stops and closed loop are not held through the margins and the pages
     unit_keys = [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units]
-    flagged = [[r for r in results if r.flags] for results in (tables, loops)]  # the verdicts' (record_verdicts)
-    del side_results, loop_batches, t_units, s_units, c_units, tables, stops, windows
+    flagged = [flagged_tables, [r for r in loops if r.flags]]
+    del side_results, loop_batches, t_units, s_units, c_units, windows
     _count(summary, tables_written.result())
     _count(summary, stops_written.result())
     # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
@@ -487,6 +489,7 @@ def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, 
     worker: module level, the key read from its file there)."""
     from planner.bundle.container import build_line
 
+    give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
     try:
         return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
                           train_types=types, day=day)
