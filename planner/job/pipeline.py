@@ -301,8 +301,16 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
     """Start ``fn(*args)`` on the run's writer thread (a step's datasets written, or read back, while
     the workers compute the next step: Arrow works without the GIL); the future gives the result. In
     this thread's context (:func:`planner.io.atomic.in_this_context`), so the staged run's deferred flush
-    holds there too."""
-    return writes.submit(in_this_context(fn), *args)
+    holds there too. The pages the thread's Arrow work freed are given back after each call
+    (:func:`planner.io.memory.give_back`): the whole line's tables pass through it beside the closed loop."""
+    return writes.submit(in_this_context(_giving_back), fn, *args)
+
+
+def _giving_back(fn: Callable, *args):
+    try:
+        return fn(*args)
+    finally:
+        give_back()
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
