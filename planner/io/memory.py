@@ -35,4 +35,12 @@ def give_back() -> None:
         trim(0)
 
 
-__all__ = ["give_back"]
+def then_give_back(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)``, then :func:`give_back` (also when it raises)."""
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        give_back()
+
+
+__all__ = ["give_back", "then_give_back"]

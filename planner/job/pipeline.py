@@ -39,7 +39,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from planner import __version__
 from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomic
-from planner.io.memory import give_back
+from planner.io.memory import give_back, then_give_back
 from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
@@ -303,14 +303,7 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
     this thread's context (:func:`planner.io.atomic.in_this_context`), so the staged run's deferred flush
     holds there too. The pages the thread's Arrow work freed are given back after each call
     (:func:`planner.io.memory.give_back`): the whole line's tables pass through it beside the closed loop."""
-    return writes.submit(in_this_context(_giving_back), fn, *args)
-
-
-def _giving_back(fn: Callable, *args):
-    try:
-        return fn(*args)
-    finally:
-        give_back()
+    return writes.submit(in_this_context(then_give_back), fn, *args)
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
@@ -498,11 +491,8 @@ def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, 
     from planner.bundle.container import build_line
 
     give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
-    try:
-        return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
-                          train_types=types, day=day)
-    finally:
-        give_back()  # the worker's pages of the line's tables, for the units after it
+    return then_give_back(build_line, line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
+                          train_types=types, day=day)  # and the pages of the line's tables, for the units after it
 
 
 def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
@@ -535,10 +525,8 @@ def _conflicts_unit(line, params, lifted=None):
     from planner.datasets.conflicts import check_conflicts
     from planner.network.arrivals import train_curves
 
-    try:
-        return check_conflicts(line, params, curves=train_curves(line, lifted))
-    finally:
-        give_back()  # the worker's pages of the whole line's run curves, for the units after it
+    # the worker's pages of the whole line's run curves given back, for the units after it
+    return then_give_back(lambda: check_conflicts(line, params, curves=train_curves(line, lifted)))
 
 
 def _conflicts_unit_of(job: Job, line: Line, lifted=None) -> Unit:
