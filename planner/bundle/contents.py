@@ -153,6 +153,13 @@ def _col(t: pa.Table, name: str) -> list:
     return t.column(name).to_pylist()
 
 
+def _distinct(t: pa.Table, *names: str) -> set:
+    """The distinct rows of columns ``names`` of ``t`` as a set of tuples, made from the distinct rows only
+    (not from a Python object per row and column: tables (b) to (d) have millions of rows on a long line)."""
+    u = t.select(list(names)).group_by(list(names), use_threads=False).aggregate([])
+    return set(zip(*(u.column(c).to_pylist() for c in names)))
+
+
 _REQUIRED_COLUMNS = {
     "eval_points": ("origin", "destination", "eval_point_id"),
     "table_a": ("origin", "destination", "ratio", "running_time_s"),
@@ -217,25 +224,25 @@ def _check_step_tables(tables: Mapping[str, pa.Table], where: str) -> None:
     """The tables and stopping steps' tables: ratios and evaluation points they share, beacon points."""
     ta, tb, ep = tables.get("table_a"), tables.get("table_b"), tables.get("eval_points")
     if ta is not None and tb is not None:
-        have = set(zip(_col(ta, "origin"), _col(ta, "destination"), _col(ta, "ratio")))
+        have = _distinct(ta, "origin", "destination", "ratio")
         for c in ("ratio_before", "ratio_after"):
-            need = set(zip(_col(tb, "origin"), _col(tb, "destination"), _col(tb, c)))
+            need = _distinct(tb, "origin", "destination", c)
             lost = sorted(need - have, key=str)
             if lost:
                 raise fail(where, f"table_b {c} {lost[0][2]} for {lost[0][0]}->{lost[0][1]} is not in table_a")
     tc = tables.get("table_c")
     if ta is not None and tc is not None:  # the adaptive on-board mode reads table (c) beside (a) and (b)
-        have = set(zip(_col(ta, "origin"), _col(ta, "destination"), _col(ta, "ratio")))
-        lost = sorted(set(zip(_col(tc, "origin"), _col(tc, "destination"), _col(tc, "ratio"))) - have, key=str)
+        have = _distinct(ta, "origin", "destination", "ratio")
+        lost = sorted(_distinct(tc, "origin", "destination", "ratio") - have, key=str)
         if lost:
             raise fail(where, f"table_c ratio {lost[0][2]} for {lost[0][0]}->{lost[0][1]} is not in table_a")
     if ep is not None:
-        pts = set(zip(_col(ep, "origin"), _col(ep, "destination"), _col(ep, "eval_point_id")))
+        pts = _distinct(ep, "origin", "destination", "eval_point_id")
         for name in ("table_b", "table_d"):
             t = tables.get(name)
             if t is None:
                 continue
-            lost = set(zip(_col(t, "origin"), _col(t, "destination"), _col(t, "eval_point_id"))) - pts
+            lost = _distinct(t, "origin", "destination", "eval_point_id") - pts
             if lost:
                 o, d, x = sorted(lost)[0]
                 raise fail(where, f"{name} evaluation point {x!r} for {o}->{d} is not in eval_points")

@@ -11,7 +11,7 @@ hex digits of the key) laid out as::
 The payload is an NPZ archive (numpy's zip of ``.npy`` members, read with
 ``allow_pickle=False``): member ``tree`` holds the result's structure as UTF-8
 JSON and the other members its numeric arrays. DataFrames are stored column by
-column (numeric columns as arrays, text and list columns in the JSON).
+column (numeric columns as arrays, text columns as one Arrow stream each, list columns in the JSON).
 Dataclasses and named tuples are rebuilt only when the JSON names a class of
 the ``planner`` package of that kind, with exactly its fields; nothing read
 back can import or run anything else. A planted pickle is just bytes that fail
@@ -168,8 +168,11 @@ class _Encoder:
         if isinstance(dt, np.dtype):  # object: any values the tree can hold
             return {"dtype": "object", "v": [self(x) for x in s.tolist()]}
         name = str(dt)
-        if name in ("str", "string"):  # every value a str or missing (None), in one conversion
-            return {"dtype": name, "v": s.to_numpy(dtype=object, na_value=None).tolist()}
+        if name in ("str", "string"):  # every value a str or missing (null): one Arrow array, no str per value
+            import pyarrow as pa
+
+            text = pa.array(s, type=pa.large_string())
+            return {"dtype": name, "arrow": self.array(np.frombuffer(_arrow_bytes(pa.table({"v": text})), np.uint8))}
         raise TypeError(f"cannot cache a DataFrame column of dtype {name}")
 
 
@@ -180,6 +183,19 @@ def _arrow_bytes(table) -> bytes:
     with pa.ipc.new_stream(sink, table.schema) as w:
         w.write_table(table)
     return sink.getvalue().to_pybytes()
+
+
+def _arrow_text(a: np.ndarray) -> list:
+    """The values of a text column stored as an Arrow stream (:meth:`_Encoder.column`): str or None each."""
+    import pyarrow as pa
+
+    try:
+        t = pa.ipc.open_stream(pa.py_buffer(a.tobytes())).read_all()
+    except (pa.ArrowException, ValueError) as e:
+        raise CacheEntryError(f"text column is not an Arrow stream ({type(e).__name__})") from None
+    if t.column_names != ["v"] or not pa.types.is_large_string(t.schema.field("v").type):
+        raise CacheEntryError("bad text column")
+    return t.column("v").to_pylist()
 
 
 class _Decoder:
@@ -320,7 +336,7 @@ class _Decoder:
             out[:] = vals
             return out
         if dt in ("str", "string"):
-            vals = _list(c.get("v"))
+            vals = _list(c.get("v")) if "arrow" not in c else _arrow_text(self.array(c["arrow"]))
             if not all(v is None or isinstance(v, str) for v in vals):
                 raise CacheEntryError("bad text column")
             return pd.array(vals, dtype=dt)

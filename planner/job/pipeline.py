@@ -43,6 +43,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from planner import __version__
 from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomic
+from planner.io.memory import give_back, then_give_back
 from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
@@ -301,8 +302,9 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
     """Start ``fn(*args)`` on the run's writer thread (a step's datasets written, or read back, while
     the workers compute the next step: Arrow works without the GIL); the future gives the result. In
     this thread's context (:func:`planner.io.atomic.in_this_context`), so the staged run's deferred flush
-    holds there too."""
-    return writes.submit(in_this_context(fn), *args)
+    holds there too. The pages the thread's Arrow work freed are given back after each call
+    (:func:`planner.io.memory.give_back`): the whole line's tables pass through it beside the closed loop."""
+    return writes.submit(in_this_context(then_give_back), fn, *args)
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
@@ -381,9 +383,16 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
               tp.ds_m))
         for k, u, tab in zip(tasks, t_units, tables)
     ]
+    # what the rest of the line needs of the tables and stops (the verdicts: record_verdicts); the rest is let
+    # go before the closed loop, so that the whole line's results are not held through the later steps
+    flagged_tables = [r for r in tables if r.flags]
+    del tables, stops
     *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
+    unit_keys = [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units]
+    flagged = [flagged_tables, [r for r in loops if r.flags]]
+    del side_results, loop_batches, t_units, s_units, c_units, windows
     # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
     # margins (the worker loads the key from its file); the train graph's trajectories (the line alone,
     # taken by line_views) on the other, while this process writes the closed loop and reads it back
@@ -398,17 +407,19 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.datasets.closed_loop import write_closed_loop
 
     _count(summary, write_closed_loop(loops, stage))
+    del loops
+    give_back()  # the pages of what was let go (planner.io.memory)
 
     conflicts = None
     if checks_conflicts:
-        conflicts = _conflicts_step(line, stage, summary, got["conflicts"])
-    _margins_step(job, line, stage, runner, summary,
-                  [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units], conflicts,
-                  given.result(), lifted)
+        conflicts = _conflicts_step(line, stage, summary, got.pop("conflicts"))
+    _margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted)
+    del given  # the tables read back for the margins
+    give_back()
     _bundles_step(stage, runner, summary, key, bundles)
     from planner.job.verdicts import record_verdicts
 
-    record_verdicts(line.line_id, summary, tables, loops, summary.reports[line.line_id])
+    record_verdicts(line.line_id, summary, *flagged, summary.reports[line.line_id])
     from planner.job.views import line_views  # inputs copy, train graph page
 
     line_views(job, line, stage, runner, summary, graph.results()[0][0])
@@ -475,8 +486,9 @@ def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, 
     worker: module level, the key read from its file there)."""
     from planner.bundle.container import build_line
 
-    return build_line(line, out, key_path, release=release, tables_dir=stage, stops_dir=stage, train_types=types,
-                      day=day)
+    give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
+    return then_give_back(build_line, line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
+                          train_types=types, day=day)  # and the pages of the line's tables, for the units after it
 
 
 def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
@@ -509,7 +521,8 @@ def _conflicts_unit(line, params, lifted=None):
     from planner.datasets.conflicts import check_conflicts
     from planner.network.arrivals import train_curves
 
-    return check_conflicts(line, params, curves=train_curves(line, lifted))
+    # the worker's pages of the whole line's run curves given back, for the units after it
+    return then_give_back(lambda: check_conflicts(line, params, curves=train_curves(line, lifted)))
 
 
 def _conflicts_unit_of(job: Job, line: Line, lifted=None) -> Unit:

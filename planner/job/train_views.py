@@ -32,34 +32,46 @@ def timetable_href(line_id: str) -> str:
 
 
 def _patterns(stage: Path, line_id: str) -> dict:
-    """Stopping-pattern samples by arrival stop, lowest and highest adhesion, from the run's ``stop_samples``."""
-    import pyarrow as pa
+    """Stopping-pattern samples by arrival stop, lowest and highest adhesion, from the run's ``stop_samples``.
+
+    ``{(direction, train_type, station_id): {adhesion [km/h/s, 6 decimals]: (position_m, speed_kmh)}}``, the
+    samples of a level in the dataset's order. Read one file (a direction × train type) at a time, keeping the
+    samples of its lowest and highest level per stop only, so what is held does not grow with the levels
+    between them (the whole dataset read at once, with its keys, was the main process's peak memory on a
+    line ten times the sample)."""
     import pyarrow.compute as pc
     import pyarrow.dataset as ds
 
     if not (stage / "stop_samples").is_dir():
         return {}
-    # only the columns drawn, the keys dictionary-encoded (pandas categories): a string object per sample
-    # and column was most of the main process's peak memory on a line ten times the sample
-    t = ds.dataset(stage / "stop_samples", format="parquet", partitioning="hive").to_table(
-        columns=["direction", "train_type", "station_id", "adhesion_ms2", "position_m", "speed_kmh"],
-        filter=pc.field("line") == line_id)
-    for name in ("direction", "train_type", "station_id"):
-        col = t.column(name)
-        if not pa.types.is_dictionary(col.type):
-            t = t.set_column(t.column_names.index(name), name, pc.dictionary_encode(col))
-    ss = t.to_pandas()
+    found: dict = {}  # (direction, type, station) -> {level: [(positions, speeds) per file]}
+    for frag in ds.dataset(stage / "stop_samples", format="parquet", partitioning="hive").get_fragments(
+            filter=pc.field("line") == line_id):
+        part = ds.get_partition_keys(frag.partition_expression)
+        t = frag.to_table(columns=["station_id", "adhesion_ms2", "position_m", "speed_kmh"])
+        st = pc.dictionary_encode(t.column("station_id")).combine_chunks()
+        names, codes = st.dictionary.to_pylist(), st.indices.to_numpy()
+        a = np.round(t.column("adhesion_ms2").to_numpy() / KMH_S, 6)
+        lo, hi = np.full(len(names), np.inf), np.full(len(names), -np.inf)
+        np.minimum.at(lo, codes, a)
+        np.maximum.at(hi, codes, a)
+        rows = np.flatnonzero((a == lo[codes]) | (a == hi[codes]))  # this file's lowest and highest per stop
+        c, lv = codes[rows], a[rows]
+        order = np.lexsort((lv, c))  # by stop, then level; stable: a level's samples in the dataset's order
+        rows, c, lv = rows[order], c[order], lv[order]
+        x = t.column("position_m").to_numpy().astype(float)[rows]
+        v = t.column("speed_kmh").to_numpy().astype(float)[rows]
+        cut = np.flatnonzero((c[1:] != c[:-1]) | (lv[1:] != lv[:-1])) + 1
+        for i, j in zip(np.r_[0, cut], np.r_[cut, len(c)]) if len(c) else ():
+            by = found.setdefault((part["direction"], part["train_type"], names[c[i]]), {})
+            by.setdefault(np.float64(lv[i]), []).append((x[i:j], v[i:j]))
+            if len(by) > 2:  # a stop in several files: its extremes so far
+                for level in sorted(by)[1:-1]:
+                    del by[level]
     pats: dict = {}
-    if len(ss):
-        ss = ss.assign(adhesion_kmh_s=(ss["adhesion_ms2"] / KMH_S).round(6))
-        x, v = ss["position_m"].to_numpy(float), ss["speed_kmh"].to_numpy(float)
-        levels: dict = {}  # (direction, type, station) -> {adhesion: row positions, in the dataset's order}
-        groups = ss.groupby(["direction", "train_type", "station_id", "adhesion_kmh_s"], observed=True).indices
-        for (d, tt, s, a), rows in groups.items():
-            levels.setdefault((d, tt, s), {})[np.float64(a)] = rows
-        for k, by in levels.items():
-            lv = sorted(by)
-            pats[k] = {a: (x[by[a]], v[by[a]]) for a in (lv[0], lv[-1])}
+    for k, by in found.items():
+        lv = sorted(by)
+        pats[k] = {a: tuple(np.concatenate([p[i] for p in by[a]]) for i in (0, 1)) for a in (lv[0], lv[-1])}
     return pats
 
 

@@ -26,6 +26,7 @@ import shutil
 from pathlib import Path
 
 from planner.errors import JobError, PlannerError
+from planner.io.memory import give_back
 from planner.io.paths import check_path_id
 
 
@@ -60,7 +61,10 @@ def _graph_unit(line, check: bool, lifted=None):
         from planner.network.routes import plan_routes
 
         loops = loop_stations(line, plan_routes(line))
-    return train_paths(line, train_curves(line, lifted), loops=loops)
+    try:
+        return train_paths(line, train_curves(line, lifted), loops=loops)
+    finally:
+        give_back()  # the worker's pages of the whole line's run curves, for the units after it
 
 
 def graph_unit(job, line, lifted=None):
@@ -92,6 +96,7 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
                        run_id=summary.run_id, day=window(job).record() if job.day.day else None,
                        later=summary.chart_pages)
     summary.pending += summary.chart_pages[-1:]
+    give_back()  # the pages of the legs' runs (planner.io.memory)
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
         con = read_line_dataset(stage, "conflicts", line.line_id)
@@ -104,6 +109,8 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
                    timetable_href="../" + timetable_href(line.line_id),
                    charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()},
                    links=graph_links(line.line_id))
+    del data, occ, con
+    give_back()
 
 
 def graph_links(line_id: str) -> list[tuple[str, str]]:

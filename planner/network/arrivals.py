@@ -183,7 +183,8 @@ def simulate_interstation(line: Line, train_type: str, origin: str, destination:
 
     track = make_track(line, train_type, origin, destination, settings=SimSettings(ds_m=ds_m))
     res = simulate(track, line.train_type(train_type), np.asarray(ratios, dtype=float), record=True)
-    return np.asarray(track.position_m(res.s_m), dtype=float), np.asarray(res.t_s, dtype=float)
+    # a copy of the times: a view would hold the batch's whole record (five quantities per run and node)
+    return np.asarray(track.position_m(res.s_m), dtype=float), np.array(res.t_s, dtype=float)
 
 
 class SimulatorCurves:

@@ -221,8 +221,12 @@ class MarginReport:
 
 
 def _leg_task(line, tt, o, d, sched, tabs, energy, kw):
-    """Worker: one leg (module level, picklable inputs)."""
-    return leg_result(line, tt, o, d, sched, tables=tabs, energy_a_kwh=energy, **kw)
+    """Worker: one leg (module level, picklable inputs). Given tables are not sent back (``tables`` None):
+    the caller has them, and a copy of every leg's would double them in its memory."""
+    r = leg_result(line, tt, o, d, sched, tables=tabs, energy_a_kwh=energy, **kw)
+    if tabs is not None and r.tables is tabs:
+        r.tables = None
+    return r
 
 
 def margin_options(job, line: Line) -> dict:
@@ -372,8 +376,10 @@ def compute_margins(
               None if k[4] else energy.get(k[:4]), kw | {"closed_loop_errors": {} if k[4] else known_errors(k[:4])})
              for k in keys]
     results: list[LegResult] = map_tasks(_leg_task, tasks, n_jobs, progress)
-    for k, r in zip(keys, results):  # the window holds only the leg's two stations: the passed ones from the line
-        r.passes = passed_stations(line, r.origin, r.destination)
+    for k, r, task in zip(keys, results, tasks):  # the window holds only the leg's two stations: the passed ones
+        r.passes = passed_stations(line, r.origin, r.destination)  # from the line
+        if r.tables is None:  # the given tables it used (_leg_task)
+            r.tables = task[5]
         r.lifted, r.restrictions = k[4], applied_restrictions(windows[k], k[0], k[1])
 
     rows, sweep, row_lifted = _rows(line, results, legs, rule, cl_worst, lifted)

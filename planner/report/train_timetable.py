@@ -165,8 +165,9 @@ def _leg_run(line, row: dict, ds_m: float) -> LegRun:
     track = make_track(line, row["train_type"], row["origin"], row["destination"], settings=SimSettings(ds_m=ds_m))
     ratio = float(row["ratio_on_time"])
     res = simulate(track, line.train_type(row["train_type"]), np.array([ratio, 1.0]), record=True)
-    return LegRun(key, ratio, np.asarray(track.chainage_m, float), np.asarray(res.t_s, float),
-                  np.asarray(res.v_ms, float), np.asarray(track.vmax_ms, float), row)
+    # copies of the two rows kept: views would hold the run's whole record (five quantities) for every leg
+    return LegRun(key, ratio, np.asarray(track.chainage_m, float), np.array(res.t_s, float),
+                  np.array(res.v_ms, float), np.asarray(track.vmax_ms, float), row)
 
 
 def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
