@@ -30,6 +30,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from planner.errors import InputError, LineValidationError, Violation
+from planner.io.parquet import read_file
 from planner.io.paths import PATH_ID_RULE, is_path_id
 from planner.line.conform import TableView, conform, fmt
 from planner.line.model import Line, SpeedLimit
@@ -302,7 +303,7 @@ def read_feed_tables(feed_dir: Path) -> tuple[dict[str, TableView], list[Violati
         if not f.exists():
             continue
         try:
-            table = pq.read_table(f)
+            table = read_file(f)
         except (pa.ArrowException, OSError, ValueError) as e:
             bad.append(Violation(spec.file, None, None, f"cannot be read as Parquet ({e}); rewrite the file"))
             continue

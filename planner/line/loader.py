@@ -35,6 +35,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from planner.errors import InputError, LineValidationError, Violation
+from planner.io.parquet import read_file
 from planner.line.model import (
     Beacon,
     Call,
@@ -84,7 +85,7 @@ def read_tables(line_dir: Path) -> dict[str, pa.Table | Violation | None]:
             raw[name] = Violation(spec.file, None, None, "is not a file; expected one Parquet file")
         else:
             try:
-                raw[name] = pq.read_table(f)
+                raw[name] = read_file(f)
             except (pa.ArrowException, OSError, ValueError) as e:
                 # pyarrow prefixes the absolute path; the message already names the file
                 why = str(e).splitlines()[0] if str(e) else type(e).__name__
