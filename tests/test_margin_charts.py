@@ -264,6 +264,23 @@ def test_svg_plot_padding_and_gaps():
     assert (rects[0].get("x"), rects[0].get("y"), rects[0].get("width"), rects[0].get("height")) == ("0", "50", "10", "50")
 
 
+def test_svg_plot_draws_nothing_at_a_missing_value():
+    """A line or label at a missing value (a leg without a scheduled margin) is left out, as matplotlib left
+    it out, instead of failing the page (the nightly job's margin report stopped on one)."""
+    from planner.pages.svg_plot import Figure
+
+    fig = Figure(100, 100)
+    p = fig.panel((0, 0, 100, 100), (0, 10), (0, 10))
+    p.hline(float("nan"), color="#111111")
+    p.vline(float("nan"), color="#222222")
+    p.text(1.0, float("nan"), "margin nan s")
+    p.hline(5.0, color="#333333")
+    root = ET.fromstring(fig.svg())
+    strokes = [e.get("stroke") for e in root.iter(f"{SVG}line")]
+    assert "#111111" not in strokes and "#222222" not in strokes and "#333333" in strokes
+    assert "nan" not in fig.svg()
+
+
 def test_the_page_and_a_workers_warm_up_never_import_matplotlib():
     """matplotlib stays for the CLI's file charts: drawing the margin page (and warming a nightly worker)
     does without it."""

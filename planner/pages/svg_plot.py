@@ -206,13 +206,17 @@ class Panel:
             self.data.append(f"{rect}><title>{esc(tip)}</title></rect>" if tip else f"{rect}/>")
 
     def vline(self, x: float, *, color: str, width: float = 1.0, dash=None):
-        """A vertical line across the frame at x."""
+        """A vertical line across the frame at x (none where x is not finite: a missing value)."""
+        if not np.isfinite(x):
+            return
         px, (_, top, _, h) = num(self.x(x)), self.box
         self.data.append(f'<line x1="{px}" y1="{num(top)}" x2="{px}" y2="{num(top + h)}" stroke="{color}" '
                          f'stroke-width="{width:g}"{_dash(dash)}/>')
 
     def hline(self, y: float, *, color: str, width: float = 1.0, dash=None):
-        """A horizontal line across the frame at y."""
+        """A horizontal line across the frame at y (none where y is not finite: a missing value)."""
+        if not np.isfinite(y):
+            return
         py, (left, _, w, _) = num(self.y(y)), self.box
         self.data.append(f'<line x1="{num(left)}" y1="{py}" x2="{num(left + w)}" y2="{py}" stroke="{color}" '
                          f'stroke-width="{width:g}"{_dash(dash)}/>')
@@ -241,7 +245,9 @@ class Panel:
         """A label at data (x, y) (``x_frac``/``y_frac``: x or y as a fraction of the frame's width from the left
         or height from the bottom), moved by (dx, dy) user units (y down): ``lines`` a string or several; ``va``
         which side of the text is at y (``top``, ``bottom``); ``box``: (fill, stroke) of a rounded box around
-        it, sized by :func:`text_width`."""
+        it, sized by :func:`text_width`). Nothing is drawn where x or y is not finite (a missing value)."""
+        if not (np.isfinite(x) and np.isfinite(y)):
+            return
         lines = [lines] if isinstance(lines, str) else list(lines)
         px = (self.box[0] + self.box[2] * x if x_frac else float(self.x(x))) + dx
         py = (self.box[1] + self.box[3] * (1 - y) if y_frac else float(self.y(y))) + dy
