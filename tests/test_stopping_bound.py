@@ -55,15 +55,28 @@ CASES = random_cases()
 STRETCH = ("braking", "last")
 
 
+def exact_feasible(p, case, stretch, T, tries=3):
+    """Whether the grid with a node at each of the pattern's jerk switches admits a stop in ``T``. HiGHS
+    now and then stalls on one LP until its time limit (neither solved nor proved infeasible); a stall
+    proves nothing either way, so the same question is asked again on the grid one coarse step finer."""
+    for n in range(N_STEPS, N_STEPS + tries):
+        try:
+            return segment_lp(p, n, *case, refine=REFINE, with_switches=True, stretch=stretch)(T)
+        except RuntimeError:
+            continue
+    raise RuntimeError(f"HiGHS stalled on {tries} grids ({N_STEPS}..{N_STEPS + tries - 1} steps) at T = {T:.6f} s")
+
+
 @pytest.mark.parametrize("i", range(N_CASES))
 def test_the_solver_is_not_beaten_and_is_reached(i):
     p, case = CASES[i]
     T = p.duration_s
     # the grid with a node at each of the pattern's jerk switches holds the pattern itself
-    exact = [segment_lp(p, N_STEPS, *case, refine=REFINE, with_switches=True, stretch=s) for s in STRETCH]
-    for feasible in exact:
-        assert not feasible(T - BEATEN_S), f"an admissible trajectory stops faster than the solver's {T:.5f} s"
-    assert any(f(T + BEATEN_S) for f in exact), f"the LP does not hold the solver's pattern ({T:.5f} s)"
+    for s in STRETCH:
+        assert not exact_feasible(p, case, s, T - BEATEN_S), \
+            f"an admissible trajectory stops faster than the solver's {T:.5f} s"
+    assert any(exact_feasible(p, case, s, T + BEATEN_S) for s in STRETCH), \
+        f"the LP does not hold the solver's pattern ({T:.5f} s)"
 
 
 @pytest.mark.parametrize("i", range(N_CASES))

@@ -211,6 +211,9 @@ def test_infeasible_verdicts_are_mostly_proved_by_the_bounds():
 
 @settings(max_examples=150, deadline=None)
 @given(approaches(), st.floats(0.5, 0.95))
+# found by the search: the limit binds in neither (the jerk caps the braking at 0.707 m/s²), yet the
+# entry into the 1 m/s restriction was chosen to 0.1 % of its range, 1.7e-5 s apart; now to round-off
+@example(case=(2.0, 50.0, 0.5, [(0.0, 1.5)], [(0.0, 2.0), (5.0, 1.0)]), factor=0.5)
 def test_less_deceleration_never_makes_it_faster(case, factor):
     """Scaling every deceleration limit down shrinks the admissible set, so the minimum
     time cannot fall and a feasible case can become infeasible, never the reverse."""

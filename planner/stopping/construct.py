@@ -406,8 +406,10 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     of the restriction start (:func:`_enter_braking` joins it, with or without a
     cruise): one-dimensional minimisation of the duration over ``b_s`` (a scan of
     ``_SCAN`` entries, then Brent's method, golden section with parabolic steps, on
-    the bracket around the best, to 0.1 % of the range; the duration is flat at an
-    inner optimum, so its error is some 1e-6 s; an
+    the bracket around the best, to 1e-7 of the range: the duration is flat at an
+    inner optimum, so its error is round-off (at 0.1 % of the range it was up to
+    2e-5 s, enough for a lower deceleration limit that does not bind to give a
+    different, faster pattern); an
     optimum on the edge of the entries that work, where it is not flat, is
     found by bisection to round-off), each trial
     finishing the construction with the entries already chosen at the step-downs
@@ -419,7 +421,7 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     f0 = _objective(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r, False, 0.0)
     r_c = _region_of(Yb, capnext[r])
     hi = _pmin(A[r_c], A[r_c - 1])
-    xtol = 1e-3 * hi
+    xtol = 1e-7 * hi
     g = 0.5 * (3.0 - math.sqrt(5.0))
     # a coarse scan first: the duration can dip narrowly near b_s = 0 with a second, shallower
     # valley or a region where the join fails further up; Brent's search then runs on the bracket
@@ -442,7 +444,7 @@ def _best_entry(st, ns, J, X, Yb, A, C, capnext, entry, pend, i_v, s_v, r):
     w = v = x
     fw = fv = fx
     d = e = 0.0
-    for _ in range(20):
+    for _ in range(80):
         m = 0.5 * (a + b)
         tol = xtol + 1e-10 * abs(x)
         if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):
