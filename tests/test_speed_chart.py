@@ -118,7 +118,7 @@ def test_every_drawn_thing_is_in_the_legend(charts):
                                  [(1500.0, "E1")]))
     t_m, t_r = float(run.t_s[1][-1]), float(run.t_s[0][-1])
     want = ["permanent speed limit", "on-board maximum (limit − margin)", f"minimum run: ratio 100 % — {t_m:.1f} s",
-            f"on-time departure: ratio {run.ratio:.0%} — {t_r:.1f} s (scheduled {run.key[4]:.0f} s)",
+            f"on-time departure: ratio {round(run.ratio * 100)} % — {t_r:.1f} s (scheduled {run.key[4]:.0f} s)",
             "stopping pattern, lowest adhesion 1 km/h/s", "stopping pattern, highest adhesion 2.5 km/h/s",
             "signal", "ATS-P / TASC beacon", "evaluation point",  # SG1 at 1000 m, B1/B2 at 900/1000 m (down)
             "gradient in the running direction [‰] (+ rising)", "curve (radius [m])"]  # R600 at 1200–1600 m

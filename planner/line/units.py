@@ -63,6 +63,16 @@ def hms(d_s, sign: bool = False) -> str:
     return f"{s}{t // 3600}:{t // 60 % 60:02d}:{t % 60:02d}"
 
 
+def percent(ratio, none: str = "–") -> str:
+    """A ratio as whole percent, the way the pages write it (``100 %``, with the space).
+
+    >>> percent(0.7), percent(1.0), percent(float("nan"))
+    ('70 %', '100 %', '–')
+    """
+    t = fixed(None if ratio is None else 100.0 * float(ratio), 0, none=none)
+    return t if t == none else f"{t} %"
+
+
 def fixed(x, nd: int = 1, sign: bool = False, none: str = "–") -> str:
     """A number as fixed-point text for a person to read: ``nd`` decimals, ``sign`` a leading + or -; a value
     that rounds to zero is written ``0.0``, never ``-0.0`` (nor ``+0.0``: a sign there would say which side of

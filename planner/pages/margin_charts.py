@@ -26,7 +26,7 @@ from html import escape
 
 import numpy as np
 
-from planner.line.units import KMH_S, fixed
+from planner.line.units import KMH_S, fixed, percent
 from planner.pages.svg_plot import Figure, legend_html, padded, swatch
 from planner.report.leg_flags import FLAG, FLAGS, FLAGS_SHOWN, flag_of
 
@@ -271,7 +271,7 @@ def curves_chart(report) -> str:
     if has_sched:
         p.polyline(*_thin(x, c["sched_speed_kmh"], TOL_V_KMH), color=GREEN, width=1.5)
         top_items.append((swatch("line", color=GREEN, width=1.5),
-                          f"as scheduled: on-board logic, departs at ratio {row.ratio_on_time:.0%} — "
+                          f"as scheduled: on-board logic, departs at ratio {percent(row.ratio_on_time)} — "
                           f"{row.scheduled_running_time_s:.0f} s scheduled, arrives "
                           f"{fixed(row.arrival_error_s, 1, True)} s"))
     p.polyline(*_thin(dx, c["degraded_speed_kmh"], TOL_V_KMH), color=RED, width=1.5)

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.line.model import line_title  # noqa: F401 - the pages import it from here too
-from planner.line.units import clock, fixed, hms
+from planner.line.units import clock, fixed, hms, percent
 
 from planner.pages.margin_charts import chart_sections
 from planner.pages.svg_plot import LEGEND_CSS
@@ -229,7 +229,7 @@ def _row_html(r) -> str:
         f"<td class='w'>{_f(r.margin_s, 1, True)} ({_f(r.margin_percent, 1)})</td>"
         f"<td>{_f(r.supplement_required_s)}</td><td>{_f(r.degraded_min_running_time_s)}</td>"
         f"<td>{rem_s}</td><td class='cost'>{cost_breakdown(r)}</td>"
-        f"<td>{'–' if not math.isfinite(r.ratio_on_time) else f'{r.ratio_on_time:.0%}'}</td>"
+        f"<td>{percent(r.ratio_on_time)}</td>"
         f"<td class='w'>{_f(r.arrival_error_s, 1, True)} / {_f(r.arrival_error_degraded_s, 1, True)}</td>"
         f"<td class='w'>{energy_change(r.energy_saved_percent)}</td></tr>"
     )

@@ -40,7 +40,7 @@ import numpy as np
 
 from planner.line.daily import TEMPORARY_KIND
 from planner.line.model import sign
-from planner.line.units import fixed, kmh
+from planner.line.units import fixed, kmh, percent
 
 TOL_V_KMH = 0.2
 TOL_X_M = 2.0
@@ -129,7 +129,7 @@ def _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, leg
     legend.append((swatch("line", color=c["minimum"], width=1.8), f"minimum run: ratio 100 % — {t_m:.1f} s"))
     p.polyline(*_thin(x, kmh(run.v_ms[0])), color=c["on_time"], width=1.6)
     legend.append((swatch("line", color=c["on_time"], width=1.6),
-                   f"on-time departure: ratio {run.ratio:.0%} — {t_r:.1f} s (scheduled {sched:.0f} s)"))
+                   f"on-time departure: ratio {percent(run.ratio)} — {t_r:.1f} s (scheduled {sched:.0f} s)"))
     for (a, (px, pv)), (col, what) in zip(sorted((pattern or {}).items()), PATTERN_STYLES):
         p.polyline(*_thin(np.asarray(px, float), np.asarray(pv, float)), color=col, width=1.3, dash=(5.2, 2.6))
         legend.append((swatch("line", color=col, width=1.3, dash=(5.2, 2.6)),
@@ -240,7 +240,7 @@ def chart_page(line, run, calls, trains, svg: str, back: str, *, nav=(), run_id:
             f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}{LEGEND_CSS}</style></head><body><main>'
             + nav_html(nav or [(f"running-time tables of line {line.line_id}", back)], run_id, day, run_date)
             + f"<h1>Speed–distance: {e(title)}</h1>"
-            f'<p class="sub">Run at the on-time ratio {run.ratio:.0%} (the ratio the on-board logic picks when the '
+            f'<p class="sub">Run at the on-time ratio {percent(run.ratio)} (the ratio the on-board logic picks when the '
             f"train leaves on time) and the minimum run (ratio 100 %), both at the tables' conditions (empty, full "
             f"traction), from the departure stop marker to the arrival stop marker.</p>"
             f'<div class="fig">{svg}</div>'
