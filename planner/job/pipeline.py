@@ -396,7 +396,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
     # margins (the worker loads the key from its file); the train graph's trajectories (the line alone,
     # taken by line_views) on the other, while this process writes the closed loop and reads it back
-    # for the margins
+    # for the margins (the writer thread runs its tasks in order: the stops written means the tables are too)
     _count(summary, stops_written.result())
     bundles = _start_bundles(job, line, stage, runner, summary, key_path, bday)
     from planner.job.views import graph_unit
