@@ -23,21 +23,11 @@ import pytest
 from planner.pages.margin_charts import CHARTS, FLAG_COLOURS, MARGIN_COLOUR, chart_svgs
 from planner.pages.margin_report import stop_markers
 from planner.report.leg_flags import FLAG
-from planner.report.margins import compute_margins
-from test_margins import APPROACH, EXPECTED, closed_form_line, t_run
+from test_margins import EXPECTED, t_run
+from test_report import line, report  # noqa: F401 - the closed-form line and its report, the page tests' fixtures
 
 SVG = "{http://www.w3.org/2000/svg}"
 NUM = r"(-?\d+(?:\.\d+)?)"
-
-
-@pytest.fixture(scope="module")
-def line():
-    return closed_form_line()
-
-
-@pytest.fixture(scope="module")
-def report(line):
-    return compute_margins(line, adhesion_kmh_s="3.0:3.5:0.5", approach_m=APPROACH, conflicts=False)
 
 
 @pytest.fixture(scope="module")
