@@ -273,44 +273,15 @@ def pinned_lp_feasible(T, N, v0, X, J, decel_limits, speed_limits, pins, unit_st
     """
     events, A_reg, V_reg = _regions(v0, X, decel_limits, speed_limits)
     hs = np.full(N, T / N) if unit_steps is None else T * np.asarray(unit_steps)
-    n = N + 1
-    ix, iv, ia, ij = 0, n, 2 * n, 3 * n
-    nvar = 3 * n + N
     pins = np.asarray(pins, dtype=int)
-    lb, ub = np.full(nvar, -np.inf), np.full(nvar, np.inf)
-    lb[ix:ix + n], ub[ix:ix + n] = 0.0, X
-    lb[iv:iv + n], ub[iv:iv + n] = 0.0, v0
-    ub[ia:ia + n] = 0.0
-    lb[ij:ij + N], ub[ij:ij + N] = -J, J
     region = np.searchsorted(pins, np.arange(N), side="left")  # region of each step (the crossing: before)
     A_step = np.asarray(A_reg)[region]
     C_step = np.asarray(V_reg)[region]
     A_step[pins] = np.minimum(A_step[pins], np.asarray(A_reg)[1:])  # the crossing step: both sides
     C_step[pins] = np.asarray(V_reg)[1:]  # the running minimum: the far side's is the lower
-    lb[ia:ia + N] = -A_step
-    lb[ia + 1:ia + n] = np.maximum(lb[ia + 1:ia + n], -A_step)
-    ub[iv:iv + N] = np.minimum(ub[iv:iv + N], C_step)
-    for e, i in zip(events, pins):
-        ub[ix + i] = min(ub[ix + i], e)
-        lb[ix + i + 1] = max(lb[ix + i + 1], e)
-    for k, val in ((ix, 0.0), (iv, v0), (ia, 0.0), (ix + N, X), (iv + N, 0.0), (ia + N, 0.0)):
-        lb[k] = ub[k] = val
-    rows, cols, vals = [], [], []
-    r = 0
-    for i in range(N):
-        h = hs[i]
-        for c, val in ((ix + i + 1, 1.0), (ix + i, -1.0), (iv + i, -h), (ia + i, -h * h / 2), (ij + i, -h ** 3 / 6)):
-            rows.append(r), cols.append(c), vals.append(val)
-        for c, val in ((iv + i + 1, 1.0), (iv + i, -1.0), (ia + i, -h), (ij + i, -h * h / 2)):
-            rows.append(r + 1), cols.append(c), vals.append(val)
-        for c, val in ((ia + i + 1, 1.0), (ia + i, -1.0), (ij + i, -h)):
-            rows.append(r + 2), cols.append(c), vals.append(val)
-        r += 3
-    M = coo_matrix((vals, (rows, cols)), shape=(r, nvar)).tocsr()
-    res = linprog(np.zeros(nvar), A_eq=M, b_eq=np.zeros(r), bounds=np.column_stack([lb, ub]), method="highs")
-    if res.status not in (0, 2):
-        raise RuntimeError(f"LP neither solved nor proved infeasible: {res.message}")
-    return res.status == 0
+    # event point k crossed inside step pins[k]: at or after its start node, at or before its end node
+    x_at = [(i, -np.inf, e) for e, i in zip(events, pins)] + [(i + 1, e, np.inf) for e, i in zip(events, pins)]
+    return step_lp_feasible(hs, v0, X, J, A_step, C_step, x_at)
 
 
 def refined_steps(N, crossing_guess, fine):
@@ -482,6 +453,17 @@ def node_lp_feasible(T, unit_steps, nodes, v0, X, J, decel_limits, speed_limits,
     events, A_reg, V_reg = _regions(v0, X, decel_limits, speed_limits)
     hs = T * np.asarray(unit_steps)
     N = hs.size
+    region = np.searchsorted(np.asarray(nodes), np.arange(N), side="right")
+    A_step, C_step = np.asarray(A_reg)[region], np.asarray(V_reg)[region]
+    return step_lp_feasible(hs, v0, X, J, A_step, C_step, [(k, e, e) for e, k in zip(events, nodes)], time_limit)
+
+
+def step_lp_feasible(hs, v0, X, J, A_step, C_step, x_at, time_limit=None):
+    """The LP both grids share: jerk constant on each step ``hs`` [s], from (0, v0, 0) to (X, 0, 0), position,
+    speed and acceleration at the nodes linked exactly by each step's cubic; each step braking at most
+    ``A_step`` and starting at most ``C_step``; ``x_at``: (node, lower, upper) bounds on the position at a node.
+    Feasible or not; RuntimeError when HiGHS does neither (it can stall on a rare LP until ``time_limit``)."""
+    N = hs.size
     n = N + 1
     ix, iv, ia, ij = 0, n, 2 * n, 3 * n
     nvar = 3 * n + N
@@ -490,13 +472,11 @@ def node_lp_feasible(T, unit_steps, nodes, v0, X, J, decel_limits, speed_limits,
     lb[iv:iv + n], ub[iv:iv + n] = 0.0, v0
     ub[ia:ia + n] = 0.0
     lb[ij:ij + N], ub[ij:ij + N] = -J, J
-    region = np.searchsorted(np.asarray(nodes), np.arange(N), side="right")
-    A_step, C_step = np.asarray(A_reg)[region], np.asarray(V_reg)[region]
     lb[ia:ia + N] = -A_step
     lb[ia + 1:ia + n] = np.maximum(lb[ia + 1:ia + n], -A_step)
     ub[iv:iv + N] = np.minimum(ub[iv:iv + N], C_step)
-    for e, k in zip(events, nodes):
-        lb[ix + k] = ub[ix + k] = e
+    for k, lo, hi in x_at:
+        lb[ix + k], ub[ix + k] = max(lb[ix + k], lo), min(ub[ix + k], hi)
     for k, val in ((ix, 0.0), (iv, v0), (ia, 0.0), (ix + N, X), (iv + N, 0.0), (ia + N, 0.0)):
         lb[k] = ub[k] = val
     rows, cols, vals = [], [], []
@@ -509,7 +489,7 @@ def node_lp_feasible(T, unit_steps, nodes, v0, X, J, decel_limits, speed_limits,
         for c, val in ((ia + i + 1, 1.0), (ia + i, -1.0), (ij + i, -h)):
             rows.append(r + 2), cols.append(c), vals.append(val)
     M = coo_matrix((vals, (rows, cols)), shape=(3 * N, nvar)).tocsr()
-    options = {} if time_limit is None else {"time_limit": time_limit}  # HiGHS can stall on a rare LP
+    options = {} if time_limit is None else {"time_limit": time_limit}
     res = linprog(np.zeros(nvar), A_eq=M, b_eq=np.zeros(3 * N), bounds=np.column_stack([lb, ub]), method="highs",
                   options=options)
     if res.status not in (0, 2):
