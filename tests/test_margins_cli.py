@@ -68,6 +68,41 @@ def test_reuses_tables_and_closed_loop(linedir, tmp_path):
     np.testing.assert_allclose(b.arrival_error_degraded_s[ok], a.arrival_error_degraded_s[ok], atol=0.01)
 
 
+def test_closed_loop_in_hand_is_the_folder(linedir, tmp_path):
+    """The nightly job gives the margins the closed loop's Arrow tables while the writer thread writes them:
+    what the margins read from those tables is what they read from the written folder, a line's rows only."""
+    import dataclasses
+
+    import pyarrow as pa
+
+    from planner.datasets.closed_loop import datasets, run_closed_loop, write_closed_loop
+    from planner.datasets.tables import write_tables
+    from planner.report.margin_datasets import closed_loop_index, closed_loop_worst
+    from planner.report.margin_rule import MarginRule
+    from planner.tables.build import build_tables
+
+    line = load_line(linedir)
+    tdir, cdir = tmp_path / "tables", tmp_path / "cl"
+    write_tables(build_tables(line, train_types=["EMU6"], n_jobs=1), tdir)
+    results = [r for sc in ("nominal", "perturbed")
+               for r in run_closed_loop(line, tdir, train_types=["EMU6"], scenario_name=sc, n_jobs=1)]
+    write_closed_loop(results, cdir)
+    tables = datasets(results)
+    # another line's rows beside them, with other errors (a run's tables hold one line; the filter must hold)
+    other = datasets([dataclasses.replace(r, line_id="other", actual_s=r.actual_s + 100.0) for r in results])
+    both = {k: pa.concat_tables([tables[k], other[k]]) for k in tables}
+    rule = MarginRule()
+    index = closed_loop_index(cdir, line.line_id, rule)
+    assert len(index) > 0 and {k[4] for k in index} == {"nominal", "degraded"}
+    assert closed_loop_index(None, line.line_id, rule, both) == index
+    worst = closed_loop_worst(cdir, line.line_id)
+    assert len(worst) > 0 and closed_loop_worst(None, line.line_id, both) == worst
+    from_folder = compute_margins(line, train_types=["EMU6"], tables_dir=tdir, closed_loop_dir=cdir,
+                                  conflicts=False).rows
+    in_hand = compute_margins(line, train_types=["EMU6"], tables_dir=tdir, closed_loop=both, conflicts=False).rows
+    assert from_folder.equals(in_hand)
+
+
 @pytest.mark.parametrize("args,msg", [
     (["--tables", "nowhere"], "--tables nowhere: no such folder"),
     (["--curves", "EMU10"], "--curves 'EMU10': give TYPE:ORIGIN-DESTINATION"),

@@ -159,10 +159,12 @@ def datasets(results: Sequence[ClosedLoopResult]) -> dict[str, pa.Table]:
     return {"closed_loop": pa.table(runs), "closed_loop_summary": pa.table(summ)}
 
 
-def write_closed_loop(results: Sequence[ClosedLoopResult], out_dir: str | Path) -> list[Path]:
-    """Write ``closed_loop`` and ``closed_loop_summary`` under ``out_dir`` (atomic per file)."""
+def write_closed_loop(results: Sequence[ClosedLoopResult] | dict[str, pa.Table], out_dir: str | Path) -> list[Path]:
+    """Write ``closed_loop`` and ``closed_loop_summary`` under ``out_dir`` (atomic per file): of the results,
+    or their :func:`datasets` made beforehand (the nightly job's margins read those tables while they are
+    written)."""
     schemas = {"closed_loop": CLOSED_LOOP_SCHEMA, "closed_loop_summary": CLOSED_LOOP_SUMMARY_SCHEMA}
     written: list[Path] = []
-    for name, table in datasets(results).items():
+    for name, table in (results if isinstance(results, dict) else datasets(results)).items():
         written += write_partitioned(table, Path(out_dir), name, PARTITION_COLS, schema=schemas[name])
     return written

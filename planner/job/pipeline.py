@@ -23,8 +23,9 @@ the workers start while the lines are read; the stopping patterns share the
 tables' pass of the workers, and the line's conflicts the closed loop's; the
 tables and stops datasets are written on a thread while the workers compute the
 next steps; the bundles and the train graph's trajectories start on the workers
-when the closed loop ends, while this process writes it and the margins read it
-back; the legs' speed–distance charts are drawn on the workers while the main
+when the closed loop ends, while that thread writes the closed loop and the margins
+take its rows from memory; the overview's check of the bundles starts on a worker
+as soon as the last line's bundles are written; the legs' speed–distance charts are drawn on the workers while the main
 process writes the tables page, the train graph and the margin report (whose
 few charts it draws itself); the chart pages are written last, each as its
 chart arrives.
@@ -116,6 +117,9 @@ class RunSummary:
     written by :func:`planner.job.views.run_views`)."""
     pending: list = field(default_factory=list, repr=False, compare=False)
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
+    bundles_verified: Any = field(default=None, repr=False, compare=False)
+    """The overview's rows of the run's bundles, being verified on a worker once the last line's bundles are
+    written (a :class:`planner.io.parallel.Background` of :func:`planner.pages.overview.bundle_rows`)."""
 
 
 def _renewal_due(last_manifest: dict, now_s: int) -> bool:
@@ -274,8 +278,10 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 try:
                     # a writer thread: a step's datasets are written while the workers compute the next
                     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
-                        for line, bday, off in zip(lines, bundle_days, lifted):
-                            _run_line(job, line, stage, runner, summary, key, key_path, writes, bday, off)
+                        for i, (line, bday, off) in enumerate(zip(lines, bundle_days, lifted)):
+                            last = i == len(lines) - 1  # then every bundle of the run is written in it
+                            _run_line(job, line, stage, runner, summary, key, key_path, writes, bday, off,
+                                      {"operating_day": day} if last else None)
                     summary.computed, summary.reused = runner.computed, runner.reused
                     if cache.rejected:  # once per run, with the count
                         summary.warnings.append(cache.rejected_note())
@@ -308,9 +314,11 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
 
 
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
-              writes: ThreadPoolExecutor, bday=None, lifted=None) -> None:
+              writes: ThreadPoolExecutor, bday=None, lifted=None, verify: dict | None = None) -> None:
     """One line's units; ``lifted``: the restrictions lifted per train (:func:`planner.job.day.lifted_restrictions`),
-    for the per-train units (margins, conflicts, train graph)."""
+    for the per-train units (margins, conflicts, train graph). ``verify``, for the run's last line: what of the
+    manifest the overview's verification of the bundles reads (the operating day); the run's bundles are
+    verified on a worker from when this line's are written (:attr:`RunSummary.bundles_verified`)."""
     from planner.tables.ratios import leg_ratio_grid
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
@@ -404,19 +412,29 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     graph = runner.start("graph", [graph_unit(job, line, lifted)])
     summary.pending.append(graph)
     _count(summary, tables_written.result())
-    from planner.datasets.closed_loop import write_closed_loop
+    from planner.datasets.closed_loop import datasets as closed_loop_datasets, write_closed_loop
 
-    _count(summary, write_closed_loop(loops, stage))
+    # the closed loop's rows are written on the writer thread while the margins read them from memory
+    closed_loop = closed_loop_datasets(loops)
     del loops
+    loops_written = _on_writer(writes, write_closed_loop, closed_loop, stage)
     give_back()  # the pages of what was let go (planner.io.memory)
 
     conflicts = None
     if checks_conflicts:
         conflicts = _conflicts_step(line, stage, summary, got.pop("conflicts"))
-    _margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted)
-    del given  # the tables read back for the margins
+    _margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted, closed_loop)
+    _count(summary, loops_written.result())
+    del given, closed_loop  # the tables read back and the closed loop's rows, for the margins
     give_back()
     _bundles_step(stage, runner, summary, key, bundles)
+    if verify is not None:  # every bundle of the run is written: the overview's check of them, on a worker
+        from planner.io.parallel import background
+        from planner.pages.overview import bundle_rows
+
+        summary.bundles_verified = background(bundle_rows, (stage, verify), name=job.parallel.backend,
+                                              n_jobs=job.parallel.n_jobs)
+        summary.pending.append(summary.bundles_verified)
     from planner.job.verdicts import record_verdicts
 
     record_verdicts(line.line_id, summary, *flagged, summary.reports[line.line_id])
@@ -447,16 +465,18 @@ def _line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
     return runner.run(step, [Unit(step, key, step, fn, args)])[0]
 
 
-def _margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None):
+def _margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None, closed_loop=None):
     from planner.report.margins import compute_margins
 
-    # conflicts come from their own step (_conflicts_step); ``given``: the tables read beforehand
+    # conflicts come from their own step (_conflicts_step); ``given``: the tables read beforehand;
+    # ``closed_loop``: the closed loop's rows, being written to ``stage`` meanwhile
     return compute_margins(line, **(options | {"conflicts": False}), train_types=types, tables_dir=stage,
-                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given, lifted=lifted)
+                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given, lifted=lifted,
+                           closed_loop=closed_loop)
 
 
 def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
-                  unit_keys: list[str], conflicts, given=None, lifted=None) -> None:
+                  unit_keys: list[str], conflicts, given=None, lifted=None, closed_loop=None) -> None:
     from planner.report.margin_datasets import write_margins
     from planner.report.margins import margin_options
 
@@ -464,7 +484,7 @@ def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
                   _result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     report = _line_unit(runner, "margins", key, _margins_unit, line, margin_options(job, line), _types(job, line),
-                        stage, n_jobs, given, lifted)
+                        stage, n_jobs, given, lifted, closed_loop)
     if conflicts is not None:
         report.conflicts, report.conflicts_note = conflicts, ""
     elif not job.conflicts.enabled:

@@ -215,12 +215,14 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     manifest_path = stage / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
     # the overview's bundles verified (signature, digests, tables: a few tenths of a second) on a worker
-    # while this process compares the runs and writes the pages
-    from planner.io.parallel import background
+    # while this process writes the pages, started once the last line's bundles were written
+    verified = summary.bundles_verified
+    if verified is None:
+        from planner.io.parallel import background
 
-    verified = background(bundle_rows, (stage, {"operating_day": manifest.get("operating_day")}),
-                          name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
-    summary.pending.append(verified)
+        verified = background(bundle_rows, (stage, {"operating_day": manifest.get("operating_day")}),
+                              name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+        summary.pending.append(verified)
     base = latest_run(root)
     rows: dict[str, int] = {}
     counts: dict[str, dict[str, int]] = {}

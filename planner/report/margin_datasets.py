@@ -221,19 +221,24 @@ def read_energy(tables_dir: Path, line_id: str, direction: str, train_type: str)
     return out
 
 
-def closed_loop_index(closed_loop_dir: Path, line_id: str, rule) -> dict:
+def closed_loop_index(closed_loop_dir: Path, line_id: str, rule, tables: dict | None = None) -> dict:
     """Closed-loop errors (nearest rule) from a ``planner simulate`` folder, by leg, scenario, designated time.
 
     ``perturbed`` runs stand for the degraded scenario only when their load and
-    traction equal the rule's degraded ones.
+    traction equal the rule's degraded ones. ``tables``: the ``closed_loop`` and ``closed_loop_summary``
+    Arrow tables themselves (:func:`planner.datasets.closed_loop.datasets`: the rows the folder holds or
+    is being written with), read instead of the folder.
     """
     from planner.tables.closed_loop import SCENARIOS
 
-    try:
-        t = read_dataset(closed_loop_dir, "closed_loop", line=line_id).to_pandas()
-    except (FileNotFoundError, OSError) as e:
-        raise InputError(f"--closed-loop {closed_loop_dir}: cannot read the closed_loop dataset ({e}); "
-                         "run `planner simulate` first or leave the option out") from None
+    if tables is not None:
+        t = _of_line(tables["closed_loop"], line_id)
+    else:
+        try:
+            t = read_dataset(closed_loop_dir, "closed_loop", line=line_id).to_pandas()
+        except (FileNotFoundError, OSError) as e:
+            raise InputError(f"--closed-loop {closed_loop_dir}: cannot read the closed_loop dataset ({e}); "
+                             "run `planner simulate` first or leave the option out") from None
     for c in ("scenario", "mode"):
         if c not in t.columns:
             raise InputError(f"--closed-loop {closed_loop_dir}: closed_loop has no {c!r} partition; "
@@ -252,18 +257,30 @@ def closed_loop_index(closed_loop_dir: Path, line_id: str, rule) -> dict:
     return out
 
 
-def closed_loop_worst(closed_loop_dir: Path, line_id: str) -> dict:
+def closed_loop_worst(closed_loop_dir: Path, line_id: str, tables: dict | None = None) -> dict:
     """Worst |arrival error| per leg over every scenario and mode of a ``planner simulate`` folder [s],
-    by (direction, train type, origin, destination); legs without a feasible run are left out."""
-    try:
-        t = read_dataset(closed_loop_dir, "closed_loop_summary", line=line_id).to_pandas()
-    except (FileNotFoundError, OSError):
-        return {}
+    by (direction, train type, origin, destination); legs without a feasible run are left out.
+    ``tables``: as for :func:`closed_loop_index`."""
+    if tables is not None:
+        t = _of_line(tables["closed_loop_summary"], line_id)
+    else:
+        try:
+            t = read_dataset(closed_loop_dir, "closed_loop_summary", line=line_id).to_pandas()
+        except (FileNotFoundError, OSError):
+            return {}
     if t.empty or "max_abs_error_s" not in t:
         return {}
     t = t[np.isfinite(t["max_abs_error_s"].to_numpy(float))]
     g = t.groupby([t[c].astype(str) for c in ("direction", "train_type", "origin", "destination")])
     return {k: float(v) for k, v in g["max_abs_error_s"].max().items()}
+
+
+def _of_line(table: pa.Table, line_id: str):
+    """The rows of ``line_id`` of an Arrow table with a ``line`` column, as a DataFrame (what reading the
+    dataset filtered by its ``line`` partition gives)."""
+    import pyarrow.compute as pc
+
+    return table.filter(pc.equal(table.column("line"), line_id)).to_pandas()
 
 
 def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:

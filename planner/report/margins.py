@@ -286,6 +286,7 @@ def compute_margins(
     progress: Callable[[int, int], None] | None = None,
     given: tuple[dict, dict] | None = None,
     lifted: Lifted | None = None,
+    closed_loop: dict | None = None,
 ) -> MarginReport:
     """The margin report of a whole line (module doc for every column).
 
@@ -337,6 +338,10 @@ def compute_margins(
         that leg (:func:`planner.job.day.lifted_restrictions`): such trains' legs are rows of their own,
         computed on the line without them (:mod:`planner.report.margin_legs`; the given tables and
         closed loop, made with them, are not used there).
+    closed_loop : dict, optional
+        The ``closed_loop`` and ``closed_loop_summary`` Arrow tables of the line
+        (:func:`planner.datasets.closed_loop.datasets`), used instead of reading them from
+        ``closed_loop_dir`` (the nightly job has them in hand while they are written).
 
     Returns
     -------
@@ -352,8 +357,10 @@ def compute_margins(
     legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
     sched = scheduled_times(line, types, legs, lifted)
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
-    cl_index = closed_loop_index(Path(closed_loop_dir), line.line_id, rule) if closed_loop_dir else {}
-    cl_worst = closed_loop_worst(Path(closed_loop_dir), line.line_id) if closed_loop_dir else {}
+    cl_from = bool(closed_loop_dir) or closed_loop is not None
+    cl_dir = Path(closed_loop_dir) if closed_loop_dir else None
+    cl_index = closed_loop_index(cl_dir, line.line_id, rule, closed_loop) if cl_from else {}
+    cl_worst = closed_loop_worst(cl_dir, line.line_id, closed_loop) if cl_from else {}
     kw = dict(ratios=ratios, min_target_speed_ms=min_target_speed_ms, rule=rule, adhesion_kmh_s=adh,
               approach_m=approach_m, after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
               eval_auto_s=eval_auto_s, settings=settings)

@@ -1,0 +1,64 @@
+"""The command's end (``planner.cli._exit_now``): no interpreter teardown, but nothing a normal exit does is lost."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+
+import pytest
+
+import planner.cli as cli
+
+
+def _ended(monkeypatch) -> list:
+    """Replace the process's end and the atexit run by recorders; the list says what happened, in order."""
+    seen: list = []
+    monkeypatch.setattr("os._exit", lambda code: seen.append(("exit", code)))
+    monkeypatch.setattr("atexit._run_exitfuncs", lambda: seen.append(("atexit",)))
+    return seen
+
+
+@pytest.mark.parametrize("code, want", [(0, 0), (None, 0), (3, 3)])
+def test_ends_at_once_with_the_code_after_the_exit_handlers(monkeypatch, code, want):
+    seen = _ended(monkeypatch)
+    cli._exit_now(SystemExit(code))
+    assert seen == [("atexit",), ("exit", want)]
+
+
+def test_a_running_thread_gets_the_normal_exit(monkeypatch):
+    """A non-daemon thread still at work is waited for: the normal exit (SystemExit raised again)."""
+    seen = _ended(monkeypatch)
+    go = threading.Event()
+    t = threading.Thread(target=go.wait, name="still-working")
+    t.start()
+    try:
+        with pytest.raises(SystemExit) as e:
+            cli._exit_now(SystemExit(0))
+        assert e.value.code == 0 and seen == []
+    finally:
+        go.set()
+        t.join()
+    daemon = threading.Thread(target=go.wait, daemon=True)  # a daemon never holds a normal exit up either
+    daemon.start()
+    cli._exit_now(SystemExit(0))
+    assert seen == [("atexit",), ("exit", 0)]
+
+
+def test_a_message_exit_is_the_normal_one(monkeypatch):
+    seen = _ended(monkeypatch)
+    with pytest.raises(SystemExit):
+        cli._exit_now(SystemExit("a message for stderr"))
+    assert seen == []
+
+
+def test_a_real_process_flushes_and_runs_its_exit_handlers():
+    """In a real process: the command's output and what an exit handler writes both arrive, with the code."""
+    prog = ("import atexit, sys\n"
+            "atexit.register(lambda: print('handler ran'))\n"
+            "sys.argv = ['planner', '--version']\n"
+            "import planner.cli\n"
+            "planner.cli.main()\n"
+            "print('not reached')\n")
+    r = subprocess.run([sys.executable, "-c", prog], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines() == [f"planner {__import__('planner').__version__}", "handler ran"]
