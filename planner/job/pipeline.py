@@ -350,18 +350,53 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
              f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
         for k in tasks
     ]
-    # the stops do not depend on the tables: one pass of the workers, the stops' short units filling the
-    # tables' last ones (one worker idled at the end of each step)
-    tables, stops = runner.run_steps([("tables", t_units), ("stops", s_units)])
     from planner.datasets.stops import write_stops
     from planner.datasets.tables import write_tables
-
-    tables_written = _on_writer(writes, write_tables, tables, stage)
-    stops_written = _on_writer(writes, write_stops, stops, stage)
     from planner.report.margins import given_tables
 
-    # the margin report's tables, read back on the writer thread (after they are written) meanwhile
-    given = _on_writer(writes, given_tables, line, _types(job, line), stage)
+    # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts depend
+    # on the line alone, so they run beside it (first: the longest unit)
+    side = []
+    checks_conflicts = job.conflicts.enabled and line.network is not None
+    if checks_conflicts:
+        side.insert(0, ("conflicts", [_conflicts_unit_of(job, line, lifted)]))
+    cp = job.closed_loop
+    ahead: dict[str, Any] = {}
+
+    def tables_in(tables: list) -> None:
+        """Every table of the line is in: its closed loop (and the line's conflicts) start on the workers
+        behind the stops' last units, and the tables are written, then read back for the margin report, on
+        the writer thread (the margins read what the vehicles get), while the stops come in."""
+        ahead["c_units"] = [
+            Unit("closed_loop",
+                 digest(["closed_loop", code, u.key, [dataclasses.asdict(sc) for sc in cp.scenarios],
+                         list(cp.modes), cp.horizon_s, cp.step_s]),
+                 u.label, _closed_loop_unit,
+                 (windows[k], tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s,
+                  tp.ds_m))
+            for k, u, tab in zip(tasks, t_units, tables)
+        ]
+        ahead["loop"] = runner.start_steps(side + [("closed_loop", ahead["c_units"])], wait=False)
+        summary.pending.append(ahead["loop"])  # a run failing meanwhile waits for it (and caches what it did)
+        ahead["tables_written"] = _on_writer(writes, write_tables, tables, stage)
+        ahead["given"] = _on_writer(writes, given_tables, line, _types(job, line), stage)
+
+    # the stops do not depend on the tables: one pass of the workers, the stops' short units filling the
+    # tables' last ones; the closed loop starts as soon as the last table is in (tables_in), so no worker
+    # waits between the two passes while this process stores the stops' results
+    pass1 = runner.start_steps([("tables", t_units), ("stops", s_units)], wait=False)
+    n_tables = [0]
+
+    def arrived(g: int, _i: int, _res) -> None:
+        if g == 0:
+            n_tables[0] += 1
+            if n_tables[0] == len(t_units):
+                tables_in(pass1.out[0])
+
+    tables, stops = pass1.results(each=arrived)
+    if "loop" not in ahead:  # a line without interstations
+        tables_in(tables)
+    stops_written = _on_writer(writes, write_stops, stops, stage)
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
     for r in stops:  # one line per approach, not per adhesion level
@@ -375,43 +410,29 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         else:  # every level stops: what the sweep still says (an approach moved back from a TASC beacon)
             summary.notes += [f"{line.line_id}: {w}" for w in r.warnings]
 
-    # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts depend
-    # on the line alone, so they run beside it (first: the longest unit)
-    side = []
-    checks_conflicts = job.conflicts.enabled and line.network is not None
-    if checks_conflicts:
-        side.insert(0, ("conflicts", [_conflicts_unit_of(job, line, lifted)]))
-    cp = job.closed_loop
-    c_units = [
-        Unit("closed_loop",
-             digest(["closed_loop", code, u.key, [dataclasses.asdict(sc) for sc in cp.scenarios], list(cp.modes),
-                     cp.horizon_s, cp.step_s]),
-             u.label, _closed_loop_unit,
-             (windows[k], tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s,
-              tp.ds_m))
-        for k, u, tab in zip(tasks, t_units, tables)
-    ]
     # what the rest of the line needs of the tables and stops (the verdicts: record_verdicts); the rest is let
-    # go before the closed loop, so that the whole line's results are not held through the later steps
+    # go before the closed loop's results come in, so that the whole line's results are not held through the
+    # later steps
     flagged_tables = [r for r in tables if r.flags]
+    c_units, tables_written, given = ahead.pop("c_units"), ahead.pop("tables_written"), ahead.pop("given")
     del tables, stops
-    *side_results, loop_batches = runner.run_steps(side + [("closed_loop", c_units)])
+    *side_results, loop_batches = ahead.pop("loop").results()
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
     unit_keys = [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units]
     flagged = [flagged_tables, [r for r in loops if r.flags]]
     del side_results, loop_batches, t_units, s_units, c_units, windows
-    # the bundles need the tables and stops datasets only: built on a worker from here on, beside the
-    # margins (the worker loads the key from its file); the train graph's trajectories (the line alone,
-    # taken by line_views) on the other, while this process writes the closed loop and reads it back
-    # for the margins (the writer thread runs its tasks in order: the stops written means the tables are too)
-    _count(summary, stops_written.result())
-    bundles = _start_bundles(job, line, stage, runner, summary, key_path, bday)
+    # the train graph's trajectories (the line alone, taken by line_views) start first, on one worker; the
+    # bundles need the tables and stops datasets only: built on the other from when they are written, beside
+    # the margins (the worker loads the key from its file; the writer thread runs its tasks in order, so the
+    # stops written means the tables are too), while this process makes the closed loop's rows for the margins
     from planner.job.views import graph_unit
 
     graph = runner.start("graph", [graph_unit(job, line, lifted)])
     summary.pending.append(graph)
     _count(summary, tables_written.result())
+    _count(summary, stops_written.result())
+    bundles = _start_bundles(job, line, stage, runner, summary, key_path, bday)
     from planner.datasets.closed_loop import datasets as closed_loop_datasets, write_closed_loop
 
     # the closed loop's rows are written on the writer thread while the margins read them from memory
