@@ -1,8 +1,9 @@
-"""The stops dataset's columns, built in Arrow, against the same rows built one by one in Python.
+"""The stops and closed-loop datasets' columns, built in Arrow, against the same rows built one by one in Python.
 
-``planner.datasets.stops.datasets`` repeats the values a pattern's rows share with ``take``; the writer's
-Parquet bytes depend on that table being the same as the straightforward row-by-row table (types, values
-to the bit, nulls, NaN), which the reference builds.
+``planner.datasets.stops.datasets`` and ``planner.datasets.closed_loop.datasets`` repeat the values a
+pattern's or a result's rows share with ``take``, concatenate the runs' arrays and build the list columns
+from offsets; the writers' Parquet bytes depend on those tables being the same as the straightforward
+row-by-row tables (types, values to the bit, nulls, NaN), which these references build.
 """
 from __future__ import annotations
 
@@ -12,11 +13,14 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
+from planner.datasets import closed_loop as dcl
 from planner.datasets import stops as dstops
 from planner.line.units import kmh, kmh_s
 from planner.stopping.pattern import solve_stop
 from planner.stopping.result import StopPattern
 from planner.stopping.sweep import ApproachResult
+from planner.tables.closed_loop import ClosedLoopResult, summary_row
+from planner.tables.flags import LegFlag
 
 
 def _same(got: pa.Table, want: pa.Table) -> None:
@@ -89,3 +93,82 @@ def test_stop_samples_equal_the_rows_built_one_by_one(case):
         samples = got["stop_samples"]
         assert samples.num_rows > 20 and set(samples["station_id"].to_pylist()) == {"S1", "S2"}
         assert samples.filter(pa.compute.equal(samples["t_s"], 0.0)).num_rows == 4
+
+
+# --- closed loop -------------------------------------------------------------------------------------
+
+
+def _closed_loop_by_row(results):
+    """The runs one Python dict per row, types inferred by Arrow (what the columns must equal)."""
+    cols: dict[str, list] = {}
+    for r in results:
+        for i in range(r.designated_s.size):
+            row = {"line": r.line_id, "direction": r.direction, "train_type": r.train_type,
+                   "scenario": r.scenario, "mode": r.mode, "origin": r.origin, "destination": r.destination,
+                   "designated_s": float(r.designated_s[i]), "actual_s": float(r.actual_s[i]),
+                   "error_s": float(r.error_s[i]), "feasible": bool(r.feasible[i]), "min_time_s": r.min_time_s,
+                   "eval_point_ids": list(r.eval_point_ids),
+                   "ratios": [float(x) for x in np.asarray(r.ratios, float).reshape(r.designated_s.size, -1)[i]]}
+            for k, v in row.items():
+                cols.setdefault(k, []).append(v)
+    return pa.table(cols)
+
+
+def _summary_by_row(results):
+    cols: dict[str, list] = {}
+    for r in results:
+        row = {"line": r.line_id, "direction": r.direction, "train_type": r.train_type, "scenario": r.scenario,
+               "mode": r.mode, **summary_row(r)}
+        if not math.isfinite(row["flag_position_m"]):
+            row["flag_position_m"] = None
+        for k, v in row.items():
+            cols.setdefault(k, []).append(v)
+    return pa.table(cols)
+
+
+def _loop(designated, actual, ratios, ids, *, mode="nearest", min_time_s=100.0, flags=(), direction="down"):
+    d = np.asarray(designated, float)
+    return ClosedLoopResult(
+        line_id="L1", direction=direction, train_type="T", origin="A", destination="B", scenario="nominal",
+        mode=mode, designated_s=d, actual_s=np.asarray(actual, float), ratios=np.asarray(ratios, float),
+        eval_point_ids=tuple(ids), min_time_s=min_time_s, max_time_s=200.0,
+        stop_error_m=np.zeros(d.size), flags=tuple(flags))
+
+
+STALL = LegFlag(kind="stall", scenario="perturbed", position_m=1234.5, reason="stalls at 1234.5 m")
+NOWHERE = LegFlag(kind="stall", scenario="reference", position_m=math.nan, reason="no table (c)")
+
+CASES = {
+    "mixed": [
+        _loop([100.0, 101.0, 102.0], [99.5, math.nan, -0.0], [[1.0, 0.9], [0.8, math.nan], [0.7, 0.7]],
+              ["dep", "b1"], flags=[STALL]),
+        _loop([], [], np.zeros((0, 3)), ["dep", "b1", "b2"]),  # no runs: a summary row only
+        _loop([50.0, 51.0], [math.nan, math.nan], [[math.nan] * 3] * 2, ["dep", "o1", "o2"], mode="timekeeping",
+              min_time_s=49, flags=[NOWHERE], direction="up"),  # an int minimum beside floats: double
+        _loop([10.0], [10.5], [[1.0]], ["dep"], min_time_s=9.0),
+    ],
+    "int_minimum": [_loop([100.0, 101.0], [101.0, 101.0], [[1.0], [0.9]], ["dep"], min_time_s=100)],
+    "no_points": [_loop([100.0], [101.0], np.zeros((1, 0)), [])],  # empty lists: list<null> as inferred
+    "no_points_beside_points": [_loop([100.0], [101.0], np.zeros((1, 0)), []),
+                                _loop([100.0], [101.0], [[1.0]], ["dep"])],
+    "no_runs": [_loop([], [], np.zeros((0, 1)), ["dep"])],  # no columns at all, as from no rows
+    "none": [],
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_closed_loop_columns_equal_the_rows_built_one_by_one(case):
+    results = CASES[case]
+    got = dcl.datasets(results)
+    _same(got["closed_loop"], _closed_loop_by_row(results))
+    _same(got["closed_loop_summary"], _summary_by_row(results))
+    if case == "mixed":  # the case does what it says
+        t = got["closed_loop"]
+        assert t.num_rows == 6 and t.schema.field("ratios").type == pa.list_(pa.float64())
+        assert t["min_time_s"].type == pa.float64() and t["eval_point_ids"][3].as_py() == ["dep", "o1", "o2"]
+    if case == "int_minimum":
+        assert got["closed_loop"]["min_time_s"].type == pa.int64()
+    if case == "no_points":
+        assert got["closed_loop"]["ratios"].type == pa.list_(pa.null())
+    if case == "no_runs":
+        assert got["closed_loop"].num_columns == 0 and got["closed_loop_summary"].num_rows == 1
