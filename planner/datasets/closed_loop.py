@@ -128,35 +128,62 @@ CLOSED_LOOP_SUMMARY_SCHEMA = declare(
 
 
 def datasets(results: Sequence[ClosedLoopResult]) -> dict[str, pa.Table]:
-    """``closed_loop`` and ``closed_loop_summary`` rows with partition columns, in result order."""
-    runs: dict[str, list] = {}
+    """``closed_loop`` and ``closed_loop_summary`` rows with partition columns, in result order.
+
+    The columns are those Arrow infers from the rows' Python values (``closed_loop`` has no columns at
+    all when no result has a run); the writer conforms them to the declared schemas.
+    """
     summ: dict[str, list] = {}
-
-    def add(dst, row):
-        for k, v in row.items():
-            dst.setdefault(k, []).append(v)
-
     for r in results:
-        part = {"line": r.line_id, "direction": r.direction, "train_type": r.train_type,
-                "scenario": r.scenario, "mode": r.mode}
-        n = r.designated_s.size
-        if n:  # a column at a time (a dict per run was most of the step's time in the job's process), the
-            # same Python values as row by row, so Arrow infers the same columns
-            cols = {**{k: [v] * n for k, v in part.items()},
-                    "origin": [r.origin] * n, "destination": [r.destination] * n,
-                    "designated_s": np.asarray(r.designated_s, float).tolist(),
-                    "actual_s": np.asarray(r.actual_s, float).tolist(),
-                    "error_s": np.asarray(r.error_s, float).tolist(),
-                    "feasible": np.asarray(r.feasible, bool).tolist(), "min_time_s": [r.min_time_s] * n,
-                    "eval_point_ids": [list(r.eval_point_ids) for _ in range(n)],
-                    "ratios": np.asarray(r.ratios, float).reshape(n, -1).tolist()}
-            for k, v in cols.items():
-                runs.setdefault(k, []).extend(v)
         row = summary_row(r)
         if not math.isfinite(row["flag_position_m"]):  # no place: null, not NaN
             row["flag_position_m"] = None
-        add(summ, part | row)
-    return {"closed_loop": pa.table(runs), "closed_loop_summary": pa.table(summ)}
+        for k, v in (_partition(r) | row).items():
+            summ.setdefault(k, []).append(v)
+    return {"closed_loop": _runs([r for r in results if r.designated_s.size]),
+            "closed_loop_summary": pa.table(summ)}
+
+
+def _partition(r: ClosedLoopResult) -> dict:
+    return {"line": r.line_id, "direction": r.direction, "train_type": r.train_type,
+            "scenario": r.scenario, "mode": r.mode}
+
+
+def _runs(results: Sequence[ClosedLoopResult]) -> pa.Table:
+    """The ``closed_loop`` rows of ``results`` (each with at least one run), built in Arrow.
+
+    Equal to the table of the rows' Python values (``pa.table`` of lists, one value per run), which
+    took most of the step's time in the job's process: a value the rows of a result share is
+    typed as Arrow infers it from one value per result and repeated by ``take`` (inference looks
+    at which values occur, not how often), the run columns are the results' arrays concatenated,
+    and the ratios one list per run over the concatenated rows.
+    """
+    if not results:
+        return pa.table({})
+    n = np.array([r.designated_s.size for r in results], dtype=np.int64)
+    of_row = np.repeat(np.arange(n.size), n)  # the result each row comes from
+
+    def shared(values: list) -> pa.Array:
+        return pa.array(values).take(of_row)
+
+    def runs(name: str, dtype=float) -> np.ndarray:
+        return np.concatenate([np.asarray(getattr(r, name), dtype) for r in results])
+
+    ratios = [np.asarray(r.ratios, float).reshape(k, -1) for r, k in zip(results, n)]
+    width = np.repeat([a.shape[1] for a in ratios], n)  # each run's number of ratios
+    offsets = np.zeros(width.size + 1, dtype=np.int32)
+    np.cumsum(width, out=offsets[1:])
+    values = np.concatenate([a.ravel() for a in ratios])
+    parts = [_partition(r) for r in results]
+    cols = {k: shared([p[k] for p in parts]) for k in PARTITION_COLS}
+    cols |= {"origin": shared([r.origin for r in results]),
+             "destination": shared([r.destination for r in results]),
+             "designated_s": runs("designated_s"), "actual_s": runs("actual_s"), "error_s": runs("error_s"),
+             "feasible": runs("feasible", bool), "min_time_s": shared([r.min_time_s for r in results]),
+             "eval_point_ids": shared([list(r.eval_point_ids) for r in results]),
+             # no ratio at all: lists of null, as inferred from empty lists
+             "ratios": pa.ListArray.from_arrays(offsets, values if values.size else pa.nulls(0))}
+    return pa.table(cols)
 
 
 def write_closed_loop(results: Sequence[ClosedLoopResult] | dict[str, pa.Table], out_dir: str | Path) -> list[Path]:

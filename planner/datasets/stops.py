@@ -85,7 +85,13 @@ def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_
         Sampling step of the patterns [s].
     """
     summ: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SUMMARY_SCHEMA.names)}
-    samp: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", *STOP_SAMPLES_SCHEMA.names)}
+    # the samples' columns a pattern's rows share, one value per sampled pattern (repeated in Arrow below),
+    # and the sampled ones, one array per pattern
+    shared: dict[str, list] = {k: [] for k in ("line", "direction", "train_type", "station_id", "adhesion_ms2",
+                                               "adhesion_kmh_s")}
+    sampled: dict[str, list] = {k: [] for k in ("t_s", "position_m", "distance_to_stop_m", "speed_kmh",
+                                                "accel_ms2", "jerk_ms3")}
+    n_rows: list[int] = []
     for r in results:
         lost = r.time_lost_s
         for a, p, tl in zip(r.adhesion_ms2, r.patterns, lost):
@@ -107,24 +113,24 @@ def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_
             if not p.feasible:
                 continue
             s = p.sample(dt_s)
-            n = s.t_s.size
-            samp["line"] += [r.line_id] * n
-            samp["direction"] += [r.direction] * n
-            samp["train_type"] += [r.train_type] * n
-            samp["station_id"] += [r.station_id] * n
-            samp["adhesion_ms2"] += [a] * n
-            samp["adhesion_kmh_s"] += [kmh_s(a)] * n
-            samp["t_s"].append(s.t_s)
-            samp["position_m"].append(r.chainage_m(s.x_m))
-            samp["distance_to_stop_m"].append(r.approach_length_m - s.x_m)
-            samp["speed_kmh"].append(kmh(s.v_ms))
-            samp["accel_ms2"].append(s.a_ms2)
-            samp["jerk_ms3"].append(s.j_ms3)
-    for k in ("t_s", "position_m", "distance_to_stop_m", "speed_kmh", "accel_ms2", "jerk_ms3"):
-        samp[k] = np.concatenate(samp[k]) if samp[k] else np.zeros(0)
+            n_rows.append(s.t_s.size)
+            for k in shared:
+                shared[k].append(row[k])
+            sampled["t_s"].append(s.t_s)
+            sampled["position_m"].append(r.chainage_m(s.x_m))
+            sampled["distance_to_stop_m"].append(r.approach_length_m - s.x_m)
+            sampled["speed_kmh"].append(kmh(s.v_ms))
+            sampled["accel_ms2"].append(s.a_ms2)
+            sampled["jerk_ms3"].append(s.j_ms3)
+    # a shared value is converted once per pattern and repeated by take (the samples' strings as Python
+    # lists, one item per row, were most of this function's time): the same column as converting every
+    # row's copy, nulls included
+    of_row = np.repeat(np.arange(len(n_rows)), np.asarray(n_rows, dtype=np.int64))  # pattern of each row
+    samp = {k: pa.array(v, type=_type(k, STOP_SAMPLES_SCHEMA)).take(of_row) for k, v in shared.items()}
+    samp |= {k: pa.array(np.concatenate(v) if v else np.zeros(0), type=_type(k, STOP_SAMPLES_SCHEMA))
+             for k, v in sampled.items()}
     summary = pa.table({k: pa.array(v, type=_type(k, STOP_SUMMARY_SCHEMA)) for k, v in summ.items()})
-    samples = pa.table({k: pa.array(v, type=_type(k, STOP_SAMPLES_SCHEMA)) for k, v in samp.items()})
-    return {"stop_summary": summary, "stop_samples": samples}
+    return {"stop_summary": summary, "stop_samples": pa.table(samp)}
 
 
 def _type(name: str, schema: pa.Schema) -> pa.DataType:
