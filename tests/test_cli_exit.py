@@ -52,13 +52,33 @@ def test_a_message_exit_is_the_normal_one(monkeypatch):
 
 
 def test_a_real_process_flushes_and_runs_its_exit_handlers():
-    """In a real process: the command's output and what an exit handler writes both arrive, with the code."""
+    """In a real process (the console entry point): the command's output and what an exit handler writes both
+    arrive, with the code."""
     prog = ("import atexit, sys\n"
             "atexit.register(lambda: print('handler ran'))\n"
             "sys.argv = ['planner', '--version']\n"
             "import planner.cli\n"
-            "planner.cli.main()\n"
+            "planner.cli.console()\n"
             "print('not reached')\n")
     r = subprocess.run([sys.executable, "-c", prog], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert r.stdout.splitlines() == [f"planner {__import__('planner').__version__}", "handler ran"]
+
+
+def test_main_itself_ends_in_systemexit():
+    """Tests and embedding programs call ``main`` in their own process: it raises, never ends the process."""
+    with pytest.raises(SystemExit) as e:
+        import sys as _sys
+
+        argv, _sys.argv = _sys.argv, ["planner", "--version"]
+        try:
+            cli.main()
+        finally:
+            _sys.argv = argv
+    assert e.value.code in (0, None)
+
+
+def test_python_m_ends_with_the_commands_code(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "planner.cli", "validate", str(tmp_path / "missing")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0 and r.stderr.startswith("error:") and "Traceback" not in r.stderr

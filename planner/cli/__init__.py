@@ -83,8 +83,6 @@ def main() -> None:
     (exit 70), its traceback saved to a temporary file that the line names."""
     try:
         app()
-    except SystemExit as e:  # every command's end, normal or not (click exits the process itself)
-        _exit_now(e)
     except PlannerError as e:
         typer.echo(f"error: {e}", err=True)
         sys.exit(e.exit_code)
@@ -95,6 +93,16 @@ def main() -> None:
         typer.echo(f"error: internal error in planner ({_one_line(e)}). This is a bug: "
                    f"please report it with the traceback saved in {_save_traceback()}", err=True)
         sys.exit(70)  # EX_SOFTWARE
+
+
+def console() -> None:
+    """The ``planner`` command's process entry point (``python -m planner.cli`` too): :func:`main`, then the
+    process ends at once (:func:`_exit_now`). Callers in a process of their own making call :func:`main`,
+    which ends in ``SystemExit`` as a command does."""
+    try:
+        main()
+    except SystemExit as e:  # every command's end, normal or not (click ends in SystemExit)
+        _exit_now(e)
 
 
 def _exit_now(e: SystemExit) -> None:
