@@ -229,32 +229,34 @@ def closed_loop_index(closed_loop_dir: Path, line_id: str, rule, tables: dict | 
     Arrow tables themselves (:func:`planner.datasets.closed_loop.datasets`: the rows the folder holds or
     is being written with), read instead of the folder.
     """
+    import pyarrow.compute as pc
+
     from planner.tables.closed_loop import SCENARIOS
 
     if tables is not None:
-        t = _of_line(tables["closed_loop"], line_id)
+        t = _line_rows(tables["closed_loop"], line_id)
     else:
         try:
-            t = read_dataset(closed_loop_dir, "closed_loop", line=line_id).to_pandas()
+            t = read_dataset(closed_loop_dir, "closed_loop", line=line_id)
         except (FileNotFoundError, OSError) as e:
             raise InputError(f"--closed-loop {closed_loop_dir}: cannot read the closed_loop dataset ({e}); "
                              "run `planner simulate` first or leave the option out") from None
     for c in ("scenario", "mode"):
-        if c not in t.columns:
+        if c not in t.column_names:
             raise InputError(f"--closed-loop {closed_loop_dir}: closed_loop has no {c!r} partition; "
                              "rebuild it with `planner simulate`")
-        t[c] = t[c].astype(str)
-    t = t[t["mode"] == "nearest"]
     p = SCENARIOS["perturbed"]
     names = {"nominal": "nominal"}
     if (p.load, p.traction_factor) == (rule.bad_load, rule.bad_traction):
         names["perturbed"] = "degraded"
-    out = {}
-    for r in t.itertuples(index=False):
-        if r.scenario in names:
-            out[(r.direction, r.train_type, r.origin, r.destination, names[r.scenario],
-                 round(float(r.designated_s), 6))] = float(r.error_s)
-    return out
+    text = {c: pc.cast(t.column(c), pa.string()) for c in ("scenario", "mode")}
+    t = t.filter(pc.and_(pc.equal(text["mode"], "nearest"), pc.is_in(text["scenario"], pa.array(list(names)))))
+    # a column at a time (a Python object per row was most of the margins' start on the job's critical path)
+    keys = [t.column(c).to_pylist() for c in ("direction", "train_type", "origin", "destination")]
+    scen = [names[s] for s in pc.cast(t.column("scenario"), pa.string()).to_pylist()]
+    designated = [round(x, 6) for x in t.column("designated_s").to_numpy(zero_copy_only=False).astype(float).tolist()]
+    err = t.column("error_s").to_numpy(zero_copy_only=False).astype(float).tolist()
+    return {(d, tt, o, de, s, x): e for d, tt, o, de, s, x, e in zip(*keys, scen, designated, err)}
 
 
 def closed_loop_worst(closed_loop_dir: Path, line_id: str, tables: dict | None = None) -> dict:
@@ -262,7 +264,7 @@ def closed_loop_worst(closed_loop_dir: Path, line_id: str, tables: dict | None =
     by (direction, train type, origin, destination); legs without a feasible run are left out.
     ``tables``: as for :func:`closed_loop_index`."""
     if tables is not None:
-        t = _of_line(tables["closed_loop_summary"], line_id)
+        t = _line_rows(tables["closed_loop_summary"], line_id).to_pandas()
     else:
         try:
             t = read_dataset(closed_loop_dir, "closed_loop_summary", line=line_id).to_pandas()
@@ -275,12 +277,12 @@ def closed_loop_worst(closed_loop_dir: Path, line_id: str, tables: dict | None =
     return {k: float(v) for k, v in g["max_abs_error_s"].max().items()}
 
 
-def _of_line(table: pa.Table, line_id: str):
-    """The rows of ``line_id`` of an Arrow table with a ``line`` column, as a DataFrame (what reading the
-    dataset filtered by its ``line`` partition gives)."""
+def _line_rows(table: pa.Table, line_id: str) -> pa.Table:
+    """The rows of ``line_id`` of an Arrow table with a ``line`` column (what reading the dataset filtered by
+    its ``line`` partition gives)."""
     import pyarrow.compute as pc
 
-    return table.filter(pc.equal(table.column("line"), line_id)).to_pandas()
+    return table.filter(pc.equal(table.column("line"), line_id))
 
 
 def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:
