@@ -282,7 +282,7 @@ def test_failing_step_leaves_latest_untouched(project, monkeypatch):
     def boom(*a, **k):
         raise PlannerError("bundle step failed on purpose")
 
-    monkeypatch.setattr(pl, "_bundles_step", boom)
+    monkeypatch.setattr(pl, "bundles_step", boom)
     _edit_restriction(project, 65.0)
     with pytest.raises(PlannerError, match="on purpose"):
         _run(job)

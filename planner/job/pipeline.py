@@ -40,7 +40,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Sequence
 
 from planner import __version__
 from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomic
@@ -48,7 +48,7 @@ from planner.io.memory import give_back, then_give_back
 from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
-from planner.job.day import day_digest, lifted_key, line_digest, plan_day, resolve_day
+from planner.job.day import day_digest, plan_day, resolve_day
 from planner.line.model import DIRECTIONS, Line
 from planner.job.cache import Cache
 from planner.job.keys import signing_key_path
@@ -63,6 +63,16 @@ from planner.job.units import (
     code_digest,
     kernel_backends,
     interstation_inputs,
+)
+from planner.job.steps import (
+    bundles_step,
+    conflicts_step,
+    conflicts_unit_of,
+    count_rows,
+    line_types,
+    margins_step,
+    result_params,
+    start_bundles,
 )
 from planner.job.publish import (
     canonical_json,
@@ -134,20 +144,11 @@ def _renewal_due(last_manifest: dict, now_s: int) -> bool:
     return now_s >= built + (expires - built) // 2
 
 
-def _result_params(job: Job) -> dict[str, Any]:
-    """The job parameters that can change a result: all but where runs go, how many are kept, and the
-    run's date and the operating day (they go into the inputs digest on their own)."""
-    params = job.parameters()
-    params.pop("day", None)
-    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root", "run_date")}
-    return params
-
-
 def _inputs_digest(job: Job, lines: Sequence[Line | str], key_id: str, run_date: str = "") -> str:
     """Digest of everything a run depends on: code, parameters, line databases (each a Line or its
     :func:`planner.line.loader.source_digest`), signing key (its public id), and the run's date (stamped
     on every dataset row, so one run id always has one date)."""
-    return digest({"code": code_digest(), "params": _result_params(job),
+    return digest({"code": code_digest(), "params": result_params(job),
                    "lines": [ln if isinstance(ln, str) else ln.source_digest for ln in lines],
                    "key": key_id, "run_date": run_date, "day": day_digest(job)})
 
@@ -300,10 +301,6 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
     return summary
 
 
-def _types(job: Job, line: Line) -> list[str]:
-    return list(job.job.train_types) or [t.train_type for t in line.train_types]
-
-
 def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
     """Start ``fn(*args)`` on the run's writer thread (a step's datasets written, or read back, while
     the workers compute the next step: Arrow works without the GIL); the future gives the result. In
@@ -324,7 +321,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.line.units import KMH, KMH_S
 
     tp, code = job.tables, code_digest()
-    types = _types(job, line)
+    types = line_types(job, line)
     tasks = [(t, d, a.station_id, b.station_id) for t in types for d in DIRECTIONS for a, b in line.interstations(d)]
     # the floor of each leg's grid: ratio × the train's highest maximum on the leg = min_target_kmh
     grids = {k: leg_ratio_grid(tp.ratios, line, k[0], k[2], k[3], tp.min_target_kmh * KMH) for k in tasks}
@@ -359,7 +356,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     side = []
     checks_conflicts = job.conflicts.enabled and line.network is not None
     if checks_conflicts:
-        side.insert(0, ("conflicts", [_conflicts_unit_of(job, line, lifted)]))
+        side.insert(0, ("conflicts", [conflicts_unit_of(job, line, lifted)]))
     cp = job.closed_loop
     ahead: dict[str, Any] = {}
 
@@ -379,7 +376,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         ahead["loop"] = runner.start_steps(side + [("closed_loop", ahead["c_units"])], wait=False)
         summary.pending.append(ahead["loop"])  # a run failing meanwhile waits for it (and caches what it did)
         ahead["tables_written"] = _on_writer(writes, write_tables, tables, stage)
-        ahead["given"] = _on_writer(writes, given_tables, line, _types(job, line), stage)
+        ahead["given"] = _on_writer(writes, given_tables, line, line_types(job, line), stage)
 
     # the stops do not depend on the tables: one pass of the workers, the stops' short units filling the
     # tables' last ones; the closed loop starts as soon as the last table is in (tables_in), so no worker
@@ -430,9 +427,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     graph = runner.start("graph", [graph_unit(job, line, lifted)])
     summary.pending.append(graph)
-    _count(summary, tables_written.result())
-    _count(summary, stops_written.result())
-    bundles = _start_bundles(job, line, stage, runner, summary, key_path, bday)
+    count_rows(summary, tables_written.result())
+    count_rows(summary, stops_written.result())
+    bundles = start_bundles(job, line, stage, runner, summary, key_path, bday)
     from planner.datasets.closed_loop import datasets as closed_loop_datasets, write_closed_loop
 
     # the closed loop's rows are written on the writer thread while the margins read them from memory
@@ -443,12 +440,12 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     conflicts = None
     if checks_conflicts:
-        conflicts = _conflicts_step(line, stage, summary, got.pop("conflicts"))
-    _margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted, closed_loop)
-    _count(summary, loops_written.result())
+        conflicts = conflicts_step(line, stage, summary, got.pop("conflicts"))
+    margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted, closed_loop)
+    count_rows(summary, loops_written.result())
     del given, closed_loop  # the tables read back and the closed loop's rows, for the margins
     give_back()
-    _bundles_step(stage, runner, summary, key, bundles)
+    bundles_step(stage, runner, summary, key, bundles)
     if verify is not None:  # every bundle of the run is written: the overview's check of them, on a worker
         from planner.io.parallel import background
         from planner.pages.overview import bundle_rows
@@ -469,119 +466,6 @@ def conflicts_status(job: Job, line: Line) -> str:
     if not job.conflicts.enabled:
         return "disabled"
     return "checked" if line.network is not None else "no track network"
-
-
-def _count(summary: RunSummary, files: Iterable[Path]) -> None:
-    """Add the rows of written dataset files to the summary, per dataset (the folder above ``line=``)."""
-    import pyarrow.parquet as pq
-
-    for f in map(Path, files):
-        parts = f.parts
-        name = next(parts[i - 1] for i, p in enumerate(parts) if p.startswith("line="))
-        summary.rows[name] = summary.rows.get(name, 0) + pq.ParquetFile(f).metadata.num_rows
-
-
-def _line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
-    """A line-level unit: loaded from the cache when its key is there, else computed here."""
-    return runner.run(step, [Unit(step, key, step, fn, args)])[0]
-
-
-def _margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None, closed_loop=None):
-    from planner.report.margins import compute_margins
-
-    # conflicts come from their own step (_conflicts_step); ``given``: the tables read beforehand;
-    # ``closed_loop``: the closed loop's rows, being written to ``stage`` meanwhile
-    return compute_margins(line, **(options | {"conflicts": False}), train_types=types, tables_dir=stage,
-                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given, lifted=lifted,
-                           closed_loop=closed_loop)
-
-
-def _margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
-                  unit_keys: list[str], conflicts, given=None, lifted=None, closed_loop=None) -> None:
-    from planner.report.margin_datasets import write_margins
-    from planner.report.margins import margin_options
-
-    key = digest(["margins", code_digest(), line_digest(line), lifted_key(lifted or {}), unit_keys,
-                  _result_params(job)])
-    n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
-    report = _line_unit(runner, "margins", key, _margins_unit, line, margin_options(job, line), _types(job, line),
-                        stage, n_jobs, given, lifted, closed_loop)
-    if conflicts is not None:
-        report.conflicts, report.conflicts_note = conflicts, ""
-    elif not job.conflicts.enabled:
-        report.conflicts_note = "not checked ([conflicts] enabled = false in the job file)"
-    else:
-        report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
-    # the page itself is written once, by job.views.run_views, with what changed since the last run on top
-    # (its charts are drawn there: tens of milliseconds, less than sending the report to a worker)
-    from planner.report.leg_flags import FLAGS
-
-    summary.reports[line.line_id] = report
-    _count(summary, write_margins(report, stage))
-    for flag in FLAGS:  # legs the margin report flags, each flag its own card on the overview
-        summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
-
-
-def _build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None) -> list:
-    """Every bundle of the line for the operating day ``day`` (:func:`planner.job.day.bundle_day`; runs on a
-    worker: module level, the key read from its file there)."""
-    from planner.bundle.container import build_line
-
-    give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
-    return then_give_back(build_line, line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
-                          train_types=types, day=day)  # and the pages of the line's tables, for the units after it
-
-
-def _start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
-                   bday=None):
-    """Start the line's bundles on a worker; the step's time runs from here to when they are written."""
-    from planner.io.parallel import background
-
-    runner.progress.start("bundles", 2 * len(_types(job, line)))
-    b = background(_build_bundles, (line, stage / "bundles", key_path, summary.release, stage, _types(job, line), bday),
-                   name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
-    summary.pending.append(b)
-    return b
-
-
-def _bundles_step(stage: Path, runner: Runner, summary: RunSummary, key, bundles) -> None:
-    """Signed bundles for every direction × train type (:func:`_start_bundles`), and the public key that
-    verifies them."""
-    from cryptography.hazmat.primitives import serialization
-
-    out = stage / "bundles"
-    infos = bundles.result()
-    runner.progress.advance("bundles", len(infos))
-    runner.progress.finish("bundles")
-    pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
-    write_bytes_atomic(out / "signing_key.pub.pem", pem)
-    summary.bundles += [Path(i.path).name for i in infos]
-
-
-def _conflicts_unit(line, params, lifted=None):
-    from planner.datasets.conflicts import check_conflicts
-    from planner.network.arrivals import train_curves
-
-    # the worker's pages of the whole line's run curves given back, for the units after it
-    return then_give_back(lambda: check_conflicts(line, params, curves=train_curves(line, lifted)))
-
-
-def _conflicts_unit_of(job: Job, line: Line, lifted=None) -> Unit:
-    """The unit of the line's route conflicts (its whole timetable; each train's run with the restrictions
-    that apply to it: ``lifted``, :func:`planner.job.day.lifted_restrictions`)."""
-    params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
-    key = digest(["conflicts", code_digest(), line_digest(line), lifted_key(lifted or {}), params, job.tables.ds_m])
-    return Unit("conflicts", key, "conflicts", _conflicts_unit, (line, params, lifted))
-
-
-def _conflicts_step(line: Line, stage: Path, summary: RunSummary, report):
-    """Write the route conflicts found (:func:`_conflicts_unit_of`); returns the conflicts table for the report."""
-    from planner.datasets.conflicts import write_conflicts
-
-    _count(summary, write_conflicts(report, stage))
-    summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
-        report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0)
-    return report.conflicts
 
 
 def _release_record(release) -> dict | None:

@@ -109,7 +109,7 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
     legs with a chart in running order (the train graph links them).
     """
-    from planner.job.pipeline import _count
+    from planner.job.steps import count_rows
     from planner.job.units import Unit
     from planner.pages.timetable import render_page, write_page
     from planner.report.train_timetable import chart_name, leg_line, leg_runs, timetable_rows, write_timetable
@@ -140,7 +140,7 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     with runner.progress.step("timetable"):  # while the workers draw the charts
         types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
         recs = timetable_rows(line, runs, types)  # made once: the dataset's rows and the page's
-        _count(summary, write_timetable(line, runs, stage, types, recs))
+        count_rows(summary, write_timetable(line, runs, stage, types, recs))
         links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
                  ("train graph", f"../graph/{lid}_graph.html")]
         write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, links=links, run_id=run_id, day=day,

@@ -1,0 +1,149 @@
+"""The nightly job's line steps after the closed loop: the margins, the bundles and the route conflicts.
+
+Each step's unit (keyed by the digest of exactly what it depends on, as every unit of
+:mod:`planner.job.pipeline`), the module-level functions its workers run, its datasets and
+what it adds to the run's summary (rows, flags, bundles). :func:`planner.job.pipeline._run_line`
+calls them in the line's order.
+"""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Iterable
+
+from planner.io.atomic import write_bytes_atomic
+from planner.io.memory import give_back, then_give_back
+from planner.job.config import Job
+from planner.job.day import lifted_key, line_digest
+from planner.job.publish import digest
+from planner.job.units import Runner, Unit, code_digest
+from planner.line.model import Line
+
+if TYPE_CHECKING:
+    from planner.job.pipeline import RunSummary
+
+
+def result_params(job: Job) -> dict[str, Any]:
+    """The job parameters that can change a result: all but where runs go, how many are kept, and the
+    run's date and the operating day (they go into the inputs digest on their own)."""
+    params = job.parameters()
+    params.pop("day", None)
+    params["job"] = {k: v for k, v in params["job"].items() if k not in ("keep_runs", "output_root", "run_date")}
+    return params
+
+
+def line_types(job: Job, line: Line) -> list[str]:
+    return list(job.job.train_types) or [t.train_type for t in line.train_types]
+
+
+def count_rows(summary: RunSummary, files: Iterable[Path]) -> None:
+    """Add the rows of written dataset files to the summary, per dataset (the folder above ``line=``)."""
+    import pyarrow.parquet as pq
+
+    for f in map(Path, files):
+        parts = f.parts
+        name = next(parts[i - 1] for i, p in enumerate(parts) if p.startswith("line="))
+        summary.rows[name] = summary.rows.get(name, 0) + pq.ParquetFile(f).metadata.num_rows
+
+
+def line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
+    """A line-level unit: loaded from the cache when its key is there, else computed here."""
+    return runner.run(step, [Unit(step, key, step, fn, args)])[0]
+
+
+def margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None, closed_loop=None):
+    from planner.report.margins import compute_margins
+
+    # conflicts come from their own step (conflicts_step); ``given``: the tables read beforehand;
+    # ``closed_loop``: the closed loop's rows, being written to ``stage`` meanwhile
+    return compute_margins(line, **(options | {"conflicts": False}), train_types=types, tables_dir=stage,
+                           stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given, lifted=lifted,
+                           closed_loop=closed_loop)
+
+
+def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
+                  unit_keys: list[str], conflicts, given=None, lifted=None, closed_loop=None) -> None:
+    from planner.report.margin_datasets import write_margins
+    from planner.report.margins import margin_options
+
+    key = digest(["margins", code_digest(), line_digest(line), lifted_key(lifted or {}), unit_keys,
+                  result_params(job)])
+    n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
+    report = line_unit(runner, "margins", key, margins_unit, line, margin_options(job, line), line_types(job, line),
+                        stage, n_jobs, given, lifted, closed_loop)
+    if conflicts is not None:
+        report.conflicts, report.conflicts_note = conflicts, ""
+    elif not job.conflicts.enabled:
+        report.conflicts_note = "not checked ([conflicts] enabled = false in the job file)"
+    else:
+        report.conflicts_note = "the line database has no track network (nodes.parquet, edges.parquet)"
+    # the page itself is written once, by job.views.run_views, with what changed since the last run on top
+    # (its charts are drawn there: tens of milliseconds, less than sending the report to a worker)
+    from planner.report.leg_flags import FLAGS
+
+    summary.reports[line.line_id] = report
+    count_rows(summary, write_margins(report, stage))
+    for flag in FLAGS:  # legs the margin report flags, each flag its own card on the overview
+        summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
+
+
+def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None) -> list:
+    """Every bundle of the line for the operating day ``day`` (:func:`planner.job.day.bundle_day`; runs on a
+    worker: module level, the key read from its file there)."""
+    from planner.bundle.container import build_line
+
+    give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
+    return then_give_back(build_line, line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
+                          train_types=types, day=day)  # and the pages of the line's tables, for the units after it
+
+
+def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
+                   bday=None):
+    """Start the line's bundles on a worker; the step's time runs from here to when they are written."""
+    from planner.io.parallel import background
+
+    runner.progress.start("bundles", 2 * len(line_types(job, line)))
+    b = background(build_bundles, (line, stage / "bundles", key_path, summary.release, stage, line_types(job, line), bday),
+                   name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+    summary.pending.append(b)
+    return b
+
+
+def bundles_step(stage: Path, runner: Runner, summary: RunSummary, key, bundles) -> None:
+    """Signed bundles for every direction × train type (:func:`start_bundles`), and the public key that
+    verifies them."""
+    from cryptography.hazmat.primitives import serialization
+
+    out = stage / "bundles"
+    infos = bundles.result()
+    runner.progress.advance("bundles", len(infos))
+    runner.progress.finish("bundles")
+    pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
+    write_bytes_atomic(out / "signing_key.pub.pem", pem)
+    summary.bundles += [Path(i.path).name for i in infos]
+
+
+def conflicts_unit(line, params, lifted=None):
+    from planner.datasets.conflicts import check_conflicts
+    from planner.network.arrivals import train_curves
+
+    # the worker's pages of the whole line's run curves given back, for the units after it
+    return then_give_back(lambda: check_conflicts(line, params, curves=train_curves(line, lifted)))
+
+
+def conflicts_unit_of(job: Job, line: Line, lifted=None) -> Unit:
+    """The unit of the line's route conflicts (its whole timetable; each train's run with the restrictions
+    that apply to it: ``lifted``, :func:`planner.job.day.lifted_restrictions`)."""
+    params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
+    key = digest(["conflicts", code_digest(), line_digest(line), lifted_key(lifted or {}), params, job.tables.ds_m])
+    return Unit("conflicts", key, "conflicts", conflicts_unit, (line, params, lifted))
+
+
+def conflicts_step(line: Line, stage: Path, summary: RunSummary, report):
+    """Write the route conflicts found (:func:`conflicts_unit_of`); returns the conflicts table for the report."""
+    from planner.datasets.conflicts import write_conflicts
+
+    count_rows(summary, write_conflicts(report, stage))
+    summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
+        report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0)
+    return report.conflicts
