@@ -113,14 +113,13 @@ TABLE_D_SCHEMA = declare(
 )
 
 
-def _keys(t: InterstationTables, n: int) -> dict[str, list]:
-    return {
-        "line": [t.line_id] * n,
-        "direction": [t.direction] * n,
-        "train_type": [t.train_type] * n,
-        "origin": [t.origin] * n,
-        "destination": [t.destination] * n,
-    }
+_KEY_COLUMNS = ("line", "direction", "train_type", "origin", "destination")
+"""The partition and interstation columns, first in every table of :func:`datasets`."""
+
+
+def _keys(t: InterstationTables) -> tuple[str, ...]:
+    """The values of :data:`_KEY_COLUMNS` for the rows of ``t``."""
+    return t.line_id, t.direction, t.train_type, t.origin, t.destination
 
 
 def _null_nan(x: np.ndarray) -> pa.Array:
@@ -129,59 +128,72 @@ def _null_nan(x: np.ndarray) -> pa.Array:
     return pa.array(x, mask=~np.isfinite(x))
 
 
-def _concat(cols: list[dict[str, list]]) -> pa.Table:
-    """One table from per-interstation column chunks, each converted once (numpy arrays without a
-    Python object per value: on a 10x line the lists of floats were a gigabyte)."""
-    chunks: dict[str, list] = {}
-    for c in cols:
-        for k, v in c.items():
-            if len(v):
-                chunks.setdefault(k, []).append(v if isinstance(v, pa.Array) else pa.array(v))
-    return pa.table({k: pa.chunked_array(v) for k, v in chunks.items()})
+def _concat(legs: list[tuple[tuple, int, dict]]) -> pa.Table:
+    """One table from per-interstation chunks ``(keys, rows, columns)``, one chunk per interstation
+    with rows. Each column is converted once per chunk (numpy arrays without a Python object per value:
+    on a 10x line the lists of floats were a gigabyte); the key columns once per table, their values
+    repeated by Arrow and sliced into the same chunks (Python lists of repeated strings, and an Arrow
+    call per chunk, cost most of the conversion)."""
+    legs = [leg for leg in legs if leg[1]]
+    if not legs:
+        return pa.table({})
+    n = np.array([rows for _, rows, _ in legs])
+    starts = np.cumsum(n) - n
+    of_row = np.repeat(np.arange(len(legs)), n)
+    out = {}
+    for c, name in enumerate(_KEY_COLUMNS):
+        whole = pa.array([keys[c] for keys, _, _ in legs]).take(of_row)
+        out[name] = pa.chunked_array([whole.slice(a, m) for a, m in zip(starts.tolist(), n.tolist())])
+    for name in legs[0][2]:
+        out[name] = pa.chunked_array([v if isinstance(v, pa.Array) else pa.array(v)
+                                      for v in (cols[name] for _, _, cols in legs)])
+    return pa.table(out)
 
 
 def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
     """The ``eval_points`` and ``table_a`` … ``table_d`` rows, with partition columns, in task order."""
     ep, ta, tb, tc, td = [], [], [], [], []
     for t in results:
-        n_r, n_x = len(t.ratios), len(t.points)
-        ep.append(_keys(t, n_x) | {
+        keys, n_r, n_x = _keys(t), len(t.ratios), len(t.points)
+        ep.append((keys, n_x, {
             "eval_point_id": [p.eval_point_id for p in t.points],
             "eval_position_m": [p.position_m for p in t.points],
             "eval_distance_m": [p.s_m for p in t.points],
             "eval_point_kind": [p.kind for p in t.points],
-        })
-        ta.append(_keys(t, n_r) | {
+        }))
+        ta.append((keys, n_r, {
             "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
             "ref_stall_position_m": _null_nan(np.full(n_r, np.nan) if t.ref_stall_m is None else t.ref_stall_m),
-        })
-        k, i, j = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), np.arange(n_r), indexing="ij"))
-        tb.append(_keys(t, len(k)) | {
-            "eval_point_id": [t.points[x].eval_point_id for x in k],
-            "eval_position_m": np.array([p.position_m for p in t.points])[k],
+        }))
+        # each row's point id taken by Arrow from the leg's few, not a Python list of one per row
+        ids = pa.array([p.eval_point_id for p in t.points])
+        positions = np.array([p.position_m for p in t.points])
+        k, i, j = np.indices((n_x, n_r, n_r)).reshape(3, -1)
+        tb.append((keys, len(k), {
+            "eval_point_id": ids.take(k),
+            "eval_position_m": positions[k],
             "ratio_before": t.ratios[i],
             "ratio_after": t.ratios[j],
             "remaining_time_s": t.remaining_s[k, i, j],
             "elapsed_time_s": t.elapsed_s[i, k],
-        })
+        }))
         if t.ref_remaining_s is not None:
-            k, i = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), indexing="ij"))
-            tc.append(_keys(t, len(k)) | {
-                "eval_point_id": [t.points[x].eval_point_id for x in k],
-                "eval_position_m": np.array([p.position_m for p in t.points])[k],
+            k, i = np.indices((n_x, n_r)).reshape(2, -1)
+            tc.append((keys, len(k), {
+                "eval_point_id": ids.take(k),
+                "eval_position_m": positions[k],
                 "ratio": t.ratios[i],
                 "remaining_time_s": t.remaining_s[k, i, i],
                 "remaining_time_ref_s": t.ref_remaining_s[k, i],
-                "ref_load": [t.ref_load] * len(k),
-                "ref_traction_factor": [t.ref_traction_factor] * len(k),
+                "ref_load": pa.repeat(t.ref_load, len(k)),
+                "ref_traction_factor": pa.repeat(t.ref_traction_factor, len(k)),
                 "speed_kmh": kmh(t.speed_ms[i, k]) if t.speed_ms is not None else np.full(len(k), np.nan),
-            })
+            }))
         if t.approach is not None:
             ap, last = t.approach, t.points[-1]
-            p, v, a = (x.ravel() for x in np.meshgrid(np.arange(len(ap.powering)), np.arange(len(ap.speeds_ms)),
-                                                      np.arange(len(ap.ratios)), indexing="ij"))
-            td.append(_keys(t, len(p)) | {
-                "eval_point_id": [last.eval_point_id] * len(p),
+            p, v, a = np.indices((len(ap.powering), len(ap.speeds_ms), len(ap.ratios))).reshape(3, -1)
+            td.append((keys, len(p), {
+                "eval_point_id": pa.repeat(last.eval_point_id, len(p)),
                 "eval_position_m": np.full(len(p), last.position_m),
                 "speed_kmh": kmh(ap.speeds_ms[v]),
                 "powering": np.asarray(ap.powering, bool)[p],
@@ -190,7 +202,7 @@ def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
                 "coast_band_kmh": np.full(len(p), kmh(ap.coast_band_ms)),
                 "remaining_time_s": ap.time_s[p, v, a],
                 "remaining_time_ref_s": ap.ref_time_s[p, v, a],
-            })
+            }))
     out = {"eval_points": _concat(ep), "table_a": _concat(ta), "table_b": _concat(tb)}
     if tc:
         out["table_c"] = _concat(tc)
