@@ -302,6 +302,55 @@ def test_table_d_round_trip_through_the_datasets(hilly, tmp_path):
         assert load_tables(tmp_path, ln.line_id, t.direction, t.train_type)[(t.origin, t.destination)].approach is None
 
 
+def _assert_same_tables(got, want):
+    """Two RunningTimeTables hold the same numbers (speeds to round-off: they are stored in km/h)."""
+    assert (got.origin, got.destination, got.eval_point_ids, got.flags) == \
+        (want.origin, want.destination, want.eval_point_ids, want.flags)
+    for f in ("ratios", "time_a_s", "eval_distance_m", "eval_position_m", "remaining_s", "ref_remaining_s"):
+        w, g = getattr(want, f), getattr(got, f)
+        assert (g is None) == (w is None), f
+        if w is not None:
+            assert g.dtype == w.dtype and g.shape == w.shape, f
+            np.testing.assert_array_equal(g, w, err_msg=f)
+    assert (got.speed_ms is None) == (want.speed_ms is None)
+    if want.speed_ms is not None:
+        np.testing.assert_allclose(got.speed_ms, want.speed_ms, rtol=1e-12)
+    assert (got.approach is None) == (want.approach is None)
+    if want.approach is not None:
+        g, w = got.approach, want.approach
+        assert g.powering == w.powering
+        np.testing.assert_allclose(g.speeds_ms, w.speeds_ms, rtol=1e-12)
+        np.testing.assert_allclose([g.vmax_ms, g.coast_band_ms], [w.vmax_ms, w.coast_band_ms], rtol=1e-12)
+        for f in ("ratios", "time_s", "ref_time_s"):
+            np.testing.assert_array_equal(getattr(g, f), getattr(w, f), err_msg=f)
+
+
+def test_tables_read_back_as_built_whatever_the_row_order_of_the_files(hilly, tmp_path):
+    """load_tables gives each interstation the tables the vehicle was built with (``onboard()``), in
+    running order; and the same tables from files whose rows are in any order: the rows are split by
+    interstation and placed by their point and ratios, not by where they are in the file."""
+    import shutil
+
+    from planner.datasets.tables import load_tables
+
+    ln, results = hilly
+    assert any(r.approach is not None for r in results) and any(r.ref_remaining_s is not None for r in results)
+    write_tables(results, tmp_path / "written")
+    shutil.copytree(tmp_path / "written", tmp_path / "shuffled")
+    rng = np.random.default_rng(7)
+    for f in sorted((tmp_path / "shuffled").rglob("*.parquet")):
+        t = pq.read_table(f)
+        pq.write_table(t.take(rng.permutation(t.num_rows)), f)
+    for part in sorted({(r.direction, r.train_type) for r in results}):
+        want = {(r.origin, r.destination): r.onboard() for r in results if (r.direction, r.train_type) == part}
+        got = load_tables(tmp_path / "written", ln.line_id, *part)
+        shuffled = load_tables(tmp_path / "shuffled", ln.line_id, *part)
+        assert list(got) == list(want) and set(shuffled) == set(want)
+        for k, w in want.items():
+            _assert_same_tables(got[k], w)
+            _assert_same_tables(shuffled[k], w)
+
+
 @pytest.mark.parametrize("damage", ["foreign_ratio", "missing_row"])
 def test_tables_that_do_not_fit_together_are_one_line_errors(flat, tmp_path, damage):
     """load_tables: a table_b row at a ratio table (a) does not have, or a row missing, names the

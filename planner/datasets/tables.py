@@ -12,6 +12,7 @@ from typing import Sequence
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
 
 from planner.errors import InputError
 from planner.io.parquet import by_partition, declare, read_dataset, write_partitioned
@@ -113,14 +114,13 @@ TABLE_D_SCHEMA = declare(
 )
 
 
-def _keys(t: InterstationTables, n: int) -> dict[str, list]:
-    return {
-        "line": [t.line_id] * n,
-        "direction": [t.direction] * n,
-        "train_type": [t.train_type] * n,
-        "origin": [t.origin] * n,
-        "destination": [t.destination] * n,
-    }
+_KEY_COLUMNS = ("line", "direction", "train_type", "origin", "destination")
+"""The partition and interstation columns, first in every table of :func:`datasets`."""
+
+
+def _keys(t: InterstationTables) -> tuple[str, ...]:
+    """The values of :data:`_KEY_COLUMNS` for the rows of ``t``."""
+    return t.line_id, t.direction, t.train_type, t.origin, t.destination
 
 
 def _null_nan(x: np.ndarray) -> pa.Array:
@@ -129,59 +129,72 @@ def _null_nan(x: np.ndarray) -> pa.Array:
     return pa.array(x, mask=~np.isfinite(x))
 
 
-def _concat(cols: list[dict[str, list]]) -> pa.Table:
-    """One table from per-interstation column chunks, each converted once (numpy arrays without a
-    Python object per value: on a 10x line the lists of floats were a gigabyte)."""
-    chunks: dict[str, list] = {}
-    for c in cols:
-        for k, v in c.items():
-            if len(v):
-                chunks.setdefault(k, []).append(v if isinstance(v, pa.Array) else pa.array(v))
-    return pa.table({k: pa.chunked_array(v) for k, v in chunks.items()})
+def _concat(legs: list[tuple[tuple, int, dict]]) -> pa.Table:
+    """One table from per-interstation chunks ``(keys, rows, columns)``, one chunk per interstation
+    with rows. Each column is converted once per chunk (numpy arrays without a Python object per value:
+    on a 10x line the lists of floats were a gigabyte); the key columns once per table, their values
+    repeated by Arrow and sliced into the same chunks (Python lists of repeated strings, and an Arrow
+    call per chunk, cost most of the conversion)."""
+    legs = [leg for leg in legs if leg[1]]
+    if not legs:
+        return pa.table({})
+    n = np.array([rows for _, rows, _ in legs])
+    starts = np.cumsum(n) - n
+    of_row = np.repeat(np.arange(len(legs)), n)
+    out = {}
+    for c, name in enumerate(_KEY_COLUMNS):
+        whole = pa.array([keys[c] for keys, _, _ in legs]).take(of_row)
+        out[name] = pa.chunked_array([whole.slice(a, m) for a, m in zip(starts.tolist(), n.tolist())])
+    for name in legs[0][2]:
+        out[name] = pa.chunked_array([v if isinstance(v, pa.Array) else pa.array(v)
+                                      for v in (cols[name] for _, _, cols in legs)])
+    return pa.table(out)
 
 
 def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
     """The ``eval_points`` and ``table_a`` … ``table_d`` rows, with partition columns, in task order."""
     ep, ta, tb, tc, td = [], [], [], [], []
     for t in results:
-        n_r, n_x = len(t.ratios), len(t.points)
-        ep.append(_keys(t, n_x) | {
+        keys, n_r, n_x = _keys(t), len(t.ratios), len(t.points)
+        ep.append((keys, n_x, {
             "eval_point_id": [p.eval_point_id for p in t.points],
             "eval_position_m": [p.position_m for p in t.points],
             "eval_distance_m": [p.s_m for p in t.points],
             "eval_point_kind": [p.kind for p in t.points],
-        })
-        ta.append(_keys(t, n_r) | {
+        }))
+        ta.append((keys, n_r, {
             "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
             "ref_stall_position_m": _null_nan(np.full(n_r, np.nan) if t.ref_stall_m is None else t.ref_stall_m),
-        })
-        k, i, j = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), np.arange(n_r), indexing="ij"))
-        tb.append(_keys(t, len(k)) | {
-            "eval_point_id": [t.points[x].eval_point_id for x in k],
-            "eval_position_m": np.array([p.position_m for p in t.points])[k],
+        }))
+        # each row's point id taken by Arrow from the leg's few, not a Python list of one per row
+        ids = pa.array([p.eval_point_id for p in t.points])
+        positions = np.array([p.position_m for p in t.points])
+        k, i, j = np.indices((n_x, n_r, n_r)).reshape(3, -1)
+        tb.append((keys, len(k), {
+            "eval_point_id": ids.take(k),
+            "eval_position_m": positions[k],
             "ratio_before": t.ratios[i],
             "ratio_after": t.ratios[j],
             "remaining_time_s": t.remaining_s[k, i, j],
             "elapsed_time_s": t.elapsed_s[i, k],
-        })
+        }))
         if t.ref_remaining_s is not None:
-            k, i = (a.ravel() for a in np.meshgrid(np.arange(n_x), np.arange(n_r), indexing="ij"))
-            tc.append(_keys(t, len(k)) | {
-                "eval_point_id": [t.points[x].eval_point_id for x in k],
-                "eval_position_m": np.array([p.position_m for p in t.points])[k],
+            k, i = np.indices((n_x, n_r)).reshape(2, -1)
+            tc.append((keys, len(k), {
+                "eval_point_id": ids.take(k),
+                "eval_position_m": positions[k],
                 "ratio": t.ratios[i],
                 "remaining_time_s": t.remaining_s[k, i, i],
                 "remaining_time_ref_s": t.ref_remaining_s[k, i],
-                "ref_load": [t.ref_load] * len(k),
-                "ref_traction_factor": [t.ref_traction_factor] * len(k),
+                "ref_load": pa.repeat(t.ref_load, len(k)),
+                "ref_traction_factor": pa.repeat(t.ref_traction_factor, len(k)),
                 "speed_kmh": kmh(t.speed_ms[i, k]) if t.speed_ms is not None else np.full(len(k), np.nan),
-            })
+            }))
         if t.approach is not None:
             ap, last = t.approach, t.points[-1]
-            p, v, a = (x.ravel() for x in np.meshgrid(np.arange(len(ap.powering)), np.arange(len(ap.speeds_ms)),
-                                                      np.arange(len(ap.ratios)), indexing="ij"))
-            td.append(_keys(t, len(p)) | {
-                "eval_point_id": [last.eval_point_id] * len(p),
+            p, v, a = np.indices((len(ap.powering), len(ap.speeds_ms), len(ap.ratios))).reshape(3, -1)
+            td.append((keys, len(p), {
+                "eval_point_id": pa.repeat(last.eval_point_id, len(p)),
                 "eval_position_m": np.full(len(p), last.position_m),
                 "speed_kmh": kmh(ap.speeds_ms[v]),
                 "powering": np.asarray(ap.powering, bool)[p],
@@ -190,7 +203,7 @@ def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
                 "coast_band_kmh": np.full(len(p), kmh(ap.coast_band_ms)),
                 "remaining_time_s": ap.time_s[p, v, a],
                 "remaining_time_ref_s": ap.ref_time_s[p, v, a],
-            })
+            }))
     out = {"eval_points": _concat(ep), "table_a": _concat(ta), "table_b": _concat(tb)}
     if tc:
         out["table_c"] = _concat(tc)
@@ -215,7 +228,8 @@ def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> 
 def load_tables(
     tables_dir: str | Path, line_id: str, direction: str, train_type: str
 ) -> dict[tuple[str, str], RunningTimeTables]:
-    """Read the ``eval_points``, ``table_a`` and ``table_b`` datasets of one line, direction, type.
+    """Read the ``eval_points``, ``table_a`` and ``table_b`` datasets of one line, direction, type
+    (and ``table_c``, ``table_d`` where there are).
 
     Parameters
     ----------
@@ -237,140 +251,242 @@ def load_tables(
     root = Path(tables_dir)
     out = {}
     try:
-        ep = read_dataset(root, "eval_points", line=line_id, direction=direction, train_type=train_type).to_pandas()
-        ta = read_dataset(root, "table_a", line=line_id, direction=direction, train_type=train_type).to_pandas()
-        tb = read_dataset(root, "table_b", line=line_id, direction=direction, train_type=train_type).to_pandas()
+        ep = read_dataset(root, "eval_points", line=line_id, direction=direction, train_type=train_type)
+        ta = read_dataset(root, "table_a", line=line_id, direction=direction, train_type=train_type)
+        tb = read_dataset(root, "table_b", line=line_id, direction=direction, train_type=train_type)
     except (FileNotFoundError, OSError) as e:
         raise InputError(f"--tables {root}: cannot read the tables ({e}); run `planner tables` first") from None
     tc = _optional(root, "table_c", line_id, direction, train_type)  # only the adaptive mode needs
     td = _optional(root, "table_d", line_id, direction, train_type)  # tables (c) and (d)
-    if ta.empty:
+    if not ta.num_rows:
         raise InputError(
             f"--tables {root}: no table_a rows for line={line_id} direction={direction} "
             f"train_type={train_type}; run `planner tables` for it"
         )
-    # each dataset split by interstation once (not filtered per interstation), row positions by
-    # hash lookup (not a Python dict per value): the margin report reads every table back
-    import pandas as pd
-
-    frames = (ep, tb, tc, td)
-    by_pair = [_by_pair(f) for f in frames]
-    for (o, d), a in ta.groupby(["origin", "destination"], sort=False):
-        a = a.sort_values("ratio", ascending=False)
-        ratios = a["ratio"].to_numpy(float)
-        p, b, c, g = (None if f is None else parts.get((o, d), f.iloc[:0]) for f, parts in zip(frames, by_pair))
-        p = p.sort_values("eval_distance_m")
+    # each dataset split by interstation once (row numbers by pair, from Arrow's dictionary codes), its
+    # columns converted to numpy once and indexed by those rows: the margin report reads every table
+    # back, and a pandas groupby, sort and Index per interstation cost several times the reading
+    ta, ep, tb = _Rows(ta), _Rows(ep), _Rows(tb)
+    tc, td = (None if t is None else _Rows(t) for t in (tc, td))
+    no_rows = np.zeros(0, np.intp)
+    for (o, d), a in ta.pairs.items():
+        a = a[_sort_order(ta.floats("ratio")[a], descending=True)]
+        ratios = ta.floats("ratio")[a]
+        p, b, c, g = (None if f is None else f.pairs.get((o, d), no_rows) for f in (ep, tb, tc, td))
+        p = p[_sort_order(ep.floats("eval_distance_m")[p])]
+        ids = ep.strings("eval_point_id", p)
         n_r, n_x = len(ratios), len(p)
         if len(b) != n_x * n_r * n_r:
             raise InputError(
                 f"--tables {root}: table_b for {o}->{d} has {len(b)} rows, expected "
                 f"{n_x} points x {n_r}^2 ratios; rebuild the tables"
             )
-        k = pd.Index(p["eval_point_id"])
-        ri = pd.Index(ratios)
         rem = np.full((n_x, n_r, n_r), np.nan)
-        at = _positions(root, "table_b", o, d, (k, b["eval_point_id"]), (ri, b["ratio_before"]), (ri, b["ratio_after"]))
-        rem[at] = b["remaining_time_s"].to_numpy(float)
+        at = _positions(root, "table_b", o, d, tb.lookup("eval_point_id", b, ids),
+                        tb.lookup("ratio_before", b, ratios), tb.lookup("ratio_after", b, ratios))
+        rem[at] = tb.floats("remaining_time_s")[b]
         if np.isnan(rem).any():
             raise InputError(f"--tables {root}: table_b for {o}->{d} is incomplete; rebuild the tables")
         ref = spd = None
         if c is not None and len(c) == n_x * n_r:
-            at = _positions(root, "table_c", o, d, (k, c["eval_point_id"]), (ri, c["ratio"]))
+            at = _positions(root, "table_c", o, d, tc.lookup("eval_point_id", c, ids), tc.lookup("ratio", c, ratios))
             ref = np.full((n_x, n_r), np.nan)
-            ref[at] = c["remaining_time_ref_s"].to_numpy(float)
+            ref[at] = tc.floats("remaining_time_ref_s")[c]
             if np.isnan(ref).any():
                 ref = None
-            if "speed_kmh" in c:
+            if "speed_kmh" in tc:
                 spd = np.full((n_x, n_r), np.nan)
-                spd[at] = ms(c["speed_kmh"].to_numpy(float))
+                spd[at] = ms(tc.floats("speed_kmh")[c])
                 if np.isnan(spd).any():
                     spd = None
         out[(o, d)] = RunningTimeTables(
-            approach=_approach(g, o, d, p["eval_point_id"].iloc[-1], root) if g is not None and n_x > 1 else None,
+            approach=_approach(td, g, o, d, ids[-1], root) if g is not None and n_x > 1 else None,
             origin=o,
             destination=d,
             ratios=ratios,
-            time_a_s=a["running_time_s"].to_numpy(float),
-            eval_point_ids=tuple(p["eval_point_id"]),
-            eval_distance_m=p["eval_distance_m"].to_numpy(float),
-            eval_position_m=p["eval_position_m"].to_numpy(float),
+            time_a_s=ta.floats("running_time_s")[a],
+            eval_point_ids=tuple(ids),
+            eval_distance_m=ep.floats("eval_distance_m")[p],
+            eval_position_m=ep.floats("eval_position_m")[p],
             remaining_s=rem,
             ref_remaining_s=ref,
             speed_ms=spd,
-            flags=_reference_flags(a, ref is None),
+            flags=_reference_flags(ta, a, ratios, ref is None),
         )
     return out
 
 
-def _reference_flags(a, no_table_c: bool) -> tuple:
-    """The leg's reference-stall flag from its ``table_a`` rows (ratios descending), as the build gave it."""
-    if not no_table_c or "ref_stall_position_m" not in a:
+class _Rows:
+    """One partition of a dataset read back: its rows by interstation and its columns as numpy arrays,
+    each converted once, on first use.
+
+    Parameters
+    ----------
+    table : pyarrow.Table
+        The rows, with ``origin`` and ``destination`` columns.
+
+    Attributes
+    ----------
+    pairs : dict
+        ``(origin, destination) -> row numbers`` (ascending), the pairs in the order of their first row,
+        rows with a null origin or destination in none (as pandas' ``groupby`` drops them).
+    """
+
+    def __init__(self, table: pa.Table):
+        self.table = table
+        self._cols: dict = {}
+        o, o_values = self._codes("origin")
+        d, d_values = self._codes("destination")
+        code = o * len(d_values) + d
+        order = np.argsort(code, kind="stable")  # each pair's rows stay in file order
+        first = np.flatnonzero(np.diff(code[order], prepend=-1))
+        bounds = np.append(first, len(code)).tolist()
+        rows = {int(code[order[f]]): order[f:e] for f, e in zip(bounds, bounds[1:])}
+        self.pairs = {}
+        for k in sorted(rows, key=lambda k: rows[k][0]):
+            pair = (o_values[k // len(d_values)], d_values[k % len(d_values)])
+            if None not in pair:
+                self.pairs[pair] = rows[k]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.table.column_names
+
+    def _codes(self, name: str) -> tuple[np.ndarray, list]:
+        """A string column as codes into its distinct values (null one of them, as None)."""
+        if (name, str) not in self._cols:
+            enc = pc.dictionary_encode(self.table.column(name).combine_chunks(), null_encoding="encode")
+            self._cols[name, str] = (enc.indices.to_numpy().astype(np.intp), enc.dictionary.to_pylist())
+        return self._cols[name, str]
+
+    def floats(self, name: str) -> np.ndarray:
+        """A column as float64 (null as NaN)."""
+        if (name, float) not in self._cols:
+            self._cols[name, float] = np.asarray(self.table.column(name).to_numpy(), float)
+        return self._cols[name, float]
+
+    def bools(self, name: str) -> np.ndarray:
+        """A column as bool (null as False)."""
+        if (name, bool) not in self._cols:
+            self._cols[name, bool] = np.asarray(self.table.column(name).to_numpy(), bool)
+        return self._cols[name, bool]
+
+    def strings(self, name: str, rows: np.ndarray) -> list:
+        """A string column's values at ``rows`` (null as None)."""
+        codes, values = self._codes(name)
+        return [values[i] for i in codes[rows].tolist()]
+
+    def distinct_strings(self, name: str, rows: np.ndarray) -> set:
+        """A string column's distinct values at ``rows`` (null as None)."""
+        codes, values = self._codes(name)
+        return {values[i] for i in np.unique(codes[rows]).tolist()}
+
+    def lookup(self, name: str, rows: np.ndarray, index: Sequence) -> tuple[str, np.ndarray]:
+        """``(name, positions)``: where each of ``rows``' values of the column is in ``index`` (the
+        interstation's point ids or ratios), -1 where it is not there."""
+        if isinstance(index, np.ndarray):
+            return name, _float_positions(index, self.floats(name)[rows])
+        codes, values = self._codes(name)
+        at = {v: i for i, v in enumerate(index)}
+        if len(at) < len(index):  # a point id twice: pandas' Index raises for it, as it always did
+            import pandas as pd
+
+            return name, pd.Index(list(index)).get_indexer(values)[codes[rows]]
+        return name, np.array([at.get(v, -1) for v in values], np.intp)[codes[rows]]
+
+
+def _float_positions(index: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The position of each of ``x`` in ``index`` (exact values), -1 where it is not there: what
+    ``pd.Index(index).get_indexer(x)`` gives, by sorting the few ``index`` values."""
+    order = np.argsort(index, kind="stable")
+    s = index[order]
+    if not len(s) or np.isnan(s[-1]) or (s[1:] == s[:-1]).any():  # NaN, values twice: as pandas does (or raises)
+        import pandas as pd
+
+        return pd.Index(index).get_indexer(x)
+    at = np.minimum(np.searchsorted(s, x), len(s) - 1)
+    return np.where(s[at] == x, order[at], -1)
+
+
+def _sort_order(x: np.ndarray, descending: bool = False) -> np.ndarray:
+    """The row order of pandas' ``sort_values`` on the float column ``x`` (numpy's quicksort of the
+    same values, NaN last, ties in the same order), so the rows come back as they always did."""
+    nan = np.isnan(x)
+    at, v = np.flatnonzero(~nan), x[~nan]
+    if descending:  # as pandas' nargsort: sorted reversed, then reversed back
+        at, v = at[::-1], v[::-1]
+    order = at[v.argsort(kind="quicksort")]
+    if descending:
+        order = order[::-1]
+    return np.concatenate([order, np.flatnonzero(nan)])
+
+
+def _reference_flags(ta: _Rows, a: np.ndarray, ratios: np.ndarray, no_table_c: bool) -> tuple:
+    """The leg's reference-stall flag from its ``table_a`` rows ``a`` (ratios descending), as the build
+    gave it."""
+    if not no_table_c or "ref_stall_position_m" not in ta:
         return ()
-    x = a["ref_stall_position_m"].to_numpy(float)
+    x = ta.floats("ref_stall_position_m")[a]
     at = np.flatnonzero(np.isfinite(x))
     if not at.size:
         return ()
     # the job's tables always use the reference train REF_LOAD, REF_TRACTION (table_c, absent here, would say)
-    return (LegFlag.reference_stall(float(a["ratio"].iloc[at[0]]), float(x[at[0]]), REF_LOAD, REF_TRACTION),)
+    return (LegFlag.reference_stall(float(ratios[at[0]]), float(x[at[0]]), REF_LOAD, REF_TRACTION),)
 
 
-def _by_pair(df) -> dict | None:
-    """A DataFrame's rows by (origin, destination), in their order; None stays None."""
-    if df is None:
-        return None
-    return {key: part for key, part in df.groupby(["origin", "destination"], sort=False)}
-
-
-def _positions(root: Path, name: str, o: str, d: str, *axes) -> tuple:
-    """Index arrays of a table's rows: for each ``(index, column)`` the position of every value in
-    ``index`` (an InputError when a value is not there: the tables do not fit together)."""
-    out = []
-    for index, col in axes:
-        at = index.get_indexer(col.to_numpy())
+def _positions(root: Path, name: str, o: str, d: str, *axes: tuple[str, np.ndarray]) -> tuple:
+    """Index arrays of a table's rows from :meth:`_Rows.lookup`'s ``(column, positions)`` (an InputError
+    when a value is not there: the tables do not fit together)."""
+    for col, at in axes:
         if (at < 0).any():
-            raise InputError(f"--tables {root}: {name} for {o}->{d} has a {col.name} the other tables do not "
+            raise InputError(f"--tables {root}: {name} for {o}->{d} has a {col} the other tables do not "
                              "have; rebuild the tables")
-        out.append(at)
-    return tuple(out)
+    return tuple(at for _, at in axes)
 
 
-def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str):
-    """One partition of an optional dataset as a DataFrame, or None when the dataset is absent."""
+def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str) -> pa.Table | None:
+    """One partition of an optional dataset, or None when the dataset is absent or has no rows there."""
     try:
-        df = read_dataset(root, name, line=line_id, direction=direction, train_type=train_type).to_pandas()
+        t = read_dataset(root, name, line=line_id, direction=direction, train_type=train_type)
     except (FileNotFoundError, OSError):
         return None
-    return None if df.empty else df
+    return t if t.num_rows else None
 
 
-def _approach(g, origin: str, destination: str, last_point: str, root: Path) -> ApproachTable | None:
+def _unique(x: np.ndarray) -> np.ndarray:
+    """The distinct values of ``x`` in the order they first occur (NaN once; of equal values such as
+    -0.0 and 0.0 the first), as ``pd.unique(x)``: ``np.unique`` gives each value's first row."""
+    return x[np.sort(np.unique(x, return_index=True)[1])]
+
+
+def _approach(td: _Rows, g: np.ndarray, origin: str, destination: str, last_point: str,
+              root: Path) -> ApproachTable | None:
     """Table (d) of one interstation from its dataset rows ``g`` (None when it has none)."""
-    import pandas as pd
-
-    if g.empty:
+    if not len(g):
         return None
-    if set(g["eval_point_id"].unique()) != {last_point}:
+    if td.distinct_strings("eval_point_id", g) != {last_point}:
         raise InputError(f"--tables {root}: table_d for {origin}->{destination} is not at the last "
                          f"evaluation point {last_point!r}; rebuild the tables")
-    speeds = ms(np.sort(g["speed_kmh"].unique()))
-    ratios = np.sort(g["ratio_after"].unique())[::-1]
-    powering = tuple(sorted({bool(x) for x in g["powering"].unique()}, reverse=True))
+    speed_kmh, ratio_after = td.floats("speed_kmh")[g], td.floats("ratio_after")[g]
+    on = td.bools("powering")[g]
+    speeds = ms(np.sort(_unique(speed_kmh)))
+    ratios = np.sort(_unique(ratio_after))[::-1]
+    powering = tuple(sorted({bool(x) for x in _unique(on)}, reverse=True))
     n_p, n_v, n_a = len(powering), len(speeds), len(ratios)
     if len(g) != n_p * n_v * n_a:
         raise InputError(f"--tables {root}: table_d for {origin}->{destination} has {len(g)} rows, expected "
                          f"{n_p} phases x {n_v} speeds x {n_a} ratios; rebuild the tables")
     t = np.full((2, n_p, n_v, n_a), np.nan)
-    ip = pd.Index(powering).get_indexer(g["powering"].to_numpy(bool))
-    iv = np.searchsorted(speeds, ms(g["speed_kmh"].to_numpy(float)))
-    ia = pd.Index(ratios).get_indexer(g["ratio_after"].to_numpy(float))
-    t[0, ip, iv, ia] = g["remaining_time_s"].to_numpy(float)
-    t[1, ip, iv, ia] = g["remaining_time_ref_s"].to_numpy(float)
+    ip = (on != powering[0]).astype(np.intp)  # (True, False), or the one phase there is
+    iv = np.searchsorted(speeds, ms(speed_kmh))
+    ia = _float_positions(ratios, ratio_after)
+    t[0, ip, iv, ia] = td.floats("remaining_time_s")[g]
+    t[1, ip, iv, ia] = td.floats("remaining_time_ref_s")[g]
     if np.isnan(t).any():
         raise InputError(f"--tables {root}: table_d for {origin}->{destination} is incomplete; rebuild the tables")
-    vmax = ms(g["vmax_kmh"].unique()) if "vmax_kmh" in g else np.array([np.inf])
+    vmax = ms(_unique(td.floats("vmax_kmh")[g])) if "vmax_kmh" in td else np.array([np.inf])
     if len(vmax) != 1:
         raise InputError(f"--tables {root}: table_d for {origin}->{destination} has several vmax_kmh; "
                          "rebuild the tables")
-    band = ms(g["coast_band_kmh"].unique()) if "coast_band_kmh" in g else np.array([0.0])
+    band = ms(_unique(td.floats("coast_band_kmh")[g])) if "coast_band_kmh" in td else np.array([0.0])
     return ApproachTable(speeds_ms=speeds, powering=powering, ratios=ratios, time_s=t[0], ref_time_s=t[1],
                          vmax_ms=float(vmax[0]), coast_band_ms=float(band[0]))
