@@ -441,9 +441,20 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     conflicts = None
     if checks_conflicts:
         conflicts = conflicts_step(line, stage, summary, got.pop("conflicts"))
-    margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted, closed_loop)
-    count_rows(summary, loops_written.result())
+    report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted,
+                          closed_loop)
     del given, closed_loop  # the tables read back and the closed loop's rows, for the margins
+    # the legs' speed–distance charts start on the workers now (their pages are written last), while the margins'
+    # datasets are written on the writer thread and this process finishes the line's bundles
+    from planner.job.day import window
+    from planner.job.train_views import start_charts
+    from planner.report.margin_datasets import write_margins
+
+    charts = start_charts(job, line, stage, report, runner, summary.run_id,
+                          window(job).record() if job.day.day else None, summary.run_date)
+    summary.pending.append(charts)
+    margins_written = _on_writer(writes, write_margins, report, stage)
+    count_rows(summary, loops_written.result())
     give_back()
     bundles_step(stage, runner, summary, key, bundles)
     if verify is not None:  # every bundle of the run is written: the overview's check of them, on a worker
@@ -455,10 +466,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         summary.pending.append(summary.bundles_verified)
     from planner.job.verdicts import record_verdicts
 
-    record_verdicts(line.line_id, summary, *flagged, summary.reports[line.line_id])
+    record_verdicts(line.line_id, summary, *flagged, report)
     from planner.job.views import line_views  # inputs copy, train graph page
 
-    line_views(job, line, stage, runner, summary, graph.results()[0][0])
+    count_rows(summary, margins_written.result())  # the train graph page reads the margin totals
+    line_views(job, line, stage, runner, summary, graph.results()[0][0], charts)
 
 
 def conflicts_status(job: Job, line: Line) -> str:

@@ -62,8 +62,10 @@ def margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None, c
 
 
 def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
-                  unit_keys: list[str], conflicts, given=None, lifted=None, closed_loop=None) -> None:
-    from planner.report.margin_datasets import write_margins
+                  unit_keys: list[str], conflicts, given=None, lifted=None, closed_loop=None):
+    """The line's margin report (cached as one unit), kept in ``summary.reports`` with its flags counted; its
+    datasets are the caller's to write (:func:`planner.report.margin_datasets.write_margins`: the nightly job
+    writes them on its writer thread while the legs' charts start)."""
     from planner.report.margins import margin_options
 
     key = digest(["margins", code_digest(), line_digest(line), lifted_key(lifted or {}), unit_keys,
@@ -82,9 +84,9 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
     from planner.report.leg_flags import FLAGS
 
     summary.reports[line.line_id] = report
-    count_rows(summary, write_margins(report, stage))
     for flag in FLAGS:  # legs the margin report flags, each flag its own card on the overview
         summary.flags[flag] = summary.flags.get(flag, 0) + int(report.rows[flag].sum() if len(report.rows) else 0)
+    return report
 
 
 def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None) -> list:

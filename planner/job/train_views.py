@@ -96,23 +96,14 @@ def _chart_task(line, run, calls, pattern, evp, signals):
     return chart_svg(line, run, calls, pattern, evp, signals)
 
 
-def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
-                day: dict | None = None, later: list | None = None) -> dict[str, list]:
-    """Dataset, page and charts of a line's trains (module doc); ``run_id`` and ``day`` (the operating day's
-    record) are named at the top of each page.
-
-    The charts start on the workers first; the dataset and the tables page are written meanwhile. With a
-    list ``later`` the chart pages are left to a :class:`ChartPages` appended to it (the job writes its
-    other pages while the charts are drawn, then calls :meth:`ChartPages.finish`); else they are written
-    before this returns.
-
-    Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
-    legs with a chart in running order (the train graph links them).
-    """
-    from planner.job.steps import count_rows
+def start_charts(job, line, stage: Path, report, runner, run_id: str | None = None, day: dict | None = None,
+                 run_date: str | None = None, wait: bool = False) -> "ChartPages":
+    """Record each leg's two runs from the margin report's rows and start their speed–distance charts on the
+    workers (cached units: an unchanged leg's chart is not redrawn; ``wait``: drawn before this returns); the
+    pages are written by :meth:`ChartPages.finish`. The nightly job calls it as soon as the line's margins are
+    computed, so the charts are drawn while it writes the margins, the bundles' key and the other pages."""
     from planner.job.units import Unit
-    from planner.pages.timetable import render_page, write_page
-    from planner.report.train_timetable import chart_name, leg_line, leg_runs, timetable_rows, write_timetable
+    from planner.report.train_timetable import chart_name, leg_line, leg_runs
 
     lid = line.line_id
     with runner.progress.step("timetable"):
@@ -134,9 +125,33 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
                 signals)
         units.append(Unit("charts", _chart_key(line, run, args[2:]), "charts", _chart_task, args))
         pages.append((stage / chart_name(lid, key), args[0], run, calls, trains))
-    # cached: an unchanged leg's chart is not redrawn; its page is written again with this run's id and day
-    charts = ChartPages(runner.start("charts", units) if later is not None else runner.run("charts", units), pages,
-                        back, nav, run_id, day, getattr(summary, "run_date", None))
+    drawn = runner.run("charts", units) if wait else runner.start("charts", units)
+    return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs=runs)
+
+
+def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
+                day: dict | None = None, later: list | None = None, charts: "ChartPages | None" = None
+                ) -> dict[str, list]:
+    """Dataset, page and charts of a line's trains (module doc); ``run_id`` and ``day`` (the operating day's
+    record) are named at the top of each page.
+
+    The charts start on the workers first (:func:`start_charts`, unless ``charts`` were started already);
+    the dataset and the tables page are written meanwhile. With a list ``later`` the chart pages are left
+    to the :class:`ChartPages`, appended to it (the job writes its other pages while the charts are drawn,
+    then calls :meth:`ChartPages.finish`); else they are written before this returns.
+
+    Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
+    legs with a chart in running order (the train graph links them).
+    """
+    from planner.job.steps import count_rows
+    from planner.pages.timetable import render_page, write_page
+    from planner.report.train_timetable import timetable_rows, write_timetable
+
+    lid = line.line_id
+    if charts is None:
+        charts = start_charts(job, line, stage, report, runner, run_id, day, getattr(summary, "run_date", None),
+                              wait=later is None)
+    runs = charts.runs
     with runner.progress.step("timetable"):  # while the workers draw the charts
         types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
         recs = timetable_rows(line, runs, types)  # made once: the dataset's rows and the page's
@@ -160,9 +175,10 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
 class ChartPages:
     """A line's speed–distance chart pages (:func:`train_views`): each written as its chart arrives."""
 
-    def __init__(self, started, pages: list, back: str, nav: list, run_id, day, run_date):
+    def __init__(self, started, pages: list, back: str, nav: list, run_id, day, run_date, runs: dict | None = None):
         self.started, self.pages = started, pages  # a list of the charts' SVGs, or Runner.start's handle
         self.page = dict(back=back, nav=nav, run_id=run_id, day=day, run_date=run_date)
+        self.runs = runs  # the legs' runs (report.train_timetable.leg_runs), for the tables page
 
     def _write(self, _g: int, i: int, svg: str) -> None:
         from planner.pages.speed_chart import chart_page, write_chart
@@ -212,4 +228,4 @@ def _chart_key(line, run, rest) -> str:
                    [list(map(str, c[:2])) + [float(c[2])] for c in calls], [[float(p), str(i)] for p, i in evp or []],
                    [float(x) for x in signals]])
 
-__all__ = ["timetable_href", "train_views"]
+__all__ = ["start_charts", "timetable_href", "train_views"]

@@ -79,8 +79,9 @@ def graph_unit(job, line, lifted=None):
     return _unit("graph", key, _graph_unit, (line, check, lifted))
 
 
-def line_views(job, line, stage: Path, runner, summary, paths) -> None:
-    """Inputs copy and train graph page of one line (module doc); ``paths``: the result of :func:`graph_unit`."""
+def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> None:
+    """Inputs copy and train graph page of one line (module doc); ``paths``: the result of :func:`graph_unit`;
+    ``charts``: the line's speed–distance charts if started already (:func:`planner.job.train_views.start_charts`)."""
     from planner.report.published_run import read_line_dataset, path_id
     from planner.report.train_graph import graph_data
     from planner.pages.train_graph import write_page
@@ -94,8 +95,8 @@ def line_views(job, line, stage: Path, runner, summary, paths) -> None:
     # the chart pages are written by run_views, once the rest of the run's pages are: the charts are drawn meanwhile
     legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary,  # tables, charts
                        run_id=summary.run_id, day=window(job).record() if job.day.day else None,
-                       later=summary.chart_pages)
-    summary.pending += summary.chart_pages[-1:]
+                       later=summary.chart_pages, charts=charts)
+    summary.pending += [c for c in summary.chart_pages[-1:] if c not in summary.pending]
     give_back()  # the pages of the legs' runs (planner.io.memory)
     with runner.progress.step("graph"):
         occ = read_line_dataset(stage, "occupation", line.line_id)
