@@ -232,6 +232,7 @@ def _stamped(table: pa.Table) -> pa.Table:
     for (col, typ, desc), val in zip(RUN_FIELDS, stamp):
         if col in table.column_names:
             table = table.drop_columns([col])
+        # the value repeated by Arrow, not a Python list of it per row (the same column)
         table = table.append_column(pa.field(col, typ, metadata={"description": desc}),
-                                    pa.array([val] * table.num_rows, type=typ))
+                                    pa.repeat(pa.scalar(val, type=typ), table.num_rows))
     return table
