@@ -4,8 +4,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from planner.io.parquet import (_grouped_partitions, _only_value, _partitions, _string_partitions,
-                                conform, declare, stamping, write_parquet_atomic, write_partitioned)
+from planner.io.parquet import (_MAYBE_INT, _grouped_partitions, _int32s, _only_value, _partitions,
+                                _read_partitions, _string_partitions, conform, declare, read_dataset, stamping,
+                                write_parquet_atomic, write_partitioned)
 
 PARTS = ["line", "direction", "train_type"]
 SCHEMA = declare([("x", pa.float64(), "a value"), ("name", pa.string(), "a name")], name="ds")
@@ -100,3 +101,143 @@ def test_same_bytes_as_the_group_by(tmp_path, name):
     for rel in got:
         assert (tmp_path / "a" / rel).read_bytes() == (tmp_path / "b" / rel).read_bytes()
     assert pq.read_table(tmp_path / "a" / got[0]).column("run_id")[0].as_py() == "r0001-0000000000"
+
+
+# --- reading ---------------------------------------------------------------------------------
+
+
+def _dataset_layer(root, dataset, **filters):
+    """What read_dataset returned before it read files itself: ``pyarrow.dataset``'s table, filtered."""
+    import pyarrow.compute as pc
+    import pyarrow.dataset as ds
+
+    d = ds.dataset(root / dataset, format="parquet", partitioning="hive")
+    expr = None
+    for k, v in filters.items():
+        expr = pc.field(k) == v if expr is None else expr & (pc.field(k) == v)
+    t = d.to_table(filter=expr)
+    for name in PARTS:
+        if name in t.column_names:
+            t = t.set_column(t.column_names.index(name), name, pc.cast(t.column(name), pa.string()))
+    return t
+
+
+def _outcome(fn, *args, **kw):
+    try:
+        return fn(*args, **kw)
+    except Exception as e:  # noqa: BLE001 - the error itself is compared
+        return type(e), str(e)
+
+
+def _check(root, dataset, direct, **filters):
+    """read_dataset gives the dataset layer's table (schema, metadata, rows, column order) or error, and
+    reads the files itself exactly when ``direct``."""
+    want, got = _outcome(_dataset_layer, root, dataset, **filters), _outcome(read_dataset, root, dataset, **filters)
+    if isinstance(want, tuple):
+        assert got == want
+    else:
+        assert isinstance(got, pa.Table), got
+        assert got.equals(want, check_metadata=True)
+        assert got.schema.equals(want.schema, check_metadata=True)
+        assert [f.metadata for f in got.schema] == [f.metadata for f in want.schema]
+    assert (_read_partitions(root / dataset, filters) is not None) == direct
+    return got
+
+
+@pytest.fixture
+def run(tmp_path):
+    """A run folder: ``ds`` in six partitions, as the job stamps them."""
+    with stamping("r0001-0000000000", "2026-12-01"):
+        write_partitioned(MANY, tmp_path, "ds", schema=SCHEMA)
+    return tmp_path
+
+
+FILTERS = [dict(line="L", direction="up", train_type="E6"), dict(direction="down", train_type="E8"),
+           dict(line="L"), dict(train_type="E10"), {}, dict(line="L", direction="up", train_type="E99"),
+           dict(line="M")]
+
+
+@pytest.mark.parametrize("filters", FILTERS)
+def test_read_partitions_as_the_dataset_layer(run, filters):
+    got = _check(run, "ds", True, **filters)
+    assert got.column_names[-3:] == PARTS
+    assert (got.num_rows == 0) == (filters.get("train_type") == "E99" or filters.get("line") == "M")
+
+
+def test_read_falls_back_where_it_would_differ(run):
+    _check(run, "ds", False, origin="X")  # not a partition column
+    _check(run, "ds", False, line=1)  # not text
+    _check(run, "missing", False, line="L")  # FileNotFoundError
+    (run / "empty").mkdir()
+    _check(run, "empty", False)
+
+
+def test_read_several_files_in_path_order_and_hidden_ones_skipped(run):
+    part = run / "ds" / "line=L" / "direction=up" / "train_type=E10"
+    with stamping("r0001-0000000000", "2026-12-01"):
+        for i, n in ((10, 2), (2, 3), (1, 4)):
+            write_parquet_atomic(conform(MANY.slice(0, n), SCHEMA), part / f"part-{i}.parquet")
+    (part / ".part-0.parquet.x1.tmp").write_bytes(b"half a file")
+    (part / "_SUCCESS").write_bytes(b"")
+    (run / "ds" / "_tmp").mkdir()
+    (run / "ds" / "_tmp" / "x.parquet").write_bytes(b"not parquet")
+    got = _check(run, "ds", True, line="L", direction="up", train_type="E10")
+    x = MANY.column("x").to_pylist()
+    assert got.column("x").to_pylist()[-9:] == x[:4] + x[:2] + x[:3]  # part-0, then part-1, part-10, part-2
+    _check(run, "ds", True, direction="up")
+
+
+def test_read_an_empty_file_and_a_partition_of_one_key(tmp_path):
+    """As the conflicts dataset: one empty file at line=L."""
+    with stamping("r0001-0000000000", "2026-12-01"):
+        write_parquet_atomic(SCHEMA.empty_table(), tmp_path / "c" / "line=L" / "part-0.parquet")
+    assert _check(tmp_path, "c", True).num_rows == 0
+    assert _check(tmp_path, "c", True, line="L").num_rows == 0
+
+
+def test_read_other_files_layouts_and_values_by_the_dataset_layer(run):
+    (run / "ds" / "README.md").write_text("not a Parquet file")
+    _check(run, "ds", False, line="L")
+    (run / "ds" / "README.md").unlink()
+    with stamping("r0001-0000000000", "2026-12-01"):
+        write_parquet_atomic(conform(MANY, SCHEMA), run / "ds" / "line=M" / "part-0.parquet")  # other depth
+    _check(run, "ds", False, line="L")
+    for values in (["1", "2"], ["007", "8"], ["0x1F", "2"]):  # all integers: the dataset layer's int32
+        t = _rows(6, ["up"], ["E10"], line=values[0])
+        write_partitioned(pa.concat_tables([t, _rows(6, ["up"], ["E10"], line=values[1])]), run, values[0],
+                          schema=SCHEMA)
+        _check(run, values[0], False, line=values[1])
+    write_partitioned(_rows(6, ["up"], ["1"]), run, "int_type", schema=SCHEMA)
+    _check(run, "int_type", False, line="L")
+    odd = run / "odd" / "line=a%20b" / "direction=up" / "train_type=T"  # escaped in the path
+    odd.mkdir(parents=True)
+    pq.write_table(conform(MANY.slice(0, 3), SCHEMA), odd / "part-0.parquet")
+    _check(run, "odd", False)
+
+
+def test_read_takes_the_first_files_schema_as_the_dataset_layer(tmp_path):
+    """Partitions written by two schema versions: the dataset's schema and metadata are those of the
+    first file in path order, so a read of the other partition is left to the dataset layer."""
+    v2 = declare([("x", pa.float64(), "a value"), ("name", pa.string(), "a name")], name="ds", version=2)
+    write_partitioned(MANY.filter(pa.array([d == "down" for d in MANY.column("direction").to_pylist()])),
+                      tmp_path, "ds", schema=SCHEMA)
+    write_partitioned(MANY.filter(pa.array([d == "up" for d in MANY.column("direction").to_pylist()])),
+                      tmp_path, "ds", schema=v2)
+    assert _check(tmp_path, "ds", True, direction="down").schema.metadata[b"schema_version"] == b"1"
+    assert _check(tmp_path, "ds", False, direction="up").schema.metadata[b"schema_version"] == b"1"
+    stored = tmp_path / "ds" / "line=L" / "direction=up" / "train_type=E6" / "part-0.parquet"
+    pq.write_table(pa.table({"x": [1.0], "line": ["L"]}), stored)  # a partition key stored as a column
+    _check(tmp_path, "ds", False, direction="up", train_type="E6")
+
+
+def test_maybe_int_holds_every_int32_text():
+    """Values not matching _MAYBE_INT are typed string without asking Arrow: none of them parses."""
+    import pyarrow.compute as pc
+
+    for v in ["E10", "+5", " 7", "1e3", "1.0", "1_0", "0x", "x1", "-", "ab", "0b1", "0o7", "１"]:
+        if not _MAYBE_INT.fullmatch(v):
+            with pytest.raises(pa.ArrowInvalid):
+                pc.cast(pa.array([v]), pa.int32())
+    for v in ["7", "-7", "007", "0x1F", "0X1f", "2147483647"]:
+        assert _MAYBE_INT.fullmatch(v) and _int32s([v])
+    assert not _int32s(["2147483648"]) and not _int32s(["7", "E10"])
