@@ -15,14 +15,22 @@ other value is refused here, before a folder is made.
 Writes are deterministic (same table, same bytes: no timestamps, fixed
 writer settings) and atomic per file (temp file in the same folder, then
 ``os.replace``).
+
+:func:`read_dataset` gives the table ``pyarrow.dataset`` gives, but reads the
+files of the partitions asked for itself where the folder is laid out as
+written here (a dataset discovery and scan per read cost the margin report
+twice as much); anything else is left to the dataset layer.
 """
 from __future__ import annotations
 
 import contextvars
+import os
+import re
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
@@ -131,23 +139,7 @@ def write_partitioned(
     written: list[Path] = []
     if table.num_rows == 0:
         return written
-    # the distinct partition values, grouped in Arrow (one Python object per partition, not per
-    # row); a folder is named by str() of the value, as the rows' values
-    groups: dict[tuple, list[dict]] = {}
-    for d in (table.select(parts).group_by(parts).aggregate([]).to_pylist() if parts else [{}]):
-        groups.setdefault(tuple(str(d[c]) for c in parts), []).append(d)
-    for key in sorted(groups):
-        sub = table
-        if parts:
-            mask = None
-            for vals in groups[key]:  # values that print the same share a folder, as before
-                m = None
-                for c in parts:
-                    v = vals[c]
-                    e = pc.is_null(table[c]) if v is None else pc.fill_null(pc.equal(table[c], v), False)
-                    m = e if m is None else pc.and_(m, e)
-                mask = m if mask is None else pc.or_(mask, m)
-            sub = table.filter(mask).drop_columns(parts)  # rows keep their order
+    for key, sub in _partitions(table, parts):
         if sort_by:
             sub = sub.sort_by([(c, "ascending") for c in sort_by])
         if schema is not None:
@@ -161,15 +153,107 @@ def write_partitioned(
     return written
 
 
+def _partitions(table: pa.Table, parts: list[str]) -> Iterator[tuple[tuple[str, ...], pa.Table]]:
+    """``(folder values, rows without the partition columns)`` of each partition of ``table``, in sorted
+    folder order, the rows in their order; one partition's rows are made at a time."""
+    if not parts:
+        yield (), table
+        return
+    keys = _string_partitions(table, parts)
+    if keys is None:
+        yield from _grouped_partitions(table, parts)
+    elif len(keys) == 1:
+        # every row in one partition (each job write of tables, stops, margins): the rows as they are,
+        # as filtering them by an all-true mask gave (same chunks), without a group_by and masks
+        yield keys[0][0], table.drop_columns(parts)
+    else:
+        for key, rows in sorted(keys, key=lambda kr: kr[0]):
+            yield key, table.filter(pa.array(rows)).drop_columns(parts)
+
+
+_STRINGS = (pa.string(), pa.large_string())  # large: what pa.Table.from_pandas makes of pandas 3 strings
+
+
+def _string_partitions(table: pa.Table, parts: list[str]) -> list[tuple[tuple[str, ...], object]] | None:
+    """The partitions of a table whose partition columns are strings without nulls: ``[(values, None)]``
+    when every row has the same values, else ``[(values, boolean row mask)]`` per partition. None (the
+    general grouping) for other columns, or where the rows' chunks would not come out of a filter as
+    they are (columns chunked differently, empty chunks; for several partitions, more than one chunk)."""
+    cols = [table.column(c) for c in parts]
+    if any(col.type not in _STRINGS or col.null_count for col in cols):
+        return None
+    layouts = {tuple(len(chunk) for chunk in col.chunks) for col in table.columns}
+    if len(layouts) != 1 or 0 in next(iter(layouts)):
+        return None
+    only = [_only_value(col) for col in cols]
+    if None not in only:
+        return [(tuple(only), None)]
+    if len(next(iter(layouts))) != 1:
+        return None
+    codes, values = [], []
+    for col in cols:  # a code per row for the combination of the partition values
+        enc = pc.dictionary_encode(col.chunk(0))
+        codes.append(enc.indices.to_numpy())
+        values.append(enc.dictionary.to_pylist())
+    dims = [len(v) for v in values]
+    present, inverse = np.unique(np.ravel_multi_index(codes, dims), return_inverse=True)
+    return [(tuple(v[i] for v, i in zip(values, np.unravel_index(flat, dims))), inverse == g)
+            for g, flat in enumerate(present)]
+
+
+def _only_value(col: pa.ChunkedArray) -> str | None:
+    """The value of a string column without nulls when every row holds the same, else None; from the
+    offsets and bytes (a hash or comparison kernel costs ~10 us per thousand rows, this ~1)."""
+    first: bytes | None = None
+    for chunk in col.chunks:
+        _, offsets, data = chunk.buffers()
+        width = 8 if chunk.type == pa.large_string() else 4
+        off = np.frombuffer(offsets, dtype=f"i{width}", count=len(chunk) + 1, offset=width * chunk.offset)
+        if first is None:
+            first = bytes(memoryview(data)[off[0]:off[1]]) if data is not None else b""
+        if not (np.diff(off) == len(first)).all():
+            return None
+        if first and bytes(memoryview(data)[off[0]:off[-1]]) != first * len(chunk):
+            return None
+    return None if first is None else first.decode()
+
+
+def _grouped_partitions(table: pa.Table, parts: list[str]) -> Iterator[tuple[tuple[str, ...], pa.Table]]:
+    """:func:`_partitions` for any partition columns (ints, nulls, several chunks)."""
+    # the distinct partition values, grouped in Arrow (one Python object per partition, not per
+    # row); a folder is named by str() of the value, as the rows' values
+    groups: dict[tuple, list[dict]] = {}
+    for d in table.select(parts).group_by(parts).aggregate([]).to_pylist():
+        groups.setdefault(tuple(str(d[c]) for c in parts), []).append(d)
+    for key in sorted(groups):
+        mask = None
+        for vals in groups[key]:  # values that print the same share a folder, as before
+            m = None
+            for c in parts:
+                v = vals[c]
+                e = pc.is_null(table[c]) if v is None else pc.fill_null(pc.equal(table[c], v), False)
+                m = e if m is None else pc.and_(m, e)
+            mask = m if mask is None else pc.or_(mask, m)
+        yield key, table.filter(mask).drop_columns(parts)  # rows keep their order
+
+
 def read_dataset(root: Path, dataset: str, **filters) -> pa.Table:
     """Read a hive-partitioned dataset, optionally filtered by partition values.
 
     ``read_dataset(out, "table_a", direction="down", train_type="E10")``.
-    Partition columns come back as strings.
+    Partition columns come back as strings, after the stored columns.
+
+    The table is what ``pyarrow.dataset`` gives (its schema, that of the first file in path order, and
+    metadata; the files' rows in path order; an empty table when no partition matches; its errors when
+    the folder is missing); where the folder is laid out as this module writes it and the filters name
+    partition columns, it is read without the dataset layer (:func:`_read_partitions`).
     """
+    path = Path(root) / dataset
+    t = _read_partitions(path, filters)
+    if t is not None:
+        return t
     import pyarrow.dataset as ds
 
-    path = Path(root) / dataset
     d = ds.dataset(path, format="parquet", partitioning="hive")
     expr = None
     for k, v in filters.items():
@@ -182,6 +266,90 @@ def read_dataset(root: Path, dataset: str, **filters) -> pa.Table:
             idx = t.column_names.index(name)
             t = t.set_column(idx, name, pc.cast(t.column(name), pa.string()))
     return t
+
+
+_HIVE_DIR = re.compile(r"([A-Za-z][A-Za-z0-9_]*)=([A-Za-z0-9][A-Za-z0-9._-]*)")
+"""A partition folder whose value the dataset layer takes as it is (no escapes, no null marker)."""
+
+_MAYBE_INT = re.compile(r"[+-]?(0[xX][0-9A-Fa-f]*|[0-9]+)")
+"""Every text Arrow parses as an int32 matches this (decimal, or hexadecimal after 0x)."""
+
+
+def _read_partitions(path: Path, filters: dict) -> pa.Table | None:
+    """``read_dataset``'s table read file by file (a dataset discovery, scan and filter cost twice as
+    much for the margin report's thirty reads), or None where it might differ from the dataset layer's.
+
+    That is, unless every file under ``path`` (names starting with ``.`` or ``_`` aside, as the dataset
+    layer skips them) is a ``.parquet`` file under the same ``key=value`` folders, every filter is one
+    of those keys with a text value, no key's values all read as integers (the dataset layer would make
+    it an int32 column), the keys are not stored columns, and the files read have the schema and
+    metadata of the first file in path order (the dataset's). Any error: None, for the dataset layer
+    to raise its own.
+    """
+    try:
+        files = _hive_files(str(path))
+        if not files:
+            return None
+        keys = files[0][1]
+        if (any(k != keys for _, k, _ in files) or len(set(keys)) < len(keys) or not set(filters) <= set(keys)
+                or not all(isinstance(v, str) for v in filters.values())):
+            return None
+        for i in range(len(keys)):
+            values = sorted({vals[i] for _, _, vals in files})
+            if all(_MAYBE_INT.fullmatch(v) for v in values) and _int32s(values):
+                return None
+        files.sort(key=lambda f: f[0])  # the dataset layer's order: by path
+        want = [keys.index(k) for k in filters]
+        chosen = [(p, vals) for p, _, vals in files if all(vals[i] == v for i, v in zip(want, filters.values()))]
+        tables = [read_file(p) for p, _ in chosen]
+        if chosen and chosen[0][0] == files[0][0]:
+            schema = tables[0].schema
+        else:
+            with pq.ParquetFile(files[0][0]) as f:
+                schema = f.schema_arrow
+    except (OSError, pa.ArrowException):
+        return None
+    if set(keys) & set(schema.names) or not all(t.schema.equals(schema, check_metadata=True) for t in tables):
+        return None
+    out = pa.concat_tables(tables) if tables else schema.empty_table()
+    for i, k in enumerate(keys):
+        col = [pa.repeat(pa.scalar(vals[i], pa.string()), t.num_rows) for (_, vals), t in zip(chosen, tables)]
+        out = out.append_column(pa.field(k, pa.string()), pa.chunked_array(col, type=pa.string()))
+    return out
+
+
+def _hive_files(folder: str) -> list[tuple[str, tuple[str, ...], tuple[str, ...]]] | None:
+    """``(path, keys, values)`` of every file the dataset layer reads under ``folder``, or None when one
+    is not a ``.parquet`` file in ``key=value`` folders (or a link, or anything else is in the way)."""
+    out = []
+    todo = [(folder, (), ())]
+    while todo:
+        at, keys, values = todo.pop()
+        with os.scandir(at) as entries:
+            for e in entries:
+                if e.name.startswith((".", "_")):  # hidden: temporary files of atomic writes among them
+                    continue
+                if e.is_symlink():
+                    return None
+                if e.is_dir():
+                    m = _HIVE_DIR.fullmatch(e.name)
+                    if m is None:
+                        return None
+                    todo.append((e.path, keys + (m[1],), values + (m[2],)))
+                elif e.is_file() and e.name.endswith(".parquet"):
+                    out.append((e.path, keys, values))
+                else:
+                    return None
+    return out
+
+
+def _int32s(values: list[str]) -> bool:
+    """Whether Arrow casts every one of ``values`` to int32 (and the dataset layer types the key so)."""
+    try:
+        pc.cast(pa.array(values, pa.string()), pa.int32())
+    except pa.ArrowInvalid:
+        return False
+    return True
 
 
 RUN_FIELDS = (
@@ -232,6 +400,7 @@ def _stamped(table: pa.Table) -> pa.Table:
     for (col, typ, desc), val in zip(RUN_FIELDS, stamp):
         if col in table.column_names:
             table = table.drop_columns([col])
+        # the value repeated by Arrow, not a Python list of it per row (the same column)
         table = table.append_column(pa.field(col, typ, metadata={"description": desc}),
-                                    pa.array([val] * table.num_rows, type=typ))
+                                    pa.repeat(pa.scalar(val, type=typ), table.num_rows))
     return table
