@@ -15,17 +15,10 @@ other value is refused here, before a folder is made.
 Writes are deterministic (same table, same bytes: no timestamps, fixed
 writer settings) and atomic per file (temp file in the same folder, then
 ``os.replace``).
-
-:func:`read_dataset` gives the table ``pyarrow.dataset`` gives, but reads the
-files of the partitions asked for itself where the folder is laid out as
-written here (a dataset discovery and scan per read cost the margin report
-twice as much); anything else is left to the dataset layer.
 """
 from __future__ import annotations
 
 import contextvars
-import os
-import re
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
@@ -241,19 +234,11 @@ def read_dataset(root: Path, dataset: str, **filters) -> pa.Table:
     """Read a hive-partitioned dataset, optionally filtered by partition values.
 
     ``read_dataset(out, "table_a", direction="down", train_type="E10")``.
-    Partition columns come back as strings, after the stored columns.
-
-    The table is what ``pyarrow.dataset`` gives (its schema, that of the first file in path order, and
-    metadata; the files' rows in path order; an empty table when no partition matches; its errors when
-    the folder is missing); where the folder is laid out as this module writes it and the filters name
-    partition columns, it is read without the dataset layer (:func:`_read_partitions`).
+    Partition columns come back as strings.
     """
-    path = Path(root) / dataset
-    t = _read_partitions(path, filters)
-    if t is not None:
-        return t
     import pyarrow.dataset as ds
 
+    path = Path(root) / dataset
     d = ds.dataset(path, format="parquet", partitioning="hive")
     expr = None
     for k, v in filters.items():
@@ -266,90 +251,6 @@ def read_dataset(root: Path, dataset: str, **filters) -> pa.Table:
             idx = t.column_names.index(name)
             t = t.set_column(idx, name, pc.cast(t.column(name), pa.string()))
     return t
-
-
-_HIVE_DIR = re.compile(r"([A-Za-z][A-Za-z0-9_]*)=([A-Za-z0-9][A-Za-z0-9._-]*)")
-"""A partition folder whose value the dataset layer takes as it is (no escapes, no null marker)."""
-
-_MAYBE_INT = re.compile(r"[+-]?(0[xX][0-9A-Fa-f]*|[0-9]+)")
-"""Every text Arrow parses as an int32 matches this (decimal, or hexadecimal after 0x)."""
-
-
-def _read_partitions(path: Path, filters: dict) -> pa.Table | None:
-    """``read_dataset``'s table read file by file (a dataset discovery, scan and filter cost twice as
-    much for the margin report's thirty reads), or None where it might differ from the dataset layer's.
-
-    That is, unless every file under ``path`` (names starting with ``.`` or ``_`` aside, as the dataset
-    layer skips them) is a ``.parquet`` file under the same ``key=value`` folders, every filter is one
-    of those keys with a text value, no key's values all read as integers (the dataset layer would make
-    it an int32 column), the keys are not stored columns, and the files read have the schema and
-    metadata of the first file in path order (the dataset's). Any error: None, for the dataset layer
-    to raise its own.
-    """
-    try:
-        files = _hive_files(str(path))
-        if not files:
-            return None
-        keys = files[0][1]
-        if (any(k != keys for _, k, _ in files) or len(set(keys)) < len(keys) or not set(filters) <= set(keys)
-                or not all(isinstance(v, str) for v in filters.values())):
-            return None
-        for i in range(len(keys)):
-            values = sorted({vals[i] for _, _, vals in files})
-            if all(_MAYBE_INT.fullmatch(v) for v in values) and _int32s(values):
-                return None
-        files.sort(key=lambda f: f[0])  # the dataset layer's order: by path
-        want = [keys.index(k) for k in filters]
-        chosen = [(p, vals) for p, _, vals in files if all(vals[i] == v for i, v in zip(want, filters.values()))]
-        tables = [read_file(p) for p, _ in chosen]
-        if chosen and chosen[0][0] == files[0][0]:
-            schema = tables[0].schema
-        else:
-            with pq.ParquetFile(files[0][0]) as f:
-                schema = f.schema_arrow
-    except (OSError, pa.ArrowException):
-        return None
-    if set(keys) & set(schema.names) or not all(t.schema.equals(schema, check_metadata=True) for t in tables):
-        return None
-    out = pa.concat_tables(tables) if tables else schema.empty_table()
-    for i, k in enumerate(keys):
-        col = [pa.repeat(pa.scalar(vals[i], pa.string()), t.num_rows) for (_, vals), t in zip(chosen, tables)]
-        out = out.append_column(pa.field(k, pa.string()), pa.chunked_array(col, type=pa.string()))
-    return out
-
-
-def _hive_files(folder: str) -> list[tuple[str, tuple[str, ...], tuple[str, ...]]] | None:
-    """``(path, keys, values)`` of every file the dataset layer reads under ``folder``, or None when one
-    is not a ``.parquet`` file in ``key=value`` folders (or a link, or anything else is in the way)."""
-    out = []
-    todo = [(folder, (), ())]
-    while todo:
-        at, keys, values = todo.pop()
-        with os.scandir(at) as entries:
-            for e in entries:
-                if e.name.startswith((".", "_")):  # hidden: temporary files of atomic writes among them
-                    continue
-                if e.is_symlink():
-                    return None
-                if e.is_dir():
-                    m = _HIVE_DIR.fullmatch(e.name)
-                    if m is None:
-                        return None
-                    todo.append((e.path, keys + (m[1],), values + (m[2],)))
-                elif e.is_file() and e.name.endswith(".parquet"):
-                    out.append((e.path, keys, values))
-                else:
-                    return None
-    return out
-
-
-def _int32s(values: list[str]) -> bool:
-    """Whether Arrow casts every one of ``values`` to int32 (and the dataset layer types the key so)."""
-    try:
-        pc.cast(pa.array(values, pa.string()), pa.int32())
-    except pa.ArrowInvalid:
-        return False
-    return True
 
 
 RUN_FIELDS = (
