@@ -1,11 +1,11 @@
-"""The dataset writer's and reader's shortcuts give what the general path gives: the same partitions,
-rows, chunks and bytes when writing; the same table (or error) as ``pyarrow.dataset`` when reading."""
+"""The dataset writer's shortcut for a table of one partition gives what the general grouping gives: the
+same partitions, rows, chunks and bytes."""
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from planner.io.parquet import (_grouped_partitions, _only_value, _partitions, _string_partitions,
-                                conform, declare, stamping, write_parquet_atomic, write_partitioned)
+from planner.io.parquet import (_grouped_partitions, _one_partition, _partitions, conform, declare, stamping,
+                                write_parquet_atomic, write_partitioned)
 
 PARTS = ["line", "direction", "train_type"]
 SCHEMA = declare([("x", pa.float64(), "a value"), ("name", pa.string(), "a name")], name="ds")
@@ -48,12 +48,15 @@ CASES = {
 }
 
 
+ONE_PARTITION = {name for name in CASES if name.startswith("one partition")}
+
+
 @pytest.mark.parametrize("name", CASES)
-def test_string_partitions_come_out_as_from_the_group_by(name):
+def test_partitions_come_out_as_from_the_group_by(name):
     """Keys, rows and chunk layout of every partition equal the general grouping's (so the bytes do);
-    the shortcut is the one taken for these tables."""
+    the shortcut is the one taken for the tables of one partition."""
     t = CASES[name]
-    assert _string_partitions(t, PARTS) is not None
+    assert (_one_partition(t, PARTS) is not None) == (name in ONE_PARTITION)
     fast, general = list(_partitions(t, PARTS)), list(_grouped_partitions(t, PARTS))
     assert [k for k, _ in fast] == [k for k, _ in general]
     for (_, a), (_, b) in zip(fast, general):
@@ -62,28 +65,18 @@ def test_string_partitions_come_out_as_from_the_group_by(name):
 
 
 def test_the_general_grouping_for_the_rest():
-    """Ints, nulls, columns chunked differently or empty chunks, several chunks and partitions: the
-    group_by (the shortcut would change folders or chunks)."""
+    """Nulls, columns chunked differently or empty chunks: the group_by (the shortcut would change folders or
+    chunks); an int partition column of one value takes the shortcut, its folder named as the group_by names it."""
     mixed = pa.table({"line": pa.chunked_array([["L"] * 3, ["L"] * 3]), "x": pa.chunked_array([[1.0] * 6])})
     empty_chunk = pa.table({"line": pa.chunked_array([[], ["L"] * 3], pa.string()),
                             "x": pa.chunked_array([[], [1.0] * 3], pa.float64())})
-    several = _chunked(MANY, [30, 30])
-    for t, parts in [(pa.table({"line": [1, 1], "x": [1.0, 2.0]}), ["line"]),
-                     (pa.table({"line": ["a", None], "x": [1.0, 2.0]}), ["line"]),
-                     (mixed, ["line"]), (empty_chunk, ["line"]), (several, PARTS)]:
-        assert _string_partitions(t, parts) is None
-    assert [k for k, _ in _partitions(several, PARTS)] == [k for k, _ in _grouped_partitions(several, PARTS)]
-
-
-def test_only_value():
-    assert _only_value(pa.chunked_array([["E10"] * 5, ["E10"]])) == "E10"
-    assert _only_value(pa.chunked_array([pa.array(["x", "y", "y", "y"]).slice(1)])) == "y"
-    assert _only_value(pa.chunked_array([pa.array(["y", "y", "x"]).slice(0, 2)])) == "y"
-    assert _only_value(pa.chunked_array([["", ""]])) == ""
-    assert _only_value(pa.chunked_array([pa.array(["é", "é"], pa.large_string())])) == "é"
-    for other in (["ab", "ba"], ["ab", "a", "b"], ["a", "aa"], ["a", "a", "b"]):
-        assert _only_value(pa.chunked_array([other])) is None
-    assert _only_value(pa.chunked_array([["a"], ["b"]])) is None
+    for t, parts in [(pa.table({"line": ["a", None], "x": [1.0, 2.0]}), ["line"]),
+                     (pa.table({"line": [None, None], "x": [1.0, 2.0]}), ["line"]),
+                     (mixed, ["line"]), (empty_chunk, ["line"]), (_chunked(MANY, [30, 30]), PARTS)]:
+        assert _one_partition(t, parts) is None
+        assert [k for k, _ in _partitions(t, parts)] == [k for k, _ in _grouped_partitions(t, parts)]
+    ints = pa.table({"line": [7, 7], "x": [1.0, 2.0]})
+    assert _one_partition(ints, ["line"]) == ("7",) == next(_grouped_partitions(ints, ["line"]))[0]
 
 
 @pytest.mark.parametrize("name", CASES)

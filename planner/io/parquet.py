@@ -23,7 +23,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
-import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
@@ -152,63 +151,25 @@ def _partitions(table: pa.Table, parts: list[str]) -> Iterator[tuple[tuple[str, 
     if not parts:
         yield (), table
         return
-    keys = _string_partitions(table, parts)
-    if keys is None:
-        yield from _grouped_partitions(table, parts)
-    elif len(keys) == 1:
-        # every row in one partition (each job write of tables, stops, margins): the rows as they are,
-        # as filtering them by an all-true mask gave (same chunks), without a group_by and masks
-        yield keys[0][0], table.drop_columns(parts)
+    one = _one_partition(table, parts)
+    if one is not None:
+        # every row in one partition (each job write of tables, stops, closed loop, margins): the rows as they
+        # are, as filtering them by an all-true mask gave (same chunks), without a group_by and masks
+        yield one, table.drop_columns(parts)
     else:
-        for key, rows in sorted(keys, key=lambda kr: kr[0]):
-            yield key, table.filter(pa.array(rows)).drop_columns(parts)
+        yield from _grouped_partitions(table, parts)
 
 
-_STRINGS = (pa.string(), pa.large_string())  # large: what pa.Table.from_pandas makes of pandas 3 strings
-
-
-def _string_partitions(table: pa.Table, parts: list[str]) -> list[tuple[tuple[str, ...], object]] | None:
-    """The partitions of a table whose partition columns are strings without nulls: ``[(values, None)]``
-    when every row has the same values, else ``[(values, boolean row mask)]`` per partition. None (the
-    general grouping) for other columns, or where the rows' chunks would not come out of a filter as
-    they are (columns chunked differently, empty chunks; for several partitions, more than one chunk)."""
-    cols = [table.column(c) for c in parts]
-    if any(col.type not in _STRINGS or col.null_count for col in cols):
-        return None
+def _one_partition(table: pa.Table, parts: list[str]) -> tuple[str, ...] | None:
+    """The folder values when every row of ``table`` is in one partition and its rows would come out of a
+    filter as they are (every column chunked alike, no empty chunk), else None (the general grouping)."""
     layouts = {tuple(len(chunk) for chunk in col.chunks) for col in table.columns}
     if len(layouts) != 1 or 0 in next(iter(layouts)):
         return None
-    only = [_only_value(col) for col in cols]
-    if None not in only:
-        return [(tuple(only), None)]
-    if len(next(iter(layouts))) != 1:
+    values = [pc.unique(table.column(c)) for c in parts]
+    if any(len(v) != 1 or v.null_count for v in values):
         return None
-    codes, values = [], []
-    for col in cols:  # a code per row for the combination of the partition values
-        enc = pc.dictionary_encode(col.chunk(0))
-        codes.append(enc.indices.to_numpy())
-        values.append(enc.dictionary.to_pylist())
-    dims = [len(v) for v in values]
-    present, inverse = np.unique(np.ravel_multi_index(codes, dims), return_inverse=True)
-    return [(tuple(v[i] for v, i in zip(values, np.unravel_index(flat, dims))), inverse == g)
-            for g, flat in enumerate(present)]
-
-
-def _only_value(col: pa.ChunkedArray) -> str | None:
-    """The value of a string column without nulls when every row holds the same, else None; from the
-    offsets and bytes (a hash or comparison kernel costs ~10 us per thousand rows, this ~1)."""
-    first: bytes | None = None
-    for chunk in col.chunks:
-        _, offsets, data = chunk.buffers()
-        width = 8 if chunk.type == pa.large_string() else 4
-        off = np.frombuffer(offsets, dtype=f"i{width}", count=len(chunk) + 1, offset=width * chunk.offset)
-        if first is None:
-            first = bytes(memoryview(data)[off[0]:off[1]]) if data is not None else b""
-        if not (np.diff(off) == len(first)).all():
-            return None
-        if first and bytes(memoryview(data)[off[0]:off[-1]]) != first * len(chunk):
-            return None
-    return None if first is None else first.decode()
+    return tuple(str(v[0].as_py()) for v in values)  # a folder is named by str() of the value, as the rows'
 
 
 def _grouped_partitions(table: pa.Table, parts: list[str]) -> Iterator[tuple[tuple[str, ...], pa.Table]]:
