@@ -376,18 +376,19 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         ahead["loop"] = runner.start_steps(side + [("closed_loop", ahead["c_units"])], wait=False)
         summary.pending.append(ahead["loop"])  # a run failing meanwhile waits for it (and caches what it did)
         ahead["tables_written"] = _on_writer(writes, write_tables, tables, stage)
-        ahead["given"] = _on_writer(writes, given_tables, line, line_types(job, line), stage)
+        ahead["given"] = _on_writer(writes, given_tables, line, types, stage)
 
     # the stops do not depend on the tables: one pass of the workers, the stops' short units filling the
     # tables' last ones; the closed loop starts as soon as the last table is in (tables_in), so no worker
     # waits between the two passes while this process stores the stops' results
     pass1 = runner.start_steps([("tables", t_units), ("stops", s_units)], wait=False)
-    n_tables = [0]
+    tables_left = len(t_units)
 
     def arrived(g: int, _i: int, _res) -> None:
+        nonlocal tables_left
         if g == 0:
-            n_tables[0] += 1
-            if n_tables[0] == len(t_units):
+            tables_left -= 1
+            if not tables_left:
                 tables_in(pass1.out[0])
 
     tables, stops = pass1.results(each=arrived)
