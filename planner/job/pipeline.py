@@ -63,6 +63,7 @@ from planner.job.units import (
     code_digest,
     kernel_backends,
     interstation_inputs,
+    warm_worker,
 )
 from planner.job.steps import (
     bundles_step,
@@ -85,14 +86,6 @@ from planner.job.publish import (
     publish,
     staging_dir,
 )
-
-def warm_worker() -> None:
-    """What a worker imports for the job's units and background work, done first
-    (:func:`planner.io.parallel.started_workers`), while the main process reads the lines."""
-    import planner.job.units  # noqa: F401
-    import planner.stopping.sweep  # noqa: F401
-    import planner.tables.build  # noqa: F401
-    import planner.tables.closed_loop  # noqa: F401
 
 STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
          "overview", "publish")

@@ -136,6 +136,16 @@ def _closed_loop_unit(line, tt, tables, scenarios, modes, horizon_s, step_s, ds_
                              modes=modes, extra_s=horizon_s, step_s=step_s, settings=SimSettings(ds_m=ds_m))
 
 
+def warm_worker() -> None:
+    """What a worker imports for the job's units and background work, done first
+    (:func:`planner.io.parallel.started_workers`), while the main process reads the lines. Here, not in
+    :mod:`planner.job.pipeline`: a worker unpickling it imports this module, not the whole job (~35 ms
+    of each worker's start, while the main process and both workers share the two cores)."""
+    import planner.stopping.sweep  # noqa: F401
+    import planner.tables.build  # noqa: F401
+    import planner.tables.closed_loop  # noqa: F401
+
+
 def _call(fn, args):
     """joblib worker: module level, so it pickles to local processes and Dask workers alike."""
     with warnings.catch_warnings():
