@@ -120,6 +120,9 @@ class RunSummary:
     written by :func:`planner.job.views.run_views`)."""
     pending: list = field(default_factory=list, repr=False, compare=False)
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
+    graph_pages: list = field(default_factory=list, repr=False, compare=False)
+    """Each line's train graph page, being written on a worker (:func:`planner.job.views.graph_page`; taken by
+    :func:`planner.job.views.run_views`)."""
     bundles_verified: Any = field(default=None, repr=False, compare=False)
     """The overview's rows of the run's bundles, being verified on a worker once the last line's bundles are
     written (a :class:`planner.io.parallel.Background` of :func:`planner.pages.overview.bundle_rows`)."""

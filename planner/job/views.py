@@ -5,7 +5,8 @@ Two hooks called by :mod:`planner.job.pipeline`:
 * :func:`line_views`, after a line's bundles: keep a copy of the line's tables
   in the run (``inputs/<line_id>/``, so a later run can name the rows that
   changed), and write its interactive train graph
-  (``graph/<line_id>_graph.html``). The trajectories are a cached unit keyed by
+  (``graph/<line_id>_graph.html``, on a worker: :func:`graph_page`, taken by
+  :func:`run_views` before the manifest). The trajectories are a cached unit keyed by
   the line database, the code and the run-curve step (:func:`graph_unit`, run
   on a worker beside the bundles), so an unchanged line reuses them; windows,
   conflicts and margins come from the run's own
@@ -80,12 +81,12 @@ def graph_unit(job, line, lifted=None):
 
 
 def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> None:
-    """Inputs copy and train graph page of one line (module doc); ``paths``: the result of :func:`graph_unit`;
-    ``charts``: the line's speed–distance charts if started already (:func:`planner.job.train_views.start_charts`)."""
-    from planner.report.published_run import read_line_dataset, path_id
-    from planner.report.train_graph import graph_data
-    from planner.pages.train_graph import write_page
-    from planner.job.train_views import timetable_href, train_views
+    """Inputs copy, running-time tables and train graph page of one line (module doc); ``paths``: the result of
+    :func:`graph_unit`; ``charts``: the line's speed–distance charts if started already
+    (:func:`planner.job.train_views.start_charts`). The train graph page is written on a worker
+    (:func:`graph_page`, in ``summary.graph_pages``) while this process writes the run's other pages."""
+    from planner.io.parallel import background
+    from planner.job.train_views import train_views
 
     copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
@@ -98,20 +99,35 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> N
                        later=summary.chart_pages, charts=charts)
     summary.pending += [c for c in summary.chart_pages[-1:] if c not in summary.pending]
     give_back()  # the pages of the legs' runs (planner.io.memory)
-    with runner.progress.step("graph"):
-        occ = read_line_dataset(stage, "occupation", line.line_id)
-        con = read_line_dataset(stage, "conflicts", line.line_id)
-        mt = read_line_dataset(stage, "margin_totals", line.line_id)
-        data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
-        if check and line.network is not None and (occ is None or con is None):
-            data.notes.append("the run has no occupation/conflicts datasets for this line")
-        lid = path_id(line.line_id)
-        write_page(data, stage / "graph" / f"{lid}_graph.html", run_label=label,
-                   timetable_href="../" + timetable_href(line.line_id),
-                   charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()},
-                   links=graph_links(line.line_id))
-    del data, occ, con
+    with runner.progress.step("graph"):  # the page's own time is counted where run_views takes it
+        page = background(graph_page, (line, stage, paths, legs, label, check), name=job.parallel.backend,
+                          n_jobs=job.parallel.n_jobs)
+    summary.pending.append(page)
+    summary.graph_pages.append(page)
     give_back()
+
+
+def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool) -> None:
+    """Write ``graph/<line>_graph.html``: the line's train graph from its trajectories (``paths``) and the run's
+    occupation, conflicts and margin totals datasets, each train linked to its legs' charts (``legs``, from
+    :func:`planner.job.train_views.train_views`). Module level: the nightly job runs it on a worker."""
+    from planner.job.train_views import timetable_href
+    from planner.pages.train_graph import write_page
+    from planner.report.published_run import path_id, read_line_dataset
+    from planner.report.train_graph import graph_data
+
+    occ = read_line_dataset(stage, "occupation", line.line_id)
+    con = read_line_dataset(stage, "conflicts", line.line_id)
+    mt = read_line_dataset(stage, "margin_totals", line.line_id)
+    data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
+    if check and line.network is not None and (occ is None or con is None):
+        data.notes.append("the run has no occupation/conflicts datasets for this line")
+    write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html", run_label=label,
+               timetable_href="../" + timetable_href(line.line_id),
+               charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()},
+               links=graph_links(line.line_id))
+    del data, occ, con
+    give_back()  # the pages of the graph's data, for the work after it on this worker
 
 
 def graph_links(line_id: str) -> list[tuple[str, str]]:
@@ -261,6 +277,9 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
+    with prog.step("graph"):  # each line's train graph page, written on a worker meanwhile
+        for page in summary.graph_pages:
+            page.result()
     with prog.step("overview"):  # its bundles verified meanwhile
         brows = verified.result()
     for pages in summary.chart_pages:  # the speed–distance charts, drawn while the pages above were written
@@ -281,4 +300,4 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
         write_overview(stage, manifest, notes=notes, bundles=brows)
 
 
-__all__ = ["copy_inputs", "graph_links", "line_views", "run_views"]
+__all__ = ["copy_inputs", "graph_links", "graph_page", "line_views", "run_views"]
