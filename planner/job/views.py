@@ -104,7 +104,6 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> N
                           n_jobs=job.parallel.n_jobs)
     summary.pending.append(page)
     summary.graph_pages.append(page)
-    give_back()
 
 
 def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool) -> None:
