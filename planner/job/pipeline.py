@@ -20,15 +20,19 @@ restriction recomputes only the interstations (and approaches) it reaches.
 
 What does not depend on a step runs beside it, so that both cores stay busy:
 the workers start while the lines are read; the stopping patterns share the
-tables' pass of the workers, and the line's conflicts the closed loop's; the
-tables and stops datasets are written on a thread while the workers compute the
-next steps; the bundles and the train graph's trajectories start on the workers
-when the closed loop ends, while that thread writes the closed loop and the margins
-take its rows from memory; the overview's check of the bundles starts on a worker
-as soon as the last line's bundles are written; the legs' speed–distance charts are drawn on the workers while the main
-process writes the tables page, the train graph and the margin report (whose
-few charts it draws itself); the chart pages are written last, each as its
-chart arrives.
+tables' pass of the workers, and the closed loop (with the line's conflicts)
+starts as soon as the last table is in, behind the stops' last units; the tables
+and stops datasets are written on a thread while the workers compute the next
+steps; the train graph's trajectories and the bundles start on the workers when
+the closed loop ends, while that thread writes the closed loop and the margins
+take its rows from memory; the legs' speed–distance charts start as soon as the
+margins are computed; the overview's check of the bundles starts on a worker as
+soon as the last line's bundles are written, and the train graph page is written
+on a worker while the main process writes the tables page and the margin report
+(whose few charts it draws itself); the chart pages are written last, each as
+its chart arrives. This process is the night's serial path (one interpreter
+lock beside two busy workers), so it leaves to a worker or the writer thread
+what it can.
 A step's time in the summary is the sum of its intervals, so the steps add up
 to more than the run's wall time.
 """
