@@ -10,11 +10,13 @@ import pytest
 import planner.cli as cli
 
 
-def _ended(monkeypatch) -> list:
-    """Replace the process's end and the atexit run by recorders; the list says what happened, in order."""
+def _ended(monkeypatch, *threads: threading.Thread) -> list:
+    """Replace the process's end and the atexit run by recorders; the list says what happened, in order. The
+    process's threads are this one and ``threads`` (pytest's process may hold others, a pool's among them)."""
     seen: list = []
     monkeypatch.setattr("os._exit", lambda code: seen.append(("exit", code)))
     monkeypatch.setattr("atexit._run_exitfuncs", lambda: seen.append(("atexit",)))
+    monkeypatch.setattr("threading.enumerate", lambda: [threading.current_thread(), *threads])
     return seen
 
 
@@ -27,11 +29,11 @@ def test_ends_at_once_with_the_code_after_the_exit_handlers(monkeypatch, code, w
 
 def test_a_running_thread_gets_the_normal_exit(monkeypatch):
     """A non-daemon thread still at work is waited for: the normal exit (SystemExit raised again)."""
-    seen = _ended(monkeypatch)
     go = threading.Event()
     t = threading.Thread(target=go.wait, name="still-working")
     t.start()
     try:
+        seen = _ended(monkeypatch, t)
         with pytest.raises(SystemExit) as e:
             cli._exit_now(SystemExit(0))
         assert e.value.code == 0 and seen == []
@@ -40,6 +42,7 @@ def test_a_running_thread_gets_the_normal_exit(monkeypatch):
         t.join()
     daemon = threading.Thread(target=go.wait, daemon=True)  # a daemon never holds a normal exit up either
     daemon.start()
+    seen = _ended(monkeypatch, daemon)
     cli._exit_now(SystemExit(0))
     assert seen == [("atexit",), ("exit", 0)]
 
