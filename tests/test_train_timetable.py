@@ -120,6 +120,34 @@ def test_page_has_an_anchor_per_train_and_chart_links(tiny, rows):
     assert "http" not in text.replace("http-equiv", "")  # self-contained: no link off the machine
 
 
+def test_the_page_written_in_pieces_is_the_page(tiny, rows, tmp_path, monkeypatch):
+    """The job writes the tables page a train's section at a time (page_parts, never the whole text held):
+    the file has exactly render_page's bytes, also when the pieces are gathered into several writes."""
+    import planner.io.atomic as atomic
+    from planner.pages.timetable import page_parts, render_page, write_page
+
+    kw = dict(links=[("overview", "../index.html")], run_id="r0001-abc", graph_href="../graph/tiny_graph.html")
+    whole = render_page("tiny", tiny.name, rows, **kw)
+    parts = list(page_parts("tiny", tiny.name, rows, **kw))
+    assert len(parts) == len(tiny.trains) + 2  # the head, a section per train, the end
+    monkeypatch.setattr(atomic, "_CHUNK", 300)  # several gathered writes
+    got = write_page(tmp_path / "t" / "tt.html", page_parts("tiny", tiny.name, rows, **kw)).read_bytes()
+    assert got == whole.encode("utf-8") and got.count(b"<html") == 1 and got.endswith(b"</html>\n")
+
+
+def test_a_page_whose_pieces_fail_leaves_no_file(tmp_path):
+    """A piece that cannot be made (an error part way) leaves neither the page nor a temporary file."""
+    from planner.pages.timetable import write_page
+
+    def pieces():
+        yield "<html>"
+        raise RuntimeError("a train's section failed")
+
+    with pytest.raises(RuntimeError):
+        write_page(tmp_path / "tt.html", pieces())
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_chart_is_named_safely_whatever_the_station_ids():
     """Station ids may be any text (validation allows unicode, '/', '<'); a chart's file name may not: such a
     leg is named by a digest of its ids, distinct per leg, and an ordinary leg keeps its readable name."""

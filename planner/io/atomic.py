@@ -23,7 +23,7 @@ import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+from typing import Iterable, Iterator
 
 
 def _fsync_file(path: str) -> None:
@@ -138,11 +138,36 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, mode: int = 0o64
     with atomic_path(path, mode=mode, fsync=fsync) as tmp:
         fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC)
         try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(fd, view[:_CHUNK]):]
+            _write_all(fd, data)
         finally:
             os.close(fd)
+
+
+def write_chunks_atomic(path: str | os.PathLike, chunks: Iterable[bytes], *, mode: int = 0o644,
+                        fsync: bool | None = None) -> None:
+    """Write the concatenated ``chunks`` to ``path`` atomically (see :func:`atomic_path`), each as it is made:
+    a large page need not be held whole. A chunk that fails to be made (an exception from the iterable) leaves
+    no file, as a failed write does."""
+    with atomic_path(path, mode=mode, fsync=fsync) as tmp:
+        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC)
+        try:
+            buf, size = [], 0
+            for chunk in chunks:  # gathered to about _CHUNK bytes a write: pages come in many small pieces
+                buf.append(chunk)
+                size += len(chunk)
+                if size >= _CHUNK:
+                    _write_all(fd, b"".join(buf))
+                    buf, size = [], 0
+            if buf:
+                _write_all(fd, b"".join(buf))
+        finally:
+            os.close(fd)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view[:_CHUNK]):]
 
 
 @contextmanager

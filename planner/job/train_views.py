@@ -144,7 +144,7 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     legs with a chart in running order (the train graph links them).
     """
     from planner.job.steps import count_rows
-    from planner.pages.timetable import render_page, write_page
+    from planner.pages.timetable import page_parts, write_page
     from planner.report.train_timetable import timetable_rows, write_timetable
 
     lid = line.line_id
@@ -158,9 +158,9 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
         count_rows(summary, write_timetable(line, runs, stage, types, recs))
         links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
                  ("train graph", f"../graph/{lid}_graph.html")]
-        write_page(stage / timetable_href(lid), render_page(lid, line.name, recs, links=links, run_id=run_id, day=day,
-                                                           run_date=getattr(summary, "run_date", None),
-                                                           graph_href=f"../graph/{lid}_graph.html"))
+        write_page(stage / timetable_href(lid), page_parts(lid, line.name, recs, links=links, run_id=run_id, day=day,
+                                                          run_date=getattr(summary, "run_date", None),
+                                                          graph_href=f"../graph/{lid}_graph.html"))
     if later is None:
         charts.finish()
     else:

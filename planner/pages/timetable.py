@@ -14,7 +14,7 @@ import html
 import math
 from itertools import groupby
 from pathlib import Path
-from typing import Sequence
+from typing import Iterable, Iterator, Sequence
 
 from planner.line.units import fixed
 from planner.report.leg_flags import FLAG
@@ -83,6 +83,16 @@ def render_page(line_id: str, line_name: str, records: Sequence[dict], *, links:
     """The page (module doc); ``records`` as :func:`timetable_rows` gives them, ``links``: (label, href) at the top,
     with the run's id, date and operating day (``day``: its record, :func:`planner.pages.run_head.nav_html`);
     ``graph_href``: the line's train graph page, which each train links to (``#train=<id>``: its run there)."""
+    return "".join(page_parts(line_id, line_name, records, links=links, run_id=run_id, day=day, run_date=run_date,
+                              graph_href=graph_href))
+
+
+def page_parts(line_id: str, line_name: str, records: Sequence[dict], *, links: Sequence[tuple[str, str]] = (),
+               run_id: str | None = None, day: dict | None = None, run_date: str | None = None,
+               graph_href: str = "") -> Iterator[str]:
+    """:func:`render_page`'s text in pieces, a train's section at a time: what :func:`write_page` writes without
+    holding the whole page (tens of megabytes, several times over while joined, on a line of thousands of
+    trains)."""
     from urllib.parse import quote
 
     from planner.pages.margin_report import CSS
@@ -96,14 +106,29 @@ def render_page(line_id: str, line_name: str, records: Sequence[dict], *, links:
         if ids:
             idx.append(f"<h3>{d} ({len(ids)} trains)</h3><div>" + "".join(
                 f'<a href="#train-{_e(t)}">{_e(t)}</a>' for t in ids) + "</div>")
-    parts = []
+    from planner.pages.margin_report import line_title
+    from planner.pages.run_head import nav_html
+
+    title = f"Running-time tables — {line_title(line_name, line_id)}"
+    yield (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>'
+           f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}{EXTRA_CSS}</style>'
+           f'</head><body><main id="top">{nav_html(links, run_id, day, run_date)}'
+           f"<h1>{_e(title)}</h1>"
+           '<p class="sub">Every train of the timetable, every station of its path. <b>Computed</b>: each leg (stop '
+           "to next stop) run from its scheduled departure at the ratio the on-board logic picks for an on-time "
+           "departure (the nearest table (a) time to the scheduled one); a train leaves each stop at its scheduled "
+           "time, so the computed departure is the scheduled one; <b>minimum</b>: the same leg at ratio "
+           "100 %. Both at the tables' conditions (empty, full traction). <b>Supplement</b>: scheduled − minimum "
+           "time of the section from the previous call; a leg's supplements add up to its margin. The bad-day margin "
+           "and the flag are the margin report's. The same rows are the <code>train_timetable</code> dataset.</p>"
+           f'<div class="note idx">{"".join(idx)}</div>')
     for t in order:
         rs = by_train[t]
         first, last = rs[0], rs[-1]
         n_stop = sum(r["activity"] in ("stops",) for r in rs)
         n_pass = sum(r["activity"] == "passes" for r in rs)
         tot_sup = sum(r["supplement_s"] for r in rs if r["supplement_s"] == r["supplement_s"])
-        parts.append(
+        yield (
             f'<section class="tt" id="train-{_e(t)}"><h3>{_e(t)} · {_e(first["train_type"])} {_e(first["direction"])}: '
             f'{_e(first["station_id"])} {_e(first["scheduled_departure"] or "")} → {_e(last["station_id"])} '
             f'{_e(last["scheduled_arrival"] or "")} <a class="self" href="#train-{_e(t)}">#</a>'
@@ -112,30 +137,19 @@ def render_page(line_id: str, line_name: str, records: Sequence[dict], *, links:
             f'<p class="caption">{n_stop} intermediate stops, {n_pass} passes; running-time supplement over the '
             f"whole run {tot_sup:.1f} s.</p>"
             f'<div class="tw"><table>{HEAD}{"".join(_row(r, "../") for r in rs)}</table></div></section>')
-    from planner.pages.margin_report import line_title
-    from planner.pages.run_head import nav_html
-
-    title = f"Running-time tables — {line_title(line_name, line_id)}"
-    return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>'
-            f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}{EXTRA_CSS}</style>'
-            f'</head><body><main id="top">{nav_html(links, run_id, day, run_date)}'
-            f"<h1>{_e(title)}</h1>"
-            '<p class="sub">Every train of the timetable, every station of its path. <b>Computed</b>: each leg (stop '
-            "to next stop) run from its scheduled departure at the ratio the on-board logic picks for an on-time "
-            "departure (the nearest table (a) time to the scheduled one); a train leaves each stop at its scheduled "
-            "time, so the computed departure is the scheduled one; <b>minimum</b>: the same leg at ratio "
-            "100 %. Both at the tables' conditions (empty, full traction). <b>Supplement</b>: scheduled − minimum "
-            "time of the section from the previous call; a leg's supplements add up to its margin. The bad-day margin "
-            "and the flag are the margin report's. The same rows are the <code>train_timetable</code> dataset.</p>"
-            f'<div class="note idx">{"".join(idx)}</div>{"".join(parts)}</main></body></html>\n')
+    yield "</main></body></html>\n"
 
 
-def write_page(path: Path, text: str) -> Path:
-    from planner.io.atomic import write_bytes_atomic
+def write_page(path: Path, text: str | Iterable[str]) -> Path:
+    """Write the page (its text, or :func:`page_parts`' pieces, written as they come) atomically to ``path``."""
+    from planner.io.atomic import write_bytes_atomic, write_chunks_atomic
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_bytes_atomic(path, text.encode("utf-8"))
+    if isinstance(text, str):
+        write_bytes_atomic(path, text.encode("utf-8"))
+    else:
+        write_chunks_atomic(path, (part.encode("utf-8") for part in text))
     return path
 
 
-__all__ = ["render_page", "write_page", "clock"]
+__all__ = ["render_page", "page_parts", "write_page", "clock"]
