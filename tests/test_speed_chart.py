@@ -167,6 +167,46 @@ def test_ids_are_escaped(charts):
     assert odd in _texts(svg)  # the station's label reads as given
 
 
+def test_a_worker_draws_the_chart_of_the_run_the_job_recorded(tiny):
+    """The job's process keeps only a leg's times; the chart's worker records the run again from the leg's
+    window: the same chart, byte for byte, as drawn from the job's own run of the leg."""
+    from planner.job.train_views import _chart_task
+    from planner.pages.speed_chart import chart_svg
+    from planner.report.margins import compute_margins
+    from planner.report.train_timetable import legs
+
+    line, runs = tiny
+    seen = 0
+    for key, win, row in legs(line, compute_margins(line, conflicts=False).rows):
+        d, _, o, de = key[:4]
+        calls = [(o, True, line.station(o).stop_m(d)), (de, True, line.station(de).stop_m(d))]
+        assert _chart_task(win, key, row, 1.0, calls, None, None, None) == chart_svg(win, runs[key], calls)
+        seen += 1
+    assert seen == len(runs) > 1
+
+
+def test_a_charts_key_follows_what_the_run_depends_on(tiny):
+    """A chart's cache key names the run by what it is computed from (the leg's window, the ratio, the step),
+    not by its arrays: another step, ratio or speed limit on the leg is another key; the same inputs, the same."""
+    from planner.job.train_views import _chart_key
+    from planner.report.margins import compute_margins
+    from planner.report.train_timetable import leg_times
+
+    line, _ = tiny
+    rows = compute_margins(line, conflicts=False).rows
+    key, (t, _w) = sorted(leg_times(line, rows).items())[0]
+    rest = ([], None, [], [])
+    k0 = _chart_key(line, t, 1.0, rest)
+    assert _chart_key(line, t, 1.0, rest) == k0
+    assert _chart_key(line, t, 0.5, rest) != k0
+    assert _chart_key(line, dataclasses.replace(t, ratio=t.ratio - 0.1), 1.0, rest) != k0
+    d, tt, o, de = key[:4]
+    (lim, *_) = [s for s in line.limits_for(d, tt) if s.end_m > line.window(o, de, tt).run_between(o, de).start_m]
+    slower = dataclasses.replace(line, speed_limits=tuple(
+        dataclasses.replace(s, limit_ms=s.limit_ms - 1.0) if s is lim else s for s in line.speed_limits))
+    assert _chart_key(slower, t, 1.0, rest) != k0
+
+
 def test_same_inputs_same_bytes_whatever_was_drawn_before(charts):
     from planner.pages.speed_chart import chart_svg
 

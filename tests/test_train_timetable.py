@@ -120,6 +120,26 @@ def test_page_has_an_anchor_per_train_and_chart_links(tiny, rows):
     assert "http" not in text.replace("http-equiv", "")  # self-contained: no link off the machine
 
 
+def test_the_times_the_job_keeps_are_the_runs_times(tiny, margins, runs):
+    """The job's process keeps each leg's ends and its times at the line's stations (leg_times), not the runs'
+    node arrays: the timetable from those is the timetable from the runs, value for value (train 202 passes B,
+    a time between two grid nodes), and a chainage it did not keep is an error, not a guess."""
+    from planner.report.train_timetable import leg_times, timetable_rows
+
+    kept = leg_times(tiny, margins)
+    assert sorted(kept) == sorted(runs)
+    times = {k: t for k, (t, _win) in kept.items()}
+    assert any(r["activity"] == "passes" for r in timetable_rows(tiny, runs))
+    assert timetable_rows(tiny, times) == timetable_rows(tiny, runs)
+    for k, t in times.items():
+        r = runs[k]
+        assert not hasattr(t, "t_s") and t.span_m == (float(r.position_m.min()), float(r.position_m.max()))
+        for s in tiny.stations:
+            assert t.time_at(s.position_m, 1) == r.time_at(s.position_m, 1)
+        with pytest.raises(KeyError, match="no time kept"):
+            t.time_at(tiny.stations[0].position_m + 0.5, 0)
+
+
 def test_the_page_written_in_pieces_is_the_page(tiny, rows, tmp_path, monkeypatch):
     """The job writes the tables page a train's section at a time (page_parts, never the whole text held):
     the file has exactly render_page's bytes, also when the pieces are gathered into several writes."""

@@ -225,6 +225,13 @@ def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> 
     return written
 
 
+_KNOWN = ("line", "direction", "train_type", "run_id", "run_date")
+_CODED = ("origin", "destination", "eval_point_id")
+"""String columns :func:`load_tables` reads as codes into their values (:meth:`_Rows._codes`)."""
+"""Columns :func:`load_tables` does not read back: the partition it asks for, and the run's stamp (on the 10x line
+these were most of the bytes of table_b read back, each value repeated on every row)."""
+
+
 def load_tables(
     tables_dir: str | Path, line_id: str, direction: str, train_type: str
 ) -> dict[tuple[str, str], RunningTimeTables]:
@@ -251,9 +258,9 @@ def load_tables(
     root = Path(tables_dir)
     out = {}
     try:
-        ep = read_dataset(root, "eval_points", line=line_id, direction=direction, train_type=train_type)
-        ta = read_dataset(root, "table_a", line=line_id, direction=direction, train_type=train_type)
-        tb = read_dataset(root, "table_b", line=line_id, direction=direction, train_type=train_type)
+        ep = read_dataset(root, "eval_points", without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction, train_type=train_type)
+        ta = read_dataset(root, "table_a", without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction, train_type=train_type)
+        tb = read_dataset(root, "table_b", without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction, train_type=train_type)
     except (FileNotFoundError, OSError) as e:
         raise InputError(f"--tables {root}: cannot read the tables ({e}); run `planner tables` first") from None
     tc = _optional(root, "table_c", line_id, direction, train_type)  # only the adaptive mode needs
@@ -354,8 +361,15 @@ class _Rows:
     def _codes(self, name: str) -> tuple[np.ndarray, list]:
         """A string column as codes into its distinct values (null one of them, as None)."""
         if (name, str) not in self._cols:
-            enc = pc.dictionary_encode(self.table.column(name).combine_chunks(), null_encoding="encode")
-            self._cols[name, str] = (enc.indices.to_numpy().astype(np.intp), enc.dictionary.to_pylist())
+            col = self.table.column(name)
+            if pa.types.is_dictionary(col.type):  # read as codes (read_dataset(dictionary=)): null a value of its own
+                enc = col.unify_dictionaries().combine_chunks() if col.num_chunks > 1 else col.chunk(0)
+                values = enc.dictionary.to_pylist()
+                codes = enc.indices.fill_null(len(values)).to_numpy().astype(np.intp)
+                self._cols[name, str] = (codes, values + [None])
+            else:
+                enc = pc.dictionary_encode(col.combine_chunks(), null_encoding="encode")
+                self._cols[name, str] = (enc.indices.to_numpy().astype(np.intp), enc.dictionary.to_pylist())
         return self._cols[name, str]
 
     def floats(self, name: str) -> np.ndarray:
@@ -446,7 +460,7 @@ def _positions(root: Path, name: str, o: str, d: str, *axes: tuple[str, np.ndarr
 def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str) -> pa.Table | None:
     """One partition of an optional dataset, or None when the dataset is absent or has no rows there."""
     try:
-        t = read_dataset(root, name, line=line_id, direction=direction, train_type=train_type)
+        t = read_dataset(root, name, without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction, train_type=train_type)
     except (FileNotFoundError, OSError):
         return None
     return t if t.num_rows else None

@@ -191,21 +191,27 @@ def _grouped_partitions(table: pa.Table, parts: list[str]) -> Iterator[tuple[tup
         yield key, table.filter(mask).drop_columns(parts)  # rows keep their order
 
 
-def read_dataset(root: Path, dataset: str, **filters) -> pa.Table:
+def read_dataset(root: Path, dataset: str, *, without: Sequence[str] = (), dictionary: Sequence[str] = (),
+                 **filters) -> pa.Table:
     """Read a hive-partitioned dataset, optionally filtered by partition values.
 
     ``read_dataset(out, "table_a", direction="down", train_type="E10")``.
-    Partition columns come back as strings.
+    Partition columns come back as strings. ``without``: columns not to read (a reader that knows the partition
+    it asked for need not have its values repeated on every row, nor the run's stamp); ``dictionary``: string
+    columns to read as dictionary arrays, as the files store them (a value once, a code per row).
     """
     import pyarrow.dataset as ds
 
     path = Path(root) / dataset
-    d = ds.dataset(path, format="parquet", partitioning="hive")
+    fmt = ds.ParquetFileFormat(read_options=ds.ParquetReadOptions(dictionary_columns=list(dictionary))) \
+        if dictionary else "parquet"
+    d = ds.dataset(path, format=fmt, partitioning="hive")
     expr = None
     for k, v in filters.items():
         e = pc.field(k) == v
         expr = e if expr is None else expr & e
-    t = d.to_table(filter=expr)
+    columns = [c for c in d.schema.names if c not in without] if without else None
+    t = d.to_table(filter=expr, columns=columns)
     # Partition columns inferred as dictionary/int by pyarrow; make them plain strings.
     for name in PARTITION_COLS:
         if name in t.column_names:

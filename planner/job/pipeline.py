@@ -413,8 +413,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # later steps
     flagged_tables = [r for r in tables if r.flags]
     c_units, tables_written, given = ahead.pop("c_units"), ahead.pop("tables_written"), ahead.pop("given")
-    del tables, stops
-    *side_results, loop_batches = ahead.pop("loop").results()
+    del tables, stops, pass1  # the started pass holds every result and unit (its windows) too
+    loop = ahead.pop("loop")
+    *side_results, loop_batches = loop.results()
+    summary.pending.remove(loop)  # taken: nothing left to wait for on a failure, and its results are let go
+    del loop
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
     unit_keys = [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units]
@@ -471,7 +474,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.job.views import line_views  # inputs copy, train graph page
 
     count_rows(summary, margins_written.result())  # the train graph page reads the margin totals
-    line_views(job, line, stage, runner, summary, graph.results()[0][0], charts)
+    trajectories = graph.results()[0][0]
+    summary.pending.remove(graph)
+    del graph
+    line_views(job, line, stage, runner, summary, trajectories, charts)
 
 
 def conflicts_status(job: Job, line: Line) -> str:

@@ -87,13 +87,17 @@ def _eval_points(job, line, train_type: str, origin: str, destination: str) -> l
     return [(float(p.position_m), p.eval_point_id) for p in pts]
 
 
-def _chart_task(line, run, calls, pattern, evp, signals):
-    """Worker: one leg's chart, inline SVG (``line``: the leg's window; the signals come from the whole line).
-    The page around it (the run's id and day, the trains) is put together in the job's process, so a leg whose
-    chart is unchanged is not redrawn for a new run."""
+def _chart_task(win, key, row, ds_m, calls, pattern, evp, signals):
+    """Worker: one leg's chart, inline SVG (``win``: the leg's window, :func:`planner.report.train_timetable.legs`;
+    the signals come from the whole line). The leg's two runs are recorded here again
+    (:func:`planner.report.train_timetable.record_leg`, the same function on the same window as the job's
+    process, so the same bits): the job's process keeps only their times. The page around the chart (the run's
+    id and day, the trains) is put together in the job's process, so a leg whose chart is unchanged is not
+    redrawn for a new run."""
     from planner.pages.speed_chart import chart_svg
+    from planner.report.train_timetable import record_leg
 
-    return chart_svg(line, run, calls, pattern, evp, signals)
+    return chart_svg(win, record_leg(win, key, row, ds_m), calls, pattern, evp, signals)
 
 
 def start_charts(job, line, stage: Path, report, runner, run_id: str | None = None, day: dict | None = None,
@@ -103,30 +107,31 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
     pages are written by :meth:`ChartPages.finish`. The nightly job calls it as soon as the line's margins are
     computed, so the charts are drawn while it writes the margins, the bundles' key and the other pages."""
     from planner.job.units import Unit
-    from planner.report.train_timetable import chart_name, leg_line, leg_runs
+    from planner.report.train_timetable import chart_name, leg_times
 
     lid = line.line_id
+    ds_m = job.tables.ds_m
     with runner.progress.step("timetable"):
-        runs = leg_runs(line, report.rows, ds_m=job.tables.ds_m)
+        legs = leg_times(line, report.rows, ds_m=ds_m)
     pats = _patterns(stage, lid)
     units, pages = [], []
     back = "../../" + timetable_href(lid)
     nav = [("running-time tables", back), ("margin report", f"../../report/{lid}_margins.html"),
            ("train graph", f"../../graph/{lid}_graph.html"), ("overview", "../../index.html")]
-    for key, run in sorted(runs.items()):
+    for key, (run, win) in sorted(legs.items(), key=lambda kv: kv[0]):
         d, t, o, de = key[:4]
         passes = list(run.row.get("passes") if run.row.get("passes") is not None else [])
         calls = [(sid, stops, line.station(sid).stop_m(d) if stops else line.station(sid).position_m)
                  for sid, stops in [(o, True)] + [(p, False) for p in passes] + [(de, True)]]
         trains = sorted(run.row.get("train_ids") if run.row.get("train_ids") is not None else [])
-        lo, hi = float(run.position_m.min()), float(run.position_m.max())
+        lo, hi = run.span_m
         signals = [s.position_m for s in line.signals if s.direction == d and lo <= s.position_m <= hi]
-        args = (leg_line(line, key).window(o, de, t), run, calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de),
-                signals)
-        units.append(Unit("charts", _chart_key(line, run, args[2:]), "charts", _chart_task, args))
-        pages.append((stage / chart_name(lid, key), args[0], run, calls, trains))
+        rest = (calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de), signals)
+        units.append(Unit("charts", _chart_key(line, run, ds_m, rest), "charts", _chart_task,
+                          (win, key, run.row, ds_m) + rest))
+        pages.append((stage / chart_name(lid, key), win, run, calls, trains))
     drawn = runner.run("charts", units) if wait else runner.start("charts", units)
-    return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs=runs)
+    return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs={k: r for k, (r, _w) in legs.items()})
 
 
 def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
@@ -202,9 +207,10 @@ class ChartPages:
             self.started.discard()
 
 
-def _chart_key(line, run, rest) -> str:
-    """The cache key of a chart: the code, what the leg's window of the line holds, both runs, the row's
-    figures the chart prints and everything else it draws (``rest``: calls, pattern, points, signals)."""
+def _chart_key(line, run, ds_m: float, rest) -> str:
+    """The cache key of a chart: the code, what the leg's window of the line holds (so, with the code, the step
+    and the ratio, both runs), the row's figures the chart prints and everything else it draws (``rest``: calls,
+    pattern, points, signals)."""
     import hashlib
     import json
 
@@ -217,15 +223,14 @@ def _chart_key(line, run, rest) -> str:
 
     d, t, o, de, sched = run.key[:5]
     h = hashlib.sha256()
-    for a in (run.position_m, run.t_s, run.v_ms, run.vmax_ms):
-        h.update(np.ascontiguousarray(a, dtype=float).tobytes())
     calls, pattern, evp, signals = rest
     for a, (px, pv) in sorted((pattern or {}).items()):
         h.update(json.dumps(float(a)).encode())
         h.update(np.ascontiguousarray(px, float).tobytes() + np.ascontiguousarray(pv, float).tobytes())
-    figures = [float(run.row[c]) for c in ("min_running_time_s", "margin_s")] + [run.ratio, float(sched)]
+    figures = [float(run.row[c]) for c in ("min_running_time_s", "margin_s")] + [run.ratio, float(sched), float(ds_m)]
     return digest(["chart", code_digest(), interstation_inputs(leg_line(line, run.key), t, o, de), h.hexdigest(), figures,
                    [list(map(str, c[:2])) + [float(c[2])] for c in calls], [[float(p), str(i)] for p, i in evp or []],
                    [float(x) for x in signals]])
+
 
 __all__ = ["start_charts", "timetable_href", "train_views"]

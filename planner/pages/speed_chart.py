@@ -231,8 +231,7 @@ def chart_page(line, run, calls, trains, svg: str, back: str, *, nav=(), run_id:
     e = html.escape
     links = ", ".join(f'<a href="{e(back)}#train-{e(t)}">{e(t)}</a>' for t in trains)
     title = f"{tt} {d} {o} → {de}, scheduled {sched:.0f} s"
-    x = run.position_m
-    temps = temporary_limits(line, d, tt, float(np.min(x)), float(np.max(x)))
+    temps = temporary_limits(line, d, tt, *run.span_m)
     tsr = "; ".join(f"<b>{e(s.restriction_id)}</b> {kmh(s.limit_ms):.0f} km/h on km {s.start_m / 1000:.3f}–"
                     f"{s.end_m / 1000:.3f}" + ("" if s.has_beacon else " (no beacon: the on-board database feeds it)")
                     for s in temps)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 import pyarrow as pa
@@ -147,39 +148,101 @@ class LegRun:
     vmax_ms: np.ndarray  # on-board maximum per node [m/s]
     row: dict  # the margins row
 
-    def time_at(self, chainage_m: float, run: int) -> float:
-        """Time since departure when the front passes ``chainage_m`` [s]."""
+    @property
+    def span_m(self) -> tuple[float, float]:
+        """The lowest and highest chainage of the run [m]."""
+        return float(np.min(self.position_m)), float(np.max(self.position_m))
+
+    def end_s(self, run: int) -> float:
+        """Running time of run ``run`` to the arrival stop marker [s]."""
+        return float(self.t_s[run][-1])
+
+    def time_at(self, chainage_m, run: int):
+        """Time since departure when the front passes ``chainage_m`` (a number, or an array of them) [s]."""
         x, t = self.position_m, self.t_s[run]
         if len(x) > 1 and x[-1] < x[0]:  # an up run: chainage falls along the grid (monotone, so reversed is sorted)
             x, t = x[::-1], t[::-1]
-        return float(np.interp(chainage_m, x, t))
+        got = np.interp(chainage_m, x, t)
+        return float(got) if np.ndim(got) == 0 else got
+
+    def times(self, chainages_m: np.ndarray) -> "LegTimes":
+        """What the tables page and the chart pages read of the two runs, at the given chainages (sorted)."""
+        at = np.array([self.time_at(chainages_m, 0), self.time_at(chainages_m, 1)]).reshape(2, len(chainages_m))
+        return LegTimes(self.key, self.ratio, self.row, self.span_m, (self.end_s(0), self.end_s(1)), chainages_m, at)
 
 
-def _leg_run(line, row: dict, ds_m: float) -> LegRun:
+@dataclass
+class LegTimes:
+    """A leg's two runs as the job's process keeps them (:meth:`LegRun.times`): their ends and the times at the
+    line's stations, without the runs' node arrays (on a line ten times the sample those were a hundred
+    megabytes through the job's last steps). The tables page reads the times from it as from the
+    :class:`LegRun` (the same numbers: the same interpolation, made beforehand); the charts' workers record the
+    run again."""
+
+    key: tuple
+    ratio: float
+    row: dict
+    span_m: tuple[float, float]
+    end: tuple[float, float]
+    chainage_m: np.ndarray  # sorted chainages with a time: the line's stations
+    at_s: np.ndarray  # (2, n) the runs' times there [s]
+
+    def end_s(self, run: int) -> float:
+        return self.end[run]
+
+    def time_at(self, chainage_m: float, run: int) -> float:
+        i = int(np.searchsorted(self.chainage_m, chainage_m))
+        if i == len(self.chainage_m) or self.chainage_m[i] != chainage_m:
+            raise KeyError(f"leg {self.key}: no time kept at chainage {chainage_m} m (only at the line's stations)")
+        return float(self.at_s[run, i])
+
+
+def record_leg(win, key: tuple, row: dict, ds_m: float) -> LegRun:
+    """The leg ``key``'s two runs, on ``win``: its line (:func:`leg_line`) windowed to the leg
+    (:meth:`planner.line.model.Line.window`, what its tables are computed on), at the row's on-time ratio."""
     from planner.physics.run_curve import simulate
     from planner.physics.track import SimSettings, make_track
 
-    key = leg_key(row["direction"], row["train_type"], row["origin"], row["destination"],
-                  row["scheduled_running_time_s"], row_lifted(line, row))
-    line = leg_line(line, key)
-    track = make_track(line, row["train_type"], row["origin"], row["destination"], settings=SimSettings(ds_m=ds_m))
+    _d, tt, o, de = key[:4]
+    track = make_track(win, tt, o, de, settings=SimSettings(ds_m=ds_m))
     ratio = float(row["ratio_on_time"])
-    res = simulate(track, line.train_type(row["train_type"]), np.array([ratio, 1.0]), record=True)
+    res = simulate(track, win.train_type(tt), np.array([ratio, 1.0]), record=True)
     # copies of the two rows kept: views would hold the run's whole record (five quantities) for every leg
     return LegRun(key, ratio, np.asarray(track.chainage_m, float), np.array(res.t_s, float),
                   np.array(res.v_ms, float), np.asarray(track.vmax_ms, float), row)
 
 
+def legs(line, margins) -> Iterator[tuple[tuple, object, dict]]:
+    """Every timetabled leg × scheduled time of a ``margins`` table (pandas) with an on-time ratio: its key, its
+    window (:func:`record_leg`) and its row."""
+    has = margins[margins["scheduled_running_time_s"].notna() & margins["ratio_on_time"].notna()]
+    for row in has.to_dict("records"):
+        key = leg_key(row["direction"], row["train_type"], row["origin"], row["destination"],
+                      row["scheduled_running_time_s"], row_lifted(line, row))
+        yield key, leg_line(line, key).window(row["origin"], row["destination"], row["train_type"]), row
+
+
 def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
     """The recorded runs of every timetabled leg × scheduled time of a ``margins`` table (pandas)."""
     out = {}
-    has = margins[margins["scheduled_running_time_s"].notna() & margins["ratio_on_time"].notna()]
-    for row in has.to_dict("records"):
+    for key, win, row in legs(line, margins):
         try:
-            r = _leg_run(line, row, ds_m)
+            out[key] = record_leg(win, key, row, ds_m)
         except PlannerError:  # a leg that stalls at its on-time ratio: no computed times, its rows stay null
             continue
-        out[r.key] = r
+    return out
+
+
+def leg_times(line, margins, ds_m: float = 1.0) -> dict[tuple, tuple[LegTimes, object]]:
+    """:func:`leg_runs`, each run kept as its :class:`LegTimes` at the line's stations, with its window: a run's
+    node arrays are let go as soon as it is summed up."""
+    at = np.unique(np.array([float(s.position_m) for s in line.stations], float))
+    out = {}
+    for key, win, row in legs(line, margins):
+        try:
+            out[key] = (record_leg(win, key, row, ds_m).times(at), win)
+        except PlannerError:
+            continue
     return out
 
 
@@ -192,7 +255,7 @@ def _flag(row: dict) -> str:
     return flag_of(SimpleNamespace(**{f: row.get(f) for f in FLAGS}))
 
 
-def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[dict]:
+def timetable_rows(line, runs: dict[tuple, LegRun | LegTimes], train_types=None) -> list[dict]:
     """One record per call of every train (columns of :data:`TIMETABLE_SCHEMA` plus direction, train_type),
     of the given train types (default every one)."""
     nan = math.nan
@@ -234,8 +297,8 @@ def timetable_rows(line, runs: dict[tuple, LegRun], train_types=None) -> list[di
                 if run is not None:
                     end = k == b
                     # the stop itself: the run's end (the stop marker); a pass: the front at the station
-                    t_r = float(run.t_s[0][-1]) if end else run.time_at(st.position_m, 0)
-                    t_m = float(run.t_s[1][-1]) if end else run.time_at(st.position_m, 1)
+                    t_r = run.end_s(0) if end else run.time_at(st.position_m, 0)
+                    t_m = run.end_s(1) if end else run.time_at(st.position_m, 1)
                     rec["computed_arrival_s"] = dep0 + t_r
                     rec["minimum_arrival_s"] = dep0 + t_m
                     if not end:
@@ -288,5 +351,5 @@ def write_timetable(line, runs: dict[tuple, LegRun], out_dir: str | Path, train_
                              schema=TIMETABLE_SCHEMA, sort_by=("train_id", "seq"))
 
 
-__all__ = ["TIMETABLE_SCHEMA", "SCHEMAS", "CHARTS_DIR", "clock", "leg_key", "chart_name", "LegRun", "leg_runs",
-           "timetable_rows", "timetable_table", "write_timetable"]
+__all__ = ["TIMETABLE_SCHEMA", "SCHEMAS", "CHARTS_DIR", "clock", "leg_key", "chart_name", "LegRun", "LegTimes",
+           "leg_runs", "leg_times", "legs", "record_leg", "timetable_rows", "timetable_table", "write_timetable"]
