@@ -151,8 +151,10 @@ def _concat(legs: list[tuple[tuple, int, dict]]) -> pa.Table:
     return pa.table(out)
 
 
-def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
-    """The ``eval_points`` and ``table_a`` … ``table_d`` rows, with partition columns, in task order."""
+def datasets(results: Sequence[InterstationTables], names: Sequence[str] | None = None) -> dict[str, pa.Table]:
+    """The ``eval_points`` and ``table_a`` … ``table_d`` rows, with partition columns, in task order (``names``:
+    only these datasets; tables (c) and (d) where there are rows)."""
+    want = set(SCHEMAS if names is None else names)
     ep, ta, tb, tc, td = [], [], [], [], []
     for t in results:
         keys, n_r, n_x = _keys(t), len(t.ratios), len(t.points)
@@ -169,16 +171,17 @@ def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
         # each row's point id taken by Arrow from the leg's few, not a Python list of one per row
         ids = pa.array([p.eval_point_id for p in t.points])
         positions = np.array([p.position_m for p in t.points])
-        k, i, j = np.indices((n_x, n_r, n_r)).reshape(3, -1)
-        tb.append((keys, len(k), {
-            "eval_point_id": ids.take(k),
-            "eval_position_m": positions[k],
-            "ratio_before": t.ratios[i],
-            "ratio_after": t.ratios[j],
-            "remaining_time_s": t.remaining_s[k, i, j],
-            "elapsed_time_s": t.elapsed_s[i, k],
-        }))
-        if t.ref_remaining_s is not None:
+        if "table_b" in want:
+            k, i, j = np.indices((n_x, n_r, n_r)).reshape(3, -1)
+            tb.append((keys, len(k), {
+                "eval_point_id": ids.take(k),
+                "eval_position_m": positions[k],
+                "ratio_before": t.ratios[i],
+                "ratio_after": t.ratios[j],
+                "remaining_time_s": t.remaining_s[k, i, j],
+                "elapsed_time_s": t.elapsed_s[i, k],
+            }))
+        if t.ref_remaining_s is not None and "table_c" in want:
             k, i = np.indices((n_x, n_r)).reshape(2, -1)
             tc.append((keys, len(k), {
                 "eval_point_id": ids.take(k),
@@ -190,7 +193,7 @@ def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
                 "ref_traction_factor": pa.repeat(t.ref_traction_factor, len(k)),
                 "speed_kmh": kmh(t.speed_ms[i, k]) if t.speed_ms is not None else np.full(len(k), np.nan),
             }))
-        if t.approach is not None:
+        if t.approach is not None and "table_d" in want:
             ap, last = t.approach, t.points[-1]
             p, v, a = np.indices((len(ap.powering), len(ap.speeds_ms), len(ap.ratios))).reshape(3, -1)
             td.append((keys, len(p), {
@@ -204,7 +207,8 @@ def datasets(results: Sequence[InterstationTables]) -> dict[str, pa.Table]:
                 "remaining_time_s": ap.time_s[p, v, a],
                 "remaining_time_ref_s": ap.ref_time_s[p, v, a],
             }))
-    out = {"eval_points": _concat(ep), "table_a": _concat(ta), "table_b": _concat(tb)}
+    out = {name: _concat(rows) for name, rows in (("eval_points", ep), ("table_a", ta), ("table_b", tb))
+           if name in want}
     if tc:
         out["table_c"] = _concat(tc)
     if td:
@@ -219,9 +223,10 @@ SCHEMAS = {"eval_points": EVAL_POINTS_SCHEMA, "table_a": TABLE_A_SCHEMA, "table_
 def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> list[Path]:
     """Write the datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
     written: list[Path] = []
-    for part in by_partition(results):  # one partition's rows in memory at a time
-        for name, table in datasets(part).items():
-            written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
+    for part in by_partition(results):  # one partition's rows of one dataset in memory at a time (table (d)'s
+        for wanted in SCHEMAS:  # rows of a partition of the 10x line: about a hundred megabytes)
+            for name, table in datasets(part, [wanted]).items():
+                written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
     return written
 
 

@@ -259,6 +259,12 @@ def stamping(run_id: str, run_date) -> Iterator[None]:
         _STAMP.reset(token)
 
 
+def current_stamp() -> tuple | None:
+    """The ``(run_id, run_date)`` of the :func:`stamping` around this call, or None: what a worker process is given
+    to stamp the files it writes for the run as this process would."""
+    return _STAMP.get()
+
+
 def _stamped(table: pa.Table) -> pa.Table:
     """``table`` with the :data:`RUN_FIELDS` of the current :func:`stamping` appended (replacing any
     it has), or as it is outside one."""

@@ -23,7 +23,8 @@ the workers start while the lines are read; the stopping patterns share the
 tables' pass of the workers, and the closed loop (with the line's conflicts)
 starts as soon as the last table is in, behind the stops' last units; the tables
 and stops datasets are written on a thread while the workers compute the next
-steps; the train graph's trajectories and the bundles start on the workers when
+steps, and the tables are read back for the margins on a worker as soon as they
+are written; the train graph's trajectories and the bundles start on the workers when
 the closed loop ends, while that thread writes the closed loop and the margins
 take its rows from memory; the legs' speed–distance charts start as soon as the
 margins are computed; the overview's check of the bundles starts on a worker as
@@ -41,7 +42,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.metadata
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait as wait_futures
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -77,6 +78,7 @@ from planner.job.steps import (
     line_types,
     margins_step,
     result_params,
+    start_stops_written,
     start_bundles,
 )
 from planner.job.publish import (
@@ -347,7 +349,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
              f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
         for k in tasks
     ]
-    from planner.datasets.stops import write_stops
     from planner.datasets.tables import write_tables
     from planner.report.margins import given_tables
 
@@ -362,8 +363,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     def tables_in(tables: list) -> None:
         """Every table of the line is in: its closed loop (and the line's conflicts) start on the workers
-        behind the stops' last units, and the tables are written, then read back for the margin report, on
-        the writer thread (the margins read what the vehicles get), while the stops come in."""
+        behind the stops' last units, and the tables are written on the writer thread while the stops come in
+        (then read back: :func:`read_back`)."""
         ahead["c_units"] = [
             Unit("closed_loop",
                  digest(["closed_loop", code, u.key, [dataclasses.asdict(sc) for sc in cp.scenarios],
@@ -376,7 +377,20 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         ahead["loop"] = runner.start_steps(side + [("closed_loop", ahead["c_units"])], wait=False)
         summary.pending.append(ahead["loop"])  # a run failing meanwhile waits for it (and caches what it did)
         ahead["tables_written"] = _on_writer(writes, write_tables, tables, stage)
-        ahead["given"] = _on_writer(writes, given_tables, line, types, stage)
+
+    def read_back() -> None:
+        """Once the tables are written, they are read back for the margin report (the margins read what the
+        vehicles get) on a worker, beside the stops and the closed loop: in this process that was its largest
+        passing use of memory on a line ten times the sample (a partition's table (d) and its arrays), beside
+        the stops' results coming in."""
+        written = ahead.get("tables_written")
+        if "given" in ahead or written is None or not written.done() or written.exception() is not None:
+            return  # not yet (or it failed: the run raises its error where it counts the rows)
+        from planner.io.parallel import background
+
+        ahead["given"] = background(given_tables, (line, types, stage), name=job.parallel.backend,
+                                    n_jobs=job.parallel.n_jobs)
+        summary.pending.append(ahead["given"])
 
     # the stops do not depend on the tables: one pass of the workers, the stops' short units filling the
     # tables' last ones; the closed loop starts as soon as the last table is in (tables_in), so no worker
@@ -390,11 +404,14 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
             tables_left -= 1
             if not tables_left:
                 tables_in(pass1.out[0])
+        read_back()
 
     tables, stops = pass1.results(each=arrived)
     if "loop" not in ahead:  # a line without interstations
         tables_in(tables)
-    stops_written = _on_writer(writes, write_stops, stops, stage)
+    wait_futures([ahead["tables_written"]])
+    read_back()
+    stops_written = start_stops_written(job, stage, summary, stops)
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
     for r in stops:  # one line per approach, not per adhesion level
@@ -412,7 +429,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # go before the closed loop's results come in, so that the whole line's results are not held through the
     # later steps
     flagged_tables = [r for r in tables if r.flags]
-    c_units, tables_written, given = ahead.pop("c_units"), ahead.pop("tables_written"), ahead.pop("given")
+    c_units, tables_written, given = ahead.pop("c_units"), ahead.pop("tables_written"), ahead.pop("given", None)
     del tables, stops, pass1  # the started pass holds every result and unit (its windows) too
     loop = ahead.pop("loop")
     *side_results, loop_batches = loop.results()
@@ -425,14 +442,15 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     del side_results, loop_batches, t_units, s_units, c_units, windows
     # the train graph's trajectories (the line alone, taken by line_views) start first, on one worker; the
     # bundles need the tables and stops datasets only: built on the other from when they are written, beside
-    # the margins (the worker loads the key from its file; the writer thread runs its tasks in order, so the
-    # stops written means the tables are too), while this process makes the closed loop's rows for the margins
+    # the margins (the worker loads the key from its file; both datasets are counted, so written, before),
+    # while this process makes the closed loop's rows for the margins
     from planner.job.views import graph_unit
 
     graph = runner.start("graph", [graph_unit(job, line, lifted)])
     summary.pending.append(graph)
     count_rows(summary, tables_written.result())
     count_rows(summary, stops_written.result())
+    summary.pending.remove(stops_written)
     bundles = start_bundles(job, line, stage, runner, summary, key_path, bday)
     from planner.datasets.closed_loop import datasets as closed_loop_datasets, write_closed_loop
 
@@ -445,9 +463,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     conflicts = None
     if checks_conflicts:
         conflicts = conflicts_step(line, stage, summary, got.pop("conflicts"))
-    report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given.result(), lifted,
-                          closed_loop)
-    del given, closed_loop  # the tables read back and the closed loop's rows, for the margins
+    read = given.result()
+    summary.pending.remove(given)
+    report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, read, lifted, closed_loop)
+    del given, read, closed_loop  # the tables read back and the closed loop's rows, for the margins
     # the legs' speed–distance charts start on the workers now (their pages are written last), while the margins'
     # datasets are written on the writer thread and this process finishes the line's bundles
     from planner.job.day import window

@@ -99,6 +99,33 @@ def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, t
                           train_types=types, day=day)  # and the pages of the line's tables, for the units after it
 
 
+def write_stamped(stamp: tuple | None, fn, *args):
+    """Worker: ``fn(*args)``, a step's datasets written into the staged run, stamped with the run's id and date
+    (:func:`planner.io.parquet.current_stamp` of the job's process) and flushed with the rest of the run when
+    it is published, as the job's own writes are; the worker's pages given back afterwards."""
+    from planner.io.atomic import deferred_fsync
+    from planner.io.parquet import stamping
+
+    give_back()  # what a unit before it on this worker freed
+    if stamp is None:
+        return then_give_back(fn, *args)
+    with stamping(*stamp), deferred_fsync():
+        return then_give_back(fn, *args)
+
+
+def start_stops_written(job: Job, stage: Path, summary: RunSummary, stops: list):
+    """Write the line's stopping-pattern datasets on a worker (their samples, a partition at a time, were the
+    job process's largest passing use of memory on a line ten times the sample); ``.result()``: the files."""
+    from planner.datasets.stops import write_stops
+    from planner.io.parallel import background
+    from planner.io.parquet import current_stamp
+
+    b = background(write_stamped, (current_stamp(), write_stops, stops, stage), name=job.parallel.backend,
+                   n_jobs=job.parallel.n_jobs)
+    summary.pending.append(b)
+    return b
+
+
 def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
                    bday=None):
     """Start the line's bundles on a worker; the step's time runs from here to when they are written."""
