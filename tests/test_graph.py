@@ -183,6 +183,29 @@ def test_page_payload_windows_decode(data):
     assert [pl["resources"][k] for k in res] == ["E1", "N3", "E3"]
 
 
+def test_the_pages_data_made_a_train_at_a_time_is_the_payloads_json(data):
+    """The page writes its data a train at a time (page_json), never the whole payload as Python lists: the same
+    text as json.dumps of page_payload with the page's own keys after it, windows, resources and conflicts
+    included, and it parses back to that payload."""
+    import dataclasses
+    import json
+
+    import pandas as pd
+
+    from planner.pages.train_graph import page_json
+
+    w = pd.DataFrame({"train_id": ["101", "101", "102"], "resource_id": ["E1", "N3", "E1"],
+                      "start_s": [21570.0, 21590.0, 21700.0], "end_s": [21640.0, 21655.5, 21760.0],
+                      "from_m": [260.0, 1000.0, 260.0], "to_m": [1000.0, 1000.0, 900.0]})
+    for d in (data, dataclasses.replace(data, windows=w)):
+        extra = {"view": [0, 3600], "select": None, "tt": "../timetable/x.html"}
+        want = json.dumps(page_payload(d) | extra, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+        got = page_json(d, extra)
+        assert got == want and json.loads(got) == json.loads(want)
+        assert len(json.loads(got)["trains"]) == len(d.trains)
+    assert json.loads(page_json(dataclasses.replace(data, windows=w), {}))["resources"] == ["E1", "N3"]
+
+
 # --- a synthetic day: the window the page opens on, ids in any case, titles and the legend --------------------
 def _train(train_id: str, direction: str, t0: float, t1: float):
     from planner.report.train_graph import TrainPath

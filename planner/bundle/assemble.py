@@ -226,18 +226,19 @@ def read_partition(root: str | os.PathLike, dataset: str, line_id: str, directio
     files = sorted(folder.glob("*.parquet"), key=lambda p: p.name) if folder.is_dir() else []
     if not files:
         return None
+    run_fields = {c for c, _, _ in RUN_FIELDS}
     try:
-        parts = [pq.read_table(f, partitioning=None) for f in files]
+        # a published run's files carry its id and date; a bundle's bytes do not depend on the run: not read
+        parts = [pq.read_table(f, partitioning=None,
+                               columns=[c for c in pq.read_schema(f).names if c not in run_fields]) for f in files]
         t = pa.concat_tables(parts) if len(parts) > 1 else parts[0]
     except (pa.ArrowInvalid, OSError) as e:
         raise BundleError(f"cannot read {folder}: {e}; rebuild the {dataset} dataset") from None
-    # a published run's files carry its id and date; a bundle's bytes do not depend on the run
-    t = t.drop_columns([c for c, _, _ in RUN_FIELDS if c in t.column_names])
     for col, val in zip(_PARTITION_COLS, (line_id, direction, train_type)):
         if col in t.column_names:  # hive files normally leave it out; if stored, it must agree
             check_keys(dataset, t.select([col]), line_id, direction, train_type, str(folder))
             t = t.drop_columns([col])
-        t = t.append_column(pa.field(col, pa.string()), pa.array([val] * t.num_rows, type=pa.string()))
+        t = t.append_column(pa.field(col, pa.string()), pa.repeat(pa.scalar(val, pa.string()), t.num_rows))
     return t
 
 

@@ -57,6 +57,7 @@ from planner.bundle.manifest import (CORE_TABLES, BundleDay, EXPECTED_TABLES, FO
                                      expected_tables, format_time, manifest_info)
 from planner.errors import BundleError
 from planner.io.atomic import write_bytes_atomic
+from planner.io.memory import give_back
 from planner.line.model import DIRECTIONS, Line
 
 _TABLE_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}")
@@ -248,6 +249,8 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: 
                                 line_schema_version=line.schema_version,
                                 expected=expected_tables(line.train_type(t).cruise), day=day)
             done.append(info)
+            del tables  # a bundle's tables (a partition's table (d) on a long line) before the next bundle's
+            give_back()
             if on_built is not None:
                 on_built(info)
     return done

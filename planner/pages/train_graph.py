@@ -13,7 +13,7 @@ import html
 import json
 import math
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Iterator, Sequence
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from planner.line.model import line_title
 from planner.report.train_graph import (COLOURS, CONFLICT_COLOUR, CONFLICT_MIN_PX, STAIR_B_COLOUR, STAIR_COLOUR, GraphData,
                                         start_window, time_window)
 
-__all__ = ["page_payload", "render_page", "write_page"]
+__all__ = ["page_json", "page_payload", "render_page", "write_page"]
 
 
 def _delta(values: np.ndarray, scale: float) -> list[int]:
@@ -39,37 +39,42 @@ def _num(x: float, nd: int = 1):
     return int(r) if r == int(r) else r
 
 
-def page_payload(data: GraphData) -> dict[str, Any]:
-    """The compact JSON the page script draws from (times in 0.1 s, chainages in m, delta-coded)."""
-    lo, hi = data.day_s
-    trains = []
-    order = {tp.train_id: k for k, tp in enumerate(data.trains)}
+def _trains(data: GraphData) -> Iterator[dict[str, Any]]:
+    """Each train of the payload, in the data's order."""
     for tp in data.trains:
         calls = [[sid, _num(a), _num(d), int(s)] for sid, a, d, s in tp.calls]
         m = data.margins.get(tp.train_id)
-        trains.append({
+        yield {
             "id": tp.train_id, "type": tp.train_type, "dir": tp.direction, "svc": tp.service,
             "t": _delta(tp.t_s, 10.0), "x": _delta(tp.x_m, 1.0), "calls": calls,
             "loops": list(tp.loop_stations),
             "m": None if m is None else {k: _num(v) for k, v in m.items()},
-        })
-    win: dict[str, list] = {}
-    res: dict[str, int] = {}
+        }
+
+
+def _windows(data: GraphData, res: dict[str, int]) -> Iterator[tuple[str, list]]:
+    """Each train's blocking windows (train id, columns), by train id; ``res``: the resources' numbers, filled
+    as they are met."""
     w = data.windows
-    if w is not None and len(w):
-        w = w.sort_values(["train_id", "start_s"], kind="stable")
-        # every column once as an array, each train's windows by row positions (not a frame per train)
-        a = np.column_stack([w.start_s.to_numpy(), w.end_s.to_numpy(),
-                             np.minimum(w.from_m, w.to_m).to_numpy(), np.maximum(w.from_m, w.to_m).to_numpy()])
-        rid = w.resource_id.astype(str).to_numpy(object)
-        rows = w.groupby("train_id", sort=True).indices
-        for tid in sorted(rows):
-            if tid not in order:
-                continue
-            g = a[rows[tid]]
-            win[str(tid)] = [_delta(g[:, 0], 10.0), np.round((g[:, 1] - g[:, 0]) * 10).astype(int).tolist(),
-                             _delta(g[:, 2], 1.0), np.round(g[:, 3] - g[:, 2]).astype(int).tolist(),
-                             [res.setdefault(r, len(res)) for r in rid[rows[tid]].tolist()]]
+    if w is None or not len(w):
+        return
+    order = {tp.train_id for tp in data.trains}
+    w = w.sort_values(["train_id", "start_s"], kind="stable")
+    # every column once as an array, each train's windows by row positions (not a frame per train)
+    a = np.column_stack([w.start_s.to_numpy(), w.end_s.to_numpy(),
+                         np.minimum(w.from_m, w.to_m).to_numpy(), np.maximum(w.from_m, w.to_m).to_numpy()])
+    rid = w.resource_id.astype(str).to_numpy(object)
+    rows = w.groupby("train_id", sort=True).indices
+    for tid in sorted(rows):
+        if tid not in order:
+            continue
+        g = a[rows[tid]]
+        yield str(tid), [_delta(g[:, 0], 10.0), np.round((g[:, 1] - g[:, 0]) * 10).astype(int).tolist(),
+                         _delta(g[:, 2], 1.0), np.round(g[:, 3] - g[:, 2]).astype(int).tolist(),
+                         [res.setdefault(r, len(res)) for r in rid[rows[tid]].tolist()]]
+
+
+def _conflicts(data: GraphData) -> list[list]:
     cons = []
     c = data.conflicts
     if c is not None and len(c):
@@ -80,15 +85,54 @@ def page_payload(data: GraphData) -> dict[str, Any]:
                          _num(r.overlap_start_s), _num(r.overlap_end_s), _num(r.delay_s), str(r.rule),
                          str(r.resource_id), str(r.decision), place_text(r) if r.station_id else "",
                          _num(r.headway_s), _num(r.min_headway_s)])
-    return {
-        "line": {"id": data.line_id, "name": data.line_name, "start_m": data.start_m, "end_m": data.end_m},
-        "day": [math.floor(lo / 3600) * 3600, math.ceil(hi / 3600) * 3600],
-        "stations": [[sid, name, x] for sid, name, x in data.stations],
-        "colours": {f"{d} {s}": c for (d, s), c in COLOURS.items()},
-        "conflict": {"colour": CONFLICT_COLOUR, "stair_a": STAIR_COLOUR, "stair_b": STAIR_B_COLOUR,
-                     "min_px": CONFLICT_MIN_PX},
-        "trains": trains, "windows": win, "resources": list(res), "conflicts": cons, "notes": data.notes,
-    }
+    return cons
+
+
+def _payload_parts(data: GraphData) -> Iterator[tuple[str, Any, bool]]:
+    """The payload's keys in order, each with its value, or with an iterable of its items to be made one at a
+    time (True: ``trains``' items, ``windows``' (key, value) pairs)."""
+    lo, hi = data.day_s
+    yield "line", {"id": data.line_id, "name": data.line_name, "start_m": data.start_m, "end_m": data.end_m}, False
+    yield "day", [math.floor(lo / 3600) * 3600, math.ceil(hi / 3600) * 3600], False
+    yield "stations", [[sid, name, x] for sid, name, x in data.stations], False
+    yield "colours", {f"{d} {s}": c for (d, s), c in COLOURS.items()}, False
+    yield "conflict", {"colour": CONFLICT_COLOUR, "stair_a": STAIR_COLOUR, "stair_b": STAIR_B_COLOUR,
+                       "min_px": CONFLICT_MIN_PX}, False
+    yield "trains", _trains(data), True
+    res: dict[str, int] = {}
+    yield "windows", _windows(data, res), True
+    yield "resources", list(res), False  # after the windows, which number them
+    yield "conflicts", _conflicts(data), False
+    yield "notes", data.notes, False
+
+
+def page_payload(data: GraphData) -> dict[str, Any]:
+    """The compact JSON the page script draws from (times in 0.1 s, chainages in m, delta-coded)."""
+    out: dict[str, Any] = {}
+    for key, value, items in _payload_parts(data):
+        out[key] = (list(value) if key == "trains" else dict(value)) if items else value
+    return out
+
+
+def _dumps(x: Any) -> str:
+    return json.dumps(x, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+
+
+def page_json(data: GraphData, extra: dict[str, Any]) -> str:
+    """``json.dumps`` of :func:`page_payload` with ``extra``'s keys after its own, the same text, made a train at a
+    time: the whole payload as Python lists was the train graph's worker's largest use of memory on a line
+    ten times the sample (the JSON text itself is a tenth of it)."""
+    out = []
+    for key, value, items in _payload_parts(data):
+        if not items:
+            text = _dumps(value)
+        elif key == "trains":
+            text = "[" + ",".join(_dumps(t) for t in value) + "]"
+        else:
+            text = "{" + ",".join(_dumps(k) + ":" + _dumps(v) for k, v in value) + "}"
+        out.append(_dumps(key) + ":" + text)
+    out += [_dumps(k) + ":" + _dumps(v) for k, v in extra.items()]
+    return "{" + ",".join(out) + "}"
 
 
 def _asset(name: str) -> str:
@@ -128,7 +172,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
     links : sequence of (label, href)
         The run's other pages, at the top (overview, margin report, running-time tables).
     """
-    payload = page_payload(data)
+    payload: dict[str, Any] = {}  # the keys after page_payload's (page_json)
     sel = data.train(train) if train else None
     if t0 is not None or t1 is not None:
         lo, hi = time_window(data, t0, t1)
@@ -149,8 +193,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         at = {x: i for i, x in enumerate(legs)}
         payload["charts"] = {"legs": [list(x) for x in legs],
                              "by_train": {k: [at[tuple(x)] for x in v] for k, v in charts.items()}}
-    js = json.dumps(payload, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
-    js = js.replace("</", "<\\/")  # never closes the script element
+    js = page_json(data, payload).replace("</", "<\\/")  # never closes the script element
     n = len(data.trains)
     svc = {k: sum(1 for t in data.trains if (t.direction, t.service) == k) for k in COLOURS}
     nc = int(data.conflicts.conflict_id.nunique()) if data.conflicts is not None and len(data.conflicts) else 0
