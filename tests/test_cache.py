@@ -99,6 +99,22 @@ def test_a_good_entry_is_a_hit(tmp_path):
     assert c.path("tables", KEY).read_bytes().startswith(MAGIC)
 
 
+def test_an_entry_is_written_as_pack_makes_it_without_being_joined(tmp_path, monkeypatch):
+    """Cache.put writes the entry in pieces (its header, then the payload straight from the buffer it was encoded
+    into: a line's conflict report is tens of megabytes, once, not three times): the file holds exactly pack()'s
+    bytes, also when the payload is larger than one write, and reads back as the object."""
+    import planner.io.atomic as atomic
+
+    obj = {"big": np.arange(50_000, dtype=float), "small": [1, "two", None]}
+    monkeypatch.setattr(atomic, "_CHUNK", 1 << 12)  # the payload (~400 kB) is written as it is, in many writes
+    c = Cache(tmp_path / "cache")
+    c.put("tables", KEY, obj)
+    data = c.path("tables", KEY).read_bytes()
+    assert data == pack("tables", KEY, obj) and len(data) > 50 * (1 << 12)
+    got = c.get("tables", KEY)
+    assert np.array_equal(got["big"], obj["big"]) and got["small"] == obj["small"]
+
+
 def test_every_single_bit_flip_of_an_entry_is_rejected():
     data = pack("stops", KEY, {"t_s": np.array([0.0, 1.5]), "id": "B", "ok": True})
     assert len(data) > 500

@@ -143,7 +143,7 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, mode: int = 0o64
             os.close(fd)
 
 
-def write_chunks_atomic(path: str | os.PathLike, chunks: Iterable[bytes], *, mode: int = 0o644,
+def write_chunks_atomic(path: str | os.PathLike, chunks: Iterable[bytes | memoryview], *, mode: int = 0o644,
                         fsync: bool | None = None) -> None:
     """Write the concatenated ``chunks`` to ``path`` atomically (see :func:`atomic_path`), each as it is made:
     a large page need not be held whole. A chunk that fails to be made (an exception from the iterable) leaves
@@ -152,9 +152,16 @@ def write_chunks_atomic(path: str | os.PathLike, chunks: Iterable[bytes], *, mod
         fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC)
         try:
             buf, size = [], 0
-            for chunk in chunks:  # gathered to about _CHUNK bytes a write: pages come in many small pieces
+            for chunk in chunks:  # small pieces gathered to about _CHUNK bytes a write (a page comes in many);
+                n = memoryview(chunk).nbytes
+                if n >= _CHUNK:  # a large one written as it is, not copied into a gathered one
+                    if buf:
+                        _write_all(fd, b"".join(buf))
+                        buf, size = [], 0
+                    _write_all(fd, chunk)
+                    continue
                 buf.append(chunk)
-                size += len(chunk)
+                size += n
                 if size >= _CHUNK:
                     _write_all(fd, b"".join(buf))
                     buf, size = [], 0

@@ -257,6 +257,7 @@ class Background:
         if self._value is self._UNSET:
             gen, self._gen = self._gen, None
             self._value = self._fn(*self._args) if gen is None else next(gen)
+            self._fn = self._args = None  # what it was given (a line's results, to write) is not held after
         return self._value
 
     def discard(self) -> None:
@@ -272,6 +273,7 @@ class Background:
             except Exception:  # noqa: BLE001 - the run is failing already; this result is not wanted
                 pass
             self._gen = None
+        self._fn = self._args = None
 
 
 def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = -1) -> Background:

@@ -44,7 +44,8 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from planner.io.atomic import write_bytes_atomic
+from planner.io.atomic import write_chunks_atomic
+from planner.io.memory import give_back
 
 MAGIC = b"PLANNER-CACHE 1\n"
 """First line of every entry; bump the number when the layout changes (old entries then miss)."""
@@ -352,13 +353,17 @@ def _list(x: Any) -> list:
     return x
 
 
-def encode(obj: Any) -> bytes:
-    """The NPZ payload of ``obj`` (TypeError for a value the cache cannot store exactly)."""
+def _payload(obj: Any) -> io.BytesIO:
     enc = _Encoder()
     tree = json.dumps(enc(obj), separators=(",", ":"), ensure_ascii=True, allow_nan=False).encode()
     buf = io.BytesIO()
     np.savez(buf, tree=np.frombuffer(tree, dtype=np.uint8), **enc.arrays)
-    return buf.getvalue()
+    return buf
+
+
+def encode(obj: Any) -> bytes:
+    """The NPZ payload of ``obj`` (TypeError for a value the cache cannot store exactly)."""
+    return _payload(obj).getvalue()
 
 
 def decode(payload: bytes) -> Any:
@@ -386,12 +391,22 @@ def decode(payload: bytes) -> Any:
 
 
 # --- entries --------------------------------------------------------------------------------
+BIG_ENTRY_BYTES = 8 << 20
+"""An entry at least this large gives its encoding's memory back once written (:func:`planner.io.memory.give_back`)."""
+
+
 def pack(kind: str, key: str, obj: Any) -> bytes:
     """The bytes of one entry: magic line, header (kind, key, payload length and SHA-256), payload."""
-    payload = encode(obj)
-    header = {"kind": kind, "key": key, "payload_bytes": len(payload),
+    return b"".join(_entry(kind, key, obj))
+
+
+def _entry(kind: str, key: str, obj: Any) -> list:
+    """:func:`pack`'s bytes in two pieces, the payload a view of the buffer it was written to: an entry is written
+    from them without copying it twice more (a line's conflict report is tens of megabytes)."""
+    payload = _payload(obj).getbuffer()
+    header = {"kind": kind, "key": key, "payload_bytes": payload.nbytes,
               "payload_sha256": hashlib.sha256(payload).hexdigest()}
-    return MAGIC + json.dumps(header, sort_keys=True, separators=(",", ":")).encode() + b"\n" + payload
+    return [MAGIC + json.dumps(header, sort_keys=True, separators=(",", ":")).encode() + b"\n", payload]
 
 
 def unpack(data: bytes, kind: str | None = None, key: str | None = None) -> tuple[dict, bytes]:
@@ -510,7 +525,12 @@ class Cache:
         p = self.path(kind, key)
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)
-        write_bytes_atomic(p, pack(kind, key, obj), fsync=False)
+        parts = _entry(kind, key, obj)
+        big = parts[1].nbytes >= BIG_ENTRY_BYTES
+        write_chunks_atomic(p, parts, fsync=False)
+        del parts
+        if big:  # its encoding's buffers, a few times its size, are given back before the next one is made
+            give_back()
 
     # --- maintenance: `planner cache verify` and `planner cache clear`
     def entries(self) -> Iterator[Path]:
