@@ -173,11 +173,12 @@ def test_a_worker_draws_the_chart_of_the_run_the_job_recorded(tiny):
     from planner.job.train_views import _chart_task
     from planner.pages.speed_chart import chart_svg
     from planner.report.margins import compute_margins
-    from planner.report.train_timetable import legs
+    from planner.report.train_timetable import leg_window, legs
 
     line, runs = tiny
     seen = 0
-    for key, win, row in legs(line, compute_margins(line, conflicts=False).rows):
+    for key, row in legs(line, compute_margins(line, conflicts=False).rows):
+        win = leg_window(line, key)
         d, _, o, de = key[:4]
         calls = [(o, True, line.station(o).stop_m(d)), (de, True, line.station(de).stop_m(d))]
         assert _chart_task(win, key, row, 1.0, calls, None, None, None) == chart_svg(win, runs[key], calls)

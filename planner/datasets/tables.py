@@ -231,10 +231,16 @@ def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> 
 
 
 _KNOWN = ("line", "direction", "train_type", "run_id", "run_date")
-_CODED = ("origin", "destination", "eval_point_id")
-"""String columns :func:`load_tables` reads as codes into their values (:meth:`_Rows._codes`)."""
 """Columns :func:`load_tables` does not read back: the partition it asks for, and the run's stamp (on the 10x line
 these were most of the bytes of table_b read back, each value repeated on every row)."""
+_CODED = ("origin", "destination", "eval_point_id")
+"""String columns :func:`load_tables` reads as codes into their values (:meth:`_Rows._codes`)."""
+
+
+def _read(root: Path, name: str, line_id: str, direction: str, train_type: str) -> pa.Table:
+    """One partition of a tables dataset, as :func:`load_tables` reads it (:data:`_KNOWN`, :data:`_CODED`)."""
+    return read_dataset(root, name, without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction,
+                        train_type=train_type)
 
 
 def load_tables(
@@ -263,9 +269,9 @@ def load_tables(
     root = Path(tables_dir)
     out = {}
     try:
-        ep = read_dataset(root, "eval_points", without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction, train_type=train_type)
-        ta = read_dataset(root, "table_a", without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction, train_type=train_type)
-        tb = read_dataset(root, "table_b", without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction, train_type=train_type)
+        ep = _read(root, "eval_points", line_id, direction, train_type)
+        ta = _read(root, "table_a", line_id, direction, train_type)
+        tb = _read(root, "table_b", line_id, direction, train_type)
     except (FileNotFoundError, OSError) as e:
         raise InputError(f"--tables {root}: cannot read the tables ({e}); run `planner tables` first") from None
     tc = _optional(root, "table_c", line_id, direction, train_type)  # only the adaptive mode needs
@@ -465,7 +471,7 @@ def _positions(root: Path, name: str, o: str, d: str, *axes: tuple[str, np.ndarr
 def _optional(root: Path, name: str, line_id: str, direction: str, train_type: str) -> pa.Table | None:
     """One partition of an optional dataset, or None when the dataset is absent or has no rows there."""
     try:
-        t = read_dataset(root, name, without=_KNOWN, dictionary=_CODED, line=line_id, direction=direction, train_type=train_type)
+        t = _read(root, name, line_id, direction, train_type)
     except (FileNotFoundError, OSError):
         return None
     return t if t.num_rows else None

@@ -22,9 +22,9 @@ What does not depend on a step runs beside it, so that both cores stay busy:
 the workers start while the lines are read; the stopping patterns share the
 tables' pass of the workers, and the closed loop (with the line's conflicts)
 starts as soon as the last table is in, behind the stops' last units; the tables
-and stops datasets are written on a thread while the workers compute the next
-steps, and the tables are read back for the margins on a worker as soon as they
-are written; the train graph's trajectories and the bundles start on the workers when
+datasets are written on a thread while the workers compute the next steps (and
+read back for the margins on a worker as soon as they are written), the stops
+datasets on a worker; the train graph's trajectories and the bundles start on the workers when
 the closed loop ends, while that thread writes the closed loop and the margins
 take its rows from memory; the legs' speed–distance charts start as soon as the
 margins are computed; the overview's check of the bundles starts on a worker as
@@ -409,9 +409,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     tables, stops = pass1.results(each=arrived)
     if "loop" not in ahead:  # a line without interstations
         tables_in(tables)
-    wait_futures([ahead["tables_written"]])
-    read_back()
     stops_written = start_stops_written(job, stage, summary, stops)
+    wait_futures([ahead["tables_written"]])  # the tables read back from when they are written
+    read_back()
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
     for r in stops:  # one line per approach, not per adhesion level

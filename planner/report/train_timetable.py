@@ -212,22 +212,26 @@ def record_leg(win, key: tuple, row: dict, ds_m: float) -> LegRun:
                   np.array(res.v_ms, float), np.asarray(track.vmax_ms, float), row)
 
 
-def legs(line, margins) -> Iterator[tuple[tuple, object, dict]]:
-    """Every timetabled leg × scheduled time of a ``margins`` table (pandas) with an on-time ratio: its key, its
-    window (:func:`record_leg`) and its row."""
+def legs(line, margins) -> Iterator[tuple[tuple, dict]]:
+    """Every timetabled leg × scheduled time of a ``margins`` table (pandas) with an on-time ratio: its key and
+    its row."""
     has = margins[margins["scheduled_running_time_s"].notna() & margins["ratio_on_time"].notna()]
     for row in has.to_dict("records"):
-        key = leg_key(row["direction"], row["train_type"], row["origin"], row["destination"],
-                      row["scheduled_running_time_s"], row_lifted(line, row))
-        yield key, leg_line(line, key).window(row["origin"], row["destination"], row["train_type"]), row
+        yield leg_key(row["direction"], row["train_type"], row["origin"], row["destination"],
+                      row["scheduled_running_time_s"], row_lifted(line, row)), row
+
+
+def leg_window(line, key: tuple):
+    """The window :func:`record_leg` runs leg ``key`` on: its line (:func:`leg_line`) between its two stops."""
+    return leg_line(line, key).window(key[2], key[3], key[1])
 
 
 def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
     """The recorded runs of every timetabled leg × scheduled time of a ``margins`` table (pandas)."""
     out = {}
-    for key, win, row in legs(line, margins):
+    for key, row in legs(line, margins):
         try:
-            out[key] = record_leg(win, key, row, ds_m)
+            out[key] = record_leg(leg_window(line, key), key, row, ds_m)
         except PlannerError:  # a leg that stalls at its on-time ratio: no computed times, its rows stay null
             continue
     return out
@@ -238,8 +242,9 @@ def leg_times(line, margins, ds_m: float = 1.0) -> dict[tuple, tuple[LegTimes, o
     node arrays are let go as soon as it is summed up."""
     at = np.unique(np.array([float(s.position_m) for s in line.stations], float))
     out = {}
-    for key, win, row in legs(line, margins):
+    for key, row in legs(line, margins):
         try:
+            win = leg_window(line, key)
             out[key] = (record_leg(win, key, row, ds_m).times(at), win)
         except PlannerError:
             continue
@@ -352,4 +357,4 @@ def write_timetable(line, runs: dict[tuple, LegRun], out_dir: str | Path, train_
 
 
 __all__ = ["TIMETABLE_SCHEMA", "SCHEMAS", "CHARTS_DIR", "clock", "leg_key", "chart_name", "LegRun", "LegTimes",
-           "leg_runs", "leg_times", "legs", "record_leg", "timetable_rows", "timetable_table", "write_timetable"]
+           "leg_runs", "leg_times", "leg_window", "legs", "record_leg", "timetable_rows", "timetable_table", "write_timetable"]
