@@ -158,16 +158,18 @@ def datasets(results: Sequence[InterstationTables], names: Sequence[str] | None 
     ep, ta, tb, tc, td = [], [], [], [], []
     for t in results:
         keys, n_r, n_x = _keys(t), len(t.ratios), len(t.points)
-        ep.append((keys, n_x, {
-            "eval_point_id": [p.eval_point_id for p in t.points],
-            "eval_position_m": [p.position_m for p in t.points],
-            "eval_distance_m": [p.s_m for p in t.points],
-            "eval_point_kind": [p.kind for p in t.points],
-        }))
-        ta.append((keys, n_r, {
-            "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
-            "ref_stall_position_m": _null_nan(np.full(n_r, np.nan) if t.ref_stall_m is None else t.ref_stall_m),
-        }))
+        if "eval_points" in want:
+            ep.append((keys, n_x, {
+                "eval_point_id": [p.eval_point_id for p in t.points],
+                "eval_position_m": [p.position_m for p in t.points],
+                "eval_distance_m": [p.s_m for p in t.points],
+                "eval_point_kind": [p.kind for p in t.points],
+            }))
+        if "table_a" in want:
+            ta.append((keys, n_r, {
+                "ratio": t.ratios, "running_time_s": t.time_a_s, "energy_kwh": t.energy_a_kwh,
+                "ref_stall_position_m": _null_nan(np.full(n_r, np.nan) if t.ref_stall_m is None else t.ref_stall_m),
+            }))
         # each row's point id taken by Arrow from the leg's few, not a Python list of one per row
         ids = pa.array([p.eval_point_id for p in t.points])
         positions = np.array([p.position_m for p in t.points])
@@ -373,14 +375,11 @@ class _Rows:
         """A string column as codes into its distinct values (null one of them, as None)."""
         if (name, str) not in self._cols:
             col = self.table.column(name)
-            if pa.types.is_dictionary(col.type):  # read as codes (read_dataset(dictionary=)): null a value of its own
-                enc = col.unify_dictionaries().combine_chunks() if col.num_chunks > 1 else col.chunk(0)
-                values = enc.dictionary.to_pylist()
-                codes = enc.indices.fill_null(len(values)).to_numpy().astype(np.intp)
-                self._cols[name, str] = (codes, values + [None])
-            else:
-                enc = pc.dictionary_encode(col.combine_chunks(), null_encoding="encode")
-                self._cols[name, str] = (enc.indices.to_numpy().astype(np.intp), enc.dictionary.to_pylist())
+            if not pa.types.is_dictionary(col.type):  # not read as codes (read_dataset(dictionary=))
+                col = pc.dictionary_encode(col)
+            enc = col.unify_dictionaries().combine_chunks()
+            values = enc.dictionary.to_pylist()  # null: a value of its own, after them
+            self._cols[name, str] = (enc.indices.fill_null(len(values)).to_numpy().astype(np.intp), values + [None])
         return self._cols[name, str]
 
     def floats(self, name: str) -> np.ndarray:

@@ -135,12 +135,7 @@ _CHUNK = 1 << 20
 def write_bytes_atomic(path: str | os.PathLike, data: bytes, *, mode: int = 0o644,
                        fsync: bool | None = None) -> None:
     """Write ``data`` to ``path`` atomically (see :func:`atomic_path`)."""
-    with atomic_path(path, mode=mode, fsync=fsync) as tmp:
-        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC)
-        try:
-            _write_all(fd, data)
-        finally:
-            os.close(fd)
+    write_chunks_atomic(path, [data], mode=mode, fsync=fsync)
 
 
 def write_chunks_atomic(path: str | os.PathLike, chunks: Iterable[bytes | memoryview], *, mode: int = 0o644,

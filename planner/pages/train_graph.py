@@ -88,29 +88,30 @@ def _conflicts(data: GraphData) -> list[list]:
     return cons
 
 
-def _payload_parts(data: GraphData) -> Iterator[tuple[str, Any, bool]]:
-    """The payload's keys in order, each with its value, or with an iterable of its items to be made one at a
-    time (True: ``trains``' items, ``windows``' (key, value) pairs)."""
+def _payload_parts(data: GraphData) -> Iterator[tuple[str, Any, type | None]]:
+    """The payload's keys in order, each with its value (None), or with an iterable of its items to be made one
+    at a time and the container they make (``list``: ``trains``' items; ``dict``: ``windows``' (key, value)
+    pairs)."""
     lo, hi = data.day_s
-    yield "line", {"id": data.line_id, "name": data.line_name, "start_m": data.start_m, "end_m": data.end_m}, False
-    yield "day", [math.floor(lo / 3600) * 3600, math.ceil(hi / 3600) * 3600], False
-    yield "stations", [[sid, name, x] for sid, name, x in data.stations], False
-    yield "colours", {f"{d} {s}": c for (d, s), c in COLOURS.items()}, False
+    yield "line", {"id": data.line_id, "name": data.line_name, "start_m": data.start_m, "end_m": data.end_m}, None
+    yield "day", [math.floor(lo / 3600) * 3600, math.ceil(hi / 3600) * 3600], None
+    yield "stations", [[sid, name, x] for sid, name, x in data.stations], None
+    yield "colours", {f"{d} {s}": c for (d, s), c in COLOURS.items()}, None
     yield "conflict", {"colour": CONFLICT_COLOUR, "stair_a": STAIR_COLOUR, "stair_b": STAIR_B_COLOUR,
-                       "min_px": CONFLICT_MIN_PX}, False
-    yield "trains", _trains(data), True
+                       "min_px": CONFLICT_MIN_PX}, None
+    yield "trains", _trains(data), list
     res: dict[str, int] = {}
-    yield "windows", _windows(data, res), True
-    yield "resources", list(res), False  # after the windows, which number them
-    yield "conflicts", _conflicts(data), False
-    yield "notes", data.notes, False
+    yield "windows", _windows(data, res), dict
+    yield "resources", list(res), None  # after the windows, which number them
+    yield "conflicts", _conflicts(data), None
+    yield "notes", data.notes, None
 
 
 def page_payload(data: GraphData) -> dict[str, Any]:
     """The compact JSON the page script draws from (times in 0.1 s, chainages in m, delta-coded)."""
     out: dict[str, Any] = {}
-    for key, value, items in _payload_parts(data):
-        out[key] = (list(value) if key == "trains" else dict(value)) if items else value
+    for key, value, made in _payload_parts(data):
+        out[key] = value if made is None else made(value)
     return out
 
 
@@ -123,10 +124,10 @@ def page_json(data: GraphData, extra: dict[str, Any]) -> str:
     time: the whole payload as Python lists was the train graph's worker's largest use of memory on a line
     ten times the sample (the JSON text itself is a tenth of it)."""
     out = []
-    for key, value, items in _payload_parts(data):
-        if not items:
+    for key, value, made in _payload_parts(data):
+        if made is None:
             text = _dumps(value)
-        elif key == "trains":
+        elif made is list:
             text = "[" + ",".join(_dumps(t) for t in value) + "]"
         else:
             text = "{" + ",".join(_dumps(k) + ":" + _dumps(v) for k, v in value) + "}"
