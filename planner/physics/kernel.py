@@ -25,8 +25,8 @@ and constant between events, ``st`` (``S_ROWS``, n) the runs' state (``S_*``) an
 scratch (``X_*``), ``lane`` (2, n)
 int8 phase code and sawtooth coasting flag, ``e`` (segments, n) the
 ceiling's service-brake value at each segment end, ``flags`` int64 (5,);
-``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves (with 7 rows, also each
-step's time and traction work increments).
+``rec`` (5, n, nodes) and ``rec_p`` (n, nodes) the recorded curves; ``inc`` (2, leaders, nodes) each step's
+time and traction work increments of the runs others follow (``slot``, :func:`advance`).
 
 Built ahead of time at install (:mod:`planner.io.compiled`: ``planner
 kernels build``, which ``make install`` runs), so a process loads machine code
@@ -48,7 +48,7 @@ from numba import types as nt
 from planner.physics.kernel_abi import (  # noqa: F401  (the rows are read through this module too)
     F_K_OK, F_MAYBE_OVER, F_STALL_FROM, F_STALL_RUN, F_STALL_TO, L_COAST, L_PHASE, P_CAP2, P_CAPV, P_R2,
     P_RAM, P_RATIO, P_RBM, P_RCM, P_SHED, P_TFI, PHASE_BRAKE, PHASE_COAST, PHASE_HOLD, PHASE_POWER, PHASE_STOP,
-    R_A, R_CAP, R_DT, R_DWORK, R_RATIO, R_T, R_V, S_BAD, S_C0, S_T, S_V, S_W, S_WLAST, S_WORK, SAWTOOTH_MIN_FRACTION,
+    I_DT, I_DWORK, R_A, R_CAP, R_RATIO, R_T, R_V, S_BAD, S_C0, S_T, S_V, S_W, S_WLAST, S_WORK, SAWTOOTH_MIN_FRACTION,
     SOURCES,
     T_AG, T_AHEAD, T_S, T_STEEP, T_STOP2, T_VINT, T_VN2, LANES, X_A0, X_C1, X_CO, X_CROSS, X_CS0, X_CS1, X_FRAC, X_J,
     X_LB, X_OVER, X_SLOPE, X_VP, X_W1, X_WEND,
@@ -203,7 +203,7 @@ def _band_edge(k, trk, ratio, capv, band):
 
 
 @njit(**_JIT)
-def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec, rec_p, record):
+def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec, rec_p, record, inc, slot):
     """Every run on its own from node k_from to k_to, with the batch-wide ``use_over`` switch fixed.
     Returns whether any run ended still above its ceiling (having been above it and not met it on
     the last step) and the first step after which a run's time is not finite (k_to if none).
@@ -218,7 +218,7 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
     """
     n = st.shape[1]
     amax, band, sawtooth = cst[0], cst[1], cst[2] != 0.0
-    still_over = False
+    still_over, increments = False, slot.shape[0] != 0
     groups = (n + LANES - 1) // LANES
     width = (n + groups - 1) // groups if groups else 1  # groups of even widths: 9 runs go 5 + 4, not 8 + 1
     for a in range(0, n, width):
@@ -305,8 +305,8 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
                     rec[R_T, i, jr], rec[R_V, i, jr], rec[R_A, i, jr] = t + dt, v1, (w1 - w) / (2.0 * ds)
                     rec[R_RATIO, i, jr], rec[R_CAP, i, jr] = par[P_RATIO, i], par[P_CAPV, i]
                     rec_p[i, jr] = ph
-                    if rec.shape[0] > R_DWORK:  # the step's own increments (planner.physics.reuse)
-                        rec[R_DT, i, jr], rec[R_DWORK, i, jr] = dt, dwork
+                if increments and slot[i] >= 0:  # a run others follow: the step's own increments (reuse)
+                    inc[I_DT, slot[i], k + 1 - k0], inc[I_DWORK, slot[i], k + 1 - k0] = dt, dwork
                 if k + 2 == trk.shape[1]:
                     st[S_WLAST, i] = w  # entering the last step, onto the marker
                 t = t + dt
@@ -386,7 +386,7 @@ def _over_until(k_from, k_to, trk, seg, par, st, lane, e, cst):
 
 
 @njit(**_JIT)
-def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, rec_p, record):
+def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, rec_p, record, inc, slot):
     """Advance every run from node ``k_from`` to node ``k_to`` (no event strictly between).
 
     While some run may be above its ceiling (after a lowered target) every run steps in the
@@ -394,6 +394,11 @@ def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, 
     above it (:func:`_over_until`); from there every run goes on to k_to on its own. Stops early
     (``flags[F_STALL_TO] ≥ 0``) at the first stall check (every 64 steps and at the end, as the
     numpy step) that finds a run whose time is no longer finite.
+
+    ``inc`` (2, leaders, nodes) and ``slot`` (n,) are for :mod:`planner.physics.reuse`: a run with
+    ``slot[i] ≥ 0`` (one that others follow) gets each step's time and traction work increments in
+    ``inc[I_DT, slot[i]]``, ``inc[I_DWORK, slot[i]]``, column ``k + 1 − k0`` for the step arriving at
+    node k + 1; an empty ``slot``: none are kept.
     """
     m = trk.shape[1]
     k = k_from
@@ -401,7 +406,7 @@ def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, 
         over_mode = flags[F_MAYBE_OVER] != 0 and _any_over(st)
         k_end = _over_until(k, k_to, trk, seg, par, st, lane, e, cst) if over_mode else k_to
         still_over, first_bad = _sweep(k, k_end, k0, over_mode, trk, seg, par, st, lane, e, cst, tab,
-                                       rec, rec_p, record)
+                                       rec, rec_p, record, inc, slot)
         flags[F_MAYBE_OVER] = 1 if over_mode and still_over else 0
         for kc in range(k, k_end):  # the stall checks of the steps just made
             if (kc & 63) == 0 or kc + 2 >= m - 1:
@@ -417,17 +422,17 @@ def advance(k_from, k_to, k0, trk, seg, par, st, lane, e, cst, tab, flags, rec, 
 
 
 @njit(**_JIT)
-def follow(rec, lead, t, work):
-    """Each follower adds its leader's recorded increments (``rec`` rows ``R_DT``, ``R_DWORK``, columns
-    1 on; its leader's row ``lead``) to its own time and traction work, one step at a time in step
+def follow(inc, lead, t, work):
+    """Each follower adds its leader's increments (``inc`` rows ``I_DT``, ``I_DWORK``, columns 1 on; its
+    leader's slot ``lead``: :func:`advance`) to its own time and traction work, one step at a time in step
     order: the additions stepping it would make (:mod:`planner.physics.reuse`)."""
-    steps = rec.shape[2]
+    steps = inc.shape[2]
     for f in range(lead.shape[0]):
         i = lead[f]
         tf, wf = t[f], work[f]
         for j in range(1, steps):
-            tf = tf + rec[R_DT, i, j]
-            wf = wf + rec[R_DWORK, i, j]
+            tf = tf + inc[I_DT, i, j]
+            wf = wf + inc[I_DWORK, i, j]
         t[f], work[f] = tf, wf
 
 
@@ -466,7 +471,7 @@ _F1, _F2, _F3 = nt.float64[::1], nt.float64[:, ::1], nt.float64[:, :, ::1]
 _I1, _B2 = nt.int64[::1], nt.int8[:, ::1]
 SIGNATURES = {
     "advance": nt.void(nt.int64, nt.int64, nt.int64, _F2, _I1, _F2, _F2, _B2, _F2, _F1, _F2, _I1, _F3, _B2,
-                       nt.boolean),
+                       nt.boolean, _F3, _I1),
     "set_targets": nt.void(nt.int64, _F2, _I1, _I1, _F2, _F2, _F2),
     "follow": nt.void(_F3, _I1, _F1, _F1),
     "groups": nt.void(nt.uint64[:, ::1], nt.uint64, _I1, _I1),

@@ -44,9 +44,15 @@ L_PHASE, L_COAST = range(2)
 # flags: any run may be above its ceiling; last node the stall check passed; stall window (from, to)
 # and the first run found stalled there
 F_MAYBE_OVER, F_K_OK, F_STALL_FROM, F_STALL_TO, F_STALL_RUN = range(5)
-# rows of rec (record=True): time, speed, acceleration, ratio, cruise cap at each node; a rec of 7 rows
-# also gets the time and the traction work / M_e of the step arriving there, as added to the run's sums
-R_T, R_V, R_A, R_RATIO, R_CAP, R_DT, R_DWORK = range(7)
+# rows of rec (record=True): time, speed, acceleration, ratio, cruise cap at each node
+R_T, R_V, R_A, R_RATIO, R_CAP = range(5)
+# rows of inc (planner.physics.reuse): the time and the traction work / M_e of the step arriving at a node, as
+# added to the run's sums
+I_DT, I_DWORK = range(2)
+NO_INC, NO_SLOT = np.empty((2, 1, 1)), np.empty(0, np.int64)
+"""``inc`` and ``slot`` of an ``advance`` that keeps no increments (an empty ``slot``: the kernel writes nothing)."""
+NO_REC, NO_REC_P = np.empty((5, 1, 1)), np.empty((1, 1), np.int8)
+"""``rec`` and ``rec_p`` of an ``advance`` that records no curves (``record`` False: the kernel writes nothing)."""
 
 SOURCES = ("planner.physics.kernel", __name__, "planner.io.compiled")
 """What a build of the kernel is made of (their digest names the built module)."""
@@ -54,7 +60,7 @@ SOURCES = ("planner.physics.kernel", __name__, "planner.io.compiled")
 _LAYOUT = {"trk": (np.float64, 2), "seg": (np.int64, 1), "bounds": (np.int64, 1), "par": (np.float64, 2),
            "st": (np.float64, 2), "lane": (np.int8, 2), "e": (np.float64, 2), "cst": (np.float64, 1),
            "tab": (np.float64, 2), "flags": (np.int64, 1), "rec": (np.float64, 3), "rec_p": (np.int8, 2),
-           "lead": (np.int64, 1), "sums": (np.float64, 1)}
+           "inc": (np.float64, 3), "slot": (np.int64, 1), "lead": (np.int64, 1), "sums": (np.float64, 1)}
 
 
 def check_layout(**arrays: np.ndarray) -> None:

@@ -17,7 +17,7 @@ step (``t ← t + Δt``): the kernel never reads them (a time that is not finite
 stall, and a finite time plus the same finite increment stays finite). So at a *check node*
 (:func:`check_every`, counted from the grid's start) the batch keeps one run of each set of
 equal ones in the kernel (the *leader*: the lowest index) and the others *follow* it: the kernel
-records each leader's increments Δt and Δwork step by step (``rec`` rows ``R_DT``, ``R_DWORK``)
+records each followed leader's increments Δt and Δwork step by step (``inc`` rows ``I_DT``, ``I_DWORK``)
 and a follower adds the same increments to its own sums in the same order, one at a time
 (kernel ``follow``): the same additions of the same bits as stepping it would make. Its time
 and energy are therefore those of stepping it, to the bit, and everything else of its state is
@@ -100,7 +100,7 @@ class Reuse:
         self.cls = equal_groups(np.concatenate([_bits(it.par), _bits(it.e)]))
         if (self.cls == np.arange(n)).all():  # no two runs share their constants: none can meet
             it.kernel.advance(k, k_to, it.k0, prep.trk, prep.seg, it.par, it.st, it.lane, it.e, it.cst, it.tab,
-                              it.flags, it.rec, it.rec_p, False)
+                              it.flags, it.rec, it.rec_p, False, K.NO_INC, K.NO_SLOT)
             return
         self.cls = self.cls.astype(np.uint64)
         self.act = np.arange(n)
@@ -108,34 +108,31 @@ class Reuse:
         self.f_idx = np.empty(0, np.int64)
         self.f_lead = np.empty(0, np.int64)
         self.f_t, self.f_w = np.empty(0), np.empty(0)
+        self.slot, self.f_slot = K.NO_SLOT, np.empty(0, np.int64)
         self._merge()
-        dummy, dummy_p = np.zeros((7, 1, 1)), np.zeros((1, 1), np.int8)
         while k < k_to:
             every = check_every(self.act.size)
             kn = min(k_to, (k // every + 1) * every)
-            rec = self.f_idx.size > 0
-            na = self.act.size
-            if rec:
-                r, r_p = np.empty((7, na, kn - k + 1)), np.empty((na, kn - k + 1), np.int8)
-            else:
-                r, r_p = dummy, dummy_p
+            followed = self.f_idx.size > 0
+            # the increments of the runs others follow only (their slots), not of every run in the kernel
+            inc = np.empty((2, int(self.slot.max()) + 1, kn - k + 1)) if followed else K.NO_INC
             it.kernel.advance(k, kn, k, prep.trk, prep.seg, self.par, self.st, self.lane, self.e, it.cst,
-                              it.tab, it.flags, r, r_p, rec)
+                              it.tab, it.flags, K.NO_REC, K.NO_REC_P, False, inc, self.slot)
             if it.flags[K.F_STALL_TO] >= 0:  # the lowest index stalled is a leader (followers' indices are higher)
                 it.flags[K.F_STALL_RUN] = self.act[it.flags[K.F_STALL_RUN]]
                 return
-            if rec:
-                self._follow(r)
+            if followed:
+                self._follow(inc)
             k = kn
             if k < k_to:
                 self._merge()
         self.expand()
 
-    def _follow(self, rec: np.ndarray) -> None:
+    def _follow(self, inc: np.ndarray) -> None:
         """Each follower adds its leader's increments of the last stretch to its sums (kernel ``follow``)."""
-        K.check_layout(rec=rec, lead=self.f_lead, sums=self.f_t)
+        K.check_layout(inc=inc, lead=self.f_slot, sums=self.f_t)
         K.check_layout(sums=self.f_w)
-        self.it.kernel.follow(rec, self.f_lead, self.f_t, self.f_w)
+        self.it.kernel.follow(inc, self.f_slot, self.f_t, self.f_w)
 
     def _merge(self) -> None:
         """Drop from the kernel's batch every run equal to a lower one (module doc); it follows that one."""
@@ -162,6 +159,11 @@ class Reuse:
         self.st = np.ascontiguousarray(st[:, keep])
         self.lane = np.ascontiguousarray(lane[:, keep])
         self.e = np.ascontiguousarray(self.e[:, keep])
+        # the runs others follow get a slot in the kernel's increments, in batch order; -1: no follower
+        leaders = np.unique(self.f_lead)
+        self.slot = np.full(self.act.size, -1, np.int64)
+        self.slot[leaders] = np.arange(leaders.size)
+        self.f_slot = self.slot[self.f_lead]
 
     def expand(self) -> None:
         """Every run's own state in the batch's arrays: a follower's is its leader's with its own sums."""

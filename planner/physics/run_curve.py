@@ -471,7 +471,8 @@ class _Integrator:
                 same.advance(k, k_next)
             else:
                 _KERNEL.advance(k, k_next, self.k0, self.prep.trk, self.prep.seg, self.par, self.st, self.lane,
-                                self.e, self.cst, self.tab, self.flags, self.rec, self.rec_p, self.record)
+                                self.e, self.cst, self.tab, self.flags, self.rec, self.rec_p, self.record, K.NO_INC,
+                                K.NO_SLOT)
             if self.flags[K.F_STALL_TO] >= 0:
                 f = self.flags
                 raise _stall_error(self.track, self.train, self.load, self.tf, self.s, int(f[K.F_STALL_RUN]),
