@@ -14,6 +14,7 @@ decreasing chainage. ``sign(direction)`` is +1 for down, -1 for up.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -276,7 +277,8 @@ class Line:
     # --- look-ups -----------------------------------------------------------
     def station(self, station_id: str) -> Station:
         """The station with this id; an exact match first, else the one match ignoring case."""
-        return _lookup(self.stations, "station_id", station_id, "station", self.line_id)
+        hit = _index(self).stations.get(station_id)
+        return hit if hit is not None else _lookup(self.stations, "station_id", station_id, "station", self.line_id)
 
     def train_type(self, train_type: str) -> TrainType:
         """The train type with this id; an exact match first, else the one match ignoring case."""
@@ -340,12 +342,40 @@ class Line:
             m = (x.end_m > lo) & (x.start_m < hi)
             return Segments(x.start_m[m], x.end_m[m], x.value[m])
 
+        ix = _index(self)
         return replace(
             self, stations=tuple(two), gradients=seg(self.gradients), curves=seg(self.curves),
-            speed_limits=tuple(s for s in self.speed_limits if s.end_m > lo and s.start_m < hi),
-            beacons=tuple(b for b in self.beacons if lo < b.position_m < hi),
+            speed_limits=tuple(self.speed_limits[i] for i in np.flatnonzero((ix.limit_end_m > lo)
+                                                                            & (ix.limit_start_m < hi))),
+            beacons=tuple(self.beacons[i] for i in np.flatnonzero((lo < ix.beacon_m) & (ix.beacon_m < hi))),
             signals=(), train_types=(tt,), trains=(), network=None,
         )
+
+
+class _Index:
+    """What :meth:`Line.station` and :meth:`Line.window` look things up in, made once per line (it is frozen):
+    the stations by id (the first of an id, as :func:`_lookup` finds it), the restrictions' and the beacons'
+    positions as arrays in the line's order. On a line ten times the sample the scans over every restriction
+    and beacon for each leg's window were a whole second of the night, and grow with the square of the line."""
+
+    def __init__(self, line: "Line"):
+        self.stations: dict = {}
+        for st in line.stations:
+            self.stations.setdefault(st.station_id, st)
+        self.limit_start_m = np.array([x.start_m for x in line.speed_limits], float)
+        self.limit_end_m = np.array([x.end_m for x in line.speed_limits], float)
+        self.beacon_m = np.array([b.position_m for b in line.beacons], float)
+
+
+_INDEXES: "weakref.WeakKeyDictionary[Line, _Index]" = weakref.WeakKeyDictionary()
+"""Each line's :class:`_Index`, beside it rather than in it: a line pickled to a worker or digested carries none."""
+
+
+def _index(line: "Line") -> _Index:
+    ix = _INDEXES.get(line)
+    if ix is None:
+        ix = _INDEXES[line] = _Index(line)
+    return ix
 
 
 def _lookup(items, attr: str, text: str, what: str, line_id: str):
