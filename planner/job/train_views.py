@@ -16,6 +16,7 @@ timetabled leg × scheduled time) it records each leg's two runs
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -135,8 +136,8 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
 
 
 def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
-                day: dict | None = None, later: list | None = None, charts: "ChartPages | None" = None
-                ) -> dict[str, list]:
+                day: dict | None = None, later: list | None = None, charts: "ChartPages | None" = None,
+                legs_known: Callable[[dict], None] | None = None) -> dict[str, list]:
     """Dataset, page and charts of a line's trains (module doc); ``run_id`` and ``day`` (the operating day's
     record) are named at the top of each page.
 
@@ -146,7 +147,8 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     then calls :meth:`ChartPages.finish`); else they are written before this returns.
 
     Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
-    legs with a chart in running order (the train graph links them).
+    legs with a chart in running order (the train graph links them); ``legs_known`` is called with it as soon as
+    it is known, before the dataset and the page are written (the job starts the train graph page with it).
     """
     from planner.job.steps import count_rows
     from planner.pages.timetable import page_parts, write_page
@@ -160,6 +162,12 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     with runner.progress.step("timetable"):  # while the workers draw the charts
         types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
         recs = timetable_rows(line, runs, types)  # made once: the dataset's rows and the page's
+        legs: dict[str, list] = {}
+        for r in recs:
+            if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
+                legs.setdefault(r["train_id"], []).append((f"{r['leg_origin']}→{r['station_id']}", r["chart"]))
+        if legs_known is not None:
+            legs_known(legs)
         count_rows(summary, write_timetable(line, runs, stage, types, recs))
         links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
                  ("train graph", f"../graph/{lid}_graph.html")]
@@ -170,10 +178,6 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
         charts.finish()
     else:
         later.append(charts)
-    legs: dict[str, list] = {}
-    for r in recs:
-        if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
-            legs.setdefault(r["train_id"], []).append((f"{r['leg_origin']}→{r['station_id']}", r["chart"]))
     return legs
 
 

@@ -93,17 +93,22 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> N
     from planner.job.day import window
 
     label = _run_label(job, summary)
+
+    def start_page(legs: dict) -> None:
+        """The train graph page starts on a worker as soon as the legs' chart links are known, while this
+        process writes the tables' dataset and page: on a large line it is the run's last long unit."""
+        with runner.progress.step("graph"):  # the page's own time is counted where run_views takes it
+            page = background(graph_page, (line, stage, paths, legs, label, check), name=job.parallel.backend,
+                              n_jobs=job.parallel.n_jobs)
+        summary.pending.append(page)
+        summary.graph_pages.append(page)
+
     # the chart pages are written by run_views, once the rest of the run's pages are: the charts are drawn meanwhile
-    legs = train_views(job, line, stage, summary.reports[line.line_id], runner, summary,  # tables, charts
-                       run_id=summary.run_id, day=window(job).record() if job.day.day else None,
-                       later=summary.chart_pages, charts=charts)
+    train_views(job, line, stage, summary.reports[line.line_id], runner, summary,  # tables, charts
+                run_id=summary.run_id, day=window(job).record() if job.day.day else None,
+                later=summary.chart_pages, charts=charts, legs_known=start_page)
     summary.pending += [c for c in summary.chart_pages[-1:] if c not in summary.pending]
     give_back()  # the pages of the legs' runs (planner.io.memory)
-    with runner.progress.step("graph"):  # the page's own time is counted where run_views takes it
-        page = background(graph_page, (line, stage, paths, legs, label, check), name=job.parallel.backend,
-                          n_jobs=job.parallel.n_jobs)
-    summary.pending.append(page)
-    summary.graph_pages.append(page)
 
 
 def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool) -> None:
@@ -276,13 +281,15 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
+    # the speed–distance charts, drawn while the pages above were written: their pages are written here while
+    # a worker may still write a train graph page (the last long unit of a large line)
+    for pages in summary.chart_pages:
+        pages.finish()
     with prog.step("graph"):  # each line's train graph page, written on a worker meanwhile
         for page in summary.graph_pages:
             page.result()
     with prog.step("overview"):  # its bundles verified meanwhile
         brows = verified.result()
-    for pages in summary.chart_pages:  # the speed–distance charts, drawn while the pages above were written
-        pages.finish()
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))
     manifest["changes"] = {"base_run": base, "lines": counts,
