@@ -94,34 +94,6 @@ def _exit_with_parent() -> None:
     threading.Thread(target=watch, name="planner-exit-with-parent", daemon=True).start()
 
 
-LEAK_LIMIT_BYTES = 1 << 62
-"""loky's memory-leak limit in the planner's workers (:func:`_worker_start`): never reached."""
-
-
-def _keep_grown_workers() -> None:
-    """loky worker initializer: no restart of a worker for the memory it has grown by.
-
-    Where psutil is installed (dask's ``distributed`` brings it), loky ends a worker whose resident
-    memory has grown 300 MB past its size after its first task and starts another, taking the growth
-    for a leak. The planner's whole-line units (a line's conflict check, train graph, bundles) grow a
-    worker by more than that on a large line and give the memory back themselves
-    (:mod:`planner.io.memory`: after each such unit and before the next). A restart then only costs a
-    worker's start (its imports, ~1.5 s of CPU) with a core idle meanwhile, twice a night on a line
-    ten times the sample, and a loky warning on stderr. The limit is a module constant that loky's
-    worker loop reads at each check; it is set here, in the worker, out of reach.
-    """
-    from joblib.externals.loky import process_executor
-
-    if hasattr(process_executor, "_MAX_MEMORY_LEAK_SIZE"):
-        process_executor._MAX_MEMORY_LEAK_SIZE = LEAK_LIMIT_BYTES
-
-
-def _worker_start() -> None:
-    """loky worker initializer of every local pool: :func:`_exit_with_parent`, :func:`_keep_grown_workers`."""
-    _exit_with_parent()
-    _keep_grown_workers()
-
-
 @contextmanager
 def quiet_loggers(name: str) -> Iterator[None]:
     """Drop every record of the logger ``name`` and of its children while the context lasts, then put
@@ -277,7 +249,7 @@ class Background:
         self._fn, self._args, self._gen, self._value = fn, args, None, self._UNSET
         if n_jobs != 1:
             # the same loky configuration as LocalPool's steps, so its workers are reused
-            with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_worker_start):
+            with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent):
                 self._gen = _abandon_quietly(joblib.Parallel(return_as="generator")([joblib.delayed(fn)(*args)]), 1)
 
     def result(self) -> Any:
@@ -406,7 +378,7 @@ def backend(name: str = "local", *, n_jobs: int = -1, scheduler: str = "",
     that end with the main process (:func:`_exit_with_parent`).
     """
     if name == "local":
-        with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_worker_start):
+        with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent):
             yield LocalPool(n_jobs)
         return
     if name != "dask":

@@ -147,12 +147,7 @@ def warm_worker() -> None:
 
 
 def _call(fn, args):
-    """joblib worker: module level, so it pickles to local processes and Dask workers alike. First gives back
-    what the worker freed since its last unit when that is much (:func:`planner.io.memory.give_back_large`):
-    the buffer a large result was sent back in is freed only after the unit has returned."""
-    from planner.io.memory import give_back_large
-
-    give_back_large()
+    """joblib worker: module level, so it pickles to local processes and Dask workers alike."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return fn(*args)
