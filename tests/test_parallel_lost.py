@@ -300,3 +300,24 @@ def test_loky_workers_end_when_the_main_process_is_killed(tmp_path):
             os.killpg(main.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+def test_lokys_worker_renewal_warning_is_filtered_and_only_it():
+    """In a process of its own (pytest sets its own warning filters around each test)."""
+    code = textwrap.dedent("""
+        import warnings
+        import planner.io.parallel  # installs the filter
+        mod = "joblib.externals.loky.process_executor"
+        renewed = ("A worker stopped while some jobs were given to the executor. This can be caused by a too "
+                   "short worker timeout or by a memory leak.")
+        warnings.warn_explicit(renewed, UserWarning, "process_executor.py", 787, module=mod)
+        warnings.warn_explicit("some other loky warning", UserWarning, "process_executor.py", 790, module=mod)
+        warnings.warn_explicit(renewed, UserWarning, "elsewhere.py", 1, module="someone.else")
+    """)
+    r = subprocess.run([sys.executable, "-W", "default", "-c", code], capture_output=True, text=True,
+                       timeout=HANG_GUARD_S)
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if "UserWarning" in ln]
+    assert len(lines) == 2, r.stderr
+    assert lines[0].startswith("process_executor.py:790") and "some other loky warning" in lines[0]
+    assert lines[1].startswith("elsewhere.py:1") and "A worker stopped" in lines[1]
