@@ -381,8 +381,8 @@ class _Integrator:
         self.flags = np.array([1, k0, -1, -1, -1], dtype=np.int64)
         self.e = np.empty((len(self.prep.bounds), n))  # the ceiling's segment table (kernel.set_targets)
         self.record = record
-        mr = self.m - k0 if record else 1
-        self.rec, self.rec_p = np.zeros((5, n if record else 1, mr)), np.empty((n if record else 1, mr), np.int8)
+        self.rec, self.rec_p = ((np.zeros((5, n, self.m - k0)), np.empty((n, self.m - k0), np.int8)) if record
+                                else (K.NO_REC, K.NO_REC_P))
         K.check_layout(par=par, st=st, lane=lane, e=self.e, cst=self.cst, flags=self.flags, rec=self.rec,
                        rec_p=self.rec_p)  # the track's and the train's tables are checked where they are cached
         _KERNEL.set_targets(k0, self.prep.trk, self.prep.seg, self.prep.bounds, par, st, self.e)
