@@ -115,6 +115,47 @@ def test_an_entry_is_written_as_pack_makes_it_without_being_joined(tmp_path, mon
     assert np.array_equal(got["big"], obj["big"]) and got["small"] == obj["small"]
 
 
+
+def test_a_large_entry_is_written_through_a_file_as_pack_makes_it(tmp_path, monkeypatch):
+    """An entry whose members pass BIG_ENTRY_BYTES is encoded into an unnamed file beside it, hashed and copied
+    from there (its bytes never held whole): the file holds exactly pack()'s bytes, it reads back as the object,
+    and nothing else is left in the folder; the encoded buffer is never made on that route."""
+    import planner.job.cache as cache
+
+    obj = _sample() | {"big": np.arange(60_000, dtype=float)}  # ~480 kB of members
+    monkeypatch.setattr(cache, "BIG_ENTRY_BYTES", 100_000)
+    monkeypatch.setattr(cache, "_COPY", 1 << 12)  # hashed and copied in many pieces
+    monkeypatch.setattr(cache, "npz_buffer", lambda *a: pytest.fail("a large entry was encoded in memory"))
+    c = Cache(tmp_path / "cache")
+    c.put("tables", KEY, obj)
+    monkeypatch.undo()
+    data = c.path("tables", KEY).read_bytes()
+    assert data == pack("tables", KEY, obj) and len(data) > 60_000 * 8
+    _same(c.get("tables", KEY), obj)
+    assert [p.name for p in c.path("tables", KEY).parent.iterdir()] == [c.path("tables", KEY).name]
+
+
+def test_a_large_entry_that_fails_part_way_leaves_the_old_one(tmp_path, monkeypatch):
+    """A large entry whose writing fails (a full disk while it is encoded into the file beside it) leaves the entry
+    that was there, and no file of its own."""
+    import planner.job.cache as cache
+
+    c = Cache(tmp_path / "cache")
+    c.put("tables", KEY, {"old": 1})
+    before = c.path("tables", KEY).read_bytes()
+    monkeypatch.setattr(cache, "BIG_ENTRY_BYTES", 1000)
+
+    def full(f, *a, **k):
+        f.write(b"x" * 100)
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(cache.np, "savez", full)
+    with pytest.raises(OSError):
+        c.put("tables", KEY, {"big": np.arange(1000.0)})
+    monkeypatch.undo()
+    assert c.path("tables", KEY).read_bytes() == before
+    assert [p.name for p in c.path("tables", KEY).parent.iterdir()] == [c.path("tables", KEY).name]
+
 def test_every_single_bit_flip_of_an_entry_is_rejected():
     data = pack("stops", KEY, {"t_s": np.array([0.0, 1.5]), "id": "B", "ok": True})
     assert len(data) > 500

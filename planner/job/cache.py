@@ -9,7 +9,7 @@ hex digits of the key) laid out as::
     <payload: N bytes, an NPZ archive>
 
 The payload is an NPZ archive (numpy's zip of ``.npy`` members, read with
-``allow_pickle=False``): member ``tree`` holds the result's structure as UTF-8
+``allow_pickle=False``; the codec is :mod:`planner.job.codec`): member ``tree`` holds the result's structure as UTF-8
 JSON and the other members its numeric arrays. DataFrames are stored column by
 column (numeric columns as arrays, text columns as one Arrow stream each, list columns in the JSON).
 Dataclasses and named tuples are rebuilt only when the JSON names a class of
@@ -30,14 +30,12 @@ output root like the signing key's folder.
 """
 from __future__ import annotations
 
-import dataclasses
 import hashlib
-import importlib
-import io
+import itertools
 import json
 import re
 import shutil
-import zipfile
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator
@@ -46,6 +44,7 @@ import numpy as np
 
 from planner.io.atomic import write_chunks_atomic
 from planner.io.memory import give_back
+from planner.job.codec import CacheEntryError, decode, encode, members, npz_buffer  # noqa: F401 (re-exported)
 
 MAGIC = b"PLANNER-CACHE 1\n"
 """First line of every entry; bump the number when the layout changes (old entries then miss)."""
@@ -56,343 +55,10 @@ KEY_RE = re.compile(r"^[0-9a-f]{64}$")
 KIND_RE = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
 
 
-class CacheEntryError(ValueError):
-    """An entry that cannot be trusted or decoded (the caller treats it as a miss)."""
-
-
-# --- the pickle-free codec -----------------------------------------------------------------
-def _class_name(cls: type) -> str:
-    return f"{cls.__module__}:{cls.__qualname__}"
-
-
-def _is_namedtuple(obj: Any) -> bool:
-    return isinstance(obj, tuple) and hasattr(type(obj), "_fields")
-
-
-def _resolve(name: Any, want: str) -> type:
-    """The planner class ``module:qualname`` names, if it is a dataclass (``want="dc"``) or a named tuple."""
-    if not isinstance(name, str) or ":" not in name:
-        raise CacheEntryError(f"bad class name {name!r}")
-    mod, qual = name.split(":", 1)
-    if not (mod == "planner" or mod.startswith("planner.")) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.]*", mod) \
-            or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", qual):
-        raise CacheEntryError(f"class {name!r} is not a planner class")
-    try:
-        cls = getattr(importlib.import_module(mod), qual)
-    except (ImportError, AttributeError):
-        raise CacheEntryError(f"no class {name!r}") from None
-    ok = (isinstance(cls, type) and dataclasses.is_dataclass(cls)) if want == "dc" else (
-        isinstance(cls, type) and issubclass(cls, tuple) and hasattr(cls, "_fields"))
-    if not ok:
-        raise CacheEntryError(f"{name!r} is not a {'dataclass' if want == 'dc' else 'named tuple'}")
-    return cls
-
-
-class _Encoder:
-    """Python object → (JSON-able tree, arrays). Raises TypeError for anything it cannot store exactly."""
-
-    def __init__(self) -> None:
-        self.arrays: dict[str, np.ndarray] = {}
-
-    def array(self, a: np.ndarray) -> dict:
-        if a.dtype.hasobject or a.dtype.kind not in "biufcSUMm" or a.dtype.fields is not None:
-            raise TypeError(f"cannot cache an array of dtype {a.dtype}")
-        name = f"a{len(self.arrays)}"
-        self.arrays[name] = a if a.flags.c_contiguous else a.copy(order="C")
-        return {"$a": name}
-
-    def __call__(self, o: Any) -> Any:
-        if o is None or isinstance(o, (bool, str)):
-            return o
-        if isinstance(o, int) and type(o) is int:
-            return o
-        if type(o) is float:
-            return {"$f": o.hex()}
-        if isinstance(o, np.ndarray):
-            if o.dtype.hasobject:
-                return {"$ao": [self(x) for x in o.tolist()], "shape": list(o.shape)}
-            return self.array(o)
-        if isinstance(o, np.generic):
-            return {"$np": o.dtype.str, "v": self.array(np.asarray(o))}
-        if dataclasses.is_dataclass(o) and not isinstance(o, type):
-            cls = type(o)
-            _resolve(_class_name(cls), "dc")  # fail now, not when reading back
-            names = {f.name for f in dataclasses.fields(o)}
-            if hasattr(o, "__dict__") and set(vars(o)) - names:  # would be lost: refuse rather than differ
-                raise TypeError(f"cannot cache {_class_name(cls)}: attributes beyond its fields "
-                                f"{sorted(set(vars(o)) - names)}")
-            return {"$dc": _class_name(cls), "f": {f.name: self(getattr(o, f.name)) for f in dataclasses.fields(o)}}
-        if _is_namedtuple(o):
-            _resolve(_class_name(type(o)), "nt")
-            return {"$nt": _class_name(type(o)), "v": [self(x) for x in o]}
-        if type(o) is tuple:
-            return {"$t": [self(x) for x in o]}
-        if type(o) is list:
-            return [self(x) for x in o]
-        if type(o) is dict:
-            return {"$d": [[self(k), self(v)] for k, v in o.items()]}
-        if type(o) in (set, frozenset):
-            return {"$s" if type(o) is set else "$fs": [self(x) for x in sorted(o, key=repr)]}
-        import pandas as pd
-
-        if type(o) is pd.DataFrame:
-            return self.frame(o)
-        import pyarrow as pa
-
-        if isinstance(o, pa.Table):
-            return {"$pa": self.array(np.frombuffer(_arrow_bytes(o), dtype=np.uint8))}
-        raise TypeError(f"cannot cache a {type(o).__module__}.{type(o).__qualname__}")
-
-    def frame(self, df) -> dict:
-        import pandas as pd
-
-        if df.attrs:
-            raise TypeError("cannot cache a DataFrame with attrs")
-        if not df.columns.is_unique:
-            raise TypeError("cannot cache a DataFrame with duplicate column names")
-        idx = df.index
-        if type(idx) is pd.RangeIndex and idx.name is None:
-            index = {"range": [idx.start, idx.stop, idx.step]}
-        else:
-            index = {"values": self.column(pd.Series(idx)), "name": self(idx.name)}
-        return {"$df": {
-            "columns": [self(c) for c in df.columns],
-            "columns_dtype": str(df.columns.dtype),
-            "data": [self.column(df[c]) for c in df.columns],
-            "index": index,
-        }}
-
-    def column(self, s) -> dict:
-        dt = s.dtype
-        if isinstance(dt, np.dtype) and not dt.hasobject:
-            return {"dtype": dt.str, "v": self.array(s.to_numpy())}
-        if isinstance(dt, np.dtype):  # object: any values the tree can hold
-            return {"dtype": "object", "v": [self(x) for x in s.tolist()]}
-        name = str(dt)
-        if name in ("str", "string"):  # every value a str or missing (null): one Arrow array, no str per value
-            import pyarrow as pa
-
-            text = pa.array(s, type=pa.large_string())
-            return {"dtype": name, "arrow": self.array(np.frombuffer(_arrow_bytes(pa.table({"v": text})), np.uint8))}
-        raise TypeError(f"cannot cache a DataFrame column of dtype {name}")
-
-
-def _arrow_bytes(table) -> bytes:
-    import pyarrow as pa
-
-    sink = pa.BufferOutputStream()
-    with pa.ipc.new_stream(sink, table.schema) as w:
-        w.write_table(table)
-    return sink.getvalue().to_pybytes()
-
-
-def _arrow_text(a: np.ndarray) -> list:
-    """The values of a text column stored as an Arrow stream (:meth:`_Encoder.column`): str or None each."""
-    import pyarrow as pa
-
-    try:
-        t = pa.ipc.open_stream(pa.py_buffer(a.tobytes())).read_all()
-    except (pa.ArrowException, ValueError) as e:
-        raise CacheEntryError(f"text column is not an Arrow stream ({type(e).__name__})") from None
-    if t.column_names != ["v"] or not pa.types.is_large_string(t.schema.field("v").type):
-        raise CacheEntryError("bad text column")
-    return t.column("v").to_pylist()
-
-
-class _Decoder:
-    """(tree, arrays) → Python object; every node is checked, anything unexpected is a CacheEntryError."""
-
-    def __init__(self, arrays: dict[str, np.ndarray]) -> None:
-        self.arrays = arrays
-        self.depth = 0
-
-    def array(self, ref: Any) -> np.ndarray:
-        if not isinstance(ref, dict) or set(ref) != {"$a"} or ref["$a"] not in self.arrays:
-            raise CacheEntryError("bad array reference")
-        return self.arrays[ref["$a"]]
-
-    def __call__(self, n: Any) -> Any:
-        self.depth += 1
-        if self.depth > 200:
-            raise CacheEntryError("tree too deep")
-        try:
-            return self._node(n)
-        finally:
-            self.depth -= 1
-
-    def _node(self, n: Any) -> Any:
-        if n is None or isinstance(n, (bool, str, int)):
-            return n
-        if isinstance(n, list):
-            return [self(x) for x in n]
-        if not isinstance(n, dict) or len(n) == 0:
-            raise CacheEntryError(f"unexpected node {type(n).__name__}")
-        tag = next(iter(n))
-        if tag == "$f":
-            try:
-                return float.fromhex(n["$f"])
-            except (TypeError, ValueError):
-                raise CacheEntryError("bad float") from None
-        if tag == "$a":
-            return self.array(n).copy()
-        if tag == "$ao":
-            vals = [self(x) for x in _list(n["$ao"])]
-            out = np.empty(len(vals), dtype=object)
-            out[:] = vals
-            try:
-                return out.reshape(tuple(_list(n.get("shape"))))
-            except (TypeError, ValueError):
-                raise CacheEntryError("bad object array shape") from None
-        if tag == "$np":
-            a = self.array(n.get("v"))
-            if a.shape != () or a.dtype.str != n["$np"]:
-                raise CacheEntryError("bad numpy scalar")
-            return a[()]
-        if tag == "$t":
-            return tuple(self(x) for x in _list(n["$t"]))
-        if tag == "$d":
-            out = {}
-            for kv in _list(n["$d"]):
-                if not isinstance(kv, list) or len(kv) != 2:
-                    raise CacheEntryError("bad dict item")
-                k = self(kv[0])
-                try:
-                    out[k] = self(kv[1])
-                except TypeError:
-                    raise CacheEntryError("unhashable dict key") from None
-            return out
-        if tag in ("$s", "$fs"):
-            try:
-                items = [self(x) for x in _list(n[tag])]
-                return set(items) if tag == "$s" else frozenset(items)
-            except TypeError:
-                raise CacheEntryError("unhashable set item") from None
-        if tag == "$dc":
-            cls = _resolve(n["$dc"], "dc")
-            fields = n.get("f")
-            names = [f.name for f in dataclasses.fields(cls)]
-            if not isinstance(fields, dict) or sorted(fields) != sorted(names):
-                raise CacheEntryError(f"fields of {n['$dc']} do not match the class")
-            obj = object.__new__(cls)
-            for name in names:  # as pickle does: no __init__, frozen dataclasses included
-                object.__setattr__(obj, name, self(fields[name]))
-            return obj
-        if tag == "$nt":
-            cls = _resolve(n["$nt"], "nt")
-            vals = [self(x) for x in _list(n.get("v"))]
-            if len(vals) != len(cls._fields):
-                raise CacheEntryError(f"fields of {n['$nt']} do not match the class")
-            return cls(*vals)
-        if tag == "$df":
-            return self.frame(n["$df"])
-        if tag == "$pa":
-            import pyarrow as pa
-
-            try:
-                return pa.ipc.open_stream(pa.py_buffer(self.array(n["$pa"]).tobytes())).read_all()
-            except (pa.ArrowException, ValueError) as e:
-                raise CacheEntryError(f"bad Arrow table ({e})") from None
-        raise CacheEntryError(f"unknown tag {tag!r}")
-
-    def frame(self, f: Any):
-        import pandas as pd
-
-        if not isinstance(f, dict):
-            raise CacheEntryError("bad DataFrame")
-        cols = [self(c) for c in _list(f.get("columns"))]
-        data = _list(f.get("data"))
-        if len(cols) != len(data):
-            raise CacheEntryError("DataFrame columns and data differ in length")
-        series = [self.column(c) for c in data]
-        lengths = {len(s) for s in series}
-        index = f.get("index")
-        if not isinstance(index, dict):
-            raise CacheEntryError("bad DataFrame index")
-        if "range" in index:
-            r = _list(index["range"])
-            if len(r) != 3 or not all(type(x) is int for x in r) or r[2] == 0:
-                raise CacheEntryError("bad RangeIndex")
-            idx = pd.RangeIndex(*r)
-        else:
-            idx = pd.Index(self.column(index.get("values")), name=self(index.get("name")))
-        if lengths - {len(idx)}:
-            raise CacheEntryError("DataFrame columns differ in length")
-        try:
-            df = pd.DataFrame({k: pd.Series(s, index=idx, copy=False) for k, s in zip(range(len(cols)), series)},
-                              index=idx)
-            df.columns = pd.Index(cols, dtype=f.get("columns_dtype"))
-        except (TypeError, ValueError) as e:
-            raise CacheEntryError(f"bad DataFrame ({e})") from None
-        return df
-
-    def column(self, c: Any):
-        import pandas as pd
-
-        if not isinstance(c, dict) or not isinstance(c.get("dtype"), str):
-            raise CacheEntryError("bad DataFrame column")
-        dt = c["dtype"]
-        if dt == "object":
-            vals = [self(x) for x in _list(c.get("v"))]
-            out = np.empty(len(vals), dtype=object)
-            out[:] = vals
-            return out
-        if dt in ("str", "string"):
-            vals = _list(c.get("v")) if "arrow" not in c else _arrow_text(self.array(c["arrow"]))
-            if not all(v is None or isinstance(v, str) for v in vals):
-                raise CacheEntryError("bad text column")
-            return pd.array(vals, dtype=dt)
-        a = self.array(c.get("v"))
-        if a.ndim != 1 or a.dtype.str != dt:
-            raise CacheEntryError("bad numeric column")
-        return a.copy()
-
-
-def _list(x: Any) -> list:
-    if not isinstance(x, list):
-        raise CacheEntryError("expected a list")
-    return x
-
-
-def _payload(obj: Any) -> io.BytesIO:
-    enc = _Encoder()
-    tree = json.dumps(enc(obj), separators=(",", ":"), ensure_ascii=True, allow_nan=False).encode()
-    buf = io.BytesIO()
-    np.savez(buf, tree=np.frombuffer(tree, dtype=np.uint8), **enc.arrays)
-    return buf
-
-
-def encode(obj: Any) -> bytes:
-    """The NPZ payload of ``obj`` (TypeError for a value the cache cannot store exactly)."""
-    return _payload(obj).getvalue()
-
-
-def decode(payload: bytes) -> Any:
-    """The object an :func:`encode` payload holds; :class:`CacheEntryError` if it does not decode."""
-    try:
-        with np.load(io.BytesIO(payload), allow_pickle=False) as z:  # never unpickles: object arrays fail
-            arrays = {name: z[name] for name in z.files}
-    except (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:
-        raise CacheEntryError(f"payload is not a readable NPZ archive ({type(e).__name__})") from None
-    if not all(isinstance(a, np.ndarray) for a in arrays.values()):
-        raise CacheEntryError("payload has members that are not arrays")
-    tree = arrays.pop("tree", None)
-    if tree is None or tree.dtype != np.uint8 or tree.ndim != 1:
-        raise CacheEntryError("payload has no tree")
-    try:
-        node = json.loads(tree.tobytes().decode("utf-8"))
-    except (UnicodeDecodeError, ValueError, RecursionError):
-        raise CacheEntryError("tree is not JSON") from None
-    try:
-        return _Decoder(arrays)(node)
-    except CacheEntryError:
-        raise
-    except Exception as e:  # noqa: BLE001 - a verified payload that still does not decode is a miss
-        raise CacheEntryError(f"payload does not decode ({type(e).__name__})") from None
-
-
 # --- entries --------------------------------------------------------------------------------
 BIG_ENTRY_BYTES = 8 << 20
-"""An entry at least this large gives its encoding's memory back once written (:func:`planner.io.memory.give_back`)."""
+"""An entry whose members are at least this large is written through a file, not memory (:func:`_write_big`), and
+gives its encoding's memory back once written (:func:`planner.io.memory.give_back`)."""
 
 
 def pack(kind: str, key: str, obj: Any) -> bytes:
@@ -402,11 +68,38 @@ def pack(kind: str, key: str, obj: Any) -> bytes:
 
 def _entry(kind: str, key: str, obj: Any) -> list:
     """:func:`pack`'s bytes in two pieces, the payload a view of the buffer it was written to: an entry is written
-    from them without copying it twice more (a line's conflict report is tens of megabytes)."""
-    payload = _payload(obj).getbuffer()
-    header = {"kind": kind, "key": key, "payload_bytes": payload.nbytes,
-              "payload_sha256": hashlib.sha256(payload).hexdigest()}
-    return [MAGIC + json.dumps(header, sort_keys=True, separators=(",", ":")).encode() + b"\n", payload]
+    from them without copying it twice more."""
+    return _parts(kind, key, npz_buffer(*members(obj)).getbuffer())
+
+
+def _parts(kind: str, key: str, payload: memoryview) -> list:
+    return [_header(kind, key, payload.nbytes, hashlib.sha256(payload).hexdigest()), payload]
+
+
+def _header(kind: str, key: str, payload_bytes: int, payload_sha256: str) -> bytes:
+    """The magic line and the header line of an entry."""
+    header = {"kind": kind, "key": key, "payload_bytes": payload_bytes, "payload_sha256": payload_sha256}
+    return MAGIC + json.dumps(header, sort_keys=True, separators=(",", ":")).encode() + b"\n"
+
+
+def _write_big(path: Path, kind: str, key: str, tree: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
+    """Write a large entry without holding its bytes: the payload is written to an unnamed file beside the entry
+    (numpy writes each member in pieces), hashed from there, then copied behind the header into the entry
+    (atomically, as :meth:`Cache.put`). The same bytes as :func:`pack`; a line's conflict report (66 MB on a line
+    ten times the sample) made the job process hold about three times its size while it was encoded in memory."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryFile(dir=path.parent) as f:
+        np.savez(f, tree=tree, **arrays)
+        size = f.tell()
+        f.seek(0)
+        sha = hashlib.file_digest(f, "sha256").hexdigest()
+        f.seek(0)
+        write_chunks_atomic(path, itertools.chain([_header(kind, key, size, sha)], iter(lambda: f.read(_COPY), b"")),
+                            fsync=False)
+
+
+_COPY = 1 << 20
+"""Bytes per read when a large entry's payload is hashed and copied (:func:`_write_big`)."""
 
 
 def unpack(data: bytes, kind: str | None = None, key: str | None = None) -> tuple[dict, bytes]:
@@ -525,12 +218,13 @@ class Cache:
         p = self.path(kind, key)
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)
-        parts = _entry(kind, key, obj)
-        big = parts[1].nbytes >= BIG_ENTRY_BYTES
-        write_chunks_atomic(p, parts, fsync=False)
-        del parts
-        if big:  # its encoding's buffers, a few times its size, are given back before the next one is made
-            give_back()
+        tree, arrays = members(obj)
+        if tree.nbytes + sum(a.nbytes for a in arrays.values()) < BIG_ENTRY_BYTES:
+            write_chunks_atomic(p, _parts(kind, key, npz_buffer(tree, arrays).getbuffer()), fsync=False)
+            return
+        _write_big(p, kind, key, tree, arrays)
+        del tree, arrays
+        give_back()  # its encoding's buffers (text columns' Arrow streams), before the next one is made
 
     # --- maintenance: `planner cache verify` and `planner cache clear`
     def entries(self) -> Iterator[Path]:
