@@ -103,6 +103,56 @@ def test_closed_loop_in_hand_is_the_folder(linedir, tmp_path):
     assert from_folder.equals(in_hand)
 
 
+def test_the_closed_loop_index_keeps_the_times_looked_up(tmp_path, monkeypatch):
+    """The margins keep only the closed loop's designated times that the timetable's scheduled times look up
+    (6 places, as they are looked up): the same entries as the whole sweep has for them, and the same margin rows
+    as with the whole sweep in memory."""
+    import pandas as pd
+
+    from linedb import default_tables
+    from planner.datasets.closed_loop import run_closed_loop, write_closed_loop
+    from planner.datasets.tables import write_tables
+    import planner.report.margins as margins
+    from planner.report.margin_datasets import closed_loop_index
+    from planner.report.margin_rule import MarginRule
+    from planner.tables.build import build_tables
+
+    tt = default_tables("tiny")["timetable"]  # train 101 scheduled inside the sweep: 150 s and 160 s
+    tt = pd.concat([tt[tt.train_id == "101"].assign(
+        arrival_s=[np.nan, 21750.0, 21940.0], departure_s=[21600.0, 21780.0, np.nan]), tt[tt.train_id != "101"]])
+    line = load_line(write_line_db(tmp_path / "tiny", timetable=tt))
+    tdir, cdir = tmp_path / "tables", tmp_path / "cl"
+    write_tables(build_tables(line, train_types=["EMU10"], n_jobs=1), tdir)
+    write_closed_loop([r for sc in ("nominal", "perturbed")
+                       for r in run_closed_loop(line, tdir, train_types=["EMU10"], scenario_name=sc, n_jobs=1)], cdir)
+    rule = MarginRule()
+    whole = closed_loop_index(cdir, line.line_id, rule)
+    sweep = sorted({k[5] for k in whole})
+    assert 150.0 in sweep and 160.0 in sweep
+    times = [sweep[0] + 3e-7, sweep[len(sweep) // 2] - 4e-7, sweep[-1], sweep[0] + 0.5, -1.0]  # the last two: none
+    kept = closed_loop_index(cdir, line.line_id, rule, times=times)
+    want = {round(t, 6) for t in times}
+    assert kept == {k: v for k, v in whole.items() if k[5] in want}
+    assert {k[5] for k in kept} == {sweep[0], sweep[len(sweep) // 2], sweep[-1]}
+    assert closed_loop_index(cdir, line.line_id, rule, times=[]) == {}
+    kw = dict(train_types=["EMU10"], tables_dir=tdir, closed_loop_dir=cdir, conflicts=False, n_jobs=1)
+    import planner.report.leg_margin as leg_margin
+
+    given, scheduled_runs = {}, leg_margin._scheduled_runs
+    monkeypatch.setattr(leg_margin, "_scheduled_runs", lambda out, *a: given.setdefault(
+        (out.origin, out.destination), a[-2]) is not None and scheduled_runs(out, *a))
+    filtered = compute_margins(line, **kw)
+    monkeypatch.undo()
+    for o, d in (("A", "B"), ("B", "C")):  # each leg's entries at the line's scheduled times (150 s, 160 s)
+        assert given[(o, d)] == {k[4:]: v for k, v in whole.items()
+                                 if k[:4] == ("down", "EMU10", o, d) and k[5] in (150.0, 160.0)}
+    assert {("nominal", 150.0), ("degraded", 150.0)} <= set(given[("A", "B")])  # what it looks up
+    monkeypatch.setattr(margins, "closed_loop_index", lambda *a: closed_loop_index(*a[:4]))  # the whole sweep
+    unfiltered = compute_margins(line, **kw)
+    assert filtered.sources["closed_loop_dataset"] and filtered.rows.equals(unfiltered.rows)
+    assert {round(x, 6) for x in filtered.rows["scheduled_running_time_s"].dropna()} >= {150.0, 160.0}
+
+
 @pytest.mark.parametrize("args,msg", [
     (["--tables", "nowhere"], "--tables nowhere: no such folder"),
     (["--curves", "EMU10"], "--curves 'EMU10': give TYPE:ORIGIN-DESTINATION"),

@@ -221,13 +221,18 @@ def read_energy(tables_dir: Path, line_id: str, direction: str, train_type: str)
     return out
 
 
-def closed_loop_index(closed_loop_dir: Path, line_id: str, rule, tables: dict | None = None) -> dict:
-    """Closed-loop errors (nearest rule) from a ``planner simulate`` folder, by leg, scenario, designated time.
+def closed_loop_index(closed_loop_dir: Path, line_id: str, rule, tables: dict | None = None,
+                      times=None) -> dict:
+    """Closed-loop errors (nearest rule) from a ``planner simulate`` folder, by leg, scenario, designated time
+    (rounded to 6 places, as the margins look them up).
 
     ``perturbed`` runs stand for the degraded scenario only when their load and
     traction equal the rule's degraded ones. ``tables``: the ``closed_loop`` and ``closed_loop_summary``
     Arrow tables themselves (:func:`planner.datasets.closed_loop.datasets`: the rows the folder holds or
-    is being written with), read instead of the folder.
+    is being written with), read instead of the folder. ``times``: the running times [s] that will be looked
+    up (the timetable's scheduled ones); when given, only the designated times equal to one of them (6 places)
+    are kept: the closed loop sweeps 61 designated times per leg and the margins look up a few, and on a line
+    ten times the sample the whole sweep was 30 MB of the job process's memory.
     """
     import pyarrow.compute as pc
 
@@ -251,12 +256,27 @@ def closed_loop_index(closed_loop_dir: Path, line_id: str, rule, tables: dict | 
         names["perturbed"] = "degraded"
     text = {c: pc.cast(t.column(c), pa.string()) for c in ("scenario", "mode")}
     t = t.filter(pc.and_(pc.equal(text["mode"], "nearest"), pc.is_in(text["scenario"], pa.array(list(names)))))
+    wanted = None
+    if times is not None:  # first the rows within a microsecond of one (a superset, in numpy), then exactly
+        wanted = {round(float(x), 6) for x in times}
+        t = t.filter(_near(t.column("designated_s").to_numpy(zero_copy_only=False).astype(float), wanted))
     # a column at a time (a Python object per row was most of the margins' start on the job's critical path)
     keys = [t.column(c).to_pylist() for c in ("direction", "train_type", "origin", "destination")]
     scen = [names[s] for s in pc.cast(t.column("scenario"), pa.string()).to_pylist()]
     designated = [round(x, 6) for x in t.column("designated_s").to_numpy(zero_copy_only=False).astype(float).tolist()]
     err = t.column("error_s").to_numpy(zero_copy_only=False).astype(float).tolist()
-    return {(d, tt, o, de, s, x): e for d, tt, o, de, s, x, e in zip(*keys, scen, designated, err)}
+    return {(d, tt, o, de, s, x): e for d, tt, o, de, s, x, e in zip(*keys, scen, designated, err)
+            if wanted is None or x in wanted}
+
+
+def _near(x: np.ndarray, wanted: set) -> np.ndarray:
+    """Which of ``x`` lie within 1e-6 of a value of ``wanted``: every one that rounds (6 places) to one of them."""
+    w = np.array(sorted(wanted), dtype=float)
+    if not w.size:
+        return np.zeros(x.shape, dtype=bool)
+    i = np.searchsorted(w, x)  # the wanted values either side of each x
+    lo, hi = w[np.clip(i - 1, 0, w.size - 1)], w[np.clip(i, 0, w.size - 1)]
+    return (np.abs(x - lo) <= 1e-6) | (np.abs(x - hi) <= 1e-6)
 
 
 def closed_loop_worst(closed_loop_dir: Path, line_id: str, tables: dict | None = None) -> dict:

@@ -359,7 +359,8 @@ def compute_margins(
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
     cl_from = bool(closed_loop_dir) or closed_loop is not None
     cl_dir = Path(closed_loop_dir) if closed_loop_dir else None
-    cl_index = closed_loop_index(cl_dir, line.line_id, rule, closed_loop) if cl_from else {}
+    times = [t for k, v in sched.items() if not k[4] for t in v]  # what the legs look up (known_errors)
+    cl_index = closed_loop_index(cl_dir, line.line_id, rule, closed_loop, times) if cl_from else {}
     cl_worst = closed_loop_worst(cl_dir, line.line_id, closed_loop) if cl_from else {}
     kw = dict(ratios=ratios, min_target_speed_ms=min_target_speed_ms, rule=rule, adhesion_kmh_s=adh,
               approach_m=approach_m, after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
