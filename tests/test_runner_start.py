@@ -45,3 +45,43 @@ def test_a_discarded_start_keeps_the_finished_units_in_the_cache(tmp_path):
     units = _units(4)
     runner.start("demo", units).discard()  # the run failed before it needed them
     assert [runner.cache.get("demo", u.key) for u in units] == [0, 7, 14, 21]
+
+
+def _report(i: int) -> dict:
+    """A unit's result that is large beside what the job keeps of it (a line's conflict report and its table)."""
+    import numpy as np
+
+    return {"windows": np.arange(100_000, dtype=float) + i, "table": [i, "kept"]}
+
+
+def _keep(res: dict) -> tuple:
+    import os
+
+    return res["table"], os.getpid()
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2])
+def test_a_unit_with_after_is_stored_whole_and_gives_what_is_kept(tmp_path, monkeypatch, n_jobs):
+    """Unit.after: the cache holds the whole result (the next run's hit) and the caller gets after(result). On a
+    local worker both happen there: the job process stores nothing of it and gets only what is kept; with one job
+    here. A cached result is given through after too."""
+    import os
+
+    import numpy as np
+
+    stored = []
+    put = Cache.put
+    monkeypatch.setattr(Cache, "put", lambda self, step, key, obj: (stored.append(key), put(self, step, key, obj)))
+    runner = _runner(tmp_path, n_jobs)
+    units = [Unit("demo", f"{i:064x}", f"unit {i}", _report, (i,), after=_keep) for i in range(3)]
+    runner.cache.put("demo", units[0].key, _report(10))  # cached by an earlier run
+    stored.clear()
+    seen = {}
+    out = runner.start("demo", units).results(each=lambda g, i, r: seen.setdefault(i, r))[0]
+    assert [table for table, _ in out] == [[10, "kept"], [1, "kept"], [2, "kept"]] and seen == dict(enumerate(out))
+    here = {pid == os.getpid() for _, pid in out[1:]}
+    assert here == ({True} if n_jobs == 1 else {False})  # kept where the result was made
+    assert stored == ([u.key for u in units[1:]] if n_jobs == 1 else [])  # else stored on the worker
+    for i, u in enumerate(units):
+        got = runner.cache.get("demo", u.key)
+        assert np.array_equal(got["windows"], _report(10 if i == 0 else i)["windows"])

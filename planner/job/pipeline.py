@@ -357,7 +357,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     side = []
     checks_conflicts = job.conflicts.enabled and line.network is not None
     if checks_conflicts:
-        side.insert(0, ("conflicts", [conflicts_unit_of(job, line, lifted)]))
+        side.insert(0, ("conflicts", [conflicts_unit_of(job, line, stage, lifted)]))
     cp = job.closed_loop
     ahead: dict[str, Any] = {}
 
@@ -462,7 +462,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     conflicts = None
     if checks_conflicts:
-        conflicts = conflicts_step(line, stage, summary, got.pop("conflicts"))
+        conflicts = conflicts_step(summary, got.pop("conflicts"))
     read = given.result()
     summary.pending.remove(given)
     report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, read, lifted, closed_loop)

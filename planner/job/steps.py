@@ -8,6 +8,7 @@ calls them in the line's order.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
@@ -160,19 +161,32 @@ def conflicts_unit(line, params, lifted=None):
     return then_give_back(lambda: check_conflicts(line, params, curves=train_curves(line, lifted)))
 
 
-def conflicts_unit_of(job: Job, line: Line, lifted=None) -> Unit:
+def conflicts_unit_of(job: Job, line: Line, stage: Path, lifted=None) -> Unit:
     """The unit of the line's route conflicts (its whole timetable; each train's run with the restrictions
-    that apply to it: ``lifted``, :func:`planner.job.day.lifted_restrictions`)."""
+    that apply to it: ``lifted``, :func:`planner.job.day.lifted_restrictions`). The job keeps its conflicts table
+    and the datasets' files: the report's datasets are written into ``stage`` where it is made
+    (:func:`conflicts_written`), so its occupation windows (tens of megabytes on a line ten times the sample) never
+    come to the job process."""
+    from planner.io.parquet import current_stamp
+
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
     key = digest(["conflicts", code_digest(), line_digest(line), lifted_key(lifted or {}), params, job.tables.ds_m])
-    return Unit("conflicts", key, "conflicts", conflicts_unit, (line, params, lifted))
+    return Unit("conflicts", key, "conflicts", conflicts_unit, (line, params, lifted),
+                after=functools.partial(write_stamped, current_stamp(), conflicts_written, stage))
 
 
-def conflicts_step(line: Line, stage: Path, summary: RunSummary, report):
-    """Write the route conflicts found (:func:`conflicts_unit_of`); returns the conflicts table for the report."""
+def conflicts_written(stage: Path, report) -> tuple:
+    """Write a conflict report's datasets into the staged run; (its conflicts table, the files written)."""
     from planner.datasets.conflicts import write_conflicts
 
-    count_rows(summary, write_conflicts(report, stage))
+    return report.conflicts, [str(f) for f in write_conflicts(report, stage)]
+
+
+def conflicts_step(summary: RunSummary, kept: tuple):
+    """Count the route conflicts found and their datasets' rows (``kept``: :func:`conflicts_written` of the unit of
+    :func:`conflicts_unit_of`); returns the conflicts table for the report."""
+    conflicts, files = kept
+    count_rows(summary, files)
     summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
-        report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0)
-    return report.conflicts
+        conflicts["conflict_id"].nunique() if len(conflicts) else 0)
+    return conflicts

@@ -110,6 +110,11 @@ class Unit:
     label: str
     fn: Callable
     args: tuple
+    after: Callable | None = None
+    """What the job keeps of the result, ``after(result)`` (module level, or a partial of one): made where the
+    result is, once it is stored in the cache there, when that is a local worker (the whole result then never
+    travels to this process), else here (a cached result, one job, Dask). For a result much larger than what the
+    job needs of it: a line's conflict report, whose occupation windows the job only writes as datasets."""
 
 
 def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m, eval_interval_m=0.0, eval_auto_s=0.0):
@@ -151,6 +156,13 @@ def _call(fn, args):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return fn(*args)
+
+
+def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable):
+    """Local worker: a unit with :attr:`Unit.after`: its result stored in the cache here, then what the job keeps."""
+    res = _call(fn, args)
+    cache.put(step, key, res)
+    return _call(after, (res,))
 
 
 class Runner:
@@ -221,7 +233,11 @@ class Runner:
             if pool.n_jobs == 1 or (len(started.todo) == 1 and wait):  # one unit waited for: here
                 started.gen = (_call(unit(t).fn, unit(t).args) for t in started.todo)
             else:  # a local pool's tasks start now and go on after the context (joblib's generator)
-                started.gen = pool.imap(_call, [(unit(t).fn, unit(t).args) for t in started.todo])
+                if isinstance(pool, LocalPool):  # on this machine: such results stored and kept where they are made
+                    started.kept = {t for t in started.todo if unit(t).after is not None}
+                started.gen = pool.imap(_call, [
+                    (_call_kept, (unit(t).fn, unit(t).args, self.cache, unit(t).step, unit(t).key, unit(t).after))
+                    if t in started.kept else (unit(t).fn, unit(t).args) for t in started.todo])
             if wait or not isinstance(pool, LocalPool):
                 started.results()
         return started
@@ -234,8 +250,10 @@ class Started:
         self.runner, self.groups = runner, groups
         self.out: list[list] = [[None] * len(units) for _, units in groups]
         self.todo: list[tuple[int, int]] = []
+        self.kept: set[tuple[int, int]] = set()  # units stored and kept on their worker (Unit.after)
         self.left: list[int] = []
         self.gen = None
+        self._cached_kept = False
 
     def unit(self, t: tuple[int, int]) -> Unit:
         return self.groups[t[0]][1][t[1]]
@@ -245,6 +263,12 @@ class Started:
         arrives, then ``each(group, index, result)`` is called (first for the results found in the cache,
         then for the others as they arrive: a page per result written while the workers draw the next)."""
         gen, self.gen = self.gen, None
+        if not self._cached_kept:  # what the job keeps of the cached results (Unit.after), once
+            self._cached_kept, todo = True, set(self.todo)
+            for g, res in enumerate(self.out):
+                for i, r in enumerate(res):
+                    if (g, i) not in todo and self.unit((g, i)).after is not None:
+                        res[i] = self.unit((g, i)).after(r)
         if each is not None:
             waiting = set(self.todo) if gen is not None else set()
             for g, res in enumerate(self.out):
@@ -256,8 +280,11 @@ class Started:
         r = self.runner
         try:
             for (g, i), res in zip(self.todo, gen):
-                step = self.groups[g][0]
-                r.cache.put(step, self.unit((g, i)).key, res)  # survives a later failure
+                step, u = self.groups[g][0], self.unit((g, i))
+                if (g, i) not in self.kept:  # else stored on its worker already, and kept there
+                    r.cache.put(step, u.key, res)  # survives a later failure
+                    if u.after is not None:
+                        res = u.after(res)
                 _kill_point()
                 self.out[g][i] = res
                 r.progress.advance(step)
@@ -279,6 +306,8 @@ class Started:
             return
         try:
             for t, res in zip(self.todo, gen):
+                if t in self.kept:  # stored on its worker
+                    continue
                 try:
                     self.runner.cache.put(self.groups[t[0]][0], self.unit(t).key, res)
                 except Exception:  # noqa: BLE001 - e.g. the full disk the run failed on
