@@ -4,6 +4,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -296,3 +297,23 @@ def test_the_chart_legend_stands_outside_the_plot(tmp_path):
     axes = xs("axes_1")
     legend = xs("legend_1")
     assert min(legend) > max(axes)
+
+
+def test_the_page_of_a_run_reads_only_the_windows_columns_it_draws(tmp_path):
+    """The train graph of a run reads WINDOW_COLUMNS of its occupation dataset (a fourth of the columns): the same
+    page data as from the whole conflict report it was written from."""
+    from planner import load_line
+    from planner.datasets.conflicts import check_conflicts, write_conflicts
+    from planner.report.published_run import read_line_dataset
+    from planner.report.train_graph import WINDOW_COLUMNS
+
+    line = load_line(Path(__file__).resolve().parents[1] / "lines" / "sample")
+    rep = check_conflicts(line, {})
+    assert len(rep.occupation) and len(rep.occupation.columns) > 3 * len(WINDOW_COLUMNS)
+    write_conflicts(rep, tmp_path / "run")
+    occ = read_line_dataset(tmp_path / "run", "occupation", line.line_id, columns=WINDOW_COLUMNS)
+    assert list(occ.columns) == list(WINDOW_COLUMNS) and len(occ) == len(rep.occupation)
+    assert read_line_dataset(tmp_path / "run", "occupation", "other", columns=WINDOW_COLUMNS).empty
+    whole = graph_data(line, windows=rep.occupation, conflicts=rep.conflicts)
+    narrow = graph_data(line, windows=occ, conflicts=rep.conflicts)
+    assert page_payload(narrow) == page_payload(whole) and page_payload(whole)["windows"]

@@ -25,7 +25,7 @@ def graph(
     from .. import load_line
     from planner.report.published_run import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
-    from planner.report.train_graph import graph_data, match_train, parse_hhmm, train_graph_chart
+    from planner.report.train_graph import WINDOW_COLUMNS, graph_data, match_train, parse_hhmm, train_graph_chart
     from planner.pages.run_head import run_words
     from planner.pages.train_graph import write_page
 
@@ -48,8 +48,9 @@ def graph(
         if rec is None or rec.get("source_digest") != line.source_digest:
             raise InputError(f"--run {run}: this run did not plan {line_dir} as it is now (line {line.line_id}, "
                              "source digest differs); run the job again or leave --run out")
-        kw = {name: read_line_dataset(run, ds, line.line_id) for name, ds in
-              (("windows", "occupation"), ("conflicts", "conflicts"), ("margin_totals", "margin_totals"))}
+        kw = {name: read_line_dataset(run, ds, line.line_id, columns=cols) for name, ds, cols in
+              (("windows", "occupation", WINDOW_COLUMNS), ("conflicts", "conflicts", None),
+               ("margin_totals", "margin_totals", None))}
     data = graph_data(line, **kw)
     name = path_id(line.line_id)  # becomes a file name: checked again here
     files = [write_page(data, out / f"{name}_graph.html", t0=t0, t1=t1, train=train, run_label=label)]

@@ -192,13 +192,14 @@ def _grouped_partitions(table: pa.Table, parts: list[str]) -> Iterator[tuple[tup
 
 
 def read_dataset(root: Path, dataset: str, *, without: Sequence[str] = (), dictionary: Sequence[str] = (),
-                 **filters) -> pa.Table:
+                 columns: Sequence[str] | None = None, **filters) -> pa.Table:
     """Read a hive-partitioned dataset, optionally filtered by partition values.
 
     ``read_dataset(out, "table_a", direction="down", train_type="E10")``.
     Partition columns come back as strings. ``without``: columns not to read (a reader that knows the partition
     it asked for need not have its values repeated on every row, nor the run's stamp); ``dictionary``: string
-    columns to read as dictionary arrays, as the files store them (a value once, a code per row).
+    columns to read as dictionary arrays, as the files store them (a value once, a code per row); ``columns``:
+    only these, in this order (a reader of a few of many columns: the train graph's of the occupation windows).
     """
     import pyarrow.dataset as ds
 
@@ -210,7 +211,8 @@ def read_dataset(root: Path, dataset: str, *, without: Sequence[str] = (), dicti
     for k, v in filters.items():
         e = pc.field(k) == v
         expr = e if expr is None else expr & e
-    columns = [c for c in d.schema.names if c not in without] if without else None
+    if without:
+        columns = [c for c in (d.schema.names if columns is None else columns) if c not in without]
     t = d.to_table(filter=expr, columns=columns)
     # Partition columns inferred as dictionary/int by pyarrow; make them plain strings.
     for name in PARTITION_COLS:

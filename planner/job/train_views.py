@@ -40,17 +40,20 @@ def _patterns(stage: Path, line_id: str) -> dict:
     samples of its lowest and highest level per stop only, so what is held does not grow with the levels
     between them (the whole dataset read at once, with its keys, was the main process's peak memory on a
     line ten times the sample)."""
+    import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.dataset as ds
 
     if not (stage / "stop_samples").is_dir():
         return {}
     found: dict = {}  # (direction, type, station) -> {level: [(positions, speeds) per file]}
-    for frag in ds.dataset(stage / "stop_samples", format="parquet", partitioning="hive").get_fragments(
+    # the stations as the files store them (a name once, a code per sample), not a str per sample
+    fmt = ds.ParquetFileFormat(read_options=ds.ParquetReadOptions(dictionary_columns=["station_id"]))
+    for frag in ds.dataset(stage / "stop_samples", format=fmt, partitioning="hive").get_fragments(
             filter=pc.field("line") == line_id):
         part = ds.get_partition_keys(frag.partition_expression)
-        t = frag.to_table(columns=["station_id", "adhesion_ms2", "position_m", "speed_kmh"])
-        st = pc.dictionary_encode(t.column("station_id")).combine_chunks()
+        t = frag.to_table(columns=["station_id", "adhesion_ms2", "position_m", "speed_kmh"]).unify_dictionaries()
+        st = t.column("station_id").combine_chunks()
         names, codes = st.dictionary.to_pylist(), st.indices.to_numpy()
         a = np.round(t.column("adhesion_ms2").to_numpy() / KMH_S, 6)
         lo, hi = np.full(len(names), np.inf), np.full(len(names), -np.inf)
@@ -62,6 +65,8 @@ def _patterns(stage: Path, line_id: str) -> dict:
         rows, c, lv = rows[order], c[order], lv[order]
         x = t.column("position_m").to_numpy().astype(float)[rows]
         v = t.column("speed_kmh").to_numpy().astype(float)[rows]
+        del t, st
+        pa.default_memory_pool().release_unused()  # the file's pages, before the next one is read
         cut = np.flatnonzero((c[1:] != c[:-1]) | (lv[1:] != lv[:-1])) + 1
         for i, j in zip(np.r_[0, cut], np.r_[cut, len(c)]) if len(c) else ():
             by = found.setdefault((part["direction"], part["train_type"], names[c[i]]), {})

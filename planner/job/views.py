@@ -118,9 +118,9 @@ def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool) ->
     from planner.job.train_views import timetable_href
     from planner.pages.train_graph import write_page
     from planner.report.published_run import path_id, read_line_dataset
-    from planner.report.train_graph import graph_data
+    from planner.report.train_graph import WINDOW_COLUMNS, graph_data
 
-    occ = read_line_dataset(stage, "occupation", line.line_id)
+    occ = read_line_dataset(stage, "occupation", line.line_id, columns=WINDOW_COLUMNS)
     con = read_line_dataset(stage, "conflicts", line.line_id)
     mt = read_line_dataset(stage, "margin_totals", line.line_id)
     data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)

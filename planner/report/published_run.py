@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 from planner.errors import InputError
 
@@ -47,18 +47,19 @@ def line_inputs(run_dir: Path, manifest: dict[str, Any], line_id: str) -> Path |
     return folder
 
 
-def read_line_dataset(run_dir: Path, dataset: str, line_id: str):
-    """A dataset of one line as pandas (partition columns as strings), or None when the run has none."""
+def read_line_dataset(run_dir: Path, dataset: str, line_id: str, columns: Sequence[str] | None = None):
+    """A dataset of one line as pandas (partition columns as strings), or None when the run has none;
+    ``columns``: only these (of a dataset with a ``line`` column or partition, as every dataset of a run has)."""
     import pyarrow.compute as pc
 
     from planner.io.parquet import read_dataset
 
     if not (Path(run_dir) / dataset).is_dir():
         return None
-    t = read_dataset(run_dir, dataset)
+    t = read_dataset(run_dir, dataset, columns=None if columns is None else list(dict.fromkeys([*columns, "line"])))
     if "line" in t.column_names:
         t = t.filter(pc.equal(t.column("line"), line_id))
-    return t.to_pandas()
+    return (t if columns is None else t.select(list(columns))).to_pandas()
 
 
 def path_id(line_id: str) -> str:

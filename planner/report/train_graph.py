@@ -54,7 +54,7 @@ from planner.errors import InputError
 from planner.line.model import Line, Train, sign
 
 __all__ = [
-    "TOL_T_S", "TOL_X_M", "TrainPath", "GraphData", "service_of", "simplify", "train_paths",
+    "TOL_T_S", "TOL_X_M", "WINDOW_COLUMNS", "TrainPath", "GraphData", "service_of", "simplify", "train_paths",
     "graph_data", "parse_hhmm", "hhmm", "time_window", "start_window", "match_train", "clip_path", "train_graph_chart",
 ]
 
@@ -223,12 +223,18 @@ def loop_stations(line: Line, routes: Mapping[str, Any]) -> dict[str, tuple[str,
     return out
 
 
+WINDOW_COLUMNS = ("train_id", "resource_id", "from_m", "to_m", "start_s", "end_s")
+"""What a graph draws of the occupation windows (its page's stairways, its chart's): what a reader of the
+``occupation`` dataset reads for it (a fourth of its columns; the whole dataset, read for the 10x line's page,
+was most of the largest process of that night)."""
+
+
 @dataclass(eq=False)
 class GraphData:
     """Everything one graph needs: stations, train paths, windows, conflicts, margins.
 
     ``windows`` and ``conflicts`` are pandas DataFrames with the columns of the
-    ``occupation`` and ``conflicts`` datasets (empty without a track network);
+    ``occupation`` (at least :data:`WINDOW_COLUMNS`) and ``conflicts`` datasets (empty without a track network);
     ``margins`` maps ``train_id`` → per-train totals of the ``margin_totals``
     dataset (empty when not known).
     """
