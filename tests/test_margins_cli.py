@@ -95,6 +95,10 @@ def test_closed_loop_in_hand_is_the_folder(linedir, tmp_path):
     index = closed_loop_index(cdir, line.line_id, rule)
     assert len(index) > 0 and {k[4] for k in index} == {"nominal", "degraded"}
     assert closed_loop_index(None, line.line_id, rule, both) == index
+    from planner.report.margin_datasets import _line_rows
+
+    assert _line_rows(tables["closed_loop"], line.line_id) is tables["closed_loop"]  # one line's rows: not copied
+    assert _line_rows(both["closed_loop"], line.line_id).equals(tables["closed_loop"])
     worst = closed_loop_worst(cdir, line.line_id)
     assert len(worst) > 0 and closed_loop_worst(None, line.line_id, both) == worst
     from_folder = compute_margins(line, train_types=["EMU6"], tables_dir=tdir, closed_loop_dir=cdir,

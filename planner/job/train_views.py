@@ -21,6 +21,7 @@ from typing import Callable
 import numpy as np
 
 from planner.line.units import KMH_S
+from planner.io.memory import give_back
 
 TIMETABLE_DIR = "timetable"
 
@@ -119,6 +120,7 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
     ds_m = job.tables.ds_m
     with runner.progress.step("timetable"):
         legs = leg_times(line, report.rows, ds_m=ds_m)
+    give_back()  # what the margins' results and the legs' runs left free (~100 MB on the 10x line), before the patterns
     pats = _patterns(stage, lid)
     units, pages = [], []
     back = "../../" + timetable_href(lid)
