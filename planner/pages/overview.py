@@ -77,11 +77,13 @@ def _bundles(run_dir: Path, at_s: int | None = None) -> list[list[str]]:
     for a day are loaded for that day, so a run for a later day must not read as refused; None: now)."""
     from planner.bundle.verify import verify_bundle
     from planner.errors import PlannerError
+    from planner.io.memory import give_back
 
     folder = run_dir / "bundles"
     pub = folder / "signing_key.pub.pem"
     out = []
     for b in sorted(folder.glob("*.pdb")) if folder.is_dir() else []:
+        give_back()  # what verifying the one before left free: on the 10x line 85-210 MB a bundle, which added up
         try:
             # a development-signed bundle verifies in full (signature, hashes, schema); it says so instead of
             # failing: vehicles refuse it, and `planner bundle verify` without --allow-dev does too
