@@ -20,8 +20,8 @@ from typing import Callable
 
 import numpy as np
 
-from planner.line.units import KMH_S
 from planner.io.memory import give_back
+from planner.line.units import KMH_S
 
 TIMETABLE_DIR = "timetable"
 
@@ -41,7 +41,6 @@ def _patterns(stage: Path, line_id: str) -> dict:
     samples of its lowest and highest level per stop only, so what is held does not grow with the levels
     between them (the whole dataset read at once, with its keys, was the main process's peak memory on a
     line ten times the sample)."""
-    import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.dataset as ds
 
@@ -67,7 +66,7 @@ def _patterns(stage: Path, line_id: str) -> dict:
         x = t.column("position_m").to_numpy().astype(float)[rows]
         v = t.column("speed_kmh").to_numpy().astype(float)[rows]
         del t, st
-        pa.default_memory_pool().release_unused()  # the file's pages, before the next one is read
+        give_back()  # the file's pages, before the next one is read
         cut = np.flatnonzero((c[1:] != c[:-1]) | (lv[1:] != lv[:-1])) + 1
         for i, j in zip(np.r_[0, cut], np.r_[cut, len(c)]) if len(c) else ():
             by = found.setdefault((part["direction"], part["train_type"], names[c[i]]), {})
