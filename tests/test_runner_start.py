@@ -85,3 +85,22 @@ def test_a_unit_with_after_is_stored_whole_and_gives_what_is_kept(tmp_path, monk
     for i, u in enumerate(units):
         got = runner.cache.get("demo", u.key)
         assert np.array_equal(got["windows"], _report(10 if i == 0 else i)["windows"])
+
+
+def _full_disk(res: dict):
+    import errno
+    import os
+
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), "/run/stage/occupation/part-0.parquet")
+
+
+def test_a_failing_after_on_a_worker_fails_the_unit_and_keeps_its_entry(tmp_path):
+    """What ``after`` raises on a worker (a full disk while it writes the datasets) comes to the caller as the
+    unit's error, with the file it names; the whole result is stored before, so the next run loads it."""
+    runner = _runner(tmp_path, 2)
+    units = [Unit("demo", f"{i:064x}", f"unit {i}", _report, (i,), after=_full_disk) for i in range(2)]
+    with pytest.raises(OSError) as e:
+        runner.start("demo", units).results()
+    assert e.value.errno == 28 and e.value.filename == "/run/stage/occupation/part-0.parquet"
+    got = runner.cache.get("demo", units[0].key)
+    assert got is not None and got["table"] == [0, "kept"]
