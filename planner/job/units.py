@@ -215,8 +215,8 @@ class Runner:
                 if obj is None:
                     started.todo.append((g, i))
                     missing += 1
-                else:
-                    started.out[g][i] = obj
+                else:  # what the job keeps of it (Unit.after), here: it was made before
+                    started.out[g][i] = obj if u.after is None else u.after(obj)
             self.reused[step] = self.reused.get(step, 0) + len(units) - missing
             self.computed[step] = self.computed.get(step, 0) + missing
             self.progress.start(step, len(units), done=len(units) - missing)
@@ -253,7 +253,6 @@ class Started:
         self.kept: set[tuple[int, int]] = set()  # units stored and kept on their worker (Unit.after)
         self.left: list[int] = []
         self.gen = None
-        self._cached_kept = False
 
     def unit(self, t: tuple[int, int]) -> Unit:
         return self.groups[t[0]][1][t[1]]
@@ -263,12 +262,6 @@ class Started:
         arrives, then ``each(group, index, result)`` is called (first for the results found in the cache,
         then for the others as they arrive: a page per result written while the workers draw the next)."""
         gen, self.gen = self.gen, None
-        if not self._cached_kept:  # what the job keeps of the cached results (Unit.after), once
-            self._cached_kept, todo = True, set(self.todo)
-            for g, res in enumerate(self.out):
-                for i, r in enumerate(res):
-                    if (g, i) not in todo and self.unit((g, i)).after is not None:
-                        res[i] = self.unit((g, i)).after(r)
         if each is not None:
             waiting = set(self.todo) if gen is not None else set()
             for g, res in enumerate(self.out):
