@@ -138,10 +138,21 @@ def _quiet_renewals() -> None:
 _quiet_renewals()
 
 
-def _abandon_quietly(gen: Iterator[Any], total: int | None = None) -> Iterator[Any]:
-    """Yield from a joblib generator; when the consumer stops early (the run failed), close it without
-    joblib's warning that the remaining tasks were cancelled: the run's error says what happened.
-    A worker process that died under a task is one :class:`WorkerLostError` line.
+_END = object()
+
+
+def _abandon_quietly(gen: Iterator[Any], total: int) -> Iterator[Any]:
+    """Yield from a joblib generator of ``total`` results; when the consumer stops early (the run failed),
+    close it without joblib's warning that the remaining tasks were cancelled: the run's error says what
+    happened. A worker process that died under a task is one :class:`WorkerLostError` line.
+
+    joblib's generator is run to its end *before* its last result is handed on, so a consumer that takes
+    the ``total`` results it asked for and then stops (``zip`` over its units, or one ``next``) never closes
+    it early. Closing joblib's generator while it is still inside its retrieval loop aborts the whole loky
+    executor, killing the tasks of every other ``Parallel`` on the shared workers (a background read of the
+    tables, a train graph) with ``ShutdownExecutorError``. The last result may be handed out from inside that
+    loop: when the consumer looks between the worker's result being registered and joblib counting the task
+    done (its callback thread, slow on a loaded machine). A nightly run failed that way in CI.
 
     Not ``yield from``: that would close ``gen`` before the ``finally`` has set the filter.
     Close the returned generator in the thread that iterates it (joblib aborts from another
@@ -159,6 +170,8 @@ def _abandon_quietly(gen: Iterator[Any], total: int | None = None) -> Iterator[A
             except TerminatedWorkerError as e:
                 raise _worker_lost(e, done, total) from None
             done += 1
+            if done == total and next(gen, _END) is not _END:  # the end now, where closing it aborts nothing
+                raise RuntimeError(f"joblib gave more than the {total} result(s) of its tasks")
             yield item
     finally:
         with warnings.catch_warnings():
