@@ -51,16 +51,12 @@ def test_started_workers_warm_beside_and_an_error_inside_waits_for_them():
             raise InputError("bad line")  # the handles are waited for on the way out, quietly
 
 
-def _until(path, timeout_s):
-    """A long task: runs until the test creates ``path`` (bounded)."""
-    import time
+def _until_told(port, timeout_s):
+    """A long task: runs until the test sends a byte to it over a local socket (bounded)."""
+    import socket
 
-    deadline = time.monotonic() + timeout_s
-    while not os.path.exists(path):
-        if time.monotonic() > deadline:
-            return "timed out"
-        time.sleep(0.01)
-    return "done"
+    with socket.create_connection(("127.0.0.1", port), timeout=timeout_s) as s:
+        return "done" if s.recv(1) == b"g" else "not told"
 
 
 @pytest.fixture
@@ -72,52 +68,60 @@ def counted_late(monkeypatch):
     from inside its retrieval loop, where closing its generator aborts the shared loky executor. Yields
     a list with, for each result held so, whether the consumer took it first (the ordering was forced)."""
     import threading
-    import time
 
     from joblib import parallel as jp
 
-    call, count = jp.Parallel.__call__, jp.BatchCompletionCallBack._dispatch_new
-    mine, seen = [], []
+    call = jp.Parallel.__call__
+    count, take = jp.BatchCompletionCallBack._dispatch_new, jp.BatchCompletionCallBack.get_result
+    mine, seen, taken, lock = [], [], {}, threading.Lock()
+
+    def taken_event(job) -> threading.Event:
+        with lock:
+            return taken.setdefault(job, threading.Event())
 
     def called(self, iterable):  # this test's calls only: a task left by an earlier test is not waited for
         mine.append(self)
         return call(self, iterable)
 
-    def head(self):
-        jobs = self.parallel._jobs
-        return bool(jobs) and jobs[0] is self
+    def took(self, timeout):  # the consumer takes the result it has just popped from joblib's queue
+        taken_event(self).set()
+        return take(self, timeout)
 
     def late(self):
         # held while the consumer can take it (the first result it waits for): a result finished before
         # the one ahead of it goes on, or it would hold this thread from the one the consumer waits for;
         # so does one finished before it was submitted (its callback runs in the consumer's own thread)
-        if (any(p is self.parallel for p in mine) and head(self)
+        jobs = self.parallel._jobs
+        if (any(p is self.parallel for p in mine) and jobs and jobs[0] is self
                 and threading.current_thread() is not threading.main_thread()):
-            deadline = time.monotonic() + 10.0
-            while head(self) and time.monotonic() < deadline:
-                time.sleep(0.001)
-            seen.append(not head(self))
+            seen.append(taken_event(self).wait(10.0))
         return count(self)
 
     monkeypatch.setattr(jp.Parallel, "__call__", called)
+    monkeypatch.setattr(jp.BatchCompletionCallBack, "get_result", took)
     monkeypatch.setattr(jp.BatchCompletionCallBack, "_dispatch_new", late)
     return seen
 
 
-def test_taking_every_result_then_stopping_leaves_the_other_workers_tasks_running(tmp_path, counted_late):
+def test_taking_every_result_then_stopping_leaves_the_other_workers_tasks_running(counted_late):
     """A step that takes its units' results and stops (the runner zips its units with the results), and
     a background result taken with one ``next``, must not cancel a task of another ``Parallel`` running
     beside them: a nightly run in CI lost its background read of the tables that way
     (``ShutdownExecutorError``: "The Executor was shutdown with kill_workers=True")."""
+    import socket
+
     from planner.io.parallel import backend
 
-    go = tmp_path / "go"
-    other = background(_until, (str(go), 60.0), n_jobs=2)  # the tables read back, say
-    with backend("local", n_jobs=2) as pool:
-        gen = pool.imap(_pid_and, [(1,), (2,)])
-        assert [r[1] for _, r in zip(range(2), gen)] == [2, 4]
-        gen.close()
-    assert background(_pid_and, (3,), n_jobs=2).result()[1] == 6
-    go.touch()
-    assert other.result() == "done"
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        server.settimeout(60.0)
+        other = background(_until_told, (server.getsockname()[1], 60.0), n_jobs=2)  # the tables read back, say
+        with backend("local", n_jobs=2) as pool:
+            gen = pool.imap(_pid_and, [(1,), (2,)])
+            assert [r[1] for _, r in zip(range(2), gen)] == [2, 4]
+            gen.close()
+        assert background(_pid_and, (3,), n_jobs=2).result()[1] == 6
+        conn, _ = server.accept()  # the long task is still there to be told
+        with conn:
+            conn.sendall(b"g")
+            assert other.result() == "done"
     assert len(counted_late) >= 2 and all(counted_late)
