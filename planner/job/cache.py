@@ -44,7 +44,8 @@ import numpy as np
 
 from planner.io.atomic import write_chunks_atomic
 from planner.io.memory import give_back
-from planner.job.codec import CacheEntryError, decode, encode, members, npz_buffer  # noqa: F401 (re-exported)
+from planner.job.codec import (  # noqa: F401 (re-exported)
+    CacheEntryError, decode, encode, members, npz_buffer, write_npz)
 
 MAGIC = b"PLANNER-CACHE 1\n"
 """First line of every entry; bump the number when the layout changes (old entries then miss)."""
@@ -63,16 +64,13 @@ gives its encoding's memory back once written (:func:`planner.io.memory.give_bac
 
 def pack(kind: str, key: str, obj: Any) -> bytes:
     """The bytes of one entry: magic line, header (kind, key, payload length and SHA-256), payload."""
-    return b"".join(_entry(kind, key, obj))
+    return b"".join(_entry(kind, key, *members(obj)))
 
 
-def _entry(kind: str, key: str, obj: Any) -> list:
-    """:func:`pack`'s bytes in two pieces, the payload a view of the buffer it was written to: an entry is written
-    from them without copying it twice more."""
-    return _parts(kind, key, npz_buffer(*members(obj)).getbuffer())
-
-
-def _parts(kind: str, key: str, payload: memoryview) -> list:
+def _entry(kind: str, key: str, tree: np.ndarray, arrays: dict[str, np.ndarray]) -> list:
+    """:func:`pack`'s bytes of the members ``tree`` and ``arrays`` in two pieces, the payload a view of the buffer it
+    was written to: an entry is written from them without copying it twice more."""
+    payload = npz_buffer(tree, arrays).getbuffer()
     return [_header(kind, key, payload.nbytes, hashlib.sha256(payload).hexdigest()), payload]
 
 
@@ -89,7 +87,7 @@ def _write_big(path: Path, kind: str, key: str, tree: np.ndarray, arrays: dict[s
     ten times the sample) made the job process hold about three times its size while it was encoded in memory."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryFile(dir=path.parent) as f:
-        np.savez(f, tree=tree, **arrays)
+        write_npz(f, tree, arrays)
         size = f.tell()
         f.seek(0)
         sha = hashlib.file_digest(f, "sha256").hexdigest()
@@ -220,7 +218,7 @@ class Cache:
             shutil.rmtree(p)
         tree, arrays = members(obj)
         if tree.nbytes + sum(a.nbytes for a in arrays.values()) < BIG_ENTRY_BYTES:
-            write_chunks_atomic(p, _parts(kind, key, npz_buffer(tree, arrays).getbuffer()), fsync=False)
+            write_chunks_atomic(p, _entry(kind, key, tree, arrays), fsync=False)
             return
         _write_big(p, kind, key, tree, arrays)
         del tree, arrays

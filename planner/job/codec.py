@@ -326,10 +326,16 @@ def members(obj: Any) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return np.frombuffer(tree, dtype=np.uint8), enc.arrays
 
 
+def write_npz(f, tree: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
+    """Write the payload of :func:`members` into the binary file ``f``: the one writer of a payload's bytes, in
+    memory (:func:`npz_buffer`) or, for a large entry, in a file (:mod:`planner.job.cache`)."""
+    np.savez(f, tree=tree, **arrays)
+
+
 def npz_buffer(tree: np.ndarray, arrays: dict[str, np.ndarray]) -> io.BytesIO:
     """The payload of :func:`members`, written in memory (:func:`planner.job.cache` writes a large one to a file)."""
     buf = io.BytesIO()
-    np.savez(buf, tree=tree, **arrays)
+    write_npz(buf, tree, arrays)
     return buf
 
 
@@ -366,4 +372,4 @@ def decode(payload: bytes) -> Any:
         raise CacheEntryError(f"payload does not decode ({type(e).__name__})") from None
 
 
-__all__ = ["CacheEntryError", "decode", "encode", "members", "npz_buffer"]
+__all__ = ["CacheEntryError", "decode", "encode", "members", "npz_buffer", "write_npz"]
