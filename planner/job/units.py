@@ -158,11 +158,21 @@ def _call(fn, args):
         return fn(*args)
 
 
-def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable):
-    """Local worker: a unit with :attr:`Unit.after`: its result stored in the cache here, then what the job keeps."""
-    res = _call(fn, args)
+def _kept(after: Callable | None, res):
+    """What the job keeps of a unit's result (:attr:`Unit.after`), wherever it is made."""
+    return res if after is None else after(res)
+
+
+def _stored(cache: Cache, step: str, key: str, after: Callable | None, res):
+    """A unit's result stored in the cache (it survives a later failure), then what the job keeps of it."""
     cache.put(step, key, res)
-    return _call(after, (res,))
+    return _kept(after, res)
+
+
+def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable):
+    """Local worker (run by :func:`_call`): a unit with :attr:`Unit.after`: its result stored in the cache here, then
+    what the job keeps."""
+    return _stored(cache, step, key, after, fn(*args))
 
 
 class Runner:
@@ -216,7 +226,7 @@ class Runner:
                     started.todo.append((g, i))
                     missing += 1
                 else:  # what the job keeps of it (Unit.after), here: it was made before
-                    started.out[g][i] = obj if u.after is None else u.after(obj)
+                    started.out[g][i] = _kept(u.after, obj)
             self.reused[step] = self.reused.get(step, 0) + len(units) - missing
             self.computed[step] = self.computed.get(step, 0) + missing
             self.progress.start(step, len(units), done=len(units) - missing)
@@ -275,9 +285,7 @@ class Started:
             for (g, i), res in zip(self.todo, gen):
                 step, u = self.groups[g][0], self.unit((g, i))
                 if (g, i) not in self.kept:  # else stored on its worker already, and kept there
-                    r.cache.put(step, u.key, res)  # survives a later failure
-                    if u.after is not None:
-                        res = u.after(res)
+                    res = _stored(r.cache, step, u.key, u.after, res)
                 _kill_point()
                 self.out[g][i] = res
                 r.progress.advance(step)
