@@ -150,7 +150,8 @@ def test_too_short_says_how_much_is_needed():
     d = stop_distance(v0, A, J)
     p = solve1(v0, 0.9 * d, J, A)
     assert not p.feasible
-    assert p.braking_distance_m == pytest.approx(d, rel=1e-12)
+    # the closed form, plus the stated allowance for round-off (10 µm and 1e-8 of it): a bound, never short
+    assert d < p.braking_distance_m <= d + 1e-5 + 1e-8 * d + 1e-9
     assert f"needs {d:.1f} m" in p.reason and f"only {0.9 * d:.1f} m" in p.reason
     assert math.isnan(p.duration_s) and p.n_pieces == 0
     with pytest.raises(InfeasibleError):

@@ -406,6 +406,24 @@ def _request(v_start, x_stop, jerk_max, decel_limits, speed_limits):
     return v0, X, J, np.array(dl + sl, dtype=np.float64).reshape(-1, 2), len(dl)
 
 
+NEEDED_SLACK_M = 1e-5
+"""Absolute part of the round-off allowance on an infeasible stop's needed distance [m]."""
+NEEDED_SLACK_REL = 1e-8
+"""Relative part of that allowance (per metre of the distance)."""
+
+
+def needed_bound(y_r: float) -> float:
+    """The braking distance an infeasible stop reports: an upper bound on what it needs [m].
+
+    The construction's needed distance ``y_r`` is exact up to the round-off of its switching points'
+    cubics, which is not monotone at the boundary: on 40,000 random approaches an approach given
+    ``y_r + 1 µm`` (the limits shifted with it) was still infeasible in 9, each by less than 2 µm
+    (the start speed equal to the first limit, a braking curve that meets it at the very start). So
+    what is reported is ``y_r`` plus 10 µm and 1e-8 of it: any approach at least that long is feasible,
+    and the verdict is consistent with it (infeasible means ``x_stop_m`` below the bound)."""
+    return y_r + NEEDED_SLACK_M + NEEDED_SLACK_REL * y_r
+
+
 def _infeasible(reason: str, v0: float, X: float, J: float, braking_distance_m: float = math.nan) -> StopPattern:
     """``StopPattern(False, reason, ...)`` as the constructor makes it (the fields in their order, the
     dataclass's own defaults), minus its frozen per-field setattr: a third of the random approaches of
@@ -422,7 +440,7 @@ def _not_solved(code: int, work: np.ndarray, n: int, v0: float, X: float, J: flo
     k = codes
     out = 2 * n  # where the kernel's result starts in work
     if code == k.NEEDS_MORE:  # the common verdict first
-        y_r = float(work[out + 4])
+        y_r = needed_bound(float(work[out + 4]))
         return _infeasible(f"needs {y_r:.1f} m to stop from {v0 * 3.6:.1f} km/h under these limits, only "
                            f"{X:.1f} m available", v0, X, J, y_r)
     if code == k.START_ABOVE_LIMIT:

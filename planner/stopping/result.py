@@ -118,8 +118,10 @@ class StopPattern:
         (NaN when infeasible).
     braking_distance_m : float
         Distance from the brake start to the stop that the limits need [m]; also
-        set when infeasible (it is then larger than ``x_stop_m``), NaN when
-        unknown (start speed above the first limit).
+        set when infeasible: then an upper bound on the distance needed, larger than
+        ``x_stop_m`` (the construction's figure plus 10 µm and 1e-8 of it for its
+        round-off, :func:`planner.stopping.pattern.needed_bound`: an approach that long
+        is feasible), NaN when unknown (start speed above the first limit).
     t_s, x_m, v_ms, a_ms2 : tuple of float
         Breakpoints: state at the start of every piece, plus the end state
         (length ``n_pieces + 1``).
