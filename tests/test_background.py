@@ -124,4 +124,53 @@ def test_taking_every_result_then_stopping_leaves_the_other_workers_tasks_runnin
         with conn:
             conn.sendall(b"g")
             assert other.result() == "done"
-    assert len(counted_late) >= 2 and all(counted_late)
+    # what the product promises is above (the other task ran to its end); how often the ordering was forced
+    # depends on the machine's load and is not asserted: test_the_last_result_is_handed_on_once_the_end_is_seen
+    # makes it every time
+    assert all(counted_late)
+
+
+class _JoblibLike:
+    """A generator of ``n`` results that records how it was left: closed while it could still yield (where
+    joblib's would abort the shared loky executor) or run to its end. The ordering the race needs is made,
+    not waited for: the last result is handed out from inside the loop, as joblib does when its callback
+    thread is slow to count the task done."""
+
+    def __init__(self, n: int):
+        self.n, self.events = n, []
+
+    def __iter__(self):
+        try:
+            for i in range(self.n):
+                yield i
+            self.events.append("ended")
+        except GeneratorExit:
+            self.events.append("aborted")
+            raise
+
+
+@pytest.mark.parametrize("stop", ["zip", "next"])
+def test_the_last_result_is_handed_on_once_the_end_is_seen(stop):
+    """The wrapper every joblib generator of the planner goes through runs it to its end before handing on
+    its last result, so a consumer that takes what it asked for and stops closes a finished generator."""
+    from planner.io.parallel import _abandon_quietly
+
+    fake = _JoblibLike(2 if stop == "zip" else 1)
+    gen = _abandon_quietly(iter(fake), fake.n)
+    if stop == "zip":
+        assert [r for _, r in zip(range(2), gen)] == [0, 1]
+    else:
+        assert next(gen) == 0
+    gen.close()
+    assert fake.events == ["ended"]
+
+
+def test_a_consumer_that_stops_early_closes_it_at_once():
+    """A run that fails part way (it takes one result of three) still closes the generator there."""
+    from planner.io.parallel import _abandon_quietly
+
+    fake = _JoblibLike(3)
+    gen = _abandon_quietly(iter(fake), fake.n)
+    assert next(gen) == 0
+    gen.close()
+    assert fake.events == ["aborted"]
