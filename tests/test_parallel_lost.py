@@ -321,3 +321,41 @@ def test_lokys_worker_renewal_warning_is_filtered_and_only_it():
     assert len(lines) == 2, r.stderr
     assert lines[0].startswith("process_executor.py:790") and "some other loky warning" in lines[0]
     assert lines[1].startswith("elsewhere.py:1") and "A worker stopped" in lines[1]
+
+
+ORPHAN = textwrap.dedent("""
+    import sys, threading
+    from planner.io.parallel import _exit_with_parent
+
+    _exit_with_parent(int(sys.argv[1]))  # as loky's initializer is called, with the main process's id
+    threading.Event().wait()  # a worker waiting for a task
+""")
+
+
+@pytest.mark.parametrize("held", [False, True])
+def test_a_worker_whose_main_process_is_gone_ends_and_cleans_the_staging(tmp_path, held):
+    """The main process's id is given to the worker, not read by it: a worker whose main process was killed
+    while it was still starting read init's id as its parent's and lived on. On its way out it removes the
+    output root's staging folders, unless a job holds the root's lock (that job cleans them itself)."""
+    import fcntl
+
+    from planner.io.parallel import OUTPUT_ROOT_ENV
+
+    root = tmp_path / "out"
+    (root / ".staging-r0003-0123456789").mkdir(parents=True)
+    (root / ".staging-r0003-0123456789" / "half.parquet").write_bytes(b"x")
+    (root / "r0002-0123456789").mkdir()  # a published run: never touched
+    fd = os.open(root / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        if held:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        gone = os.getpid() + 10**6  # no process has this id: the main process is already gone
+        env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]),
+                   **{OUTPUT_ROOT_ENV: str(root)})
+        r = subprocess.run([sys.executable, "-c", ORPHAN, str(gone)], env=env, capture_output=True, text=True,
+                           timeout=HANG_GUARD_S)
+    finally:
+        os.close(fd)
+    assert r.returncode == 1 and r.stderr == ""
+    assert (root / "r0002-0123456789").is_dir()
+    assert (root / ".staging-r0003-0123456789").exists() == held

@@ -136,6 +136,7 @@ def test_a_lost_dask_scheduler_is_one_line_on_stderr(tmp_path):
         code, err = _planner_run(job)
         assert sched.wait(timeout=HANG_GUARD_S) == -signal.SIGKILL  # the fault happened, during the run
         line = _the_one_line(code, err, f"dask cluster {address} lost: ", "check the cluster, then run again")
+        assert not list((tmp_path / "out").glob(".staging-*"))  # the failed run removed what it had staged
         print(f"\nlost scheduler, the whole stderr: {line}")
     finally:
         _kill_group(sched)
@@ -310,6 +311,7 @@ def test_a_worker_killed_under_a_unit_is_one_line_on_stderr(tmp_path):
     import re
 
     assert re.search(r"\(exit code \{SIGKILL\(-9\)(, SIGKILL\(-9\))*\}: ", line), line
+    assert not list((tmp_path / "out").glob(".staging-*"))  # the failed run removed what it had staged
     print(f"\nworker killed, the whole stderr: {line}")
 
 
@@ -325,3 +327,36 @@ def test_map_tasks_turns_a_killed_worker_into_one_error():
     with pytest.raises(WorkerLostError, match=r"exit code \{SIGKILL\(-9\)\}.* of 3 task\(s\) done") as e:
         map_tasks(_kills_its_worker, [(i,) for i in range(3)], n_jobs=2)
     assert "\n" not in str(e.value)
+
+
+MANAGER_THREAD = textwrap.dedent("""
+    import sys, threading, types
+    import planner.io.parallel  # installs the hook
+    from joblib.externals.loky.process_executor import _ExecutorManagerThread
+
+    class Manager(_ExecutorManagerThread):  # loky's thread class, failing as loky's race makes it fail
+        def __init__(self, shutdown):
+            threading.Thread.__init__(self, name="manager")
+            self.executor_flags = types.SimpleNamespace(shutdown=shutdown)
+
+        def run(self):
+            raise KeyError(7)  # pending_work_items[work_id], the task gone with the shutdown
+
+    t = Manager(sys.argv[1] == "shutdown")
+    t.start()
+    t.join()
+""")
+
+
+@pytest.mark.parametrize("state", ["shutdown", "running"])
+def test_lokys_manager_thread_failing_in_a_shutdown_prints_nothing_and_only_then(state):
+    """A run that failed closes its generators, joblib shuts loky's executor down, and loky's manager thread
+    could print a KeyError traceback after the run's one line; an executor not shutting down still shows it."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    r = subprocess.run([sys.executable, "-c", MANAGER_THREAD, state], env=env, capture_output=True, text=True,
+                       timeout=HANG_GUARD_S)
+    assert r.returncode == 0
+    if state == "shutdown":
+        assert r.stderr == ""
+    else:
+        assert "Exception in thread manager" in r.stderr and "KeyError: 7" in r.stderr

@@ -205,3 +205,20 @@ def folder_in_place(dest: str | os.PathLike, *, mode: int = 0o755) -> Iterator[P
                     p.rmdir()
                 except OSError:
                     break
+
+
+STAGING_PREFIX = ".staging-"
+"""A run being written: ``<output root>/.staging-<run id>/``, renamed to the run's name when published."""
+
+
+def remove_staging(root: str | os.PathLike) -> list[str]:
+    """Remove the staging folders under ``root`` (the caller holds the output root's job lock, so none is a
+    live run's); returns their names, sorted."""
+    removed = []
+    root = Path(root)
+    if root.is_dir():
+        for p in root.iterdir():
+            if p.name.startswith(STAGING_PREFIX) and p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+                removed.append(p.name)
+    return sorted(removed)

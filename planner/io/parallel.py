@@ -21,8 +21,12 @@ Failure behaviour (issue 21):
   tasks were done, instead of loky's ``TerminatedWorkerError`` traceback.
 * **Main process killed.** loky workers are separate processes that would
   idle for minutes (loky's idle timeout) after a SIGKILL of the main process.
-  Each worker runs :func:`_exit_with_parent` at start: a daemon thread that
-  ends the worker within :data:`PARENT_POLL_S` once its parent is gone.
+  Each worker runs :func:`_exit_with_parent` at start (every pool is configured
+  by :func:`_loky`, with the main process's id): a daemon thread that ends the
+  worker within :data:`PARENT_POLL_S` once its parent is gone, the first of
+  them removing the output root's staging folder on its way out
+  (:func:`for_output_root`). The planner's promise: every worker ends within
+  2 s of the main process (``tests/stress_kill.py`` measures it).
 
 Quiet failures (issue 32): an environment fault ends a run with the planner's
 one line on stderr and nothing else. While a Dask client is open
@@ -33,12 +37,14 @@ unfinished because the run failed (a full disk while a step's results are
 stored) is closed at once, in the thread that started it, without joblib's
 "tasks have been successfully executed but not used" warning
 (:func:`_abandon_quietly`). loky renewing a grown worker (its guard against leaks) prints no warning
-(:func:`_quiet_renewals`).
+(:func:`_quiet_renewals`), nor does loky's resource tracker after a kill (:func:`_quiet_tracker`), nor loky's
+manager thread racing the shutdown of its executor after a failure (:func:`_quiet_manager_thread`).
 """
 from __future__ import annotations
 
 import logging
 import os
+import sys
 import threading
 import time
 import warnings
@@ -77,22 +83,77 @@ def _worker_lost(e: Exception, done: int, total: int | None) -> WorkerLostError:
                            "memory, then run again (the nightly job's finished units are cached)")
 
 
-def _exit_with_parent() -> None:
+def _exit_with_parent(parent: int | None = None) -> None:
     """loky worker initializer: exit as soon as the process that started this worker is gone.
 
-    Polls ``os.getppid()``: when the parent dies the worker is re-parented (to
-    init or a subreaper) and the id changes. Polling is used rather than
-    ``PR_SET_PDEATHSIG`` because that signal fires when the *thread* that forked
-    the worker ends, which in loky may be a manager thread, not the process.
+    ``parent``: the main process's id, as it was when the pool was configured (:func:`_loky`). Polls
+    ``os.getppid()``: when the parent dies the worker is re-parented (to init or a subreaper) and the id
+    changes. The id is given, not read here: a worker whose main process was killed while the worker was
+    still starting (its imports take ~0.5 s) would read init's id as its parent's and live on. Polling is
+    used rather than ``PR_SET_PDEATHSIG`` because that signal fires when the *thread* that forked the
+    worker ends, which in loky may be a manager thread, not the process.
     """
-    parent = os.getppid()
+    parent = os.getppid() if parent is None else parent
 
     def watch() -> None:
         while os.getppid() == parent:
             time.sleep(PARENT_POLL_S)
+        _clean_after_parent()
         os._exit(1)
 
     threading.Thread(target=watch, name="planner-exit-with-parent", daemon=True).start()
+
+
+def _loky(n_jobs: int):
+    """The one configuration of the planner's local workers (a ``joblib.parallel_config``): loky processes
+    that end with this process (:func:`_exit_with_parent`). Every pool, background task and map uses it, so
+    they share loky's one reusable executor instead of restarting it for a different configuration."""
+    return joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent,
+                                  initargs=(os.getpid(),))
+
+
+OUTPUT_ROOT_ENV = "PLANNER_WORKERS_OUTPUT_ROOT"
+"""The output root of the job that started the local workers, as their environment has it (:func:`for_output_root`)."""
+
+
+@contextmanager
+def for_output_root(root: str | os.PathLike) -> Iterator[None]:
+    """Local workers started inside this context clean the output root's staging folder if the main process is
+    killed: a SIGKILL leaves no one else to do it before the next run (:func:`_clean_after_parent`). The
+    workers read it from their environment, which they inherit when loky starts them."""
+    before = os.environ.get(OUTPUT_ROOT_ENV)
+    os.environ[OUTPUT_ROOT_ENV] = os.fspath(os.path.abspath(root))
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(OUTPUT_ROOT_ENV, None)
+        else:
+            os.environ[OUTPUT_ROOT_ENV] = before
+
+
+def _clean_after_parent() -> None:
+    """A worker whose main process died: remove the staging folders of its output root, if no job holds the
+    root's lock (a dead process's lock is released by the kernel; a job that has started since holds it and
+    cleans them itself). Errors are ignored: the next run cleans them too."""
+    import fcntl
+
+    from planner.io.atomic import remove_staging
+
+    root = os.environ.get(OUTPUT_ROOT_ENV)
+    if not root:
+        return
+    try:
+        fd = os.open(os.path.join(root, ".lock"), os.O_RDWR)
+    except OSError:
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        remove_staging(root)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 @contextmanager
@@ -136,6 +197,62 @@ def _quiet_renewals() -> None:
 
 
 _quiet_renewals()
+
+
+_TRACKER = "ignore:resource_tracker:UserWarning:joblib.externals.loky.backend.resource_tracker"
+"""The ``-W`` option that silences loky's resource tracker (:func:`_quiet_tracker`)."""
+
+
+def _quiet_tracker() -> None:
+    """No warning on stderr from loky's resource tracker after the main process was killed.
+
+    The tracker is a process of its own, started by loky with the interpreter's ``-W`` options
+    (``sys.warnoptions``) and the main process's stderr. When the main process dies without releasing
+    joblib's shared-memory folders (a SIGKILL, or one night in 77 a worker ended at exit), the tracker
+    removes them, which is its job, and warns "resource_tracker: There appear to be N leaked folder
+    objects to clean up at shutdown" on that stderr, after the run's own lines. Its cleaning is kept;
+    only its warnings, all of which begin "resource_tracker", are filtered, in the tracker only."""
+    if _TRACKER not in sys.warnoptions:
+        sys.warnoptions.append(_TRACKER)
+
+
+_quiet_tracker()
+
+
+def _quiet_manager_thread(args) -> bool:
+    """Whether an exception that ended a thread is loky's manager thread failing while its executor shuts down.
+
+    joblib shuts the shared loky executor down (killing its workers) when a generator of results is closed
+    before its end, which the planner does only when the run has already failed (:func:`_abandon_quietly`).
+    loky's manager thread can then look up a task that the shutdown has just removed (``KeyError`` in
+    ``add_call_item_to_queue``): a race inside loky, after the run's own error, with nothing left to lose.
+    Its traceback would follow the run's one line on stderr; it is logged at debug level instead. Any other
+    exception of that thread (its executor not shutting down) still reaches Python's usual hook."""
+    try:
+        from joblib.externals.loky.process_executor import _ExecutorManagerThread
+    except ImportError:  # pragma: no cover - joblib without loky
+        return False
+    flags = getattr(args.thread, "executor_flags", None)
+    if isinstance(args.thread, _ExecutorManagerThread) and flags is not None and flags.shutdown:
+        logging.getLogger(__name__).debug("loky's manager thread ended while its executor shut down: %r",
+                                          args.exc_value)
+        return True
+    return False
+
+
+def _install_thread_hook() -> None:
+    previous = threading.excepthook
+
+    def hook(args) -> None:
+        if not _quiet_manager_thread(args):
+            previous(args)
+
+    hook.planner = True  # installed once, whatever reloads the module
+    if not getattr(previous, "planner", False):
+        threading.excepthook = hook
+
+
+_install_thread_hook()
 
 
 _END = object()
@@ -284,7 +401,7 @@ class Background:
         self._fn, self._args, self._gen, self._value = fn, args, None, self._UNSET
         if n_jobs != 1:
             # the same loky configuration as LocalPool's steps, so its workers are reused
-            with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent):
+            with _loky(n_jobs):
                 self._gen = _abandon_quietly(joblib.Parallel(return_as="generator")([joblib.delayed(fn)(*args)]), 1)
 
     def result(self) -> Any:
@@ -377,8 +494,9 @@ def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
     if n_jobs == 1 or total <= 1:
         results = (fn(*t) for t in tasks)
     else:
-        results = _abandon_quietly(joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
-            joblib.delayed(fn)(*t) for t in tasks), total)
+        with _loky(n_jobs):  # its tasks are handed to the workers here, in the configuration's pool
+            results = _abandon_quietly(joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
+                joblib.delayed(fn)(*t) for t in tasks), total)
     out = []
     try:
         for r in results:
@@ -413,7 +531,7 @@ def backend(name: str = "local", *, n_jobs: int = -1, scheduler: str = "",
     that end with the main process (:func:`_exit_with_parent`).
     """
     if name == "local":
-        with joblib.parallel_config(backend="loky", n_jobs=n_jobs, initializer=_exit_with_parent):
+        with _loky(n_jobs):
             yield LocalPool(n_jobs)
         return
     if name != "dask":

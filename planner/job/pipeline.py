@@ -42,6 +42,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.metadata
 import os
+import shutil
 from concurrent.futures import ThreadPoolExecutor, wait as wait_futures
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -232,13 +233,13 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
     from planner.line.loader import load_line
 
     from planner.bundle.manifest import build_time_s
-    from planner.io.parallel import started_workers
+    from planner.io.parallel import for_output_root, started_workers
 
     run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
     job = resolve_day(job)  # [day] day, else the next operating day by the clock, read here at the start too
     built_at_s = build_time_s()  # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or now
     # the staged run's files are flushed to disk once, by publish(), before it becomes visible
-    with job_lock(root), deferred_fsync(), \
+    with job_lock(root), deferred_fsync(), for_output_root(root), \
             started_workers(warm_worker, name=job.parallel.backend,
                             n_jobs=1 if _probably_current(job, root, run_date, built_at_s, use_cache)
                             else job.parallel.n_jobs):
@@ -292,9 +293,10 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                     from planner.job.views import run_views  # changes since the last run, overview page
 
                     run_views(job, lines, stage, root, prog, summary)  # takes the speed charts drawn meanwhile
-                except Exception:
+                except BaseException:
                     for pending in summary.pending:  # work on a worker: let it finish first
                         pending.discard()
+                    shutil.rmtree(stage, ignore_errors=True)  # a failed run leaves nothing in the output root
                     raise
             _kill_point()
             with prog.step("publish"):

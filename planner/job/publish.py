@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 
-from planner.io.atomic import _fsync_dir, fsync_tree
+from planner.io.atomic import STAGING_PREFIX, _fsync_dir, fsync_tree, remove_staging
 from planner.job.cache import Cache  # noqa: F401  (the cache lived here; planner.cache is its home now)
 from planner.errors import JobError
 
@@ -175,18 +175,11 @@ def job_lock(root: Path) -> Iterator[None]:
 
 def clean_stale_staging(root: Path) -> list[str]:
     """Remove staging folders left by failed or killed runs (call under the job lock)."""
-    removed = []
-    root = Path(root)
-    if root.is_dir():
-        for p in root.iterdir():
-            if p.name.startswith(".staging-") and p.is_dir():
-                shutil.rmtree(p, ignore_errors=True)
-                removed.append(p.name)
-    return sorted(removed)
+    return remove_staging(root)
 
 
 def staging_dir(root: Path, run_id: str) -> Path:
-    p = Path(root) / f".staging-{run_id}"
+    p = Path(root) / f"{STAGING_PREFIX}{run_id}"
     p.mkdir(parents=True, exist_ok=False)
     return p
 
