@@ -298,7 +298,40 @@ def test_no_route_names_the_train_and_the_last_reachable_node():
         plan_routes(line)
     msg = str(e.value)
     assert isinstance(e.value, PlannerError)
-    assert "train T1" in msg and "last reachable node W1" in msg and "S1" in msg
+    assert "train T1" in msg and "the route reaches W1 at chainage 300.0 m, 1700.0 m before that stop" in msg
+    assert "S1 (stop nodes b at 2000.0 m)" in msg and "the network goes no further that way from there" in msg
+
+
+def test_no_route_names_the_node_nearest_the_stop_not_the_far_end_of_the_line():
+    """An up train whose destination stop node is cut off: the search runs on past it to the buffer stop at the
+    line's start on another track. The message names where the train's own route stops short of the stop and
+    where the network goes from there (it said: last reachable node buffer at chainage 0.0 m)."""
+    nodes = [("buf", "end", 0.0, "IL1"), ("a", "stop", 50.0, "IL1", "S0", "U"), ("W", "switch", 1000.0, "IL1"),
+             ("b", "stop", 2000.0, "IL1", "S1", "U")]
+    edges = edges_between(nodes, [("b", "W")], "U") + edges_between(nodes, [("W", "buf")], "1")  # W-a missing
+    t = train("U1", "up", [("S1", NAN, 0.0, True), ("S0", 100.0, NAN, True)])
+    line = make_line([0.0, 2000.0], nodes, edges, [t])
+    with pytest.raises(RouteNotFoundError) as e:
+        plan_routes(line)
+    msg = str(e.value)
+    assert ("the route reaches W at chainage 1000.0 m, 950.0 m before that stop; from there the network goes on "
+            "only to buf (track 1, 0.0 m)") in msg, msg
+
+
+def test_an_unroutable_train_is_left_out_and_the_others_are_routed_as_without_it():
+    """With ``unrouted``, the train the network cannot carry is listed with its reason and the others get the
+    routes of a timetable without it (overtaking judged again without it)."""
+    good = single_track(50.0)
+    cut = train("T3", "down", [("S0", NAN, 10.0, True), ("S2", 110.0, NAN, True)])  # S2: its stop node is cut off
+    nodes = S_NODES + [("z", "stop", 2500.0, "IL2", "S2", "1")]  # on no edge: unreachable
+    bad = make_line([0.0, 2000.0, 2500.0], nodes, S_EDGES, [*good.trains, cut])
+    unrouted: dict = {}
+    routes = plan_routes(bad, unrouted=unrouted)
+    assert list(unrouted) == ["T3"] and "train T3 (down): no route" in unrouted["T3"]
+    assert list(routes) == ["T1", "T2"]
+    alone = plan_routes(make_line([0.0, 2000.0, 2500.0], nodes, S_EDGES, list(good.trains)))
+    assert [(r.nodes, r.edges, r.stop_nodes, r.loop_calls) for r in routes.values()] == \
+        [(r.nodes, r.edges, r.stop_nodes, r.loop_calls) for r in alone.values()]
 
 
 def test_monotone_route_never_runs_back():
@@ -308,7 +341,8 @@ def test_monotone_route_never_runs_back():
     edges = edges_between(nodes, [("a", "z"), ("z", "b")], "1")
     t = train("T9", "down", [("S0", NAN, 0.0, True), ("S1", 100.0, NAN, True)])
     line = make_line([500.0, 2000.0], nodes, edges, [t])
-    with pytest.raises(RouteNotFoundError, match="train T9.*last reachable node a"):
+    with pytest.raises(RouteNotFoundError, match=r"train T9.*the route reaches a at chainage 500\.0 m.*goes no "
+                                                 r"further that way from there \(and back to z"):
         plan_routes(line)
 
 

@@ -12,7 +12,7 @@ from . import app
 @app.command()
 def conflicts(
     line_dir: Path = typer.Argument(..., help="Line database folder with nodes.parquet and edges.parquet."),
-    out: Path = typer.Option(..., "--out", help="Output folder; writes conflicts/, headways/ and occupation/ datasets."),
+    out: Path = typer.Option(..., "--out", help="Output folder; writes conflicts/, headways/, occupation/ and unrouted/ datasets."),
     job: Optional[Path] = typer.Option(None, "--job", help="Job file whose [conflicts] table gives the parameters."),
     setting_s: Optional[float] = typer.Option(None, "--setting-s", help="Route setting time in s (default 10)."),
     approach_s: Optional[float] = typer.Option(None, "--approach-s", help="Sight/reaction + approach time in s (default 20)."),
@@ -67,4 +67,4 @@ def conflicts(
     files = write_conflicts(report, out)
     for msg in report.summary_lines():
         typer.echo(msg)
-    typer.echo(f"  wrote {len(files)} files under {out} (conflicts/, headways/, occupation/)")
+    typer.echo(f"  wrote {len(files)} files under {out} (conflicts/, headways/, occupation/, unrouted/)")

@@ -89,6 +89,13 @@ HEADWAYS_SCHEMA = declare([
     ("buffer_s", pa.float64(), "headway_s − min_headway_s: free time between train_a's window closing and train_b's opening; negative: they overlap by this much (a conflict) [s]"),
 ], name="headways", description="Minimum headway per switch and section: the tightest pair of following trains on each resource two or more trains use, its planned headway, minimum headway and buffer")
 
+UNROUTED_SCHEMA = declare([
+    ("train_id", pa.string(), "timetabled train that the track network cannot carry"),
+    ("direction", pa.string(), "its running direction"),
+    ("train_type", pa.string(), "its train type"),
+    ("reason", pa.string(), "why: the stop it cannot reach, the node its route reaches nearest before that stop, and where the network goes from there"),
+], name="unrouted", description="Trains the conflict check could not route on the track network: left out of the check (the others are checked as on a timetable without them) and flagged, never the end of the night")
+
 
 @dataclass(frozen=True, eq=False)
 class ConflictReport:
@@ -107,12 +114,15 @@ class ConflictReport:
     occupation: Any
     summary: dict[str, Any] = field(default_factory=dict)
     headways: Any = None
+    unrouted: Any = None
+    """The ``unrouted`` dataset's frame (:data:`UNROUTED_SCHEMA`, plus ``line``): trains left out of the check."""
 
     def summary_lines(self) -> list[str]:
         s = self.summary
         out = [
             f"line {self.line_id}: {s['trains']} trains routed, {s['windows']} occupation windows "
             f"({s['loops']} loop stops for overtaking)",
+            *unrouted_lines(self.unrouted),
             f"  conflicts: {_count(s['conflicts'], 'conflict')} between {_count(s['pairs'], 'train pair')} on "
             f"{_count(s['resources'], 'resource')}; deadlocks avoided: {s['deadlocks']}",
         ]
@@ -127,6 +137,23 @@ class ConflictReport:
         for note in s["notes"]:
             out.append(f"  note: {note}")
         return out
+
+
+UNROUTED_SHOWN = 5
+"""How many unrouted trains a summary names (the ``unrouted`` dataset has them all)."""
+
+
+def unrouted_lines(unrouted) -> list[str]:
+    """The summary's lines for the trains the network cannot carry: a count, then the first few with why."""
+    if unrouted is None or not len(unrouted):
+        return []
+    n = len(unrouted)
+    out = [f"  not routed: {_count(n, 'train')} the track network cannot carry, left out of the check "
+           "(the others are checked as without them):"]
+    out += [f"    {r}" for r in unrouted["reason"].head(UNROUTED_SHOWN)]
+    if n > UNROUTED_SHOWN:
+        out.append(f"    … and {n - UNROUTED_SHOWN} more (the unrouted dataset)")
+    return out
 
 
 def _count(n: int, noun: str) -> str:
@@ -157,8 +184,19 @@ def conflict_report(check: ConflictCheck) -> ConflictReport:
     trains = list(check.trains)
     routes = [check.routes[t.train_id] for t in trains]
     occupation = _occupation_frame(check.graph, trains, routes, check.windows, check.params, check.line_id)
-    return ConflictReport(check.line_id, check.params, check.routes, conflicts, occupation,
-                          _summary(trains, routes, check.windows, conflicts, heads), heads)
+    summary = _summary(trains, routes, check.windows, conflicts, heads)
+    summary["unrouted"] = len(check.unrouted)
+    return ConflictReport(check.line_id, check.params, check.routes, conflicts, occupation, summary, heads,
+                          unrouted_frame(check))
+
+
+def unrouted_frame(check: ConflictCheck) -> pd.DataFrame:
+    """The ``unrouted`` dataset's rows of a check, in timetable order."""
+    names = ["line"] + [f.name for f in UNROUTED_SCHEMA]
+    by_id = {t.train_id: t for t in check.graph.line.trains}
+    rows = [(check.line_id, tid, by_id[tid].direction, by_id[tid].train_type, why)
+            for tid, why in check.unrouted.items()]
+    return pd.DataFrame.from_records(rows, columns=names)
 
 
 def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingParams, line_id: str):
@@ -337,6 +375,12 @@ def write_conflicts(report: ConflictReport, out_dir) -> list:
             path = out / "headways" / f"line={report.line_id}" / "part-0.parquet"
             write_parquet_atomic(HEADWAYS_SCHEMA.empty_table(), path)
             written.append(path)
+    unrouted = report.unrouted if report.unrouted is not None else pd.DataFrame(columns=["line"])
+    path = out / "unrouted" / f"line={report.line_id}" / "part-0.parquet"  # always: readers find its schema
+    table = (pa.Table.from_pandas(unrouted.drop(columns=["line"]), preserve_index=False, schema=UNROUTED_SCHEMA)
+             if len(unrouted) else UNROUTED_SCHEMA.empty_table())
+    write_parquet_atomic(table, path)
+    written.append(path)
     occ = report.occupation
     if len(occ):
         written += write_partitioned(pa.Table.from_pandas(occ, preserve_index=False), out, "occupation",

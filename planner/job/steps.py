@@ -176,17 +176,22 @@ def conflicts_unit_of(job: Job, line: Line, stage: Path, lifted=None) -> Unit:
 
 
 def conflicts_written(stage: Path, report) -> tuple:
-    """Write a conflict report's datasets into the staged run; (its conflicts table, the files written)."""
+    """Write a conflict report's datasets into the staged run; (its conflicts table, the files written, the
+    reasons of the trains it could not route)."""
     from planner.datasets.conflicts import write_conflicts
 
-    return report.conflicts, [str(f) for f in write_conflicts(report, stage)]
+    reasons = list(report.unrouted["reason"]) if report.unrouted is not None else []
+    return report.conflicts, [str(f) for f in write_conflicts(report, stage)], reasons
 
 
 def conflicts_step(summary: RunSummary, kept: tuple):
-    """Count the route conflicts found and their datasets' rows (``kept``: :func:`conflicts_written` of the unit of
+    """Count the route conflicts found, the trains the network cannot carry (a flag and a note each: the night
+    goes on without them) and their datasets' rows (``kept``: :func:`conflicts_written` of the unit of
     :func:`conflicts_unit_of`); returns the conflicts table for the report."""
-    conflicts, files = kept
+    conflicts, files, unrouted = kept
     count_rows(summary, files)
     summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
         conflicts["conflict_id"].nunique() if len(conflicts) else 0)
+    summary.flags["unrouted"] = summary.flags.get("unrouted", 0) + len(unrouted)
+    summary.notes += [f"not routed, left out of the conflict check: {why}" for why in unrouted]
     return conflicts

@@ -61,7 +61,7 @@ def _graph_unit(line, check: bool, lifted=None):
     if line.network is not None and check:
         from planner.network.routes import plan_routes
 
-        loops = loop_stations(line, plan_routes(line))
+        loops = loop_stations(line, plan_routes(line, unrouted={}))  # the conflict step flags the unrouted
     try:
         return train_paths(line, train_curves(line, lifted), loops=loops)
     finally:

@@ -8,7 +8,7 @@ summary are built from it in :mod:`planner.datasets.conflicts`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
 from planner.line.model import Line, Train
@@ -37,6 +37,10 @@ class ConflictCheck:
         One record per (conflict, resource), from :func:`detect_conflicts`.
     headways : list of dict
         The tightest pair of following trains per resource, from :func:`resource_headways`.
+    unrouted : dict
+        ``train_id`` → why it has no route (one line), in timetable order: trains the track network
+        cannot carry, left out of ``trains`` and of everything above, which is what the check finds
+        on a timetable without them.
     """
 
     line_id: str
@@ -47,6 +51,7 @@ class ConflictCheck:
     windows: Windows
     conflicts: list[dict[str, Any]]
     headways: list[dict[str, Any]]
+    unrouted: dict[str, str] = field(default_factory=dict)
 
 
 def check_timetable(line: Line, params: BlockingParams | Mapping[str, Any] | None = None, *,
@@ -75,8 +80,9 @@ def check_timetable(line: Line, params: BlockingParams | Mapping[str, Any] | Non
     """
     p = params if isinstance(params, BlockingParams) else BlockingParams.from_dict(params)
     g = TrackGraph(line)
-    trains = list(line.trains)
-    routes_d = plan_routes(line, g)
+    unrouted: dict[str, str] = {}
+    routes_d = plan_routes(line, g, unrouted=unrouted)  # a train the network cannot carry is a flag, not the night
+    trains = [t for t in line.trains if t.train_id in routes_d]
     routes = [routes_d[t.train_id] for t in trains]
     src = curves or SimulatorCurves(line)
     if hasattr(src, "prepare"):
@@ -89,4 +95,5 @@ def check_timetable(line: Line, params: BlockingParams | Mapping[str, Any] | Non
             progress(k + 1, len(trains))
     w = Windows.concat(parts)
     records = detect_conflicts(g, trains, routes, w)
-    return ConflictCheck(line.line_id, p, g, tuple(trains), routes_d, w, records, resource_headways(g, trains, w))
+    return ConflictCheck(line.line_id, p, g, tuple(trains), routes_d, w, records, resource_headways(g, trains, w),
+                         unrouted)

@@ -323,13 +323,31 @@ def _search(g: TrackGraph, train: Train, waypoints: list[tuple[str, list[int]]])
             nl = layer + 1 if m in wp_sets[layer] else layer
             if (nl, m, tr) not in best:
                 heapq.heappush(heap, (w, t2, n_e + 1, nl, m, tr, e, key))
-    _, n_last, layer = furthest
+    raise RouteNotFoundError(_no_route(g, train, waypoints, best, furthest))
+
+
+def _no_route(g: TrackGraph, train: Train, waypoints: list[tuple[str, list[int]]], reached: dict,
+              furthest: tuple) -> str:
+    """Why the search found no route: the stop it could not reach, the node reached nearest before that stop
+    on the train's way (not the furthest node of the search, which may have run past the stop on another
+    track to the line's end), and where the network goes from there."""
+    sgn = sign(train.direction)
+    layer = max(k[0] for k in reached) if reached else furthest[2]
     want_sid, want = waypoints[min(layer, len(waypoints) - 1)]
-    raise RouteNotFoundError(
-        f"train {train.train_id} ({train.direction}): no route on the track network to the stop of station "
-        f"{want_sid} (stop nodes {', '.join(g.node(i) for i in want)}); last reachable node "
-        f"{g.node(n_last)} at chainage {g.pos_m[n_last]:.1f} m; check edges.parquet around it"
-    )
+    goal = min(sgn * g.pos_m[i] for i in want)  # the first stop node in the running direction
+    before = [k[1] for k in reached if k[0] == layer and sgn * g.pos_m[k[1]] <= goal]
+    n = max(before, key=lambda i: (sgn * g.pos_m[i], -i)) if before else furthest[1]
+    ahead, behind = [], []
+    for m, e in sorted(g.adj[n]):
+        (ahead if sgn * (g.pos_m[m] - g.pos_m[n]) > 0 else behind).append(
+            f"{g.node(m)} (track {g.edge_track[e] or '-'}, {g.pos_m[m]:.1f} m)")
+    onward = ("; from there the network goes on only to " + ", ".join(ahead) if ahead
+              else "; the network goes no further that way from there")
+    back = f" (and back to {', '.join(behind)})" if behind else ""
+    return (f"train {train.train_id} ({train.direction}): no route on the track network to the stop of station "
+            f"{want_sid} (stop nodes {', '.join(f'{g.node(i)} at {g.pos_m[i]:.1f} m' for i in want)}); the route "
+            f"reaches {g.node(n)} at chainage {g.pos_m[n]:.1f} m, {abs(goal - sgn * g.pos_m[n]):.1f} m before that "
+            f"stop{onward}{back}; check edges.parquet and nodes.parquet around it")
 
 
 def _route_for(g: TrackGraph, train: Train, loops: set[int]) -> Route:
@@ -388,7 +406,7 @@ def _stops_on(nodes: list[int], wps: list[tuple[str, list[int]]]) -> list[int]:
 
 
 def plan_routes(line: Line, graph: TrackGraph | None = None,
-                trains: Sequence[Train] | None = None) -> dict[str, Route]:
+                trains: Sequence[Train] | None = None, *, unrouted: dict[str, str] | None = None) -> dict[str, Route]:
     """Route every timetabled train over the track network.
 
     Parameters
@@ -399,7 +417,12 @@ def plan_routes(line: Line, graph: TrackGraph | None = None,
         Prebuilt graph of ``line`` (built if omitted).
     trains : sequence of Train, optional
         Trains to route (default: the whole timetable). Overtaking is judged
-        against the whole timetable either way.
+        against the whole timetable either way (less the trains that cannot be routed).
+    unrouted : dict, optional
+        Given: a train that cannot be routed is left out of the result and written here
+        (``train_id`` → the reason, one line), and the others are routed as on a timetable
+        without it: overtaking is judged again without it, so a loop it would have taken
+        by standing aside is not taken. Not given: the first such train raises.
 
     Returns
     -------
@@ -409,18 +432,37 @@ def plan_routes(line: Line, graph: TrackGraph | None = None,
     Raises
     ------
     RouteNotFoundError
-        Naming the train and the last node it could reach.
+        Without ``unrouted``: naming the train, the stop it cannot reach, the node it
+        reaches nearest before that stop and where the network goes from there.
     """
     g = graph or TrackGraph(line)
-    loops = overtaken_calls(line.trains)
-    cache: dict[tuple, Route] = {}
-    out: dict[str, Route] = {}
-    for t in (trains if trains is not None else line.trains):
-        lp = loops.get(t.train_id, set())
-        pattern = (t.direction, tuple((c.station_id, c.stops, c.seq in lp) for c in t.calls))
-        r = cache.get(pattern)
-        if r is None:
-            r = _route_for(g, t, lp)
-            cache[pattern] = r
-        out[t.train_id] = dataclasses.replace(r, train_id=t.train_id)
-    return out
+    wanted = list(trains if trains is not None else line.trains)
+    left_out: dict[str, str] = {}
+    while True:
+        loops = overtaken_calls(t for t in line.trains if t.train_id not in left_out)
+        cache: dict[tuple, Route | str] = {}
+        out: dict[str, Route] = {}
+        failed: dict[str, str] = {}
+        for t in wanted:
+            if t.train_id in left_out:
+                continue
+            lp = loops.get(t.train_id, set())
+            pattern = (t.direction, tuple((c.station_id, c.stops, c.seq in lp) for c in t.calls))
+            r = cache.get(pattern)
+            if r is None:
+                try:
+                    r = _route_for(g, t, lp)
+                except RouteNotFoundError as e:
+                    if unrouted is None:
+                        raise
+                    r = str(e).replace(f"train {t.train_id} ", "train {train} ", 1)
+                cache[pattern] = r
+            if isinstance(r, str):
+                failed[t.train_id] = r.replace("train {train} ", f"train {t.train_id} ", 1)
+            else:
+                out[t.train_id] = dataclasses.replace(r, train_id=t.train_id)
+        if not failed:
+            if unrouted is not None:
+                unrouted.update((t.train_id, left_out[t.train_id]) for t in line.trains if t.train_id in left_out)
+            return out
+        left_out.update(failed)  # route the others again, as on a timetable without these

@@ -196,9 +196,11 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
               "infeasible_stops": "stopping patterns infeasible (approach × adhesion)",
               "conflicts": "route conflicts",
               "stalls": "legs where a train stalls under some scenario (the notes say where)",
-              "no_stop": "legs where no stopping pattern stops the train (the notes say where)"}
+              "no_stop": "legs where no stopping pattern stops the train (the notes say where)",
+              "unrouted": "trains the track network cannot carry, left out of the conflict check (the notes say "
+                          "why)"}
     severity = {f.name: f.severity for f in FLAGS_SHOWN} | {"conflicts": "bad", "stalls": "bad", "no_stop": "bad",
-                                                           "infeasible": "bad"}
+                                                           "infeasible": "bad", "unrouted": "bad"}
     # the margin report's flags first, in their order (worst first), then the others by name
     order = [f for f in FLAGS if f in flags] + sorted(k for k in flags if k not in FLAGS)
     cards = [(severity.get(k, "warn") if flags[k] else "ok", flags[k], labels.get(k, k)) for k in order]
@@ -213,7 +215,7 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     lids = [x["line_id"] for x in manifest.get("lines", [])]
     report = f"report/{path_id(lids[0])}_margins.html" if len(lids) == 1 else None
     where = {"conflicts": f"{report}#conflicts" if report else "#pages", "infeasible_stops": "#notes",
-             "stalls": "#notes", "no_stop": "#notes"}
+             "stalls": "#notes", "no_stop": "#notes", "unrouted": "#notes"}
     hrefs = [where.get(k, f"{report}#flagged" if report else "#pages") for k in order]
     hrefs += ["#inputs"] * (len(cards) - len(hrefs))
     parts.append("<h2 id='flags'>Flags</h2><div class='cards'>" + "".join(

@@ -42,7 +42,8 @@ def datasets() -> list[DatasetDoc]:
     out += [DatasetDoc(n, s, HIVE, "timetable") for n, s in train_timetable.SCHEMAS.items()]
     out += [DatasetDoc("conflicts", con, ("line",), "conflicts"),
             DatasetDoc("headways", conflicts.HEADWAYS_SCHEMA, ("line",), "conflicts"),
-            DatasetDoc("occupation", occ, HIVE, "conflicts")]
+            DatasetDoc("occupation", occ, HIVE, "conflicts"),
+            DatasetDoc("unrouted", conflicts.UNROUTED_SCHEMA, ("line",), "conflicts")]
     out.append(DatasetDoc("changes", changes.CHANGES_SCHEMA, ("line",), "changes"))
     return out
 

@@ -316,7 +316,7 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
             windows, conflicts = report.occupation, report.conflicts
             routes = report.routes
         else:
-            routes = plan_routes(line)
+            routes = plan_routes(line, unrouted={})  # a train the network cannot carry is drawn without a loop
         loops = loop_stations(line, routes)
     elif line.network is None:
         windows = conflicts = None  # not checked: the page says so, never "0 conflicts"
