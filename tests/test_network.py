@@ -563,3 +563,35 @@ def test_train_leaving_the_platform_ahead_before_the_arrival_is_no_conflict():
     p2 = train("P", "down", [("S1", NAN, 300.0, True), ("S2", 400.0, NAN, True)])
     c = check(dwell_line("down", [p2])).conflicts
     assert list(c["resource_id"]) == ["m-c"] and c["overlap_s"].iloc[0] == pytest.approx(405.0 - 370.0, abs=TOL_S)
+
+
+# --- double track whose own main is used both ways (OSRD's ``B:`` naming) beside the up main
+BU_NODES = [
+    ("a", "stop", 0.0, "IL1", "S0", "B:main"), ("c", "stop", 0.0, "IL1", "S0", "U:2"),
+    ("X1", "switch", 300.0, "IL1"), ("Y1", "switch", 400.0, "IL1"),
+    ("Y2", "switch", 1600.0, "IL1"), ("X2", "switch", 1700.0, "IL1"),
+    ("b", "stop", 2000.0, "IL1", "S1", "B:main"),  # the only platform at S1 is on the both-ways main
+]
+BU_EDGES = (edges_between(BU_NODES, [("a", "X1"), ("X1", "X2"), ("X2", "b")], "B:main")
+            + edges_between(BU_NODES, [("c", "Y1"), ("Y1", "Y2")], "U:2")
+            + edges_between(BU_NODES, [("X1", "Y1")], "B:x1") + edges_between(BU_NODES, [("Y2", "X2")], "B:x2"))
+
+
+def _both_ways_main(up_dep=0.0):
+    down = train("T1", "down", [("S0", NAN, 0.0, True), ("S1", 200.0, NAN, True)])
+    up = train("T2", "up", [("S1", NAN, up_dep, True), ("S0", up_dep + 200.0, NAN, True)])
+    return make_line([0.0, 2000.0], BU_NODES, BU_EDGES, [down, up])
+
+
+def test_a_track_used_both_ways_is_the_route_only_where_the_own_main_is_not():
+    """An up train on a double line whose own main is named both-ways (B:) beside the up main (U:) crosses to
+    the up main at the first crossover and back where its stop needs it; it ran on the down train's main."""
+    r = plan_routes(_both_ways_main())
+    assert r["T1"].nodes == ("a", "X1", "X2", "b")
+    assert r["T2"].nodes == ("b", "X2", "Y2", "Y1", "c")
+
+
+def test_one_train_each_way_on_double_track_meet_no_conflict():
+    """The trains pass each other mid-line: routed on the same main they would meet head on."""
+    chk = check_conflicts(_both_ways_main(up_dep=0.0), {"setting_s": 10.0, "approach_s": 20.0, "release_s": 5.0})
+    assert chk.summary["conflicts"] == 0 and chk.summary["deadlocks"] == 0

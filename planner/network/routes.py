@@ -12,8 +12,11 @@ destination through the stop node of every call where it stops, and is
 *monotone in chainage* in its running direction (a train never reverses on
 its way). Boundary nodes are ordinary nodes on the path, so routes cross
 interlocking areas freely. Among the monotone paths the search minimises, in
-this order, the metres run on tracks of the other direction and the number of
-turnouts taken (track changes), so a train keeps to its own main track. The
+this order, the metres run on tracks of the other direction, the metres run on
+tracks used in both directions, and the number of turnouts taken (track
+changes), so a train keeps to its own main track, and takes a track used both
+ways (single track, a main signalled both ways, a crossover) only where no
+track of its own direction leads on. The
 platform a stopping train takes: the *loop* when a same-direction train
 overtakes it while it stands (its arrival < the other's passing time < its
 departure; also when the other stops there entirely within its stand, the
@@ -282,6 +285,9 @@ def _search(g: TrackGraph, train: Train, waypoints: list[tuple[str, list[int]]])
     """Least-cost monotone path through one node of each waypoint set, in order.
 
     Cost, compared lexicographically: metres on tracks of the other direction,
+    metres on tracks used in both directions (so such a track is the route only
+    where no track of the train's own direction is: OSRD's ``B:`` tracks, one
+    main of a double line signalled both ways beside the other's own main),
     turnouts taken (consecutive edges on different tracks), edges. Dijkstra over
     states (waypoints reached, node, current track); monotone in chainage, so
     the state graph is acyclic and finite.
@@ -290,17 +296,17 @@ def _search(g: TrackGraph, train: Train, waypoints: list[tuple[str, list[int]]])
     first = set(waypoints[0][1])
     heap: list = []
     for n in sorted(first):
-        heapq.heappush(heap, (0.0, 0, 0, 1, n, g.node_track[n] or "", -1, None))
+        heapq.heappush(heap, (0.0, 0.0, 0, 0, 1, n, g.node_track[n] or "", -1, None))
     best: dict[tuple[int, int, str], tuple] = {}
     parents: dict[tuple[int, int, str], tuple] = {}
     furthest = (-math.inf, sorted(first)[0] if first else -1, 1)
     wp_sets = [set(w[1]) for w in waypoints]
     while heap:
-        wrong, turns, n_e, layer, n, trk, e_in, parent = heapq.heappop(heap)
+        wrong, both, turns, n_e, layer, n, trk, e_in, parent = heapq.heappop(heap)
         key = (layer, n, trk)
         if key in best:
             continue
-        best[key] = (wrong, turns, n_e)
+        best[key] = (wrong, both, turns, n_e)
         parents[key] = (parent, e_in)
         if sgn * g.pos_m[n] > furthest[0] or (sgn * g.pos_m[n] == furthest[0] and layer > furthest[2]):
             furthest = (sgn * g.pos_m[n], n, layer)
@@ -318,11 +324,14 @@ def _search(g: TrackGraph, train: Train, waypoints: list[tuple[str, list[int]]])
             if sgn * (g.pos_m[m] - g.pos_m[n]) <= 0:
                 continue  # monotone in chainage: never back
             tr = g.edge_track[e]
-            w = wrong + (0.0 if _serves(tr, train.direction) else abs(g.pos_m[m] - g.pos_m[n]))
+            run = track_direction(tr)
+            metres = abs(g.pos_m[m] - g.pos_m[n])
+            w = wrong + (0.0 if run in ("both", train.direction) else metres)
+            b = both + (metres if run == "both" else 0.0)
             t2 = turns + (1 if (trk and tr != trk) else 0)
             nl = layer + 1 if m in wp_sets[layer] else layer
             if (nl, m, tr) not in best:
-                heapq.heappush(heap, (w, t2, n_e + 1, nl, m, tr, e, key))
+                heapq.heappush(heap, (w, b, t2, n_e + 1, nl, m, tr, e, key))
     raise RouteNotFoundError(_no_route(g, train, waypoints, best, furthest))
 
 
