@@ -334,3 +334,30 @@ def test_restrictions_show_prints_the_day(tmp_path):
         "  note: tiny: no train runs on 2026-11-29 (Sunday) by the calendar of feeds/tiny: is a service missing "
         "for that day?",
     ]
+
+
+def test_an_osrd_limit_off_the_lines_path_reaches_its_track_and_a_piece_on_no_track_is_named(tmp_path):
+    """The branch TB leaves the line's path at switch SW1 (T1's end, 3000 m) and runs on in chainage, so its
+    offsets 100-500 are 3100-3500 m; its one signal faces trains running along it: its track is D:TB. A range
+    on it was dropped (only the path's tracks were looked at); a range on a track of no network is named."""
+    from importsrc import write_railjson
+    from planner.line.importers.railjson import import_railjson
+
+    i, rs, x = write_railjson(tmp_path / "src")
+    import_railjson(i, ["W", "M", "E"], [rs], tmp_path / "coast", extra=x, line_id="coast")
+    line = load_line(tmp_path / "coast")
+    assert "D:TB" in {e.track for e in line.network.edges}
+    tsl = {"speed_limits": [
+        {"obj_id": "branch", "speed_limit": 20 / 3.6, "start_date_time": "2026-11-30T01:00:00",
+         "end_date_time": "2026-11-30T06:00:00",
+         "track_ranges": [{"track": "TB", "begin": 100, "end": 500, "direction": "START_TO_STOP"},
+                          {"track": "NOWHERE", "begin": 0, "end": 50, "direction": "START_TO_STOP"}]},
+    ]}
+    src = tmp_path / "tsl.json"
+    src.write_text(json.dumps(tsl))
+    feed = tmp_path / "feed"
+    s = import_restrictions(src, line, feed, tz=TZ, infra=i, path_ops=["W", "M", "E"])
+    got = load_feed(feed, line, TZ).restrictions
+    assert [(r.restriction_id, r.start_m, r.end_m, r.direction, r.track) for r in got] == [
+        ("branch", 3100.0, 3500.0, "down", "D:TB")]
+    assert any("track range NOWHERE 0–50 m lies on no track of the line's network" in n for n in s.notes)

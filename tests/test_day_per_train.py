@@ -271,3 +271,18 @@ def test_the_changes_between_runs_keep_a_legs_rows_apart():
     # the row of the trains meeting every restriction keeps the leg's key (it compares with another day's row)
     assert got[key]["min_running_time_s"] == 218.0 and got[key + ("without PM",)]["min_running_time_s"] == 160.0
     assert _legs_by_key(frame.drop(columns="restrictions").iloc[:1]) == {key: {**leg, "min_running_time_s": 218.0}}
+
+
+def test_a_restriction_on_one_track_reaches_the_trains_routed_over_it_only():
+    """A double line whose down main is used both ways (B:main) beside the up main (U:2): the down train runs
+    on B:main, the up train crosses to U:2 for 1600 … 400 m. A restriction on U:2 is lifted for the down train,
+    one on B:main over the same stretch for the up train; one on no named track reaches both (as before)."""
+    from test_network import _both_ways_main
+
+    line = _both_ways_main()
+    on_up = dataclasses.replace(tsr("ON_U2", "2026-11-29T12:00", "2026-12-02T05:00", a=600.0, b=1400.0),
+                                track="U:2")
+    on_main = dataclasses.replace(on_up, restriction_id="ON_MAIN", track="B:main")
+    anywhere = dataclasses.replace(on_up, restriction_id="ANY", track=None)
+    d = DayInputs(DAY, (on_up, on_main, anywhere), ("T1", "T2"))
+    assert lifted_restrictions(line, d) == {("T1", 0): ("ON_U2",), ("T2", 0): ("ON_MAIN",)}

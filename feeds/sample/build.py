@@ -21,7 +21,7 @@ import pyarrow.parquet as pq
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))  # the project's planner, for the feed's declared schemas
 
-from planner.line.daily import FEED_TABLES  # noqa: E402
+from planner.line.daily import FEED_TABLES, restrictions_table  # noqa: E402
 
 TIME_ZONE = "Asia/Tokyo"  # the job's [day] time_zone (jobs/nightly.toml)
 TIMETABLE_YEAR = ("2026-04-01", "2027-03-31")  # the timetable in force: one fiscal year
@@ -82,7 +82,8 @@ def tables() -> dict[str, pa.Table]:
     exc = [dict(service_id=s, date=d, exception_type=t) for s, d, t in EXCEPTIONS]
     rows = {"restrictions": RESTRICTIONS, "calendar": cal, "calendar_dates": exc,
             "train_services": train_services(HERE.parents[1] / "lines" / "sample" / "timetable.parquet")}
-    return {name: pa.Table.from_pylist(r, schema=FEED_TABLES[name].schema) for name, r in rows.items()}
+    return {name: restrictions_table(r) if name == "restrictions" else  # its optional column only when used
+            pa.Table.from_pylist(r, schema=FEED_TABLES[name].schema) for name, r in rows.items()}
 
 
 def main() -> None:

@@ -207,7 +207,8 @@ def lifted_restrictions(line: Line, d: DayInputs) -> dict[tuple[str, int], tuple
     """Per train and leg of the day's line (``(train_id, leg_seq)``, the legs of
     :func:`planner.report.margin_legs.timetable_legs`): the ids of the day's temporary restrictions that
     reach the leg but do not apply to the train, lifted the whole time it runs the leg
-    (:func:`~planner.line.operating_day.leg_restrictions`, the per-train rule). Only legs that have
+    (:func:`~planner.line.operating_day.leg_restrictions`, the per-train rule), or that lie on a track
+    (``track``) its route does not run on there. Only legs that have
     some; empty when every restriction of the day is in force for the whole day (nothing is looked at).
 
     Margins, conflicts and the train graph compute such a train's leg on the day's line without them,
@@ -216,20 +217,39 @@ def lifted_restrictions(line: Line, d: DayInputs) -> dict[tuple[str, int], tuple
     from planner.report.margin_legs import timetable_legs
 
     w = d.window
-    part = [r for r in d.restrictions if not whole_day(r, w)]
+    part = [r for r in d.restrictions if not whole_day(r, w) or r.track is not None]
     if not part:
         return {}
+    users = _track_users(line, [r for r in part if r.track is not None])
     out = {}
     for lg in timetable_legs(line):
         key = (lg.train_type, lg.direction, lg.origin, lg.destination)
         near = leg_restrictions(part, w, line, *key)
         if not near:
             continue
-        on = {r.restriction_id for r in leg_restrictions(near, w, line, *key, lg.departure_s, lg.arrival_s)}
+        on = {r.restriction_id for r in leg_restrictions(near, w, line, *key, lg.departure_s, lg.arrival_s)
+              if r.track is None or lg.train_id in users[r.restriction_id]}
         off = tuple(r.restriction_id for r in near if r.restriction_id not in on)
         if off:
             out[(lg.train_id, lg.leg_seq)] = off
     return out
+
+
+def _track_users(line: Line, on_tracks: list) -> dict[str, set[str]]:
+    """Per restriction on a named track: the trains whose route runs on that track inside its stretch. A
+    train the network cannot route is counted in (on the safe side: it keeps the restriction)."""
+    if not on_tracks:
+        return {}
+    if line.network is None:  # validation refuses a track on a line without a network; nothing to look at
+        return {r.restriction_id: {t.train_id for t in line.trains} for r in on_tracks}
+    from planner.network.routes import TrackGraph, plan_routes, runs_on
+
+    g = TrackGraph(line)
+    unrouted: dict[str, str] = {}
+    routes = plan_routes(line, g, unrouted=unrouted)
+    return {r.restriction_id: set(unrouted) | {tid for tid, rt in routes.items()
+                                               if runs_on(g, rt, r.track, r.start_m, r.end_m)}
+            for r in on_tracks}
 
 
 def lifted_key(lifted: dict) -> list:

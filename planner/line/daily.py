@@ -52,12 +52,15 @@ FEED_TABLES: dict[str, TableSpec] = {t.name: t for t in [
         ("end_m", D, "restricted stretch end chainage [m]; > start_m, inside the line"),
         ("limit_kmh", D, "temporary speed limit [km/h]; > 0 and below the line maximum"),
         ("direction", S, "both, down or up"),
+        ("track", S, "track (edges.parquet track) the stretch lies on: the restriction reaches the trains whose "
+                     "route runs on that track there (the other main, a loop, a platform track); null = every "
+                     "track at that chainage (optional column)", True),
         ("train_type", S, "train type it applies to; null = every train type", True),
         ("valid_from", S, f"in force from this {_LOCAL}"),
         ("valid_until", S, f"in force until (exclusive) this {_LOCAL}; after valid_from"),
         ("reason", S, "why: track renewal, rail defect, works, ..."),
         ("has_beacon", B, "a temporary ATS-P beacon sends its pattern; false: the on-board DB feeds it"),
-    ]), required=False, row_id=("restriction_id",)),
+    ]), required=False, row_id=("restriction_id",), optional_columns=frozenset({"track"})),
     TableSpec("calendar", _schema("calendar", [
         ("service_id", S, "unique service id (a day type: weekday, weekend, ...)"),
         *[(d, B, f"the service runs on {d.capitalize()}s") for d in WEEKDAYS],
@@ -99,6 +102,8 @@ class TemporaryRestriction:
     reason: str
     has_beacon: bool
     row: int = -1
+    track: str | None = None
+    """The track the stretch lies on (edges.parquet ``track``), or None: every track at that chainage."""
 
     def as_speed_limit(self) -> SpeedLimit:
         """The restriction as a line speed limit (kind ``temporary``): what the physics sees while in force.
@@ -114,6 +119,8 @@ class TemporaryRestriction:
                "limit_kmh": round(kmh(self.limit_ms), 9), "direction": self.direction,
                "train_type": self.train_type, "valid_from": self.valid_from, "valid_until": self.valid_until,
                "reason": self.reason, "has_beacon": self.has_beacon}
+        if self.track is not None:  # only where named: records of a feed without tracks are as they were
+            out["track"] = self.track
         if window is not None:
             out["whole_day"] = whole_day(self, window)
         return out
@@ -182,6 +189,7 @@ def check_restrictions(v: TableView, line: Line, tz: str) -> tuple[list[Temporar
     bad: list[Violation] = []
     seen: dict[str, int] = {}
     types = {t.train_type for t in line.train_types}
+    tracks = {e.track for e in line.network.edges} if line.network is not None else set()
     vmax = round(kmh(line.max_speed_ms), 9)  # back in the unit it was written in (100/3.6*3.6 may miss 100)
     for i in v.rows():
         errs = len(bad)
@@ -208,6 +216,12 @@ def check_restrictions(v: TableView, line: Line, tz: str) -> tuple[list[Temporar
         d = v["direction"][i]
         if d not in LIMIT_DIRECTIONS:
             bad.append(v.err(i, "direction", f"{d!r}; write one of {', '.join(LIMIT_DIRECTIONS)}"))
+        track = v["track"][i] if v.has("track") else None
+        if track is not None and track not in tracks:
+            bad.append(v.err(i, "track", f"{track!r} is not a track of the line's network"
+                                         + (f" ({', '.join(sorted(tracks)[:8])}{' …' if len(tracks) > 8 else ''})"
+                                            if tracks else " (the line has no track network)")
+                                         + "; give an edges.parquet track, or leave it empty for every track"))
         tt = v["train_type"][i]
         if tt is not None and tt not in types:
             bad.append(v.err(i, "train_type", f"unknown train type {tt!r}; the line has {', '.join(sorted(types))} "
@@ -222,7 +236,7 @@ def check_restrictions(v: TableView, line: Line, tz: str) -> tuple[list[Temporar
                                                f"{v['valid_from'][i]}; a restriction must end after it starts"))
         if len(bad) == errs:
             out.append(TemporaryRestriction(rid, a, b, lim * KMH, d, tt, v["valid_from"][i], v["valid_until"][i],
-                                            f_s, u_s, v["reason"][i], bool(v["has_beacon"][i]), i))
+                                            f_s, u_s, v["reason"][i], bool(v["has_beacon"][i]), i, track))
     return out, bad
 
 
@@ -374,8 +388,13 @@ def load_feed(feed_dir: str | Path, line: Line, tz: str) -> DailyFeed:
 
 
 def restrictions_table(rows: list[dict]) -> pa.Table:
-    """restrictions.parquet's table from row dicts (declared columns, declared order)."""
-    schema = FEED_TABLES["restrictions"].schema
+    """restrictions.parquet's table from row dicts (declared columns, declared order); the optional ``track``
+    column only when a row names a track, so a feed without one is written as before the column existed."""
+    spec = FEED_TABLES["restrictions"]
+    schema = spec.schema
+    for name in sorted(spec.optional_columns):
+        if all(r.get(name) is None for r in rows):
+            schema = schema.remove(schema.get_field_index(name))
     return pa.Table.from_pylist([{f.name: r.get(f.name) for f in schema} for r in rows], schema=schema)
 
 

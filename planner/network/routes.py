@@ -404,6 +404,18 @@ def _route_for(g: TrackGraph, train: Train, loops: set[int]) -> Route:
     )
 
 
+def runs_on(g: TrackGraph, route: Route, track: str, start_m: float, end_m: float) -> bool:
+    """Whether ``route`` runs on ``track`` somewhere inside the stretch (start_m, end_m) of chainage."""
+    for k in route.edge_idx.tolist():
+        if g.edge_track[k] != track:
+            continue
+        e = g.edges[k]
+        a, b = sorted((g.pos_m[g.index[e.from_node]], g.pos_m[g.index[e.to_node]]))
+        if b > start_m and a < end_m:
+            return True
+    return False
+
+
 def _stops_on(nodes: list[int], wps: list[tuple[str, list[int]]]) -> list[int]:
     """The node of each waypoint set the path takes, in order."""
     out, j = [], 0

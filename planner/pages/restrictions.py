@@ -64,12 +64,13 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
         legs = losses.get(r["restriction_id"], [])
         slowed = "; ".join(f"{tt} {o}→{d}: {_num(t)} s" for tt, _, o, d, t in legs) or "no leg"
         trows.append([f"<b>{_e(r['restriction_id'])}</b>", f"{r['start_m']:.0f}–{r['end_m']:.0f}",
-                      f"{r['limit_kmh']:g}", _e(r["direction"]), _e(r.get("train_type") or "all"),
+                      f"{r['limit_kmh']:g}", _e(r["direction"]), _e(r.get("track") or "every track"),
+                      _e(r.get("train_type") or "all"),
                       _e(f"{r['valid_from']} → {r['valid_until']}") + ("" if r.get("whole_day") else
                                                                      " <b>(part of the day)</b>"),
                       "temporary beacon" if r["has_beacon"] else "DB-fed pattern", _e(r["reason"]), _e(slowed)])
     parts.append("<h2 id='restrictions'>Restrictions and the legs they slow</h2>"
-                 + _table(["restriction", "stretch [m]", "km/h", "direction", "train type", "valid (local)",
+                 + _table(["restriction", "stretch [m]", "km/h", "direction", "track", "train type", "valid (local)",
                            "ATS-P", "reason", "time lost per train type (minimum running time, that restriction "
                                               "alone)"], trows, num=(1, 2))
                  + "<p class='sub'>Time lost: ratio 1.0, load 0, nominal traction, the restriction alone against "

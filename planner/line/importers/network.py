@@ -33,13 +33,11 @@ or that lie wholly beyond its ends, are left out with a note. A crossing is
 one node: the route search may take it from any leg to any leg on the other
 side (a diamond's straight legs are not told apart).
 
-Track names: the route search reads a track's running direction from its
-name (``D…`` down, ``U…`` up, else both; :func:`planner.network.routes.track_direction`).
-Tracks joined end to end by links form one track; the line's own tracks form
-one track. A track whose signals face one direction of the line's chainage
-at least two to one is named ``D:<id>`` or ``U:<id>`` (the main tracks of a
-double line, also where both are signalled both ways), any other ``B:<id>``
-(both directions: single track, or no signals to tell).
+Track names: the route search reads a track's running direction from its name (``D…`` down,
+``U…`` up, else both; :func:`planner.network.routes.track_direction`). Tracks joined end to end
+by links form one track; the line's own tracks form one. A track whose signals face one direction
+of the line's chainage at least two to one is named ``D:<id>`` or ``U:<id>`` (the main tracks of a
+double line, also where both are signalled both ways), any other ``B:<id>`` (both directions).
 """
 from __future__ import annotations
 
@@ -168,18 +166,9 @@ def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interl
         for j, (a, b) in enumerate(zip(ks[:-1], ks[1:])):
             if b[1] - a[1] > 1e-6:
                 edges.append([f"{t}:{j + 1}", uf.find(a), uf.find(b), b[1] - a[1], t])
-    # tracks joined end to end by links are one track; the line's own tracks are one track
-    tuf = _UF()
-    line_tracks = sorted(on_line)
-    for t in line_tracks[1:]:
-        tuf.union(line_tracks[0], t)
-    for jid, kind, members in topo.joins:
-        if kind == "link":
-            for t, _, _ in members[1:]:
-                tuf.union(members[0][0], t)
     pos, keep = _chainage(topo, on_line, uf, notes)
     edges = _contract_links([e for e in edges if e[4] in keep], node_kind)
-    label = _labels(topo, on_line, tuf, pos, uf)
+    label = _labels(topo, on_line, _track_groups(topo, on_line), pos, uf)
     used = {n for e in edges for n in e[1:3]}
     nodes = [dict(node_id=node_id[r], kind=node_kind[r], position_m=round(pos[r], 6), interlocking=interlocking,
                   station_id=station.get(r), track=label[r[0]] if node_kind[r] in ("stop", "boundary") else None)
@@ -188,6 +177,17 @@ def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interl
                  track=label[e[4]]) for e in edges]
     cols = lambda t: [f.name for f in TABLES[t].schema]  # noqa: E731
     return pd.DataFrame(nodes, columns=cols("nodes")), pd.DataFrame(rows, columns=cols("edges"))
+
+
+def _track_groups(topo: Topology, on_line: dict) -> _UF:
+    """Tracks joined end to end by links are one track; the line's own tracks are one track."""
+    tuf = _UF()
+    for t in sorted(on_line):
+        tuf.union(min(on_line), t)
+    for _, kind, members in topo.joins:
+        for t, _, _ in (members[1:] if kind == "link" else ()):
+            tuf.union(members[0][0], t)
+    return tuf
 
 
 def _contract_links(edges: list[list], node_kind: dict) -> list[list]:

@@ -73,10 +73,14 @@ def read_osrd(path: Path, infra: Path, path_ops: list[str], tz: str, s: ImportSu
     if not isinstance(items, list):
         raise SourceError(f"{fname}: expected {{\"speed_limit_group_name\", \"speed_limits\": [...]}} or a list "
                           f"of temporary speed limits")
+    from planner.line.importers.network import path_chainage, railjson_topology
+
     iname, idata = load_json(infra)
     src = _Src(iname, idata)
     net = _Network(src)
     line_path, _ = build_path(src, net, _ops(src, net, path_ops))
+    # every track of the line's network, as the line import placed it: the other main, loops, platform tracks
+    places = track_places(railjson_topology(src, net, {}), path_chainage(line_path.pieces))
     rows, names = [], []
     for i, it in enumerate(items):
         w = f"{fname}: speed_limits[{i}]"
@@ -94,7 +98,7 @@ def read_osrd(path: Path, infra: Path, path_ops: list[str], tz: str, s: ImportSu
         ranges = it.get("track_ranges")
         if not isinstance(ranges, list) or not ranges:
             raise SourceError(f"{w}.track_ranges: expected a non-empty list of {{track, begin, end, direction}}")
-        pieces: dict[tuple[float, float], set[str]] = {}
+        pieces: dict[tuple[float, float, str], set[str]] = {}
         for k, r in enumerate(ranges):
             wr = f"{w}.track_ranges[{k}]"
             if not isinstance(r, dict):
@@ -103,16 +107,22 @@ def read_osrd(path: Path, infra: Path, path_ops: list[str], tz: str, s: ImportSu
             rd = r.get("direction", "START_TO_STOP")
             if rd not in OSRD_DIRECTIONS:
                 raise SourceError(f"{wr}.direction: {rd!r} is not {' or '.join(OSRD_DIRECTIONS)}")
-            for ca, cb, d in line_path.ranges(str(r.get("track")), min(b, e), max(b, e)):
-                pieces.setdefault((ca, cb), set()).add("down" if rd == d else "up")
+            track = str(r.get("track"))
+            for ca, cb, dirn in _on_network(places, track, min(b, e), max(b, e), rd):
+                ca, cb = max(ca, 0.0), min(cb, line_path.length)  # a track the path runs along only in part
+                if cb > ca:
+                    pieces.setdefault((ca, cb, places[track][2]), set()).add(dirn)
+            if track not in places:
+                s.notes.append(f"temporary speed limit {oid}: track range {track} {min(b, e):g}–{max(b, e):g} m lies "
+                               "on no track of the line's network: that piece not imported")
         if not pieces:
             s.notes.append(f"temporary speed limit {oid}: none of its track ranges lies on the line: not imported")
             continue
         merged = _merge(pieces)
-        for n, (a, b, dirn) in enumerate(merged):
+        for n, (a, b, dirn, track) in enumerate(merged):
             rid = oid if len(merged) == 1 else f"{oid}.{n + 1}"
             rows.append(dict(restriction_id=rid, start_m=a, end_m=b, limit_kmh=round(v * 3.6, 9), direction=dirn,
-                             train_type=None, valid_from=frm, valid_until=until,
+                             track=track, train_type=None, valid_from=frm, valid_until=until,
                              reason=f"OSRD temporary speed limit group {group}".strip() if group else
                              "OSRD temporary speed limit",
                              has_beacon=s.default("has_beacon", rid)))
@@ -120,17 +130,52 @@ def read_osrd(path: Path, infra: Path, path_ops: list[str], tz: str, s: ImportSu
     return restrictions_table(rows), names
 
 
-def _merge(pieces: dict[tuple[float, float], set[str]]) -> list[tuple[float, float, str]]:
-    """Touching chainage pieces of one limit with the same directions become one stretch; both directions
-    of one stretch are ``both``."""
+def track_places(topo, on_line: dict[str, tuple[float, int]]) -> dict[str, tuple[float, float, str, float]]:
+    """Where each source track of the imported network lies: ``track id → (chainage at its position 0, chainage
+    at its end, the track's name in edges.parquet, its length)``, for the tracks :func:`network_tables` keeps; a
+    position ``p`` on it is at ``c0 + (c1 - c0) · p / length``, as its points are placed there (exactly the line's
+    chainage on the line's own tracks). For what lies on a track off the line's path (a temporary restriction
+    on the other main or a loop)."""
+    from planner.line.importers.network import _UF, _chainage, _key, _labels, _track_groups
+
+    uf = _UF()
+    for _, _, members in topo.joins:
+        keys = [_key(t, p) for t, p, _ in members]
+        for k in keys[1:]:
+            uf.union(keys[0], k)
+    pos, keep = _chainage(topo, on_line, uf, [])
+    label = _labels(topo, on_line, _track_groups(topo, on_line), pos, uf)
+    return {t: (pos[uf.find(_key(t, 0.0))], pos[uf.find(_key(t, topo.lengths[t]))], label[t], topo.lengths[t])
+            for t in sorted(keep)}
+
+
+def _on_network(places: dict, track: str, begin: float, end: float, osrd_dir: str):
+    """``(chainage start, chainage end, direction)`` of a track range on the line's network
+    (:func:`track_places`: a position ``p`` of a track of length ``L`` lies at
+    ``c0 + (c1 - c0) · p / L``); a range run towards increasing chainage is ``down``. Nothing when the track is
+    not on the network or the range is empty there."""
+    if track not in places:
+        return
+    c0, c1, _, length = places[track]
+    lo, hi = max(begin, 0.0), min(end, length)
+    if hi <= lo or c1 == c0:
+        return
+    at = lambda p: round(c0 + (c1 - c0) * p / length, 6)  # noqa: E731
+    a, b = sorted((at(lo), at(hi)))
+    yield a, b, ("down" if (osrd_dir == "START_TO_STOP") == (c1 > c0) else "up")
+
+
+def _merge(pieces: dict[tuple[float, float, str], set[str]]) -> list[tuple[float, float, str, str]]:
+    """Touching chainage pieces of one limit on one track with the same directions become one stretch; both
+    directions of one stretch are ``both``."""
     out: list[list] = []
-    for (a, b), dirs in sorted(pieces.items()):
+    for (a, b, track), dirs in sorted(pieces.items(), key=lambda kv: (kv[0][2], kv[0][0], kv[0][1])):
         d = "both" if dirs == {"down", "up"} else next(iter(dirs))
-        if out and out[-1][2] == d and abs(out[-1][1] - a) < 1e-6:
+        if out and out[-1][2] == d and out[-1][3] == track and abs(out[-1][1] - a) < 1e-6:
             out[-1][1] = b
         else:
-            out.append([a, b, d])
-    return [tuple(x) for x in out]
+            out.append([a, b, d, track])
+    return [tuple(x) for x in sorted(out, key=lambda x: (x[0], x[1], x[3]))]
 
 
 def _validated(table: pa.Table, names: list[str], line: Line, tz: str, source: str) -> None:
