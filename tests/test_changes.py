@@ -70,3 +70,61 @@ def test_changes_carry_origin_destination_and_train_to_join_on():
     assert set(zip(legs.origin, legs.destination)) == {("C", "B")} and legs.train_id.isna().all()
     c = t[t.category == "conflict"].iloc[0]
     assert c.train_id == "202" and pd.isna(c.origin) and pd.isna(c.destination)
+
+
+def _day_manifest(day: str, restrictions: list[dict], not_running: list[str]) -> dict:
+    return {"operating_day": {"day": day, "lines": [{"line_id": "tiny", "restrictions": restrictions,
+                                                     "trains_not_running": not_running}]}}
+
+
+def _tsr(rid, a, b, kmh=45.0, direction="both", **kw):
+    return {"restriction_id": rid, "start_m": a, "end_m": b, "limit_kmh": kmh, "direction": direction,
+            "train_type": None, "valid_from": "2026-11-30T09:00", "valid_until": "2026-11-30T15:00",
+            "has_beacon": False, "whole_day": False, **kw}
+
+
+def test_the_days_restrictions_and_trains_are_input_changes_that_legs_are_traced_to():
+    """Restrictions that came into force, were lifted or changed between the two operating days, and trains that
+    run on one day only, are input changes of their own; the legs they reach name them. They were missing: a
+    day with a new restriction listed only the parameter day.day, and its slower legs as moved for no reason."""
+    from planner.report.changes import _causes, _day_changes
+
+    old = _day_manifest("2026-12-01", [_tsr("KEPT", 100.0, 200.0), _tsr("GONE", 300.0, 400.0),
+                                       _tsr("EDITED", 500.0, 600.0)], ["105"])
+    new = _day_manifest("2026-12-02", [_tsr("KEPT", 100.0, 200.0), _tsr("EDITED", 500.0, 600.0, kmh=25.0),
+                                       _tsr("NEW", 9000.0, 9300.0, kmh=40.0, direction="up", track="U1")], ["107"])
+    ch = LineChanges("tiny", "r1", "r2")
+    reach = _day_changes(ch, old, new)
+    got = [(r["category"], r["subject"], r["detail"]) for r in ch.rows]
+    assert got == [
+        ("restriction", "EDITED", "restriction EDITED (500–600 m, 25 km/h, both) changed: limit_kmh 45 → 25"),
+        ("restriction", "GONE", "restriction GONE (300–400 m, 45 km/h, both) lifted (operating day 2026-12-01 → "
+                                "2026-12-02)"),
+        ("restriction", "NEW", "restriction NEW (9000–9300 m, 40 km/h, up, track U1) came into force (operating "
+                               "day 2026-12-01 → 2026-12-02)"),
+        ("train", "105", "train 105 runs on 2026-12-02 (did not run on 2026-12-01)"),
+        ("train", "107", "train 107 does not run on 2026-12-02 (ran on 2026-12-01)")]
+    up = {"direction": "up", "train_type": "EMU10", "train_ids": ["105", "202"]}
+    assert _causes(reach, up, 8000.0, 9500.0, 200.0) == [2, 3]  # NEW reaches the leg; 105 runs it now
+    assert _causes(reach, {**up, "direction": "down", "train_ids": []}, 8000.0, 9500.0, 200.0) == []
+
+
+def test_the_printed_summary_names_each_leg_and_each_place_once():
+    """`planner diff` printed one line per measure and per conflict, each repeating the leg or the place."""
+    ch = LineChanges("tiny", "r1", "r2")
+    cause = ch.add("restriction", "NEW", "restriction NEW (...) came into force")
+    for m, a, b in (("min_running_time_s", 100.0, 110.0), ("margin_s", 10.0, -0.03)):
+        ch.add("leg", "EMU10 up C→B (scheduled 110 s)", f"leg EMU10 up C→B (scheduled 110 s): {m} {a} → {b} s",
+               field_=m, before=a, after=b, delta=b - a, caused_by=[cause])
+    ch.add("flag", "EMU10 up C→B (scheduled 110 s)", "leg EMU10 up C→B (scheduled 110 s): impossible appeared",
+           field_="impossible", before=False, after=True, caused_by=[cause])
+    for a, b in (("201", "202"), ("203", "204")):
+        ch.add("conflict", f"{a}/{b} at W2", f"conflict {a} before {b} at W2 (Bashi (B) track 1, km 1.0–1.1) "
+               "appeared (delay 4.4 s, timetable-order)", field_="delay_s", after=4.4)
+    lines = ch.summary_lines()
+    assert lines[1:] == [
+        "  [restriction] restriction NEW (...) came into force",
+        "  [leg] EMU10 up C→B (scheduled 110 s): min_running_time_s 100.0 → 110.0 s; margin_s 10.0 → -0.03 s; "
+        "impossible appeared; after restriction NEW (#0)",
+        "  [conflict] 2 conflicts appeared at W2 (Bashi (B) track 1, km 1.0–1.1): 202 waits 4.4 s for 201, 204 waits "
+        "4.4 s for 203"]

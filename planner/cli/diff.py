@@ -19,7 +19,6 @@ def diff(
     """Compare two runs line by line: changed inputs, and legs, flags, conflicts and bundles they changed."""
     from planner.io.atomic import write_bytes_atomic
     from planner.report.changes import compare_runs, write_changes
-    from planner.pages.changes import changes_html
     from .checks import check_out_dir
 
     check_out_dir(out, "--out", "changes dataset and page")
@@ -31,7 +30,25 @@ def diff(
             for f in write_changes(ch, out):
                 typer.echo(f"  wrote {f}")
             page = out / f"{ch.line_id}_changes.html"
-            write_bytes_atomic(page, ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>Changes "
-                                      f"{ch.base_run} → {ch.run}</title></head><body style='font-family:system-ui;"
-                                      "max-width:1200px;margin:auto'>" + changes_html(ch) + "</body></html>\n").encode())
+            write_bytes_atomic(page, diff_page(ch, run_a, run_b, out).encode())
             typer.echo(f"  wrote {page}")
+
+
+def diff_page(ch, run_a: Path, run_b: Path, out: Path) -> str:
+    """The page ``planner diff --out`` writes for one line: a title naming the line and both runs, links to
+    each run's overview (relative to the page, so the folders can move together), then the changes."""
+    import html
+    import os
+
+    from planner.pages.changes import changes_html
+
+    e = lambda x: html.escape(str(x), quote=True)  # noqa: E731
+    link = lambda run, rid: (f"<a href='{e(os.path.relpath(Path(run) / 'index.html', out))}'>"  # noqa: E731
+                             f"{e(rid)}</a>")
+    title = f"Line {ch.line_id}: run {ch.run} against run {ch.base_run}"
+    return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+            "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+            f"<title>{e(title)}</title></head><body style='font-family:system-ui;max-width:1200px;margin:auto;"
+            f"padding:0 12px'><h1 style='font-size:22px'>{e(title)}</h1>"
+            f"<p>Overviews: {link(run_a, ch.base_run)} (before) · {link(run_b, ch.run)} (after)</p>"
+            + changes_html(ch, title="What changed") + "</body></html>\n")

@@ -6,7 +6,10 @@
   parameter whose value differs, and for the line database every row of every
   table that was added, removed or changed (a run keeps a copy of its line
   tables under ``inputs/<line_id>/``, checked against the line's
-  ``source_digest`` in the manifest before it is read);
+  ``source_digest`` in the manifest before it is read); and the operating
+  days' own inputs (the manifests' ``operating_day``): each temporary
+  restriction that came into force, was lifted or changed, and each train that
+  runs on one day and not on the other;
 * **legs** — margin rows (stop → next stop, train type, direction, scheduled
   time) whose minimum running time, margin or bad-day margin moved by more
   than ``threshold_s``, or that appeared or disappeared; each is traced to the
@@ -67,12 +70,17 @@ LEG_MEASURES = ("min_running_time_s", "margin_s", "remaining_margin_s")
 LEG_FLAGS = ("impossible", "short_bad_day", "tight", "unreachable", "inaccurate", "unassessed")
 """The flags of a leg compared between runs (``infeasible`` is the first two together: not listed twice)."""
 
-CATEGORIES = ("code", "parameter", "line_table", "leg", "flag", "conflict", "bundle")
+CATEGORIES = ("code", "parameter", "line_table", "restriction", "train", "leg", "flag", "conflict", "bundle")
+INPUTS = CATEGORIES[:5]
+"""The categories of input changes: what a moved leg is traced to."""
+RESTRICTION_FIELDS = ("start_m", "end_m", "limit_kmh", "direction", "track", "train_type", "valid_from",
+                      "valid_until", "has_beacon", "whole_day")
+"""What of a temporary restriction in force is compared between two runs' operating days."""
 
 CHANGES_SCHEMA = declare([
     ("base_run", pa.string(), "run this one is compared with (the previous published run)"),
     ("change_id", pa.int32(), "number of the change within the line, from 0"),
-    ("category", pa.string(), "`code`, `parameter`, `line_table` (inputs); `leg`, `flag`, `conflict`, `bundle` (outputs)"),
+    ("category", pa.string(), "`code`, `parameter`, `line_table`, `restriction` (a temporary restriction that came into force, was lifted or changed between the two runs' operating days), `train` (a train that runs on one day and not on the other) (inputs); `leg`, `flag`, `conflict`, `bundle` (outputs)"),
     ("subject", pa.string(), "what changed: parameter key, table name, leg, flag, conflict or bundle file"),
     ("field", pa.string(), "column or measure that changed (its unit is in its name); `row` for a whole row"),
     ("before", pa.string(), "value in the base run, as text (empty: did not exist)"),
@@ -126,13 +134,56 @@ class LineChanges:
         return t.append_column("line", pa.array([self.line_id] * len(self.rows), pa.string()))
 
     def summary_lines(self) -> list[str]:
+        """What ``planner diff`` prints: a count per category, then one line per input change and per leg (every
+        measure and flag of a leg on its line, not one line each), with the input changes that moved it."""
         n = {c: len(self.of(c)) for c in CATEGORIES}
         out = [f"line {self.line_id}: {self.run} against {self.base_run}: "
                + (", ".join(f"{v} {k}" for k, v in n.items() if v) or "no changes")]
+        by_id = {r["change_id"]: r for r in self.rows}
+        groups: dict[tuple, list] = {}
         for r in self.rows:
-            out.append(f"  [{r['category']}] {r['detail']}")
+            if r["category"] in ("leg", "flag"):
+                key = ("leg", r["subject"])
+            elif r["category"] == "conflict":  # one line per place and way: the conflicts of a clock-face timetable
+                key = ("conflict", (r["subject"].split(" at ", 1)[1], r["after"] != ""))
+            else:
+                key = ("", r["change_id"])
+            groups.setdefault(key, []).append(r)
+        for (kind, subject), rows in groups.items():
+            if not kind or len(rows) == 1 and kind == "conflict":
+                out.append(f"  [{rows[0]['category']}] {rows[0]['detail']}")
+                continue
+            if kind == "conflict":
+                first = rows[0]["detail"]
+                place = first[first.index(" at ") + 4:first.rindex(" appeared" if subject[1] else " cleared")]
+                pairs = [f"{b} waits {_num(r['after'] or r['before']):.1f} s for {a}"
+                         for r in rows for a, b in [r["subject"].split(" at ")[0].split("/", 1)]]
+                out.append(f"  [conflict] {len(rows)} conflicts {'appeared' if subject[1] else 'cleared'} at {place}: "
+                           + ", ".join(pairs[:6]) + (f" and {len(pairs) - 6} more" if len(pairs) > 6 else ""))
+                continue
+            prefix = f"leg {subject}"
+            bits = [r["detail"][len(prefix):].lstrip(": ") if r["detail"].startswith(prefix) else r["detail"]
+                    for r in rows]
+            causes = sorted({c for r in rows for c in r["caused_by"]})
+            why = ("; after " + ", ".join(_cause(by_id[c]) for c in causes[:3])
+                   + (f" and {len(causes) - 3} more" if len(causes) > 3 else "")) if causes else ""
+            out.append(f"  [leg] {subject}: {'; '.join(bits)}{why}")
         out += [f"  note: {x}" for x in self.notes]
         return out
+
+
+def _cause(r: dict) -> str:
+    """An input change named in a few words: ``restriction TSR-1 (#4)``, ``speed_limits row (#2)``."""
+    what = {"restriction": f"restriction {r['subject']}", "train": f"train {r['subject']}",
+            "line_table": f"{r['subject']} change", "parameter": f"parameter {r['subject']}"}.get(
+        r["category"], r["category"])
+    return f"{what} (#{r['change_id']})"
+
+
+def seconds(v: float) -> str:
+    """A time in seconds to 0.1 s, or to 0.01 s where 0.1 s would round a non-zero value to 0.0 (a margin of
+    −0.03 s is flagged impossible: it must not read 0.0)."""
+    return f"{v:.2f}" if v != 0.0 and round(v, 1) == 0.0 else f"{v:.1f}"
 
 
 def _text(v: Any) -> str:
@@ -336,6 +387,52 @@ def _input_changes(ch: LineChanges, old_dir: Path, old_m: dict, new_dir: Path, n
     return reach
 
 
+def _day_changes(ch: LineChanges, old_m: dict, new_m: dict) -> dict[int, dict]:
+    """The operating days' inputs: temporary restrictions in force on one day and not on the other (or in force
+    on both, changed), and trains that run on one day only; returns them by id with their reach."""
+    def of(m):
+        return next((x for x in (m.get("operating_day") or {}).get("lines", []) if x.get("line_id") == ch.line_id),
+                    None)
+
+    o, n = of(old_m), of(new_m)
+    if o is None or n is None:
+        return {}
+    days = f"{(old_m.get('operating_day') or {}).get('day')} → {(new_m.get('operating_day') or {}).get('day')}"
+    reach: dict[int, dict] = {}
+    ro = {r["restriction_id"]: r for r in o.get("restrictions", [])}
+    rn = {r["restriction_id"]: r for r in n.get("restrictions", [])}
+    for rid in sorted(set(ro) | set(rn)):
+        a, b = ro.get(rid), rn.get(rid)
+        r = b or a
+        text = (f"{r['start_m']:.0f}–{r['end_m']:.0f} m, {r['limit_kmh']:g} km/h, {r['direction']}"
+                + (f", track {r['track']}" if r.get("track") else "")
+                + (f", {r['train_type']} only" if r.get("train_type") else ""))
+        scope = {"extent": (float(r["start_m"]), float(r["end_m"])), "train_type": r.get("train_type"),
+                 "direction": r.get("direction"), "train_id": None, "all": False}
+        common = dict(direction=r.get("direction"), train_type=_str(r.get("train_type")),
+                      from_m=float(r["start_m"]), to_m=float(r["end_m"]))
+        if a is None or b is None:
+            cid = ch.add("restriction", rid, f"restriction {rid} ({text}) {'came into force' if b else 'lifted'} "
+                         f"(operating day {days})", field_="row", before="" if b else "in force",
+                         after="in force" if b else "", **common)
+            reach[cid] = scope
+            continue
+        moved = [f for f in RESTRICTION_FIELDS if _canon(a.get(f)) != _canon(b.get(f))]
+        if moved:
+            cid = ch.add("restriction", rid, f"restriction {rid} ({text}) changed: " + ", ".join(
+                f"{f} {_text(a.get(f)) or '(none)'} → {_text(b.get(f)) or '(none)'}" for f in moved),
+                field_=",".join(moved), before=json.dumps({f: a.get(f) for f in moved}, default=str),
+                after=json.dumps({f: b.get(f) for f in moved}, default=str), **common)
+            reach[cid] = scope
+    off_o, off_n = set(o.get("trains_not_running", [])), set(n.get("trains_not_running", []))
+    for tid, runs in sorted([(t, True) for t in off_o - off_n] + [(t, False) for t in off_n - off_o]):
+        cid = ch.add("train", tid, f"train {tid} {'runs' if runs else 'does not run'} on {days.split(' → ')[1]} "
+                     f"({'did not run' if runs else 'ran'} on {days.split(' → ')[0]})", field_="runs",
+                     before=not runs, after=runs, train_id=tid)
+        reach[cid] = {"extent": None, "train_type": None, "direction": None, "train_id": tid, "all": False}
+    return reach
+
+
 def _str(v) -> str | None:
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return None
@@ -421,7 +518,7 @@ def _leg_changes(ch: LineChanges, old, new, reach: dict[int, dict], threshold_s:
             if math.isfinite(va) and math.isfinite(vb) and abs(vb - va) > threshold_s:
                 moved.append((m, va, vb))
         for m, va, vb in moved:
-            ch.add("leg", label, f"leg {label}: {m} {va:.1f} → {vb:.1f} s ({vb - va:+.1f} s)", field_=m,
+            ch.add("leg", label, f"leg {label}: {m} {seconds(va)} → {seconds(vb)} s ({vb - va:+.1f} s)", field_=m,
                    before=round(va, 3), after=round(vb, 3), delta=vb - va, **common)
         for f in LEG_FLAGS:
             fa, fb = _flag(a, f), _flag(b, f)
@@ -447,7 +544,7 @@ def _flag_measure(f: str, a: dict, b: dict) -> str:
     m, word = {"impossible": ("margin_s", "margin"), "unreachable": ("margin_s", "margin"),
                "inaccurate": ("closed_loop_max_error_s", "closed-loop error")}.get(
         f, ("remaining_margin_s", "bad-day margin"))
-    return f"{word} {_num(a.get(m)):.1f} → {_num(b.get(m)):.1f} s"
+    return f"{word} {seconds(_num(a.get(m)))} → {seconds(_num(b.get(m)))} s"
 
 
 def _conflict_changes(ch: LineChanges, old, new) -> None:
@@ -497,6 +594,7 @@ def compare_runs(old_dir: str | Path, new_dir: str | Path, *, threshold_s: float
     for lid in ids:
         ch = LineChanges(lid, str(om["run_id"]), str(nm["run_id"]), float(threshold_s))
         reach = _input_changes(ch, old_dir, om, new_dir, nm)
+        reach.update(_day_changes(ch, om, nm))
         geometry = _geometry(new_dir, nm, lid)
         _leg_changes(ch, read_line_dataset(old_dir, "margins", lid), read_line_dataset(new_dir, "margins", lid),
                      reach, threshold_s, geometry)
