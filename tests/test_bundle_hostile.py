@@ -205,3 +205,14 @@ def test_good_bundle_opens_only_into_dest(tmp_path, good_members):
     assert sorted(os.listdir(tmp_path / "dest")) == sorted(good_members)
     for n, d in good_members.items():
         assert (tmp_path / "dest" / n).read_bytes() == d
+
+
+def test_a_file_that_is_no_tar_is_refused_without_showing_its_text(tmp_path):
+    """`bundle verify README.md` printed the file's first line as a member name "of unknown type"."""
+    text = b"# planner\n\nsecret first words of some text file\n" * 40
+    assert_refused(tmp_path, text + b"\0" * (-len(text) % 512), "not a bundle: no tar header at byte 0")
+    with pytest.raises(BundleError) as e:
+        path = tmp_path / "t.pdb"
+        path.write_bytes(text + b"\0" * (-len(text) % 512))
+        verify_bundle(path, PUB)
+    assert "secret" not in str(e.value)

@@ -142,6 +142,11 @@ def unpack(f, file_size: int, where: str) -> dict[str, bytes]:
             if f.read(1):
                 raise fail(where, f"unexpected data after the end of the archive at byte {pos}")
             break
+        if h[257:262] != b"ustar":  # not a tar header at all (POSIX or GNU): say so, never show what the file holds
+            raise fail(where, f"not a bundle: no tar header at byte {pos - _BLOCK} (a bundle is the .pdb file "
+                              "planner bundle build or planner run writes)" if not members else
+                       f"no tar header at byte {pos - _BLOCK} after member {next(reversed(members))!r} "
+                       "(damaged or not written by planner)")
         name = _member_name(h, members, where)
         size = _parse_octal(h[124:136], f"member {name!r} size", where)
         bound = MAX_MANIFEST_BYTES if name in (MANIFEST, SIGNATURE) else MAX_MEMBER_BYTES
