@@ -72,6 +72,32 @@ def test_graph_page_draws_hovers_selects_and_zooms(browser, tiny, tmp_path):
     assert page.errors == []
 
 
+def test_graph_page_draws_the_days_restrictions_train_numbers_and_a_km_axis(browser, tiny, tmp_path):
+    """A restriction in force 05:30-06:30 on 1000-1400 m is a block at those times and chainages; each train's
+    number is written at its departure in a view of three hours or less; the right axis is in km."""
+    from planner.report.train_graph import graph_data
+    from planner.pages.train_graph import write_page
+
+    data = graph_data(tiny)
+    data.restrictions = [("TSR-1", 1000.0, 1400.0, 19800.0, 23400.0, 40.0, "down")]
+    page = browser.open(write_page(data, tmp_path / "g.html"))
+    _clean(page)
+    page.eval("document.querySelector('button.hour[data-t0=\"21600\"]').click()")  # 06:00-07:00
+    block = page.eval("(() => { const r = document.querySelector('#restrictions rect.tsr');"
+                      " return [+r.getAttribute('x'), +r.getAttribute('y'), +r.getAttribute('width'),"
+                      " +r.getAttribute('height'), sx(21600), sx(23400), sy(1000), sy(1400),"
+                      " r.querySelector('title').textContent]; })()")
+    x, y, w, h, x_view, x_end, y_a, y_b, title = block
+    assert (x, y) == pytest.approx((x_view, y_a)) and x + w == pytest.approx(x_end) and y + h == pytest.approx(y_b)
+    assert title == "TSR-1: 40 km/h down, km 1.000–1.400, 05:30–06:30"
+    labels = page.eval("[...document.querySelectorAll('text.train-label')].map(t => t.textContent)")
+    assert sorted(labels) == sorted(t.train_id for t in tiny.trains if 21600 <= t.calls[0].departure_s < 25200)
+    km = page.eval("[...document.querySelectorAll('#axis text.tick')].map(t => t.textContent).filter(s => /km/.test(s))")
+    assert km and km[0].endswith(" km")
+    page.eval("document.querySelector('button.hour[data-t0=\"3600\"]')?.click()")
+    assert page.errors == []
+
+
 def _fake_run(tmp_path: Path, line) -> Path:
     """A run folder with what the overview reads: manifest, inputs copy, one dataset, signed bundles, pages."""
     from planner.bundle.container import build_line

@@ -252,6 +252,20 @@ def _track_users(line: Line, on_tracks: list) -> dict[str, set[str]]:
             for r in on_tracks}
 
 
+def restriction_blocks(d: DayInputs) -> list[tuple]:
+    """The day's temporary restrictions as time–location blocks for the train graph: ``(restriction_id, start_m,
+    end_m, from_s, until_s, limit_kmh, direction)``, the validity on the timetable's clock (s after midnight of
+    the operating day, as the trains' times: :func:`~planner.line.operating_day.timetable_instant`) clipped to
+    the day's window."""
+    from planner.line.operating_day import timetable_instant
+    from planner.line.units import kmh
+
+    w = d.window
+    base = timetable_instant(w.day, w.time_zone, 0.0)
+    return [(r.restriction_id, r.start_m, r.end_m, max(r.valid_from_s, w.start_s) - base,
+             min(r.valid_until_s, w.end_s) - base, round(kmh(r.limit_ms), 9), r.direction) for r in d.restrictions]
+
+
 def lifted_key(lifted: dict) -> list:
     """The lifted map as plain, ordered data for a cache key."""
     return sorted([tid, seq, list(ids)] for (tid, seq), ids in lifted.items())
@@ -312,5 +326,5 @@ def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInput
 
 
 __all__ = ["bundle_day", "day_and_feed", "day_changes", "day_digest", "day_inputs", "day_line", "day_problems",
-           "day_record", "feed_of", "lifted_key", "lifted_restrictions", "line_digest", "plan_day", "resolve_day",
+           "day_record", "feed_of", "lifted_key", "lifted_restrictions", "restriction_blocks", "line_digest", "plan_day", "resolve_day",
            "time_zone", "window", "with_day"]

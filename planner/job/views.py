@@ -90,16 +90,17 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> N
 
     copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
-    from planner.job.day import window
+    from planner.job.day import day_inputs, restriction_blocks, window
 
     label = _run_label(job, summary)
+    blocks = restriction_blocks(day_inputs(job, line)) if job.day.day else []  # the graph's restriction blocks
 
     def start_page(legs: dict) -> None:
         """The train graph page starts on a worker as soon as the legs' chart links are known, while this
         process writes the tables' dataset and page: on a large line it is the run's last long unit."""
         with runner.progress.step("graph"):  # the page's own time is counted where run_views takes it
-            page = background(graph_page, (line, stage, paths, legs, label, check), name=job.parallel.backend,
-                              n_jobs=job.parallel.n_jobs)
+            page = background(graph_page, (line, stage, paths, legs, label, check, blocks),
+                              name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
         summary.pending.append(page)
         summary.graph_pages.append(page)
 
@@ -111,10 +112,11 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> N
     give_back()  # the pages of the legs' runs (planner.io.memory)
 
 
-def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool) -> None:
+def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool, blocks=()) -> None:
     """Write ``graph/<line>_graph.html``: the line's train graph from its trajectories (``paths``) and the run's
     occupation, conflicts and margin totals datasets, each train linked to its legs' charts (``legs``, from
-    :func:`planner.job.train_views.train_views`). Module level: the nightly job runs it on a worker."""
+    :func:`planner.job.train_views.train_views`) and the day's restrictions as time–location blocks (``blocks``,
+    :func:`planner.job.day.restriction_blocks`). Module level: the nightly job runs it on a worker."""
     from planner.job.train_views import timetable_href
     from planner.pages.train_graph import write_page
     from planner.report.published_run import path_id, read_line_dataset
@@ -124,6 +126,7 @@ def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool) ->
     con = read_line_dataset(stage, "conflicts", line.line_id)
     mt = read_line_dataset(stage, "margin_totals", line.line_id)
     data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
+    data.restrictions = list(blocks)
     if check and line.network is not None and (occ is None or con is None):
         data.notes.append("the run has no occupation/conflicts datasets for this line")
     write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html", run_label=label,

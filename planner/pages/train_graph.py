@@ -104,6 +104,8 @@ def _payload_parts(data: GraphData) -> Iterator[tuple[str, Any, type | None]]:
     yield "windows", _windows(data, res), dict
     yield "resources", list(res), None  # after the windows, which number them
     yield "conflicts", _conflicts(data), None
+    yield "restrictions", [[rid, _num(a, 0), _num(b, 0), _num(t0), _num(t1), lim, d]
+                           for rid, a, b, t0, t1, lim, d in data.restrictions], None
     yield "notes", data.notes, None
 
 

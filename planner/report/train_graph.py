@@ -249,6 +249,10 @@ class GraphData:
     conflicts: Any = None
     margins: dict[str, dict[str, float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    restrictions: list[tuple] = field(default_factory=list)
+    """The day's temporary restrictions as time–location blocks, ``(restriction_id, start_m, end_m, from_s,
+    until_s, limit_kmh, direction)``, times on the timetable's clock (s after midnight of the operating day),
+    clipped to the day (:func:`planner.job.day.restriction_blocks`); empty without a day."""
 
     def train(self, train_id: str) -> TrainPath:
         """The train of that id, matched as :func:`match_train` does (case-insensitive when unambiguous)."""

@@ -4,7 +4,7 @@ const NS = "http://www.w3.org/2000/svg";
 const svg = document.getElementById("graph");
 const tip = document.getElementById("tip");
 const wrap = document.getElementById("wrap");
-const M = {l: 150, r: 16, t: 14, b: 30};
+const M = {l: 150, r: 58, t: 14, b: 30};
 // the plot fills the window below the bars (never under 320 px): set on every layout, so a resize follows
 let H = 640;
 function fitHeight() { return Math.max(320, Math.floor(innerHeight - (wrap.getBoundingClientRect().top + window.scrollY) - 14)); }
@@ -40,7 +40,14 @@ const PW = () => W() - M.l - M.r;
 let PH = H - M.t - M.b;
 const y0 = D.line.start_m, y1 = D.line.end_m;
 // layers: axes, stairway, trains (one viewBox-scaled group), conflicts, highlight, ticks
+// the day's temporary restrictions: hatched time-location blocks (drawn in pixels, so the hatching keeps its size)
+const defs = el("defs", {}, svg);
+const hatch = el("pattern", {id: "tsr-hatch", patternUnits: "userSpaceOnUse", width: 8, height: 8,
+  patternTransform: "rotate(45)"}, defs);
+el("rect", {width: 8, height: 8, fill: "#ef6c00", "fill-opacity": 0.10}, hatch);
+el("line", {x1: 0, y1: 0, x2: 0, y2: 8, stroke: "#ef6c00", "stroke-width": 2.5, "stroke-opacity": 0.55}, hatch);
 const gGrid = el("g", {id: "grid"}, svg);
+const gTsr = el("g", {id: "restrictions"}, svg);
 const inner = el("svg", {id: "plot", x: M.l, y: M.t, preserveAspectRatio: "none", overflow: "hidden"}, svg);
 const gStair = el("g", {id: "stair"}, inner);
 const gTrains = el("g", {id: "trains", fill: "none"}, inner);
@@ -91,12 +98,15 @@ function layout() {
   svg.setAttribute("viewBox", "0 0 " + w + " " + H);
   inner.setAttribute("width", PW()); inner.setAttribute("height", PH);
   inner.setAttribute("viewBox", st.t0 + " " + y0 + " " + (st.t1 - st.t0) + " " + (y1 - y0));
-  gGrid.textContent = ""; gAxis.textContent = "";
+  gGrid.textContent = ""; gAxis.textContent = ""; gTsr.textContent = "";
   for (const s of D.stations) {
     el("line", {x1: M.l, x2: w - M.r, y1: sy(s[2]), y2: sy(s[2]), stroke: "#d5d9de"}, gGrid);
     const t = el("text", {x: M.l - 6, y: sy(s[2]) + 4, "text-anchor": "end", "font-size": 12}, gAxis);
     t.textContent = s[1] + " (" + s[0] + ")";
   }
+  kmAxis(w);
+  tsrBlocks();
+  trainLabels();
   const span = st.t1 - st.t0;
   const step = span > 6 * 3600 ? 3600 : span > 2 * 3600 ? 1800 : span > 3600 ? 600 : span > 1200 ? 300 : 60;
   for (let t = Math.ceil(st.t0 / step) * step; t <= st.t1; t += step) {
@@ -109,6 +119,46 @@ function layout() {
   document.getElementById("range").textContent = hhmm(st.t0) + " – " + hhmm(st.t1);
   sizeConflicts();
   for (const b of document.querySelectorAll("#hours button")) b.classList.toggle("on", +b.dataset.t0 === st.t0 && +b.dataset.t1 === st.t1);
+}
+function kmAxis(w) {
+  // chainage in km on the right, at a round step giving about eight ticks
+  const span = (y1 - y0) / 1000, steps = [0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200];
+  const step = steps.find(k => span / k <= 10) || 500;
+  const first = Math.ceil(y0 / 1000 / step) * step;
+  for (let k = first; k <= y1 / 1000 + 1e-9; k += step) {
+    const y = sy(k * 1000);
+    el("line", {x1: w - M.r, x2: w - M.r + 4, y1: y, y2: y, stroke: "#8a9199"}, gAxis);
+    const lab = el("text", {x: w - M.r + 7, y: y + 4, "font-size": 11, class: "tick"}, gAxis);
+    lab.textContent = (+k.toFixed(1)).toString() + (k === first ? " km" : "");
+  }
+}
+function clip(v, lo, hi) { return Math.min(Math.max(v, lo), hi); }
+function tsrBlocks() {
+  for (const r of D.restrictions || []) {
+    if (r[4] <= st.t0 || r[3] >= st.t1) continue;
+    const xa = clip(sx(r[3]), M.l, M.l + PW()), xb = clip(sx(r[4]), M.l, M.l + PW());
+    const ya = sy(r[1]), yb = sy(r[2]), h = Math.max(yb - ya, 3);
+    const b = el("rect", {x: xa, y: ya, width: Math.max(xb - xa, 1), height: h, fill: "url(#tsr-hatch)",
+      stroke: "#ef6c00", "stroke-width": 1, class: "tsr"}, gTsr);
+    const dir = r[6] === "both" ? "" : " " + r[6];
+    el("title", {}, b).textContent = r[0] + ": " + r[5] + " km/h" + dir + ", km " + (r[1] / 1000).toFixed(3) + "–" +
+      (r[2] / 1000).toFixed(3) + ", " + hhmm(r[3]) + "–" + hhmm(r[4]);
+    const lab = el("text", {x: xa + 3, y: ya - 3, "font-size": 11, fill: "#b34700", class: "tsr-label"}, gTsr);
+    lab.textContent = r[0] + " " + r[5] + " km/h" + dir;
+  }
+}
+function trainLabels() {
+  // train numbers on their lines where the view is narrow enough to read them (three hours or less)
+  if (st.t1 - st.t0 > 3 * 3600) return;
+  for (const tr of D.trains) {
+    if (!st.show[tr.dir] || tr.t1 <= st.t0 || tr.t0 >= st.t1) continue;
+    if (tr.t0 < st.t0 && st.t1 - st.t0 > 3600) continue;  // at its departure; at the left edge only within an hour
+    const t = Math.max(tr.t0, st.t0), x = xAt(tr, t);
+    if (x === null || !isFinite(x)) continue;
+    const lab = el("text", {x: sx(t) + 3, y: sy(x) + (tr.dir === "down" ? 12 : -3), "font-size": 11,
+      fill: D.colours[tr.dir + " " + tr.svc], class: "train-label"}, gAxis);
+    lab.textContent = tr.id;
+  }
 }
 function visible() {
   for (const tr of D.trains) tr.path.style.display = st.show[tr.dir] ? "" : "none";
@@ -318,7 +368,7 @@ for (let t = D.day[0]; t < D.day[1]; t += 3600) {
   b.dataset.t0 = t; b.dataset.t1 = t + 3600; b.title = hhmm(t) + "–" + hhmm(t + 3600); hours.appendChild(b);
 }
 hours.addEventListener("click", ev => { const b = ev.target.closest("button"); if (b) setView(+b.dataset.t0, +b.dataset.t1); });
-for (const k of ["down", "up", "conflicts"]) document.getElementById("show-" + k).addEventListener("change", ev => { st.show[k] = ev.target.checked; visible(); });
+for (const k of ["down", "up", "conflicts"]) document.getElementById("show-" + k).addEventListener("change", ev => { st.show[k] = ev.target.checked; visible(); layout(); });
 document.getElementById("find").addEventListener("change", ev => {
   const tr = findTrain(ev.target.value);
   ev.target.style.background = tr || !ev.target.value ? "" : "#fdecea";
