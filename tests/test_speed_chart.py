@@ -54,11 +54,17 @@ def _parse(fragment: str):
     return svg, legend
 
 
-def _polyline(svg, colour: str) -> np.ndarray:
-    """The points (user units) of the one polyline drawn in ``colour``."""
-    got = [p for p in svg.iter(f"{SVG}polyline") if p.get("stroke") == colour]
+def _polyline(svg, colour: str, box=None) -> np.ndarray:
+    """The points (user units) of the one polyline drawn in ``colour`` (inside the panel ``box``, if given:
+    the speed and the time panel draw a run in the same colour)."""
+    from planner.pages.speed_chart import SPEED_BOX
+
+    top, h = (box or SPEED_BOX)[1], (box or SPEED_BOX)[3]
+    pts = [np.array([[float(v) for v in pt.split(",")] for pt in p.get("points").split()])
+           for p in svg.iter(f"{SVG}polyline") if p.get("stroke") == colour]
+    got = [q for q in pts if np.all((q[:, 1] >= top - 1e-6) & (q[:, 1] <= top + h + 1e-6))]
     assert len(got) == 1, f"{len(got)} polylines in {colour}"
-    return np.array([[float(v) for v in pt.split(",")] for pt in got[0].get("points").split()])
+    return got[0]
 
 
 def _texts(svg) -> list[str]:
@@ -80,7 +86,7 @@ def test_the_minimum_run_lands_where_the_axes_put_it(charts):
     line, run, calls, *_ = _down_ab(charts)
     svg, _ = _parse(chart_svg(line, run, calls))
     left, top, w, h = SPEED_BOX
-    pts = _polyline(svg, "#1f5fa8")  # the minimum run
+    pts = _polyline(svg, "#9dbde6")  # the minimum run
     # departure at the stop marker at 0 km/h: 1/22 of the width in from the left (5 % margins of the leg), bottom
     assert pts[0] == pytest.approx([left + w / 22, top + h], abs=0.06)
     assert pts[-1] == pytest.approx([left + w * 21 / 22, top + h], abs=0.06)
@@ -101,8 +107,8 @@ def test_up_mirrors_x(charts):
 
     line, run, calls, *_ = _down_ab(charts)
     up = dataclasses.replace(run, key=("up",) + tuple(run.key[1:]))
-    a = _polyline(_parse(chart_svg(line, run, calls))[0], "#1f5fa8")
-    b = _polyline(_parse(chart_svg(line, up, calls))[0], "#1f5fa8")
+    a = _polyline(_parse(chart_svg(line, run, calls))[0], "#9dbde6")
+    b = _polyline(_parse(chart_svg(line, up, calls))[0], "#9dbde6")
     left, _, w, _ = SPEED_BOX
     assert len(a) == len(b)
     assert np.allclose(a[:, 0] + b[:, 0], 2 * left + w, atol=0.11)
@@ -121,6 +127,7 @@ def test_every_drawn_thing_is_in_the_legend(charts):
             f"on-time departure: ratio {round(run.ratio * 100)} % — {t_r:.1f} s (scheduled {run.key[4]:.0f} s)",
             "stopping pattern, lowest adhesion 1 km/h/s", "stopping pattern, highest adhesion 2.5 km/h/s",
             "signal", "ATS-P / TASC beacon", "evaluation point",  # SG1 at 1000 m, B1/B2 at 900/1000 m (down)
+            "scheduled running time",
             "gradient in the running direction [‰] (+ rising)", "curve (radius [m])"]  # R600 at 1200–1600 m
     assert legend == want
     # and what the legend names is drawn: one signal (triangle), two beacons (ticks), one evaluation point
@@ -242,6 +249,50 @@ def test_mid_steps_change_halfway_between_points():
     fig = Figure(100, 100)
     p = fig.panel((0, 0, 100, 100), (0, 10), (0, 10))
     p.steps_mid([0, 2, 4, 6, 10], [5, 5, 7, 7, 7], color="#000")
-    pts = _polyline(ET.fromstring(fig.svg()), "#000")
+    pts = _polyline(ET.fromstring(fig.svg()), "#000", (0, 0, 100, 100))
     # (0, 5) … (3, 5) | (3, 7) … (10, 7) in data; y up from the bottom
     assert pts.tolist() == [[0, 50], [30, 50], [30, 30], [100, 30]]
+
+
+def test_the_time_panel_shows_both_runs_and_a_late_arrival_is_called_late(charts):
+    """Time since departure along the leg: each run ends at its running time on the time axis; a leg whose
+    on-time departure arrives after the scheduled time says by how much (title, label and legend), and the
+    minimum run, drawn as a band under the on-time run, stays visible where the two coincide."""
+    from planner.pages.speed_chart import TIME_BOX, chart_svg
+
+    line, run, calls, *_ = _down_ab(charts)
+    t_r, t_m = float(run.t_s[0][-1]), float(run.t_s[1][-1])
+    svg, legend = _parse(chart_svg(line, run, calls))
+    left, top, w, h = TIME_BOX
+    y_top = max(float(run.key[4]), t_r, t_m) * 1.08
+    on_time, minimum = _polyline(svg, "#2e7d32", TIME_BOX), _polyline(svg, "#9dbde6", TIME_BOX)
+    assert on_time[-1, 1] == pytest.approx(top + h * (1 - t_r / y_top), abs=0.06)
+    assert minimum[-1, 1] == pytest.approx(top + h * (1 - t_m / y_top), abs=0.06)
+    assert "late" not in " ".join(_texts(svg)) and not any("late" in x for x in legend)
+    # the on-time ratio's run over the scheduled time, the leg not late (its minimum within it): said, not red
+    sched = round(t_r) - 1.0
+    over = dataclasses.replace(run, key=run.key[:4] + (sched,) + tuple(run.key[5:]))
+    svg, legend = _parse(chart_svg(line, over, calls))
+    words = " ".join(_texts(svg))
+    assert f"the run takes {t_r:.1f} s, {t_r - sched:.1f} s more than scheduled" in words and "late" not in words
+    _polyline(svg, "#2e7d32", TIME_BOX)
+    # a late leg: scheduled 10 s below the minimum run (its margin -10 s), the on-time run red and its lateness
+    sched = t_m - 10.0
+    late = dataclasses.replace(run, key=run.key[:4] + (sched,) + tuple(run.key[5:]),
+                               row={**run.row, "margin_s": -10.0})
+    svg, legend = _parse(chart_svg(line, late, calls))
+    words = " ".join(_texts(svg))
+    assert "late: the minimum run itself takes 10.0 s more than scheduled" in words
+    assert f"{t_r - sched:.1f} s late" in words and "on-time departure on a late leg (time panel)" in legend
+    _polyline(svg, "#c62828", TIME_BOX)
+
+
+def test_every_text_of_the_chart_is_at_least_11_px_in_a_1000_px_window(charts):
+    """The chart is drawn at the page's width: about 940 px of a 1000 px window (page margins), so its text must
+    be at least 11 / 0.78 user units of its 1200-unit view box; it was 8.5-10 (7 px)."""
+    from planner.pages.speed_chart import W, chart_svg
+
+    line, run, calls, pattern, points = next(c for c in charts if c[3] is not None)
+    svg, _ = _parse(chart_svg(line, run, calls, pattern, points))
+    sizes = [float(e.get("font-size")) for e in svg.iter() if e.get("font-size")]
+    assert sizes and min(sizes) * 940.0 / W >= 11.0, sorted(set(sizes))

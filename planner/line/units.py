@@ -73,6 +73,18 @@ def percent(ratio, none: str = "–") -> str:
     return t if t == none else f"{t} %"
 
 
+def tenths(x: float, sign: bool = False) -> str:
+    """A time or distance to 0.1 (``sign``: with a leading + or -), or to 0.01 where 0.1 would show a non-zero
+    value as 0.0: a margin of −0.03 s is flagged impossible and must not read 0.0 (:func:`fixed` writes 0.0
+    for a value that is zero to the digits shown, for tables where that is what a person wants).
+
+    >>> tenths(-0.032), tenths(0.032, sign=True), tenths(2.25, sign=True), tenths(0.0), tenths(-57.04)
+    ('-0.03', '+0.03', '+2.2', '0.0', '-57.0')
+    """
+    nd = 2 if x != 0.0 and round(x, 1) == 0.0 else 1
+    return f"{x:+.{nd}f}" if sign and x != 0.0 else f"{x:.{nd}f}"
+
+
 def fixed(x, nd: int = 1, sign: bool = False, none: str = "–") -> str:
     """A number as fixed-point text for a person to read: ``nd`` decimals, ``sign`` a leading + or -; a value
     that rounds to zero is written ``0.0``, never ``-0.0`` (nor ``+0.0``: a sign there would say which side of

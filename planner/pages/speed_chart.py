@@ -9,7 +9,13 @@ What it draws (an inline SVG written directly by :mod:`planner.pages.svg_plot`, 
 under it; up legs with the chainage running right to left, so the train runs left to right):
 
 * the run at the on-time ratio and the minimum run (ratio 1.0), the two
-  recorded runs of :class:`planner.report.train_timetable.LegRun`;
+  recorded runs of :class:`planner.report.train_timetable.LegRun`; the minimum
+  run as a wide light band under the on-time run, so both show where they
+  coincide (an on-time ratio of 100 %);
+* in a panel of its own, the time since departure along the leg of both runs
+  against the scheduled running time: a late leg (its minimum run over the
+  scheduled time) is said so above the chart, in red, and its on-time run is
+  red with its lateness written at the arrival;
 * the permanent speed limits that apply to the train (and the line maximum) and
   the on-board maximum it runs to (limit − the train's speed margin);
 * apart from them (orange, hatched, named by id): the day's temporary speed
@@ -20,6 +26,8 @@ under it; up legs with the chainage running right to left, so the train runs lef
 * the stopping pattern (stops and passes) as station lines, signals, ATS-P
   beacons and the evaluation points of the leg (``eval_points``);
 * below: the gradient [‰] and the curves (radius) along the leg.
+
+Its text is :data:`FONT` user units of a 1200-unit view box: 11 px or more when the page is 1000 px wide.
 
 The page around the chart names the run and its operating day and links to the run's
 other pages (:func:`planner.pages.run_head.nav_html`); the chart itself is a cached unit
@@ -40,7 +48,7 @@ import numpy as np
 
 from planner.line.daily import TEMPORARY_KIND
 from planner.line.model import sign
-from planner.line.units import fixed, kmh, percent
+from planner.line.units import kmh, percent, tenths
 
 TOL_V_KMH = 0.2
 TOL_X_M = 2.0
@@ -90,12 +98,16 @@ def _limit_steps(line, direction: str, train_type: str, lo: float, hi: float):
     return np.asarray(xs) / 1000.0, np.asarray(ys)
 
 
-W, H = 1200.0, 590.0
-"""The chart's size in user units (its ``viewBox``; it is drawn at the width of the page)."""
-SPEED_BOX = (64.0, 34.0, 1120.0, 380.0)
-GRADIENT_BOX = (64.0, 424.0, 1120.0, 120.0)
-"""(left, top, width, height) of the speed panel and of the gradient panel under it."""
-COLOURS = {"minimum": "#1f5fa8", "on_time": "#2e7d32", "limit": "#9e9e9e", "vmax": "#8c8c8c",
+W, H = 1200.0, 816.0
+"""The chart's size in user units (its ``viewBox``; it is drawn at the width of the page: about 0.8 px a unit in a
+1000 px window, so its text is :data:`FONT` units, 11 px or more there)."""
+FONT = 15.0
+"""The size of the chart's text (ticks, axis labels, station and restriction labels) in user units."""
+SPEED_BOX = (80.0, 56.0, 1100.0, 380.0)
+TIME_BOX = (80.0, 456.0, 1100.0, 150.0)
+GRADIENT_BOX = (80.0, 626.0, 1100.0, 120.0)
+"""(left, top, width, height) of the speed panel, the time panel and the gradient panel under them."""
+COLOURS = {"minimum": "#1f5fa8", "minimum_band": "#9dbde6", "on_time": "#2e7d32", "late": "#c62828", "limit": "#9e9e9e", "vmax": "#8c8c8c",
                "temporary": "#e65100", "signal": "#37474f", "beacon": "#6a1b9a", "eval": "#f2b705",
                "gradient": "#8d6e63", "curve": "#5a7da8"}
 """Colour of each thing drawn (the stopping patterns': :data:`PATTERN_STYLES`)."""
@@ -115,7 +127,7 @@ def _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, leg
     temps = temporary_limits(line, d, tt, lo, hi)
     top = float(np.nanmax(ly)) * (1.3 if temps else 1.14)  # room for the restrictions' ids under the stations
     p = fig.panel(SPEED_BOX, xlim, (0.0, top), x_inverted=d == "up", ylabel="speed [km/h]", xticks=False,
-                  ytarget=7)
+                  ytarget=7, font=FONT)
     c = COLOURS
     hatch = fig.hatch("tsr", fill="#fff3e8", stroke="#f2b48a") if temps else None
     for s in temps:  # under the curves: an opaque hatched band, the limit line over it
@@ -125,8 +137,9 @@ def _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, leg
     p.steps_mid(x / 1000.0, kmh(run.vmax_ms), color=c["vmax"], width=1.1)
     legend.append((swatch("line", color=c["vmax"], width=1.1), "on-board maximum (limit − margin)"))
     t_r, t_m = float(run.t_s[0][-1]), float(run.t_s[1][-1])
-    p.polyline(*_thin(x, kmh(run.v_ms[1])), color=c["minimum"], width=1.8)
-    legend.append((swatch("line", color=c["minimum"], width=1.8), f"minimum run: ratio 100 % — {t_m:.1f} s"))
+    # the minimum run as a wide light band under the on-time run: where they coincide (ratio 100 %) both show
+    p.polyline(*_thin(x, kmh(run.v_ms[1])), color=c["minimum_band"], width=5.0)
+    legend.append((swatch("line", color=c["minimum_band"], width=5.0), f"minimum run: ratio 100 % — {t_m:.1f} s"))
     p.polyline(*_thin(x, kmh(run.v_ms[0])), color=c["on_time"], width=1.6)
     legend.append((swatch("line", color=c["on_time"], width=1.6),
                    f"on-time departure: ratio {percent(run.ratio)} — {t_r:.1f} s (scheduled {sched:.0f} s)"))
@@ -137,14 +150,14 @@ def _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, leg
     for s in temps:
         a, b, v = max(s.start_m, lo) / 1000.0, min(s.end_m, hi) / 1000.0, kmh(s.limit_ms)
         p.polyline([a, a, b, b], [top * 0.8, v, v, top * 0.8], color=c["temporary"], width=1.8)
-        p.text(0.5 * (a + b), top * 0.8, [s.restriction_id, f"{v:.0f} km/h"], size=9, color="#bf360c", bold=True,
+        p.text(0.5 * (a + b), top * 0.8, [s.restriction_id, f"{v:.0f} km/h"], size=FONT, color="#bf360c", bold=True,
                va="bottom", box=("white", c["temporary"]))
     if temps:
         legend.append((swatch("patch", color="#fff3e8", hatch="#f2b48a"), "temporary speed restriction (the day's "
                        "feed), hatched, with its id and limit"))
     for sid, stops, pos in calls:
         p.vline(pos / 1000.0, color="#000", width=1.0 if stops else 0.7, dash=None if stops else (1.0, 1.65))
-        p.text(pos / 1000.0, top * 0.985, f"{sid}{'' if stops else ' (pass)'}", size=10,
+        p.text(pos / 1000.0, top * 0.985, f"{sid}{'' if stops else ' (pass)'}", size=FONT,
                box=("white" if stops else "#f3f3f3", "#000"))
     sig = signals if signals is not None else [s.position_m for s in line.signals
                                                if s.direction == d and lo <= s.position_m <= hi]
@@ -174,7 +187,7 @@ def _gradient_panel(fig, line, d: str, lo: float, hi: float, calls, xlim, legend
     g_lo, g_hi = min(0.0, float(np.min(g))), max(0.0, float(np.max(g)))
     pad = 0.05 * (g_hi - g_lo) if g_hi > g_lo else 1.0
     p = fig.panel(GRADIENT_BOX, xlim, (g_lo - pad, g_hi + pad), x_inverted=d == "up", ylabel="gradient [‰]",
-                  xlabel="chainage [km]", ytarget=4)
+                  xlabel="chainage [km]", ytarget=4, font=FONT)
     curves = [(max(a, lo), min(b, hi), r) for a, b, r in zip(line.curves.start_m, line.curves.end_m,
                                                              line.curves.value) if b > lo and a < hi]
     for a, b, _ in curves:
@@ -184,11 +197,48 @@ def _gradient_panel(fig, line, d: str, lo: float, hi: float, calls, xlim, legend
     for _, stops, pos in calls:
         p.vline(pos / 1000.0, color="#000", width=1.0 if stops else 0.7, dash=None if stops else (1.0, 1.65))
     for a, b, r in curves:
-        p.text(0.5 * (a + b) / 1000.0, 0.96, f"R{r:.0f}", size=8.5, color="#34507a", y_frac=True)
+        p.text(0.5 * (a + b) / 1000.0, 0.96, f"R{r:.0f}", size=FONT, color="#34507a", y_frac=True)
     legend.append((swatch("patch", color=c["gradient"], opacity=0.35), "gradient in the running direction [‰] "
                    "(+ rising)"))
     if curves:
         legend.append((swatch("patch", color=c["curve"], opacity=0.4), "curve (radius [m])"))
+    return p
+
+
+def late_s(t_s: float, scheduled_s: float) -> bool:
+    """Whether a run of ``t_s`` arrives after its scheduled running time (by more than the tables' tolerance)."""
+    from planner.report.margin_rule import TIME_TOL_S
+
+    return t_s - scheduled_s > TIME_TOL_S
+
+
+def _time_panel(fig, run, calls, xlim, legend):
+    """The middle panel: time since departure along the leg for both runs, and the scheduled running time, so a
+    run that arrives late ends above the scheduled line, and where along the leg it loses the time shows; on a
+    late leg (the minimum run itself over the scheduled time) the on-time run is red and its lateness written."""
+    from planner.pages.svg_plot import swatch
+
+    d, sched = run.key[0], float(run.key[4])
+    x = run.position_m / 1000.0
+    t_r, t_m = np.asarray(run.t_s[0], float), np.asarray(run.t_s[1], float)
+    top = max(sched, float(t_r[-1]), float(t_m[-1])) * 1.08
+    p = fig.panel(TIME_BOX, xlim, (0.0, top), x_inverted=d == "up", ylabel="time [s]", xticks=False,
+                  ytarget=4, font=FONT)
+    c = COLOURS
+    for _, stops, pos in calls:
+        p.vline(pos / 1000.0, color="#000", width=1.0 if stops else 0.7, dash=None if stops else (1.0, 1.65))
+    p.hline(sched, color="#555", width=1.0, dash=(6.0, 3.0))
+    p.text(0.005, sched, f"time since departure; scheduled {sched:.0f} s", size=FONT, color="#333", anchor="start",
+           va="bottom", x_frac=True, dy=-2)
+    k = np.unique(np.linspace(0, len(x) - 1, min(len(x), 600)).astype(int))  # time is smooth: 600 points draw it
+    p.polyline(x[k], t_m[k], color=c["minimum_band"], width=5.0)
+    late = late_s(float(t_m[-1]), sched)
+    p.polyline(x[k], t_r[k], color=c["late"] if late else c["on_time"], width=1.6)
+    if late:
+        p.text(float(x[-1]), float(t_r[-1]), f"{float(t_r[-1]) - sched:.1f} s late", size=FONT, color=c["late"],
+               anchor="end", va="bottom", bold=True, dy=-4)
+        legend.append((swatch("line", color=c["late"], width=1.6), "on-time departure on a late leg (time panel)"))
+    legend.append((swatch("line", color="#555", width=1.0, dash=(6.0, 3.0)), "scheduled running time"))
     return p
 
 
@@ -211,10 +261,21 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
     fig = Figure(W, H, ident="sc")
     legend: list = []
     _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, legend)
+    _time_panel(fig, run, calls, xlim, legend)
     _gradient_panel(fig, line, d, lo, hi, calls, xlim, legend)
+    t_r = float(run.t_s[0][-1])
+    margin = float(row["margin_s"])
+    late = late_s(-margin, 0.0)
+    verdict = (f"late: the minimum run itself takes {-margin:.1f} s more than scheduled; no departure arrives on "
+               "time" if late else
+               f"at the on-time ratio {percent(run.ratio)} the run takes {t_r:.1f} s, {t_r - float(sched):.1f} s more "
+               "than scheduled (the tables' ratio steps)" if late_s(t_r, float(sched)) else "")
     title = (f"{tt} {d} {o} → {de} ({(hi - lo) / 1000:.2f} km): scheduled {sched:.0f} s, minimum "
-             f"{float(row['min_running_time_s']):.1f} s, margin {fixed(float(row['margin_s']), 1, True)} s")
-    fig.title(8, 20, title)
+             f"{float(row['min_running_time_s']):.1f} s, margin {tenths(margin, sign=True)} s")
+    fig.title(8, 22, title, size=FONT + 2)
+    if verdict:
+        fig.title(8, 42, verdict, size=FONT + 1, color=COLOURS["late"] if late else "#444", bold=late)
+    title += f" ({verdict})" if verdict else ""
     return fig.svg(label=f"speed–distance chart: {title}") + legend_html(legend)
 
 

@@ -131,8 +131,8 @@ class Panel:
     then :meth:`Figure.svg` writes grid, data (clipped to the frame), frame, ticks and labels."""
 
     def __init__(self, index: int, box, xlim, ylim, *, x_inverted=False, xlabel="", ylabel="", xticks=True,
-                 yticks=True, xtarget=10, ytarget=6, grid="both"):
-        self.index, self.box = index, tuple(float(b) for b in box)
+                 yticks=True, xtarget=10, ytarget=6, grid="both", font: float = 10):
+        self.index, self.box, self.font = index, tuple(float(b) for b in box), float(font)
         left, top, w, h = self.box
         self.xlim, self.ylim = tuple(map(float, xlim)), tuple(map(float, ylim))
         self.x = Scale(*self.xlim, left + w, left) if x_inverted else Scale(*self.xlim, left, left + w)
@@ -304,25 +304,27 @@ class Panel:
                 grid.append(f"M{num(left)},{py}H{num(left + w)}")
             frame.append(f"M{num(left)},{py}h-4")
         text = []
+        f = self.font / 10.0  # offsets grow with the font (laid out for 10)
         if self.xticks:
-            text += [f'<text x="{num(self.x(t))}" y="{num(bottom + 16)}" text-anchor="middle">{t:.{xdec}f}</text>'
-                     for t in xt]
+            text += [f'<text x="{num(self.x(t))}" y="{num(bottom + 6 + 10 * f)}" text-anchor="middle">'
+                     f'{t:.{xdec}f}</text>' for t in xt]
         if self.yticks:
-            text += [f'<text x="{num(left - 7)}" y="{num(float(self.y(t)) + 3.5)}" text-anchor="end">'
+            text += [f'<text x="{num(left - 7)}" y="{num(float(self.y(t)) + 3.5 * f)}" text-anchor="end">'
                      f'{(t + 0.0):.{ydec}f}</text>' for t in yt]
         if self.xlabel:
-            text.append(f'<text x="{num(left + w / 2)}" y="{num(bottom + 34)}" text-anchor="middle">'
+            text.append(f'<text x="{num(left + w / 2)}" y="{num(bottom + 10 + 24 * f)}" text-anchor="middle">'
                         f'{esc(self.xlabel)}</text>')
         if self.ylabel:
             rows = self.ylabel.split("\n")
-            cx, cy = num(left - 44 - 12 * (len(rows) - 1)), num(top + h / 2)
-            body = "".join(f'<tspan x="{cx}" dy="{0 if k == 0 else 12}">{esc(s)}</tspan>' for k, s in enumerate(rows))
+            cx, cy = num(left - 14 - 30 * f - 12 * f * (len(rows) - 1)), num(top + h / 2)
+            body = "".join(f'<tspan x="{cx}" dy="{0 if k == 0 else num(12 * f)}">{esc(s)}</tspan>'
+                           for k, s in enumerate(rows))
             text.append(f'<text x="{cx}" y="{cy}" text-anchor="middle" transform="rotate(-90 {cx} {cy})">'
                         f'{body if len(rows) > 1 else esc(self.ylabel)}</text>')
         return (f'<path d="{"".join(grid)}" stroke="#e3e3e3" stroke-width="0.8"/>' if grid else "",
                 f'<rect x="{num(left)}" y="{num(top)}" width="{num(w)}" height="{num(h)}" fill="none" stroke="#222" '
                 f'stroke-width="0.8"/><path d="{"".join(frame)}" stroke="#222" stroke-width="0.8"/>'
-                f'<g font-size="10" fill="#222">{"".join(text)}</g>')
+                f'<g font-size="{self.font:g}" fill="#222">{"".join(text)}</g>')
 
 
 class Figure:
@@ -350,10 +352,11 @@ class Figure:
                          f'<line x1="0" y1="0" x2="0" y2="{s}" stroke="{stroke}" stroke-width="{width:g}"/></pattern>')
         return f"url(#{pid})"
 
-    def title(self, x: float, y: float, s: str, *, size: float = 14, bold: bool = True):
+    def title(self, x: float, y: float, s: str, *, size: float = 14, bold: bool = True, color: str | None = None):
         """A line of text at (x, y) user units (left end, baseline)."""
         weight = ' font-weight="bold"' if bold else ""
-        self.top.append(f'<text x="{num(x)}" y="{num(y)}" font-size="{size:g}"{weight}>{esc(s)}</text>')
+        fill = f' fill="{color}"' if color else ""
+        self.top.append(f'<text x="{num(x)}" y="{num(y)}" font-size="{size:g}"{weight}{fill}>{esc(s)}</text>')
 
     def svg(self, *, label: str = "") -> str:
         """The ``<svg>`` element (``label``: its ``aria-label``)."""

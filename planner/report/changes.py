@@ -44,6 +44,7 @@ from planner.io.parquet import declare
 from planner.report.bundle_changes import bundle_changes
 from planner.report.leg_flags import FLAG
 from planner.report.margin_rule import TIME_TOL_S
+from planner.line.units import tenths
 from planner.report.published_run import line_inputs, path_id, read_line_dataset, read_manifest
 
 THRESHOLD_S = 0.5
@@ -178,12 +179,6 @@ def _cause(r: dict) -> str:
             "line_table": f"{r['subject']} change", "parameter": f"parameter {r['subject']}"}.get(
         r["category"], r["category"])
     return f"{what} (#{r['change_id']})"
-
-
-def seconds(v: float) -> str:
-    """A time in seconds to 0.1 s, or to 0.01 s where 0.1 s would round a non-zero value to 0.0 (a margin of
-    −0.03 s is flagged impossible: it must not read 0.0)."""
-    return f"{v:.2f}" if v != 0.0 and round(v, 1) == 0.0 else f"{v:.1f}"
 
 
 def _text(v: Any) -> str:
@@ -518,7 +513,7 @@ def _leg_changes(ch: LineChanges, old, new, reach: dict[int, dict], threshold_s:
             if math.isfinite(va) and math.isfinite(vb) and abs(vb - va) > threshold_s:
                 moved.append((m, va, vb))
         for m, va, vb in moved:
-            ch.add("leg", label, f"leg {label}: {m} {seconds(va)} → {seconds(vb)} s ({vb - va:+.1f} s)", field_=m,
+            ch.add("leg", label, f"leg {label}: {m} {tenths(va)} → {tenths(vb)} s ({vb - va:+.1f} s)", field_=m,
                    before=round(va, 3), after=round(vb, 3), delta=vb - va, **common)
         for f in LEG_FLAGS:
             fa, fb = _flag(a, f), _flag(b, f)
@@ -544,7 +539,7 @@ def _flag_measure(f: str, a: dict, b: dict) -> str:
     m, word = {"impossible": ("margin_s", "margin"), "unreachable": ("margin_s", "margin"),
                "inaccurate": ("closed_loop_max_error_s", "closed-loop error")}.get(
         f, ("remaining_margin_s", "bad-day margin"))
-    return f"{word} {seconds(_num(a.get(m)))} → {seconds(_num(b.get(m)))} s"
+    return f"{word} {tenths(_num(a.get(m)))} → {tenths(_num(b.get(m)))} s"
 
 
 def _conflict_changes(ch: LineChanges, old, new) -> None:
