@@ -87,7 +87,8 @@ def test_the_days_restrictions_and_trains_are_input_changes_that_legs_are_traced
     """Restrictions that came into force, were lifted or changed between the two operating days, and trains that
     run on one day only, are input changes of their own; the legs they reach name them. They were missing: a
     day with a new restriction listed only the parameter day.day, and its slower legs as moved for no reason."""
-    from planner.report.changes import _causes, _day_changes
+    from planner.report.changes import _causes
+    from planner.report.input_changes import day_input_changes as _day_changes
 
     old = _day_manifest("2026-12-01", [_tsr("KEPT", 100.0, 200.0), _tsr("GONE", 300.0, 400.0),
                                        _tsr("EDITED", 500.0, 600.0)], ["105"])

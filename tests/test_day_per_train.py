@@ -286,3 +286,18 @@ def test_a_restriction_on_one_track_reaches_the_trains_routed_over_it_only():
     anywhere = dataclasses.replace(on_up, restriction_id="ANY", track=None)
     d = DayInputs(DAY, (on_up, on_main, anywhere), ("T1", "T2"))
     assert lifted_restrictions(line, d) == {("T1", 0): ("ON_U2",), ("T2", 0): ("ON_MAIN",)}
+
+
+def test_the_graphs_restriction_blocks_are_on_the_timetables_clock_within_the_day(straight):
+    """09:00-15:00 local is 32400-54000 s on the trains' clock; one in force since the day before starts at the
+    day's 03:00 start (10800 s); one running past the day's end stops at 03:00 next day (97200 s)."""
+    from planner.bundle.manifest import BundleDay
+    from planner.job.day import restriction_blocks
+
+    rs = (tsr("MID", "2026-11-30T09:00", "2026-11-30T15:00", direction="down"), WHOLE)
+    line, _ = day(straight, *rs)
+    bday = BundleDay("2026-11-30", TZ, DAY.start_s, DAY.end_s,
+                     tuple((r.restriction_id, r.valid_from_s, r.valid_until_s) for r in rs))
+    assert restriction_blocks(line, bday) == [("MID", 4800.0, 5200.0, 32400.0, 54000.0, 45.0, "down"),
+                                              ("WHOLE", 4800.0, 5200.0, 10800.0, 97200.0, 45.0, "both")]
+    assert restriction_blocks(line, None) == []

@@ -252,18 +252,23 @@ def _track_users(line: Line, on_tracks: list) -> dict[str, set[str]]:
             for r in on_tracks}
 
 
-def restriction_blocks(d: DayInputs) -> list[tuple]:
-    """The day's temporary restrictions as time–location blocks for the train graph: ``(restriction_id, start_m,
-    end_m, from_s, until_s, limit_kmh, direction)``, the validity on the timetable's clock (s after midnight of
-    the operating day, as the trains' times: :func:`~planner.line.operating_day.timetable_instant`) clipped to
-    the day's window."""
+def restriction_blocks(line: Line, bday) -> list[tuple]:
+    """The day's temporary restrictions on ``line`` (the day's line: :func:`day_line`) as time–location blocks for
+    the train graph: ``(restriction_id, start_m, end_m, from_s, until_s, limit_kmh, direction)``, the validity
+    (``bday``: :func:`bundle_day`) on the timetable's clock (s after midnight of the operating day, as the
+    trains' times: :func:`~planner.line.operating_day.timetable_instant`) clipped to the day's window. Empty
+    without a daily feed."""
+    from planner.line.daily import TEMPORARY_KIND
     from planner.line.operating_day import timetable_instant
     from planner.line.units import kmh
 
-    w = d.window
-    base = timetable_instant(w.day, w.time_zone, 0.0)
-    return [(r.restriction_id, r.start_m, r.end_m, max(r.valid_from_s, w.start_s) - base,
-             min(r.valid_until_s, w.end_s) - base, round(kmh(r.limit_ms), 9), r.direction) for r in d.restrictions]
+    if bday is None:
+        return []
+    base = timetable_instant(date.fromisoformat(bday.day), bday.time_zone, 0.0)
+    valid = {rid: (a, b) for rid, a, b in bday.restrictions}
+    return [(s.restriction_id, s.start_m, s.end_m, max(valid[s.restriction_id][0], bday.start_s) - base,
+             min(valid[s.restriction_id][1], bday.end_s) - base, round(kmh(s.limit_ms), 9), s.direction)
+            for s in line.speed_limits if s.kind == TEMPORARY_KIND and s.restriction_id in valid]
 
 
 def lifted_key(lifted: dict) -> list:

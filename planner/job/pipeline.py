@@ -498,7 +498,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     trajectories = graph.results()[0][0]
     summary.pending.remove(graph)
     del graph
-    line_views(job, line, stage, runner, summary, trajectories, charts)
+    line_views(job, line, stage, runner, summary, trajectories, charts, bday)
 
 
 def conflicts_status(job: Job, line: Line) -> str:

@@ -80,9 +80,10 @@ def graph_unit(job, line, lifted=None):
     return _unit("graph", key, _graph_unit, (line, check, lifted))
 
 
-def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> None:
+def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday=None) -> None:
     """Inputs copy, running-time tables and train graph page of one line (module doc); ``paths``: the result of
-    :func:`graph_unit`; ``charts``: the line's speed–distance charts if started already
+    :func:`graph_unit`; ``bday``: its operating day (:func:`planner.job.day.bundle_day`, None without a daily
+    feed); ``charts``: the line's speed–distance charts if started already
     (:func:`planner.job.train_views.start_charts`). The train graph page is written on a worker
     (:func:`graph_page`, in ``summary.graph_pages``) while this process writes the run's other pages."""
     from planner.io.parallel import background
@@ -90,10 +91,10 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None) -> N
 
     copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
-    from planner.job.day import day_inputs, restriction_blocks, window
+    from planner.job.day import restriction_blocks, window
 
     label = _run_label(job, summary)
-    blocks = restriction_blocks(day_inputs(job, line)) if job.day.day else []  # the graph's restriction blocks
+    blocks = restriction_blocks(line, bday)  # the day's restrictions, drawn on the train graph
 
     def start_page(legs: dict) -> None:
         """The train graph page starts on a worker as soon as the legs' chart links are known, while this
