@@ -97,3 +97,49 @@ def test_build_line_uses_each_vehicles_cruise_mode(keys, tmp_path):
         v = verify_bundle(info.path, keys[1])
         tt = Path(info.path).stem.split("_")[-1]
         assert ("table_d" in v.missing) == (types[tt] == "sawtooth")
+
+
+def _no_pattern_at(tables, station: str, levels=(3.0, 3.5)):
+    """The tables with the stop at ``station`` infeasible at ``levels`` (its stop_summary rows say so)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    ss = tables["stop_summary"]
+    bad = pc.and_(pc.equal(ss.column("station_id"), station), pc.is_in(ss.column("adhesion_kmh_s"),
+                                                                      value_set=pa.array(levels)))
+    i = ss.column_names.index("feasible")
+    return {**tables, "stop_summary": ss.set_column(i, "feasible", pc.invert(bad))}
+
+
+def test_a_bundle_that_cannot_stop_its_train_at_a_station_is_not_complete_and_names_the_stop(keys, line, tmp_path):
+    """A restriction left no stopping pattern at a station: the bundle held the patterns that exist and verified
+    as complete. Its signed manifest now names the stop and the levels, it is PARTIAL, and --require-complete
+    refuses it naming them (one line)."""
+    from planner.bundle.manifest import no_stop_text
+
+    info = verify_bundle(_build(_no_pattern_at(all_tables(line), "S2"), tmp_path, keys[0], "sawtooth").path, keys[1])
+    assert not info.missing and not info.complete
+    assert info.no_stop == ({"station_id": "S2", "origin": "S1", "adhesion_kmh_s": ["3.0", "3.5"]},)
+    assert no_stop_text(info.no_stop) == "S2 from S1 at 3…3.5 km/h/s (2 levels)"
+    assert info.summary()[-1] == "PARTIAL: no stopping pattern at S2 from S1 at 3…3.5 km/h/s (2 levels)"
+    args = ["bundle", "verify", str(info.path), "--public-key", str(keys[1]), "--expect", f"{LINE_ID}/down/E10"]
+    assert CliRunner().invoke(app, args).exit_code == 0  # verified: what it holds is sound, it says PARTIAL
+    r = CliRunner().invoke(app, args + ["--require-complete"])
+    assert r.exit_code == 1 and r.output.count("\n") == 1
+    assert "incomplete, no stopping pattern at S2 from S1 at 3…3.5 km/h/s (2 levels)" in r.output
+
+
+def test_a_bundle_signed_before_the_manifest_named_such_stops_is_partial_all_the_same(keys, line, tmp_path,
+                                                                                     monkeypatch):
+    """What the signed stop_summary says counts: a manifest without no_stop (signed by an earlier planner) does
+    not make a bundle that cannot stop its train complete; a no_stop that disagrees with it is never signed."""
+    import planner.bundle.container as container
+
+    tables = _no_pattern_at(all_tables(line), "S2")
+    monkeypatch.setattr(container, "no_stop_rows", lambda t: [])  # as an earlier planner signed it
+    info = verify_bundle(_build(tables, tmp_path / "old", keys[0], "sawtooth").path, keys[1])
+    assert not info.complete and info.no_stop[0]["station_id"] == "S2"
+    monkeypatch.setattr(container, "no_stop_rows",
+                        lambda t: [{"station_id": "S1", "origin": "S0", "adhesion_kmh_s": ["2.5"]}])
+    with pytest.raises(BundleError, match="manifest no_stop does not list the stops"):
+        _build(tables, tmp_path / "wrong", keys[0], "sawtooth")

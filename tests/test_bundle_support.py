@@ -101,8 +101,8 @@ def synthetic_tables(line, direction: str, train_type: str, ratios=(1.0, 0.8, 0.
                 td.append(dict(origin=a.station_id, destination=b.station_id, eval_point_id=pid,
                                eval_position_m=pos, speed_kmh=v, powering=True, ratio_after=r,
                                remaining_time_s=30.0 / r, remaining_time_ref_s=31.0 / r))
-    ss = [dict(station_id=b.station_id, adhesion_kmh_s=x, stop_time_s=20.0 + x, start_distance_m=300.0 - x)
-          for _, b in pairs for x in (2.5, 3.0, 3.5)]
+    ss = [dict(station_id=b.station_id, origin=a.station_id, adhesion_kmh_s=x, feasible=True, stop_time_s=20.0 + x,
+               start_distance_m=300.0 - x) for a, b in pairs for x in (2.5, 3.0, 3.5)]
     sm = [dict(station_id=b.station_id, adhesion_kmh_s=x, t_s=float(k), v_kmh=60.0 - k)
           for _, b in pairs for x in (2.5, 3.5) for k in range(4)]
     sm += [dict(station_id="S1", adhesion_kmh_s=9.0, t_s=float(k), v_kmh=float(k % 97)) for k in range(pad_rows)]

@@ -54,7 +54,7 @@ from planner.bundle.contents import CORE_SCHEMAS, check_keys, check_schema, chec
 from planner.bundle.manifest import (CORE_TABLES, BundleDay, EXPECTED_TABLES, FORMAT, MANIFEST, MAX_MEMBER_BYTES,
                                      MAX_TOTAL_BYTES, SCHEMA_VERSION, SHA256_RE, SIGNATURE, VEHICLE_TABLES,
                                      BundleInfo, Release, bundle_name, canonical_json, check_manifest,
-                                     expected_tables, format_time, manifest_info)
+                                     expected_tables, format_time, manifest_info, no_stop_rows)
 from planner.errors import BundleError
 from planner.io.atomic import write_bytes_atomic
 from planner.io.memory import give_back
@@ -169,6 +169,9 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     if day is not None:
         have = set(tables["restrictions"].column("restriction_id").to_pylist())
         manifest["operating_day"] = day.record(rid for rid, _, _ in day.restrictions if f"T.{rid}" in have)
+    no_stop = no_stop_rows(tables.get("stop_summary"))
+    if no_stop:  # signed: the vehicle knows where the bundle cannot stop it (never only a smaller stop_samples)
+        manifest["no_stop"] = no_stop
     check_manifest(manifest, "build")
     check_tables(tables, manifest, "build")  # never sign what verify would refuse
     mbytes = canonical_json(manifest)

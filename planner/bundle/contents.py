@@ -16,7 +16,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from planner.bundle import atsp
-from planner.bundle.manifest import CORE_TABLES, fail
+from planner.bundle.manifest import CORE_TABLES, fail, no_stop_rows
 from planner.io.parquet import declare
 from planner.line.model import sign
 from planner.tables.eval_points import KINDS as EVAL_POINT_KINDS
@@ -167,6 +167,7 @@ _REQUIRED_COLUMNS = {
     "table_c": ("origin", "destination", "eval_point_id", "ratio", "remaining_time_s", "remaining_time_ref_s"),
     "table_d": ("origin", "destination", "eval_point_id", "speed_kmh", "powering", "ratio_after",
                 "remaining_time_s", "remaining_time_ref_s"),
+    "stop_summary": ("station_id", "origin", "adhesion_kmh_s", "feasible"),
 }
 """Columns the cross-checks (and the vehicle) rely on in the tables step's datasets."""
 
@@ -184,6 +185,9 @@ def check_tables(tables: Mapping[str, pa.Table], m: dict, where: str) -> None:
             check_schema(name, t.schema, CORE_SCHEMAS[name], where)
     _check_core(tables, sign(m["direction"]), where)
     _check_step_tables(tables, where)
+    # a bundle signed before the manifest named them has no no_stop: what its stop_summary says counts (manifest_info)
+    if "no_stop" in m and m["no_stop"] != no_stop_rows(tables.get("stop_summary")):
+        raise fail(where, "manifest no_stop does not list the stops that stop_summary has no pattern for")
 
 
 def _check_core(tables: Mapping[str, pa.Table], sg: int, where: str) -> None:

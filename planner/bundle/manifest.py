@@ -282,6 +282,8 @@ class BundleInfo:
     expires: str = ""
     operating_day: dict | None = None
     """The manifest's ``operating_day`` (:class:`BundleDay`), or None for a bundle not bound to a day."""
+    no_stop: tuple = ()
+    """The manifest's ``no_stop``: the stops it has no stopping pattern for, at which adhesion levels."""
 
     @property
     def target(self) -> str:
@@ -290,8 +292,15 @@ class BundleInfo:
 
     @property
     def complete(self) -> bool:
-        """True when every expected table is present."""
-        return not self.missing
+        """True when every expected table is present and every stop has its stopping patterns at every adhesion
+        level (a bundle that cannot stop its train at a station is not complete)."""
+        return not self.missing and not self.no_stop
+
+    def incomplete_text(self) -> str:
+        """What the bundle lacks, in one line (empty when complete)."""
+        parts = ([f"missing {', '.join(self.missing)}"] if self.missing else []) + (
+            [f"no stopping pattern at {no_stop_text(self.no_stop)}"] if self.no_stop else [])
+        return "; ".join(parts)
 
     @property
     def tables(self) -> tuple[str, ...]:
@@ -313,7 +322,7 @@ class BundleInfo:
                           f"{d['valid_until']}; temporary restrictions: {', '.join(d['restrictions']) or 'none'}")
         for f in self.files:
             out.append(f"  {f.name:<24} {f.rows:>9} rows {f.size:>11} bytes")
-        out.append("complete" if self.complete else "PARTIAL: missing " + ", ".join(self.missing))
+        out.append("complete" if self.complete else "PARTIAL: " + self.incomplete_text())
         return out
 
 
@@ -327,7 +336,7 @@ def manifest_info(path: str, m: dict, size_digest: tuple[int, str]) -> BundleInf
         files=tuple(FileEntry(e["name"], e["size"], e["sha256"], e["rows"]) for e in m["files"]),
         missing=tuple(m["missing"]), size_bytes=size, sha256=digest, key_kind=m["key_kind"],
         bundle_version=m["bundle_version"], built_at=m["built_at"], expires=m["expires"],
-        operating_day=m.get("operating_day"),
+        operating_day=m.get("operating_day"), no_stop=tuple(m.get("no_stop", ())),
     )
 
 
@@ -382,7 +391,7 @@ def check_manifest(m, where: str) -> None:
         raise fail(where, f"bundle schema version {m['schema_version']} not supported by planner {__version__} "
                           f"(supports {sorted(SUPPORTED_SCHEMA_VERSIONS)}); update the vehicle-side software")
     missing = sorted(set(_MANIFEST_KEYS) - set(m))
-    extra = sorted(set(m) - set(_MANIFEST_KEYS) - {"operating_day"})  # optional: a bundle for one day
+    extra = sorted(set(m) - set(_MANIFEST_KEYS) - {"operating_day", "no_stop"})  # optional keys
     if missing or extra:
         raise fail(where, f"manifest keys wrong (missing {missing}, unknown {extra})")
     for k, typ in _MANIFEST_KEYS.items():
@@ -414,7 +423,50 @@ def check_manifest(m, where: str) -> None:
         raise fail(where, f"manifest expires {m['expires']} is not after built_at {m['built_at']}")
     if "operating_day" in m:
         _check_day(m["operating_day"], where)
+    if "no_stop" in m:
+        _check_no_stop(m["no_stop"], where)
     _check_files(m, where)
+
+
+_NO_STOP_KEYS = {"station_id": str, "origin": str, "adhesion_kmh_s": list}
+_LEVEL_RE = re.compile(r"[0-9]+(\.[0-9]+)?")
+"""An adhesion level in the manifest: its decimal text (the manifest holds no non-integer number)."""
+
+
+def _check_no_stop(rows, where: str) -> None:
+    """The manifest's optional ``no_stop``: the stops the bundle has no stopping pattern for, at which adhesion
+    levels (:func:`no_stop_rows`); present only when there is one, sorted, each with its levels sorted."""
+    ok = isinstance(rows, list) and rows and all(
+        isinstance(r, dict) and set(r) == set(_NO_STOP_KEYS) and all(_is(r[k], t) for k, t in _NO_STOP_KEYS.items())
+        and PATH_ID_RE.fullmatch(r["station_id"]) and PATH_ID_RE.fullmatch(r["origin"]) and r["adhesion_kmh_s"]
+        and all(isinstance(a, str) and _LEVEL_RE.fullmatch(a) for a in r["adhesion_kmh_s"])
+        and r["adhesion_kmh_s"] == sorted(set(r["adhesion_kmh_s"]), key=float) for r in rows)
+    if not ok or [(r["station_id"], r["origin"]) for r in rows] != sorted({(r["station_id"], r["origin"]) for r in rows}):
+        raise fail(where, "manifest no_stop must be a non-empty sorted list of {station_id, origin, adhesion_kmh_s} "
+                          "with the levels sorted")
+
+
+def no_stop_rows(stop_summary) -> list[dict]:
+    """The stops a ``stop_summary`` table has no stopping pattern for: per arrival station and departure station
+    of the approach, the adhesion levels [km/h/s, as decimal text] without a feasible pattern, sorted (the manifest's
+    ``no_stop``: a bundle that lacks them cannot stop its train there at those levels)."""
+    cols = ("station_id", "origin", "adhesion_kmh_s", "feasible")
+    if stop_summary is None or not stop_summary.num_rows or not set(cols) <= set(stop_summary.column_names):
+        return []  # (a table without these columns is refused by the cross-checks, naming them)
+    miss: dict[tuple[str, str], set[float]] = {}
+    for sid, org, a, ok in zip(*(stop_summary.column(c).to_pylist() for c in cols)):
+        if not ok:
+            miss.setdefault((str(sid), str(org)), set()).add(float(a))
+    return [{"station_id": s, "origin": o, "adhesion_kmh_s": [repr(a) for a in sorted(v)]}
+            for (s, o), v in sorted(miss.items())]
+
+
+def no_stop_text(rows) -> str:
+    """``MDR from TKD at 2.5…3.2 km/h/s (8 levels)``, the stops of a manifest's ``no_stop``, for one line."""
+    def levels(a):
+        a = [float(x) for x in a]
+        return f"{a[0]:g} km/h/s" if len(a) == 1 else f"{a[0]:g}…{a[-1]:g} km/h/s ({len(a)} levels)"
+    return "; ".join(f"{r['station_id']} from {r['origin']} at {levels(r['adhesion_kmh_s'])}" for r in rows)
 
 
 def _check_files(m: dict, where: str) -> None:

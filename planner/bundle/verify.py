@@ -27,6 +27,7 @@ each check and the attack it stops.
 """
 from __future__ import annotations
 
+import dataclasses
 import errno
 import hashlib
 import os
@@ -42,7 +43,7 @@ import pyarrow.parquet as pq
 from planner.bundle import signing
 from planner.bundle.archive import read_members
 from planner.bundle.contents import check_tables
-from planner.bundle.manifest import (MANIFEST, SIGNATURE, BundleInfo, check_manifest, fail, format_time,
+from planner.bundle.manifest import (MANIFEST, SIGNATURE, BundleInfo, check_manifest, fail, format_time, no_stop_rows,
                                      manifest_info, parse_manifest, parse_time)
 from planner.errors import BundleError
 from planner.io.atomic import folder_in_place
@@ -160,7 +161,10 @@ def _verified(path, public_key, expect: Expect | None = None
             raise fail(where, f"{name} has {t.num_rows} rows, the manifest says {e['rows']}")
         tables[name.removesuffix(".parquet")] = t
     check_tables(tables, m, where)
-    return manifest_info(where, m, size_digest), members, tables
+    # the stops without a pattern from the signed stop_summary itself, also where the manifest predates no_stop
+    info = dataclasses.replace(manifest_info(where, m, size_digest),
+                               no_stop=tuple(no_stop_rows(tables.get("stop_summary"))))
+    return info, members, tables
 
 
 def _expect(expect, min_version, at, allow_dev) -> Expect:

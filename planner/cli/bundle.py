@@ -82,7 +82,7 @@ def bundle_build(
             raise BundleError(f"cannot write {e.filename or out}: {e.strerror or e}; check --out (space, "
                               "permissions)") from None
     for info in infos:
-        state = "complete" if info.complete else "PARTIAL, missing " + ", ".join(info.missing)
+        state = "complete" if info.complete else "PARTIAL: " + info.incomplete_text()
         typer.echo(f"{info.path}: {info.size_bytes} bytes, {len(info.files)} tables, {state}")
     if infos:
         i = infos[0]
@@ -113,16 +113,20 @@ def bundle_verify(
     at: Optional[str] = typer.Option(None, "--at", help="Time of the expiry check, ISO 8601 (default now)."),
     allow_dev: bool = typer.Option(False, "--allow-dev", help="Accept a bundle signed with a development key."),
     require_complete: bool = typer.Option(False, "--require-complete",
-                                          help="Also fail when expected tables are missing."),
+                                          help="Also fail when expected tables are missing or a stop has no "
+                                               "stopping pattern at some adhesion level."),
 ) -> None:
     """Check signature, key id, target, key kind, version, expiry, hashes, schema and consistency."""
     from planner.bundle.verify import verify_bundle
 
     info = verify_bundle(bundle, public_key, expect=expect, min_version=min_version, at=at,
                          allow_dev=allow_dev)
-    if require_complete and not info.complete:
-        raise BundleError(f"bundle {bundle}: incomplete, missing {', '.join(info.missing)}; "
-                          + rebuild_advice(info.missing))
+    if require_complete and info.missing:
+        raise BundleError(f"bundle {bundle}: incomplete, {info.incomplete_text()}; " + rebuild_advice(info.missing))
+    if require_complete and info.no_stop:
+        raise BundleError(f"bundle {bundle}: incomplete, {info.incomplete_text()}: it cannot stop its train there at "
+                          "those adhesion levels; change what makes the stop impossible (a restriction ahead of the "
+                          "stop, the approach) and rebuild, or load it knowingly without --require-complete")
     typer.echo(f"OK: {info.target} version {info.bundle_version}: signature, key id, target, freshness, hashes, "
                "schema and consistency verified")
     for line in info.summary():

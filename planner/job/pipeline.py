@@ -321,7 +321,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     manifest the overview's verification of the bundles reads (the operating day); the run's bundles are
     verified on a worker from when this line's are written (:attr:`RunSummary.bundles_verified`)."""
     from planner.tables.ratios import leg_ratio_grid
-    from planner.stopping.sweep import adhesion_levels
+    from planner.stopping.sweep import adhesion_levels, no_stop_leg
     from planner.line.units import KMH, KMH_S
 
     tp, code = job.tables, code_digest()
@@ -416,15 +416,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     read_back()
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
         len(r.patterns) - r.n_feasible for r in stops)
-    for r in stops:  # one line per approach, not per adhesion level
-        bad = [a / KMH_S for a, p in zip(r.adhesion_ms2, r.patterns) if not p.feasible]  # km/h/s, as the job
-        if bad:
-            first = next(p for p in r.patterns if not p.feasible)
-            levels = f"{bad[0]:g}" if len(bad) == 1 else f"{bad[0]:g}…{bad[-1]:g}"
-            summary.notes.append(
-                f"{line.line_id}: no stopping pattern at {r.station_id} ({r.direction}, {r.train_type}, from "
-                f"{r.origin}) for adhesion {levels} km/h/s ({len(bad)} of {len(r.patterns)} levels): {first.reason}")
-        else:  # every level stops: what the sweep still says (an approach moved back from a TASC beacon)
+    no_stop = [f for f in map(no_stop_leg, stops) if f is not None]  # legs flagged no_stop: record_verdicts notes them
+    for r in stops:  # every level stops: what the sweep still says (an approach moved back from a TASC beacon)
+        if r.n_feasible == len(r.patterns):
             summary.notes += [f"{line.line_id}: {w}" for w in r.warnings]
 
     # what the rest of the line needs of the tables and stops (the verdicts: record_verdicts); the rest is let
@@ -440,7 +434,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     got = {step: res[0] for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
     unit_keys = [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units]
-    flagged = [flagged_tables, [r for r in loops if r.flags]]
+    flagged = [flagged_tables, no_stop, [r for r in loops if r.flags]]
     del side_results, loop_batches, t_units, s_units, c_units, windows
     # the train graph's trajectories (the line alone, taken by line_views) start first, on one worker; the
     # bundles need the tables and stops datasets only: built on the other from when they are written, beside

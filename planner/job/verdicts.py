@@ -10,9 +10,10 @@ from __future__ import annotations
 from planner.tables.flags import KINDS, LegFlag, flagged_legs
 
 
-def record_verdicts(line_id: str, summary, tables, loops, report) -> None:
-    """Add the legs flagged by any step to ``summary.flags`` and ``summary.notes`` (one note per leg)."""
-    found = flagged_legs(tables, loops)
+def record_verdicts(line_id: str, summary, tables, stops, loops, report) -> None:
+    """Add the legs flagged by any step (``stops``: the legs with no stopping pattern at some adhesion level,
+    :func:`planner.stopping.sweep.no_stop_leg`) to ``summary.flags`` and ``summary.notes`` (one note per leg)."""
+    found = flagged_legs(tables, stops, loops)
     rows = report.rows
     if len(rows) and "unassessed_cause" in rows:
         for r in rows[rows["unassessed_cause"].astype(str) != ""].itertuples(index=False):

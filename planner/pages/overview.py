@@ -90,7 +90,7 @@ def _bundles(run_dir: Path, at_s: int | None = None) -> list[list[str]]:
             info = verify_bundle(b, pub, allow_dev=True, at=at_s)
             status = ("<span class='ok'>verified</span>" if info.key_kind == "production" else
                       "<span class='dev'>verified, development key</span>: not for service (vehicles refuse it)")
-            status += "" if info.complete else f" (partial: missing {_e(', '.join(info.missing))})"
+            status += "" if info.complete else f" (partial: {_e(info.incomplete_text())})"
             tables = ", ".join(f"{f.name.removesuffix('.parquet')} {f.rows}" for f in info.files)
             out.append([f"<code>{_e(b.name)}</code>", status, f"{info.size_bytes:,}", f"<code>{info.sha256[:16]}</code>",
                         f"{_e(info.line_id)} {_e(info.direction)} {_e(info.train_type)}", _e(tables)])

@@ -80,9 +80,7 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
     lrows = []
     for x in legs:
         ids = x["train_ids"]
-        verdict = ("<span class='bad'>loses its margin</span>" if x in lost else
-                   "<span class='bad'>had none</span>" if x["margin_after_s"] < 0 else
-                   "<span class='ok'>still makes it</span>")
+        verdict = _verdict(x, x in lost)
         lrows.append([_e(f"{x['train_type']} {x['origin']}→{x['destination']}"), _e(", ".join(x["restrictions"]) or "none"),
                       f"{x['n_trains']}: " + _e(", ".join(ids[:6]) + (" …" if len(ids) > 6 else "")),
                       _num(x["scheduled_s"], "{:.0f}"), _num(x["min_before_s"], "{:.1f}"),
@@ -90,6 +88,22 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
                       _num(x["remaining_margin_s"]), _num(x["arrival_error_s"]), _num(x["arrival_error_degraded_s"]),
                       verdict, _e(f"without {', '.join(x['lifted'])}" if x["lifted"] else "")])
     n_lost = sum(int(x["n_trains"] or 0) for x in lost)
+    stuck: dict[tuple, list] = {}  # the worst a restriction can do: the vehicle's DB cannot stop the train there
+    for x in legs:
+        if x.get("unassessed_cause") == "no_stop":
+            stuck.setdefault((x["train_type"], x["direction"], x["origin"], x["destination"]), []).append(x)
+    if stuck:
+        items = []
+        for (tt, d, o, de), xs in stuck.items():
+            ids = sorted({r for x in xs for r in x["restrictions"] + x["lifted"]})
+            items.append(f"<li class='bad'><b>{_e(tt)} {_e(d)} {_e(o)}→{_e(de)}</b>, the restriction(s) on the leg: "
+                         f"{_e(', '.join(ids) or 'none')}: {_e(xs[0].get('unassessed_reason') or '')}</li>")
+        parts.append("<h2 id='no-stop'>Stops without a stopping pattern</h2><ul>" + "".join(items)
+                     + "</ul><p class='sub'>The bundles of these trains hold no stopping pattern at that station for "
+                     "those adhesion levels, for every train of the day (a part-day restriction counts for the whole "
+                     "day in the bundles): their signed manifests name the stops and levels, and <code>planner bundle "
+                     "verify --require-complete</code> refuses them. The margin report leaves these legs "
+                     "unassessed.</p>")
     parts.append(f"<h2 id='trains'>Scheduled legs slowed: {len(lost)} leg row(s), {n_lost} train run(s) lose "
                  f"their margin</h2>"
                  + _table(["leg", "restrictions", "trains", "scheduled [s]", "minimum without [s]",
@@ -107,6 +121,24 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
     parts.append(changes)
     parts.append("</main></body></html>\n")
     return "\n".join(parts)
+
+
+def _verdict(x: dict, lost: bool) -> str:
+    """One leg row's verdict, the margin report's own flags first (one story on every page): no stopping
+    pattern, then the margin, then the bad day."""
+    if x.get("unassessed_cause") == "no_stop":
+        return "<span class='bad'>no stopping pattern</span>"
+    if lost:
+        return "<span class='bad'>loses its margin</span>"
+    if x["margin_after_s"] < 0:
+        return "<span class='bad'>had none</span>"
+    if x.get("short_bad_day"):
+        return "<span class='bad'>short on a bad day</span>"
+    if x.get("unassessed"):
+        return "<span class='bad'>unassessed</span>"
+    if x.get("tight"):
+        return "<span class='dev'>tight on a bad day</span>"
+    return "<span class='ok'>still makes it</span>"
 
 
 def write_page(line, day: dict | None, rows, out: Path, ds_m: float = 1.0, legs: list[dict] | None = None) -> Path:

@@ -310,6 +310,14 @@ def _line_rows(table: pa.Table, line_id: str) -> pa.Table:
 
 def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:
     """Adhesion levels [km/h/s] of the ``stop_summary`` dataset of a ``planner stops --out`` folder."""
+    return stops_facts(stops_dir, line_id)[0]
+
+
+def stops_facts(stops_dir: Path, line_id: str) -> tuple[np.ndarray, dict]:
+    """The ``stop_summary`` dataset of a ``planner stops --out`` folder: its adhesion levels [km/h/s] and the
+    approaches it has no pattern for, ``(train_type, direction, origin, station_id)`` → ``(levels [km/h/s]
+    without a pattern, the first one's reason, the stop marker's chainage [m])``: what the bundles hold, so
+    the margin report's bad day never stops a train where they cannot (:func:`planner.report.margins.no_stop`)."""
     try:
         t = read_dataset(stops_dir, "stop_summary", line=line_id)
     except (FileNotFoundError, OSError, pa.ArrowInvalid) as e:
@@ -319,4 +327,12 @@ def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:
         raise InputError(f"--stops {stops_dir}: stop_summary has no adhesion_ms2 rows for line {line_id}; "
                          "rebuild it with `planner stops`")
     vals = np.asarray(t.column("adhesion_ms2").to_numpy(zero_copy_only=False), dtype=float) / KMH_S
-    return np.unique(np.round(vals[np.isfinite(vals)], 9))  # the levels as the job file spells them
+    missing: dict[tuple, tuple[set, str, float]] = {}
+    if {"feasible", "train_type", "direction", "origin", "station_id", "reason", "stop_m"} <= set(t.column_names):
+        cols = {c: t.column(c).to_pylist() for c in ("train_type", "direction", "origin", "station_id", "reason",
+                                                       "stop_m", "feasible")}
+        for i in np.flatnonzero(~np.asarray(cols["feasible"], dtype=bool)).tolist():
+            key = tuple(str(cols[c][i]) for c in ("train_type", "direction", "origin", "station_id"))
+            levels, reason, stop_m = missing.setdefault(key, (set(), str(cols["reason"][i]), float(cols["stop_m"][i])))
+            levels.add(round(float(vals[i]), 9))
+    return np.unique(np.round(vals[np.isfinite(vals)], 9)), missing  # the levels as the job file spells them

@@ -168,7 +168,7 @@ from planner.report.margin_datasets import (
     closed_loop_index,
     closed_loop_worst,
     read_energy,
-    stops_adhesion,
+    stops_facts,
 )
 from planner.report.margin_rule import TOTALS_COLUMNS, MarginRule, margin_columns, margin_totals
 from planner.stopping.approach import DEFAULT_APPROACH_M
@@ -352,8 +352,8 @@ def compute_margins(
     types = list(train_types) if train_types else [t.train_type for t in line.train_types]
     for t in types:
         line.train_type(t)
-    adh = stops_adhesion(Path(stops_dir), line.line_id) if stops_dir is not None \
-        else np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float)
+    adh, no_pattern = stops_facts(Path(stops_dir), line.line_id) if stops_dir is not None \
+        else (np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float), {})
     legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
     sched = scheduled_times(line, types, legs, lifted)
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
@@ -389,6 +389,7 @@ def compute_margins(
         if r.tables is None:  # the given tables it used (_leg_task)
             r.tables = task[5]
         r.lifted, r.restrictions = k[4], applied_restrictions(windows[k], k[0], k[1])
+    results = [no_stop(r, no_pattern) for r in results]
 
     rows, sweep, row_lifted = _rows(line, results, legs, rule, cl_worst, lifted)
     tl = pd.DataFrame.from_records(
@@ -412,6 +413,28 @@ def compute_margins(
                  "tables_computed": sum(r.tables_source == "computed" for r in results),
                  "closed_loop_dataset": bool(cl_index)},
     )
+
+
+def no_stop(r: LegResult, no_pattern: dict) -> LegResult:
+    """``r``, or where the stopping patterns (the stops step's, which the bundles hold) do not stop the train at
+    the end of its leg at some adhesion level (``no_pattern``: :func:`stops_facts`), the leg flagged ``no_stop``
+    and unassessed: no bad-day figure (its bad day must not stop the train where the vehicle's DB cannot, from
+    a pattern start moved back that no bundle has)."""
+    import dataclasses
+
+    from planner.tables.flags import NO_STOP, LegFlag
+
+    miss = no_pattern.get((r.train_type, r.direction, r.origin, r.destination))
+    if miss is None:
+        return r
+    levels, reason, stop_m = miss
+    a = sorted(levels)
+    at = f"{a[0]:g}" if len(a) == 1 else f"{a[0]:g}…{a[-1]:g}"
+    why = f"no stopping pattern at {r.destination} for adhesion {at} km/h/s ({len(a)} level{'s' * (len(a) > 1)}): {reason}"
+    nan = math.nan
+    return dataclasses.replace(r, degraded_min_s=nan, degraded_loss_running_s=nan, degraded_loss_stop_s=nan,
+                               degraded_loss_load_s=nan, degraded_loss_traction_s=nan, degraded_loss_stop_model_s=nan,
+                               stop_time_degraded_s=nan, note=why, flags=(LegFlag(NO_STOP, "stops", stop_m, why),))
 
 
 def given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, dict]:

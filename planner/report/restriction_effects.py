@@ -89,7 +89,8 @@ def scheduled_legs(line, rows, ds_m: float = 1.0) -> list[dict]:
         before, after = cache[(k, tuple(ids))]
         out.append({**{c: r.get(c) for c in ("train_type", "direction", "origin", "destination", "n_trains",
                                              "remaining_margin_s", "arrival_error_s", "arrival_error_degraded_s",
-                                             "impossible")},
+                                             "impossible", "short_bad_day", "tight", "unassessed",
+                                             "unassessed_cause", "unassessed_reason")},
                     "train_ids": [] if r.get("train_ids") is None else list(r["train_ids"]), "restrictions": ids,
                     "lifted": [x for x in reach if x not in ids], "scheduled_s": float(sched),
                     "min_before_s": before, "min_after_s": after, "margin_before_s": float(sched) - before,

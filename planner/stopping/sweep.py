@@ -247,6 +247,25 @@ class ApproachResult:
         return self.approach_start_m + sign(self.direction) * np.asarray(x_m, dtype=float)
 
 
+def no_stop_leg(r: "ApproachResult"):
+    """The leg of an approach with no stopping pattern at some adhesion level of its sweep, flagged
+    :data:`~planner.tables.flags.NO_STOP` (a :class:`~planner.tables.flags.FlaggedLeg`), or None when every level
+    stops the train: a train that cannot stop at the station at some level is a verdict on its leg, counted and
+    noted with the stalls, not only a count of infeasible patterns."""
+    from planner.line.units import KMH_S
+    from planner.tables.flags import NO_STOP, FlaggedLeg, LegFlag
+
+    bad = [a / KMH_S for a, p in zip(r.adhesion_ms2, r.patterns) if not p.feasible]
+    if not bad:
+        return None
+    first = next(p for p in r.patterns if not p.feasible)
+    levels = f"{bad[0]:g}" if len(bad) == 1 else f"{bad[0]:g}…{bad[-1]:g}"
+    why = (f"no stopping pattern at {r.station_id} for adhesion {levels} km/h/s ({len(bad)} of {len(r.patterns)} "
+           f"levels): {first.reason}")
+    return FlaggedLeg(r.train_type, r.direction, r.origin, r.station_id,
+                      (LegFlag(NO_STOP, "stops", float(r.stop_m), why),))
+
+
 def _warning(train_type: str, direction: str, origin: str, station_id: str, adhesion_kmh_s: float,
              reason: str) -> str:
     return (f"no stopping pattern at {station_id} ({direction}, train type {train_type}, from {origin}) "

@@ -91,3 +91,16 @@ def flagged_legs(*results) -> dict[tuple[str, str, str, str], LegFlag]:
             if r.flags:
                 out.setdefault((r.train_type, r.direction, r.origin, r.destination), r.flags[0])
     return out
+
+
+@dataclass(frozen=True)
+class FlaggedLeg:
+    """A leg and its flags, for :func:`flagged_legs`, where a step's own result is not one (an approach whose
+    stopping patterns are missing at some adhesion level: :func:`planner.stopping.sweep.no_stop_leg`)."""
+
+    train_type: str
+    direction: str
+    origin: str
+    destination: str
+    flags: tuple[LegFlag, ...]
+
