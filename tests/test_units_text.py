@@ -55,3 +55,14 @@ def test_percent_is_whole_percent_with_a_space():
 
 def test_percent_of_no_value_is_the_dash():
     assert percent(math.nan) == "–" and percent(None) == "–" and percent(math.inf) == "–"
+
+
+def test_a_flagged_value_is_never_shown_as_zero():
+    """A leg 0.03 s short is flagged impossible; the margin report showed it as "0.0 (0.0)"."""
+    from planner.line.units import shown
+    from planner.pages.margin_report import _f
+
+    assert shown(-0.03) == "-0.03" and shown(-0.03, sign=True) == "-0.03" and shown(0.03, sign=True) == "+0.03"
+    assert shown(-0.0004) == "-0.0004" and shown(-0.00001) == "0.0000"  # four decimals at the most
+    assert shown(0.0, sign=True) == "0.0" and shown(12.345) == "12.3" and shown(float("nan")) == "–"
+    assert _f(-0.03, 1, True) == "-0.03" and _f(-0.0002, 1) == "-0.0002" and _f(None) == "–"

@@ -73,16 +73,23 @@ def percent(ratio, none: str = "–") -> str:
     return t if t == none else f"{t} %"
 
 
-def tenths(x: float, sign: bool = False) -> str:
-    """A time or distance to 0.1 (``sign``: with a leading + or -), or to 0.01 where 0.1 would show a non-zero
-    value as 0.0: a margin of −0.03 s is flagged impossible and must not read 0.0 (:func:`fixed` writes 0.0
-    for a value that is zero to the digits shown, for tables where that is what a person wants).
+def shown(x, nd: int = 1, sign: bool = False, none: str = "–") -> str:
+    """``x`` as text with ``nd`` decimals (``sign``: a leading + or -), or with up to three more where ``nd``
+    would show a non-zero value as zero: a margin of −0.03 s is flagged impossible and must not read 0.0
+    (:func:`fixed` writes 0.0 for a value that is zero to the digits shown, where that is what a person
+    wants); ``none`` for no value (None, NaN, inf).
 
-    >>> tenths(-0.032), tenths(0.032, sign=True), tenths(2.25, sign=True), tenths(0.0), tenths(-57.04)
-    ('-0.03', '+0.03', '+2.2', '0.0', '-57.0')
+    >>> shown(-0.032), shown(0.032, sign=True), shown(2.25, sign=True), shown(0.0), shown(-57.04), shown(-0.0004)
+    ('-0.03', '+0.03', '+2.2', '0.0', '-57.0', '-0.0004')
     """
-    nd = 2 if x != 0.0 and round(x, 1) == 0.0 else 1
-    return f"{x:+.{nd}f}" if sign and x != 0.0 else f"{x:.{nd}f}"
+    if x is None or x != x or x in (float("inf"), float("-inf")):
+        return none
+    x = float(x)
+    while x != 0.0 and round(x, nd) == 0.0 and nd < 4:
+        nd += 1
+    if round(x, nd) == 0.0:
+        return f"{0.0:.{nd}f}"
+    return f"{x:+.{nd}f}" if sign else f"{x:.{nd}f}"
 
 
 def fixed(x, nd: int = 1, sign: bool = False, none: str = "–") -> str:

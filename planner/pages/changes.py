@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import html
 
-from planner.line.units import tenths
+from planner.line.units import shown
 from planner.report.changes import INPUTS, LineChanges, _num
 
 CSS = """
@@ -68,7 +68,7 @@ def _leg_group(subject: str, rows, e) -> str:
     for x in rows:
         if x["field"] in MEASURE_WORDS and x["delta"] is not None:
             worse = (x["delta"] > 0) == (x["field"] == "min_running_time_s")
-            bits.append(f"{MEASURE_WORDS[x['field']]} {tenths(_num(x['before']))} → {tenths(_num(x['after']))} s "
+            bits.append(f"{MEASURE_WORDS[x['field']]} {shown(_num(x['before']))} → {shown(_num(x['after']))} s "
                         f"<span class='{'up' if worse else 'down'}'>({x['delta']:+.1f} s)</span>")
         else:  # "leg <subject> appeared": the subject is the item's own head already
             d = x["detail"]

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.line.model import line_title  # noqa: F401 - the pages import it from here too
-from planner.line.units import clock, fixed, hms, percent
+from planner.line.units import clock, fixed, hms, percent, shown
 
 from planner.pages.margin_charts import chart_sections
 from planner.pages.svg_plot import LEGEND_CSS
@@ -82,8 +82,9 @@ def _e(x) -> str:
 
 
 def _f(x, nd: int = 1, sign: bool = False) -> str:
-    """Number for a table cell (never ``-0.0``); '–' for NaN/None."""
-    return fixed(x, nd, sign)
+    """Number for a table cell; '–' for NaN/None; a non-zero value never shown as 0.0 (a margin of −0.03 s,
+    flagged impossible, reads −0.03: :func:`planner.line.units.shown`)."""
+    return shown(x, nd, sign)
 
 
 def _hms(t: float) -> str:

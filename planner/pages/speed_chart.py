@@ -48,7 +48,7 @@ import numpy as np
 
 from planner.line.daily import TEMPORARY_KIND
 from planner.line.model import sign
-from planner.line.units import kmh, percent, tenths
+from planner.line.units import kmh, percent, shown
 
 TOL_V_KMH = 0.2
 TOL_X_M = 2.0
@@ -271,7 +271,7 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
                f"at the on-time ratio {percent(run.ratio)} the run takes {t_r:.1f} s, {t_r - float(sched):.1f} s more "
                "than scheduled (the tables' ratio steps)" if late_s(t_r, float(sched)) else "")
     title = (f"{tt} {d} {o} → {de} ({(hi - lo) / 1000:.2f} km): scheduled {sched:.0f} s, minimum "
-             f"{float(row['min_running_time_s']):.1f} s, margin {tenths(margin, sign=True)} s")
+             f"{float(row['min_running_time_s']):.1f} s, margin {shown(margin, sign=True)} s")
     fig.title(8, 22, title, size=FONT + 2)
     if verdict:
         fig.title(8, 42, verdict, size=FONT + 1, color=COLOURS["late"] if late else "#444", bold=late)

@@ -44,7 +44,7 @@ from planner.io.parquet import declare
 from planner.report.bundle_changes import bundle_changes
 from planner.report.leg_flags import FLAG
 from planner.report.margin_rule import TIME_TOL_S
-from planner.line.units import tenths
+from planner.line.units import shown
 from planner.report.published_run import line_inputs, path_id, read_line_dataset, read_manifest
 
 THRESHOLD_S = 0.5
@@ -390,7 +390,7 @@ def _leg_changes(ch: LineChanges, old, new, reach: dict[int, dict], threshold_s:
             if math.isfinite(va) and math.isfinite(vb) and abs(vb - va) > threshold_s:
                 moved.append((m, va, vb))
         for m, va, vb in moved:
-            ch.add("leg", label, f"leg {label}: {m} {tenths(va)} → {tenths(vb)} s ({vb - va:+.1f} s)", field_=m,
+            ch.add("leg", label, f"leg {label}: {m} {shown(va)} → {shown(vb)} s ({vb - va:+.1f} s)", field_=m,
                    before=round(va, 3), after=round(vb, 3), delta=vb - va, **common)
         for f in LEG_FLAGS:
             fa, fb = _flag(a, f), _flag(b, f)
@@ -416,7 +416,7 @@ def _flag_measure(f: str, a: dict, b: dict) -> str:
     m, word = {"impossible": ("margin_s", "margin"), "unreachable": ("margin_s", "margin"),
                "inaccurate": ("closed_loop_max_error_s", "closed-loop error")}.get(
         f, ("remaining_margin_s", "bad-day margin"))
-    return f"{word} {tenths(_num(a.get(m)))} → {tenths(_num(b.get(m)))} s"
+    return f"{word} {shown(_num(a.get(m)))} → {shown(_num(b.get(m)))} s"
 
 
 def _conflict_changes(ch: LineChanges, old, new) -> None:
