@@ -88,6 +88,19 @@ def test_verify_refuses_the_bundle_outside_its_day(built):
                                      f"bundle is needed (refused)")
 
 
+def test_an_at_without_offset_is_the_local_time_of_the_bundles_day(built):
+    """`--at 2026-12-03T02:00` was taken as UTC: on a Tokyo line that is 11:00 local, another day's window."""
+    info, pub = built
+    assert verify_bundle(info.path, pub, at="2026-11-30T03:00", allow_dev=True)  # the day's first second, JST
+    assert verify_bundle(info.path, pub, at="2026-12-01T02:59:59", allow_dev=True)  # its last
+    for local in ("2026-11-30T02:59:59", "2026-12-01T03:00"):
+        with pytest.raises(BundleError, match="outside its window"):
+            verify_bundle(info.path, pub, at=local, allow_dev=True)
+    assert verify_bundle(info.path, pub, at="2026-11-29T18:00:00Z", allow_dev=True)  # an offset is kept as given
+    with pytest.raises(BundleError, match="outside its window"):
+        verify_bundle(info.path, pub, at="2026-11-29T17:59:59+00:00", allow_dev=True)
+
+
 def test_two_runs_day_bound_bundles_are_compared_whenever_the_comparison_runs(tmp_path):
     """A change report compares yesterday's bundle (outside its day by now) with tonight's (not yet in its day):
     by content, whatever the clock says, while a vehicle's check refuses both outside the window."""

@@ -120,3 +120,20 @@ def test_calendar_gtfs_semantics():
     assert trains_running(cal, date(2026, 12, 25), ["2", "1"]) == ("2", "1")
     assert trains_running(cal, date(2026, 11, 23), ["2", "1"]) == ()
     assert trains_running(None, date(2026, 11, 23), ["2", "1"]) == ("2", "1")
+
+
+def test_a_run_that_plans_a_day_already_over_says_so():
+    """The sample plans 2026-11-30 whatever the date: a run built after that day's window made bundles every
+    vehicle refuses, and said nothing. The run warns (stderr) and the overview has a banner."""
+    from planner.line.operating_day import day_over
+    from planner.pages.overview import _over
+
+    day = {"day": "2026-11-30", "start": "2026-11-30T03:00:00+09:00", "end": "2026-12-01T03:00:00+09:00",
+           "end_utc_s": 1796061600}
+    assert day_over(day, 1796061600 - 1) == "" and day_over({}, 1796061600) == ""
+    said = day_over(day, 1796061600)
+    assert said.startswith("the operating day planned, 2026-11-30 (2026-11-30T03:00:00+09:00 to ")
+    assert "every vehicle refuses them" in said
+    m = {"operating_day": day, "bundles_release": {"built_at": "2026-12-05T12:00:00Z"}}
+    assert "Day already over:" in _over(m) and "2026-11-30" in _over(m)
+    assert _over({**m, "bundles_release": {"built_at": "2026-11-30T12:00:00Z"}}) == ""

@@ -84,6 +84,9 @@ class Expect:
     at_s: int | None = None
     allow_dev: bool = False
     check_time: bool = True
+    at_local: str = ""
+    """``--at`` given without an offset: a local time of the bundle's operating day (its time zone), read once
+    the manifest is proven; a bundle not bound to a day takes it as UTC."""
 
     @staticmethod
     def parse_target(text: str) -> str:
@@ -111,11 +114,13 @@ def _check_expect(m: dict, expect: Expect, pub_id: str, where: str) -> None:
                           f"{expect.min_version} (rollback refused)")
     if not expect.check_time:
         return
+    d = m.get("operating_day")
     now = int(time.time()) if expect.at_s is None else int(expect.at_s)
+    if expect.at_local:
+        now = local_time_s(expect.at_local, d["time_zone"] if d is not None else "UTC")
     if now >= parse_time(m["expires"]):
         raise fail(where, f"bundle expired at {m['expires']} (checked at {format_time(now)}; built "
                           f"{m['built_at']}): a fresh bundle is needed (refused)")
-    d = m.get("operating_day")
     if d is not None and not parse_time(d["valid_from"]) <= now < parse_time(d["valid_until"]):
         raise fail(where, f"bundle is for operating day {d['day']} ({d['valid_from']} to {d['valid_until']}), "
                           f"checked at {format_time(now)}: outside its window, that day's bundle is needed (refused)")
@@ -170,10 +175,29 @@ def _verified(path, public_key, expect: Expect | None = None
 def _expect(expect, min_version, at, allow_dev) -> Expect:
     if isinstance(expect, Expect):
         return expect
-    at_s = parse_time(at, "--at") if isinstance(at, str) else at
+    at_s = parse_time(at, "--at") if isinstance(at, str) else at  # (checks the text, also one without offset)
+    local = at if isinstance(at, str) and not _has_zone(at) else ""
     if isinstance(min_version, bool) or not isinstance(min_version, int) or min_version < 0:
         raise BundleError(f"--min-version must be a whole number >= 0, found {min_version!r}")
-    return Expect(None if expect is None else Expect.parse_target(expect), min_version, at_s, bool(allow_dev))
+    return Expect(None if expect is None else Expect.parse_target(expect), min_version, at_s, bool(allow_dev),
+                  at_local=local)
+
+
+def _has_zone(text: str) -> bool:
+    """Whether an ISO 8601 time names its zone (``Z`` or an offset)."""
+    from datetime import datetime
+
+    s = str(text).strip()
+    return s.endswith(("Z", "z")) or datetime.fromisoformat(s).tzinfo is not None
+
+
+def local_time_s(text: str, tz: str) -> int:
+    """Unix seconds of an ISO 8601 time without offset read in the IANA zone ``tz`` (a vehicle's clock on the
+    line: the operating day's local time, as every time a person types about that day)."""
+    from datetime import datetime
+    from zoneinfo import ZoneInfo
+
+    return int(datetime.fromisoformat(str(text).strip()).replace(tzinfo=ZoneInfo(tz)).timestamp())
 
 
 def verify_bundle(path: str | os.PathLike | bytes, public_key, *, expect: str | Expect | None = None,

@@ -110,7 +110,10 @@ def bundle_verify(
                                help="LINE/DIRECTION/TYPE the bundle must be for, e.g. sample/down/E10."),
     min_version: int = typer.Option(0, "--min-version", min=0,
                                     help="Refuse a bundle version below this (the installed version: rollback)."),
-    at: Optional[str] = typer.Option(None, "--at", help="Time of the expiry check, ISO 8601 (default now)."),
+    at: Optional[str] = typer.Option(None, "--at", help="Time of the expiry and operating-day checks, ISO 8601 "
+                                                        "(default now); without an offset, the local time of the "
+                                                        "bundle's operating day (its time zone), e.g. "
+                                                        "2026-11-30T12:00; a bundle bound to no day takes it as UTC."),
     allow_dev: bool = typer.Option(False, "--allow-dev", help="Accept a bundle signed with a development key."),
     require_complete: bool = typer.Option(False, "--require-complete",
                                           help="Also fail when expected tables are missing or a stop has no "

@@ -55,6 +55,7 @@ from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
 from planner.job.day import day_digest, plan_day, resolve_day
+from planner.line.operating_day import day_over
 from planner.line.model import DIRECTIONS, Line
 from planner.job.cache import Cache
 from planner.job.keys import signing_key_path
@@ -263,6 +264,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             key_path, development = signing_key_path(job, notes)
             key = load_private_key(key_path)
             release = Release.issue(built_at_s, valid_days=job.bundles.valid_days, development=development)
+            over = day_over(day, built_at_s)  # a warning of the run (stderr; the overview says it from the manifest)
             inputs = _inputs_digest(job, lines, public_key_id(key.public_key()), run_date)
             found = _current_run(root, inputs) if use_cache else None
             if found is not None:
@@ -274,7 +276,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                              "re-issued")
             run_id = next_run_id(root, inputs)
             stage = staging_dir(root, run_id)
-            summary = RunSummary(run_id, None, False, notes=notes, run_date=run_date)
+            summary = RunSummary(run_id, None, False, notes=notes, run_date=run_date, warnings=[over] if over else [])
             runner = Runner(job, cache, prog)
             summary.release = release
             # every dataset file carries the run's id and date from its first write (nothing is rewritten)

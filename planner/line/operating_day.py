@@ -315,3 +315,15 @@ __all__ = ["DEFAULT_START_HOUR", "DayInputs", "OperatingDay", "TEMPORARY_KIND",
            "current_operating_day", "in_force", "leg_restrictions", "local_instant", "local_text",
            "next_operating_day", "operating_day", "reaches", "restrictions_in_force", "service_runs",
            "timetable_instant", "trains_running", "whole_day", "without_temporary", "zone"]
+
+
+def day_over(day: dict, now_s: float) -> str:
+    """A sentence when the operating day of the run's record (:func:`day_record`) ended before ``now_s`` (the
+    run's build time, UTC epoch seconds): its bundles are valid only in that day's window, so every vehicle
+    refuses them; "" otherwise (or without a day)."""
+    end = day.get("end_utc_s") if day else None
+    if end is None or now_s < end:
+        return ""
+    return (f"the operating day planned, {day['day']} ({day.get('start')} to {day.get('end')}), ended before this run "
+            "was built: its bundles are valid only in that window, so every vehicle refuses them; plan a day to "
+            "come ([day] day, or --day)")

@@ -163,6 +163,20 @@ def bundle_rows(run_dir: str | Path, manifest: dict[str, Any]) -> list[list[str]
     return _bundles(Path(run_dir), (manifest.get("operating_day") or {}).get("start_utc_s"))
 
 
+def _over(manifest: dict[str, Any]) -> str:
+    """A banner when the run plans an operating day that ended before it was built (its bundles are then for a day
+    that is over: every vehicle refuses them)."""
+    from planner.bundle.manifest import parse_time
+    from planner.line.operating_day import day_over
+
+    built = (manifest.get("bundles_release") or {}).get("built_at")
+    try:
+        text = day_over(manifest.get("operating_day") or {}, parse_time(built, "built_at")) if built else ""
+    except Exception:  # noqa: BLE001 - a manifest from before these keys: nothing to say
+        return ""
+    return f"<p class='warn'><b>Day already over:</b> {_e(text)}.</p>" if text else ""
+
+
 def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = (),
                     bundles: list[list[str]] | None = None) -> str:
     """The overview page of a run folder as HTML (module doc for the sections); ``bundles``: the bundles
@@ -179,6 +193,7 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
         f"<title>Run {_e(run_id)} — planner</title><style>{CSS}</style></head><body><main>",
         f"<h1>Run <code>{_e(run_id)}</code> <span style='color:#777;font-weight:400'>job {_e(manifest.get('job', ''))}</span></h1>",
         _dates(manifest),
+        _over(manifest),
         f"<p class='sub'>inputs digest <code>{_e(manifest.get('inputs_digest', ''))}</code> · code digest "
         f"<code>{_e(str(manifest.get('code_digest', ''))[:16])}</code> · planner {_e(sw.get('planner', '?'))}, "
         f"Python {_e(sw.get('python', '?'))}, numpy {_e(sw.get('numpy', '?'))}, pyarrow {_e(sw.get('pyarrow', '?'))}"
