@@ -79,3 +79,34 @@ def test_rule_describes_and_checks_itself():
         "load off (empty), traction ×0.9, adhesion off (stopping brake)")
     with pytest.raises(InputError, match="degraded_load"):
         MarginRule(degraded_load=1.5)
+
+
+def test_a_train_types_bad_day_does_not_depend_on_the_other_types_on_the_line(tmp_path):
+    """The stops step sweeps each train type's adhesion levels, capped by its brake; the margin report took the
+    lowest level of the whole line for every type's bad day, so one weak freight brake (0.82 km/h/s) made the
+    passenger legs short on a bad day. EMU10's rows are the same with EMU6 on the line with a weak stopping
+    brake (its levels capped at 1.0 km/h/s) and without."""
+    import warnings
+
+    import pandas as pd
+
+    from linedb import default_tables, write_line_db
+    from planner.datasets.stops import write_stops
+    from planner.line.loader import load_line
+    from planner.report.margins import compute_margins
+    from planner.stopping.sweep import stop_sweep
+
+    t = default_tables()
+    rs = t["rolling_stock"]
+    rs.loc[rs.train_type == "EMU6", ["stop_brake_kmh_s", "brake_comfort_kmh_s"]] = 1.0
+    line = load_line(write_line_db(tmp_path / "tiny", nodes=None, edges=None, rolling_stock=rs))
+    rows = {}
+    for name, types in (("alone", ["EMU10"]), ("shared", ["EMU10", "EMU6"])):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = stop_sweep(line, train_types=types, adhesion_kmh_s="2.5:3.5:0.5", n_jobs=1)
+        write_stops(res, tmp_path / name)
+        rep = compute_margins(line, train_types=["EMU10"], stops_dir=tmp_path / name, n_jobs=1)
+        rows[name] = rep.rows
+    assert rows["shared"]["adhesion_min_kmh_s"].eq(2.5).all()  # EMU10's own lowest level, not EMU6's 1.0
+    pd.testing.assert_frame_equal(rows["alone"], rows["shared"])

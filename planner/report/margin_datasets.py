@@ -313,11 +313,13 @@ def stops_adhesion(stops_dir: Path, line_id: str) -> np.ndarray:
     return stops_facts(stops_dir, line_id)[0]
 
 
-def stops_facts(stops_dir: Path, line_id: str) -> tuple[np.ndarray, dict]:
-    """The ``stop_summary`` dataset of a ``planner stops --out`` folder: its adhesion levels [km/h/s] and the
-    approaches it has no pattern for, ``(train_type, direction, origin, station_id)`` → ``(levels [km/h/s]
-    without a pattern, the first one's reason, the stop marker's chainage [m])``: what the bundles hold, so
-    the margin report's bad day never stops a train where they cannot (:func:`planner.report.margins.no_stop`)."""
+def stops_facts(stops_dir: Path, line_id: str) -> tuple[np.ndarray, dict, dict]:
+    """The ``stop_summary`` dataset of a ``planner stops --out`` folder: its adhesion levels [km/h/s] (every train
+    type's), the approaches it has no pattern for, ``(train_type, direction, origin, station_id)`` → ``(levels
+    [km/h/s] without a pattern, the first one's reason, the stop marker's chainage [m])`` (what the bundles hold,
+    so the margin report's bad day never stops a train where they cannot: :func:`planner.report.margins.no_stop`),
+    and each train type's own levels (capped by its brake), so that no type's bad day takes another's lowest
+    level (a freight's 0.82 km/h/s made every passenger leg short on a bad day)."""
     try:
         t = read_dataset(stops_dir, "stop_summary", line=line_id)
     except (FileNotFoundError, OSError, pa.ArrowInvalid) as e:
@@ -335,4 +337,11 @@ def stops_facts(stops_dir: Path, line_id: str) -> tuple[np.ndarray, dict]:
             key = tuple(str(cols[c][i]) for c in ("train_type", "direction", "origin", "station_id"))
             levels, reason, stop_m = missing.setdefault(key, (set(), str(cols["reason"][i]), float(cols["stop_m"][i])))
             levels.add(round(float(vals[i]), 9))
-    return np.unique(np.round(vals[np.isfinite(vals)], 9)), missing  # the levels as the job file spells them
+    by_type: dict[str, np.ndarray] = {}
+    if "train_type" in t.column_names:
+        types = np.asarray(t.column("train_type").to_pylist(), dtype=object)
+        for tt in sorted(set(types.tolist())):
+            v = vals[types == tt]
+            by_type[str(tt)] = np.unique(np.round(v[np.isfinite(v)], 9))
+    # the levels as the job file spells them
+    return np.unique(np.round(vals[np.isfinite(vals)], 9)), missing, by_type

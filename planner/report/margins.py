@@ -352,8 +352,8 @@ def compute_margins(
     types = list(train_types) if train_types else [t.train_type for t in line.train_types]
     for t in types:
         line.train_type(t)
-    adh, no_pattern = stops_facts(Path(stops_dir), line.line_id) if stops_dir is not None \
-        else (np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float), {})
+    adh, no_pattern, adh_of = stops_facts(Path(stops_dir), line.line_id) if stops_dir is not None \
+        else (np.asarray(adhesion_levels(adhesion_kmh_s), dtype=float), {}, {})
     legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
     sched = scheduled_times(line, types, legs, lifted)
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
@@ -380,8 +380,10 @@ def compute_margins(
     # timetable: on a 10x line pickling the whole line per leg made this step quadratic; a group
     # with restrictions lifted computes its own tables and closed loop (the given ones have them)
     windows = {k: group_window(line, k) for k in keys}
+    # each train type's own adhesion levels where the stops step gave them: its bad day is its own
     tasks = [(windows[k], k[1], k[2], k[3], sorted(sched[k]), None if k[4] else tabs.get(k[:4]),
-              None if k[4] else energy.get(k[:4]), kw | {"closed_loop_errors": {} if k[4] else known_errors(k[:4])})
+              None if k[4] else energy.get(k[:4]), kw | {"closed_loop_errors": {} if k[4] else known_errors(k[:4]),
+                                                         "adhesion_kmh_s": adh_of.get(k[1], adh)})
              for k in keys]
     results: list[LegResult] = map_tasks(_leg_task, tasks, n_jobs, progress)
     for k, r, task in zip(keys, results, tasks):  # the window holds only the leg's two stations: the passed ones
@@ -403,7 +405,7 @@ def compute_margins(
     totals = margin_totals(rows.assign(lifted=row_lifted), tl, key_extra=("lifted",)) if len(tl) \
         else pd.DataFrame(columns=TOTALS_COLUMNS)
     totals.insert(0, "line", line.line_id)
-    curves, chosen_key = _chosen_curves(line, rows, results, chosen, kw)
+    curves, chosen_key = _chosen_curves(line, rows, results, chosen, kw, adh_of)
     con, note = _conflicts(line, conflicts, conflict_params)
     return MarginReport(
         line_id=line.line_id, line_name=line.name, rule=rule, adhesion_kmh_s=adh, approach_m=approach_m,
@@ -529,8 +531,9 @@ def _leg_columns(line: Line, r: LegResult) -> dict:
     }
 
 
-def _chosen_curves(line: Line, rows, results: Sequence[LegResult], chosen, kw: dict):
-    """Run curves of the leg the page draws (``chosen``, else the least remaining margin) and its key."""
+def _chosen_curves(line: Line, rows, results: Sequence[LegResult], chosen, kw: dict, adh_of: dict | None = None):
+    """Run curves of the leg the page draws (``chosen``, else the least remaining margin) and its key; ``adh_of``:
+    each train type's adhesion levels (:func:`stops_facts`), as its legs were computed with."""
     pick = None
     has = rows[rows["scheduled_running_time_s"].notna()]
     if chosen is not None:
@@ -550,7 +553,8 @@ def _chosen_curves(line: Line, rows, results: Sequence[LegResult], chosen, kw: d
     done = next(r for r in results if (r.direction, r.train_type, r.origin, r.destination) == k
                 and list(r.restrictions) == list(pick.restrictions))
     lr = leg_result(group_window(line, (*k, done.lifted)), k[1], k[2], k[3], s, tables=done.tables,
-                    energy_a_kwh=done.energy_a_kwh, record=True, **kw)
+                    energy_a_kwh=done.energy_a_kwh, record=True,
+                    **(kw | {"adhesion_kmh_s": (adh_of or {}).get(k[1], kw["adhesion_kmh_s"])}))
     if lr.curves is None:  # a stalled leg has no bad-day curve to draw
         return None, None
     return lr.curves, {"direction": k[0], "train_type": k[1], "origin": k[2], "destination": k[3],
