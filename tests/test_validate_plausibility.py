@@ -81,12 +81,39 @@ def test_margin_must_leave_an_on_board_speed_under_the_lowest_limit(tmp_path):
     assert _stock(tmp_path, "other", 0, speed_margin_kmh=45.0) == []  # EMU10 does not meet it (70 km/h is its lowest)
 
 
-def test_brakes_must_hold_the_train_on_the_steepest_climb(tmp_path):
-    # EMU10: (g 10 ‰ + A/M) / (1 + ρ) with A = 5 kN, M = 320 t, ρ = 0.08, in km/h/s (× 3.6)
-    need = (9.80665 * 0.010 + 5_000.0 / 320_000.0) / 1.08 * 3.6
-    assert 0.378 < need < 0.380
-    found = _stock(tmp_path, "weak", 0, stop_brake_kmh_s=0.378)
-    assert [(v.file, v.row, v.column) for v in found] == [("rolling_stock.parquet", 0, "stop_brake_kmh_s")]
-    assert "10.0 ‰, gradients.parquet row 2" in str(found[0])
-    assert _stock(tmp_path, "enough", 0, stop_brake_kmh_s=0.380, service_brake_kmh_s=0.380,
-                  atsp_pattern_kmh_s=0.380) == []
+def test_any_positive_brake_is_accepted_whatever_the_gradients(tmp_path):
+    """A freight with a real 0.81 km/h/s brake on a 20 ‰ line was refused ("use a higher rate"): advice to make
+    braking distances optimistic. Validation accepts any positive rate: a brake weaker than a gradient's pull is
+    a verdict of physics on the legs where it matters (test_a_weak_brake_climbs_and_is_flagged_on_the_descent)."""
+    assert _stock(tmp_path, "weak", 0, stop_brake_kmh_s=0.05, service_brake_kmh_s=0.05, atsp_pattern_kmh_s=0.05) == []
+
+
+def test_a_weak_brake_climbs_and_is_flagged_on_the_descent(tmp_path):
+    """The steep line's freight with a 0.6 km/h/s brake, weaker than the 0.67 km/h/s a 20 ‰ gradient pulls
+    (g · 0.02 / (1 + ρ), ρ = 0.06): up the climb it runs and stops at its marker (a run below its braking curve
+    powers: it brakes less than the curve asks); down the 20 ‰ fall towards A no stopping pattern stops it, a
+    flag on that approach (the run's no_stop), not a failure."""
+    import warnings
+
+    from linedb import write_line_db
+    from steep_line import steep_tables
+    from planner import running_time
+    from planner.line.loader import load_line
+    from planner.stopping.sweep import stop_sweep
+
+    pull = 9.80665 * 0.020 / 1.06 * 3.6
+    assert 0.66 < pull < 0.67
+    t = steep_tables()
+    rs = t["rolling_stock"]
+    for c in ("service_brake_kmh_s", "stop_brake_kmh_s", "brake_comfort_kmh_s", "atsp_pattern_kmh_s"):
+        rs.loc[rs.train_type == "FRT", c] = 0.6
+    line = load_line(write_line_db(tmp_path / "steep", **{**t, "rolling_stock": rs}))
+    up_the_climb = running_time(line, "FRT", "A", "B", ratio=1.0)
+    assert 300.0 < up_the_climb.time_s < 1000.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = stop_sweep(line, train_types=["FRT"], adhesion_kmh_s="2.5", n_jobs=1)
+    stuck = {(r.direction, r.origin, r.station_id) for r in res if r.n_feasible < len(r.patterns)}
+    assert ("up", "B", "A") in stuck and ("down", "A", "B") not in stuck
+    desc = next(r for r in res if (r.direction, r.origin, r.station_id) == ("up", "B", "A"))
+    assert "falling gradient" in desc.patterns[0].reason

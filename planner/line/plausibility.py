@@ -7,10 +7,14 @@ Registered with :func:`planner.line.rules.rule` like every other rule of stage 2
   than its platform is reported as a warning (legitimate with selective door
   opening);
 - the on-board speed margin must leave a positive speed under every limit the
-  train type meets;
-- every brake rate must exceed the deceleration a standing train gets from the
-  steepest gradient of the line and its own standstill resistance, or the train
-  could not follow its braking curve up that climb (it would stop short).
+  train type meets.
+
+Any positive brake rate is accepted, whatever the gradients: on a climb that slows
+the train more than its braking curve asks, the run follows the curve with less
+brake, or under power (a run below its ceiling powers); on a descent whose pull its
+brake cannot overcome, no stopping pattern stops it there, which is a verdict on
+that leg (``no_stop``), not bad input. A rule that refused such a brake (and
+advised a stronger one, an optimistic braking distance) was removed.
 
 Each is a value that passes its column's range but fails with another table; the
 run would otherwise stop late, in the middle of a computation.
@@ -19,14 +23,10 @@ from __future__ import annotations
 
 from typing import Iterator
 
-import numpy as np
-
 from planner.errors import Violation
 from planner.line.conform import TableView, fmt
-from planner.line.model import G
 from planner.line.rules import Db, _ordered_calls, _trains, rule
 from planner.line.schema import DIRECTIONS
-from planner.line.units import KMH_S, KN, PERMIL, TONNE
 
 
 def _standing_calls(t: TableView, db: Db) -> Iterator[tuple[str, str, float, int, str]]:
@@ -120,33 +120,3 @@ def margin_leaves_a_speed(db: Db) -> Iterator[Violation]:
             yield rs.err(i, "speed_margin_kmh",
                          f"{fmt(margin)} km/h leaves no on-board speed under {fmt(lowest)} km/h ({where}); "
                          f"use a margin below it")
-
-
-@rule("rolling_stock", "gradients")
-def brakes_hold_on_the_steepest_climb(db: Db) -> Iterator[Violation]:
-    """Each brake rate exceeds the deceleration of a standing train on the line's steepest gradient.
-
-    The deceleration is ``(g |s| + A / M) / (1 + ρ)``: the steepest gradient
-    ``s`` of gradients.parquet (a climb in one of the two directions), the Davis
-    A term over the empty mass (the lightest train has the most), inertia with
-    the rotating-mass factor ρ. A braking curve at a lower rate would need
-    traction to hold on the climb; the planner brakes without traction, so the
-    train would stop before its marker (the run fails as a stall).
-    """
-    g, rs = db.tables["gradients"], db.tables["rolling_stock"]
-    if not g.good.any():
-        return
-    slope = np.where(g.good, np.abs(np.asarray(g["gradient_permil"], dtype=float)), -1.0)  # vectorised: big tables
-    k = int(np.argmax(slope))
-    steep = float(slope[k])
-    for i in rs.rows():
-        mass_kg = float(rs["empty_mass_t"][i]) * TONNE
-        rho = float(rs["rotating_mass_factor"][i])
-        need_ms2 = (G * steep * PERMIL + float(rs["davis_a_kN"][i]) * KN / mass_kg) / (1.0 + rho)
-        need = need_ms2 / KMH_S
-        for c in ("service_brake_kmh_s", "stop_brake_kmh_s", "atsp_pattern_kmh_s"):
-            if not float(rs[c][i]) > need:
-                yield rs.err(i, c, f"{fmt(float(rs[c][i]))} km/h/s is not more than the {need:.3g} km/h/s a "
-                                   f"standing train gets from the steepest gradient ({fmt(steep)} ‰, "
-                                   f"gradients.parquet row {k}) and its Davis A term: it could not follow its "
-                                   f"braking curve up that climb; use a higher rate")

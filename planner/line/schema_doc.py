@@ -47,10 +47,10 @@ _RULES: dict[str, list[str]] = {
                       "`speed_margin_kmh` below the lowest speed the train type meets (the line's and its own "
                       "maximum, every restriction for it or for every train type): the on-board maximum is that "
                       "speed minus the margin.",
-                      "Each of `service_brake_kmh_s`, `stop_brake_kmh_s`, `atsp_pattern_kmh_s` above "
-                      "(g·|s| + A/M) / (1 + ρ) in km/h/s: the pull of the steepest gradient `s` of the line and the "
-                      "Davis A term on the empty train. A weaker brake rate could not follow its braking curve up "
-                      "that climb without traction (the train would stop short of its marker).",
+                      "Any positive `service_brake_kmh_s`, `stop_brake_kmh_s`, `atsp_pattern_kmh_s`, whatever the "
+                      "gradients: on a climb that slows the train more than its braking curve asks it brakes less, "
+                      "or powers; on a descent whose pull the brake cannot overcome, no stopping pattern stops it "
+                      "there, a flag on that leg (`no_stop`), not an error.",
                       f"`cruise` one of {', '.join(CRUISE_MODES)}; `coast_band_kmh` > 0 for sawtooth.",
                       "Three limits kept apart: `max_accel_kmh_s` caps acceleration when powering (a source's "
                       "traction comfort limit goes here); `brake_comfort_kmh_s` is the ride-comfort limit on the "
