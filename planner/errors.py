@@ -32,6 +32,8 @@ class Violation:
         What is wrong and, where it helps, how to fix it.
     row_id : str or None
         The row's id (``station_id``, ``start_m=4200.0``, ...) where it has one.
+    rule : str
+        The rule that found it, for a warning (the name of its function): warnings are grouped by it.
     """
 
     file: str
@@ -39,6 +41,7 @@ class Violation:
     column: str | None
     message: str
     row_id: str | None = None
+    rule: str = ""
 
     def __str__(self) -> str:
         where = self.file

@@ -55,12 +55,22 @@ def test_train_longer_than_its_platform_is_a_warning_where_it_stands(tmp_path):
     assert "201.0 m long" in str(w[0]) and "platform is 200.0 m" in str(w[0])
 
 
-def test_validate_prints_the_warning_and_succeeds(tmp_path):
+def test_validate_prints_the_warnings_grouped_by_rule_and_succeeds(tmp_path):
+    """One line per rule with its count, then the first three rows: one freight type at 200 m platforms
+    printed 792 lines (34 per train)."""
     r = CliRunner().invoke(app, ["validate", str(_line(tmp_path, "over", emu10_m=201.0))])
     assert r.exit_code == 0
-    warnings = [x for x in r.stderr.splitlines() if x.startswith("warning: ")]
-    assert len(warnings) == 3 and warnings[0].startswith("warning: timetable.parquet row 0 (train_id=101 seq=0) "
-                                                         "column stops: train '101'")
+    err = r.stderr.splitlines()
+    assert err[0] == "warning: train_fits_platform: 3 rows (a train stands at a platform shorter than itself):"
+    assert err[1].startswith("  timetable.parquet row 0 (train_id=101 seq=0) column stops: train '101'")
+    assert len(err) == 4
+    w = []
+    load_line(_line(tmp_path, "both", emu10_m=201.0, emu6_m=201.0), w)
+    from planner.line.validate import format_warnings
+
+    lines = format_warnings(w)
+    assert lines[0].startswith("warning") is False and lines[0].startswith("train_fits_platform: 5 rows")
+    assert lines[0].endswith("; the first 3:") and len(lines) == 5 and lines[-1] == "  … and 2 more of this rule"
 
 
 # --- values that pass their range but fail with another table (issue 32)

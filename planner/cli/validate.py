@@ -8,7 +8,7 @@ import typer
 from ..errors import LineValidationError, PlannerError
 from planner.line.model import Line
 from planner.line.units import kmh
-from planner.line.validate import format_violations
+from planner.line.validate import format_violations, format_warnings
 from . import app
 
 
@@ -59,5 +59,5 @@ def validate(
         raise typer.Exit(e.exit_code)
     for msg in summary(line):
         typer.echo(msg)
-    for msg in format_violations(warnings):
-        typer.echo(f"warning: {msg}", err=True)
+    for msg in format_warnings(warnings):  # grouped by rule: a count and the first few rows
+        typer.echo(f"warning: {msg}" if not msg.startswith("  ") else msg, err=True)

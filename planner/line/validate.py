@@ -32,6 +32,9 @@ written as null (pandas converts NaN to null when it writes Parquet).
 """
 from __future__ import annotations
 
+import dataclasses
+import re
+
 import pyarrow as pa
 
 from planner.errors import Violation
@@ -50,6 +53,29 @@ def format_violations(violations: list[Violation], limit: int = MAX_PRINTED) -> 
     if len(violations) > limit:
         lines.append(f"… and {len(violations) - limit} more")
     return lines
+
+
+WARNINGS_SHOWN = 3
+"""How many findings of one warning rule are printed in full (the count says how many there are)."""
+
+
+def format_warnings(warnings: list[Violation], first: int = WARNINGS_SHOWN) -> list[str]:
+    """Warnings grouped by the rule that found them: a line with the rule, what it means and how many rows,
+    then the first ``first`` of them (one freight type at 200 m platforms printed 792 lines, 34 per train)."""
+    groups: dict[str, list[Violation]] = {}
+    for v in warnings:
+        groups.setdefault(v.rule, []).append(v)
+    out = []
+    for name, vs in groups.items():
+        fn = next((f for _, f in ADVICE if f.__name__ == name), None)
+        what = re.sub(r"^Warn (where|when|if) |\s*\(issue \d+\)", "", (fn.__doc__ or "").strip().splitlines()[0]) \
+            if fn else ""
+        head = f"{name or 'warning'}: {len(vs)} row{'s' * (len(vs) != 1)}" + (f" ({what.rstrip('.')})" if what else "")
+        out.append(head + (f"; the first {first}:" if len(vs) > first else ":"))
+        out += [f"  {v}" for v in vs[:first]]
+        if len(vs) > first:
+            out.append(f"  … and {len(vs) - first} more of this rule")
+    return out
 
 
 # --------------------------------------------------------------------------- entry point
@@ -108,6 +134,7 @@ def check_tables(
             out.extend(fn(db))
     out.sort(key=_sort_key)
     if warnings is not None:
-        found = [v for needs, fn in ADVICE if all(n in views for n in needs) for v in fn(db)]
+        found = [dataclasses.replace(v, rule=fn.__name__) for needs, fn in ADVICE if all(n in views for n in needs)
+                 for v in fn(db)]
         warnings.extend(sorted(found, key=_sort_key))
     return views, out
