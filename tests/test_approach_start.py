@@ -94,3 +94,21 @@ def test_the_line_column_is_optional_and_checked(tmp_path):
     t["line"]["approach_m"] = [-1.0]
     with pytest.raises(LineValidationError, match="approach_m"):
         load_line(write_line_db(tmp_path / "d", **t))
+
+
+def test_the_start_is_never_inside_the_runs_braking_for_a_lower_limit():
+    """A 160 km/h limit over the last 2 km: going back from the marker, a stop from 160 km/h fits at
+    d = 44.4²/(2 · 0.5) + 44.4 · 0.5/(2 · 0.5) = 1997.5 m, and 10 % more put the start 200 m into the run's
+    braking from 288 km/h onto the limit, where the run (on its braking curve, no jerk ramp) is faster than any
+    pattern can follow: "needs 2221.1 m to stop from 167.8 km/h, only 2197.8 m available", though the brake makes
+    the stop. The start is where that braking ends, at the limit; every level has its pattern."""
+    v = 160.0 * KMH
+    d = v * v / (2 * 0.5) + v * 0.5 / (2 * 0.5)
+    assert 1997.0 < d < 1998.0
+    line = _long_line(limits=[(37_000.0, 40_000.0, 160.0)])
+    st = approach_start(line, "S0", "S1", "auto", train_type="FAST", adhesion_ms2=LEVELS_MS2[0])
+    assert 39_000.0 - st.s_m == pytest.approx(2000.0, abs=1.2)  # the limit's start, one grid step
+    r = approach_patterns(line, "FAST", "S0", "S1", LEVELS_MS2)
+    assert r.v_start_ms == pytest.approx(v, abs=1e-6)
+    assert all(p.feasible for p in r.patterns), [p.reason for p in r.patterns]
+    assert r.approach_length_m >= r.patterns[0].braking_distance_m > d - 1e-6

@@ -147,7 +147,12 @@ def physics_start_m(line: Line, train_type: str, origin: str, destination: str, 
     ``L − s* >= v²/(2b) + v b/(2J)``, ``v`` the run's speed at ``s*``, ``b`` the least deceleration
     limit of the stretch from ``s*`` to the marker at ``adhesion_ms2`` (:func:`decel_limits`, gradient
     included). The start is :data:`APPROACH_MARGIN` of ``L − s*`` before ``s*``, and never before
-    half-way from the departure to ``s*`` (a short run that brakes as soon as it has started).
+    half-way from the departure to ``s*`` (a short run that brakes as soon as it has started),
+    nor inside a braking of the run for a lower speed limit before ``s*``: there the run brakes
+    on its braking curve, which a jerk-limited pattern starting in it cannot follow (a 160 km/h
+    limit 2 km before the stop put the start 200 m into the run's braking from 288 km/h: "needs
+    2221.1 m to stop from 167.8 km/h, only 2197.8 m available", for a brake that makes the stop).
+    The start is then where that braking ends, the run at the lower limit.
     """
     from planner.physics.run_curve import simulate
     from planner.physics.track import SimSettings, make_track
@@ -160,7 +165,8 @@ def physics_start_m(line: Line, train_type: str, origin: str, destination: str, 
     a = brake_cap_ms2(train) if adhesion_ms2 is None else min(float(adhesion_ms2), brake_cap_ms2(train))
     track = make_track(line, train_type, origin, destination, settings=settings or SimSettings())
     s = np.asarray(track.s_m, float)
-    v = np.asarray(simulate(track, train, 1.0, load=0.0, traction_factor=1.0, record=True).v_ms[0], float)
+    run = simulate(track, train, 1.0, load=0.0, traction_factor=1.0, record=True)
+    v = np.asarray(run.v_ms[0], float)
     grads = gradient_steps(line, train.length_m, ext.direction, ext.start_m, length)
     try:
         dl = decel_limits(line, train, ext.direction, ext.start_m, length, a, grads)
@@ -172,7 +178,23 @@ def physics_start_m(line: Line, train_type: str, origin: str, destination: str, 
     need = v * v / (2.0 * b) + v * b / (2.0 * train.jerk_limit_ms3)
     fits = np.flatnonzero((length - s[:-1]) >= need[:-1])  # the marker itself (v = 0) does not count
     s_star = float(s[fits[-1]]) if fits.size else 0.0
-    return max(s_star - APPROACH_MARGIN * (length - s_star), 0.5 * s_star)
+    start = max(s_star - APPROACH_MARGIN * (length - s_star), 0.5 * s_star)
+    return _out_of_braking(s, np.asarray(run.phase[0]), start, s_star)
+
+
+def _out_of_braking(s: np.ndarray, phase: np.ndarray, start: float, s_star: float) -> float:
+    """``start``, or where the run's braking it lies in ends, when that is no later than ``s_star``; ``phase``
+    the run's phase code at each node of ``s`` (the step arriving there)."""
+    from planner.physics.kernel_abi import PHASE_BRAKE
+
+    k = int(np.searchsorted(s, start))  # the node at or after the start
+    if k + 1 >= s.size or not (phase[k] == PHASE_BRAKE or phase[k + 1] == PHASE_BRAKE):
+        return start
+    j = k + 1
+    while j < s.size and phase[j] == PHASE_BRAKE:
+        j += 1
+    end = float(s[j - 1])  # the last node the braking arrives at: the run is at the lower limit from there
+    return end if end <= s_star else start
 
 
 def speed_limits(track, s_start_m: float) -> list[tuple[float, float]]:
