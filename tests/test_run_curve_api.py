@@ -89,7 +89,8 @@ def test_cli_json_and_plot(sample_ids, tmp_path):
     r = CliRunner().invoke(cli_app, ["runtime", str(SAMPLE), "--train-type", tt, "--from", a,
                                              "--to", b, "--ratio", "0.8", "--json", "--plot", str(png)])
     assert r.exit_code == 0, r.output
-    out = json.loads(r.output)
+    out = json.loads(r.stdout)  # the JSON alone on stdout; stderr says which line it ran on
+    assert r.stderr.startswith("note: the line as its database has it, no operating day's temporary restrictions")
     ref = planner.running_time(SAMPLE, tt, a, b, ratio=0.8)
     assert out["running_time_s"] == pytest.approx(ref.time_s, abs=1e-3)
     assert out["energy_kwh"] == pytest.approx(ref.energy_kwh, abs=1e-3)

@@ -17,8 +17,14 @@ class _Group(typer.core.TyperGroup):
     also when the app is invoked as an object (tests, embedding), not only through :func:`main`."""
 
     def invoke(self, ctx):
+        from .checks import DAY_NOTES
+
+        DAY_NOTES.clear()
         try:
-            return super().invoke(ctx)
+            out = super().invoke(ctx)
+            for note in DAY_NOTES:  # after the command's own output, and only when it succeeded
+                typer.echo(note, err=True)
+            return out
         except PlannerError as e:
             typer.echo(f"error: {e}", err=True)
             raise typer.Exit(e.exit_code) from None

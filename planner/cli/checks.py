@@ -104,3 +104,39 @@ def check_jobs(n: int, option: str = "--jobs") -> None:
 
 __all__: Iterable[str] = ["check_out_dir", "check_out_file", "check_fraction", "station_code", "train_type_code",
                           "train_type_codes", "check_jobs"]
+
+
+JOB_HELP = ("Job file: use the line as the nightly job plans it on its operating day (the day's temporary "
+            "restrictions and trains), so the answer is the published night's.")
+DAY_HELP = "With --job: plan this operating day (YYYY-MM-DD) instead of the job's."
+
+
+DAY_NOTES: list[str] = []
+"""What :func:`day_line` says of the line a command computed with: printed on stderr after the command's own output
+when it succeeds (``planner.cli._Group``), never before an error (a refused command prints its one line only)."""
+
+
+def day_line(line, job_file: Optional[Path], day: Optional[str], lifted: Optional[dict] = None):
+    """The line a one-off command computes with: with ``--job`` (and ``--day``) the job's operating day's line
+    (:func:`planner.job.day.line_on_day`), said in one line on stderr; without, the line as its database has it,
+    and a line on stderr saying that no day's temporary restrictions are in it. ``lifted``, when given, gets the
+    restrictions lifted per train that day (the conflict check's, as the night's)."""
+    from planner.errors import InputError
+
+    if job_file is None:
+        if day:
+            raise InputError("--day needs --job JOB.toml: the job names the line's daily feed and time zone")
+        DAY_NOTES.append("note: the line as its database has it, no operating day's temporary restrictions (--job "
+                         "JOB.toml [--day D] plans that day's line, as the nightly job does)")
+        return line
+    from planner.job.config import load_job
+    from planner.job.day import line_on_day, resolve_day, with_day
+
+    job = load_job(job_file)
+    job = resolve_day(with_day(job, day) if day else job)
+    out, said, off = line_on_day(job, line)
+    if lifted is not None:
+        lifted.update(off)
+    DAY_NOTES.append(f"note: {said}")
+    return out
+

@@ -7,6 +7,7 @@ from typing import Optional
 import typer
 
 from . import app
+from .checks import DAY_HELP, JOB_HELP
 
 
 @app.command()
@@ -20,6 +21,8 @@ def graph(
     run: Optional[Path] = typer.Option(None, "--run", help="A published run (e.g. outputs/latest) of this line database: "
                                        "its occupation, conflicts and margin_totals datasets are used."),
     fmt: str = typer.Option("svg", "--format", help="Chart format: svg or png."),
+    job: Optional[Path] = typer.Option(None, "--job", help=JOB_HELP),
+    day: Optional[str] = typer.Option(None, "--day", help=DAY_HELP),
 ) -> None:
     """Draw every train from its predicted run: charts per direction and both, and a page to zoom and hover."""
     from .. import load_line
@@ -29,14 +32,14 @@ def graph(
     from planner.pages.run_head import run_words
     from planner.pages.train_graph import write_page
 
-    from .checks import check_out_dir
+    from .checks import check_out_dir, day_line
 
     if fmt not in ("svg", "png"):
         raise InputError(f"--format must be svg or png, not {fmt!r}")
     check_out_dir(out, "--out", "train graph")
     t0 = parse_hhmm(t_from, "--from") if t_from else None
     t1 = parse_hhmm(t_to, "--to") if t_to else None
-    line = load_line(line_dir)
+    line = day_line(load_line(line_dir), job, day)
     if train and match_train([t.train_id for t in line.trains], train) is None:  # before the run curves are simulated
         raise InputError(f"--train {train}: no such train on line {line.line_id} "
                          f"(e.g. {', '.join(t.train_id for t in line.trains[:3])})")

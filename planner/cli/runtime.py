@@ -3,11 +3,13 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Optional
 
 import typer
 
 from ..errors import InputError
 from . import app
+from .checks import DAY_HELP, JOB_HELP
 
 
 @app.command()
@@ -22,12 +24,14 @@ def runtime(
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
     plot: Path = typer.Option(None, "--plot", help="Write a run-curve chart to this PNG file."),
     ds: float = typer.Option(1.0, "--ds", help="Integration distance step in metres."),
+    job: Optional[Path] = typer.Option(None, "--job", help=JOB_HELP),
+    day: Optional[str] = typer.Option(None, "--day", help=DAY_HELP),
 ) -> None:
     """Running time (and traction energy) between two stations at a target-speed ratio."""
     from planner.line.loader import load_line
     from planner.physics.track import SimSettings
     from planner.api import running_time
-    from .checks import check_fraction, check_out_file, station_code, train_type_code
+    from .checks import check_fraction, check_out_file, day_line, station_code, train_type_code
 
     if not 0.0 < ratio <= 1.0:
         raise InputError(f"--ratio must lie in (0, 1], got {ratio}")
@@ -35,7 +39,7 @@ def runtime(
     if not traction > 0.0:
         raise InputError(f"--traction must be > 0, got {traction}")
     check_out_file(plot, "--plot", ".png", "run-curve chart")
-    line = load_line(line_dir)
+    line = day_line(load_line(line_dir), job, day)
     train_type = train_type_code(line, train_type)
     origin, destination = station_code(line, origin, "--from"), station_code(line, destination, "--to")
     res = running_time(line, train_type, origin, destination, ratio=ratio, load=load,

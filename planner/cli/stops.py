@@ -10,6 +10,7 @@ import typer
 
 from ..errors import InputError
 from . import app
+from .checks import DAY_HELP, JOB_HELP
 
 
 @app.command()
@@ -27,6 +28,8 @@ def stops(
         None, "--plot", help="Station id: also write a PNG of its approach (speed, acceleration, jerk per "
         "adhesion level) for the first train type and --direction (default down)."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
+    job: Optional[Path] = typer.Option(None, "--job", help=JOB_HELP),
+    day: Optional[str] = typer.Option(None, "--day", help=DAY_HELP),
 ) -> None:
     """Solve minimum-time jerk-limited stopping patterns for every station approach and adhesion level."""
     from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
@@ -37,7 +40,7 @@ def stops(
     from planner.datasets.stops import write_stops
     from planner.line.units import KMH_S
 
-    from .checks import check_jobs, check_out_dir, station_code, train_type_codes
+    from .checks import check_jobs, check_out_dir, day_line, station_code, train_type_codes
 
     check_out_dir(out, "--out", "stopping-pattern datasets")
     check_jobs(jobs)
@@ -49,7 +52,7 @@ def stops(
             raise InputError(f"--approach {approach_m!r}: give metres (e.g. 550) or auto") from None
     if direction is not None and direction not in ("down", "up"):
         raise InputError(f"--direction {direction!r}: use down or up")
-    line = load_line(line_dir)
+    line = day_line(load_line(line_dir), job, day)
     train_type = train_type_codes(line, train_type)
     plot_dir = direction or "down"
     if plot is not None:

@@ -3,12 +3,14 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Optional
 from typing import Iterator, Optional
 
 import typer
 
 from ..errors import PlannerError
 from . import app
+from .checks import DAY_HELP, JOB_HELP
 
 
 BUILTIN_MODES = ("nearest", "interpolate", "adaptive", "timekeeping")
@@ -57,6 +59,8 @@ def tables(
         30.0, "--eval-auto", help="On a leg with no beacon evaluation point (and no --eval-interval): "
         "odometer points every this many seconds of running at the leg's maximum speed; 0 = none."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
+    job: Optional[Path] = typer.Option(None, "--job", help=JOB_HELP),
+    day: Optional[str] = typer.Option(None, "--day", help=DAY_HELP),
 ) -> None:
     """Compute running-time tables (a), (b), (c) and (d) for every interstation, direction and train type.
 
@@ -71,11 +75,11 @@ def tables(
     from planner.line.loader import load_line
     from planner.tables.build import build_tables
     from planner.datasets.tables import write_tables
-    from .checks import check_jobs, check_out_dir, train_type_codes
+    from .checks import check_jobs, check_out_dir, day_line, train_type_codes
 
     check_out_dir(out, "--out", "tables")
     check_jobs(jobs)
-    line = load_line(line_dir)
+    line = day_line(load_line(line_dir), job, day)
     train_type = train_type_codes(line, train_type)
     with _progress("tables") as update:
         results = build_tables(line, train_types=train_type or None, ratios=ratios,

@@ -14,6 +14,7 @@ import typer
 
 from ..errors import InfeasibleError, InputError, PlannerError
 from . import app
+from .checks import DAY_HELP, JOB_HELP
 
 
 def parse_change(text: str) -> tuple[float, float]:
@@ -170,18 +171,20 @@ def timekeeping(
     traction: float = typer.Option(1.0, "--traction", help="Traction factor (1.0 nominal, 0.9 weak)."),
     json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write speed/target/advice to this PNG."),
+    job: Optional[Path] = typer.Option(None, "--job", help=JOB_HELP),
+    day: Optional[str] = typer.Option(None, "--day", help=DAY_HELP),
 ) -> None:
     """Drive one interstation by the time-keeping target speed; report arrival and stop errors and advice.
 
     Exits 1 (after printing the run) when the scheduled arrival cannot be met.
     """
     from planner.line.loader import load_line
-    from .checks import check_fraction, check_out_file, station_code, train_type_code
+    from .checks import check_fraction, check_out_file, day_line, station_code, train_type_code
 
     try:
         check_fraction(load, "--load", "0 empty … 1 full")
         check_out_file(plot, "--plot", ".png", "plot")
-        ln = load_line(line_dir)
+        ln = day_line(load_line(line_dir), job, day)
         simulate_timekeeping_cli(ln, train_type_code(ln, train_type), station_code(ln, origin, "--from"),
                                  station_code(ln, destination, "--to"), arrival, change or (), load,
                                  traction, json, plot)

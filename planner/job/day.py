@@ -271,6 +271,26 @@ def restriction_blocks(line: Line, bday) -> list[tuple]:
             for s in line.speed_limits if s.kind == TEMPORARY_KIND and s.restriction_id in valid]
 
 
+def line_on_day(job: Job, line: Line) -> tuple[Line, str, dict]:
+    """``line`` as the nightly job plans it on the job's operating day (:func:`day_line` of :func:`day_inputs`:
+    the day's temporary restrictions in force at some instant of the day, whole day, and the trains that run),
+    one sentence saying so, and the restrictions lifted per train (:func:`lifted_restrictions`: what the
+    night's per-train units, the conflict check among them, use beyond the day's line); for the one-off
+    commands' ``--job`` (their answers are then the night's).
+
+    Raises InputError when the job does not plan this line."""
+    here = Path(line.source_path).resolve()
+    if not any(job.resolve(p).resolve() == here for p in job.job.lines):
+        raise InputError(f"--job: the job does not plan {line.source_path} ([job] lines: "
+                         f"{', '.join(job.job.lines)}); give the job of this line, or leave --job out")
+    d = day_inputs(job, line)
+    ids = ", ".join(r.restriction_id for r in d.restrictions) or "none"
+    on = day_line(line, d)
+    return on, (f"operating day {d.window.day.isoformat()} of the job: temporary restrictions in force ({ids}) for the "
+                f"whole day, as the tables and bundles count them; {len(d.trains)} of {len(line.trains)} trains "
+                "run"), lifted_restrictions(on, d)
+
+
 def lifted_key(lifted: dict) -> list:
     """The lifted map as plain, ordered data for a cache key."""
     return sorted([tid, seq, list(ids)] for (tid, seq), ids in lifted.items())
@@ -331,5 +351,5 @@ def day_record(job: Job, lines: list[Line], notes: list[str], ins: list[DayInput
 
 
 __all__ = ["bundle_day", "day_and_feed", "day_changes", "day_digest", "day_inputs", "day_line", "day_problems",
-           "day_record", "feed_of", "lifted_key", "lifted_restrictions", "restriction_blocks", "line_digest", "plan_day", "resolve_day",
+           "day_record", "feed_of", "line_on_day", "lifted_key", "lifted_restrictions", "restriction_blocks", "line_digest", "plan_day", "resolve_day",
            "time_zone", "window", "with_day"]
