@@ -361,3 +361,42 @@ def test_an_osrd_limit_off_the_lines_path_reaches_its_track_and_a_piece_on_no_tr
     assert [(r.restriction_id, r.start_m, r.end_m, r.direction, r.track) for r in got] == [
         ("branch", 3100.0, 3500.0, "down", "D:TB")]
     assert any("track range NOWHERE 0–50 m lies on no track of the line's network" in n for n in s.notes)
+
+
+def _sample_project(tmp_path):
+    import shutil
+
+    for name in ("lines", "feeds", "jobs"):
+        shutil.copytree(ROOT / name, tmp_path / name)
+    return tmp_path / "jobs" / "nightly.toml", tmp_path / "feeds" / "sample" / "restrictions.parquet"
+
+
+def test_the_restriction_chores_read_the_line_feed_and_zone_from_the_job(tmp_path):
+    """list, lift, remove, export and import --job: the job names the line, its feed and its time zone (the
+    import repeated all three); each edit is validated and written atomically."""
+    job, feed = _sample_project(tmp_path)
+    run = lambda *a: CliRunner().invoke(app, ["restrictions", *map(str, a)])  # noqa: E731
+    before = pq.read_table(feed)
+    r = run("list", job)
+    assert r.exit_code == 0 and r.output.count("\n  TSR-") == 5 and "local times, Asia/Tokyo" in r.output
+    # export, then import it back in place of the feed's: the same table
+    assert run("export", job, "--out", tmp_path / "r.csv").exit_code == 0
+    assert run("import", tmp_path / "r.csv", "--job", job, "--replace").exit_code == 0
+    assert pq.read_table(feed).equals(before)
+    # lift one early: only its valid_until changes; outside its validity is refused and nothing is written
+    r = run("lift", job, "TSR-2026-102", "--at", "2026-12-01T09:00")
+    assert r.exit_code == 0, r.output
+    rows = {x["restriction_id"]: x for x in pq.read_table(feed).to_pylist()}
+    assert rows["TSR-2026-102"]["valid_until"] == "2026-12-01T09:00"
+    lifted = feed.read_bytes()
+    r = run("lift", job, "TSR-2026-102", "--at", "2026-12-05T09:00")
+    assert r.exit_code == 1 and r.output.count("\n") == 1 and "lift it inside that time" in r.output
+    assert feed.read_bytes() == lifted
+    # remove one; an unknown id is one line naming the feed's ids
+    assert run("remove", job, "TSR-2026-098").exit_code == 0
+    assert "TSR-2026-098" not in {x["restriction_id"] for x in pq.read_table(feed).to_pylist()}
+    r = run("remove", job, "NOPE")
+    assert r.exit_code == 1 and "no restriction 'NOPE' (the feed has TSR-2026-101" in r.output
+    # the old form still works; a mix of both is refused
+    r = run("import", tmp_path / "r.csv", "--job", job, "--feed", feed.parent, "--replace")
+    assert r.exit_code == 1 and "leave --feed and --time-zone out" in r.output

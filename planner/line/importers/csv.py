@@ -44,9 +44,10 @@ def _cell(value, typ: pa.DataType) -> str:
     return str(value)
 
 
-def table_csv(name: str, table: pa.Table, *, comments: bool = False) -> str:
-    """The CSV text of one table (declared columns only, in declared order)."""
-    spec = TABLES[name]
+def table_csv(name: str, table: pa.Table, *, comments: bool = False, spec: TableSpec | None = None) -> str:
+    """The CSV text of one table (declared columns only, in declared order); ``spec``: another declared table
+    than the line database's ``name`` (a daily feed's, :mod:`planner.line.daily`)."""
+    spec = spec or TABLES[name]
     fields = [f for f in spec.schema if f.name in table.column_names]
     fields += [f for f in table.schema if f.name not in spec.schema.names]  # the user's own columns
     buf = io.StringIO()

@@ -233,3 +233,72 @@ def import_restrictions(src: str | Path, line: Line, feed: str | Path, *, tz: st
 
 
 __all__ = ["import_restrictions", "read_csv", "read_osrd"]
+
+
+# --------------------------------------------------------------------------- the feed's restrictions, edited
+def feed_rows(line: Line, feed: str | Path, tz: str) -> list[dict]:
+    """The restrictions of the daily feed ``feed`` of ``line`` (validated), as rows of restrictions.parquet."""
+    from planner.line.daily import load_feed
+
+    return restriction_rows(load_feed(feed, line, tz))
+
+
+def _find(rows: list[dict], rid: str, feed: Path) -> dict:
+    row = next((r for r in rows if r["restriction_id"] == rid), None)
+    if row is None:
+        ids = ", ".join(r["restriction_id"] for r in rows[:8]) or "none"
+        raise InputError(f"{feed / SPEC.file}: no restriction {rid!r} (the feed has {ids}); "
+                         "`planner restrictions list` shows them")
+    return row
+
+
+def write_rows(rows: list[dict], line: Line, feed: str | Path, tz: str, source: str) -> Path:
+    """Validate ``rows`` as the feed's restrictions (every rule of an import) and write them atomically: on any
+    problem nothing is written."""
+    feed = Path(feed)
+    table = restrictions_table(rows)
+    _validated(table, [f"{source} {r['restriction_id']}" for r in rows], line, tz, source)
+    write_parquet_atomic(table, feed / SPEC.file)
+    return feed / SPEC.file
+
+
+def lift(line: Line, feed: str | Path, tz: str, rid: str, at: str) -> tuple[dict, dict]:
+    """End restriction ``rid`` early, at the local time ``at`` (``YYYY-MM-DDTHH:MM``, the line's time zone):
+    its ``valid_until`` becomes ``at``. ``at`` must fall inside its validity (one that has not started yet is
+    removed instead). Returns the row before and after."""
+    from planner.line.daily import parse_local
+
+    feed = Path(feed)
+    rows = feed_rows(line, feed, tz)
+    row = _find(rows, rid, feed)
+    at_s, err = parse_local(at, late=True, tz=tz)
+    if err:
+        raise InputError(f"--at {at!r}: {err}")
+    from_s, _ = parse_local(row["valid_from"], late=False, tz=tz)
+    until_s, _ = parse_local(row["valid_until"], late=True, tz=tz)
+    if not from_s < at_s < until_s:
+        raise InputError(f"--at {at}: restriction {rid} is in force from {row['valid_from']} until "
+                         f"{row['valid_until']}; lift it inside that time, or `planner restrictions remove` it")
+    new = {**row, "valid_until": at}
+    write_rows([new if r is row else r for r in rows], line, feed, tz, f"lift {rid}")
+    return row, new
+
+
+def remove(line: Line, feed: str | Path, tz: str, rid: str) -> dict:
+    """Delete restriction ``rid`` from the feed; returns its row."""
+    feed = Path(feed)
+    rows = feed_rows(line, feed, tz)
+    row = _find(rows, rid, feed)
+    write_rows([r for r in rows if r is not row], line, feed, tz, f"remove {rid}")
+    return row
+
+
+def export_csv(line: Line, feed: str | Path, tz: str, out: str | Path) -> Path:
+    """The feed's restrictions as a CSV file ``out`` that ``planner restrictions import`` reads back (atomic)."""
+    from planner.io.atomic import write_bytes_atomic
+    from planner.line.importers.csv import table_csv
+
+    text = table_csv(SPEC.name, restrictions_table(feed_rows(line, feed, tz)), spec=SPEC)
+    write_bytes_atomic(out, text.encode("utf-8"))
+    return Path(out)
+
