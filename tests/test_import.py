@@ -395,3 +395,24 @@ def test_cli_refusal_is_one_line_without_traceback(tmp_path, monkeypatch, capsys
     assert e.value.code == 1 and "Traceback" not in err
     assert err.count("\n") == 1 and err.startswith("error: infra.json: --path: no connected route")
     assert not (tmp_path / "x").exists()
+
+
+def test_a_terminus_at_the_lines_end_gets_a_stop_marker_where_the_longest_train_stands(tmp_path):
+    """A station at the line's start (position 0) and a 400 m train: the default down marker, the platform's far
+    end at 100 m, put the departing train's tail at -300 m and validation refused the line. The importer moves it
+    to 400 m (the tail at the line's start) and says so; the other markers keep their defaults."""
+    import json
+
+    from importsrc import rolling_stock, write_railjson
+    from planner.line.importers.railjson import import_railjson
+
+    rs = rolling_stock()
+    rs["length"] = 400.0
+    i, r, x = write_railjson(tmp_path / "src", rs=rs)
+    x.write_text(x.read_text().replace('[stations.E]', '[stations.T0]\nposition_m = 0.0\n\n[stations.E]', 1))
+    s = import_railjson(i, ["W", "M", "E"], [r], tmp_path / "coast", extra=x, line_id="coast")
+    line = load_line(tmp_path / "coast")  # valid: refused before
+    t0, w = line.station("T0"), line.station("W")
+    assert t0.stop_down_m == pytest.approx(400.0) and t0.stop_up_m == 0.0
+    assert (w.stop_down_m, w.stop_up_m) == (600.0, 400.0)  # W at 500 m: the platform's ends, as before
+    assert any("station T0: stop marker down at 400 m, not 100 m, so that a 400 m train" in n for n in s.notes)

@@ -270,9 +270,15 @@ def line_table(line_id: str, start_m: float, end_m: float, s: ImportSummary) -> 
     return pd.DataFrame([row])
 
 
-def station_table(found: list[dict], start_m: float, end_m: float, s: ImportSummary) -> pd.DataFrame:
+def station_table(found: list[dict], start_m: float, end_m: float, s: ImportSummary,
+                  train_length_m: float = 0.0) -> pd.DataFrame:
     """stations.parquet from located stations ``{source_id, name, position_m[, platform_length_m,
-    stop_down_m, stop_up_m]}``, the TOML's [stations.*] and the defaults."""
+    stop_down_m, stop_up_m]}``, the TOML's [stations.*] and the defaults.
+
+    A default stop marker is the platform's far end in the running direction (the station's position ± half
+    the platform), moved in, with a note, where a train of ``train_length_m`` (the longest imported type)
+    standing there would have its tail beyond the line's end behind it: at a terminus the station's point
+    is the line's end, and the validation refused a 400 m train's departure ("its tail is at −200.0 m")."""
     from planner.line.model import did_you_mean
 
     ex = s.extra or Extras()
@@ -304,11 +310,31 @@ def station_table(found: list[dict], start_m: float, end_m: float, s: ImportSumm
         down, up = over.get("stop_down_m"), over.get("stop_up_m")
         if down is None or up is None:
             s.default("stop_markers", sid)
-        down = min(pos + plat / 2, end_m) if down is None else number(down, f"station {sid}: stop_down_m")
-        up = max(pos - plat / 2, start_m) if up is None else number(up, f"station {sid}: stop_up_m")
+        if down is None:
+            down = _marker(sid, "down", min(pos + plat / 2, end_m), start_m + train_length_m, end_m, train_length_m,
+                           s)
+        else:
+            down = number(down, f"station {sid}: stop_down_m")
+        if up is None:
+            up = _marker(sid, "up", max(pos - plat / 2, start_m), end_m - train_length_m, start_m, train_length_m, s)
+        else:
+            up = number(up, f"station {sid}: stop_up_m")
         rows.append(dict(station_id=str(over.get("station_id", sid)), name=str(over.get("name", sid)),
                          position_m=pos, stop_down_m=down, stop_up_m=up, platform_length_m=plat))
     return pd.DataFrame(rows, columns=[f.name for f in TABLES["stations"].schema])
+
+
+def _marker(sid: str, direction: str, want: float, room: float, end: float, length: float, s: ImportSummary) -> float:
+    """A default stop marker ``want``, moved to ``room`` (the nearest place where a train ``length`` long standing
+    at it has its tail on the line) when it lies short of that, never past the line's far ``end``; with a note."""
+    down = direction == "down"
+    if (want >= room) if down else (want <= room):
+        return want
+    at = min(room, end) if down else max(room, end)
+    s.notes.append(f"station {sid}: stop marker {direction} at {at:g} m, not {want:g} m, so that a {length:g} m train "
+                   f"(the longest type) stands on the line (a terminus: the line ends {abs(want - at) + 0.0:g} m "
+                   f"too close behind the default); give stop_{direction}_m in [stations.{sid}] to place it yourself")
+    return at
 
 
 def beacon_table(located: dict[str, float], s: ImportSummary, native: list[dict] | None = None) -> pd.DataFrame:

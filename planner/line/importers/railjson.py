@@ -449,13 +449,13 @@ def import_railjson(infra: str | Path, path_ops: list[str], rolling_stock: list,
     if detectors:
         s.notes.append(f"{len(detectors)} detectors on the path: schema v1 has no train-detection table; "
                        f"name them in [[beacons]] at = ... where an ATS-P beacon stands")
+    rs, traction = rolling_stock_tables(rolling_stock, s)
     stations = station_table([dict(source_id=n, name=name, position_m=op_at[n]) for n, name, _, is_op in ops
-                              if is_op], 0.0, path.length, s)
+                              if is_op], 0.0, path.length, s, float(rs["length_m"].max()) if len(rs) else 0.0)
     if len(stations) < 2:
         raise SourceError(f"{src.fname}: --path: {len(stations)} operational point(s) on the path; a line needs two "
                           f"stations: add stations with [stations.X] position_m in --extra (chainage 0 … "
                           f"{path.length:g} m from the first track section's entry)")
-    rs, traction = rolling_stock_tables(rolling_stock, s)
     check_categories(cats, rs, tags, "speed tag", s)
     default_id = line_id or (s.extra.line.get("line_id") if s.extra else None)
     if default_id is None:  # two paths of one file never share an id

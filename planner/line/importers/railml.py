@@ -539,7 +539,8 @@ def import_railml(file: str | Path, line_id: str, rolling_stock: list, out: str 
             s.notes.append(f"line id {lid!r} from railML line {line_id!r} (a line id names files: A-Z a-z 0-9 . _ -)")
     tables = {
         "line": line_table(str(lid), line.start, line.end, s),
-        "stations": station_table(list(found.values()), line.start, line.end, s),
+        "stations": station_table(list(found.values()), line.start, line.end, s,
+                                  float(rs["length_m"].max()) if len(rs) else 0.0),
         "gradients": gradients,
         "curves": curves,
         "speed_limits": limits,
