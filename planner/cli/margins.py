@@ -38,7 +38,7 @@ def margins(
     adhesion: Optional[str] = typer.Option(None, "--adhesion", help="Adhesion sweep START:STOP:STEP in km/h/s "
                                            "(default 2.5:3.5:0.1); the lowest level is the bad day's."),
     curves: Optional[str] = typer.Option(None, "--curves", help="Leg whose run curves the page draws, "
-                                         "TYPE:ORIGIN-DESTINATION; default the least remaining margin."),
+                                         "TYPE:ORIGIN-DESTINATION; default the least bad-day margin."),
     no_conflicts: bool = typer.Option(False, "--no-conflicts", help="Skip the route-conflict section."),
     jobs: int = typer.Option(-1, "--jobs", help="Worker processes (-1 = all cores)."),
 ) -> None:
@@ -102,12 +102,12 @@ def margins(
     a = s[~s.unassessed]
     if len(a):
         w = a.sort_values("remaining_margin_s", kind="stable").iloc[0]
-        typer.echo(f"  least remaining margin: {w.train_type} {w.direction} {w.origin}->{w.destination} "
+        typer.echo(f"  least bad-day margin: {w.train_type} {w.direction} {w.origin}->{w.destination} "
                    f"{w.remaining_margin_s:+.1f} s (scheduled {w.scheduled_running_time_s:.0f} s, minimum "
                    f"{w.min_running_time_s:.1f} s, bad day {w.degraded_min_running_time_s:.1f} s)")
     for r in report.totals[report.totals.level == "line"].itertuples(index=False):
         typer.echo(f"  {r.direction}: {r.n_trains} trains, margin {hms(r.margin_s)} ({r.margin_percent:.1f} %), "
-                   f"remaining on a bad day {hms(r.remaining_margin_s, sign=True)} (h:mm:ss)"
+                   f"bad-day margin {hms(r.remaining_margin_s, sign=True)} (h:mm:ss)"
                    + (f" (unknown: {r.n_unassessed} legs unassessed)" if r.n_unassessed else ""))
     if report.conflicts is not None:
         n = report.conflicts["conflict_id"].nunique() if len(report.conflicts) else 0

@@ -84,7 +84,7 @@ def chart_sections(report, markers: dict[str, dict[str, float]], svgs: dict | No
         f"(scheduled − bad-day minimum); below zero the leg is short on a bad day (dark red where the margin "
         "itself is below zero: impossible). Black line: the supplement the rule asks "
         f"for ({rule.supplement_percent:g} % of the minimum + {rule.supplement_min_per_100km:g} min/100 km). "
-        "Where a leg has several scheduled times, the one with the least remaining margin is drawn. Hover a bar "
+        "Where a leg has several scheduled times, the one with the least bad-day margin is drawn. Hover a bar "
         "for the leg's times.</p>")
     for d in ("down", "up"):
         if d in markers:
@@ -97,7 +97,7 @@ def chart_sections(report, markers: dict[str, dict[str, float]], svgs: dict | No
         parts.append(f"<h2>Run curves: {_esc(k['train_type'])} {_esc(k['direction'])} {_esc(k['origin'])} → "
                      f"{_esc(k['destination'])}</h2>")
         parts.append(
-            "<p class='caption'>The leg with the least remaining margin (or the one asked for with "
+            "<p class='caption'>The leg with the least bad-day margin (or the one asked for with "
             "<code>--curves</code>). Top: speed against chainage for the minimum run, the run the on-board logic "
             "makes for the scheduled time (it re-chooses the ratio at every evaluation point), and the bad-day "
             "run, which hands over to the stopping pattern at the pattern start. Bottom: how far each run is "
@@ -209,7 +209,7 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
     title = f"{direction}: {first} → {last_sid}, running left to right"
     fig.title(8, 20, title)
     legend = [(swatch("patch", color=MARGIN_COLOUR), "margin = scheduled − minimum"),
-              (swatch("patch", color=FLAG_COLOURS["ok"]), "remaining on a bad day (≥ tight threshold)"),
+              (swatch("patch", color=FLAG_COLOURS["ok"]), "bad-day margin (≥ tight threshold)"),
               (swatch("patch", color=FLAG_COLOURS["tight"]), "remaining < tight threshold"),
               (swatch("patch", color=FLAG_COLOURS["short_bad_day"]), "negative: short on a bad day"),
               (swatch("patch", color=FLAG_COLOURS["impossible"]), "impossible: margin < 0")]
@@ -313,7 +313,7 @@ def curves_chart(report) -> str:
            va="bottom", dx=6.0, dy=-1.0)
     q.vline(ps, color=RED, width=0.8, dash=(1.0, 1.65))
     title = (f"{k['train_type']} {k['direction']} {row.origin} → {row.destination} ({row.length_m / 1000:.2f} km): "
-             f"scheduled {row.scheduled_running_time_s:.0f} s, remaining margin on a bad day "
+             f"scheduled {row.scheduled_running_time_s:.0f} s, bad-day margin "
              f"{fixed(row.remaining_margin_s, 1, True)} s")
     sp.title(8, 20, title)
     return (sp.svg(label=f"run curves: {title}") + legend_html(top_items, head="Top:")

@@ -13,7 +13,7 @@ Sections, in the order a timetable planner reads them:
    legs with their trains, totals per direction and train type, and what stands out;
 2. margin per interstation along the line, one chart per direction with a
    row per train type: the margin (scheduled − minimum), the margin that
-   remains on a bad day (scheduled − degraded minimum), the supplement the
+   remains on a bad day, the bad-day margin (scheduled − bad-day minimum), the supplement the
    rule asks for, flagged legs coloured;
 3. run curves of one leg (default: the least remaining margin): minimum, as
    scheduled (closed loop), degraded with its low-adhesion stopping pattern,
@@ -150,7 +150,7 @@ def flagged_summary(sched, trains_href: str = "") -> str:
            "<div class='tw'><table class='flagged'><tr><th class='l'>flag</th>"
            "<th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th><th>trains</th><th>scheduled [s]</th>"
            "<th>margin [s] (%)</th><th>bad-day cost [s]: load + traction + stop + stop model</th>"
-           "<th>remaining on a bad day [s]</th></tr>"]
+           "<th>bad-day margin [s]</th></tr>"]
     for r in f.itertuples(index=False):
         flag = flag_of(r)
         why = getattr(r, "flag_reason", "") or ""
@@ -196,7 +196,7 @@ def bad_day_shares(sched, rule, adh) -> str:
 ROW_HEAD = ("<tr><th class='l'>flags</th><th class='l'>dir</th><th class='l'>type</th><th class='l'>leg</th>"
             "<th>trains</th><th>km</th><th>minimum [s]</th><th>min ↑10 s</th><th>scheduled [s]</th>"
             "<th>margin [s] (%)</th><th>rule asks [s]</th><th>bad-day minimum [s]</th>"
-            "<th>remaining on a bad day [s]</th><th>bad-day cost: load + traction + stop + stop model [s]</th>"
+            "<th>bad-day margin [s]</th><th>bad-day cost: load + traction + stop + stop model [s]</th>"
             "<th>ratio at on-time departure</th><th>arrival error nominal / bad day [s]</th>"
             "<th>energy at that ratio vs 100 %</th></tr>")
 
@@ -251,7 +251,7 @@ def rows_table(rows) -> str:
         for r in una.itertuples(index=False):
             out.append(_row_html(r))
             out.append(f"<tr class='unassessed'><td colspan='17' class='l'>↳ {_e(r.unassessed_reason)}</td></tr>")
-    out.append(f"<tr class='sep'><td colspan='17'>Flagged legs ({len(flagged)}), least remaining margin first</td></tr>")
+    out.append(f"<tr class='sep'><td colspan='17'>Flagged legs ({len(flagged)}), least bad-day margin first</td></tr>")
     out += [_row_html(r) for r in flagged.itertuples(index=False)]
     out.append(f"<tr class='sep'><td colspan='17'>Other legs ({len(rest)}), in running order</td></tr>")
     out += [_row_html(r) for r in rest.itertuples(index=False)]
@@ -267,7 +267,7 @@ def totals_table(totals, scopes=("line", "type")) -> str:
            "<th>train runs of a leg</th>"
            "<th>sum of minimum running times [h:mm:ss]</th><th>sum of scheduled [h:mm:ss]</th>"
            "<th>sum of margins [h:mm:ss]</th>"
-           "<th>margin %</th><th>sum of bad-day remaining margins [h:mm:ss]</th><th>least remaining, one leg [s]</th>"
+           "<th>margin %</th><th>sum of bad-day margins [h:mm:ss]</th><th>least bad-day margin, one leg [s]</th>"
            "<th>train runs on an impossible leg</th><th>… on a leg short on a bad day</th><th>… on a tight leg</th>"
            "<th>… on an unreachable leg</th>"
            "<th>… on a leg short of the rule</th><th>energy saved [kWh]</th></tr>"]
@@ -475,7 +475,7 @@ def _findings(sched, trains) -> list[str]:
                     f"a bad day costs a median {sched.degraded_loss_load_s.median():.1f} s for the load, "
                     f"{sched.degraded_loss_traction_s.median():.1f} s for the weak traction and "
                     f"{sched.degraded_loss_stop_s.median():.1f} s in the stop (low adhesion), so the median "
-                    f"remaining margin is {_f(sched.remaining_margin_s.median(), 1, True)} s.")
+                    f"bad-day margin is {_f(sched.remaining_margin_s.median(), 1, True)} s.")
         tr = trains[trains.bad_day_shortfall_s > 0]
         if len(tr):
             w = tr.sort_values(["bad_day_shortfall_s", "train_id"], ascending=[False, True], kind="stable").iloc[0]

@@ -9,7 +9,7 @@ alone against the static line, on every interstation whose window it reaches.
 
 Then **the scheduled legs it reaches** (rows of the day's margin report, stop to stop, a rapid's leg over
 several interstations included): the trains, the scheduled running time, the minimum without and with
-the day's restrictions, the margin before and after, the bad-day remaining margin and the closed-loop
+the day's restrictions, the margin before and after, the bad-day margin and the closed-loop
 arrival error of the on-board logic (nominal and bad day: its recovery); a leg whose margin the
 restrictions turn negative "loses its margin", one whose margin stays ≥ 0 "still makes it". Each row's
 trains are computed with the restrictions that apply to them by the time they pass (the row's
@@ -107,7 +107,7 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
     parts.append(f"<h2 id='trains'>Scheduled legs slowed: {len(lost)} leg row(s), {n_lost} train run(s) lose "
                  f"their margin</h2>"
                  + _table(["leg", "restrictions", "trains", "scheduled [s]", "minimum without [s]",
-                           "minimum with [s]", "margin without [s]", "margin with [s]", "bad-day remaining [s]",
+                           "minimum with [s]", "margin without [s]", "margin with [s]", "bad-day margin [s]",
                            "closed-loop arrival error [s]", "bad day [s]", "", "lifted while they pass"], lrows,
                           num=tuple(range(3, 11)))
                  + "<p class='sub'>Margin = scheduled − minimum running time. The closed-loop arrival error "

@@ -38,9 +38,9 @@ MARGINS_SCHEMA = declare(
         ("margin_s", pa.float64(), "scheduled - minimum running time [s]"),
         ("margin_percent", pa.float64(), "margin as a percentage of the minimum running time [%]"),
         ("degraded_min_running_time_s", pa.float64(),
-         "minimum under degraded conditions: full load, weak traction to the pattern start, then the stopping "
-         "pattern at the lowest adhesion [s]"),
-        ("remaining_margin_s", pa.float64(), "scheduled - degraded minimum: the margin left on a bad day [s]"),
+         "bad-day minimum: the minimum running time under the bad day's conditions (full load, weak traction to "
+         "the pattern start, then the stopping pattern at the lowest adhesion) [s]"),
+        ("remaining_margin_s", pa.float64(), "bad-day margin: scheduled - bad-day minimum (degraded_min_running_time_s), the margin left on a bad day [s]"),
         ("degraded_loss_running_s", pa.float64(),
          "part of degraded - minimum due to load and traction: degraded run's time to the pattern start - nominal run's [s]"),
         ("degraded_loss_stop_s", pa.float64(),
@@ -84,12 +84,12 @@ MARGINS_SCHEMA = declare(
          "flag: scheduled < minimum running time (margin_s < 0): no driving makes it, on any day; null when the "
          "minimum is unknown"),
         ("short_bad_day", pa.bool_(),
-         "flag: not impossible, but scheduled < degraded minimum: the leg runs late on a bad day, by "
+         "flag: not impossible, but scheduled < bad-day minimum: the leg runs late on a bad day, by "
          "-remaining_margin_s; null when unassessed"),
         ("infeasible", pa.bool_(),
          "impossible or short_bad_day (the flag before the two were told apart, kept so that queries and older runs "
          "still compare); null when unassessed and not impossible"),
-        ("tight", pa.bool_(), "flag: not infeasible, but remaining margin < tight_threshold_s"),
+        ("tight", pa.bool_(), "flag: not infeasible, but bad-day margin < tight_threshold_s"),
         ("unreachable", pa.bool_(), "flag: scheduled > slowest table time: the vehicle cannot stretch the run that long"),
         ("closed_loop_max_error_s", pa.float64(),
          "worst |arrival error| of the closed-loop sweep on this leg (designated times minimum ... + horizon, every "
@@ -99,7 +99,7 @@ MARGINS_SCHEMA = declare(
          "flag: closed_loop_max_error_s > [margins] arrival_error_threshold_s: the on-board logic misses the "
          "designated arrival by that much (e.g. a long leg without evaluation points)"),
         ("unassessed", pa.bool_(),
-         "flag: the degraded minimum (or the minimum) could not be computed, see unassessed_reason; short_bad_day, "
+         "flag: the bad-day minimum (or the minimum) could not be computed, see unassessed_reason; short_bad_day, "
          "infeasible (unless impossible) and tight are then null (unknown), remaining_margin_s null"),
         ("unassessed_reason", pa.string(), "why the leg could not be assessed; empty when assessed"),
         ("flag_reason", pa.string(),
@@ -141,16 +141,16 @@ MARGIN_TOTALS_SCHEMA = declare(
         ("min_running_time_rounded_s", pa.float64(), "sum of the minimum running times rounded up to 10 s each [s]"),
         ("scheduled_running_time_s", pa.float64(), "sum of scheduled running times (dwells excluded) [s]"),
         ("margin_s", pa.float64(), "sum of margins [s]"),
-        ("degraded_min_running_time_s", pa.float64(), "sum of degraded minimum running times [s]"),
-        ("remaining_margin_s", pa.float64(), "sum of remaining margins under degraded conditions [s]"),
+        ("degraded_min_running_time_s", pa.float64(), "sum of bad-day minimum running times [s]"),
+        ("remaining_margin_s", pa.float64(), "sum of bad-day margins [s]"),
         ("supplement_required_s", pa.float64(), "sum of required supplements [s]"),
         ("energy_at_ratio_kwh", pa.float64(), "sum of traction energy at the on-time ratio [kWh]"),
         ("energy_at_full_ratio_kwh", pa.float64(), "sum of traction energy at ratio 1.0 [kWh]"),
         ("energy_saved_kwh", pa.float64(), "sum of energy saved by the margins [kWh]"),
         ("margin_percent", pa.float64(), "total margin / total minimum running time [%]"),
-        ("min_remaining_margin_s", pa.float64(), "smallest remaining margin of any leg summed [s]"),
+        ("min_remaining_margin_s", pa.float64(), "smallest bad-day margin of any leg summed [s]"),
         ("bad_day_shortfall_s", pa.float64(),
-         "sum over the legs of what each lacks on a bad day, max(0, -remaining margin): the time to add [s]"),
+         "sum over the legs of what each lacks on a bad day, max(0, -bad-day margin): the time to add [s]"),
         ("n_supplement_short", pa.int32(), "train runs of a leg whose margin is below the required supplement"),
         ("n_impossible", pa.int32(), "train runs of a leg flagged impossible (scheduled below the minimum)"),
         ("n_short_bad_day", pa.int32(), "train runs of a leg flagged short_bad_day (late on a bad day only)"),

@@ -15,7 +15,7 @@ for every timetabled train, every call of its path (stops and passes) with
 * the **running-time supplement** of each section (call to call): scheduled
   section time − minimum section time; the supplements of a leg add up to its
   margin (scheduled − minimum running time);
-* the leg's margin, remaining margin on a bad day and flags, from ``margins``,
+* the leg's margin, bad-day margin and flags, from ``margins``,
   on the row of the stop that ends the leg.
 
 Nothing here has physics of its own: the ratio and the leg's figures are the
