@@ -174,7 +174,7 @@ def test_run_curves_mirror_up_and_name_the_runs(svgs, report, line):
     top = legends[0][1]
     assert f"minimum: ratio 100 %, nominal — {t_run(1500.0, 1.0):.1f} s" in top
     assert any(s.startswith("bad day: load 100%") for s in top)
-    assert legends[1][1][:2] == ["as scheduled − minimum", "degraded − minimum"]
+    assert legends[1][1][:2] == ["as scheduled − minimum", "bad day − minimum"]
 
 
 def test_adhesion_marks_the_approach_that_loses_most(svgs, report):

@@ -191,7 +191,7 @@ def test_chart_shows_the_days_temporary_restriction_apart_from_the_permanent_lim
     _clean(page)
     svg_text = page.eval("[...document.querySelectorAll('.fig svg text')].map(t => t.textContent).join('|')")
     assert "TSR-T1" in svg_text and "40 km/h" in svg_text  # on the chart, at the restriction
-    legend = page.eval("document.querySelector('.fig .lg').innerText")
+    legend = page.eval("document.querySelector('.fig .legend').innerText")
     assert "temporary speed restriction" in legend and "permanent speed limit" in legend  # apart, in the legend
     caption = page.eval("[...document.querySelectorAll('p.caption')].map(p => p.innerText).join(' ')")
     assert "TSR-T1 40 km/h on km 0.600–0.900" in caption

@@ -210,7 +210,7 @@ def margin_chart(report, direction: str, stations: dict[str, float]) -> str:
     fig.title(8, 20, title)
     legend = [(swatch("patch", color=MARGIN_COLOUR), "margin = scheduled − minimum"),
               (swatch("patch", color=FLAG_COLOURS["ok"]), "bad-day margin (≥ tight threshold)"),
-              (swatch("patch", color=FLAG_COLOURS["tight"]), "remaining < tight threshold"),
+              (swatch("patch", color=FLAG_COLOURS["tight"]), "bad-day margin < tight threshold"),
               (swatch("patch", color=FLAG_COLOURS["short_bad_day"]), "negative: short on a bad day"),
               (swatch("patch", color=FLAG_COLOURS["impossible"]), "impossible: margin < 0")]
     legend += [(swatch("patch", color=FLAG_COLOURS[f]), f"{FLAG[f].badge} (its bar in this colour)")
@@ -297,7 +297,7 @@ def curves_chart(report) -> str:
         behind.append((x, c["sched_time_s"] - tmin, GREEN, None))
         low_items.append((swatch("line", color=GREEN, width=1.5), "as scheduled − minimum"))
     behind.append((dx, c["degraded_time_s"] - tmin[: len(c["degraded_time_s"])], RED, None))
-    low_items.append((swatch("line", color=RED, width=1.5), "degraded − minimum"))
+    low_items.append((swatch("line", color=RED, width=1.5), "bad day − minimum"))
     if has_pattern:
         order = np.argsort(x)
         tm_p = np.interp(c["pattern_position_m"], x[order], tmin[order])

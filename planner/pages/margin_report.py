@@ -406,7 +406,7 @@ def render_html(report, markers: dict[str, dict[str, float]], datasets_href: str
     parts.append(
         "<p class='caption'>One row per leg and scheduled time (trains with the same leg and time share a row). "
         "<i>min ↑10 s</i>: the minimum rounded up to the 10-second timetable unit. <i>bad-day cost</i>: bad-day "
-        "minimum − minimum, and its four shares: what the degraded load and traction cost up to the pattern start, "
+        "minimum − minimum, and its four shares: what the bad day's load and traction cost up to the pattern start, "
         "what the low-adhesion stop costs against the best adhesion, and the stop model (the nominal run's stopping "
         "pattern against the tables' constant stopping brake; negative when the pattern stops sooner). "
         "<i>ratio</i>: the target-speed ratio the vehicle picks at an on-time "

@@ -396,16 +396,17 @@ def swatch(kind: str, *, color: str, width: float = 1.5, dash=None, opacity=None
     return f'<svg class="sw" xmlns="http://www.w3.org/2000/svg" viewBox="0 0 28 12" width="28" height="12">{body}</svg>'
 
 
-LEGEND_CSS = (".lg{display:flex;flex-wrap:wrap;gap:2px 18px;margin:6px 4px 2px;font-size:12.5px;color:#333}"
-              ".lg span{white-space:nowrap}.fig .lg svg.sw{width:28px;height:12px;display:inline-block;"
+LEGEND_CSS = (".legend{display:flex;flex-wrap:wrap;gap:2px 18px;margin:6px 4px 2px;font-size:12.5px;color:#333}"
+              ".legend span{white-space:nowrap}.fig .legend svg.sw{width:28px;height:12px;display:inline-block;"
               "vertical-align:-1px;margin-right:5px}")
-"""The legend's style (:func:`legend_html`), for the page's ``<style>``."""
+"""The legend's style (:func:`legend_html`), for the page's ``<style>`` (class ``legend``: the margin report's leg
+cells are ``lg``, and took the legend's flex box)."""
 
 
 def legend_html(items, head: str = "") -> str:
     """A legend in HTML: ``items`` (swatch from :func:`swatch`, label), laid out by the browser (wraps on a
     narrow screen), after ``head`` in bold when given (which panel it is for). Labels are escaped."""
-    return ('<div class="lg">' + (f"<b>{esc(head)}</b>" if head else "")
+    return ('<div class="legend">' + (f"<b>{esc(head)}</b>" if head else "")
             + "".join(f"<span>{sw}{esc(label)}</span>" for sw, label in items) + "</div>")
 
 
