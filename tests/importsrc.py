@@ -30,6 +30,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from planner.line.schema import SCHEMA_VERSION
+
 KMH = 1 / 3.6
 
 
@@ -168,7 +170,7 @@ def expected_tables(line_id: str) -> dict[str, pd.DataFrame]:
     N = None
     return {
         "line": pd.DataFrame([dict(line_id=line_id, name="Import test line", start_m=0.0, end_m=6500.0,
-                                   max_speed_kmh=None, schema_version=1)]),
+                                   max_speed_kmh=None, schema_version=SCHEMA_VERSION)]),
         "stations": pd.DataFrame(
             [("W", "West", 500.0, 600.0, 400.0, 200.0), ("M", "Middle", 4000.0, 4100.0, 3900.0, 200.0),
              ("E", "East", 6200.0, 6280.0, 6120.0, 160.0)],

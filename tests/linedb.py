@@ -21,7 +21,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from planner.line.schema import TABLES
+from planner.line.schema import SCHEMA_VERSION, TABLES
 
 N = None  # null
 
@@ -30,7 +30,7 @@ def default_tables(line_id: str = "tiny") -> dict[str, pd.DataFrame]:
     """Fresh DataFrames of the default tiny line (railway units, as on disk)."""
     return {
         "line": pd.DataFrame([dict(line_id=line_id, name="Tiny test line", start_m=0.0, end_m=5000.0,
-                                   max_speed_kmh=100.0, schema_version=1)]),
+                                   max_speed_kmh=100.0, schema_version=SCHEMA_VERSION)]),
         "stations": pd.DataFrame(
             [("A", "Aoba", 200.0, 260.0, 140.0, 200.0),
              ("B", "Bashi", 2500.0, 2560.0, 2440.0, 200.0),

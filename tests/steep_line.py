@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from planner.line.schema import SCHEMA_VERSION
+
 from linedb import default_tables, write_line_db
 
 N = None
@@ -36,7 +38,7 @@ def steep_tables(line_id: str = "steep", freight: bool = True) -> dict[str, pd.D
     """The steep line's tables (railway units, as on disk); ``freight=False`` leaves FRT out."""
     t = default_tables(line_id)
     t["line"] = pd.DataFrame([dict(line_id=line_id, name="Steep test line", start_m=0.0, end_m=12000.0,
-                                   max_speed_kmh=100.0, schema_version=1)])
+                                   max_speed_kmh=100.0, schema_version=SCHEMA_VERSION)])
     t["stations"] = pd.DataFrame(
         [("A", "Aoba", 500.0, 560.0, 440.0, 200.0),
          ("B", "Bashi", 6000.0, 6060.0, 5940.0, 200.0),

@@ -28,25 +28,63 @@ from planner.stopping.sweep import adhesion_levels, approach_patterns
 G = 9.80665
 
 
-def test_a_folder_with_the_old_column_name_gets_one_line_saying_what_to_rename(tmp_path):
+def _old_folder(tmp_path):
+    """A line database of schema version 1: rolling_stock's brake_comfort_kmh_s under its old name."""
     t = default_tables("old")
     t["rolling_stock"] = t["rolling_stock"].rename(columns={"brake_comfort_kmh_s": "comfort_accel_kmh_s"})
-    write_line_db(tmp_path / "old", **t)
-    with pytest.raises(LineValidationError) as e:
-        load_line(tmp_path / "old")
-    assert len(e.value.violations) == 1
-    msg = str(e.value.violations[0])
-    assert "\n" not in msg
-    assert "brake_comfort_kmh_s" in msg and "found comfort_accel_kmh_s" in msg and "rename" in msg
+    t["line"]["schema_version"] = 1
+    return write_line_db(tmp_path / "old", **t)
 
 
-def test_a_csv_with_the_old_column_name_says_what_to_rename(tmp_path):
+def test_a_folder_of_schema_1_is_read_as_2_with_one_note_and_upgraded_on_request(tmp_path):
+    """Old names are never a hard wall: a folder of schema 1 was refused ("rename the column"). It is read as
+    schema 2 with one note per change, `planner line upgrade DIR` rewrites it (then no note), and reads the
+    same line as a folder written in schema 2 from the start."""
+    from typer.testing import CliRunner
+
+    from planner.cli import app
+
+    old = _old_folder(tmp_path)
+    line = load_line(old)
+    assert line.schema_version == 2 and line.train_type("EMU10").brake_comfort_ms2 > 0
+    assert len(line.upgrade_notes) == 2 and line.upgrade_notes[0] == "schema 1 read as 2"
+    assert line.upgrade_notes[1].startswith("rolling_stock.parquet: column comfort_accel_kmh_s read as "
+                                            "brake_comfort_kmh_s, the ride-comfort limit on stop braking")
+    r = CliRunner().invoke(app, ["validate", str(old)])
+    assert r.exit_code == 0 and f"`planner line upgrade {old}` rewrites the folder" in r.stderr
+    r = CliRunner().invoke(app, ["line", "upgrade", str(old)])
+    assert r.exit_code == 0 and r.stdout.count("\n") == 3 and "upgraded to schema version 2" in r.stdout
+    again = load_line(old)
+    assert again.upgrade_notes == () and again.schema_version == 2
+    assert [t.brake_comfort_ms2 for t in again.train_types] == [t.brake_comfort_ms2 for t in line.train_types]
+    assert [t.train_id for t in again.trains] == [t.train_id for t in line.trains]  # (NaN times: no ==)
+    import pyarrow.parquet as pq
+
+    assert "brake_comfort_kmh_s" in pq.read_table(old / "rolling_stock.parquet").column_names
+    assert pq.read_table(old / "line.parquet").column("schema_version").to_pylist() == [2]
+    assert "nothing to upgrade" in CliRunner().invoke(app, ["line", "upgrade", str(old)]).stdout
+
+
+def test_a_csv_of_schema_1_imports_as_schema_2_with_a_note(tmp_path):
+    """The CSV import said "brake_comfort_kmh_s is missing … rename"; it reads the old header as the new one."""
+    import pyarrow.parquet as pq
+
     write_line_db(tmp_path / "a")
     export_csv(tmp_path / "a", tmp_path / "csv")
     p = tmp_path / "csv" / "rolling_stock.csv"
     p.write_text(p.read_text().replace("brake_comfort_kmh_s", "comfort_accel_kmh_s"))
-    with pytest.raises(SourceError, match="brake_comfort_kmh_s is missing.*found comfort_accel_kmh_s.*rename"):
-        import_csv(tmp_path / "csv", tmp_path / "b")
+    s = import_csv(tmp_path / "csv", tmp_path / "b")
+    assert any(n.startswith("rolling_stock.csv: column comfort_accel_kmh_s read as brake_comfort_kmh_s")
+               for n in s.notes)
+    assert "brake_comfort_kmh_s" in pq.read_table(tmp_path / "b" / "rolling_stock.parquet").column_names
+    assert load_line(tmp_path / "b").upgrade_notes == ()
+
+
+def test_a_folder_of_a_newer_schema_is_refused_in_one_line(tmp_path):
+    t = default_tables("new")
+    t["line"]["schema_version"] = 3
+    with pytest.raises(LineValidationError, match="schema versions 1 to 2: a newer one needs a newer planner"):
+        load_line(write_line_db(tmp_path / "new", **t))
 
 
 def test_the_stop_is_capped_by_the_train_brake_in_effort_and_in_what_it_achieves():

@@ -30,7 +30,7 @@ def test_valid_line_prints_summary(tmp_path):
     r = invoke(write_line_db(tmp_path / "tiny"))
     assert r.exit_code == 0, r.output
     out = r.stdout
-    assert "line tiny (Tiny test line): valid, schema v1" in out
+    assert "line tiny (Tiny test line): valid, schema v2" in out
     assert "5.000 km" in out
     assert "stations:           3 (2 interstations per direction)" in out
     assert "speed restrictions: 3 (1 without ATS-P beacon)" in out
@@ -114,7 +114,7 @@ def test_console_script_exit_codes_and_no_traceback(broken_and_valid, tmp_path):
     good, bad = broken_and_valid
     ok = _run(good)
     assert ok.returncode == 0, ok.stderr
-    assert "valid, schema v1" in ok.stdout
+    assert "valid, schema v2" in ok.stdout
     fail = _run(bad)
     assert fail.returncode == 1
     assert "Traceback" not in fail.stderr

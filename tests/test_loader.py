@@ -137,7 +137,7 @@ def test_line_fields(line, line_dir):
     assert line.line_id == "tiny"
     assert line.name == "Tiny test line"
     assert (line.start_m, line.end_m) == (0.0, 5000.0)
-    assert line.schema_version == SCHEMA_VERSION == 1
+    assert line.schema_version == SCHEMA_VERSION == 2
     assert line.source_path == str(line_dir)
 
 
@@ -302,13 +302,13 @@ CONTRACT = {
 
 
 def test_schema_declares_the_public_contract():
-    assert SCHEMA_VERSION == 1
+    assert SCHEMA_VERSION == 2
     assert list(TABLES) == list(CONTRACT)
     for name, cols in CONTRACT.items():
         spec = TABLES[name]
         required = [f.name for f in spec.schema if f.name not in spec.optional_columns]
         assert required == cols.split(), name
-        assert spec.schema.metadata[b"schema_version"] == b"1"
+        assert spec.schema.metadata[b"schema_version"] == b"2"
         for f in spec.schema:
             assert f.metadata[b"description"].strip(), (name, f.name)
     assert TABLES["nodes"].optional_columns == {"station_id", "track"}

@@ -70,7 +70,7 @@ def test_column_types_follow_schema_md():
 def test_line_size(db):
     line, st = db["line"], db["stations"]
     assert len(line) == 1 and line.line_id[0] == "sample" and line.max_speed_kmh[0] == 100.0
-    assert line.schema_version[0] == 1
+    assert line.schema_version[0] == 2
     assert 10 <= len(st) <= 14
     assert 25_000 <= st.position_m.iloc[-1] - st.position_m.iloc[0] <= 30_000
     assert st.position_m.is_monotonic_increasing

@@ -112,8 +112,8 @@ CASES = [
     ("empty_traction", empty("traction"), "traction.parquet", N, N, "at least 1 row"),
     # --- line.parquet
     ("line_two_rows", rows("line", keep=[0, 0]), "line.parquet", N, N, "has 2 rows"),
-    ("schema_version", cell("line", 0, "schema_version", 2), "line.parquet", 0, "schema_version",
-     "schema version 1"),
+    ("schema_version", cell("line", 0, "schema_version", 3), "line.parquet", 0, "schema_version",
+     "schema versions 1 to 2: a newer one needs a newer planner"),
     ("line_start_after_end", cell("line", 0, "end_m", 0.0), "line.parquet", 0, "end_m",
      "must be greater than start_m"),
     ("line_max_speed", cell("line", 0, "max_speed_kmh", 0.0), "line.parquet", 0, "max_speed_kmh", "> 0"),
@@ -471,8 +471,8 @@ def _break_traction_reach(t):
 
 
 def _break_schema_version(t):
-    t["line"].loc[0, "schema_version"] = 2
-    return "line", 0, "schema_version", "schema version 1"
+    t["line"].loc[0, "schema_version"] = 3
+    return "line", 0, "schema_version", "schema versions 1 to 2"
 
 
 @needs_sample

@@ -32,7 +32,7 @@ import pyarrow as pa
 
 LINE_ID = "sample"
 LINE_NAME = "Minato Line (sample)"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2       # line-database schema version (planner.line.schema.SCHEMA_VERSION)
 START_M = 0.0            # line start: buffer stops of the origin terminus Minato [m]
 END_M = 27_900.0         # line end: buffer stops of the terminus Senzan [m]
 MAX_SPEED_KMH = 100.0    # line maximum speed

@@ -82,6 +82,7 @@ from . import graph  # noqa: E402,F401
 from . import diff  # noqa: E402,F401
 from . import kernels  # noqa: E402,F401
 from . import restrictions  # noqa: E402,F401
+from . import line  # noqa: E402,F401
 
 
 def main() -> None:

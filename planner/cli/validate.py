@@ -59,5 +59,7 @@ def validate(
         raise typer.Exit(e.exit_code)
     for msg in summary(line):
         typer.echo(msg)
+    for note in line.upgrade_notes:  # an earlier schema version, read as the current one
+        typer.echo(f"note: {note}; `planner line upgrade {line_dir}` rewrites the folder", err=True)
     for msg in format_warnings(warnings):  # grouped by rule: a count and the first few rows
         typer.echo(f"warning: {msg}" if not msg.startswith("  ") else msg, err=True)

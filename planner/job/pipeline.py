@@ -258,7 +258,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             from planner.bundle.manifest import Release
             from planner.bundle.signing import load_private_key, public_key_id
 
-            notes: list[str] = []
+            notes: list[str] = [f"{p}: {n}; `planner line upgrade {p}` rewrites the folder"
+                                for p, ln in zip(job.job.lines, lines) for n in ln.upgrade_notes]
             # the day's feeds validated against their lines before any unit; each line as it is that day
             day, lines, bundle_days, lifted = plan_day(job, lines, notes)
             key_path, development = signing_key_path(job, notes)

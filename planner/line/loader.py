@@ -25,6 +25,8 @@ km/h is 3.6 times larger per m/s (3.6² for the quadratic term).
 """
 from __future__ import annotations
 
+import dataclasses
+
 import hashlib
 import math
 import re
@@ -104,8 +106,10 @@ def _line_dir(path: str | Path) -> Path:
 
 def check_line(path: str | Path) -> list[Violation]:
     """Every violation in the line database at ``path`` (empty list = valid)."""
+    from planner.line.upgrade import upgrade_tables
+
     line_dir = _line_dir(path)
-    _, violations = check_tables(line_dir.resolve().name, read_tables(line_dir))
+    _, violations = check_tables(line_dir.resolve().name, upgrade_tables(read_tables(line_dir))[0])
     return violations
 
 
@@ -140,11 +144,15 @@ def load_line(path: str | Path, warnings: list[Violation] | None = None) -> Line
     >>> line.train_type("EMU10").stop_brake_ms2      # doctest: +SKIP
     1.0833333333333333
     """
+    from planner.line.upgrade import upgrade_tables
+
     line_dir = _line_dir(path)
-    views, violations = check_tables(line_dir.resolve().name, read_tables(line_dir), warnings)
+    raw, upgraded = upgrade_tables(read_tables(line_dir))  # an earlier schema read as the current one
+    views, violations = check_tables(line_dir.resolve().name, raw, warnings)
     if violations:
         raise LineValidationError(str(path), violations)
-    return _build(views, source_digest(line_dir), str(path))
+    line = _build(views, source_digest(line_dir), str(path))
+    return dataclasses.replace(line, upgrade_notes=tuple(upgraded)) if upgraded else line
 
 
 # --------------------------------------------------------------------------- model building

@@ -273,6 +273,8 @@ class Line:
     source_path: str = field(default="", compare=False)
     approach_m: float | None = None
     """Stopping-pattern start before the marker where no TASC beacon is [m]; None: from the physics."""
+    upgrade_notes: tuple[str, ...] = field(default=(), compare=False)
+    """What was read differently from an earlier schema version of the folder (:mod:`planner.line.upgrade`)."""
 
     # --- look-ups -----------------------------------------------------------
     def station(self, station_id: str) -> Station:

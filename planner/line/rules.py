@@ -161,9 +161,9 @@ def line_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["line"]
     for i in t.rows():
         # the line id comes from the data, not the folder name: job files name folders
-        if t["schema_version"][i] != SCHEMA_VERSION:
-            yield t.err(i, "schema_version", f"is {t['schema_version'][i]}; this planner reads "
-                                             f"schema version {SCHEMA_VERSION}")
+        if t["schema_version"][i] != SCHEMA_VERSION:  # an earlier one was upgraded before (planner.line.upgrade)
+            yield t.err(i, "schema_version", f"is {t['schema_version'][i]}; this planner reads schema versions 1 "
+                                             f"to {SCHEMA_VERSION}: a newer one needs a newer planner")
     yield from start_before_end(t)
 
 

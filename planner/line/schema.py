@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import pyarrow as pa
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 """Version of the line-database contract described by this module and docs/line-database.md."""
 
 DIRECTIONS = ("down", "up")
@@ -209,7 +209,9 @@ _SPECS = [
         ("end_m", D, "last chainage covered by the database [m]", CHAINAGE),
         ("max_speed_kmh", D, "line maximum speed [km/h]; null: none, so where no restriction applies each train "
                              "runs at its own maximum (OSRD's meaning)", NULLABLE, SPEED),
-        ("schema_version", I32, "line-database schema version; 1"),
+        ("schema_version", I32, "line-database schema version, 2; a folder of an earlier version (1: "
+                                "rolling_stock's brake_comfort_kmh_s was comfort_accel_kmh_s) is read as 2, and "
+                                "`planner line upgrade DIR` rewrites it"),
         ("approach_m", D, "stopping-pattern start before the stop marker where no TASC beacon is [m] (optional "
                           "column); null or absent: where the train must start braking, plus 10 %", NULLABLE,
          Range(10.0, MAX_CHAINAGE_M, "an approach is at least one grid step of the coarsest step and lies on the "
@@ -318,11 +320,13 @@ TABLES: dict[str, TableSpec] = {t.name: t for t in _SPECS}
 RENAMED_COLUMNS: dict[tuple[str, str], tuple[str, str]] = {
     ("rolling_stock", "brake_comfort_kmh_s"): (
         "comfort_accel_kmh_s",
-        "it was the ride-comfort limit on stop braking under its old name: rename the column to "
-        "brake_comfort_kmh_s if it holds that limit (e.g. 3.3); an imported source's comfort "
-        "acceleration belongs in max_accel_kmh_s, so re-import such a line"),
+        "the ride-comfort limit on stop braking it held under its old name (schema 1); a line imported by an "
+        "earlier planner had the source's comfort acceleration there, which belongs in max_accel_kmh_s: "
+        "re-import such a line"),
 }
-"""Columns that had another name in older line folders: (table, new name) → (old name, what to do)."""
+"""Columns that had another name in older line folders (schema 1): (table, new name) → (old name, what it was).
+A folder with the old name is read under the new one with a note (:mod:`planner.line.upgrade`), and
+``planner line upgrade DIR`` rewrites it."""
 
 
 def missing_column_hint(table: str, column: str, present) -> str:

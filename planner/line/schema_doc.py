@@ -57,9 +57,9 @@ _RULES: dict[str, list[str]] = {
                       "braking of a stop; `stop_brake_kmh_s` is the train's own stopping brake. A stopping pattern "
                       "asks the brake for at most min(braking comfort, adhesion level, stopping brake) and never "
                       "stops harder than the stopping brake.",
-                      *[f"Older folders: `{old}` is now `{new}`; {why} (a folder with the old name is refused "
-                        "with one line saying so)." for (t, new), (old, why) in RENAMED_COLUMNS.items()
-                        if t == "rolling_stock"]],
+                      *[f"Schema 1 folders: `{old}` is now `{new}`, {why}. A folder with the old name is read "
+                        "under the new one with a note, and `planner line upgrade DIR` rewrites it."
+                        for (t, new), (old, why) in RENAMED_COLUMNS.items() if t == "rolling_stock"]],
     "traction": ["Per train type: `speed_kmh` starts at 0, strictly increasing, and reaches the train's "
                  "`max_speed_kmh`. Every train type of `rolling_stock` has a curve."],
     "timetable": ["Per train: one `train_type` and `direction`; `seq` runs 0..n-1; at least two calls; "

@@ -9,6 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
+from planner.line.schema import SCHEMA_VERSION
 from planner.line.model import Call, Line, Segments, SpeedLimit, Station, Train, TrainType
 from planner.line.units import KMH, KMH_S, KMH_S2, TONNE, KN
 
@@ -116,7 +117,7 @@ def line(
         start_m=0.0,
         end_m=length_m,
         max_speed_ms=(float("inf") if max_speed_kmh is None else max_speed_kmh) * KMH,  # None: no line maximum
-        schema_version=1,
+        schema_version=SCHEMA_VERSION,
         stations=st,
         gradients=_segments(gradients, 1e-3),
         curves=_segments(curves, 1.0),

@@ -27,7 +27,7 @@ import pandas as pd
 import pyarrow as pa
 
 from planner.errors import SourceError, SourceProblems, Violation
-from planner.line.schema import TABLES, write_line_table
+from planner.line.schema import SCHEMA_VERSION, TABLES, write_line_table
 from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
 
 EXTRA_EXAMPLE = """
@@ -264,7 +264,7 @@ def line_table(line_id: str, start_m: float, end_m: float, s: ImportSummary) -> 
         vmax = number(vmax, f"{ex.path}: [line] max_speed_kmh", positive=True)
     s.line_id = lid
     row = dict(line_id=lid, name=str(name), start_m=float(start_m), end_m=float(end_m), max_speed_kmh=vmax,
-               schema_version=1)
+               schema_version=SCHEMA_VERSION)
     if ex.line.get("approach_m") is not None:
         row["approach_m"] = number(ex.line["approach_m"], f"{ex.path}: [line] approach_m", positive=True)
     return pd.DataFrame([row])

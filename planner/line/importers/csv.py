@@ -134,13 +134,19 @@ def _parse(value: str, f: pa.Field, where: str):
     return value
 
 
-def read_table_csv(path: Path, name: str, spec: TableSpec | None = None) -> tuple[pa.Table, list[int]]:
+def read_table_csv(path: Path, name: str, spec: TableSpec | None = None,
+                   notes: list[str] | None = None) -> tuple[pa.Table, list[int]]:
     """One CSV file as a pyarrow table of the declared types, and the physical line number of each row.
 
     Values go straight from text to Python objects to Arrow (no DataFrame in between), so a
     null stays a null and a float keeps every bit. ``spec``: another declared table than the line
-    database's ``name`` (a daily feed's, :mod:`planner.line.daily`).
+    database's ``name`` (a daily feed's, :mod:`planner.line.daily`). A column under the name an earlier
+    schema version gave it is read under the current one, with a sentence in ``notes``
+    (:mod:`planner.line.upgrade`).
     """
+    from planner.line.upgrade import renamed
+
+    old_names = renamed(name) if spec is None else {}
     spec = spec or TABLES[name]
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -156,6 +162,11 @@ def read_table_csv(path: Path, name: str, spec: TableSpec | None = None) -> tupl
                           f"the columns")
     reader = csv.reader(io.StringIO("".join(lines[skip:])))
     header = [h.strip() for h in next(reader)]
+    for k, h in enumerate(header):
+        if h in old_names and old_names[h][0] not in header:
+            header[k] = old_names[h][0]
+            if notes is not None:
+                notes.append(f"{path.name}: column {h} read as {old_names[h][0]}, {old_names[h][1]}")
     if len(header) == 1 and ";" in header[0]:
         raise SourceError(f"{path.name} line {skip + 1}: the header has no commas but semicolons; save the "
                           f"sheet as CSV with comma separators (and . as the decimal mark)")
@@ -212,7 +223,10 @@ def import_csv(src: str | Path, out: str | Path, *, force: bool = False) -> Impo
                 raise SourceError(f"{src}: {name}.csv is missing; every line needs it, even with no rows "
                                   f"(`planner import csv --template DIR` writes one)")
             continue
-        tables[name], line_nos[name] = read_table_csv(p, name)
+        tables[name], line_nos[name] = read_table_csv(p, name, notes=summary.notes)
+    from planner.line.upgrade import upgrade_tables
+
+    tables, _ = upgrade_tables(tables)  # an earlier schema version's line.csv: written as the current one
 
     def where(v: Violation) -> str:
         name = v.file.removesuffix(".parquet")
