@@ -416,3 +416,33 @@ def test_a_terminus_at_the_lines_end_gets_a_stop_marker_where_the_longest_train_
     assert t0.stop_down_m == pytest.approx(400.0) and t0.stop_up_m == 0.0
     assert (w.stop_down_m, w.stop_up_m) == (600.0, 400.0)  # W at 500 m: the platform's ends, as before
     assert any("station T0: stop marker down at 400 m, not 100 m, so that a 400 m train" in n for n in s.notes)
+
+
+def test_a_railml_line_that_lists_a_station_areas_tracks_as_a_group_takes_its_through_route(tmp_path):
+    """CAD exports list the tracks of a station area under one <line>, in no running order, sidings among them:
+    "track … is not connected to the next track of line …". The through route (each track's end connected to
+    the next one's begin, the longest) is the line, with a note; the same line as the chained listing."""
+    from importsrc import railml_text, write_railml
+    from planner.line.importers.railml import import_railml
+
+    siding = """
+    <track id="trS" name="Siding">
+      <trackTopology>
+        <trackBegin id="tbS" pos="0.0"><openEnd id="oeS1"/></trackBegin>
+        <trackEnd id="teS" pos="400.0"><openEnd id="oeS2"/></trackEnd>
+      </trackTopology>
+    </track>"""
+    chained = railml_text()
+    tracks = chained.split("<tracks>", 1)[1].split("</tracks>", 1)[0] + siding
+    grouped = railml_text(tracks=tracks, lines="""
+    <line id="L1" name="Station area as a group">
+      <trackRef ref="tr2"/><trackRef ref="trS"/><trackRef ref="tr3"/><trackRef ref="tr1"/>
+    </line>""")
+    f, r, x = write_railml(tmp_path / "g", grouped)
+    s = import_railml(f, "L1", [r], tmp_path / "grouped", extra=x)
+    assert any("its through route tr1 → tr2 → tr3 is the line, the other tracks (trS)" in n for n in s.notes)
+    f2, r2, x2 = write_railml(tmp_path / "c", chained)
+    import_railml(f2, "L1", [r2], tmp_path / "chained", extra=x2)
+    a, b = load_line(tmp_path / "grouped"), load_line(tmp_path / "chained")
+    assert (a.start_m, a.end_m) == (b.start_m, b.end_m) == (0.0, 6500.0)
+    assert [st.position_m for st in a.stations] == [st.position_m for st in b.stations]

@@ -213,6 +213,42 @@ def _connected(a: _Track, b: _Track) -> bool:
     return bool(out_ids & in_ids)
 
 
+def _bridges(doc: _Doc, a: _Track, b: _Track, all_tracks, in_line: set) -> list[_Track]:
+    """The tracks outside the line whose begin ``a``'s end connects to and whose end connects to ``b``'s begin."""
+    out = []
+    for el in (e for e in all_tracks if e.get("id") is not None and e.get("id") not in in_line):
+        try:
+            t = _Track(doc, el)
+        except SourceError:
+            continue
+        out += [t] if _connected(a, t) and _connected(t, b) else []
+    return out
+
+
+def _stations_on(t: _Track) -> set[str]:
+    """The operational points a track's elements name (cross sections, platform edges, stop posts)."""
+    return {v for el in t.el.iter() for k in ("ocpRef", "ocpStationRef") if (v := el.get(k))}
+
+
+def _through_route(tracks: list[_Track]) -> list[_Track]:
+    """The longest chain of ``tracks`` (in metres), each track's end connected to the next one's begin: the
+    through route of a group of tracks (a station area's main track, loops and sidings); on a tie the first
+    found in the group's order. Tracks joined to the chain by switches along them are not on it."""
+    nxt = {id(a): [b for b in tracks if b is not a and _connected(a, b)] for a in tracks}
+    best: list[_Track] = []
+
+    def walk(path: list[_Track]) -> None:
+        nonlocal best
+        best = list(path) if sum(t.length for t in path) > sum(t.length for t in best) else best
+        for b in (b for b in nxt[id(path[-1])] if b not in path):
+            walk(path + [b])
+
+    entered = {id(b) for bs in nxt.values() for b in bs}
+    for a in [t for t in tracks if id(t) not in entered] or tracks:
+        walk([a])
+    return best
+
+
 def _line_tracks(doc: _Doc, line_id: str, s: ImportSummary) -> tuple[ET.Element, _Line]:
     from planner.line.model import did_you_mean
 
@@ -259,6 +295,19 @@ def _line_tracks(doc: _Doc, line_id: str, s: ImportSummary) -> tuple[ET.Element,
                     for t in tracks if not t.abs_ok), "the absPos values do not run on from track to track")
         s.notes.append(f"chainage from 0 at the first trackBegin, adding the tracks' lengths ({why}); km posts "
                        f"(absPos) are not used")
+    if not by_abs and not all(_connected(a, b) or len(_bridges(doc, a, b, all_tracks, in_line)) == 1
+                              for a, b in zip(tracks[:-1], tracks[1:])):
+        route = _through_route(tracks)
+        on_route = set().union(*(_stations_on(t) for t in route)) if route else set()
+        left_out = set().union(*(_stations_on(t) for t in tracks if t not in route))
+        # a station area's tracks listed as a group: its through route is the line; a chain with a gap (a
+        # station on a track left out) is not, and is refused below as before
+        if len(route) >= 2 and left_out <= on_route:
+            rest = [t.id for t in tracks if t not in route]
+            s.notes.append(f"line {line_id!r} lists {len(tracks)} tracks that do not run on one from the next (a "
+                           f"station area's tracks as a group): its through route {' → '.join(t.id for t in route)}"
+                           f" is the line, the other tracks ({', '.join(rest)}) the network around it")
+            tracks, in_line = route, {t.id for t in route}
     seq: list[_Track] = [tracks[0]]
     for b in tracks[1:]:
         a = seq[-1]
@@ -273,15 +322,7 @@ def _line_tracks(doc: _Doc, line_id: str, s: ImportSummary) -> tuple[ET.Element,
                                f"{line_id!r}, {b.id!r}; joined because absPos runs on ({a.abs_end:g} m = "
                                f"{b.abs_begin:g} m)")
                 continue
-            bridge = [t for t in all_tracks if t.get("id") not in in_line and t.get("id") is not None]
-            between = []
-            for el in bridge:
-                try:
-                    t = _Track(doc, el)
-                except SourceError:
-                    continue
-                if _connected(a, t) and _connected(t, b):
-                    between.append(t)
+            between = _bridges(doc, a, b, all_tracks, in_line)
             if len(between) == 1:
                 seq += between + [b]
                 s.notes.append(f"track {between[0].id!r} (not a trackRef of line {line_id!r}) joins {a.id!r} and "
