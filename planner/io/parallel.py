@@ -137,9 +137,10 @@ def _clean_after_parent() -> None:
     root's lock (a dead process's lock is released by the kernel; a job that has started since holds it and
     cleans them itself). Errors are ignored: the next run cleans them too.
 
-    The first worker to take the lock cleans; the others find it taken and just exit. Another worker may
-    still be writing a dataset into the staged run until its own watch sees the main process gone (up to
-    :data:`PARENT_POLL_S` later), so the cleaner removes again until twice that has passed."""
+    Another worker may still be writing a dataset into the staged run until its own watch sees the main process
+    gone (up to :data:`PARENT_POLL_S` later), so a worker removes them again until twice that has passed. It
+    holds the lock only while it removes (a few milliseconds): a job restarted at once after the kill finds the
+    root free, takes the lock and cleans the rest itself; from then on the worker's try fails and it stops."""
     import fcntl
 
     from planner.io.atomic import remove_staging
@@ -152,10 +153,13 @@ def _clean_after_parent() -> None:
     except OSError:
         return
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         until = time.monotonic() + 2 * PARENT_POLL_S
         while True:
-            remove_staging(root)
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # OSError when a job holds it: that job cleans
+            try:
+                remove_staging(root)
+            finally:
+                fcntl.flock(fd, fcntl.LOCK_UN)
             if time.monotonic() >= until:
                 break
             time.sleep(PARENT_POLL_S / 4)
