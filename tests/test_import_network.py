@@ -391,3 +391,30 @@ def test_a_station_whose_only_platform_is_a_switch_gets_stops_at_its_markers():
     nodes, _ = network_tables(topo, {"a": (0.0, 1), "b": (1000.0, 1)}, "L", notes)
     assert sorted(nodes[nodes["station_id"] == "S"]["position_m"]) == [900.0, 1100.0]
     assert nodes[nodes["position_m"] == 1000.0]["kind"].tolist() == ["switch"]
+
+
+def _double_line(l2_signals: int) -> Topology:
+    """A double line whose imported path changes main at a scissors crossover X at 1000 m.
+
+    The path runs L1 (0 … 1000, three signals facing down) then L2 (1000 … 2000, ``l2_signals`` facing up);
+    beside them M1 (three facing up) and M2 (three facing down). Counted over the path alone the line's
+    signals face both ways alike.
+    """
+    along = lambda t, n, a: [(t, 100.0 + 200.0 * k, a) for k in range(n)]  # noqa: E731
+    return Topology({"L1": 1000.0, "L2": 1000.0, "M1": 1000.0, "M2": 1000.0},
+                    joins=[("X", "switch", [("L1", 1000.0, 0), ("M1", 1000.0, 0), ("L2", 0.0, 1), ("M2", 0.0, 1)])],
+                    points=[], signals=along("L1", 3, True) + along("L2", l2_signals, False)
+                    + along("M1", 3, False) + along("M2", 3, True))
+
+
+def test_each_main_of_a_double_line_is_named_by_its_own_signals():
+    # OSRD's small_infra: the path took the down main, then the up main; named by the whole path's signals
+    # (three each way: 'B'), both directions' trains were routed head on along it (three false deadlocks)
+    _, edges = network_tables(_double_line(3), {"L1": (0.0, 1), "L2": (1000.0, 1)}, "X", [])
+    assert set(edges["track"]) == {"D:L1", "U:L1", "U:M1", "D:M2"}   # the path's tracks: one group, each its way
+
+
+def test_a_short_track_with_few_signals_keeps_the_lines_direction():
+    # L2 has one signal facing up: too few to name it; the path's count (3 down, 1 up) does: down
+    _, edges = network_tables(_double_line(1), {"L1": (0.0, 1), "L2": (1000.0, 1)}, "X", [])
+    assert set(edges["track"]) == {"D:L1", "U:M1", "D:M2"}

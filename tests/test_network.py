@@ -595,3 +595,23 @@ def test_one_train_each_way_on_double_track_meet_no_conflict():
     """The trains pass each other mid-line: routed on the same main they would meet head on."""
     chk = check_conflicts(_both_ways_main(up_dep=0.0), {"setting_s": 10.0, "approach_s": 20.0, "release_s": 5.0})
     assert chk.summary["conflicts"] == 0 and chk.summary["deadlocks"] == 0
+
+
+# --- a station whose only platform on a down-named track is a dead end the down train cannot run into
+#     a (S0, 0) – b (S1, 1000, the main, named up by its own signals) – X (1200) – z (S2, 2000); stub d (S1, 1100)
+#     leaves X backwards: a down train reaches d only by reversing at X
+STUB_NODES = [
+    ("a", "stop", 0.0, "IL1", "S0", "U:main"), ("b", "stop", 1000.0, "IL1", "S1", "U:main"),
+    ("X", "switch", 1200.0, "IL1"), ("d", "stop", 1100.0, "IL1", "S1", "D:stub"),
+    ("z", "stop", 2000.0, "IL1", "S2", "U:main"),
+]
+STUB_EDGES = (edges_between(STUB_NODES, [("a", "b"), ("b", "X"), ("X", "z")], "U:main")
+              + edges_between(STUB_NODES, [("X", "d")], "D:stub"))
+
+
+def test_a_platform_named_for_the_other_direction_is_taken_where_the_own_one_cannot_be_reached():
+    """OSRD's small_infra: two trains were unrouted because only the platforms of tracks named for their direction
+    were tried at a station, and those were out of reach without reversing."""
+    down = train("T1", "down", [("S0", NAN, 0.0, True), ("S1", 100.0, 130.0, True), ("S2", 230.0, NAN, True)])
+    r = plan_routes(make_line([0.0, 1000.0, 2000.0], STUB_NODES, STUB_EDGES, [down]))
+    assert r["T1"].nodes == ("a", "b", "X", "z")

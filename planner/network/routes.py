@@ -66,10 +66,6 @@ def track_direction(track: str | None) -> str:
     return "down" if c == "D" else "up" if c == "U" else "both"
 
 
-def _serves(track: str | None, direction: str) -> bool:
-    return track_direction(track) in ("both", direction)
-
-
 class TrackGraph:
     """The track network as an index-based undirected graph, with stop nodes mapped to stations.
 
@@ -198,16 +194,17 @@ class TrackGraph:
     def candidates(self, station_id: str, direction: str) -> list[int]:
         """Stop nodes where a train running ``direction`` can stop at ``station_id``.
 
-        Per platform track the stop node nearest the direction's stop marker;
-        tracks that serve the direction are preferred; if none does (a
-        single-platform terminus), every platform track of the station.
+        Per platform track the stop node nearest the direction's stop marker,
+        every platform track of the station: the route's cost (metres run
+        against a track's direction come first) chooses among them. Keeping
+        only the platforms of tracks named for the direction misled where a
+        track's name is wrong for part of its length.
         """
         st = self.line.station(station_id)
         target = st.stop_m(direction)
         nodes = self.stops_of.get(station_id, [])
-        own = [i for i in nodes if _serves(self.node_track[i], direction)] or list(nodes)
         best: dict[str | None, int] = {}
-        for i in sorted(own):
+        for i in sorted(nodes):
             t = self.node_track[i]
             if t not in best or abs(self.pos_m[i] - target) < abs(self.pos_m[best[t]] - target):
                 best[t] = i

@@ -14,30 +14,20 @@ What becomes what (the conflict check's model, docs/line-database.md):
   pieces become one edge;
 - a **detector** (train-detection, block and route boundary) → a
   ``boundary`` node, so the edges between them are the detection sections;
-- a **platform** of a station on the line (an operational-point part, a
-  railML platform edge or crossSection) → a ``stop`` node with its
-  ``station_id``;
+- a **platform** of a station on the line (an operational-point part, a railML
+  platform edge or crossSection) → a ``stop`` node with its ``station_id``;
 - an unconnected track end or a buffer stop → an ``end`` node.
 
-Positions on the imported line's own tracks take its chainage exactly. A
-track off the line (a passing loop, the second track of a double line, a
-crossover, a terminal's dead-end platform) is placed by dead reckoning
-through the joins at track ends (:func:`_orient`: a train runs through a join
-from one side to the other, so a track joined on the far side continues the
-direction of chainage and one on the near side runs back), then its points
-lie between the chainages of its two end nodes in proportion to their
-offsets: a loop of 1,040 m between switches at 2,000 m and 3,000 m puts its
-midpoint at 2,500 m, so a loop longer than the main line it bypasses stays
-monotone in chainage. Tracks that no join at a track end connects to the line,
-or that lie wholly beyond its ends, are left out with a note. A crossing is
-one node: the route search may take it from any leg to any leg on the other
-side (a diamond's straight legs are not told apart).
+Positions on the line's own tracks take its chainage exactly. A track off the
+line (a loop, the second main, a crossover, a dead-end platform) is placed by
+dead reckoning through the joins at track ends (:func:`_orient`), its points
+between the chainages of its two end nodes in proportion to their offsets (a
+loop longer than the main it bypasses stays monotone). Tracks no join at a
+track end connects to the line, or wholly beyond its ends, are left out with a
+note. A crossing is one node (a diamond's straight legs are not told apart).
 
 Track names: the route search reads a track's running direction from its name (``D…`` down,
-``U…`` up, else both; :func:`planner.network.routes.track_direction`). Tracks joined end to end
-by links form one track; the line's own tracks form one. A track whose signals face one direction
-of the line's chainage at least two to one is named ``D:<id>`` or ``U:<id>`` (the main tracks of a
-double line, also where both are signalled both ways), any other ``B:<id>`` (both directions).
+``U…`` up, else both; :func:`planner.network.routes.track_direction`); :func:`_labels` names them.
 """
 from __future__ import annotations
 
@@ -179,10 +169,10 @@ def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interl
     return pd.DataFrame(nodes, columns=cols("nodes")), pd.DataFrame(rows, columns=cols("edges"))
 
 
-def _track_groups(topo: Topology, on_line: dict) -> _UF:
-    """Tracks joined end to end by links are one track; the line's own tracks are one track."""
+def _track_groups(topo: Topology, on_line: dict | None) -> _UF:
+    """Tracks joined end to end by links are one track; so are the line's own tracks (``on_line``; None: not)."""
     tuf = _UF()
-    for t in sorted(on_line):
+    for t in sorted(on_line or ()):
         tuf.union(min(on_line), t)
     for _, kind, members in topo.joins:
         for t, _, _ in (members[1:] if kind == "link" else ()):
@@ -297,11 +287,15 @@ def _positions(topo: Topology, t: str) -> list[tuple[str, float]]:
 
 
 def _labels(topo: Topology, on_line: dict, tuf: _UF, pos: dict, uf: _UF) -> dict[str, str]:
-    """Track name of each source track: ``D:``/``U:``/``B:`` + the first track id of its group.
+    """Track name of each source track: ``D:``/``U:``/``B:`` + the first track id of its group (``tuf``).
 
-    ``D`` when the group's signals facing down outnumber those facing up at least two to one, ``U``
-    the other way round, else ``B`` (single track, or signalled both ways alike, or no signals).
+    ``D`` when signals facing down outnumber those facing up two to one, ``U`` the other way round, else ``B``
+    (single track, signalled both ways alike, no signals). Counted on the track and the tracks linked to it when
+    they hold :data:`OWN_SIGNALS` signals or more, else over its group: counted over the whole line only, a double
+    line whose path takes the down main here and the up main there was ``B`` throughout, and trains of both
+    directions met head on (OSRD small_infra: three false deadlocks).
     """
+    own = _track_groups(topo, None)  # each track and the tracks links join to it
     faces: dict = defaultdict(lambda: {"down": 0, "up": 0})
     for t, p, along in topo.signals:
         if t in on_line:
@@ -311,15 +305,21 @@ def _labels(topo: Topology, on_line: dict, tuf: _UF, pos: dict, uf: _UF) -> dict
             if a is None or b is None or a == b:
                 continue
             sg = 1 if b > a else -1
-        faces[tuf.find(t)]["down" if (sg > 0) == along else "up"] += 1
+        way = "down" if (sg > 0) == along else "up"
+        faces[("own", own.find(t))][way] += 1
+        faces[("group", tuf.find(t))][way] += 1
     out = {}
     for t in topo.lengths:
-        g = tuf.find(t)
-        f = faces.get(g, {"down": 0, "up": 0})
+        f = faces.get(("own", own.find(t)), {"down": 0, "up": 0})
+        if f["down"] + f["up"] < OWN_SIGNALS:
+            f = faces.get(("group", tuf.find(t)), {"down": 0, "up": 0})
         prefix = ("D" if f["down"] > 0 and f["down"] >= 2 * f["up"] else
                   "U" if f["up"] > 0 and f["up"] >= 2 * f["down"] else "B")
-        out[t] = f"{prefix}:{g}"
+        out[t] = f"{prefix}:{tuf.find(t)}"
     return out
+
+
+OWN_SIGNALS = 3  # signals a track needs to be named by its own (:func:`_labels`); with fewer its group's decide
 
 
 # --------------------------------------------------------------------------- railjson
