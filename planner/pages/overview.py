@@ -210,8 +210,10 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
                             "on a bad day were told apart)",
               "infeasible_stops": "stopping patterns infeasible (approach × adhesion)",
               "conflicts": "route conflicts",
-              "stalls": "legs where a train stalls under some scenario (the notes say where)",
-              "no_stop": "legs where no stopping pattern stops the train (the notes say where)",
+              "stalls": "legs where a train stalls under some scenario (each leg once, with or without the day's "
+                        "restrictions; the notes say where)",
+              "no_stop": "legs where no stopping pattern stops the train (each leg once, with or without the day's "
+                         "restrictions; the notes say where)",
               "unrouted": "trains the track network cannot carry, left out of the conflict check (the notes say "
                           "why)"}
     severity = {f.name: f.severity for f in FLAGS_SHOWN} | {"conflicts": "bad", "stalls": "bad", "no_stop": "bad",
