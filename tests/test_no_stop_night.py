@@ -71,6 +71,9 @@ def test_the_pages_say_it_and_none_calls_those_legs_fine(night):
     assert "Stops without a stopping pattern" in page
     for tt, d, o, de in LEGS:
         assert f"<b>{tt} {d} {o}→{de}</b>, the restriction(s) on the leg: OURS-1" in page
+    margins = (run / "report" / "sample_margins.html").read_text()  # said on the first screen, not only in the table
+    assert ("6 of 78 legs are <b>unassessed</b>: no bad-day minimum (<a href='#legs'>every leg</a> says why); among "
+            "them, no stopping pattern stops the train on E10 up TKD → MDR, E6 up TKD → MDR, E8 up TKD → MDR") in margins
     overview = (run / "index.html").read_text()
     assert "legs where no stopping pattern stops the train" in overview
     assert "<div class='n'>3</div><div class='l'>legs where no stopping pattern" in overview

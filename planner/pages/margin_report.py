@@ -463,8 +463,16 @@ def _headline(report, sched, trains, top: str, nav: str = "") -> list[str]:
 
 def _findings(sched, trains) -> list[str]:
     """What stands out among the legs that could be assessed, as list items (HTML)."""
-    # what stands out (among the legs that could be assessed)
     find = []
+    una = sched[sched.unassessed.astype(bool)]
+    if len(una):  # first: a leg no figure speaks for, the worst being a stop the vehicle's DB cannot make
+        ns = una[una.unassessed_cause.astype(str) == "no_stop"] if "unassessed_cause" in una else una.iloc[:0]
+        stuck = sorted({f"{r.train_type} {r.direction} {r.origin} → {r.destination}" for r in ns.itertuples()})
+        find.append(f"{len(una)} of {len(sched)} legs are <b>unassessed</b>: no bad-day minimum (<a href='#legs'>every "
+                    "leg</a> says why)" + (f"; among them, no stopping pattern stops the train on "
+                                           f"{_e(', '.join(stuck))}: their bundles hold no pattern there"
+                                           if stuck else "") + ".")
+    # what stands out (among the legs that could be assessed)
     if (~sched.unassessed.astype(bool)).any():
         w = sched.sort_values("remaining_margin_s", kind="stable").iloc[0]
         find.append(f"Least margin on a bad day: <b>{_e(w.train_type)} {_e(w.direction)} {_e(w.origin)} → "
