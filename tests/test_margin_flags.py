@@ -144,3 +144,20 @@ def test_every_flag_has_its_column_and_count(flag):
     from planner.report.margin_datasets import MARGIN_TOTALS_SCHEMA, MARGINS_SCHEMA
 
     assert flag in MARGINS_SCHEMA.names and f"n_{flag}" in MARGIN_TOTALS_SCHEMA.names
+
+
+def test_a_flagged_value_is_never_shown_as_zero():
+    # a leg 0.03 s below its minimum is impossible by its sign; 0.1 s rounding would read "0.0 s below", which
+    # contradicts the flag: the text keeps the first significant digit instead
+    sched = {"3 cs below": 99.97, "4 cs short": 119.96}
+    c = {"impossible": np.array([True, False]), "short_bad_day": np.array([False, True]),
+         "infeasible": np.array([True, True]), "tight": np.array([False, False])}
+    rows = pd.DataFrame({"scheduled_running_time_s": list(sched.values()), "min_running_time_s": 100.0,
+                         "degraded_min_running_time_s": 120.0, "slowest_running_time_s": 300.0,
+                         "closed_loop_max_error_s": np.nan, "unassessed_reason": "",
+                         "margin_s": [-0.03, 19.96], "remaining_margin_s": [-20.03, -0.04],
+                         "degraded_loss_load_s": 20.0, "degraded_loss_traction_s": 0.0,
+                         "degraded_loss_stop_s": 0.0, "degraded_loss_stop_model_s": 0.0, **c})
+    reason, _ = flag_reasons(rows, 5.0, 10.0)
+    assert reason[0].startswith("impossible: scheduled 100.0 s, 0.03 s below the minimum running time 100.0 s")
+    assert reason[1].startswith("short on a bad day by 0.04 s: margin 20.0 s")

@@ -133,9 +133,11 @@ def main_cause(shares) -> str:
 
 
 def _s(x: float) -> str:
-    """Seconds to 0.1 s, never ``-0.0``."""
-    t = f"{x:.1f}"
-    return "0.0" if t == "-0.0" else t
+    """Seconds to 0.1 s, never ``-0.0``, and never ``0.0`` for a value that is not zero (a leg is flagged by a
+    value's sign: 0.03 s below its minimum must not read "0.0 s below"; :func:`planner.line.units.shown`)."""
+    from planner.line.units import shown
+
+    return shown(x, 1) if math.isfinite(x) else f"{x:.1f}"
 
 
 def cost_words(cost: float, shares) -> str:
