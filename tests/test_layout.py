@@ -13,11 +13,11 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "planner"
 
-FLOORS = ["errors", "io", "line", "physics", "tables", "stopping", "network", "datasets", "bundle", "report", "pages",
+FLOORS = ["errors", "io", "line", "physics", "tables", "stopping", "network", "delay", "datasets", "bundle", "report", "pages",
           "job", "api", "cli"]
 """Ground floor first; a floor imports only from itself and the floors before it."""
 
-ALGORITHMS = ("physics", "tables", "stopping", "network")
+ALGORITHMS = ("physics", "tables", "stopping", "network", "delay")
 IMPURE = ("pandas", "pyarrow", "matplotlib", "planner.line.loader", "planner.api", "planner.io.parquet")
 """What an algorithm floor never imports: frames, Arrow, charts, and anything that reads a line or dataset."""
 ROOT_LOADERS = {"load_line", "running_time", "timekeeping_run"}

@@ -68,6 +68,7 @@ def _root(
 from . import validate  # noqa: E402,F401
 from . import bundle  # noqa: E402,F401
 from . import conflicts  # noqa: E402,F401
+from . import robustness  # noqa: E402,F401
 from . import runtime  # noqa: E402,F401
 from . import tables  # noqa: E402,F401
 from . import stops  # noqa: E402,F401

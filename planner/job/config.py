@@ -147,6 +147,23 @@ class ConflictsSection:
 
 
 @dataclass(frozen=True)
+class RobustnessSection:
+    days: int = 0
+    """Days simulated with random primary delays (Monte Carlo); 0 = none (the predicted day is always computed)."""
+    seed: int = 1
+    """Seed of the primary delays: the same seed gives the same bytes."""
+    min_dwell_s: float = 20.0
+    """Minimum dwell at a stop [s]: a late train departs no earlier than arrival + this."""
+    min_dwell: tuple = ()
+    """Exceptions: a list of {station_id, train_type ("*" any), min_dwell_s} tables; the last that matches wins."""
+    delays: tuple = ()
+    """Primary delays: a list of {kind, distribution, train_type, probability, mean_s, file} tables
+    (docs/robustness.md)."""
+    connections: str = ""
+    """Optional Parquet file of turnarounds and connections (from_train, to_train, station_id, min_s)."""
+
+
+@dataclass(frozen=True)
 class ParallelSection:
     backend: str = "local"
     """`local` (joblib loky processes) or `dask` (futures on a dask.distributed cluster, see planner.io.parallel)."""
@@ -185,6 +202,7 @@ class Job:
     margins: MarginsSection = field(default_factory=MarginsSection)
     bundles: BundlesSection = field(default_factory=BundlesSection)
     conflicts: ConflictsSection = field(default_factory=ConflictsSection)
+    robustness: RobustnessSection = field(default_factory=RobustnessSection)
     parallel: ParallelSection = field(default_factory=ParallelSection)
     day: DaySection = field(default_factory=DaySection)
 
@@ -209,6 +227,7 @@ SECTIONS = {
     "margins": MarginsSection,
     "bundles": BundlesSection,
     "conflicts": ConflictsSection,
+    "robustness": RobustnessSection,
     "parallel": ParallelSection,
     "day": DaySection,
 }
@@ -270,6 +289,11 @@ def _section(file: str, name: str, cls, data: Any, problems: _Problems):
                 raise JobError(f"{where}: unknown key; known keys: {', '.join(known)}")
             if cls is ClosedLoopSection and key == "scenarios":
                 kwargs[key] = _scenarios(where, value)
+                continue
+            if cls is RobustnessSection and key in ("delays", "min_dwell"):
+                from planner.job.robustness import parse_tables
+
+                kwargs[key] = parse_tables(where, key, value)
                 continue
             v = _check_type(where, value, getattr(defaults, key))
             if isinstance(v, tuple) and not all(isinstance(x, str) for x in v):
@@ -338,6 +362,9 @@ RANGES: dict[tuple[str, str], Range] = {
     ("conflicts", "approach_s"): Range(0.0, 3_600.0, _SECONDS),
     ("conflicts", "release_s"): Range(0.0, 3_600.0, _SECONDS),
     ("conflicts", "terminal_s"): Range(0.0, 86_400.0, "a train keeps its destination platform at most a day"),
+    ("robustness", "days"): Range(0.0, 1_000_000.0, "0 (none) to a million simulated days"),
+    ("robustness", "seed"): Range(0.0, 2.0 ** 63 - 1, "a seed is a non-negative integer"),
+    ("robustness", "min_dwell_s"): Range(0.0, 3_600.0, "a minimum dwell of seconds to minutes"),
     ("parallel", "n_jobs"): Range(-1.0, 4_096.0, "-1 (all cores) or a number of worker processes"),
     ("parallel", "dask_lost_timeout_s"): Range(1.0, 86_400.0, "between a second and a day without workers"),
 }

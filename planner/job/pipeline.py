@@ -128,6 +128,8 @@ class RunSummary:
     written by :func:`planner.job.views.run_views`)."""
     pending: list = field(default_factory=list, repr=False, compare=False)
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
+    robustness: dict = field(default_factory=dict, repr=False, compare=False)
+    """Each line's summary of the day as it runs (:func:`planner.job.robustness.day_as_it_runs`), for its page."""
     graph_pages: list = field(default_factory=list, repr=False, compare=False)
     """Each line's train graph page, being written on a worker (:func:`planner.job.views.graph_page`; taken by
     :func:`planner.job.views.run_views`)."""
@@ -461,7 +463,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     conflicts = None
     if checks_conflicts:
-        conflicts = conflicts_step(summary, got.pop("conflicts"))
+        conflicts = conflicts_step(summary, got.pop("conflicts"), line.line_id)
     read = given.result()
     summary.pending.remove(given)
     report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, read, lifted, closed_loop)

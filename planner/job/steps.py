@@ -153,43 +153,71 @@ def bundles_step(stage: Path, runner: Runner, summary: RunSummary, key, bundles)
     summary.bundles += [Path(i.path).name for i in infos]
 
 
-def conflicts_unit(line, params, lifted=None):
-    from planner.datasets.conflicts import check_conflicts
+def conflicts_unit(line, params, lifted=None, job=None):
+    from planner.datasets.conflicts import conflict_report
     from planner.network.arrivals import train_curves
+    from planner.network.check import check_timetable
+
+    def compute():
+        check = check_timetable(line, params, curves=train_curves(line, lifted))
+        report = conflict_report(check)
+        if job is None:
+            return report, None
+        from planner.job.robustness import day_as_it_runs
+
+        # the day as it will run, on this worker from the check it has (chunks of days one after the other:
+        # the other workers are busy with the line's other units)
+        directions = {t.train_id: t.direction for t in check.trains}
+        return report, (directions, *day_as_it_runs(check, line, job, n_jobs=1))
 
     # the worker's pages of the whole line's run curves given back, for the units after it
-    return then_give_back(lambda: check_conflicts(line, params, curves=train_curves(line, lifted)))
+    return then_give_back(compute)
 
 
 def conflicts_unit_of(job: Job, line: Line, stage: Path, lifted=None) -> Unit:
     """The unit of the line's route conflicts (its whole timetable; each train's run with the restrictions
-    that apply to it: ``lifted``, :func:`planner.job.day.lifted_restrictions`). The job keeps its conflicts table
-    and the datasets' files: the report's datasets are written into ``stage`` where it is made
-    (:func:`conflicts_written`), so its occupation windows (tens of megabytes on a line ten times the sample) never
-    come to the job process."""
+    that apply to it: ``lifted``, :func:`planner.job.day.lifted_restrictions`) and of the day as it will run
+    (:func:`planner.job.robustness.day_as_it_runs`: the predicted day, and the simulated days of
+    ``[robustness]``). The job keeps its conflicts table, the robustness summary and the datasets' files: the
+    datasets are written into ``stage`` where they are made (:func:`conflicts_written`), so its occupation
+    windows (tens of megabytes on a line ten times the sample) never come to the job process."""
     from planner.io.parquet import current_stamp
+    from planner.job.robustness import key_of
 
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
-    key = digest(["conflicts", code_digest(), line_digest(line), lifted_key(lifted or {}), params, job.tables.ds_m])
-    return Unit("conflicts", key, "conflicts", conflicts_unit, (line, params, lifted),
-                after=functools.partial(write_stamped, current_stamp(), conflicts_written, stage))
+    key = digest(["conflicts", code_digest(), line_digest(line), lifted_key(lifted or {}), params, job.tables.ds_m,
+                  key_of(job), job.day.day])
+    return Unit("conflicts", key, "conflicts", conflicts_unit, (line, params, lifted, job),
+                after=functools.partial(write_stamped, current_stamp(), conflicts_written, stage, line))
 
 
-def conflicts_written(stage: Path, report) -> tuple:
-    """Write a conflict report's datasets into the staged run; (its conflicts table, the files written, the
-    reasons of the trains it could not route)."""
+def conflicts_written(stage: Path, line, result) -> tuple:
+    """Write a conflict report's datasets, and those of the day as it runs, into the staged run; (its conflicts
+    table, the files written, the reasons of the trains it could not route, the robustness summary)."""
     from planner.datasets.conflicts import write_conflicts
+    from planner.datasets.delays import robustness_frames, write_delays, write_robustness
 
+    report, runs = result
     reasons = list(report.unrouted["reason"]) if report.unrouted is not None else []
-    return report.conflicts, [str(f) for f in write_conflicts(report, stage)], reasons
+    files = [str(f) for f in write_conflicts(report, stage)]
+    summary = None
+    if runs is not None:
+        directions, pday, stats, summary = runs
+        files += [str(f) for f in write_delays(pday, line.line_id, directions, stage)]
+        if stats is not None:
+            files += [str(f) for f in write_robustness(robustness_frames(pday, stats, line, directions),
+                                                       line.line_id, stage)]
+    return report.conflicts, files, reasons, summary
 
 
-def conflicts_step(summary: RunSummary, kept: tuple):
+def conflicts_step(summary: RunSummary, kept: tuple, line_id: str = ""):
     """Count the route conflicts found, the trains the network cannot carry (a flag and a note each: the night
     goes on without them) and their datasets' rows (``kept``: :func:`conflicts_written` of the unit of
     :func:`conflicts_unit_of`); returns the conflicts table for the report."""
-    conflicts, files, unrouted = kept
+    conflicts, files, unrouted, robustness = kept
     count_rows(summary, files)
+    if robustness is not None:
+        summary.robustness[line_id] = robustness  # the robustness page's head (job.views)
     summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
         conflicts["conflict_id"].nunique() if len(conflicts) else 0)
     summary.flags["unrouted"] = summary.flags.get("unrouted", 0) + len(unrouted)

@@ -227,6 +227,27 @@ def _restrictions_pages(job, lines, stage: Path, manifest: dict, summary) -> Non
                    job.tables.ds_m, legs)
 
 
+def _robustness_pages(lines, stage: Path, manifest: dict, summary) -> None:
+    """``report/<line>_robustness.html`` of each line whose conflict check computed the day as it runs
+    (:mod:`planner.pages.robustness`), from the datasets the check's worker wrote."""
+    from planner.pages.robustness import write_page
+    from planner.pages.run_head import nav_html
+    from planner.report.published_run import read_line_dataset
+
+    for line in lines:
+        s = summary.robustness.get(line.line_id)
+        if s is None:
+            continue
+        lid = check_path_id(line.line_id, "line id")
+        nav = nav_html([("overview", "../index.html"), ("margin report", f"{lid}_margins.html"),
+                        ("train graph", f"../graph/{lid}_graph.html")],
+                       manifest.get("run_id"), manifest.get("operating_day"), manifest.get("run_date"))
+        day = (manifest.get("operating_day") or {}).get("day") or ""
+        frames = [read_line_dataset(stage, n, line.line_id) for n in
+                  ("robustness_trains", "robustness_stations", "robustness_activities", "delay_events")]
+        write_page(stage / "report" / f"{lid}_robustness.html", line.name, {**s, "day": day}, *frames, nav=nav)
+
+
 def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     """Changes since the previous run, report sections, manifest additions and the overview page (module doc)."""
     from planner.io.atomic import write_bytes_atomic
@@ -285,6 +306,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
+        _robustness_pages(lines, stage, manifest, summary)
     # the speed–distance charts, drawn while the pages above were written: their pages are written here while
     # a worker may still write a train graph page (the last long unit of a large line)
     for pages in summary.chart_pages:

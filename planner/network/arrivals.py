@@ -52,6 +52,11 @@ class Trajectory:
     direction: str
     u_m: np.ndarray
     t_s: np.ndarray
+    calls_s: tuple[tuple[float, float], ...] = ()
+    """(arrival, departure) at each stop call [s], as predicted (the origin's arrival is its departure, the
+    destination's departure its arrival): the events of the day's delay network (:mod:`planner.delay`)."""
+    run_min_s: tuple[float, ...] = ()
+    """Each leg's minimum running time [s]: the run curve at the highest ratio the source has."""
 
     @property
     def end_s(self) -> float:
@@ -126,6 +131,8 @@ def build_trajectory(line: Line, train: Train, curves: RunCurveSource) -> Trajec
     dep = calls[0].departure_s
     if math.isnan(dep):
         raise InputError(f"timetable.parquet train {train.train_id}: no departure time at the origin")
+    at: list[tuple[float, float]] = [(dep, dep)]
+    mins: list[float] = []
     for a, b in zip(calls[:-1], calls[1:]):
         sched = b.arrival_s - a.departure_s
         if math.isnan(sched) or sched <= 0:
@@ -140,12 +147,14 @@ def build_trajectory(line: Line, train: Train, curves: RunCurveSource) -> Trajec
         arr = dep + float(t[-1])
         nxt = b.departure_s
         dep = arr if math.isnan(nxt) else max(nxt, arr)
+        at.append((arr, dep))
+        mins.append(float(curves(train.train_type, a.station_id, b.station_id, 0.0)[1][-1]))
     u = np.concatenate(us)
     t = np.concatenate(ts)
     # Guard against round-off in the curves: the front never moves back, time never runs back.
     u = np.maximum.accumulate(u)
     t = np.maximum.accumulate(t)
-    return Trajectory(train.train_id, train.direction, u, t)
+    return Trajectory(train.train_id, train.direction, u, t, tuple(at), tuple(mins))
 
 
 def stretched_curve(x_m: np.ndarray, t_s: np.ndarray, scheduled_s: float) -> RunCurve:

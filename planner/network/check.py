@@ -52,6 +52,10 @@ class ConflictCheck:
     conflicts: list[dict[str, Any]]
     headways: list[dict[str, Any]]
     unrouted: dict[str, str] = field(default_factory=dict)
+    plans: tuple = ()
+    """Per train of ``trains``: (its (arrival, departure) per stop call as predicted, its legs' minimum
+    running times) from its trajectory (:class:`~planner.network.arrivals.Trajectory`), for the day's delay
+    network (:mod:`planner.delay`)."""
 
 
 def check_timetable(line: Line, params: BlockingParams | Mapping[str, Any] | None = None, *,
@@ -87,13 +91,14 @@ def check_timetable(line: Line, params: BlockingParams | Mapping[str, Any] | Non
     src = curves or SimulatorCurves(line)
     if hasattr(src, "prepare"):
         src.prepare(sorted(set(interstation_keys(trains))), progress=curve_progress)
-    parts = []
+    parts, plans = [], []
     for k, (t, r) in enumerate(zip(trains, routes)):
         traj = build_trajectory(line, t, src)
+        plans.append((traj.calls_s, traj.run_min_s))
         parts.append(occupation_windows(g, r, traj, line.train_type(t.train_type).length_m, p, k))
         if progress:
             progress(k + 1, len(trains))
     w = Windows.concat(parts)
     records = detect_conflicts(g, trains, routes, w)
     return ConflictCheck(line.line_id, p, g, tuple(trains), routes_d, w, records, resource_headways(g, trains, w),
-                         unrouted)
+                         unrouted, tuple(plans))

@@ -266,7 +266,9 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     for lid in lines:
         links = []
         for rel, label in ((f"report/{lid}_restrictions.html", "restrictions in force"),
-                           (f"report/{lid}_margins.html", "margin report"), (f"graph/{lid}_graph.html", "train graph"),
+                           (f"report/{lid}_margins.html", "margin report"),
+                           (f"report/{lid}_robustness.html", "the day as it will run (punctuality)"),
+                           (f"graph/{lid}_graph.html", "train graph"),
                            (f"timetable/{lid}_timetable.html", "running-time tables")):
             if (run_dir / rel).is_file():
                 links.append(f"<a href='{_e(rel)}'>{_e(label)}</a>")

@@ -28,7 +28,7 @@ class DatasetDoc:
 def datasets() -> list[DatasetDoc]:
     """Every dataset a nightly run publishes, in pipeline order."""
     from planner.report import changes, margin_datasets as margins, train_timetable
-    from planner.datasets import closed_loop, conflicts, stops, tables
+    from planner.datasets import closed_loop, conflicts, delays, stops, tables
 
     occ, con = conflicts.OCCUPATION_SCHEMA, conflicts.CONFLICTS_SCHEMA
     out = [DatasetDoc(n, s, HIVE, "tables") for n, s in tables.SCHEMAS.items()]
@@ -44,6 +44,7 @@ def datasets() -> list[DatasetDoc]:
             DatasetDoc("headways", conflicts.HEADWAYS_SCHEMA, ("line",), "conflicts"),
             DatasetDoc("occupation", occ, HIVE, "conflicts"),
             DatasetDoc("unrouted", conflicts.UNROUTED_SCHEMA, ("line",), "conflicts")]
+    out += [DatasetDoc(n, s, ("line",), "conflicts") for n, s in delays.SCHEMAS.items()]
     out.append(DatasetDoc("changes", changes.CHANGES_SCHEMA, ("line",), "changes"))
     return out
 
