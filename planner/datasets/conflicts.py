@@ -43,6 +43,8 @@ OCCUPATION_SCHEMA = declare([
     ("release_s", pa.float64(), "route release time after clearing [s]"),
     ("start_s", pa.float64(), "window opens: entry − setting − approach [s after midnight]"),
     ("end_s", pa.float64(), "window closes: clear + release [s after midnight]"),
+    ("predicted_start_s", pa.float64(), "the window's opening on the predicted day: every delay carried forward, a train held by another waiting before the resource (delay_events; docs/robustness.md) [s after midnight]"),
+    ("predicted_end_s", pa.float64(), "the window's close on the predicted day [s after midnight]"),
 ], name="occupation", description="Blocking-time occupation windows of every train on every switch and section of its route")
 PLACE_COLUMNS = [
     ("resource_kind", pa.string(), "`node` (a switch) or `section` (a track piece, edge)"),
@@ -170,8 +172,10 @@ def check_conflicts(line: Line, params: BlockingParams | Mapping[str, Any] | Non
                                            curve_progress=curve_progress))
 
 
-def conflict_report(check: ConflictCheck) -> ConflictReport:
-    """The frames of the ``conflicts``, ``occupation`` and ``headways`` datasets, and the summary, of a check."""
+def conflict_report(check: ConflictCheck, predicted: Windows | None = None) -> ConflictReport:
+    """The frames of the ``conflicts``, ``occupation`` and ``headways`` datasets, and the summary, of a check;
+    ``predicted``: the windows of the predicted day (:class:`planner.delay.predicted.PredictedDay`), in the
+    check's order (none: the planned ones)."""
     records = check.conflicts
     conflicts = pd.DataFrame.from_records(records, columns=[f.name for f in CONFLICTS_SCHEMA] if not records else None)
     if len(conflicts):
@@ -183,7 +187,7 @@ def conflict_report(check: ConflictCheck) -> ConflictReport:
     heads.insert(0, "line", check.line_id)
     trains = list(check.trains)
     routes = [check.routes[t.train_id] for t in trains]
-    occupation = _occupation_frame(check.graph, trains, routes, check.windows, check.params, check.line_id)
+    occupation = _occupation_frame(check.graph, trains, routes, check.windows, check.params, check.line_id, predicted)
     summary = _summary(trains, routes, check.windows, conflicts, heads)
     summary["unrouted"] = len(check.unrouted)
     return ConflictReport(check.line_id, check.params, check.routes, conflicts, occupation, summary, heads,
@@ -199,7 +203,9 @@ def unrouted_frame(check: ConflictCheck) -> pd.DataFrame:
     return pd.DataFrame.from_records(rows, columns=names)
 
 
-def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingParams, line_id: str):
+def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingParams, line_id: str,
+                      predicted: Windows | None = None):
+    pw = w if predicted is None else predicted
     tr = w.train
     kr = list(zip(w.kind.tolist(), w.res.tolist()))
     names = {x: (g.resource_id(*x), g.resource_interlocking(*x), g.resource_track(*x)) for x in set(kr)}
@@ -226,6 +232,7 @@ def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingPara
         "running_s": w.exit_s - w.entry_s, "clearing_s": w.clear_s - w.exit_s,
         "release_s": p.release_s,
         "start_s": w.start_s, "end_s": w.end_s,
+        "predicted_start_s": pw.start_s, "predicted_end_s": pw.end_s,
     })
     return df.sort_values(["train_id", "seq"], kind="stable").reset_index(drop=True)
 

@@ -160,15 +160,15 @@ def conflicts_unit(line, params, lifted=None, job=None):
 
     def compute():
         check = check_timetable(line, params, curves=train_curves(line, lifted))
-        report = conflict_report(check)
         if job is None:
-            return report, None
+            return conflict_report(check), None
         from planner.job.robustness import day_as_it_runs
 
         # the day as it will run, on this worker from the check it has (chunks of days one after the other:
         # the other workers are busy with the line's other units)
+        runs = day_as_it_runs(check, line, job, n_jobs=1)
         directions = {t.train_id: t.direction for t in check.trains}
-        return report, (directions, *day_as_it_runs(check, line, job, n_jobs=1))
+        return conflict_report(check, runs[0].windows), (directions, *runs)
 
     # the worker's pages of the whole line's run curves given back, for the units after it
     return then_give_back(compute)

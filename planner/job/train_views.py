@@ -167,7 +167,11 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     runs = charts.runs
     with runner.progress.step("timetable"):  # while the workers draw the charts
         types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
-        recs = timetable_rows(line, runs, types)  # made once: the dataset's rows and the page's
+        from planner.report.published_run import read_line_dataset
+
+        # the predicted day, written by the line's conflict check before this step
+        pred = read_line_dataset(stage, "delay_events", lid, columns=["train_id", "seq", "event", "predicted_s", "cause"])
+        recs = timetable_rows(line, runs, types, pred)  # made once: the dataset's rows and the page's
         legs: dict[str, list] = {}
         for r in recs:
             if r["chart"] and r["leg_flag"]:  # the stop that ends a leg

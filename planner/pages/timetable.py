@@ -58,6 +58,7 @@ def _row(r: dict, rel: str) -> str:
         f'<td>{"" if pas else _e(r["scheduled_departure"] or "")}</td>',
         f'<td>{_e(r["computed_arrival"] or "")}{_diff(r["computed_arrival_s"], r["scheduled_arrival_s"])}</td>',
         f'<td>{_e(r["minimum_arrival"] or "")}</td>',
+        _predicted(r),
         f'<td>{_s(r["section_scheduled_s"], 0)}</td>',
         f'<td>{_s(r["section_minimum_s"])}</td>',
         f'<td>{_s(r["supplement_s"], 1, True)}</td>',
@@ -70,9 +71,23 @@ def _row(r: dict, rel: str) -> str:
     return "<tr>" + "".join(cells) + "</tr>"
 
 
+def _predicted(r: dict) -> str:
+    """The predicted day's times at a stop, its delay, and why it grew here (in the cell's title)."""
+    a, d = r.get("predicted_arrival"), r.get("predicted_departure")
+    if not a and not d:
+        return "<td></td>"
+    times = " / ".join(x for x in (a, d) if x)
+    delay = r.get("delay_s")
+    late = delay is not None and delay == delay and delay > 0.05
+    why = r.get("delay_cause") or ""
+    mark = f' <span class="late" title="{_e(why)}">+{round(delay)}{" ⓘ" if why else ""}</span>' if late else ""
+    return f"<td>{_e(times)}{mark}</td>"
+
+
 HEAD = ("<tr><th class='l'>station</th><th class='l'>call</th><th>scheduled arrival / pass</th>"
         "<th>scheduled departure</th><th>computed arrival / pass (vs scheduled [s])</th>"
-        "<th>minimum run arrival / pass</th><th>section scheduled [s]</th><th>section minimum [s]</th>"
+        "<th>minimum run arrival / pass</th><th>predicted arrival / departure (delay [s])</th>"
+        "<th>section scheduled [s]</th><th>section minimum [s]</th>"
         "<th>supple&shy;ment [s]</th><th>supple&shy;ment [%]</th><th>ratio on time [%]</th><th>leg margin [s]</th>"
         "<th>bad-day margin [s]</th><th>speed–distance</th></tr>")
 
@@ -120,7 +135,9 @@ def page_parts(line_id: str, line_name: str, records: Sequence[dict], *, links: 
            "time, so the computed departure is the scheduled one; <b>minimum</b>: the same leg at ratio "
            "100 %. Both at the tables' conditions (empty, full traction). <b>Supplement</b>: scheduled − minimum "
            "time of the section from the previous call; a leg's supplements add up to its margin. The bad-day margin "
-           "and the flag are the margin report's. The same rows are the <code>train_timetable</code> dataset.</p>"
+           "and the flag are the margin report's. <b>Predicted</b>: the day as it will run, every delay carried forward (a late arrival delays the departure, "
+           "never before arrival + the minimum dwell; a train held by another waits), with the delay and, on "
+           "hover, why it grew at that stop. The same rows are the <code>train_timetable</code> dataset.</p>"
            f'<div class="note idx">{"".join(idx)}</div>')
     for t in order:
         rs = by_train[t]

@@ -75,6 +75,16 @@ TIMETABLE_SCHEMA = declare(
          "at the stop ending a leg: scheduled - bad-day minimum (margins.remaining_margin_s) [s]; null: unassessed"),
         ("leg_flag", pa.string(), "at the stop ending a leg: its worst margin-report flag, or 'ok'"),
         ("chart", pa.string(), "the leg's speed-distance chart page, relative to the run folder"),
+        ("predicted_arrival", pa.string(), "predicted arrival HH:MM:SS: the day as it will run, every delay carried "
+                                           "forward (delay_events; docs/robustness.md); null at a pass and the first call"),
+        ("predicted_departure", pa.string(), "predicted departure HH:MM:SS, never before the predicted arrival + the "
+                                             "minimum dwell; null at a pass and the last call"),
+        ("predicted_arrival_s", pa.float64(), "predicted_arrival in seconds after midnight [s]"),
+        ("predicted_departure_s", pa.float64(), "predicted_departure in seconds after midnight [s]"),
+        ("delay_s", pa.float64(), "predicted − scheduled time at the stop: the arrival's, at the first call the "
+                                  "departure's [s]; null at a pass"),
+        ("delay_cause", pa.string(), "why the train is later here than at its call before (its own leg, the minimum "
+                                     "dwell, or held by which train where); empty when the delay only carries on"),
     ],
     name="train_timetable",
     description="Running-time table per train: scheduled, computed (on-time ratio) and minimum times at every call.",
@@ -260,9 +270,11 @@ def _flag(row: dict) -> str:
     return flag_of(SimpleNamespace(**{f: row.get(f) for f in FLAGS}))
 
 
-def timetable_rows(line, runs: dict[tuple, LegRun | LegTimes], train_types=None) -> list[dict]:
+def timetable_rows(line, runs: dict[tuple, LegRun | LegTimes], train_types=None, predicted=None) -> list[dict]:
     """One record per call of every train (columns of :data:`TIMETABLE_SCHEMA` plus direction, train_type),
-    of the given train types (default every one)."""
+    of the given train types (default every one). ``predicted``: the predicted day's events (the ``delay_events``
+    frame), or None (the predicted columns are null)."""
+    pred = predicted_calls(predicted)
     nan = math.nan
     recs = []
     # a leg with a row for the trains that pass while a restriction is lifted: each train its own row's run
@@ -326,11 +338,25 @@ def timetable_rows(line, runs: dict[tuple, LegRun | LegTimes], train_types=None)
                         rec["leg_remaining_margin_s"] = float(rm) if rm is not None else nan
                         rec["leg_flag"] = _flag(row)
             prev_sched = dep_s if k != last else nan
+            p_arr, c_arr = pred.get((tr.train_id, c.seq, "arrival"), (nan, ""))
+            p_dep, c_dep = pred.get((tr.train_id, c.seq, "departure"), (nan, ""))
+            rec["predicted_arrival_s"], rec["predicted_departure_s"] = p_arr, p_dep
+            rec["delay_s"] = (p_arr - arr_s if not math.isnan(p_arr) else p_dep - dep_s
+                              if not math.isnan(p_dep) else nan)  # the one NaN: records compare equal
+            rec["delay_cause"] = "; ".join(x for x in (c_arr, c_dep) if x)
             for col in ("scheduled_arrival", "scheduled_departure", "computed_arrival", "computed_departure",
-                        "minimum_arrival"):
+                        "minimum_arrival", "predicted_arrival", "predicted_departure"):
                 rec[col] = clock(rec[col + "_s"])
             recs.append(rec)
     return recs
+
+
+def predicted_calls(events) -> dict:
+    """``(train_id, call seq, "arrival" | "departure")`` → (predicted time [s], cause) of a ``delay_events`` frame."""
+    if events is None or not len(events):
+        return {}
+    return {(t, int(q), e): (float(p), c) for t, q, e, p, c in
+            zip(events["train_id"], events["seq"], events["event"], events["predicted_s"], events["cause"])}
 
 
 def timetable_table(line, runs: dict[tuple, LegRun], train_types=None, records: list[dict] | None = None) -> pa.Table:
