@@ -200,4 +200,4 @@ def test_kernels_status_command_reports_both():
         warnings.simplefilter("ignore")
         res = CliRunner().invoke(app, ["kernels", "status"])
     assert res.exit_code == 0, res.output
-    assert "integrator: built:" in res.output and "stopping: built:" in res.output
+    assert "integrator: built:" in res.output and "stopping: built:" in res.output and "delay: built:" in res.output

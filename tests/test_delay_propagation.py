@@ -138,3 +138,40 @@ def test_punctuality_shares_and_quantiles_from_the_bins():
     assert st.within(300.0)[0] == 1.0
     assert st.quantile_s(0.99)[0] == 200.0  # 200 s falls in (190, 200]
     assert isinstance(st, Stats)
+
+
+def test_the_compiled_histogram_is_searchsorted_on_the_edges():
+    from planner.delay.montecarlo import EDGES_S, bins
+    from planner.delay.propagate import histogram
+
+    rng = np.random.default_rng(0)
+    edges_near = np.concatenate([EDGES_S, np.nextafter(EDGES_S, np.inf), np.nextafter(EDGES_S, -np.inf)])
+    z = np.concatenate([edges_near, rng.exponential(300.0, 5000), [0.0, -0.0, 1e9, 3600.0, 3600.0001]])
+    z = z.reshape(1, -1)
+    got = histogram(z, EDGES_S)[0]
+    want = np.bincount(bins(z[0]), minlength=len(EDGES_S) + 1)
+    np.testing.assert_array_equal(got, want)
+
+
+def test_the_built_kernels_give_the_just_in_time_bytes():
+    from planner.delay import kernel
+    from planner.delay.propagate import SOURCES
+    from planner.io import compiled
+
+    built = compiled.load("delay", SOURCES)
+    assert built is not None, "make install builds the delay kernels (planner kernels build)"
+    t = [two_stop_train(f"T{k}", 100.0 + 200 * k, 400.0 + 200 * k, 280.0) for k in range(6)]
+    w = windows([(k, 0, 70.0 + 200 * k, 100.0 + 200 * k, 330.0 + 200 * k) for k in range(6)])
+    net = build_network(t, min_dwell_s=20.0, windows=w, resource_ids=["n0", "s0"])
+    p = sample(net, [Rule("origin", "exponential", probability=0.6, mean_s=90.0)], 300, seed=4, chunk=0)
+    out = []
+    for k in (kernel, built):
+        z = np.empty_like(p)
+        push, binds, absorbed = np.zeros(net.n_activities), np.zeros(net.n_activities, dtype=np.int64), \
+            np.zeros(net.n_activities)
+        k.propagate(net.order, net.in_ptr, net.in_act, net.act_src, net.slack_s, p, z, push, binds, absorbed)
+        hist = np.zeros((net.n_events, 5), dtype=np.int64)
+        k.histogram(z, np.array([0.0, 10.0, 60.0, 600.0]), hist)
+        out.append(b"".join(a.tobytes() for a in (z, push, binds, absorbed, hist)))
+    assert out[0] == out[1]
+    assert (net.act_kind == HEADWAY).sum() == 5

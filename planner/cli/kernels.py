@@ -17,12 +17,14 @@ kernels_app = typer.Typer(help="Build or inspect the compiled kernels (built onc
                           no_args_is_help=True, rich_markup_mode=None)
 app.add_typer(kernels_app, name="kernels")
 
-_KINDS = ("integrator", "stopping")
+_KINDS = ("integrator", "stopping", "delay")
 
 
 def _sources(kind: str) -> tuple[str, ...]:
     if kind == "integrator":
         from planner.physics.kernel_abi import SOURCES
+    elif kind == "delay":
+        from planner.delay.propagate import SOURCES
     else:
         from planner.stopping.codes import SOURCES
     return SOURCES
@@ -32,7 +34,7 @@ def _sources(kind: str) -> tuple[str, ...]:
 def build(
     force: bool = typer.Option(False, "--force", help="Rebuild even where a build for these sources exists."),
 ) -> None:
-    """Compile the integrator and the stopping solver into extension modules (about 15 s of CPU)."""
+    """Compile the integrator, the stopping solver and delay propagation into extension modules (about 20 s of CPU)."""
     from planner.io import compiled
 
     for kind in _KINDS:
@@ -43,6 +45,8 @@ def build(
         t0 = time.process_time()
         if kind == "integrator":
             from planner.physics.kernel import JIT
+        elif kind == "delay":
+            from planner.delay.kernel import JIT
         else:
             from planner.stopping.kernel import JIT
         try:

@@ -24,7 +24,7 @@ import numpy as np
 
 from planner.delay.network import CONNECTION, HEADWAY, DelayNetwork
 from planner.delay.primary import Rule, sample
-from planner.delay.propagate import propagate
+from planner.delay.propagate import histogram, propagate
 
 CHUNK_DAYS = 250
 """Days per chunk: a chunk of the 10× sample line (67,000 events) holds 2 × 134 MB of delays."""
@@ -93,10 +93,7 @@ def chunk_stats(net: DelayNetwork, alone: DelayNetwork, rules: list[Rule], days:
     za = propagate(alone, p)
     alone_sum = za.sum(axis=1)
     del za
-    b = bins(z)
-    nb = len(EDGES_S) + 1
-    flat = (np.arange(net.n_events)[:, None] * nb + b).ravel()
-    hist = np.bincount(flat, minlength=net.n_events * nb).reshape(net.n_events, nb).astype(np.int64)
+    hist = histogram(z, EDGES_S)
     return Stats(days, z.sum(axis=1), (z * z).sum(axis=1), alone_sum, p.sum(axis=1), hist, push, binds, absorbed)
 
 

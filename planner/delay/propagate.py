@@ -22,43 +22,31 @@ the binding activity into its event, ties to the first: ``z_src − slack``) and
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from planner.delay.network import DelayNetwork
 
+SOURCES = ("planner.delay.kernel",)
+"""The modules whose bytes name a build of the kernels (read without importing them: a just-in-time kernel
+compiles when first called, never for ``planner kernels status``)."""
+_k = None  # the kernels: their build (planner.io.compiled) or planner.delay.kernel, chosen on first use
 
-@njit(cache=False, nogil=True)
-def _kernel(order, in_ptr, in_act, act_src, slack, prim, z, push, binds, absorbed):  # pragma: no cover - compiled
-    n_days = z.shape[1]
-    best = np.empty(n_days)
-    for e in order:
-        for d in range(n_days):
-            best[d] = 0.0
-        for k in range(in_ptr[e], in_ptr[e + 1]):
-            a = in_act[k]
-            s = act_src[a]
-            sl = slack[a]
-            for d in range(n_days):
-                v = z[s, d] - sl
-                if v > best[d]:
-                    best[d] = v
-        if push.shape[0] > 0:
-            # attribution: the first activity reaching the maximum transmits it; every positive slack absorbs
-            for d in range(n_days):
-                done = False
-                for k in range(in_ptr[e], in_ptr[e + 1]):
-                    a = in_act[k]
-                    zs = z[act_src[a], d]
-                    sl = slack[a]
-                    v = zs - sl
-                    if not done and v > 0.0 and v == best[d]:
-                        push[a] += v
-                        binds[a] += 1
-                        done = True
-                    if sl > 0.0 and zs > 0.0:
-                        absorbed[a] += zs if zs < sl else sl
-        for d in range(n_days):
-            z[e, d] = best[d] + prim[e, d]
+
+def _kernels():
+    """The propagation's entry points: the module built at install for these sources, else the just-in-time one."""
+    global _k
+    if _k is None:
+        from planner.delay import kernel
+        from planner.io import compiled
+
+        _k = compiled.load("delay", SOURCES) or kernel
+    return _k
+
+
+def histogram(z: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Days per delay bin of each event, ``(n_events, len(edges) + 1)`` (:func:`planner.delay.kernel.histogram`)."""
+    hist = np.zeros((z.shape[0], len(edges) + 1), dtype=np.int64)
+    _kernels().histogram(np.ascontiguousarray(z, dtype=np.float64), np.ascontiguousarray(edges, dtype=np.float64), hist)
+    return hist
 
 
 def propagate(net: DelayNetwork, primary: np.ndarray | None = None, *, days: int | None = None,
@@ -80,8 +68,9 @@ def propagate(net: DelayNetwork, primary: np.ndarray | None = None, *, days: int
     z = np.empty_like(prim)
     na = net.n_activities if attribution else 0
     push, binds, absorbed = np.zeros(na), np.zeros(na, dtype=np.int64), np.zeros(na)
-    _kernel(net.order, net.in_ptr, net.in_act, net.act_src, np.ascontiguousarray(net.slack_s, dtype=np.float64),
-            prim, z, push, binds, absorbed)
+    i8 = (lambda a: np.ascontiguousarray(a, dtype=np.int64))
+    _kernels().propagate(i8(net.order), i8(net.in_ptr), i8(net.in_act), i8(net.act_src),
+                         np.ascontiguousarray(net.slack_s, dtype=np.float64), prim, z, push, binds, absorbed)
     return (z, push, binds, absorbed) if attribution else z
 
 
