@@ -93,7 +93,19 @@ ROBUSTNESS_ACTIVITIES_SCHEMA = declare([
     ("binding_share", pa.float64(), "share of days it sets its later event's delay"),
     ("absorbed_s", pa.float64(), "mean delay per day its slack absorbed: min(delay of its first event, slack) where both are positive [s]"),
 ], name="robustness_activities", description="Monte Carlo: how much delay each activity passes on and how much its slack absorbs")
+def _conflicts_schema() -> pa.Schema:
+    from planner.datasets.conflicts import CONFLICTS_SCHEMA
+
+    return CONFLICTS_SCHEMA.with_metadata({
+        b"dataset": b"delay_conflicts", b"schema_version": b"1",
+        b"description": "The knock-on conflicts of the predicted day: each train's blocking-time windows moved by "
+                        "its own delay (a late leg, the minimum dwell) overlap another train's; decided by the "
+                        "conflict check's rules, the waiting train is held (delay_events says by whom)".encode()})
+
+
+DELAY_CONFLICTS_SCHEMA = _conflicts_schema()
 SCHEMAS = {"delay_events": DELAY_EVENTS_SCHEMA, "delay_activities": DELAY_ACTIVITIES_SCHEMA,
+           "delay_conflicts": DELAY_CONFLICTS_SCHEMA,
            "robustness_trains": ROBUSTNESS_TRAINS_SCHEMA, "robustness_stations": ROBUSTNESS_STATIONS_SCHEMA,
            "robustness_activities": ROBUSTNESS_ACTIVITIES_SCHEMA}
 
@@ -194,9 +206,15 @@ def _write(frame: pd.DataFrame, schema: pa.Schema, out: Path, name: str, line_id
 
 
 def write_delays(day: PredictedDay, line_id: str, directions: dict[str, str], out) -> list[Path]:
-    """Write ``delay_events`` and ``delay_activities`` of the predicted day (one file each, by line)."""
+    """Write ``delay_events``, ``delay_activities`` and ``delay_conflicts`` of the predicted day (one file each,
+    by line)."""
+    names = [f.name for f in DELAY_CONFLICTS_SCHEMA]
+    con = pd.DataFrame.from_records(day.conflicts, columns=names) if day.conflicts else pd.DataFrame(columns=names)
+    if len(con):
+        con = con.sort_values(["conflict_id", "from_m", "resource_kind", "resource_id"], kind="stable")
     return [_write(events_frame(day, directions), DELAY_EVENTS_SCHEMA, out, "delay_events", line_id),
-            _write(activities_frame(day), DELAY_ACTIVITIES_SCHEMA, out, "delay_activities", line_id)]
+            _write(activities_frame(day), DELAY_ACTIVITIES_SCHEMA, out, "delay_activities", line_id),
+            _write(con, DELAY_CONFLICTS_SCHEMA, out, "delay_conflicts", line_id)]
 
 
 def write_robustness(frames, line_id: str, out) -> list[Path]:
