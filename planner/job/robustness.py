@@ -171,4 +171,10 @@ def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | Non
                "min_dwell_s": job.robustness.min_dwell_s, "late_trains": int(len(set(
                    np.asarray(day.net.train_ids)[day.net.ev_train[day.delay_s > 0.05]]))) if day.net.n_events else 0,
                "max_delay_s": float(day.delay_s.max()) if day.net.n_events else 0.0}
+    if stats is not None:
+        from planner.delay.network import ARRIVAL
+
+        arr = day.net.ev_kind == ARRIVAL
+        for m in (60, 180, 300):  # share of all arrivals × days within m seconds
+            summary[f"within_{m}s"] = float(stats.within(float(m))[arr].mean()) if arr.any() else 1.0
     return day, stats, summary

@@ -322,6 +322,10 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                            "status": "first run" if base is None else "failed" if failure else "compared"}
     if failure:
         manifest["changes"]["error"] = failure
+    if summary.robustness:
+        manifest["robustness"] = {lid: {k: r[k] for k in ("days", "seed", "late_trains", "max_delay_s",
+                                                          "knock_on_conflicts", "within_60s", "within_180s")
+                                        if k in r} for lid, r in sorted(summary.robustness.items())}
     manifest["timings_s"] = dict(prog.timings)
     manifest["units_computed"] = dict(summary.computed)
     manifest["units_reused"] = dict(summary.reused)

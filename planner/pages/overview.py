@@ -177,6 +177,18 @@ def _over(manifest: dict[str, Any]) -> str:
     return f"<p class='warn'><b>Day already over:</b> {_e(text)}.</p>" if text else ""
 
 
+def _day_as_it_runs(rob: dict) -> list[str]:
+    """One line per line: the predicted day and the simulated days' punctuality, linked to its page."""
+    out = []
+    for lid, r in sorted(rob.items()):
+        sim = (f"; over {r['days']} simulated days {r['within_180s']:.1%} of arrivals within 3 min, "
+               f"{r['within_60s']:.1%} within 1 min" if r.get("days") else "; no days simulated")
+        out.append(f"<p class='links'><b>{_e(lid)}</b>, the day as it will run: {r['late_trains']} trains late on the "
+                   f"predicted day (largest delay {r['max_delay_s']:.0f} s), {r['knock_on_conflicts']} knock-on "
+                   f"conflicts{_e(sim)} — <a href='report/{_e(lid)}_robustness.html'>punctuality page</a></p>")
+    return ["<h2 id='day-as-it-runs'>The day as it will run</h2>" + "".join(out)] if out else []
+
+
 def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = (),
                     bundles: list[list[str]] | None = None) -> str:
     """The overview page of a run folder as HTML (module doc for the sections); ``bundles``: the bundles
@@ -238,6 +250,7 @@ def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Seq
     parts.append("<h2 id='flags'>Flags</h2><div class='cards'>" + "".join(
         f"<a class='card {c}' href='{_e(h)}'><div class='n'>{n}</div><div class='l'>{_e(l)}</div></a>"
         for (c, n, l), h in zip(cards, hrefs)) + "</div>")
+    parts += _day_as_it_runs(manifest.get("robustness") or {})
     if notes:
         parts.append("<details id='notes'><summary>Notes of the run (" + str(len(notes)) + ")</summary><ul>"
                      + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul></details>")
