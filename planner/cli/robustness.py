@@ -77,7 +77,8 @@ def summary_lines(line_id: str, s: dict, frames) -> list[str]:
     out = [f"line {line_id}: {s['trains']} trains, {s['events']} events, {s['activities']} activities"
            + (f" ({s['dropped']} headways left out: they closed a cycle)" if s["dropped"] else ""),
            f"  predicted day: {s['late_trains']} trains late, largest delay {s['max_delay_s']:.1f} s; "
-           f"knock-on conflicts: {s['knock_on_conflicts']}"
+           f"conflicts as it runs: {s['day_conflicts']} ({s['day_conflicts'] - s['knock_on_conflicts']} of the "
+           f"timetable as planned); knock-on conflicts: {s['knock_on_conflicts']}"
            + (f" ({', '.join(s['knock_on_places'][:5])}{', …' if len(s['knock_on_places']) > 5 else ''})"
               if s["knock_on_places"] else "")]
     if frames is None:

@@ -163,11 +163,16 @@ def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | Non
     rs = rules(job)
     day = predict_day(check, min_dwell_s=dwell_rule(job), connections=connections(job))
     stats = simulate(day.net, rs, days, seed, n_jobs=n_jobs, progress=progress) if days > 0 else None
+    # knock-on: a conflict of the day as it runs that the timetable as planned does not have (same pair, same place)
+    planned = {(r["train_a"], r["train_b"], r["resource_id"]) for r in check.conflicts} | {
+        (r["train_b"], r["train_a"], r["resource_id"]) for r in check.conflicts}
+    knock = [r for r in day.conflicts if (r["train_a"], r["train_b"], r["resource_id"]) not in planned]
     summary = {"days": days, "seed": seed, "rules": [r.text() for r in rs] or ["none"],
                "trains": len(day.net.train_ids), "events": day.net.n_events, "activities": day.net.n_activities,
-               "dropped": day.net.dropped, "knock_on_conflicts": len({r["conflict_id"] for r in day.conflicts}),
+               "dropped": day.net.dropped, "day_conflicts": len({r["conflict_id"] for r in day.conflicts}),
+               "knock_on_conflicts": len({r["conflict_id"] for r in knock}),
                "knock_on_places": sorted({f"{r['station_name']} {r['resource_kind']} {r['resource_id']}"
-                                          for r in day.conflicts}),
+                                          for r in knock}),
                "min_dwell_s": job.robustness.min_dwell_s, "late_trains": int(len(set(
                    np.asarray(day.net.train_ids)[day.net.ev_train[day.delay_s > 0.05]]))) if day.net.n_events else 0,
                "max_delay_s": float(day.delay_s.max()) if day.net.n_events else 0.0}

@@ -185,7 +185,7 @@ def _day_as_it_runs(rob: dict) -> list[str]:
                f"{r['within_60s']:.1%} within 1 min" if r.get("days") else "; no days simulated")
         out.append(f"<p class='links'><b>{_e(lid)}</b>, the day as it will run: {r['late_trains']} trains late on the "
                    f"predicted day (largest delay {r['max_delay_s']:.0f} s), {r['knock_on_conflicts']} knock-on "
-                   f"conflicts{_e(sim)} — <a href='report/{_e(lid)}_robustness.html'>punctuality page</a></p>")
+                   f"conflicts (beyond the timetable's own){_e(sim)} — <a href='report/{_e(lid)}_robustness.html'>punctuality page</a></p>")
     return ["<h2 id='day-as-it-runs'>The day as it will run</h2>" + "".join(out)] if out else []
 
 
