@@ -90,3 +90,34 @@ def test_observed_delays_are_read_from_their_file_and_refused_when_wrong(tmp_pat
     r = CliRunner().invoke(app, ["robustness", str(job_file(tmp_path, section)), "--out", str(tmp_path / "o2")])
     assert r.exit_code != 0
     assert f"{bad} row 1 column delay_s" in r.output and "Traceback" not in r.output
+
+
+def test_a_late_train_holds_the_next_and_that_one_the_train_after_it(tmp_path):
+    """One E6 up train slowed to 30 km/h over 5 km (07:00-10:00): it is ~10 min late; the train behind it waits
+    for it (a conflict the timetable as planned has, with the restriction) and then holds the train after it at
+    four places: knock-on conflicts, each named."""
+    import shutil
+
+    shutil.copytree(ROOT / "feeds" / "sample", tmp_path / "feed")
+    (tmp_path / "r.csv").write_text(
+        "restriction_id,start_m,end_m,limit_kmh,direction,train_type,valid_from,valid_until,reason,has_beacon\n"
+        "KNOCK-1,12000.0,17000.0,30.0,up,E6,2026-12-02T07:00,2026-12-02T10:00,test,false\n")
+    r = CliRunner().invoke(app, ["restrictions", "import", str(tmp_path / "r.csv"), "--line",
+                                 str(ROOT / "lines" / "sample"), "--feed", str(tmp_path / "feed"),
+                                 "--time-zone", "Asia/Tokyo"])
+    assert r.exit_code == 0, r.output
+    job = job_file(tmp_path)
+    job.write_text(job.read_text().replace(f'feeds = ["{ROOT / "feeds" / "sample"}"]', f'feeds = ["{tmp_path / "feed"}"]')
+                   .replace('day = "2026-11-30"', 'day = "2026-12-02"'))
+    r = CliRunner().invoke(app, ["robustness", str(job), "--days", "0", "--out", str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    held = pq.read_table(tmp_path / "o" / "delay_conflicts" / "line=sample" / "part-0.parquet").to_pandas()
+    first = held[held["train_b"] == "1078U"]
+    assert set(first["train_a"]) == {"1076U"} and not first["knock_on"].any()
+    cascade = held[held["knock_on"]]
+    assert set(zip(cascade["train_a"], cascade["train_b"])) == {("1078U", "2020U")}
+    assert len(cascade) >= 2 and (cascade["hold_s"] > 0).all()
+    ev = pq.read_table(tmp_path / "o" / "delay_events" / "line=sample" / "part-0.parquet").to_pandas()
+    late = ev[ev["train_id"] == "2020U"]
+    assert late["cause"].str.contains("held by 1078U").any()
+    assert "1 knock-on" in r.output

@@ -57,10 +57,10 @@ def robustness(
             check = check_timetable(line, params, curves=train_curves(line, lifted, n_jobs=jobs),
                                     curve_progress=lambda d, n: bar.update(t, completed=d, total=n))
             s = bar.add_task(f"{line.line_id}: simulated days", total=None)
-            pday, stats, summary = day_as_it_runs(check, line, job, days=days, seed=seed, n_jobs=jobs,
+            pday, stats, summary, held = day_as_it_runs(check, line, job, days=days, seed=seed, n_jobs=jobs,
                                                   progress=lambda d, n: bar.update(s, completed=d, total=n))
         directions = {tr.train_id: tr.direction for tr in check.trains}
-        files = write_delays(pday, line.line_id, directions, dest)
+        files = write_delays(pday, line.line_id, directions, dest, held)
         frames = robustness_frames(pday, stats, line, directions) if stats is not None else None
         if frames is not None:
             files += write_robustness(frames, line.line_id, dest)
@@ -77,8 +77,8 @@ def summary_lines(line_id: str, s: dict, frames) -> list[str]:
     out = [f"line {line_id}: {s['trains']} trains, {s['events']} events, {s['activities']} activities"
            + (f" ({s['dropped']} headways left out: they closed a cycle)" if s["dropped"] else ""),
            f"  predicted day: {s['late_trains']} trains late, largest delay {s['max_delay_s']:.1f} s; "
-           f"conflicts as it runs: {s['day_conflicts']} ({s['day_conflicts'] - s['knock_on_conflicts']} of the "
-           f"timetable as planned); knock-on conflicts: {s['knock_on_conflicts']}"
+           f"trains held by another: {s['day_conflicts']} pairs ({s['day_conflicts'] - s['knock_on_conflicts']} "
+           f"a conflict of the timetable as planned, {s['knock_on_conflicts']} knock-on)"
            + (f" ({', '.join(s['knock_on_places'][:5])}{', …' if len(s['knock_on_places']) > 5 else ''})"
               if s["knock_on_places"] else "")]
     if frames is None:

@@ -93,17 +93,19 @@ ROBUSTNESS_ACTIVITIES_SCHEMA = declare([
     ("binding_share", pa.float64(), "share of days it sets its later event's delay"),
     ("absorbed_s", pa.float64(), "mean delay per day its slack absorbed: min(delay of its first event, slack) where both are positive [s]"),
 ], name="robustness_activities", description="Monte Carlo: how much delay each activity passes on and how much its slack absorbs")
-def _conflicts_schema() -> pa.Schema:
-    from planner.datasets.conflicts import CONFLICTS_SCHEMA
-
-    return CONFLICTS_SCHEMA.with_metadata({
-        b"dataset": b"delay_conflicts", b"schema_version": b"1",
-        b"description": "The knock-on conflicts of the predicted day: each train's blocking-time windows moved by "
-                        "its own delay (a late leg, the minimum dwell) overlap another train's; decided by the "
-                        "conflict check's rules, the waiting train is held (delay_events says by whom)".encode()})
-
-
-DELAY_CONFLICTS_SCHEMA = _conflicts_schema()
+DELAY_CONFLICTS_SCHEMA = declare([
+    ("train_a", pa.string(), "the train that goes first"),
+    ("train_b", pa.string(), "the train that waits for it"),
+    ("activity", pa.string(), "`headway` (a switch or section train_a holds) or `connection`"),
+    ("resource_id", pa.string(), "the switch or section (a connection: its station)"),
+    ("place", pa.string(), "where that is, in words (station, track)"),
+    ("station_id", pa.string(), "station of train_b's event that waits"),
+    ("seq", pa.int32(), "its call seq"),
+    ("event", pa.string(), "`departure` (it waits at the stop) or `arrival`"),
+    ("scheduled_s", pa.float64(), "that event's scheduled time [s after midnight]"),
+    ("hold_s", pa.float64(), "how long train_b waits: its delay there beyond what its own runs and dwells give it [s]"),
+    ("knock_on", pa.bool_(), "the pair does not conflict at this place in the timetable as planned (the conflicts dataset): the late trains cause it"),
+], name="delay_conflicts", description="The conflicts of the day as it will run: every wait of a train for another on the predicted day, cascades included, and whether the timetable as planned has it")
 SCHEMAS = {"delay_events": DELAY_EVENTS_SCHEMA, "delay_activities": DELAY_ACTIVITIES_SCHEMA,
            "delay_conflicts": DELAY_CONFLICTS_SCHEMA,
            "robustness_trains": ROBUSTNESS_TRAINS_SCHEMA, "robustness_stations": ROBUSTNESS_STATIONS_SCHEMA,
@@ -205,13 +207,10 @@ def _write(frame: pd.DataFrame, schema: pa.Schema, out: Path, name: str, line_id
     return path
 
 
-def write_delays(day: PredictedDay, line_id: str, directions: dict[str, str], out) -> list[Path]:
-    """Write ``delay_events``, ``delay_activities`` and ``delay_conflicts`` of the predicted day (one file each,
-    by line)."""
-    names = [f.name for f in DELAY_CONFLICTS_SCHEMA]
-    con = pd.DataFrame.from_records(day.conflicts, columns=names) if day.conflicts else pd.DataFrame(columns=names)
-    if len(con):
-        con = con.sort_values(["conflict_id", "from_m", "resource_kind", "resource_id"], kind="stable")
+def write_delays(day: PredictedDay, line_id: str, directions: dict[str, str], out, held=()) -> list[Path]:
+    """Write ``delay_events``, ``delay_activities`` and ``delay_conflicts`` (``held``:
+    :func:`planner.delay.predicted.holds`) of the predicted day (one file each, by line)."""
+    con = pd.DataFrame.from_records(list(held), columns=[f.name for f in DELAY_CONFLICTS_SCHEMA])
     return [_write(events_frame(day, directions), DELAY_EVENTS_SCHEMA, out, "delay_events", line_id),
             _write(activities_frame(day), DELAY_ACTIVITIES_SCHEMA, out, "delay_activities", line_id),
             _write(con, DELAY_CONFLICTS_SCHEMA, out, "delay_conflicts", line_id)]

@@ -10,11 +10,13 @@ and the job's connections; gives a :class:`PredictedDay`.
    off by the margins after it.
 2. **The day as it runs**: each train's blocking-time windows moved by its own delay at their anchor
    events. Where they now overlap another train's, the conflict check's detector decides the pair
-   with the rules it uses for the timetable (:func:`planner.network.priority.detect_conflicts`): these
-   are the day's **knock-on conflicts** (on a day that runs as planned, the timetable's own).
+   with the rules it uses for the timetable (:func:`planner.network.priority.detect_conflicts`), which
+   decides who goes first.
 3. **Holding**: the order of the trains on every resource is the moved windows' (the train that waits
    behind the one that goes first); headways in that order join the network, and the delays propagate
    again. A train held by another waits before the resource, and its delay from then on says by whom.
+   Every such wait is a **hold** (:func:`holds`): the conflicts of the day as it runs, cascades included
+   (a held train that holds the next one).
 
 On a day whose timetable is feasible and free of conflicts every predicted delay is 0.
 """
@@ -47,7 +49,8 @@ class PredictedDay:
         Per event, the activity that set its delay (``net`` index), −1 when it is on time or its delay only
         carries on from the event before (see :func:`cause_text`).
     conflicts : list of dict
-        The knock-on conflicts: the detector's records for the windows moved by the trains' own delays.
+        The detector's records for the windows moved by the trains' own delays (step 2 of the module doc:
+        they order the trains); the day's conflicts are its holds (:func:`holds`).
     windows : Windows
         The blocking-time windows at the predicted times.
     """
@@ -129,6 +132,37 @@ def _place(g, key: int) -> str:
     name = g.line.station(sid).name
     where = f"{name}" if abs(dist) < 1.0 else f"{dist / 1000:+.1f} km from {name}"
     return f"{['switch', 'section'][kind]} {g.resource_id(kind, res)} ({where}{', track ' + track if track else ''})"
+
+
+def holds(day: PredictedDay, planned: set = frozenset()) -> list[dict]:
+    """Every wait of the predicted day: an event whose delay a headway (or a connection) sets, in event order.
+
+    One record per held event: the train that goes first (``train_a``) and the one that waits (``train_b``), the
+    resource, the waiting train's event, ``hold_s`` (its delay beyond what its own activities give it: the wait)
+    and ``knock_on`` (the pair does not conflict there in the timetable as planned: ``planned`` holds
+    ``(train_a, train_b, resource_id)`` of the planned conflict check, both orders)."""
+    from planner.delay.network import CONNECTION, DEPARTURE
+
+    net, z = day.net, day.delay_s
+    out = []
+    for e in np.flatnonzero(day.cause >= 0):
+        a = int(day.cause[e])
+        if net.act_kind[a] not in (HEADWAY, CONNECTION):
+            continue
+        lo, hi = net.in_ptr[e], net.in_ptr[e + 1]
+        own = [z[net.act_src[b]] - net.slack_s[b] for b in net.in_act[lo:hi]
+               if net.act_kind[b] not in (HEADWAY, CONNECTION)]
+        hold = float(z[e] - max([0.0] + own))
+        if hold <= 0.0:
+            continue
+        ta, tb = net.train_ids[int(net.ev_train[net.act_src[a]])], net.train_ids[int(net.ev_train[e])]
+        rid = net.act_place[a]
+        out.append({"train_a": ta, "train_b": tb, "activity": ACTIVITY_KINDS[int(net.act_kind[a])],
+                    "resource_id": rid, "place": net.places.get(rid, rid), "station_id": net.ev_station[e],
+                    "seq": int(net.ev_seq[e]), "event": "departure" if net.ev_kind[e] == DEPARTURE else "arrival",
+                    "scheduled_s": float(net.sched_s[e]), "hold_s": hold,
+                    "knock_on": (ta, tb, rid) not in planned})
+    return out
 
 
 def cause_text(day: PredictedDay, e: int) -> str:

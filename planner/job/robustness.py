@@ -154,7 +154,8 @@ def key_of(job) -> list:
 
 def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | None = None, n_jobs: int = 1,
                    progress=None):
-    """The predicted day, the statistics of ``days`` simulated days (None when 0) and the page's summary."""
+    """The predicted day, the statistics of ``days`` simulated days (None when 0), the page's summary and the
+    day's holds (:func:`planner.delay.predicted.holds`, each marked knock-on or not)."""
     from planner.delay.montecarlo import simulate
     from planner.delay.predicted import predict_day
 
@@ -163,16 +164,18 @@ def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | Non
     rs = rules(job)
     day = predict_day(check, min_dwell_s=dwell_rule(job), connections=connections(job))
     stats = simulate(day.net, rs, days, seed, n_jobs=n_jobs, progress=progress) if days > 0 else None
-    # knock-on: a conflict of the day as it runs that the timetable as planned does not have (same pair, same place)
+    # the day's conflicts are its holds; knock-on: those the timetable as planned does not have (pair and place)
+    from planner.delay.predicted import holds
+
     planned = {(r["train_a"], r["train_b"], r["resource_id"]) for r in check.conflicts} | {
         (r["train_b"], r["train_a"], r["resource_id"]) for r in check.conflicts}
-    knock = [r for r in day.conflicts if (r["train_a"], r["train_b"], r["resource_id"]) not in planned]
+    held = holds(day, planned)
+    knock = [h for h in held if h["knock_on"]]
     summary = {"days": days, "seed": seed, "rules": [r.text() for r in rs] or ["none"],
                "trains": len(day.net.train_ids), "events": day.net.n_events, "activities": day.net.n_activities,
-               "dropped": day.net.dropped, "day_conflicts": len({r["conflict_id"] for r in day.conflicts}),
-               "knock_on_conflicts": len({r["conflict_id"] for r in knock}),
-               "knock_on_places": sorted({f"{r['station_name']} {r['resource_kind']} {r['resource_id']}"
-                                          for r in knock}),
+               "dropped": day.net.dropped, "day_conflicts": len({(h["train_a"], h["train_b"]) for h in held}),
+               "knock_on_conflicts": len({(h["train_a"], h["train_b"]) for h in knock}),
+               "knock_on_places": sorted({h["place"] for h in knock}),
                "min_dwell_s": job.robustness.min_dwell_s, "late_trains": int(len(set(
                    np.asarray(day.net.train_ids)[day.net.ev_train[day.delay_s > 0.05]]))) if day.net.n_events else 0,
                "max_delay_s": float(day.delay_s.max()) if day.net.n_events else 0.0}
@@ -182,4 +185,4 @@ def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | Non
         arr = day.net.ev_kind == ARRIVAL
         for m in (60, 180, 300):  # share of all arrivals × days within m seconds
             summary[f"within_{m}s"] = float(stats.within(float(m))[arr].mean()) if arr.any() else 1.0
-    return day, stats, summary
+    return day, stats, summary, held

@@ -202,8 +202,8 @@ def conflicts_written(stage: Path, line, result) -> tuple:
     files = [str(f) for f in write_conflicts(report, stage)]
     summary = None
     if runs is not None:
-        directions, pday, stats, summary = runs
-        files += [str(f) for f in write_delays(pday, line.line_id, directions, stage)]
+        directions, pday, stats, summary, held = runs
+        files += [str(f) for f in write_delays(pday, line.line_id, directions, stage, held)]
         if stats is not None:
             files += [str(f) for f in write_robustness(robustness_frames(pday, stats, line, directions),
                                                        line.line_id, stage)]
