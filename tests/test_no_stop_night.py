@@ -8,6 +8,8 @@ gave the legs a bad-day figure, the bundles verified complete. Here every place 
 """
 from __future__ import annotations
 
+import re
+
 import json
 import shutil
 from pathlib import Path
@@ -71,6 +73,9 @@ def test_the_pages_say_it_and_none_calls_those_legs_fine(night):
     assert "Stops without a stopping pattern" in page
     for tt, d, o, de in LEGS:
         assert f"<b>{tt} {d} {o}→{de}</b>, the restriction(s) on the leg: OURS-1" in page
+        # its row in the legs' table gives no bad-day margin or arrival error: there is no pattern to give one of
+        row = re.search(rf"<tr><td[^>]*>{tt} {o}→{de}</td>.*?</tr>", page, flags=re.S).group(0)
+        assert row.count("no stopping pattern stops the train: no figure") == 3, row
     margins = (run / "report" / "sample_margins.html").read_text()  # said on the first screen, not only in the table
     assert ("6 of 78 legs are <b>unassessed</b>: no bad-day minimum (<a href='#legs'>every leg</a> says why); among "
             "them, no stopping pattern stops the train on E10 up TKD → MDR, E6 up TKD → MDR, E8 up TKD → MDR") in margins

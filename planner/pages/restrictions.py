@@ -85,8 +85,7 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
                       f"{x['n_trains']}: " + _e(", ".join(ids[:6]) + (" …" if len(ids) > 6 else "")),
                       _num(x["scheduled_s"], "{:.0f}"), _num(x["min_before_s"], "{:.1f}"),
                       _num(x["min_after_s"], "{:.1f}"), _num(x["margin_before_s"]), _num(x["margin_after_s"]),
-                      _num(x["remaining_margin_s"]), _num(x["arrival_error_s"]), _num(x["arrival_error_degraded_s"]),
-                      verdict, _e(f"without {', '.join(x['lifted'])}" if x["lifted"] else "")])
+                      *_no_stop_blank(x), verdict, _e(f"without {', '.join(x['lifted'])}" if x["lifted"] else "")])
     n_lost = sum(int(x["n_trains"] or 0) for x in lost)
     stuck: dict[tuple, list] = {}  # the worst a restriction can do: the vehicle's DB cannot stop the train there
     for x in legs:
@@ -121,6 +120,14 @@ def render(line, day: dict | None, rows, ds_m: float = 1.0, scheduled: list[dict
     parts.append(changes)
     parts.append("</main></body></html>\n")
     return "\n".join(parts)
+
+
+def _no_stop_blank(x: dict) -> list[str]:
+    """The bad-day margin and the closed loop's arrival errors of a leg; a leg no stopping pattern stops has none
+    (the vehicle's DB cannot stop the train there: a figure would be of a pattern that does not exist)."""
+    if x.get("unassessed_cause") == "no_stop":
+        return ["<span title='no stopping pattern stops the train: no figure'>–</span>"] * 3
+    return [_num(x["remaining_margin_s"]), _num(x["arrival_error_s"]), _num(x["arrival_error_degraded_s"])]
 
 
 def _verdict(x: dict, lost: bool) -> str:
