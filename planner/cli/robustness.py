@@ -66,6 +66,7 @@ def robustness(
             files += write_robustness(frames, line.line_id, dest)
         page = dest / "report" / f"{check_path_id(line.line_id, 'line id ')}_robustness.html"
         summary["day"] = day or job.day.day
+        summary["restrictions"] = _in_force(line)
         write_page(page, line.name, summary, *(frames or (None, None, None)), events_frame(pday, directions))
         for msg in summary_lines(line.line_id, summary, frames):
             typer.echo(msg)
@@ -94,3 +95,10 @@ def summary_lines(line_id: str, s: dict, frames) -> list[str]:
     for r in s["rules"]:
         out.append(f"    primary delays: {r}")
     return out
+
+
+def _in_force(line) -> list[str]:
+    """The ids of the temporary restrictions of the day's line (those :func:`.checks.day_line` kept in it)."""
+    from planner.line.daily import TEMPORARY_KIND
+
+    return sorted({s.restriction_id for s in line.speed_limits if s.kind == TEMPORARY_KIND and s.restriction_id})

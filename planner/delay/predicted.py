@@ -165,6 +165,11 @@ def holds(day: PredictedDay, planned: set = frozenset()) -> list[dict]:
     return out
 
 
+GREW_S = 0.05
+"""A delay that grows by no more than this [s] (round-off of two run curves, a leg scheduled at its minimum
+to the tenth) carries on; it is not a cause of its own."""
+
+
 def cause_text(day: PredictedDay, e: int) -> str:
     """Why event ``e`` is later than the event before it of its train (one phrase), or "" when it is not."""
     net = day.net
@@ -179,7 +184,7 @@ def cause_text(day: PredictedDay, e: int) -> str:
     if kind == "connection":
         return f"waits for {net.train_ids[int(net.ev_train[src])]} at {net.act_place[a]}"
     grew = day.delay_s[e] - day.delay_s[src]
-    if grew <= 0:
+    if grew <= GREW_S:
         return ""
     if kind == "run":
         return (f"its run from {net.ev_station[src]} needs {net.min_s[a]:.1f} s, "

@@ -242,7 +242,10 @@ def _robustness_pages(lines, stage: Path, manifest: dict, summary) -> None:
         nav = nav_html([("overview", "../index.html"), ("margin report", f"{lid}_margins.html"),
                         ("train graph", f"../graph/{lid}_graph.html")],
                        manifest.get("run_id"), manifest.get("operating_day"), manifest.get("run_date"))
-        day = (manifest.get("operating_day") or {}).get("day") or ""
+        od = manifest.get("operating_day") or {}
+        day = od.get("day") or ""
+        rec = next((x for x in od.get("lines", []) if x.get("line_id") == line.line_id), {})
+        s = {**s, "restrictions": [r["restriction_id"] for r in rec.get("restrictions") or []]}
         frames = [read_line_dataset(stage, n, line.line_id) for n in
                   ("robustness_trains", "robustness_stations", "robustness_activities", "delay_events")]
         write_page(stage / "report" / f"{lid}_robustness.html", line.name, {**s, "day": day}, *frames, nav=nav)
