@@ -446,3 +446,17 @@ def test_a_railml_line_that_lists_a_station_areas_tracks_as_a_group_takes_its_th
     a, b = load_line(tmp_path / "grouped"), load_line(tmp_path / "chained")
     assert (a.start_m, a.end_m) == (b.start_m, b.end_m) == (0.0, 6500.0)
     assert [st.position_m for st in a.stations] == [st.position_m for st in b.stations]
+
+
+def test_an_import_says_the_lines_warnings_grouped(tmp_path):
+    """A train longer than the platforms is legitimate on some railways (a warning, not a refusal): the import says
+    so as `planner validate` would, one line per rule and the first rows, instead of the night finding it."""
+    export_csv(Path(__file__).resolve().parents[1] / "lines" / "sample", tmp_path / "csv")
+    rs = tmp_path / "csv" / "rolling_stock.csv"
+    rs.write_text(rs.read_text().replace("\nE10,200.0,", "\nE10,260.0,", 1))
+    r = CliRunner().invoke(app, ["import", "csv", str(tmp_path / "csv"), "--out", str(tmp_path / "line")])
+    assert r.exit_code == 0, r.output
+    assert "warnings (they do not refuse the line" in r.output
+    shown = r.output[r.output.index("warnings (they do not refuse"):]
+    assert "train_fits_platform: 1992 rows" in shown and "(260.0 m long)" in shown
+    assert len(shown.splitlines()) <= 6  # grouped: a head per rule and the first few rows, not one line per call

@@ -136,6 +136,9 @@ class ImportSummary:
     extra: "Extras | None" = None
     describe: Callable[[Violation], str] = str
     """How a violation of the written tables is named in terms of the source (CSV: file and line)."""
+    warnings: list[str] = field(default_factory=list)
+    """The written line's validation warnings, grouped by rule (:func:`planner.line.validate.format_warnings`):
+    findings legitimate on some railways (a train longer than its platforms), said at import as ``validate`` says them."""
 
     def default(self, key: str, where: str | None = None):
         """The value of default ``key`` (the TOML's ``[defaults]`` first), recorded as used for ``where``."""
@@ -159,6 +162,9 @@ class ImportSummary:
             out.append(f"    - {label}{tail}")
         out += [f"  note: {n}" for n in self.notes]
         out += [f"  not used: {n}" for n in self.unused]
+        if self.warnings:
+            out.append("  warnings (they do not refuse the line; `planner validate` lists them too):")
+            out += [f"    {w}" for w in self.warnings]
         return out
 
 
@@ -517,6 +523,12 @@ def write_line(tables: dict[str, pd.DataFrame | pa.Table], out: str | Path, summ
                 except OSError:
                     break
     summary.out = out
+    from planner.line.loader import load_line
+    from planner.line.validate import format_warnings
+
+    found: list = []
+    load_line(out, found)  # valid: checked above; the warnings are what the night's validate step would say
+    summary.warnings = format_warnings(found)
     return summary
 
 
