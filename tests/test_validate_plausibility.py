@@ -10,6 +10,8 @@ leaves no speed under a restriction, a brake weaker than the steepest climb's pu
 """
 from __future__ import annotations
 
+import pytest
+
 from typer.testing import CliRunner
 
 from planner.cli import app
@@ -127,3 +129,48 @@ def test_a_weak_brake_climbs_and_is_flagged_on_the_descent(tmp_path):
     assert ("up", "B", "A") in stuck and ("down", "A", "B") not in stuck
     desc = next(r for r in res if (r.direction, r.origin, r.station_id) == ("up", "B", "A"))
     assert "falling gradient" in desc.patterns[0].reason
+
+
+def test_a_real_freight_brake_on_the_20_permil_line_stops_both_ways_within_its_energy(tmp_path):
+    """The freight brake the issue had refused, 0.81 km/h/s (0.225 m/s²), on the same 20 ‰ line: it imports,
+    climbs, and stops at A coming down the fall, where the gradient takes 0.185 m/s² (g · 0.02 / 1.06) of its
+    brake. Closed form, independent of the solver: a stop from v0 over d_fall metres of the fall and d_flat
+    metres of level track needs v0² ≤ 2 (b − pull) d_fall + 2 b d_flat (jerk limits only lengthen it), and
+    the pattern never asks for more than the brake."""
+    import warnings
+
+    from linedb import write_line_db
+    from steep_line import steep_tables
+    from planner import running_time
+    from planner.line.loader import load_line
+    from planner.stopping.sweep import stop_sweep
+
+    b = 0.81 / 3.6
+    pull = 9.80665 * 0.020 / 1.06
+    t = steep_tables()
+    rs = t["rolling_stock"]
+    for c in ("service_brake_kmh_s", "stop_brake_kmh_s", "brake_comfort_kmh_s", "atsp_pattern_kmh_s"):
+        rs.loc[rs.train_type == "FRT", c] = 0.81
+    line = load_line(write_line_db(tmp_path / "steep", **{**t, "rolling_stock": rs}))  # valid: no refusal
+    for o, d in (("A", "B"), ("B", "A")):
+        run = running_time(line, "FRT", o, d, ratio=1.0)
+        assert 300.0 < run.time_s < 1500.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = stop_sweep(line, train_types=["FRT"], adhesion_kmh_s="2.5", n_jobs=1)
+    desc = next(r for r in res if (r.direction, r.origin, r.station_id) == ("up", "B", "A"))
+    assert desc.n_feasible == len(desc.patterns) == 1
+    p = desc.patterns[0]
+    assert p.feasible
+    # where the approach starts: the fall runs from 5,000 m down to 1,500 m, then level track to the marker (440 m)
+    x0, stop = desc.approach_start_m, desc.stop_m
+    assert stop == 440.0 and x0 > 1500.0
+    d_fall, d_flat = min(x0, 5000.0) - 1500.0, 1500.0 - stop
+    v0 = desc.v_start_ms
+    assert v0 > 5.0
+    assert v0 ** 2 <= 2 * (b - pull) * d_fall + 2 * b * d_flat + 1e-6
+    assert float(p.sample(0.05).a_ms2.min()) >= -b - 1e-9
+    # it holds v0 down the fall and brakes on the level: the jerk-limited stop from cruise, v²/2b + v·b/2J
+    J = 3.0 / 3.6  # the freight's jerk limit, 3 km/h/s²
+    assert p.braking_distance_m < d_flat
+    assert p.braking_distance_m == pytest.approx(v0 ** 2 / (2 * b) + v0 * b / (2 * J), abs=1e-3)
