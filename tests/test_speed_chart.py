@@ -296,3 +296,35 @@ def test_every_text_of_the_chart_is_at_least_11_px_in_a_1000_px_window(charts):
     svg, _ = _parse(chart_svg(line, run, calls, pattern, points))
     sizes = [float(e.get("font-size")) for e in svg.iter() if e.get("font-size")]
     assert sizes and min(sizes) * 940.0 / W >= 11.0, sorted(set(sizes))
+
+
+def test_the_bad_day_run_is_the_margin_reports_bad_day_minimum_and_is_drawn(tiny):
+    """The chart's bad-day run is made by the functions that make the margin report's bad-day minimum (the
+    degraded run to the row's pattern start, then the pattern at the row's adhesion): it ends at the row's
+    degraded_min_running_time_s, on every leg, and the chart draws it in both panels and says how it ends."""
+    from planner.job.train_views import _chart_task
+    from planner.report.leg_margin import bad_day_run
+    from planner.report.margins import compute_margins
+    from planner.report.train_timetable import leg_window, legs
+
+    line, _runs = tiny
+    seen = 0
+    for key, row in legs(line, compute_margins(line, conflicts=False).rows):
+        win = leg_window(line, key)
+        d, tt, o, de = key[:4]
+        got = bad_day_run(win, tt, o, de, row, 1.0, 0.9, True, 1.0)
+        assert got is not None
+        x, v, t = got
+        assert t[-1] == pytest.approx(float(row["degraded_min_running_time_s"]), abs=1e-6)
+        assert v[0] == 0.0 and abs(v[-1]) < 1e-6  # from the departure to a stand at the marker
+        assert x[-1] == pytest.approx(line.station(de).stop_m(d), abs=1e-6)
+        calls = [(o, True, line.station(o).stop_m(d)), (de, True, line.station(de).stop_m(d))]
+        svg, legend = _parse(_chart_task(win, key, row, 1.0, calls, None, None, None, (1.0, 0.9, True)))
+        from planner.pages.speed_chart import COLOURS, TIME_BOX
+
+        _polyline(svg, COLOURS["bad_day"])  # the speed panel
+        _polyline(svg, COLOURS["bad_day"], TIME_BOX)  # the time panel
+        assert any(lbl.startswith("bad-day minimum run") and f"{t[-1]:.1f} s" in lbl for lbl in legend)
+        assert any("on a bad day" in s for s in _texts(svg))
+        seen += 1
+    assert seen > 1

@@ -93,7 +93,7 @@ def _eval_points(job, line, train_type: str, origin: str, destination: str) -> l
     return [(float(p.position_m), p.eval_point_id) for p in pts]
 
 
-def _chart_task(win, key, row, ds_m, calls, pattern, evp, signals):
+def _chart_task(win, key, row, ds_m, calls, pattern, evp, signals, bad=None):
     """Worker: one leg's chart, inline SVG (``win``: the leg's window, :func:`planner.report.train_timetable.legs`;
     the signals come from the whole line). The leg's two runs are recorded here again
     (:func:`planner.report.train_timetable.record_leg`, the same function on the same window as the job's
@@ -101,9 +101,12 @@ def _chart_task(win, key, row, ds_m, calls, pattern, evp, signals):
     id and day, the trains) is put together in the job's process, so a leg whose chart is unchanged is not
     redrawn for a new run."""
     from planner.pages.speed_chart import chart_svg
+    from planner.report.leg_margin import bad_day_run
     from planner.report.train_timetable import record_leg
 
-    return chart_svg(win, record_leg(win, key, row, ds_m), calls, pattern, evp, signals)
+    # the bad day's run (``bad``: the rule's load, traction and whether its stop is at the bad day's adhesion)
+    worst = bad_day_run(win, key[1], key[2], key[3], row, *bad, ds_m) if bad is not None else None
+    return chart_svg(win, record_leg(win, key, row, ds_m), calls, pattern, evp, signals, bad_day=worst)
 
 
 def start_charts(job, line, stage: Path, report, runner, run_id: str | None = None, day: dict | None = None,
@@ -121,6 +124,10 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
         legs = leg_times(line, report.rows, ds_m=ds_m)
     give_back()  # what the margins' results and the legs' runs left free (~100 MB on the 10x line), before the patterns
     pats = _patterns(stage, lid)
+    from planner.report.margins import margin_options
+
+    rule = margin_options(job, line)["rule"]
+    bad = (float(rule.bad_load), float(rule.bad_traction), bool(rule.bad_day_adhesion))
     units, pages = [], []
     back = "../../" + timetable_href(lid)
     nav = [("running-time tables", back), ("margin report", f"../../report/{lid}_margins.html"),
@@ -134,8 +141,8 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
         lo, hi = run.span_m
         signals = [s.position_m for s in line.signals if s.direction == d and lo <= s.position_m <= hi]
         rest = (calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de), signals)
-        units.append(Unit("charts", _chart_key(line, run, ds_m, rest), "charts", _chart_task,
-                          (win, key, run.row, ds_m) + rest))
+        units.append(Unit("charts", _chart_key(line, run, ds_m, rest, bad), "charts", _chart_task,
+                          (win, key, run.row, ds_m) + rest + (bad,)))
         pages.append((stage / chart_name(lid, key), win, run, calls, trains))
     drawn = runner.run("charts", units) if wait else runner.start("charts", units)
     return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs={k: r for k, (r, _w) in legs.items()})
@@ -221,7 +228,7 @@ class ChartPages:
             self.started.discard()
 
 
-def _chart_key(line, run, ds_m: float, rest) -> str:
+def _chart_key(line, run, ds_m: float, rest, bad=None) -> str:
     """The cache key of a chart: the code, what the leg's window of the line holds (so, with the code, the step
     and the ratio, both runs), the row's figures the chart prints and everything else it draws (``rest``: calls,
     pattern, points, signals)."""
@@ -242,6 +249,10 @@ def _chart_key(line, run, ds_m: float, rest) -> str:
         h.update(json.dumps(float(a)).encode())
         h.update(np.ascontiguousarray(px, float).tobytes() + np.ascontiguousarray(pv, float).tobytes())
     figures = [float(run.row[c]) for c in ("min_running_time_s", "margin_s")] + [run.ratio, float(sched), float(ds_m)]
+    # the bad-day run: the rule, and the row's start and adhesion it is drawn from
+    figures += [list(bad) if bad is not None else None] + [
+        None if run.row.get(c) is None else float(run.row[c])
+        for c in ("pattern_start_m", "adhesion_min_kmh_s", "degraded_min_running_time_s")]
     return digest(["chart", code_digest(), interstation_inputs(leg_line(line, run.key), t, o, de), h.hexdigest(), figures,
                    [list(map(str, c[:2])) + [float(c[2])] for c in calls], [[float(p), str(i)] for p, i in evp or []],
                    [float(x) for x in signals]])

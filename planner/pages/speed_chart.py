@@ -12,6 +12,9 @@ under it; up legs with the chainage running right to left, so the train runs lef
   recorded runs of :class:`planner.report.train_timetable.LegRun`; the minimum
   run as a wide light band under the on-time run, so both show where they
   coincide (an on-time ratio of 100 %);
+* the **bad-day minimum run** (:func:`planner.report.leg_margin.bad_day_run`: the run the margin report's
+  bad-day minimum is, made by the same functions), in both panels, with how it ends against the
+  scheduled time ("… s late on a bad day" or "… s to spare");
 * in a panel of its own, the time since departure along the leg of both runs
   against the scheduled running time: a late leg (its minimum run over the
   scheduled time) is said so above the chart, in red, and its on-time run is
@@ -109,7 +112,7 @@ GRADIENT_BOX = (80.0, 626.0, 1100.0, 120.0)
 """(left, top, width, height) of the speed panel, the time panel and the gradient panel under them."""
 COLOURS = {"minimum": "#1f5fa8", "minimum_band": "#9dbde6", "on_time": "#2e7d32", "late": "#c62828", "limit": "#9e9e9e", "vmax": "#8c8c8c",
                "temporary": "#e65100", "signal": "#37474f", "beacon": "#6a1b9a", "eval": "#f2b705",
-               "gradient": "#8d6e63", "curve": "#5a7da8"}
+               "gradient": "#8d6e63", "curve": "#5a7da8", "bad_day": "#ad1457"}
 """Colour of each thing drawn (the stopping patterns': :data:`PATTERN_STYLES`)."""
 PATTERN_STYLES = (("#c62828", "lowest"), ("#ef8f00", "highest"))
 """Colour and name of the stopping pattern at the lowest and highest adhesion."""
@@ -212,7 +215,7 @@ def late_s(t_s: float, scheduled_s: float) -> bool:
     return t_s - scheduled_s > TIME_TOL_S
 
 
-def _time_panel(fig, run, calls, xlim, legend):
+def _time_panel(fig, run, calls, xlim, legend, bad_end_s: float = 0.0):
     """The middle panel: time since departure along the leg for both runs, and the scheduled running time, so a
     run that arrives late ends above the scheduled line, and where along the leg it loses the time shows; on a
     late leg (the minimum run itself over the scheduled time) the on-time run is red and its lateness written."""
@@ -221,7 +224,7 @@ def _time_panel(fig, run, calls, xlim, legend):
     d, sched = run.key[0], float(run.key[4])
     x = run.position_m / 1000.0
     t_r, t_m = np.asarray(run.t_s[0], float), np.asarray(run.t_s[1], float)
-    top = max(sched, float(t_r[-1]), float(t_m[-1])) * 1.08
+    top = max(sched, float(t_r[-1]), float(t_m[-1]), bad_end_s) * 1.08
     p = fig.panel(TIME_BOX, xlim, (0.0, top), x_inverted=d == "up", ylabel="time [s]", xticks=False,
                   ytarget=4, font=FONT)
     c = COLOURS
@@ -242,13 +245,34 @@ def _time_panel(fig, run, calls, xlim, legend):
     return p
 
 
-def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) -> str:
+def _bad_day(sp, tp, bad_day, sched: float, row, legend) -> None:
+    """The bad-day minimum run in both panels: its speed over the leg and its time since departure, with how it
+    ends against the scheduled time (the margin report's remaining margin)."""
+    from planner.pages.svg_plot import swatch
+
+    x, v, t = (np.asarray(a, float) for a in bad_day)
+    col = COLOURS["bad_day"]
+    sp.polyline(*_thin(x, v), color=col, width=1.4, dash=(7.0, 2.5, 1.5, 2.5))
+    tp.polyline(x / 1000.0, t, color=col, width=1.4, dash=(7.0, 2.5, 1.5, 2.5))
+    end = float(t[-1])
+    short = late_s(end, sched)
+    words = (f"{end - sched:.1f} s late on a bad day" if short else f"{sched - end:.1f} s to spare on a bad day")
+    # under the scheduled line's own words, at the left where the runs are still low: clear of the end labels
+    tp.text(0.005, sched, f"bad-day minimum {end:.1f} s: {words}", size=FONT, color=col, anchor="start", va="top",
+            x_frac=True, bold=bool(short), dy=3)
+    legend.append((swatch("line", color=col, width=1.4, dash=(7.0, 2.5, 1.5, 2.5)),
+                   f"bad-day minimum run (the margin report's bad day: its load, traction and stop) — {end:.1f} s: "
+                   f"{words}"))
+
+
+def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None, bad_day=None) -> str:
     """The chart of one leg: an inline SVG (:mod:`planner.pages.svg_plot`) and its legend in HTML under it.
 
     ``run``: a :class:`planner.report.train_timetable.LegRun`; ``calls``: ``(station_id, stops, chainage_m)``
     of the leg's path from origin to destination (the stop marker of a stop, the station of a pass); ``pattern``: ``{adhesion_kmh_s: (position_m, speed_kmh)}``;
-    ``eval_points``: ``[(position_m, id)]``; ``signals``: their chainages (default the line's on the leg).
-    The same inputs give the same bytes.
+    ``eval_points``: ``[(position_m, id)]``; ``signals``: their chainages (default the line's on the leg);
+    ``bad_day``: the bad-day minimum run ``(position_m, speed_kmh, time_s)``
+    (:func:`planner.report.leg_margin.bad_day_run`), or None. The same inputs give the same bytes.
     """
     from planner.pages.svg_plot import Figure, legend_html
 
@@ -260,8 +284,10 @@ def chart_svg(line, run, calls, pattern=None, eval_points=None, signals=None) ->
     xlim = (lo / 1000.0 - m, hi / 1000.0 + m)
     fig = Figure(W, H, ident="sc")
     legend: list = []
-    _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, legend)
-    _time_panel(fig, run, calls, xlim, legend)
+    sp = _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, legend)
+    tp = _time_panel(fig, run, calls, xlim, legend, float(bad_day[2][-1]) if bad_day is not None else 0.0)
+    if bad_day is not None:
+        _bad_day(sp, tp, bad_day, float(sched), row, legend)
     _gradient_panel(fig, line, d, lo, hi, calls, xlim, legend)
     t_r = float(run.t_s[0][-1])
     margin = float(row["margin_s"])

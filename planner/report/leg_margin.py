@@ -58,6 +58,46 @@ def stop_pattern(line: Line, train, track, s_start_m: float, v_start_ms: float, 
     return solve_stop(v0, x_stop, jerk_max=train.jerk_limit_ms3, decel_limits=dl, speed_limits=speed)
 
 
+def bad_day_run(line: Line, train_type: str, origin: str, destination: str, row: dict, bad_load: float,
+                bad_traction: float, adhesion: bool, ds_m: float):
+    """The run whose time is a leg's bad-day minimum, for drawing: ``(position_m, speed_kmh, time_s)`` or None.
+
+    As :func:`_bad_day` makes it, from the margins ``row``: the run at ratio 1.0 with the bad day's load and
+    traction to the row's pattern start (``pattern_start_m``), then the stopping pattern from there at the row's
+    bad-day adhesion (``adhesion_min_kmh_s``); with the adhesion effect off, the degraded run to the marker. The
+    same functions on a grid with the pattern start as a node; its end differs from the row's
+    ``degraded_min_running_time_s`` by the grids' difference only (the margins' grid has the evaluation
+    points as nodes too). None for a leg without a bad-day minimum (unassessed, no stopping pattern)."""
+    from planner.physics.run_curve import simulate
+    from planner.physics.track import SimSettings, make_track
+
+    start, a = row.get("pattern_start_m"), row.get("adhesion_min_kmh_s")
+    deg = row.get("degraded_min_running_time_s")
+    if start is None or deg is None or not (math.isfinite(float(start)) and math.isfinite(float(deg))):
+        return None
+    train = line.train_type(train_type)
+    plain = make_track(line, train_type, origin, destination, settings=SimSettings(ds_m=ds_m))
+    c = abs(float(start) - float(plain.position_m(0.0)))
+    track = make_track(line, train_type, origin, destination, settings=SimSettings(ds_m=ds_m), nodes_m=[c]) \
+        if adhesion else plain
+    res = simulate(track, train, np.array([1.0]), load=np.array([bad_load]), traction_factor=np.array([bad_traction]),
+                   snapshots_m=[c] if adhesion else (), record=True)
+    if not adhesion:
+        return (np.asarray(track.chainage_m, float), kmh(np.asarray(res.v_ms[0], float)),
+                np.asarray(res.t_s[0], float))
+    if a is None or not math.isfinite(float(a)):
+        return None
+    kc = track.node_index(c)
+    sn = res.snapshots[c]
+    pat = stop_pattern(line, train, track, c, float(sn.v_ms[0]), float(a) * KMH_S, *approach_limits(line, train, track, c))
+    if not pat.feasible:
+        return None
+    smp = pat.sample(0.2)
+    return (np.concatenate([np.asarray(track.chainage_m[:kc + 1], float), np.asarray(track.position_m(c + smp.x_m), float)]),
+            np.concatenate([kmh(np.asarray(res.v_ms[0][:kc + 1], float)), kmh(np.asarray(smp.v_ms, float))]),
+            np.concatenate([np.asarray(res.t_s[0][:kc + 1], float), float(sn.t_s[0]) + np.asarray(smp.t_s, float)]))
+
+
 @dataclass
 class LegResult:
     """Everything computed for one leg (module doc for the meaning of each quantity)."""
