@@ -147,13 +147,13 @@ class References:
                                                tr.rotating_mass_factor)
         return ratio, tr.davis_a_N * inv, tr.davis_b_N_per_ms * inv, tr.davis_c_N_per_ms2 * inv, tf * inv
 
-    def c(self, ratio, load, tf):
+    def c(self, ratio, load, tf, walk: bool = False):
         tr, n = self.train, ratio.size
         p = [np.ascontiguousarray(a, dtype=float) for a in self._per_run(ratio, load, tf)]
         t, work, c2 = np.empty(n), np.empty(n), np.empty(len(self.s))
         ptr = ctypes.POINTER(ctypes.c_double)
         d, i = ctypes.c_double, ctypes.c_int
-        self.lib.run_batch(i(len(self.s)), *(a.ctypes.data_as(ptr) for a in (self.s, self.vn2, self.ag)),
+        (self.lib.run_batch_walk if walk else self.lib.run_batch)(i(len(self.s)), *(a.ctypes.data_as(ptr) for a in (self.s, self.vn2, self.ag)),
                            d(tr.service_brake_ms2), d(tr.stop_brake_ms2), i(len(self.tsp)),
                            self.tsp.ctypes.data_as(ptr), self.tef.ctypes.data_as(ptr), d(tr.max_accel_ms2), i(n),
                            *(a.ctypes.data_as(ptr) for a in p + [c2, t, work]))
@@ -186,16 +186,19 @@ def cpu_per_call(fn, calls: int) -> float:
 def ratios_table(refs: References, track, train) -> None:
     steps = len(track.s_m) - 1
     grid = np.array([1.0, 0.9, 0.8, 0.7, 0.65, 0.6, 0.55, 0.5, 0.45, 0.4, 0.35, 0.3, 0.25, 0.2])
-    names = ["planner", "numba loop"] + (["C -O2"] if refs.lib else [])
+    names = ["planner", "numba loop"] + (["C -O2", "C walk"] if refs.lib else [])
     print(f"\n3 km interstation, {steps} steps of ≤ {track.settings.ds_m:g} m; CPU time per call, median of "
           "alternated samples")
-    print(f"{'batch':>6} {'planner ms':>11} {'C ms':>9} {'numba ms':>9} {'× C':>6} {'× numba':>8} {'target':>7} "
-          f"{'ns/run-step':>12} {'max |Δt| s':>11}")
+    print("C: the plain loop bisecting the traction table (as the kernel); C walk: the same loop walking from the "
+          "last interval")
+    print(f"{'batch':>6} {'planner ms':>11} {'C ms':>9} {'numba ms':>9} {'× C':>6} {'× C walk':>9} {'× numba':>8} "
+          f"{'target':>7} {'ns/run-step':>12} {'max |Δt| s':>11}")
     for n in (1, 100, 2000):
         rng = np.random.default_rng(n)
         ratio, load, tf = np.resize(grid, n), rng.uniform(0.0, 1.0, n), rng.uniform(0.9, 1.0, n)
         fns = {"planner": lambda: simulate(track, train, ratio, load=load, traction_factor=tf).time_s,
-               "numba loop": lambda: refs.numba(ratio, load, tf), "C -O2": lambda: refs.c(ratio, load, tf)}
+               "numba loop": lambda: refs.numba(ratio, load, tf), "C -O2": lambda: refs.c(ratio, load, tf),
+               "C walk": lambda: refs.c(ratio, load, tf, walk=True)}
         times = {k: [] for k in names}
         for j in range(SAMPLES[n]):
             for name in names[j % len(names):] + names[:j % len(names)]:  # alternate the order
@@ -205,7 +208,8 @@ def ratios_table(refs: References, track, train) -> None:
         dev = max(float(np.max(np.abs(got - fns[k]()))) for k in names[1:])
         c_ms = f"{med['C -O2'] * 1e3:>9.3f}" if refs.lib else f"{'-':>9}"
         x_c = f"{med['planner'] / med['C -O2']:>6.2f}" if refs.lib else f"{'-':>6}"
-        print(f"{n:>6} {med['planner'] * 1e3:>11.3f} {c_ms} {med['numba loop'] * 1e3:>9.3f} {x_c} "
+        x_w = f"{med['planner'] / med['C walk']:>9.2f}" if refs.lib else f"{'-':>9}"
+        print(f"{n:>6} {med['planner'] * 1e3:>11.3f} {c_ms} {med['numba loop'] * 1e3:>9.3f} {x_c} {x_w} "
               f"{med['planner'] / med['numba loop']:>8.2f} {TARGETS[n]:>6.1f}× "
               f"{med['planner'] / (n * steps) * 1e9:>12.1f} {dev:>11.1e}")
 
