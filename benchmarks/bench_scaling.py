@@ -150,6 +150,10 @@ def _show(name: str, r: dict) -> None:
     print(f"  {name:22s} wall {r['wall_s']:7.1f} s   CPU {r['cpu_s']:7.1f} s (main {r['main_cpu_s']:.1f}, workers "
           f"{r['worker_cpu_s']:.1f})   peak: tree {r['tree_peak_mb']:7.0f} MB, main {r['main_peak_mb']:.0f} MB, "
           f"a worker {r['worker_peak_mb']:.0f} MB   {status}", flush=True)
+    if r["cpu_s"] > 0:  # the job process's share bounds what any number of workers can gain (Amdahl)
+        f = r["main_cpu_s"] / r["cpu_s"]
+        print(f"      serial fraction (job-process CPU / all CPU) {f:.1%}: no cluster makes this night more than "
+              f"{1 / f if f > 0 else float('inf'):.1f}x faster", flush=True)
     if r["timings"]:
         print("      steps [s wall]: " + ", ".join(f"{k} {v:.1f}" for k, v in r["timings"].items()), flush=True)
 
