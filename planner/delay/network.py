@@ -202,7 +202,7 @@ def build_network(trains: Sequence[TrainEvents], *, min_dwell_s, windows=None, r
                 src.append(a), dst.append(b), kind.append(DWELL), place.append("")
                 mins.append(float(dwell(t.station[i], t.train_type)))
     if windows is not None and len(windows):
-        _headways(windows, trains, first, plan, resource_ids, key_s, src, dst, kind, mins, place)
+        _headways(windows, trains, plan, resource_ids, key_s, src, dst, kind, mins, place)
     index = {t.train_id: k for k, t in enumerate(trains)}
     for a_id, b_id, station, m in connections:
         if a_id not in index or b_id not in index:
@@ -229,10 +229,9 @@ def _event_at(t: TrainEvents, first: int, station: str, kind: int) -> int | None
     return None
 
 
-def _headways(w, trains, first, plan, resource_ids, key_s, src, dst, kind, mins, place) -> None:
-    """Headway activities between the trains that follow each other on every resource (module doc)."""
-    from planner.network.windows import Windows  # noqa: F401  (the type of ``w``)
-
+def _headways(w, trains, plan, resource_ids, key_s, src, dst, kind, mins, place) -> None:
+    """Headway activities between the trains that follow each other on every resource (module doc); ``w``: the
+    conflict check's :class:`~planner.network.windows.Windows`."""
     tr = np.asarray(w.train, dtype=np.int64)
     a_start, a_end = window_anchors(w, [len(t.sched_s) for t in trains], plan)
     off_start = w.start_s - plan[a_start]

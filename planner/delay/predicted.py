@@ -87,6 +87,7 @@ def predict_day(check, *, min_dwell_s: float | Callable[[str, str], float],
                 connections: Sequence[tuple[str, str, str, float]] = ()) -> PredictedDay:
     """The predicted day (module doc)."""
     from planner.network.priority import detect_conflicts
+    from planner.network.routes import KIND_NAMES
 
     g, trains = check.graph, check.trains
     evs = day_events(check)
@@ -101,7 +102,7 @@ def predict_day(check, *, min_dwell_s: float | Callable[[str, str], float],
     records = detect_conflicts(g, trains, routes, w_own) if len(w) else []
     rkey = np.asarray(w.res, dtype=np.int64) * 2 + np.asarray(w.kind, dtype=np.int64)
     names = {int(k): g.resource_id(int(k) % 2, int(k) // 2) for k in np.unique(rkey)}
-    by_name = {(["node", "section"][k % 2], v): k for k, v in names.items()}
+    by_name = {(KIND_NAMES[k % 2], v): k for k, v in names.items()}
     index = {t.train_id: k for k, t in enumerate(trains)}
     wait = np.zeros(len(w))
     for r in records:  # the train that waits comes after the one that goes first, whatever their openings
