@@ -76,18 +76,20 @@ def propagate(net: DelayNetwork, primary: np.ndarray | None = None, *, days: int
 
 def binding(net: DelayNetwork, z: np.ndarray) -> np.ndarray:
     """For a single day's delays ``z`` (n_events,): the activity that set each event's delay (the first reaching
-    the maximum, when it is positive), else -1."""
+    the maximum, when it is positive), else -1. Vectorised over the events' incoming lists."""
     out = np.full(net.n_events, -1, dtype=np.int64)
     if net.n_activities == 0:
         return out
-    push = z[net.act_src] - net.slack_s
-    for e in range(net.n_events):
-        lo, hi = net.in_ptr[e], net.in_ptr[e + 1]
-        if hi == lo:
-            continue
-        acts = net.in_act[lo:hi]
-        v = push[acts]
-        j = int(np.argmax(v))
-        if v[j] > 0.0:
-            out[e] = int(acts[j])
+    acts = np.asarray(net.in_act, dtype=np.int64)  # grouped by event, in_ptr the bounds
+    push = z[net.act_src[acts]] - net.slack_s[acts]
+    lo = np.asarray(net.in_ptr[:-1], dtype=np.int64)
+    has = np.asarray(net.in_ptr[1:], dtype=np.int64) > lo
+    starts = lo[has]
+    best = np.maximum.reduceat(push, starts)
+    seg = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(push)]))
+    pos = np.where(push == best[seg], np.arange(len(push)), len(push))
+    first = np.minimum.reduceat(pos, starts)
+    ev = np.flatnonzero(has)
+    ok = best > 0.0
+    out[ev[ok]] = acts[first[ok]]
     return out
