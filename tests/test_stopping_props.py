@@ -140,8 +140,14 @@ def approaches(draw):
     return v0, X, J, dl, sl
 
 
+STEP_DOWN_NEAR_THE_STOP = (5.0, 50.0, 1.0, [(0.0, 1.5)], [(0.0, 5.0), (1.0, 5.0), (46.0, 2.75)])
+"""Found by this property on a fresh install (2026-12-05): the construction returned a "feasible" pattern whose
+braking acceleration jumped from -0.49 to 0 m/s² and whose position ran back 0.25 m at 47.1 m."""
+
+
 @settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(approaches())
+@example(STEP_DOWN_NEAR_THE_STOP)
 def test_feasible_patterns_meet_every_limit(case):
     v0, X, J, dl, sl = case
     p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
@@ -255,3 +261,19 @@ def test_the_needed_distance_is_exact_when_a_step_down_starts_in_the_first_metre
                    speed_limits=[(0.0, 17.0)] + [(x + d, w) for x, w in sl[1:]])
     assert q.feasible and q.brake_start_m == pytest.approx(0.0, abs=1e-4), q.brake_start_m
 
+
+def test_a_pattern_whose_pieces_do_not_join_is_refused_loudly():
+    """The solver's own check: no pattern rather than a wrong one; the verdict says where and why, so the night
+    flags the stop (no_stop) and no bundle carries the pattern."""
+    v0, X, J, dl, sl = STEP_DOWN_NEAR_THE_STOP
+    p = solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl)
+    assert not p.feasible
+    assert "pieces do not join at x=47.1 m" in p.reason
+
+
+@pytest.mark.xfail(strict=True, reason="solver defect: at a speed step-down 4 m before a 50 m stop the construction "
+                   "loses a node's continuity (caught and refused, see the test above); a valid pattern exists")
+def test_the_step_down_near_the_stop_has_a_pattern():
+    v0, X, J, dl, sl = STEP_DOWN_NEAR_THE_STOP
+    # one that exists, slower than the minimum: brake at 1.5 m/s² from 5 m/s to 2.75 m/s before 46 m, then stop
+    assert solve_stop(v0, X, jerk_max=J, decel_limits=dl, speed_limits=sl).feasible

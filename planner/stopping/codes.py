@@ -11,7 +11,7 @@ from __future__ import annotations
 
 # codes of kernel(); the caller turns them into a StopPattern or an error message
 OK = 0
-START_ABOVE_LIMIT, ZERO_LIMIT, STANDING, NEEDS_MORE, INTERNAL = 1, 2, 3, 4, 5
+START_ABOVE_LIMIT, ZERO_LIMIT, STANDING, NEEDS_MORE, INTERNAL, INCONSISTENT = 1, 2, 3, 4, 5, 6
 BAD_V_START, BAD_X_STOP, BAD_JERK = 10, 11, 12
 BAD_DECEL, BAD_SPEED = 20, 30  # + a step-function code below
 EMPTY, FIRST_NOT_ZERO, NOT_FINITE, NOT_SORTED, NOT_POSITIVE, NEGATIVE = 1, 2, 3, 4, 5, 6

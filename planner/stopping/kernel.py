@@ -14,7 +14,8 @@ import numpy as np
 
 from planner.stopping.construct import DONE, TAU, U, V_, W, Y, B, _construct
 from planner.stopping.codes import (  # noqa: F401  (the codes are read through this module too)
-    BAD_DECEL, BAD_JERK, BAD_SPEED, BAD_V_START, BAD_X_STOP, EMPTY, FIRST_NOT_ZERO, HEAD, INTERNAL, NEEDS_MORE,
+    BAD_DECEL, BAD_JERK, BAD_SPEED, BAD_V_START, BAD_X_STOP, EMPTY, FIRST_NOT_ZERO, HEAD, INCONSISTENT, INTERNAL,
+    NEEDS_MORE,
     NEGATIVE, NOT_FINITE, NOT_POSITIVE, NOT_SORTED, OK, SOURCES, STANDING, START_ABOVE_LIMIT, ZERO_LIMIT, N_SLOTS,
     out_size, work_size)
 from planner.stopping.pieces import STEPS, ST, NS, V, _pmax, _pmin, b1, f8, i8, jit, nt
@@ -151,6 +152,33 @@ def _forward(st, ns, v0, X, y_r, out):
     out[2], out[3], out[4], out[5] = T, X - y_r, y_r, n
 
 
+@jit(f8(V, f8, f8, f8))
+def _discontinuity(out, v0, X, J):
+    """Where the forward pattern's pieces fail to join (x [m]), else -1: each piece integrated from its start
+    (constant jerk) must end in the next breakpoint's acceleration, speed and position, to round-off. A
+    construction that loses a node's continuity (seen: a speed step-down 4 m before a 50 m stop, where the
+    braking acceleration jumped from -0.49 to 0 m/s² and the position ran back 0.25 m) is caught here."""
+    n = int(out[5])
+    ts = out[HEAD: HEAD + n + 1]
+    xs = out[HEAD + (n + 1): HEAD + 2 * (n + 1)]
+    vv = out[HEAD + 2 * (n + 1): HEAD + 3 * (n + 1)]
+    aa = out[HEAD + 3 * (n + 1): HEAD + 4 * (n + 1)]
+    jj = out[HEAD + 4 * (n + 1): HEAD + 4 * (n + 1) + n]
+    tol_x = 1e-6 * _pmax(1.0, X)
+    tol_v = 1e-6 * _pmax(1.0, v0)
+    tol_a = 1e-6 * _pmax(1.0, J)
+    for i in range(n):
+        dt = ts[i + 1] - ts[i]
+        j = jj[i]
+        a1 = aa[i] + j * dt
+        v1 = vv[i] + aa[i] * dt + 0.5 * j * dt * dt
+        x1 = xs[i] + vv[i] * dt + 0.5 * aa[i] * dt * dt + j * dt * dt * dt / 6.0
+        if abs(a1 - aa[i + 1]) > tol_a * _pmax(1.0, dt) or abs(v1 - vv[i + 1]) > tol_v * _pmax(1.0, dt) or \
+                abs(x1 - xs[i + 1]) > tol_x * _pmax(1.0, dt):
+            return xs[i]
+    return -1.0
+
+
 @jit(KERNEL, public=True, nrt=True)
 def kernel(v0, X, J, n_dl, n, optimize, work):
     """Solve one stop: ``work[:2 n]`` holds the ``n`` step rows (x_from, value), the decel limits
@@ -259,7 +287,12 @@ def kernel(v0, X, J, n_dl, n, optimize, work):
         return -int(out[0])
     out[0] = OK
     _forward(st, ns, v0, X, _pmin(y_r, X), out)
+    bad = _discontinuity(out, v0, X, J)
+    if bad >= 0.0:  # never a pattern whose pieces do not join: the stop is infeasible, loudly (out[1]: where)
+        out[0], out[1] = INCONSISTENT, bad
+        return -int(out[0])
     return int(out[5])
+
 
 
 JIT = {"kernel": (kernel, KERNEL), "check_steps": (check_steps, CHECK_STEPS)}

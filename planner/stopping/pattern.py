@@ -443,6 +443,10 @@ def _not_solved(code: int, work: np.ndarray, n: int, v0: float, X: float, J: flo
         y_r = needed_bound(float(work[out + 4]))
         return _infeasible(f"needs {y_r:.1f} m to stop from {v0 * 3.6:.1f} km/h under these limits, only "
                            f"{X:.1f} m available", v0, X, J, y_r)
+    if code == k.INCONSISTENT:  # a defect of the construction, caught: no pattern rather than a wrong one
+        return _infeasible(f"no valid stopping pattern from {v0 * 3.6:.1f} km/h over {X:.1f} m: the construction's "
+                           f"pieces do not join at x={float(work[out + 1]):.1f} m (a defect of the solver, caught; "
+                           "report the approach)", v0, X, J)
     if code == k.START_ABOVE_LIMIT:
         return _infeasible(f"start speed {v0 * 3.6:.1f} km/h is above the speed limit "
                            f"{float(work[2 * n_dl + 1]) * 3.6:.1f} km/h at the pattern start", v0, X, J)
