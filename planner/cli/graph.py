@@ -19,7 +19,7 @@ def graph(
     train: Optional[str] = typer.Option(None, "--train", help="Train to highlight, with its blocking-time stairway "
                                         "(its id in any case); the page opens on its run."),
     run: Optional[Path] = typer.Option(None, "--run", help="A published run (e.g. outputs/latest) of this line database: "
-                                       "its occupation, conflicts and margin_totals datasets are used."),
+                                       "its occupation, conflicts, margin_totals and delay_events datasets are used."),
     fmt: str = typer.Option("svg", "--format", help="Chart format: svg or png."),
     job: Optional[Path] = typer.Option(None, "--job", help=JOB_HELP),
     day: Optional[str] = typer.Option(None, "--day", help=DAY_HELP),
@@ -28,6 +28,7 @@ def graph(
     from .. import load_line
     from planner.report.published_run import read_line_dataset, path_id, read_manifest
     from ..errors import InputError
+    from planner.report.graph_predicted import PREDICTED_COLUMNS
     from planner.report.train_graph import WINDOW_COLUMNS, graph_data, match_train, parse_hhmm, train_graph_chart
     from planner.pages.run_head import run_words
     from planner.pages.train_graph import write_page
@@ -53,7 +54,7 @@ def graph(
                              "source digest differs); run the job again or leave --run out")
         kw = {name: read_line_dataset(run, ds, line.line_id, columns=cols) for name, ds, cols in
               (("windows", "occupation", WINDOW_COLUMNS), ("conflicts", "conflicts", None),
-               ("margin_totals", "margin_totals", None))}
+               ("margin_totals", "margin_totals", None), ("delay_events", "delay_events", PREDICTED_COLUMNS))}
     data = graph_data(line, **kw)
     name = path_id(line.line_id)  # becomes a file name: checked again here
     files = [write_page(data, out / f"{name}_graph.html", t0=t0, t1=t1, train=train, run_label=label)]

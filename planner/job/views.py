@@ -115,18 +115,21 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday
 
 def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool, blocks=()) -> None:
     """Write ``graph/<line>_graph.html``: the line's train graph from its trajectories (``paths``) and the run's
-    occupation, conflicts and margin totals datasets, each train linked to its legs' charts (``legs``, from
+    occupation, conflicts, margin totals and delay events datasets (the late trains' predicted runs), each train linked to its legs' charts (``legs``, from
     :func:`planner.job.train_views.train_views`) and the day's restrictions as time–location blocks (``blocks``,
     :func:`planner.job.day.restriction_blocks`). Module level: the nightly job runs it on a worker."""
     from planner.job.train_views import timetable_href
     from planner.pages.train_graph import write_page
     from planner.report.published_run import path_id, read_line_dataset
+    from planner.report.graph_predicted import PREDICTED_COLUMNS
     from planner.report.train_graph import WINDOW_COLUMNS, graph_data
 
     occ = read_line_dataset(stage, "occupation", line.line_id, columns=WINDOW_COLUMNS)
     con = read_line_dataset(stage, "conflicts", line.line_id)
     mt = read_line_dataset(stage, "margin_totals", line.line_id)
-    data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False)
+    # the predicted day, written by the line's conflicts step before this page (None without it: not drawn)
+    ev = read_line_dataset(stage, "delay_events", line.line_id, columns=PREDICTED_COLUMNS)
+    data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False, delay_events=ev)
     data.restrictions = list(blocks)
     if check and line.network is not None and (occ is None or con is None):
         data.notes.append("the run has no occupation/conflicts datasets for this line")
@@ -134,7 +137,7 @@ def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool, bl
                timetable_href="../" + timetable_href(line.line_id),
                charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()},
                links=graph_links(line.line_id))
-    del data, occ, con
+    del data, occ, con, ev
     give_back()  # the pages of the graph's data, for the work after it on this worker
 
 

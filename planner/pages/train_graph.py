@@ -3,7 +3,8 @@
 Takes the :class:`planner.report.train_graph.GraphData` of a line and a day and
 gives the page (:func:`render_page`, :func:`write_page`): zoom to an hour, hover
 a train for number, type, times and margin, click it for its blocking-time
-stairway. The data is compact JSON (:func:`page_payload`): trajectories thinned
+stairway; each train late on the predicted day (:mod:`planner.report.graph_predicted`) has its predicted run
+dashed beside its line, with a toggle. The data is compact JSON (:func:`page_payload`): trajectories thinned
 and delta-coded in whole decisecond and metre steps (module doc of
 :mod:`planner.report.train_graph` for the sizes).
 """
@@ -18,10 +19,11 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from planner.line.model import line_title
+from planner.report.graph_predicted import LATE_S, largest_delay
 from planner.report.train_graph import (COLOURS, CONFLICT_COLOUR, CONFLICT_MIN_PX, STAIR_B_COLOUR, STAIR_COLOUR, GraphData,
-                                        start_window, time_window)
+                                        hhmm, start_window, time_window)
 
-__all__ = ["page_json", "page_payload", "render_page", "write_page"]
+__all__ = ["page_json", "page_payload", "predicted_summary", "render_page", "write_page"]
 
 
 def _delta(values: np.ndarray, scale: float) -> list[int]:
@@ -88,6 +90,40 @@ def _conflicts(data: GraphData) -> list[list]:
     return cons
 
 
+def _predicted(data: GraphData) -> dict[str, Any]:
+    """The late trains' predicted runs: per train its events' stations (indices of ``stations``), kinds (``a``
+    arrival, ``d`` departure), predicted times (0.1 s, delta-coded), predicted − scheduled [0.1 s], the late
+    events' indices and its causes (``[event index, index of causes]``); ``stops``: each station's stop marker
+    per direction [m] (where a train's events stand)."""
+    idx = {sid: i for i, (sid, _, _) in enumerate(data.stations)}
+    stops: dict[str, list] = {"down": [None] * len(idx), "up": [None] * len(idx)}
+    causes = {"": 0}
+    trains = []
+    for p in (data.predicted or {}).values():
+        st = [idx[s] for s in p.station_ids]
+        for i, x in zip(st, p.x_m):
+            stops[p.direction][i] = _num(x, 0)
+        t = np.round(p.t_s * 10.0)
+        trains.append({"id": p.train_id, "st": st, "e": "".join("a" if e == "arrival" else "d" for e in p.events),
+                       "t": _delta(p.t_s, 10.0), "o": (t - np.round(p.scheduled_s * 10.0)).astype(int).tolist(),
+                       "late": p.late.tolist(),
+                       "c": [[i, causes.setdefault(c, len(causes))] for i, c in enumerate(p.causes) if c]})
+    return {"late_s": LATE_S, "stops": stops, "causes": list(causes), "trains": trains}
+
+
+def predicted_summary(data: GraphData) -> str:
+    """The predicted day in words (plain text): how many trains are late, the largest delay and where; "" when
+    the graph has no predicted day."""
+    if data.predicted is None:
+        return ""
+    if not data.predicted:
+        return "no train late on the predicted day"
+    p, i = largest_delay(data.predicted)
+    n = len(data.predicted)
+    return (f"{n} train{'s' if n != 1 else ''} late on the predicted day, the largest {p.delay_s[i]:.0f} s "
+            f"({p.train_id} at {p.station_ids[i]}, {p.events[i]} {hhmm(p.t_s[i], True)})")
+
+
 def _payload_parts(data: GraphData) -> Iterator[tuple[str, Any, type | None]]:
     """The payload's keys in order, each with its value (None), or with an iterable of its items to be made one
     at a time and the container they make (``list``: ``trains``' items; ``dict``: ``windows``' (key, value)
@@ -106,6 +142,8 @@ def _payload_parts(data: GraphData) -> Iterator[tuple[str, Any, type | None]]:
     yield "conflicts", _conflicts(data), None
     yield "restrictions", [[rid, _num(a, 0), _num(b, 0), _num(t0), _num(t1), lim, d]
                            for rid, a, b, t0, t1, lim, d in data.restrictions], None
+    if data.predicted:  # only when a train is late: a page without a predicted day stays as it was
+        yield "predicted", _predicted(data), None
     yield "notes", data.notes, None
 
 
@@ -196,7 +234,9 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         at = {x: i for i, x in enumerate(legs)}
         payload["charts"] = {"legs": [list(x) for x in legs],
                              "by_train": {k: [at[tuple(x)] for x in v] for k, v in charts.items()}}
-    js = page_json(data, payload).replace("</", "<\\/")  # never closes the script element
+    # no "<" in the script element's text (JSON has one only inside strings, where \u003c is the same): neither a
+    # "</script" nor a "<!--" (which makes the parser look past the element's end) can come from the data
+    js = page_json(data, payload).replace("<", "\\u003c")
     n = len(data.trains)
     svc = {k: sum(1 for t in data.trains if (t.direction, t.service) == k) for k in COLOURS}
     nc = int(data.conflicts.conflict_id.nunique()) if data.conflicts is not None and len(data.conflicts) else 0
@@ -206,6 +246,21 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
     keys = " ".join(f"<span><span class='key' style='border-color:{c}'></span>{e(d)} {e(s)} ({svc[(d, s)]})</span>"
                     for (d, s), c in COLOURS.items())
     notes = "".join(f"<li>{e(x)}</li>" for x in data.notes)
+    late = bool(data.predicted)
+    pred = predicted_summary(data)
+    pred_html = f" · <b id='predicted-summary'>{e(pred)}</b>" if pred else ""
+    runs = ("each line is the train front's run as timetabled, dashed its predicted day" if late
+            else "each line is the train front's predicted run")
+    pred_keys = ("<span><span class='key dashed'></span>dashed: predicted (delays carried forward)</span>"
+                 "<span><span class='dot'></span>late event</span>" if late else "")
+    pred_box = "<label><input type='checkbox' id='show-predicted' checked> predicted</label>" if late else ""
+    pred_info = ("A line is the train's run from the run curves as timetabled: a run slower than scheduled makes "
+                 "it late, the next stop's dwell absorbs it. Dashed lines: the predicted day, each late train's run "
+                 "with every delay carried forward (a late arrival delays the departure, never before arrival + the "
+                 "minimum dwell; a train held by another at a block waits), drawn where it is late; a dot marks each "
+                 "event more than "
+                 f"{LATE_S:g} s late. Hover one for the scheduled and predicted time, the delay and its cause. "
+                 if late else "")
     nav = " · ".join(f"<a href='{e(h)}'>{e(lbl)}</a>" for lbl, h in links)
     top = " · ".join(x for x in (nav, f"<span id='run'>{e(run_label)}</span>" if run_label else "") if x)
     return (
@@ -213,16 +268,16 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "<meta name='viewport' content='width=device-width, initial-scale=1'>"
         f"<title>Train graph — {e(title)}</title><style>{PAGE_CSS}</style></head><body>"
         f"<header>{f'<p class=sub id=top>{top}</p>' if top else ''}<h1>Train graph — {e(title)}</h1>"
-        f"<p class='sub'>{n} trains · {nc_text} · stations at their chainage, time along the axis; "
-        "each line is the train front's predicted run</p></header>"
+        f"<p class='sub'>{n} trains · {nc_text}{pred_html} · stations at their chainage, time along the axis; "
+        f"{runs}</p></header>"
         "<div class='bar'><span>view: <span id='hours'></span></span>"
         "<span>showing <b id='range'></b></span></div>"
         "<div class='bar'>"
         f"{keys} <span><span class='box' style='background:{CONFLICT_COLOUR}'></span>conflict (click)</span>"
-        "<span>▭ loop stop</span>"
+        f"<span>▭ loop stop</span>{pred_keys}"
         "<label><input type='checkbox' id='show-down' checked> down</label>"
         "<label><input type='checkbox' id='show-up' checked> up</label>"
-        "<label><input type='checkbox' id='show-conflicts' checked> conflicts</label>"
+        f"<label><input type='checkbox' id='show-conflicts' checked> conflicts</label>{pred_box}"
         "<label>train <input type='text' id='find' placeholder='e.g. 1001D' list='train-ids'></label>"
         "<span>selected: <b id='selinfo'>none</b> <a id='tt-link' href='#' style='display:none'></a>"
         "<span id='chart-links' style='display:none'> · speed–distance:</span></span></div>"
@@ -236,7 +291,7 @@ def render_page(data: GraphData, *, t0: float | None = None, t1: float | None = 
         "Magenta boxes: two trains' windows overlap (a conflict); click "
         f"one for both trains' stairways (<span class='box' style='background:{STAIR_COLOUR};opacity:.6'></span>the "
         f"train that goes first, <span class='box' style='background:{STAIR_B_COLOUR};opacity:.6'></span>the one that "
-        "waits, its path dashed) with the overlap. The page opens on the morning peak; <i>whole day</i> shows "
+        f"waits, its path dashed) with the overlap. {pred_info}The page opens on the morning peak; <i>whole day</i> shows "
         "every train, an hour's button that hour. Open it at <code>#train=ID</code> for a train's run or at "
         "<code>#conflict=N</code> for a conflict. "
         "Mouse wheel zooms the time axis, drag pans, double-click shows the whole day. "

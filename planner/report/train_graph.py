@@ -25,6 +25,9 @@ What the graph shows:
   a magenta box from overlap start to end over the resource's chainage, at
   least :data:`CONFLICT_MIN_PX` on each side; clicked, both trains' stairways
   with their overlap;
+* the **predicted day** (the ``delay_events`` dataset, every delay carried forward), on the page: each late
+  train's run dashed beside its line where it is late, a dot at each late event
+  (:mod:`planner.report.graph_predicted`);
 * the **blocking-time stairway** of a selected train: its occupation windows,
   one box per section/switch from window opening (entry − setting − approach)
   to closing (tail clear + release).
@@ -253,6 +256,9 @@ class GraphData:
     """The day's temporary restrictions as time–location blocks, ``(restriction_id, start_m, end_m, from_s,
     until_s, limit_kmh, direction)``, times on the timetable's clock (s after midnight of the operating day),
     clipped to the day (:func:`planner.job.day.restriction_blocks`); empty without a day."""
+    predicted: dict | None = None
+    """``train_id`` → :class:`planner.report.graph_predicted.PredictedPath` of each train late on the predicted day
+    (every delay carried forward, the ``delay_events`` dataset), in the order of ``trains``; None when not known."""
 
     def train(self, train_id: str) -> TrainPath:
         """The train of that id, matched as :func:`match_train` does (case-insensitive when unambiguous)."""
@@ -287,7 +293,7 @@ def margins_by_train(margin_totals) -> dict[str, dict[str, float]]:
 
 
 def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=None, conflicts=None,
-               margin_totals=None, params=None, curves=None, check: bool = True) -> GraphData:
+               margin_totals=None, params=None, curves=None, check: bool = True, delay_events=None) -> GraphData:
     """Collect the graph of a line: trajectories, and (with a track network) windows and conflicts.
 
     Given ``windows``/``conflicts`` (the ``occupation``/``conflicts`` datasets
@@ -306,6 +312,9 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
     check : bool
         Run the conflict check when windows/conflicts are not given (False:
         draw without them, as when the job has ``[conflicts] enabled = false``).
+    delay_events : DataFrame, optional
+        The ``delay_events`` dataset of the line (at least
+        :data:`planner.report.graph_predicted.PREDICTED_COLUMNS`): the late trains' predicted runs.
     """
     from planner.datasets.conflicts import check_conflicts
     from planner.network.arrivals import SimulatorCurves
@@ -338,8 +347,13 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
     margins = margins_by_train(margin_totals)
     if not margins:
         notes.append("per-train margins not given (they come from a run's margin_totals dataset)")
+    predicted = None
+    if delay_events is not None:
+        from planner.report.graph_predicted import predicted_paths
+
+        predicted = predicted_paths(line, delay_events, paths)
     return GraphData(line.line_id, line.name, float(line.start_m), float(line.end_m), stations, list(paths),
-                     windows, conflicts, margins, notes)
+                     windows, conflicts, margins, notes, predicted=predicted)
 
 
 # ---------------------------------------------------------------------------

@@ -9,13 +9,15 @@ const M = {l: 150, r: 58, t: 14, b: 30};
 let H = 640;
 function fitHeight() { return Math.max(320, Math.floor(innerHeight - (wrap.getBoundingClientRect().top + window.scrollY) - 14)); }
 const st = {t0: D.view[0], t1: D.view[1], sel: null, con: null, hover: null, hoverCon: null,
-  show: {down: true, up: true, conflicts: true}};
+  show: {down: true, up: true, conflicts: true, predicted: true}};
 function el(name, attrs, parent) {
   const e = document.createElementNS(NS, name);
   for (const k in attrs) e.setAttribute(k, attrs[k]);
   if (parent) parent.appendChild(e);
   return e;
 }
+// data strings (train ids, causes) put into HTML: as text
+function esc(s) { return String(s).replace(/[&<>"']/g, c => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;"})[c]); }
 function undelta(a, s) { const o = new Float64Array(a.length); let v = 0; for (let i = 0; i < a.length; i++) { v += a[i]; o[i] = v / s; } return o; }
 function hhmm(t, sec) {
   if (t === null || !isFinite(t)) return "–";
@@ -51,6 +53,7 @@ const gTsr = el("g", {id: "restrictions"}, svg);
 const inner = el("svg", {id: "plot", x: M.l, y: M.t, preserveAspectRatio: "none", overflow: "hidden"}, svg);
 const gStair = el("g", {id: "stair"}, inner);
 const gTrains = el("g", {id: "trains", fill: "none"}, inner);
+const gPred = el("g", {id: "predicted", fill: "none"}, inner);
 const gLoops = el("g", {id: "loops"}, inner);
 const gCon = el("g", {id: "conflicts"}, inner);
 const gHi = el("g", {id: "highlight", fill: "none"}, inner);
@@ -69,6 +72,67 @@ for (const tr of D.trains) for (const c of tr.calls) if (tr.loops.includes(c[0])
   const r = el("rect", {x: c[1], y: pos.get(c[0]) - 60, width: Math.max(c[2] - c[1], 1), height: 120,
     fill: "none", stroke: "#333", "stroke-width": 1, "vector-effect": "non-scaling-stroke", class: "loop " + tr.dir}, gLoops);
   r.dataset.train = tr.id;
+}
+// the predicted day (D.predicted, only when a train is late): each late train's events as predicted, every delay
+// carried forward; a dashed run in the train's colour where it is late, a dot at each late event
+const PR = D.predicted || null;
+function delayText(o) { const d = Math.max(o, 0) / 10; return (d >= 10 ? d.toFixed(0) : d.toFixed(1)) + " s"; }
+function eventText(tr, p, i) {
+  const s = D.stations[p.st[i]], c = p.C.get(i);
+  return tr.id + " " + (p.e[i] === "a" ? "arrival" : "departure") + " at " + s[1] + " (" + s[0] + "): scheduled " +
+    hhmm(p.S[i], true) + " → predicted " + hhmm(p.T[i], true) + ", " + delayText(p.o[i]) + " late" + (c ? " · " + c : "");
+}
+function crossing(T, X, s, x, from, leave) {
+  // the trajectory's first point past chainage x in direction s (leave: beyond x; else at or beyond it), from index
+  // `from`, and the time the front is at x (between that point and the one before)
+  for (let k = Math.max(from, 1); k < T.length; k++) {
+    if (leave ? s * X[k] <= s * x + 0.5 : s * X[k] < s * x - 0.5) continue;
+    const a = X[k - 1], b = X[k];
+    const t = Math.abs(b - x) <= 0.5 && !leave ? T[k] : Math.abs(a - x) <= 0.5 || b === a ? T[k - 1] :
+      T[k - 1] + (x - a) / (b - a) * (T[k] - T[k - 1]);
+    return {k: k, t: t};
+  }
+  return null;
+}
+function predSegment(tr, p, i) {
+  // from event i to i + 1: a dwell is flat; a run follows the shape of the train's drawn run between the two
+  // stations, its times stretched onto the predicted ones (a straight line where the drawn run does not reach);
+  // the search starts where the train's segment before it ended (p.k: the events run in order along the line)
+  const ta = p.T[i], tb = p.T[i + 1], xa = p.X[i], xb = p.X[i + 1];
+  let pts = [[ta, xa], [tb, xb]];
+  if (xa !== xb) {
+    const sg = xb > xa ? 1 : -1, a = crossing(tr.T, tr.X, sg, xa, p.k, true);
+    const b = a && crossing(tr.T, tr.X, sg, xb, a.k, false);
+    if (b) p.k = b.k;
+    if (a && b && b.t > a.t) {
+      pts = [[ta, xa]];
+      for (let k = a.k; k < b.k; k++) pts.push([ta + (tr.T[k] - a.t) / (b.t - a.t) * (tb - ta), tr.X[k]]);
+      pts.push([tb, xb]);
+    }
+  }
+  return "M" + pts.map(q => q[0].toFixed(1) + " " + q[1].toFixed(0)).join("L");
+}
+if (PR) for (const p of PR.trains) {
+  const tr = byId.get(p.id);
+  if (!tr) continue;
+  p.T = undelta(p.t, 10); p.S = p.T.map((t, i) => t - p.o[i] / 10); p.X = p.st.map(i => PR.stops[tr.dir][i]);
+  p.C = new Map(p.c.map(([i, k]) => [i, PR.causes[k]])); p.L = new Set(p.late);
+  p.worst = p.late.reduce((w, i) => p.o[i] > p.o[w] ? i : w, p.late[0]);
+  tr.pred = p; p.els = []; p.k = 1;
+  const colour = D.colours[tr.dir + " " + tr.svc], width = tr.svc === "rapid" ? 1.8 : 1.4;
+  for (let i = 0; i + 1 < p.T.length; i++) {
+    if (!p.L.has(i) && !p.L.has(i + 1)) continue;
+    const seg = el("path", {d: predSegment(tr, p, i), stroke: colour, "stroke-width": width, "stroke-dasharray": "5 3",
+      "vector-effect": "non-scaling-stroke", class: "pred " + tr.dir}, gPred);
+    seg.dataset.train = tr.id; p.els.push(seg);
+    el("title", {}, seg).textContent = eventText(tr, p, i + 1);
+  }
+  for (const i of p.late) {  // a dot: a path of no length with round ends, its size in pixels
+    const dot = el("path", {d: "M" + p.T[i].toFixed(1) + " " + p.X[i].toFixed(0) + "h0", stroke: colour, "stroke-width": 5,
+      "stroke-linecap": "round", "vector-effect": "non-scaling-stroke", class: "pred-dot " + tr.dir}, gPred);
+    dot.dataset.train = tr.id; p.els.push(dot);
+    el("title", {}, dot).textContent = eventText(tr, p, i);
+  }
 }
 // conflicts: one box per (conflict, resource), at least D.conflict.min_px on each side (sized in layout)
 const conRects = [];
@@ -108,6 +172,7 @@ function layout() {
   tsrBlocks();
   trainLabels();
   const span = st.t1 - st.t0;
+  svg.classList.toggle("wide", span > 3 * 3600);  // the late events' dots only where they stand apart
   const step = span > 6 * 3600 ? 3600 : span > 2 * 3600 ? 1800 : span > 3600 ? 600 : span > 1200 ? 300 : 60;
   for (let t = Math.ceil(st.t0 / step) * step; t <= st.t1; t += step) {
     const hour = t % 3600 === 0;
@@ -164,6 +229,9 @@ function visible() {
   for (const tr of D.trains) tr.path.style.display = st.show[tr.dir] ? "" : "none";
   for (const r of gLoops.children) r.style.display = st.show[byId.get(r.dataset.train).dir] ? "" : "none";
   gCon.style.display = st.show.conflicts ? "" : "none";
+  for (const p of gPred.children) p.style.display = st.show[byId.get(p.dataset.train).dir] ? "" : "none";
+  gPred.style.display = st.show.predicted ? "" : "none";
+  if (st.sel) highlight(st.sel, "sel");
 }
 function setView(t0, t1) {
   const full = D.day[1] - D.day[0];
@@ -207,12 +275,17 @@ function calls(tr) {
 function tipHtml(tr, t) {
   const [o, dep, d, arr] = calls(tr);
   const stops = tr.calls.filter(c => c[3]).length;
-  let h = "<b>" + tr.id + "</b> · " + tr.type + " · " + tr.svc + " · " + tr.dir + "<br>" +
-    o + " " + hhmm(dep) + " → " + d + " " + hhmm(arr) + " · " + stops + " of " + tr.calls.length + " calls stop";
+  let h = "<b>" + esc(tr.id) + "</b> · " + esc(tr.type) + " · " + tr.svc + " · " + tr.dir + "<br>" +
+    esc(o) + " " + hhmm(dep) + " → " + esc(d) + " " + hhmm(arr) + " · " + stops + " of " + tr.calls.length + " calls stop";
   const x = xAt(tr, t);
   if (x !== null) {
     let near = D.stations[0]; for (const s of D.stations) if (Math.abs(s[2] - x) < Math.abs(near[2] - x)) near = s;
-    h += "<br>at " + hhmm(t, true) + ": " + (x / 1000).toFixed(2) + " km (" + (Math.abs(near[2] - x) < 150 ? "at " : "near ") + near[0] + ")";
+    h += "<br>at " + hhmm(t, true) + ": " + (x / 1000).toFixed(2) + " km (" + (Math.abs(near[2] - x) < 150 ? "at " : "near ") + esc(near[0]) + ")";
+  }
+  if (tr.pred) {  // the predicted day: how late, and the late event nearest the pointer's time
+    const p = tr.pred, i = p.late.reduce((b, k) => Math.abs(p.T[k] - t) < Math.abs(p.T[b] - t) ? k : b, p.late[0]);
+    h += "<br><span class='flag'>predicted day: " + p.late.length + " event" + (p.late.length > 1 ? "s" : "") + " late, up to " +
+      delayText(p.o[p.worst]) + "</span><br>" + esc(eventText(tr, p, i).slice(tr.id.length + 1));
   }
   if (tr.m) {
     h += "<table><tr><td>margin</td><td>" + tr.m.margin_s + " s</td><td>bad day</td><td>" + tr.m.remaining_margin_s +
@@ -222,12 +295,12 @@ function tipHtml(tr, t) {
     if (tr.m.n_unreachable) f.push(tr.m.n_unreachable + " unreachable");
     if (f.length) h += "<span class='flag'>" + f.join(", ") + "</span><br>";
   } else h += "<br>margin: not given";
-  if (tr.loops.length) h += "<br>stands on the loop at " + tr.loops.join(", ");
+  if (tr.loops.length) h += "<br>stands on the loop at " + esc(tr.loops.join(", "));
   const cs = D.conflicts.filter(c => c[1] === tr.id || c[2] === tr.id);
   if (cs.length) {
     const ids = [...new Set(cs.map(c => c[0]))];
     h += "<br><span class='flag'>" + ids.length + " conflict" + (ids.length > 1 ? "s" : "") + "</span>: " +
-      ids.slice(0, 3).map(i => { const c = cs.find(z => z[0] === i); return "#" + i + " with " + (c[1] === tr.id ? c[2] : c[1]) + " at " + (c[11] || c[9]) + " (delay " + c[7] + " s)"; }).join("; ");
+      ids.slice(0, 3).map(i => { const c = cs.find(z => z[0] === i); return "#" + i + " with " + esc(c[1] === tr.id ? c[2] : c[1]) + " at " + esc(c[11] || c[9]) + " (delay " + c[7] + " s)"; }).join("; ");
   }
   return h + "<br><i>click: blocking-time stairway" + (D.tt ? ", running-time table and speed–distance charts" : "") + "</i>";
 }
@@ -238,6 +311,11 @@ function highlight(tr, cls) {
   p.setAttribute("stroke-width", cls === "hov" ? 3 : 2.6); p.setAttribute("class", cls);
   if (cls === "sel2") { p.setAttribute("stroke", "#000"); p.setAttribute("stroke-dasharray", "7 4"); }
   gHi.appendChild(p);
+  if (tr.pred && cls !== "sel2" && st.show.predicted) for (const q of tr.pred.els) {  // its predicted run over it
+    const c = q.cloneNode(true); c.setAttribute("class", cls + " pred");
+    if (!q.classList.contains("pred-dot")) c.setAttribute("stroke-width", 2.4);
+    gHi.appendChild(c);
+  }
 }
 function stair(tr, colour, edge, cls) {
   // one train's blocking-time stairway: a box per window, opening to closing over the resource's chainage
@@ -319,7 +397,7 @@ svg.addEventListener("mousemove", ev => {
   if (box) {  // over a conflict: it, not the train under it
     if (st.hover) { st.hover = null; highlight(null, "hov"); }
     const rows = byCon.get(st.hoverCon);
-    tip.innerHTML = "<b>conflict " + conText(rows).replace(/ · /g, "<br>") + "</b><br>" + rows[0][10] +
+    tip.innerHTML = "<b>conflict " + esc(conText(rows)).replace(/ · /g, "<br>") + "</b><br>" + esc(rows[0][10]) +
       (rows[0][12] !== null ? "<br>headway " + rows[0][12] + " s, minimum headway " + rows[0][13] + " s" : "") +
       "<br><i>click: both trains' blocking-time stairways</i>";
     tip.style.display = "block";
@@ -368,7 +446,10 @@ for (let t = D.day[0]; t < D.day[1]; t += 3600) {
   b.dataset.t0 = t; b.dataset.t1 = t + 3600; b.title = hhmm(t) + "–" + hhmm(t + 3600); hours.appendChild(b);
 }
 hours.addEventListener("click", ev => { const b = ev.target.closest("button"); if (b) setView(+b.dataset.t0, +b.dataset.t1); });
-for (const k of ["down", "up", "conflicts"]) document.getElementById("show-" + k).addEventListener("change", ev => { st.show[k] = ev.target.checked; visible(); layout(); });
+for (const k of ["down", "up", "conflicts", "predicted"]) {
+  const box = document.getElementById("show-" + k);  // "predicted" only when a train is late
+  if (box) box.addEventListener("change", ev => { st.show[k] = ev.target.checked; visible(); layout(); });
+}
 document.getElementById("find").addEventListener("change", ev => {
   const tr = findTrain(ev.target.value);
   ev.target.style.background = tr || !ev.target.value ? "" : "#fdecea";

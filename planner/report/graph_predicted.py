@@ -1,0 +1,112 @@
+"""The predicted day on the train graph: each late train's events as the ``delay_events`` dataset predicts them.
+
+The graph's lines are the trains' runs from the run curves as timetabled (a run slower than the schedule makes
+the train late, the next dwell absorbs it). The *predicted day* (:mod:`planner.delay.predicted`, the
+``delay_events`` dataset) carries every delay forward: a late arrival delays the next departure, never before
+arrival + a minimum dwell, and a train held by another at a block waits. The page draws it beside the lines as
+a dashed run per late train, from the points gathered here: one per event (arrival, departure), at the event's
+predicted time and its station's stop marker for the train's direction, where the train's drawn run stands at
+a stop (:meth:`planner.line.model.Station.stop_m`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["LATE_S", "PREDICTED_COLUMNS", "PredictedPath", "predicted_paths", "largest_delay"]
+
+LATE_S = 0.5
+"""A train is late on the predicted day when one of its events is more than this late [s]: below it is the
+rounding of the timetable's and the run curves' times, not a delay."""
+PREDICTED_COLUMNS = ("train_id", "seq", "station_id", "event", "scheduled_s", "predicted_s", "delay_s", "cause")
+"""What the graph reads of ``delay_events``."""
+
+
+@dataclass(frozen=True, eq=False)
+class PredictedPath:
+    """One late train on the predicted day, a point per event in running order.
+
+    Attributes
+    ----------
+    station_ids, events : tuple of str
+        Station and ``arrival``/``departure`` of each event.
+    scheduled_s, t_s : ndarray
+        Scheduled and predicted time [s after midnight].
+    x_m : ndarray
+        The station's stop marker for the train's direction [m].
+    delay_s : ndarray
+        Predicted − scheduled, never negative [s].
+    causes : tuple of str
+        Why the event is later than the train's event before it (``""``: it only carries a delay on).
+    """
+
+    train_id: str
+    direction: str
+    station_ids: tuple[str, ...]
+    events: tuple[str, ...]
+    scheduled_s: np.ndarray
+    t_s: np.ndarray
+    x_m: np.ndarray
+    delay_s: np.ndarray
+    causes: tuple[str, ...]
+
+    @property
+    def late(self) -> np.ndarray:
+        """Indices of the events more than :data:`LATE_S` late."""
+        return np.flatnonzero(self.delay_s > LATE_S)
+
+    @property
+    def max_delay_s(self) -> float:
+        return float(self.delay_s.max()) if len(self.delay_s) else 0.0
+
+
+def predicted_paths(line, events, trains: Sequence) -> dict[str, PredictedPath]:
+    """``train_id`` → :class:`PredictedPath` of each train of ``trains`` (the graph's
+    :class:`planner.report.train_graph.TrainPath`) late on the predicted day, in the order of ``trains``.
+
+    Parameters
+    ----------
+    line : Line
+        The line (its stations' stop markers).
+    events : DataFrame
+        ``delay_events`` rows of the line, at least :data:`PREDICTED_COLUMNS`; rows of trains not in ``trains``
+        and events without a predicted time are left out.
+    """
+    if events is None or not len(events):
+        return {}
+    ev = events[list(PREDICTED_COLUMNS)].copy()
+    ev = ev[np.isfinite(ev["predicted_s"].to_numpy(float))]
+    ev["_k"] = (ev["event"] != "arrival").astype(int)  # a call's arrival before its departure
+    ev = ev.sort_values(["train_id", "seq", "_k"], kind="stable")
+    rows = ev.groupby("train_id", sort=False).indices
+    stops: dict[tuple[str, str], float] = {}
+    out = {}
+    for tp in trains:
+        ix = rows.get(tp.train_id)
+        if ix is None:
+            continue
+        g = ev.iloc[ix]
+        delay = np.maximum(g["delay_s"].to_numpy(float), 0.0)
+        if not (delay > LATE_S).any():
+            continue
+        sids = tuple(str(s) for s in g["station_id"])
+        for s in sids:
+            if (s, tp.direction) not in stops:
+                stops[(s, tp.direction)] = float(line.station(s).stop_m(tp.direction))
+        out[tp.train_id] = PredictedPath(
+            tp.train_id, tp.direction, sids, tuple(str(e) for e in g["event"]), g["scheduled_s"].to_numpy(float),
+            g["predicted_s"].to_numpy(float), np.array([stops[(s, tp.direction)] for s in sids]), delay,
+            tuple("" if c is None else str(c) for c in g["cause"]))
+    return out
+
+
+def largest_delay(predicted: dict[str, PredictedPath]) -> tuple[PredictedPath, int] | None:
+    """The late train and event index of the day's largest delay (the first of equals, in the graph's order)."""
+    best = None
+    for p in predicted.values():
+        i = int(np.argmax(p.delay_s))
+        if best is None or p.delay_s[i] > best[0].delay_s[best[1]] + 1e-9:
+            best = (p, i)
+    return best
