@@ -15,9 +15,10 @@ install: kernels
 
 # mc_dagprop, the peer engine the delay propagation is checked against (tests and benchmarks only). It declares
 # Python >= 3.12 but its source builds on 3.11: with the build tools installed first and no isolated build. A failed
-# build fails `make test`: the peer test is part of the suite, never skipped.
+# build fails `make test`: the peer test is part of the suite, never skipped. The pin is here, so a change to this
+# file runs the install again (a no-op when nothing changed).
 PEER = $(VENV)/.peer-installed
-$(PEER): $(STAMP)
+$(PEER): $(STAMP) Makefile
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check "numpy>=2.4" "setuptools>=65,<77" wheel "pybind11>=2.13"
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-build-isolation --ignore-requires-python \
 		--no-binary mc_dagprop "mc_dagprop==0.9.1"
