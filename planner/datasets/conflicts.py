@@ -43,7 +43,7 @@ OCCUPATION_SCHEMA = declare([
     ("release_s", pa.float64(), "route release time after clearing [s]"),
     ("start_s", pa.float64(), "window opens: entry − setting − approach [s after midnight]"),
     ("end_s", pa.float64(), "window closes: clear + release [s after midnight]"),
-    ("predicted_start_s", pa.float64(), "the window's opening on the predicted day: every delay carried forward, a train held by another waiting before the resource (delay_events; docs/robustness.md) [s after midnight]"),
+    ("predicted_start_s", pa.float64(), "the window's opening on the predicted day: every delay carried forward, a train held by another waiting before the resource (delay_events; docs/robustness.md); where the predicted day is not computed (`planner conflicts`), start_s [s after midnight]"),
     ("predicted_end_s", pa.float64(), "the window's close on the predicted day [s after midnight]"),
 ], name="occupation", description="Blocking-time occupation windows of every train on every switch and section of its route")
 PLACE_COLUMNS = [

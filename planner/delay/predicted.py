@@ -166,6 +166,11 @@ def holds(day: PredictedDay, planned: set = frozenset()) -> list[dict]:
     return out
 
 
+LATE_S = 0.5
+"""An event of the predicted day more than this late is late [s] (below it is the round-off of the timetable's
+and the run curves' times; a delay shown in whole seconds reads at least +1): one threshold for every page, the
+overview, the CLI and the train graph."""
+
 GREW_S = 0.05
 """A delay that grows by no more than this [s] (round-off of two run curves, a leg scheduled at its minimum
 to the tenth) carries on; it is not a cause of its own."""

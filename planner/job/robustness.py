@@ -165,7 +165,7 @@ def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | Non
     day = predict_day(check, min_dwell_s=dwell_rule(job), connections=connections(job))
     stats = simulate(day.net, rs, days, seed, n_jobs=n_jobs, progress=progress) if days > 0 else None
     # the day's conflicts are its holds; knock-on: those the timetable as planned does not have (pair and place)
-    from planner.delay.predicted import holds
+    from planner.delay.predicted import LATE_S, holds
 
     planned = {(r["train_a"], r["train_b"], r["resource_id"]) for r in check.conflicts} | {
         (r["train_b"], r["train_a"], r["resource_id"]) for r in check.conflicts}
@@ -177,7 +177,7 @@ def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | Non
                "knock_on_conflicts": len({(h["train_a"], h["train_b"]) for h in knock}),
                "knock_on_places": sorted({h["place"] for h in knock}),
                "min_dwell_s": job.robustness.min_dwell_s, "late_trains": int(len(set(
-                   np.asarray(day.net.train_ids)[day.net.ev_train[day.delay_s > 0.05]]))) if day.net.n_events else 0,
+                   np.asarray(day.net.train_ids)[day.net.ev_train[day.delay_s > LATE_S]]))) if day.net.n_events else 0,
                "max_delay_s": float(day.delay_s.max()) if day.net.n_events else 0.0}
     if stats is not None:
         from planner.delay.network import ARRIVAL

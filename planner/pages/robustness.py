@@ -29,6 +29,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from planner.delay.predicted import LATE_S  # an event later than this is late [s]: every page's
+
 from planner.line.units import clock, fixed
 from planner.pages.margin_report import CSS
 from planner.pages.robustness_chart import direction_order, punctuality_chart
@@ -44,8 +46,6 @@ TOP_CAUSES = 20
 """Places where the predicted day's delay starts, shown."""
 TOP_LEGS = 30
 """Legs shown open in the margins table (the rest under a ``<details>``)."""
-LATE_S = 0.05
-"""An event later than this is late [s]."""
 
 EXTRA_CSS = """
 table.auto{width:auto}td.why{white-space:normal;text-align:left;min-width:16em}tr.grow td{background:#fff4e0}

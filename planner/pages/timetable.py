@@ -78,7 +78,9 @@ def _predicted(r: dict) -> str:
         return "<td></td>"
     times = " / ".join(x for x in (a, d) if x)
     delay = r.get("delay_s")
-    late = delay is not None and delay == delay and delay > 0.05
+    from planner.delay.predicted import LATE_S
+
+    late = delay is not None and delay == delay and delay > LATE_S
     why = r.get("delay_cause") or ""
     mark = f' <span class="late" title="{_e(why)}">+{round(delay)}{" ⓘ" if why else ""}</span>' if late else ""
     return f"<td>{_e(times)}{mark}</td>"

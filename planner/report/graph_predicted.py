@@ -15,11 +15,10 @@ from typing import Sequence
 
 import numpy as np
 
+from planner.delay.predicted import LATE_S  # a train is late when an event is more than this late: every page's
+
 __all__ = ["LATE_S", "PREDICTED_COLUMNS", "PredictedPath", "predicted_paths", "largest_delay"]
 
-LATE_S = 0.5
-"""A train is late on the predicted day when one of its events is more than this late [s]: below it is the
-rounding of the timetable's and the run curves' times, not a delay."""
 PREDICTED_COLUMNS = ("train_id", "seq", "station_id", "event", "scheduled_s", "predicted_s", "delay_s", "cause")
 """What the graph reads of ``delay_events``."""
 
