@@ -26,7 +26,7 @@ def robustness(
     """Carry every delay of the operating day forward (a late arrival delays the departure, a train held at a
     block waits), then simulate many days with random primary delays and report punctuality along the line."""
     from planner import load_line
-    from planner.datasets.delays import events_frame, robustness_frames, write_delays, write_robustness
+    from planner.datasets.delays import events_frame, write_day
     from planner.errors import InputError
     from planner.job.config import load_job
     from planner.job.robustness import day_as_it_runs
@@ -60,10 +60,7 @@ def robustness(
             pday, stats, summary, held = day_as_it_runs(check, line, job, days=days, seed=seed, n_jobs=jobs,
                                                   progress=lambda d, n: bar.update(s, completed=d, total=n))
         directions = {tr.train_id: tr.direction for tr in check.trains}
-        files = write_delays(pday, line.line_id, directions, dest, held)
-        frames = robustness_frames(pday, stats, line, directions) if stats is not None else None
-        if frames is not None:
-            files += write_robustness(frames, line.line_id, dest)
+        files, frames = write_day(pday, stats, held, line, directions, dest)
         page = dest / "report" / f"{check_path_id(line.line_id, 'line id ')}_robustness.html"
         summary["day"] = day or job.day.day
         summary["restrictions"] = _in_force(line)

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
-from planner.delay.montecarlo import Stats
+from planner.delay.montecarlo import Stats, edge_index
 from planner.delay.network import ACTIVITY_KINDS, ARRIVAL, EVENT_KINDS
 from planner.delay.predicted import PredictedDay, cause_text
 from planner.io.parquet import declare, write_parquet_atomic
@@ -125,14 +125,15 @@ def events_frame(day: PredictedDay, directions: dict[str, str]) -> pd.DataFrame:
     """Rows of ``delay_events``; ``directions``: train_id → direction."""
     net = day.net
     cols = _event_cols(day, directions)
-    a = day.cause
-    kind = np.where(a >= 0, np.asarray(ACTIVITY_KINDS, dtype=object)[np.maximum(net.act_kind[np.maximum(a, 0)], 0)]
-                    if net.n_activities else "", "")
+    # an event's cause is named where it has words (cause_text): the activity that set it, and for a wait its train
     texts = [cause_text(day, e) for e in range(net.n_events)]
-    kind = np.where([bool(t) for t in texts], kind, "")
-    other = np.where(np.isin(kind, ["headway", "connection"]),
-                     np.asarray(net.train_ids, dtype=object)[net.ev_train[net.act_src[np.maximum(a, 0)]]]
-                     if net.n_activities else "", "")
+    kind = np.full(net.n_events, "", dtype=object)
+    other = np.full(net.n_events, "", dtype=object)
+    for e in (e for e, t in enumerate(texts) if t):
+        a = int(day.cause[e])
+        kind[e] = ACTIVITY_KINDS[int(net.act_kind[a])]
+        if kind[e] in ("headway", "connection"):
+            other[e] = net.train_ids[int(net.ev_train[net.act_src[a]])]
     return pd.DataFrame(cols | {"computed_s": net.plan_s, "predicted_s": net.sched_s + day.delay_s,
                                 "delay_s": day.delay_s, "own_delay_s": day.own_s,
                                 "knock_on_s": day.delay_s - day.own_s, "cause_kind": kind, "cause_train": other,
@@ -177,7 +178,7 @@ def robustness_frames(day: PredictedDay, stats: Stats, line, directions: dict[st
         h = stats.hist[ii]
         st.append({"direction": direction, "station_id": sid, "station_name": names.get(sid, sid),
                    "position_m": float(pos.get(sid, np.nan)), "arrivals": n,
-                   **{f"within_{m}s": float(h[:, :_edge(m) + 1].sum() / (n * stats.days)) for m in (60, 180, 300)},
+                   **{f"within_{m}s": float(h[:, :edge_index(m) + 1].sum() / (n * stats.days)) for m in (60, 180, 300)},
                    "mean_delay_s": float(stats.mean_s[ii].mean()), "knock_on_s": float(stats.knock_on_s[ii].mean())})
     stations = pd.DataFrame(st, columns=[f.name for f in ROBUSTNESS_STATIONS_SCHEMA])
     stations = stations.sort_values(["direction", "position_m", "station_id"], kind="stable").reset_index(drop=True)
@@ -191,12 +192,6 @@ def robustness_frames(day: PredictedDay, stats: Stats, line, directions: dict[st
                          "slack_s": net.slack_s, "transmitted_s": stats.push_s / stats.days,
                          "binding_share": stats.binds / stats.days, "absorbed_s": stats.absorbed_s / stats.days})
     return trains, stations, acts
-
-
-def _edge(seconds: float) -> int:
-    from planner.delay.montecarlo import EDGES_S
-
-    return int(np.flatnonzero(np.isclose(EDGES_S, seconds))[0])
 
 
 def _write(frame: pd.DataFrame, schema: pa.Schema, out: Path, name: str, line_id: str) -> Path:
@@ -214,6 +209,17 @@ def write_delays(day: PredictedDay, line_id: str, directions: dict[str, str], ou
     return [_write(events_frame(day, directions), DELAY_EVENTS_SCHEMA, out, "delay_events", line_id),
             _write(activities_frame(day), DELAY_ACTIVITIES_SCHEMA, out, "delay_activities", line_id),
             _write(con, DELAY_CONFLICTS_SCHEMA, out, "delay_conflicts", line_id)]
+
+
+def write_day(day: PredictedDay, stats: Stats | None, held, line, directions: dict[str, str], out):
+    """Every dataset of the day as it runs (:func:`write_delays`, and :func:`write_robustness` when days were
+    simulated): ``(files written, the robustness frames or None)``; the nightly job and ``planner robustness``
+    both write through it."""
+    files = write_delays(day, line.line_id, directions, out, held)
+    frames = robustness_frames(day, stats, line, directions) if stats is not None else None
+    if frames is not None:
+        files += write_robustness(frames, line.line_id, out)
+    return files, frames
 
 
 def write_robustness(frames, line_id: str, out) -> list[Path]:

@@ -76,8 +76,12 @@ class Stats:
 
     def within(self, seconds: float) -> np.ndarray:
         """Share of days each event is at most ``seconds`` late (``seconds`` an edge of the bins)."""
-        k = int(np.flatnonzero(np.isclose(EDGES_S, seconds))[0])
-        return self.hist[:, :k + 1].sum(axis=1) / self.days
+        return self.hist[:, :edge_index(seconds) + 1].sum(axis=1) / self.days
+
+
+def edge_index(seconds: float) -> int:
+    """The bin whose upper edge is ``seconds`` (an edge of :data:`EDGES_S`: the minutes the shares are read at)."""
+    return int(np.flatnonzero(np.isclose(EDGES_S, seconds))[0])
 
 
 def bins(z: np.ndarray) -> np.ndarray:

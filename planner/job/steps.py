@@ -195,7 +195,7 @@ def conflicts_written(stage: Path, line, result) -> tuple:
     """Write a conflict report's datasets, and those of the day as it runs, into the staged run; (its conflicts
     table, the files written, the reasons of the trains it could not route, the robustness summary)."""
     from planner.datasets.conflicts import write_conflicts
-    from planner.datasets.delays import robustness_frames, write_delays, write_robustness
+    from planner.datasets.delays import write_day
 
     report, runs = result
     reasons = list(report.unrouted["reason"]) if report.unrouted is not None else []
@@ -203,10 +203,7 @@ def conflicts_written(stage: Path, line, result) -> tuple:
     summary = None
     if runs is not None:
         directions, pday, stats, summary, held = runs
-        files += [str(f) for f in write_delays(pday, line.line_id, directions, stage, held)]
-        if stats is not None:
-            files += [str(f) for f in write_robustness(robustness_frames(pday, stats, line, directions),
-                                                       line.line_id, stage)]
+        files += [str(f) for f in write_day(pday, stats, held, line, directions, stage)[0]]
     return report.conflicts, files, reasons, summary
 
 
