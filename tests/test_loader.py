@@ -317,6 +317,7 @@ def test_schema_declares_the_public_contract():
         "line": 1, "stations": 2, "rolling_stock": 1, "traction": 1}
     nullable = {(n, f.name) for n, s in TABLES.items() for f in s.schema if f.nullable}
     assert nullable == {("line", "approach_m"), ("line", "max_speed_kmh"), ("speed_limits", "train_type"), ("timetable", "arrival_s"),
-                        ("timetable", "departure_s"), ("nodes", "station_id"), ("nodes", "track")}
+                        ("timetable", "departure_s"), ("nodes", "station_id"), ("nodes", "track"),
+                        ("line", "running_side"), ("edges", "direction")}
     assert TABLES["timetable"].schema.field("seq").type == pa.int32()
     assert TABLES["line"].schema.field("schema_version").type == pa.int32()

@@ -238,7 +238,7 @@ def _network(views: dict[str, TableView]) -> Network | None:
     )
     edges = tuple(
         Edge(str(e["edge_id"][i]), str(e["from_node"][i]), str(e["to_node"][i]), _f(e["length_m"][i]),
-             str(e["track"][i]))
+             str(e["track"][i]), direction=_opt_str(e["direction"][i]) if e.has("direction") else None)
         for i in range(e.n)
     )
     return Network(nodes, edges)
@@ -277,6 +277,7 @@ def _build(views: dict[str, TableView], digest: str, source_path: str) -> Line:
         max_speed_ms=(_opt_float(ln["max_speed_kmh"][0]) or math.inf) * KMH,  # null: no line maximum
         schema_version=int(ln["schema_version"][0]),
         approach_m=_opt_float(ln["approach_m"][0]) if ln.has("approach_m") else None,
+        running_side=_opt_str(ln["running_side"][0]) if ln.has("running_side") else None,
         stations=stations,
         gradients=_segments(views["gradients"], "gradient_permil", PERMIL),
         curves=_segments(views["curves"], "radius_m", 1.0),

@@ -218,6 +218,8 @@ class Edge:
     to_node: str
     length_m: float
     track: str
+    direction: str | None = None
+    """down, up or both (``edges.direction``); None: from the track's name (:func:`planner.network.routes.track_direction`)."""
 
 
 @dataclass(frozen=True)
@@ -273,6 +275,8 @@ class Line:
     source_path: str = field(default="", compare=False)
     approach_m: float | None = None
     """Stopping-pattern start before the marker where no TASC beacon is [m]; None: from the physics."""
+    running_side: str | None = None
+    """right or left: the side trains normally run on (``line.running_side``); None: not given."""
     upgrade_notes: tuple[str, ...] = field(default=(), compare=False)
     """What was read differently from an earlier schema version of the folder (:mod:`planner.line.upgrade`)."""
 

@@ -25,8 +25,10 @@ from planner.line.schema import (
     MAX_ROWS_PER_M,
     NODE_KINDS,
     PATH_ID_COLUMNS,
+    RUNNING_SIDES,
     SCHEMA_VERSION,
     TABLES,
+    TRACK_DIRECTIONS,
 )
 from planner.io.paths import PATH_ID_RULE, is_path_id
 from planner.line.conform import TableView, fmt
@@ -165,6 +167,11 @@ def line_rules(db: Db) -> Iterator[Violation]:
             yield t.err(i, "schema_version", f"is {t['schema_version'][i]}; this planner reads schema versions 1 "
                                              f"to {SCHEMA_VERSION}: a newer one needs a newer planner")
     yield from start_before_end(t)
+    if t.has("running_side"):
+        for i in t.rows():
+            v = t["running_side"][i]
+            if v is not None and v not in RUNNING_SIDES:
+                yield t.err(i, "running_side", f"{v!r} is not one of {', '.join(RUNNING_SIDES)} (or empty)")
 
 
 # ---- ids that become file names or partition values: one rule (planner.io.paths.PATH_ID_RE)
@@ -547,6 +554,12 @@ def node_stations(db: Db) -> Iterator[Violation]:
 def edge_rules(db: Db) -> Iterator[Violation]:
     t = db.tables["edges"]
     yield from unique(t, "edge_id")
+    if t.has("direction"):
+        for i in t.rows():
+            v = t["direction"][i]
+            if v is not None and v not in TRACK_DIRECTIONS:
+                yield t.err(i, "direction", f"{v!r} is not one of {', '.join(TRACK_DIRECTIONS)} (or empty: from "
+                                            f"the track name)")
 
 
 @rule("edges", "nodes")

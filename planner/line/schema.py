@@ -45,6 +45,11 @@ LIMIT_DIRECTIONS = ("both", "down", "up")
 BEACON_KINDS = ("signal", "pattern_update", "tasc", "other")
 CRUISE_MODES = ("constant", "sawtooth")
 NODE_KINDS = ("switch", "stop", "boundary", "end")
+TRACK_DIRECTIONS = ("down", "up", "both")
+"""The direction trains normally run a track (``edges.direction``); ``both``: single track, a main signalled
+alike both ways, a crossover."""
+RUNNING_SIDES = ("right", "left")
+"""The side of a double line trains normally run on (``line.running_side``)."""
 PATH_ID_COLUMNS = {"line": ("line_id",), "rolling_stock": ("train_type",)}
 """The line-database columns whose values become file names or partition values."""
 
@@ -216,7 +221,11 @@ _SPECS = [
                           "column); null or absent: where the train must start braking, plus 10 %", NULLABLE,
          Range(10.0, MAX_CHAINAGE_M, "an approach is at least one grid step of the coarsest step and lies on the "
                                      "line")),
-    ]), required=True, min_rows=1, max_rows=1, row_id=("line_id",), optional_columns=frozenset({"approach_m"})),
+        ("running_side", S, "the side trains normally run on, right or left (optional column): an importer "
+                            "names a main track signalled alike both ways down or up by it; null or absent: "
+                            "from the source's signals where they tell", NULLABLE),
+    ]), required=True, min_rows=1, max_rows=1, row_id=("line_id",),
+        optional_columns=frozenset({"approach_m", "running_side"})),
     TableSpec("stations", _schema("stations", [
         ("station_id", S, "unique station identifier"),
         ("name", S, "display name"),
@@ -311,7 +320,9 @@ _SPECS = [
         ("to_node", S, "node id at the other end"),
         ("length_m", D, "track length between the nodes [m]; > 0", Range(0.0, 2 * MAX_CHAINAGE_M, 'an edge is no longer than the line can be', lo_open=True)),
         ("track", S, "track name"),
-    ]), required=False, row_id=("edge_id",)),
+        ("direction", S, "the direction trains normally run this track: down, up or both (optional column); "
+                         "null or absent: from the track name (D… down, U… up, anything else both)", NULLABLE),
+    ]), required=False, row_id=("edge_id",), optional_columns=frozenset({"direction"})),
 ]
 
 TABLES: dict[str, TableSpec] = {t.name: t for t in _SPECS}

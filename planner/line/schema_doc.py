@@ -14,6 +14,7 @@ from planner.line.schema import (
     CRUISE_MODES,
     LIMIT_DIRECTIONS,
     NODE_KINDS,
+    TRACK_DIRECTIONS,
     SCHEMA_VERSION,
     RENAMED_COLUMNS,
     TABLES,
@@ -75,7 +76,12 @@ _RULES: dict[str, list[str]] = {
                   "doors along the platform open), and the planner's physics does not use platform lengths."],
     "nodes": ["Optional file (with `edges`). `node_id` unique; "
               f"`kind` one of {', '.join(NODE_KINDS)}; `station_id`, when given, names a station."],
-    "edges": ["Optional file (with `nodes`). `edge_id` unique; both ends name nodes."],
+    "edges": ["Optional file (with `nodes`). `edge_id` unique; both ends name nodes; `direction`, when given, "
+              f"one of {', '.join(TRACK_DIRECTIONS)}.",
+              "The route search keeps a train to the tracks of its own direction and takes a track used both "
+              "ways only where no track of its direction leads on (single track, a crossover, a station's "
+              "other platform). Where `direction` is null or the column absent, the track's name says it: "
+              "a name beginning with `D` is a down track, `U` an up track, anything else both."],
 }
 
 

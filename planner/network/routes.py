@@ -58,8 +58,11 @@ class RouteNotFoundError(InputError):
 # ---------------------------------------------------------------------------
 # Graph
 # ---------------------------------------------------------------------------
-def track_direction(track: str | None) -> str:
-    """Direction a track is run in by convention: ``D…`` → down, ``U…`` → up, else ``both``."""
+def track_direction(track: str | None, direction: str | None = None) -> str:
+    """Direction a track is run in: ``direction`` (the edges' column) where given, else by the name's
+    convention: ``D…`` → down, ``U…`` → up, else ``both``."""
+    if direction:
+        return direction
     if not track:
         return "both"
     c = track[0].upper()
@@ -91,6 +94,7 @@ class TrackGraph:
         self.edges = sorted(net.edges, key=lambda e: e.edge_id)
         self.edge_ids = [e.edge_id for e in self.edges]
         self.edge_track = [e.track for e in self.edges]
+        self.edge_dir = [track_direction(e.track, e.direction) for e in self.edges]
         self.adj: list[list[tuple[int, int]]] = [[] for _ in nodes]
         for k, e in enumerate(self.edges):
             for end in (e.from_node, e.to_node):
@@ -120,7 +124,7 @@ class TrackGraph:
         self.piece_ids: list[str] = []
         for k, e in enumerate(self.edges):
             a, b = sorted((self.pos_m[self.index[e.from_node]], self.pos_m[self.index[e.to_node]]))
-            td = track_direction(e.track)
+            td = self.edge_dir[k]
             cuts = [c for d in ("down", "up") if td in ("both", d)
                     for c in sig[d][(sig[d] > a + 1e-6) & (sig[d] < b - 1e-6)]]
             bounds = [a] + sorted(set(cuts)) + [b]
@@ -321,7 +325,7 @@ def _search(g: TrackGraph, train: Train, waypoints: list[tuple[str, list[int]]])
             if sgn * (g.pos_m[m] - g.pos_m[n]) <= 0:
                 continue  # monotone in chainage: never back
             tr = g.edge_track[e]
-            run = track_direction(tr)
+            run = g.edge_dir[e]
             metres = abs(g.pos_m[m] - g.pos_m[n])
             w = wrong + (0.0 if run in ("both", train.direction) else metres)
             b = both + (metres if run == "both" else 0.0)

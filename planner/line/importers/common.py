@@ -27,7 +27,7 @@ import pandas as pd
 import pyarrow as pa
 
 from planner.errors import SourceError, SourceProblems, Violation
-from planner.line.schema import SCHEMA_VERSION, TABLES, write_line_table
+from planner.line.schema import RUNNING_SIDES, SCHEMA_VERSION, TABLES, write_line_table
 from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
 
 EXTRA_EXAMPLE = """
@@ -37,6 +37,8 @@ name = "Coast Line"          # default: the line id
 max_speed_kmh = 120.0        # default: none (each train's own maximum where no speed limit applies)
 approach_m = 800.0           # stopping-pattern start before the marker without a TASC beacon; default:
                              #  where the train must start braking + 10 %
+running_side = "right"       # right or left: the side trains run on where both mains are signalled alike
+                             #  both ways; default: the data's own (where a down and an up track run side by side)
 
 [defaults]                   # replace any documented default, e.g.
 platform_length_m = 180.0
@@ -115,7 +117,7 @@ OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_nam
 
 _ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema)  # train_type renames
 _SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable", "categories"}
-_LINE_KEYS = {"line_id", "name", "max_speed_kmh", "approach_m"}
+_LINE_KEYS = {"line_id", "name", "max_speed_kmh", "approach_m", "running_side"}
 _STATION_KEYS = {"station_id", "name", "platform_length_m", "stop_down_m", "stop_up_m", "position_m"}
 _BEACON_KEYS = {f.name for f in TABLES["beacons"].schema} | {"at"}
 _TIMETABLE_KEYS = {f.name for f in TABLES["timetable"].schema}
@@ -273,6 +275,11 @@ def line_table(line_id: str, start_m: float, end_m: float, s: ImportSummary) -> 
                schema_version=SCHEMA_VERSION)
     if ex.line.get("approach_m") is not None:
         row["approach_m"] = number(ex.line["approach_m"], f"{ex.path}: [line] approach_m", positive=True)
+    if ex.line.get("running_side") is not None:
+        if ex.line["running_side"] not in RUNNING_SIDES:
+            raise SourceError(f"{ex.path}: [line] running_side = {ex.line['running_side']!r}; write "
+                              f"{' or '.join(map(repr, RUNNING_SIDES))}: the side trains normally run on")
+        row["running_side"] = ex.line["running_side"]
     return pd.DataFrame([row])
 
 
@@ -485,6 +492,10 @@ def write_line(tables: dict[str, pd.DataFrame | pa.Table], out: str | Path, summ
     """
     from planner.line.loader import check_line
 
+    edges = tables.get("edges")
+    side = edges.attrs.get("running_side") if isinstance(edges, pd.DataFrame) else None
+    if side is not None and isinstance(tables["line"], pd.DataFrame):  # the network's (the data's, or given)
+        tables["line"]["running_side"] = side
     out = Path(out)
     if out.exists() and not force:
         raise SourceError(f"{out}: already exists; choose another --out or pass --force to replace it")

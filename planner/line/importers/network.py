@@ -26,8 +26,9 @@ loop longer than the main it bypasses stays monotone). Tracks no join at a
 track end connects to the line, or wholly beyond its ends, are left out with a
 note. A crossing is one node (a diamond's straight legs are not told apart).
 
-Track names: the route search reads a track's running direction from its name (``D…`` down,
-``U…`` up, else both; :func:`planner.network.routes.track_direction`); :func:`_labels` names them.
+Track directions: each edge's ``direction`` (down, up, both) and its track's name (``D:``/``U:``/``B:`` and the
+first track id of its group) from the source's direction attributes, signals and running side
+(:func:`planner.line.importers.sides.track_labels`).
 """
 from __future__ import annotations
 
@@ -36,6 +37,7 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
+from planner.line.importers.sides import track_labels
 from planner.line.schema import TABLES
 
 
@@ -61,6 +63,10 @@ class Topology:
     joins: list[tuple[str, str, list[tuple[str, float, int]]]] = field(default_factory=list)
     points: list[tuple[str, str, str, float, str | None]] = field(default_factory=list)
     signals: list[tuple[str, float, bool]] = field(default_factory=list)
+    main_dir: dict[str, str] = field(default_factory=dict)
+    """track id → the source's own direction of it: ``along`` (increasing pos), ``against`` or ``both``."""
+    geo: dict[str, list] = field(default_factory=dict)
+    """track id → its coordinates from pos 0 to its length (``(x, y)`` pairs; longitude, latitude allowed)."""
 
 
 class _UF:
@@ -85,8 +91,10 @@ def _key(track: str, pos: float) -> tuple[str, float]:
 
 
 def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interlocking: str,
-                   notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """nodes and edges tables of the network of ``topo`` that trains along the line can run.
+                   notes: list[str], running_side: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """nodes and edges tables of the network of ``topo`` that trains along the line can run. The running side
+    (``running_side`` where given, else the data's; :mod:`planner.line.importers.sides`) is the edges'
+    ``attrs["running_side"]`` (None: not known).
 
     Parameters
     ----------
@@ -158,15 +166,18 @@ def network_tables(topo: Topology, on_line: dict[str, tuple[float, int]], interl
                 edges.append([f"{t}:{j + 1}", uf.find(a), uf.find(b), b[1] - a[1], t])
     pos, keep = _chainage(topo, on_line, uf, notes)
     edges = _contract_links([e for e in edges if e[4] in keep], node_kind)
-    label = _labels(topo, on_line, _track_groups(topo, on_line), pos, uf)
+    label, way, side = track_labels(topo, on_line, _track_groups(topo, None), _track_groups(topo, on_line), pos, uf,
+                                    running_side, notes)
     used = {n for e in edges for n in e[1:3]}
     nodes = [dict(node_id=node_id[r], kind=node_kind[r], position_m=round(pos[r], 6), interlocking=interlocking,
                   station_id=station.get(r), track=label[r[0]] if node_kind[r] in ("stop", "boundary") else None)
              for r in sorted(used, key=lambda r: (pos[r], node_id[r]))]
     rows = [dict(edge_id=e[0], from_node=node_id[e[1]], to_node=node_id[e[2]], length_m=round(e[3], 6),
-                 track=label[e[4]]) for e in edges]
+                 track=label[e[4]], direction=way[e[4]]) for e in edges]
     cols = lambda t: [f.name for f in TABLES[t].schema]  # noqa: E731
-    return pd.DataFrame(nodes, columns=cols("nodes")), pd.DataFrame(rows, columns=cols("edges"))
+    out = pd.DataFrame(rows, columns=cols("edges"))
+    out.attrs["running_side"] = side
+    return pd.DataFrame(nodes, columns=cols("nodes")), out
 
 
 def _track_groups(topo: Topology, on_line: dict | None) -> _UF:
@@ -286,42 +297,6 @@ def _positions(topo: Topology, t: str) -> list[tuple[str, float]]:
     return out
 
 
-def _labels(topo: Topology, on_line: dict, tuf: _UF, pos: dict, uf: _UF) -> dict[str, str]:
-    """Track name of each source track: ``D:``/``U:``/``B:`` + the first track id of its group (``tuf``).
-
-    ``D`` when signals facing down outnumber those facing up two to one, ``U`` the other way round, else ``B``
-    (single track, signalled both ways alike, no signals). Counted on the track and the tracks linked to it when
-    they hold :data:`OWN_SIGNALS` signals or more, else over its group: counted over the whole line only, a double
-    line whose path takes the down main here and the up main there was ``B`` throughout, and trains of both
-    directions met head on (OSRD small_infra: three false deadlocks).
-    """
-    own = _track_groups(topo, None)  # each track and the tracks links join to it
-    faces: dict = defaultdict(lambda: {"down": 0, "up": 0})
-    for t, p, along in topo.signals:
-        if t in on_line:
-            sg = on_line[t][1]
-        else:
-            a, b = pos.get(uf.find(_key(t, 0.0))), pos.get(uf.find(_key(t, topo.lengths[t])))
-            if a is None or b is None or a == b:
-                continue
-            sg = 1 if b > a else -1
-        way = "down" if (sg > 0) == along else "up"
-        faces[("own", own.find(t))][way] += 1
-        faces[("group", tuf.find(t))][way] += 1
-    out = {}
-    for t in topo.lengths:
-        f = faces.get(("own", own.find(t)), {"down": 0, "up": 0})
-        if f["down"] + f["up"] < OWN_SIGNALS:
-            f = faces.get(("group", tuf.find(t)), {"down": 0, "up": 0})
-        prefix = ("D" if f["down"] > 0 and f["down"] >= 2 * f["up"] else
-                  "U" if f["up"] > 0 and f["up"] >= 2 * f["down"] else "B")
-        out[t] = f"{prefix}:{tuf.find(t)}"
-    return out
-
-
-OWN_SIGNALS = 3  # signals a track needs to be named by its own (:func:`_labels`); with fewer its group's decide
-
-
 # --------------------------------------------------------------------------- railjson
 def railjson_topology(src, net, stations: dict[str, str]) -> Topology:
     """The :class:`Topology` of a railjson infrastructure (``src``, ``net`` as the railjson importer reads them).
@@ -329,7 +304,8 @@ def railjson_topology(src, net, stations: dict[str, str]) -> Topology:
     ``stations``: operational point id → station_id for the stations of the imported line; each of
     their parts is a platform (a ``stop`` node).
     """
-    topo = Topology({t: net.length(t) for t in net.tracks})
+    topo = Topology({t: net.length(t) for t in net.tracks},
+                    geo={t: _coordinates(obj.get("geo")) for t, (_, obj) in net.tracks.items()})
     end = lambda tr, ep, side: (tr, 0.0 if ep == "BEGIN" else net.length(tr), side)  # noqa: E731
     for sw in src.items("switches"):
         ports = sorted((k, p) for k, p in (sw.get("ports") or {}).items() if isinstance(p, dict))
@@ -355,6 +331,14 @@ def railjson_topology(src, net, stations: dict[str, str]) -> Topology:
         track, p = net.locate("signals", i, sg)
         topo.signals.append((track, p, sg.get("direction") == "START_TO_STOP"))
     return topo
+
+
+def _coordinates(geo) -> list | None:
+    """A railjson ``geo`` LineString's coordinates (None: no usable geometry)."""
+    c = geo.get("coordinates") if isinstance(geo, dict) else None
+    ok = isinstance(c, list) and len(c) >= 2 and all(
+        isinstance(p, list) and len(p) >= 2 and all(isinstance(x, (int, float)) for x in p[:2]) for p in c)
+    return [p[:2] for p in c] if ok else None
 
 
 def path_chainage(pieces) -> dict[str, tuple[float, int]]:
@@ -405,14 +389,15 @@ def railjson_network(src, net, pieces, op_ids: list[str], extra, line_id: str,
     over = extra.stations if extra is not None else {}
     names = {n: str(over.get(n, {}).get("station_id", n)) for n in op_ids}
     return _network(railjson_topology(src, net, names), path_chainage(pieces), stations, line_id, notes,
-                    "switches", "the switches, links, detectors, buffer stops and operational points")
+                    "switches", "the switches, links, detectors, buffer stops and operational points", extra)
 
 
 def _network(topo: Topology, on_line: dict, stations, line_id: str, notes: list[str], switches: str,
-             sources: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+             sources: str, extra) -> tuple[pd.DataFrame, pd.DataFrame]:
     """nodes and edges of an imported network (stop nodes for every station first), and a note counting them."""
     stops_on_line(topo, on_line, stations, notes)
-    nodes, edges = network_tables(topo, on_line, str(line_id), notes)
+    given = extra.line.get("running_side") if extra is not None else None
+    nodes, edges = network_tables(topo, on_line, str(line_id), notes, given)
     n_sw = int((nodes["kind"] == "switch").sum())
     notes.append(f"track network: {len(nodes)} nodes ({n_sw} {switches}), {len(edges)} edges on "
                  f"{edges['track'].nunique()} tracks, from {sources}")
@@ -543,12 +528,16 @@ def _track_end(pieces: dict, tid: str, which: str) -> tuple[str, float]:
 
 
 def _railml_points(topo: Topology, tracks, pieces: dict, begin_of: dict, pos_of, stations: dict) -> None:
-    """trainDetectors, main signals and the platforms of the line's stations on every railML track."""
+    """trainDetectors, main signals, the track's ``mainDir`` and the platforms of the line's stations on every
+    railML track."""
     for tr in tracks:
         tid = tr.get("id")
         if tid not in pieces:
             continue
         b = begin_of[tid]
+        main = {"up": "along", "down": "against", "both": "both"}.get(tr.get("mainDir") or "")
+        for k in range(len(pieces[tid]) if main else 0):  # the track's own running direction (mainDir)
+            topo.main_dir[f"{tid}#{k}"] = main
         for el in _rl_path(tr, "ocsElements", "trainDetectionElements", "trainDetector"):
             topo.points.append((el.get("id"), "boundary", *_piece(pieces, tid, pos_of(el) - b), None))
         for el in _rl_path(tr, "ocsElements", "signals", "signal"):
@@ -597,4 +586,4 @@ def railml_network(doc, line_tracks, found: dict, extra, line_id: str,
     names = {k: str(over.get(k, {}).get("station_id", k)) for k in found}
     topo, on_line = railml_topology(doc, line_tracks, names, notes)
     return _network(topo, on_line, stations, line_id, notes, "switches and crossings",
-                    "the connections, switches, crossings, bufferStops, trainDetectors and platforms")
+                    "the connections, switches, crossings, bufferStops, trainDetectors and platforms", extra)

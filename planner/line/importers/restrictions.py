@@ -63,8 +63,10 @@ def _local(text, where: str, tz: str) -> str:
     return t.isoformat(timespec="seconds")
 
 
-def read_osrd(path: Path, infra: Path, path_ops: list[str], tz: str, s: ImportSummary) -> tuple[pa.Table, list[str]]:
-    """OSRD temporary speed limits located on the line along ``path_ops`` of the railjson ``infra``."""
+def read_osrd(path: Path, infra: Path, path_ops: list[str], tz: str, s: ImportSummary,
+              running_side: str | None = None) -> tuple[pa.Table, list[str]]:
+    """OSRD temporary speed limits located on the line along ``path_ops`` of the railjson ``infra`` (imported
+    with ``running_side``: the line's)."""
     from planner.line.importers.railjson import MAX_SPEED_MS, _Network, _ops, _Src, build_path, load_json
 
     fname, data = load_json(path)
@@ -80,7 +82,7 @@ def read_osrd(path: Path, infra: Path, path_ops: list[str], tz: str, s: ImportSu
     net = _Network(src)
     line_path, _ = build_path(src, net, _ops(src, net, path_ops))
     # every track of the line's network, as the line import placed it: the other main, loops, platform tracks
-    places = track_places(railjson_topology(src, net, {}), path_chainage(line_path.pieces))
+    places = track_places(railjson_topology(src, net, {}), path_chainage(line_path.pieces), running_side)
     rows, names = [], []
     for i, it in enumerate(items):
         w = f"{fname}: speed_limits[{i}]"
@@ -130,13 +132,15 @@ def read_osrd(path: Path, infra: Path, path_ops: list[str], tz: str, s: ImportSu
     return restrictions_table(rows), names
 
 
-def track_places(topo, on_line: dict[str, tuple[float, int]]) -> dict[str, tuple[float, float, str, float]]:
+def track_places(topo, on_line: dict[str, tuple[float, int]],
+                 running_side: str | None = None) -> dict[str, tuple[float, float, str, float]]:
     """Where each source track of the imported network lies: ``track id → (chainage at its position 0, chainage
     at its end, the track's name in edges.parquet, its length)``, for the tracks :func:`network_tables` keeps; a
     position ``p`` on it is at ``c0 + (c1 - c0) · p / length``, as its points are placed there (exactly the line's
     chainage on the line's own tracks). For what lies on a track off the line's path (a temporary restriction
     on the other main or a loop)."""
-    from planner.line.importers.network import _UF, _chainage, _key, _labels, _track_groups
+    from planner.line.importers.network import _UF, _chainage, _key, _track_groups
+    from planner.line.importers.sides import track_labels
 
     uf = _UF()
     for _, _, members in topo.joins:
@@ -144,7 +148,8 @@ def track_places(topo, on_line: dict[str, tuple[float, int]]) -> dict[str, tuple
         for k in keys[1:]:
             uf.union(keys[0], k)
     pos, keep = _chainage(topo, on_line, uf, [])
-    label = _labels(topo, on_line, _track_groups(topo, on_line), pos, uf)
+    label, _, _ = track_labels(topo, on_line, _track_groups(topo, None), _track_groups(topo, on_line), pos, uf,
+                               running_side, [])
     return {t: (pos[uf.find(_key(t, 0.0))], pos[uf.find(_key(t, topo.lengths[t]))], label[t], topo.lengths[t])
             for t in sorted(keep)}
 
@@ -207,7 +212,7 @@ def import_restrictions(src: str | Path, line: Line, feed: str | Path, *, tz: st
         if infra is None or not path_ops:
             raise InputError("an OSRD temporary speed limit file locates its limits on track sections: give the "
                              "railjson infrastructure (--infra) and the --path the line was imported with")
-        table, names = read_osrd(src, Path(infra), path_ops, tz, s)
+        table, names = read_osrd(src, Path(infra), path_ops, tz, s, line.running_side)
     else:
         table, names = read_csv(src)
     _validated(table, names, line, tz, src.name)
