@@ -23,9 +23,11 @@ departure; also when the other stops there entirely within its stand, the
 cross-platform overtake), otherwise the *main* (the platform of the
 least-turnout through route).
 
-Conventions the route search relies on (the sample line follows them):
-track names beginning with ``D`` are down tracks, ``U`` up tracks, anything
-else is used in both directions (single track, crossovers); a ``stop`` node
+Conventions the route search relies on (the sample line follows them): a
+track's direction is its edges' ``direction`` column (down, up, both); where
+that is null or absent, track names beginning with ``D`` are down tracks, ``U``
+up tracks, anything else is used in both directions (single track,
+crossovers); a ``stop`` node
 belongs to the station in its ``station_id`` (else to the station whose stop
 marker is nearest, within the platform length) and serves the directions of
 its track.
