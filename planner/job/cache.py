@@ -194,6 +194,11 @@ class Cache:
         self.rejected_why.append((kind, key, why))
         return None
 
+    def rejected_elsewhere(self, kind: str, key: str, why: str) -> None:
+        """Count an entry of this cache that a reader elsewhere (a worker's own :class:`Cache` on the same root)
+        rejected, so the run's one warning counts it."""
+        self._reject(kind, key, why)
+
     def rejected_note(self) -> str:
         """One line for the run summary: how many entries were rejected, why (first reasons), where."""
         reasons: dict[str, int] = {}

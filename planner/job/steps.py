@@ -52,14 +52,15 @@ def line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
     return runner.run(step, [Unit(step, key, step, fn, args)])[0]
 
 
-def margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None, closed_loop=None):
+def margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None, closed_loop=None, memo=None):
     from planner.report.margins import compute_margins
 
     # conflicts come from their own step (conflicts_step); ``given``: the tables read beforehand;
-    # ``closed_loop``: the closed loop's rows, being written to ``stage`` meanwhile
+    # ``closed_loop``: the closed loop's rows, being written to ``stage`` meanwhile; ``memo``: each leg group
+    # a unit of its own in the work cache (planner.job.leg_memo)
     return compute_margins(line, **(options | {"conflicts": False}), train_types=types, tables_dir=stage,
                            stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given, lifted=lifted,
-                           closed_loop=closed_loop)
+                           closed_loop=closed_loop, memo=memo)
 
 
 def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary,
@@ -72,8 +73,17 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
     key = digest(["margins", code_digest(), line_digest(line), lifted_key(lifted or {}), unit_keys,
                   result_params(job)])
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
+    from planner.job.leg_memo import KIND, LegMemo
+
+    memo = LegMemo(runner.cache.root, digest(result_params(job)), enabled=runner.cache.enabled)
+    before = runner.computed.get("margins", 0)
     report = line_unit(runner, "margins", key, margins_unit, line, margin_options(job, line), line_types(job, line),
-                        stage, n_jobs, given, lifted, closed_loop)
+                        stage, n_jobs, given, lifted, closed_loop, memo)
+    if runner.computed.get("margins", 0) > before and report.legs:  # made now: its legs are this run's units
+        runner.computed[KIND] = runner.computed.get(KIND, 0) + report.legs["computed"]
+        runner.reused[KIND] = runner.reused.get(KIND, 0) + report.legs["hits"]
+        for kind, k, why in report.legs["rejected"]:
+            runner.cache.rejected_elsewhere(kind, k, why)
     if conflicts is not None:
         report.conflicts, report.conflicts_note = conflicts, ""
     elif not job.conflicts.enabled:

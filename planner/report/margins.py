@@ -203,6 +203,9 @@ class MarginReport:
         :func:`planner.datasets.conflicts.conflicts_table` rows (None: not checked).
     conflicts_note : str
         Why conflicts were not checked, or "".
+    legs : dict
+        With a ``memo``: the leg groups read back (``hits``), computed (``computed``) and the entries it
+        rejected (``rejected``: ``(kind, key, why)``), for the job's accounting of the run that made it.
     """
 
     line_id: str
@@ -218,6 +221,7 @@ class MarginReport:
     conflicts: object = None
     conflicts_note: str = ""
     sources: dict = field(default_factory=dict)
+    legs: dict = field(default_factory=dict)
 
 
 def _leg_task(line, tt, o, d, sched, tabs, energy, kw):
@@ -287,6 +291,7 @@ def compute_margins(
     given: tuple[dict, dict] | None = None,
     lifted: Lifted | None = None,
     closed_loop: dict | None = None,
+    memo=None,
 ) -> MarginReport:
     """The margin report of a whole line (module doc for every column).
 
@@ -342,6 +347,10 @@ def compute_margins(
         The ``closed_loop`` and ``closed_loop_summary`` Arrow tables of the line
         (:func:`planner.datasets.closed_loop.datasets`), used instead of reading them from
         ``closed_loop_dir`` (the nightly job has them in hand while they are written).
+    memo : optional
+        Each leg group as a unit of its own (:class:`planner.job.leg_memo.LegMemo`: ``key(line, group,
+        times, closed_loop_errors, adhesion)``, ``get(key)``, ``put(key, result)``): a group whose key is
+        stored is not computed again, so an edit recomputes the legs it touches.
 
     Returns
     -------
@@ -385,7 +394,7 @@ def compute_margins(
               None if k[4] else energy.get(k[:4]), kw | {"closed_loop_errors": {} if k[4] else known_errors(k[:4]),
                                                          "adhesion_kmh_s": adh_of.get(k[1], adh)})
              for k in keys]
-    results: list[LegResult] = map_tasks(_leg_task, tasks, n_jobs, progress)
+    results: list[LegResult] = _memoised(memo, line, keys, tasks, n_jobs, progress)
     for k, r, task in zip(keys, results, tasks):  # the window holds only the leg's two stations: the passed ones
         r.passes = passed_stations(line, r.origin, r.destination)  # from the line
         if r.tables is None:  # the given tables it used (_leg_task)
@@ -414,7 +423,23 @@ def compute_margins(
         sources={"tables_dataset": sum(r.tables_source == "dataset" for r in results),
                  "tables_computed": sum(r.tables_source == "computed" for r in results),
                  "closed_loop_dataset": bool(cl_index)},
+        legs={} if memo is None else {"hits": memo.hits, "computed": memo.computed,
+                                      "rejected": [list(r) for r in memo.rejected_why()]},
     )
+
+
+def _memoised(memo, line: Line, keys: list, tasks: list, n_jobs: int, progress) -> list[LegResult]:
+    """The legs' results: ``_leg_task`` for each task, those ``memo`` holds taken from it (each computed one
+    stored in it as ``_leg_task`` gave it)."""
+    if memo is None:
+        return map_tasks(_leg_task, tasks, n_jobs, progress)
+    ids = [memo.key(line, k, t[4], t[7]["closed_loop_errors"], t[7]["adhesion_kmh_s"]) for k, t in zip(keys, tasks)]
+    results = [memo.get(i) for i in ids]
+    todo = [j for j, r in enumerate(results) if r is None]
+    for j, r in zip(todo, map_tasks(_leg_task, [tasks[j] for j in todo], n_jobs, progress)):
+        memo.put(ids[j], r)
+        results[j] = r
+    return results
 
 
 def no_stop(r: LegResult, no_pattern: dict) -> LegResult:
