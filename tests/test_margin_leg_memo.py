@@ -17,8 +17,8 @@ SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
 TYPES = ["E6"]
 
 
-def _report(line, memo):
-    return compute_margins(line, conflicts=False, memo=memo, n_jobs=1, train_types=TYPES)
+def _report(line, memo, **options):
+    return compute_margins(line, conflicts=False, memo=memo, n_jobs=1, train_types=TYPES, **options)
 
 
 def _same(a, b) -> None:
@@ -33,14 +33,14 @@ def line():
 
 
 def test_an_unchanged_line_reads_every_group_back(tmp_path, line):
-    cold = LegMemo(tmp_path, "params")
+    cold = LegMemo(tmp_path)
     first = _report(line, cold)
     assert cold.hits == 0 and cold.computed == len(first.rows.groupby(["direction", "origin", "destination"]))
-    warm = LegMemo(tmp_path, "params")
+    warm = LegMemo(tmp_path)
     _same(first, _report(line, warm))
     assert (warm.hits, warm.computed) == (cold.computed, 0)
-    other = LegMemo(tmp_path, "other params")      # the job's parameters are part of every key
-    _report(line, other)
+    other = LegMemo(tmp_path)      # the options a leg is computed with are part of its key
+    _report(line, other, adhesion_kmh_s=[2.0, 3.0])
     assert other.hits == 0
 
 
@@ -50,10 +50,10 @@ def test_an_edit_recomputes_the_groups_it_touches_and_gives_the_cold_report(tmp_
     limits = list(line.speed_limits)
     limits[i] = dataclasses.replace(limits[i], limit_ms=60 / 3.6)
     edited = dataclasses.replace(line, speed_limits=tuple(limits))
-    memo = LegMemo(tmp_path, "params")
+    memo = LegMemo(tmp_path)
     _report(line, memo)
     n = memo.computed
-    memo = LegMemo(tmp_path, "params")
+    memo = LegMemo(tmp_path)
     after = _report(edited, memo)
     # the groups whose run can see 5,000-5,150 m: their stretch between the stop markers, widened by a train
     stretch = {}

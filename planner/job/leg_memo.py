@@ -9,8 +9,10 @@ restrictions) is now a unit of its own, keyed by exactly what its computation re
   without the group's lifted restrictions: the leg's stop markers, gradients, curves, the limits and
   beacons of its direction and train type, the train type, the line's maximum and approach);
 - its trains' scheduled running times;
-- the closed loop's errors at those times, and the train type's adhesion levels (from the stops step);
-- the job's parameters and the planner's code.
+- the options its computation is given: the closed loop's errors at those times, the train type's
+  adhesion levels (from the stops step), the margin rule, the ratio grid, the approach, the evaluation
+  points, the integration step;
+- the planner's code.
 
 The tables a leg uses come from the tables step's units, keyed by the same slice and parameters, so they
 are what the key already says. A group whose key is stored is read back (the pickle-free codec, checked by
@@ -18,7 +20,10 @@ its digest like every cache entry) instead of computed; one whose key is new is 
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+
+import numpy as np
 
 from planner.job.cache import Cache
 from planner.job.publish import digest
@@ -27,21 +32,38 @@ from planner.job.units import code_digest, interstation_inputs
 KIND = "margin_leg"
 
 
+def _plain(v):
+    """``v`` as JSON can hold it, exactly (a float's repr is exact; dataclasses and arrays as their values)."""
+    if dataclasses.is_dataclass(v) and not isinstance(v, type):
+        return {f.name: _plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
+    if isinstance(v, dict):
+        return sorted((repr(k), _plain(x)) for k, x in v.items())
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return [_plain(x) for x in v.tolist()]
+    if isinstance(v, (np.floating, float)):
+        return repr(float(v))
+    if isinstance(v, (np.integer, int, bool, str)) or v is None:
+        return v if not isinstance(v, np.integer) else int(v)
+    raise TypeError(f"a margin leg's key cannot hold {type(v).__name__}")
+
+
 class LegMemo:
     """A leg group's result in the work cache at ``root`` (a plain path: it travels to the worker that computes
-    the margins), for the job parameters whose digest is ``params``. ``enabled=False`` (``--no-cache``)
+    the margins). ``enabled=False`` (``--no-cache``)
     reads nothing and still stores. ``hits`` and ``computed`` count the groups of the last report made here."""
 
-    def __init__(self, root: str | Path, params: str, enabled: bool = True):
-        self.root, self.params, self.enabled = str(root), params, enabled
+    def __init__(self, root: str | Path, enabled: bool = True):
+        self.root, self.enabled = str(root), enabled
         self.hits = self.computed = 0
         self._cache: Cache | None = None
 
     def __getstate__(self) -> dict:
-        return {"root": self.root, "params": self.params, "enabled": self.enabled}
+        return {"root": self.root, "enabled": self.enabled}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["root"], state["params"], state["enabled"])
+        self.__init__(state["root"], state["enabled"])
 
     @property
     def cache(self) -> Cache:
@@ -49,24 +71,29 @@ class LegMemo:
             self._cache = Cache(Path(self.root), enabled=self.enabled)
         return self._cache
 
-    def key(self, line, group: tuple, times, closed_loop_errors: dict, adhesion) -> str:
+    def key(self, line, group: tuple, times, options: dict) -> str:
+        """The key of leg group ``group`` (direction, train type, origin, destination, lifted restrictions) with
+        its trains' scheduled running ``times`` and the keyword arguments its computation is given
+        (``options``: the rule, grid, adhesion levels, approach, evaluation points, the closed loop's errors
+        at those times)."""
         from planner.line.operating_day import without_temporary
 
         direction, train_type, origin, destination, lifted = group
         seen = interstation_inputs(without_temporary(line, lifted), train_type, origin, destination)
-        errors = sorted((repr(k), repr(v)) for k, v in closed_loop_errors.items())
-        return digest([KIND, code_digest(), self.params, seen, [direction, train_type, origin, destination,
+        return digest([KIND, code_digest(), seen, [direction, train_type, origin, destination,
                                                                  list(lifted)],
-                       [float(t) for t in times], errors, [float(a) for a in adhesion]])
+                       [float(t) for t in times], {k: _plain(v) for k, v in sorted(options.items())}])
 
     def get(self, key: str):
         r = self.cache.get(KIND, key)
         self.hits += r is not None
         return r
 
-    def rejected_why(self) -> list[tuple[str, str, str]]:
-        """The entries read here that failed verification (each then computed and stored again)."""
-        return list(self._cache.rejected_why) if self._cache is not None else []
+    def stats(self) -> dict:
+        """The groups read back (``hits``) and computed (``computed``) here, and the entries that failed
+        verification (``rejected``: ``[kind, key, why]`` each; then computed and stored again)."""
+        why = self._cache.rejected_why if self._cache is not None else []
+        return {"hits": self.hits, "computed": self.computed, "rejected": [list(r) for r in why]}
 
     def put(self, key: str, result) -> None:
         self.computed += 1

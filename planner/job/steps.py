@@ -75,7 +75,7 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
     n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
     from planner.job.leg_memo import KIND, LegMemo
 
-    memo = LegMemo(runner.cache.root, digest(result_params(job)), enabled=runner.cache.enabled)
+    memo = LegMemo(runner.cache.root, enabled=runner.cache.enabled)
     before = runner.computed.get("margins", 0)
     report = line_unit(runner, "margins", key, margins_unit, line, margin_options(job, line), line_types(job, line),
                         stage, n_jobs, given, lifted, closed_loop, memo)

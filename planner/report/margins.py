@@ -349,8 +349,8 @@ def compute_margins(
         ``closed_loop_dir`` (the nightly job has them in hand while they are written).
     memo : optional
         Each leg group as a unit of its own (:class:`planner.job.leg_memo.LegMemo`: ``key(line, group,
-        times, closed_loop_errors, adhesion)``, ``get(key)``, ``put(key, result)``): a group whose key is
-        stored is not computed again, so an edit recomputes the legs it touches.
+        times, options)``, ``get(key)``, ``put(key, result)``): a group whose key is stored is not computed
+        again, so an edit recomputes the legs it touches.
 
     Returns
     -------
@@ -423,8 +423,7 @@ def compute_margins(
         sources={"tables_dataset": sum(r.tables_source == "dataset" for r in results),
                  "tables_computed": sum(r.tables_source == "computed" for r in results),
                  "closed_loop_dataset": bool(cl_index)},
-        legs={} if memo is None else {"hits": memo.hits, "computed": memo.computed,
-                                      "rejected": [list(r) for r in memo.rejected_why()]},
+        legs={} if memo is None else memo.stats(),
     )
 
 
@@ -433,7 +432,7 @@ def _memoised(memo, line: Line, keys: list, tasks: list, n_jobs: int, progress) 
     stored in it as ``_leg_task`` gave it)."""
     if memo is None:
         return map_tasks(_leg_task, tasks, n_jobs, progress)
-    ids = [memo.key(line, k, t[4], t[7]["closed_loop_errors"], t[7]["adhesion_kmh_s"]) for k, t in zip(keys, tasks)]
+    ids = [memo.key(line, k, t[4], t[7]) for k, t in zip(keys, tasks)]
     results = [memo.get(i) for i in ids]
     todo = [j for j, r in enumerate(results) if r is None]
     for j, r in zip(todo, map_tasks(_leg_task, [tasks[j] for j in todo], n_jobs, progress)):
