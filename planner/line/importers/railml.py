@@ -64,6 +64,7 @@ from planner.line.importers.common import (
     station_table,
     write_line,
 )
+from planner.line.importers.railml_group import connected, stations_on, through_route
 from planner.line.importers.stock import rolling_stock_tables
 from planner.line.importers.timetable import railml_or_toml_timetable
 
@@ -207,10 +208,7 @@ class _Line:
         self.end = round(tracks[-1].offset + tracks[-1].length, 9)
 
 
-def _connected(a: _Track, b: _Track) -> bool:
-    out_ids = {c.get("ref") for c in _children(a.end_el, "connection")}
-    in_ids = {c.get("id") for c in _children(b.begin_el, "connection")}
-    return bool(out_ids & in_ids)
+_connected = connected
 
 
 def _bridges(doc: _Doc, a: _Track, b: _Track, all_tracks, in_line: set) -> list[_Track]:
@@ -223,30 +221,6 @@ def _bridges(doc: _Doc, a: _Track, b: _Track, all_tracks, in_line: set) -> list[
             continue
         out += [t] if _connected(a, t) and _connected(t, b) else []
     return out
-
-
-def _stations_on(t: _Track) -> set[str]:
-    """The operational points a track's elements name (cross sections, platform edges, stop posts)."""
-    return {v for el in t.el.iter() for k in ("ocpRef", "ocpStationRef") if (v := el.get(k))}
-
-
-def _through_route(tracks: list[_Track]) -> list[_Track]:
-    """The longest chain of ``tracks`` (in metres), each track's end connected to the next one's begin: the
-    through route of a group of tracks (a station area's main track, loops and sidings); on a tie the first
-    found in the group's order. Tracks joined to the chain by switches along them are not on it."""
-    nxt = {id(a): [b for b in tracks if b is not a and _connected(a, b)] for a in tracks}
-    best: list[_Track] = []
-
-    def walk(path: list[_Track]) -> None:
-        nonlocal best
-        best = list(path) if sum(t.length for t in path) > sum(t.length for t in best) else best
-        for b in (b for b in nxt[id(path[-1])] if b not in path):
-            walk(path + [b])
-
-    entered = {id(b) for bs in nxt.values() for b in bs}
-    for a in [t for t in tracks if id(t) not in entered] or tracks:
-        walk([a])
-    return best
 
 
 def _line_tracks(doc: _Doc, line_id: str, s: ImportSummary) -> tuple[ET.Element, _Line]:
@@ -288,26 +262,28 @@ def _line_tracks(doc: _Doc, line_id: str, s: ImportSummary) -> tuple[ET.Element,
             tracks.append(_Track(doc, by_id[ref]))
     doc.problems.check()
     in_line = {t.id for t in tracks}
-    by_abs = all(t.abs_ok for t in tracks) and all(
-        abs(b.abs_begin - a.abs_end) <= ABS_TOL_M for a, b in zip(tracks[:-1], tracks[1:]))
-    if not by_abs:
-        why = next((f"track {t.id!r} has no absPos on both ends, or one that disagrees with its length"
-                    for t in tracks if not t.abs_ok), "the absPos values do not run on from track to track")
-        s.notes.append(f"chainage from 0 at the first trackBegin, adding the tracks' lengths ({why}); km posts "
-                       f"(absPos) are not used")
+    runs_on = lambda ts: all(t.abs_ok for t in ts) and all(  # noqa: E731
+        abs(b.abs_begin - a.abs_end) <= ABS_TOL_M for a, b in zip(ts[:-1], ts[1:]))
+    by_abs = runs_on(tracks)
     if not by_abs and not all(_connected(a, b) or len(_bridges(doc, a, b, all_tracks, in_line)) == 1
                               for a, b in zip(tracks[:-1], tracks[1:])):
-        route = _through_route(tracks)
-        on_route = set().union(*(_stations_on(t) for t in route)) if route else set()
-        left_out = set().union(*(_stations_on(t) for t in tracks if t not in route))
+        route = through_route(tracks)
+        on_route = set().union(*(stations_on(t) for t in route)) if route else set()
+        left_out = set().union(*(stations_on(t) for t in tracks if t not in route))
         # a station area's tracks listed as a group: its through route is the line; a chain with a gap (a
         # station on a track left out) is not, and is refused below as before
-        if len(route) >= 2 and left_out <= on_route:
+        if route and left_out <= on_route:
             rest = [t.id for t in tracks if t not in route]
             s.notes.append(f"line {line_id!r} lists {len(tracks)} tracks that do not run on one from the next (a "
                            f"station area's tracks as a group): its through route {' → '.join(t.id for t in route)}"
                            f" is the line, the other tracks ({', '.join(rest)}) the network around it")
             tracks, in_line = route, {t.id for t in route}
+            by_abs = runs_on(tracks)
+    if not by_abs:
+        why = next((f"track {t.id!r} has no absPos on both ends, or one that disagrees with its length"
+                    for t in tracks if not t.abs_ok), "the absPos values do not run on from track to track")
+        s.notes.append(f"chainage from 0 at the first trackBegin, adding the tracks' lengths ({why}); km posts "
+                       f"(absPos) are not used")
     seq: list[_Track] = [tracks[0]]
     for b in tracks[1:]:
         a = seq[-1]
@@ -380,12 +356,15 @@ def _profile(doc: _Doc, line: _Line, kind: str, s: ImportSummary) -> list[tuple]
 
 
 def _category_speeds(doc: _Doc) -> dict[str, dict[str, float]]:
-    """Speed profiles by id: ``infraAttrGroups/infraAttributes[@id]/speeds/speed[@trainCategory, @vMax]`` [km/h]."""
+    """Speed profiles by id: ``infraAttrGroups/infraAttributes[@id]/speeds/speed[@trainCategory, @vMax]`` [km/h].
+    A speed with an ``etcsTrainCategory`` instead (railML 2.2 allows either; CAD exports write ETCS ones) is
+    category ``etcsN``; one with neither holds for every train (category ``""``)."""
     out: dict[str, dict[str, float]] = {}
     for grp in _children(doc.infra, "infraAttrGroups", "infraAttributes"):
         for sp in _children(grp, "speeds", "speed"):
             with doc.each():
-                cat = doc.attr(sp, "trainCategory")
+                etcs = sp.get("etcsTrainCategory")
+                cat = sp.get("trainCategory") or (f"etcs{etcs}" if etcs is not None else "")
                 out.setdefault(doc.ident(grp), {})[cat] = doc.num(sp, "vMax", "km/h", positive=True)
     return out
 
@@ -393,7 +372,7 @@ def _category_speeds(doc: _Doc) -> dict[str, dict[str, float]]:
 def _speed_limits(doc: _Doc, line: _Line, s: ImportSummary, categories: dict[str, str]) -> tuple[pd.DataFrame, set]:
     """speed_limits rows (general and per mapped train type), and the train categories the line's profiles name."""
     profiles = _category_speeds(doc)
-    changes, unread = {"down": [], "up": []}, set()
+    changes, unread, lowered = {"down": [], "up": []}, set(), []
     for t in line.tracks:
         for el in t.items("trackElements", "speedChanges", "speedChange"):
             with doc.each():
@@ -406,6 +385,10 @@ def _speed_limits(doc: _Doc, line: _Line, s: ImportSummary, categories: dict[str
                 ref = el.get("profileRef")
                 if ref is not None and ref not in profiles:
                     unread.add(ref)  # e.g. a railML <speedProfile>: its vMax is used, its details are not
+                one = set(profiles.get(ref, {}).values())
+                if len(one) == 1 and v is not None and min(one) < v:  # the profile's one speed is every train's
+                    lowered.append(f"{el.get('id')} {v:g} → {min(one):g}")
+                    v = min(one)
                 changes[_DIRS[d]].append((t.chainage(el), v, el, profiles.get(ref, {})))
     given = [d for d, ch in changes.items() if ch]
     labels = {"down": "down", "up": "up"}
@@ -444,6 +427,10 @@ def _speed_limits(doc: _Doc, line: _Line, s: ImportSummary, categories: dict[str
     if unread:
         s.unused.append(f"speed profiles {', '.join(sorted(unread)[:5])}{' …' if len(unread) > 5 else ''} named by "
                         f"speedChange profileRef (only infraAttrGroups/infraAttributes speeds are read; vMax holds)")
+    if lowered:
+        s.notes.append(f"{len(lowered)} speedChanges whose profile gives every train category it names one speed, "
+                       f"below the speedChange's vMax: that speed is the limit for every train ("
+                       f"{', '.join(lowered[:4])}{' …' if len(lowered) > 4 else ''} km/h)")
     if higher:
         s.notes.append(f"{higher} category speeds above their speedChange's vMax: the lower (vMax) holds")
     if categories:
