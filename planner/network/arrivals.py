@@ -20,7 +20,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from planner.errors import InputError
+from planner.errors import InputError, PlannerError, StallError
 from planner.io.parallel import map_tasks
 from planner.line.model import Line, Train, sign
 
@@ -176,24 +176,61 @@ DEFAULT_RATIOS = (1.0, 0.975, 0.95, 0.925, 0.9, 0.875, 0.85, 0.8, 0.75, 0.7, 0.6
 """Target-speed ratios simulated per interstation; schedules between two are interpolated."""
 
 
+FINE_DS_M = 1.0
+"""The running-time tables' integration step [m], for a run that stalls at the conflict check's coarser one."""
+
+
 def simulate_interstation(line: Line, train_type: str, origin: str, destination: str,
                           ratios: Sequence[float], ds_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Run curves of one interstation at several target-speed ratios, in one lock-step batch.
+
+    Where a run stalls (crawling up a climb) the batch is run again at the running-time tables' step,
+    :data:`FINE_DS_M` (the coarse step of the conflict check can stall where a finer one gets over), and the
+    ratios at which it still stalls (a climb it gets over only at speed) are left out, as the tables leave
+    them out; where it stalls at every ratio the StallError is raised.
 
     Returns
     -------
     chainage_m : ndarray (m,)
         Chainage of each grid node, departure marker to arrival marker [m].
     time_s : ndarray (n, m)
-        Time from departure at each node, one row per ratio [s].
+        Time from departure at each node, one row per ratio that runs [s].
     """
     from planner.physics.track import SimSettings, make_track
     from planner.physics.run_curve import simulate
 
     track = make_track(line, train_type, origin, destination, settings=SimSettings(ds_m=ds_m))
-    res = simulate(track, line.train_type(train_type), np.asarray(ratios, dtype=float), record=True)
+    train, r = line.train_type(train_type), np.asarray(ratios, dtype=float)
+    try:
+        res = simulate(track, train, r, record=True)
+    except StallError:  # crawling up a climb: at the tables' finer step (a coarse one can stall where it does
+        from planner.tables.build import runnable_ratios  # not), and at the ratios it gets over at, as the
+
+        if ds_m > FINE_DS_M:  # tables leave the others out; where none gets over, the stall is raised
+            track = make_track(line, train_type, origin, destination, settings=SimSettings(ds_m=FINE_DS_M))
+        try:
+            res = simulate(track, train, r, record=True)
+        except StallError:
+            r, _ = runnable_ratios(track, train, r, 0.0, 1.0)
+            res = simulate(track, train, r, record=True)
     # a copy of the times: a view would hold the batch's whole record (five quantities per run and node)
     return np.asarray(track.position_m(res.s_m), dtype=float), np.array(res.t_s, dtype=float)
+
+
+class NoCurveError(PlannerError):
+    """No run curve exists for an interstation (the train stalls there at every ratio): its trains are
+    flagged and left out of the conflict check, as a train the network cannot carry."""
+
+    key = "network.no_curve"
+
+
+def _interstation_or_stall(line: Line, train_type: str, origin: str, destination: str, ratios, ds_m: float):
+    """:func:`simulate_interstation`, or the stall's message where the train stalls at every ratio (a worker's
+    exception would end the whole check: one interstation is never the night)."""
+    try:
+        return simulate_interstation(line, train_type, origin, destination, ratios, ds_m)
+    except StallError as e:
+        return f"no run curve {origin}->{destination} for {train_type}: {e}"
 
 
 class SimulatorCurves:
@@ -236,6 +273,7 @@ class SimulatorCurves:
             raise InputError(f"run-curve ratios must start at 1.0 and stay > 0, found {ratios!r}")
         self.line, self.mode, self.ratios, self.ds_m, self.n_jobs = line, mode, r, ds_m, n_jobs
         self._tables: dict[tuple[str, str, str], tuple[np.ndarray, np.ndarray]] = {}
+        self._stalled: dict[tuple[str, str, str], str] = {}
 
     @property
     def simulated(self) -> int:
@@ -249,10 +287,13 @@ class SimulatorCurves:
         if not todo:
             return
         ratios = self.ratios if self.mode == "match" else (1.0,)
-        tabs = map_tasks(simulate_interstation, [(self.line, *key, ratios, self.ds_m) for key in todo],
+        tabs = map_tasks(_interstation_or_stall, [(self.line, *key, ratios, self.ds_m) for key in todo],
                          self.n_jobs, progress)
         for key, tab in zip(todo, tabs):
-            self._store(key, tab)
+            if isinstance(tab, str):  # the train stalls there at every ratio: no curve (its trains are flagged)
+                self._stalled[key] = tab
+            else:
+                self._store(key, tab)
 
     def _store(self, key, tab) -> None:
         x, T = tab
@@ -262,8 +303,10 @@ class SimulatorCurves:
 
     def table(self, train_type: str, origin: str, destination: str) -> tuple[np.ndarray, np.ndarray]:
         key = (train_type, origin, destination)
-        if key not in self._tables:
+        if key not in self._tables and key not in self._stalled:
             self.prepare([key])
+        if key in self._stalled:
+            raise NoCurveError(self._stalled[key])
         return self._tables[key]
 
     def __call__(self, train_type: str, origin: str, destination: str, scheduled_s: float) -> RunCurve:

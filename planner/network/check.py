@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
 from planner.line.model import Line, Train
-from planner.network.arrivals import RunCurveSource, SimulatorCurves, build_trajectory, interstation_keys
+from planner.network.arrivals import (NoCurveError, RunCurveSource, SimulatorCurves, build_trajectory,
+                                      interstation_keys)
 from planner.network.headways import resource_headways
 from planner.network.priority import detect_conflicts
 from planner.network.routes import Route, TrackGraph, plan_routes
@@ -91,13 +92,20 @@ def check_timetable(line: Line, params: BlockingParams | Mapping[str, Any] | Non
     src = curves or SimulatorCurves(line)
     if hasattr(src, "prepare"):
         src.prepare(sorted(set(interstation_keys(trains))), progress=curve_progress)
-    parts, plans = [], []
+    parts, plans, kept = [], [], []
     for k, (t, r) in enumerate(zip(trains, routes)):
-        traj = build_trajectory(line, t, src)
+        try:
+            traj = build_trajectory(line, t, src)
+        except NoCurveError as e:  # it stalls on one of its legs: a flag on the train, like an unroutable one
+            unrouted[t.train_id] = f"train {t.train_id} ({t.direction}): {e}"
+            routes_d.pop(t.train_id)
+            continue
         plans.append((traj.calls_s, traj.run_min_s))
-        parts.append(occupation_windows(g, r, traj, line.train_type(t.train_type).length_m, p, k))
+        parts.append(occupation_windows(g, r, traj, line.train_type(t.train_type).length_m, p, len(kept)))
+        kept.append((t, r))
         if progress:
             progress(k + 1, len(trains))
+    trains, routes = [t for t, _ in kept], [r for _, r in kept]
     w = Windows.concat(parts)
     records = detect_conflicts(g, trains, routes, w)
     return ConflictCheck(line.line_id, p, g, tuple(trains), routes_d, w, records, resource_headways(g, trains, w),

@@ -186,7 +186,8 @@ class TrainPath:
 
 def train_paths(line: Line, curves=None, *, tol_t_s: float = TOL_T_S, tol_x_m: float = TOL_X_M,
                 loops: Mapping[str, Iterable[str]] | None = None) -> list[TrainPath]:
-    """Predicted trajectory of every timetabled train, thinned for drawing.
+    """Predicted trajectory of every timetabled train, thinned for drawing; a train that stalls on a leg at
+    every ratio has none (the conflict check flags it, in the ``unrouted`` dataset).
 
     Parameters
     ----------
@@ -198,14 +199,17 @@ def train_paths(line: Line, curves=None, *, tol_t_s: float = TOL_T_S, tol_x_m: f
     loops : mapping, optional
         ``train_id`` → stations where it stands on a loop (from the routes).
     """
-    from planner.network.arrivals import SimulatorCurves, build_trajectory, interstation_keys
+    from planner.network.arrivals import NoCurveError, SimulatorCurves, build_trajectory, interstation_keys
 
     src = curves if curves is not None else SimulatorCurves(line)
     if hasattr(src, "prepare"):
         src.prepare(sorted(set(interstation_keys(line.trains))))
     out = []
     for t in line.trains:
-        traj = build_trajectory(line, t, src)
+        try:
+            traj = build_trajectory(line, t, src)
+        except NoCurveError:  # it stalls on a leg at every ratio: not drawn (flagged by the conflict check)
+            continue
         x = sign(t.direction) * traj.u_m
         keep = simplify(traj.t_s, x, tol_t_s, tol_x_m)
         calls = tuple((c.station_id, float(c.arrival_s), float(c.departure_s), bool(c.stops)) for c in t.calls)

@@ -289,7 +289,7 @@ def interstation_tables(
         # the table train itself stalls at some ratios (a momentum grade: it only gets over at speed):
         # those ratios are left out of this leg's tables, with a flag; stalling at every ratio it
         # cannot have tables at all, and that error (train data or gradients) surfaces
-        r, nominal = _runnable_ratios(track, train, r, load, traction_factor)
+        r, nominal = runnable_ratios(track, train, r, load, traction_factor)
         full, ref_rem, ref_stall, flags = _constant_runs(track, train, r, s_pts, kw, ref_load, ref_traction_factor)
         flags = (nominal,) + flags
     time_a = full.time_s
@@ -362,7 +362,7 @@ def _constant_runs(track, train, r: np.ndarray, s_pts: list[float], kw: dict, re
     return full, ref_rem, np.full(n_r, np.nan), ()
 
 
-def _runnable_ratios(track, train, r: np.ndarray, load: float, traction_factor: float):
+def runnable_ratios(track, train, r: np.ndarray, load: float, traction_factor: float):
     """The grid ratios at which the table train gets through at constant ratio, and the leg's flag for the
     others (at the fastest that stalls); re-raises the stall when none runs. One run per ratio."""
     from planner.physics.run_curve import simulate
