@@ -23,7 +23,9 @@ Targets (issue 38), cold, big line against sample: time ratio <= 0.8 x N, peak m
 ratio <= 2. Copies: ``--copies N`` or ``$PLANNER_BENCH_COPIES`` (default 10, what
 ``make bench`` runs); the network-sized night is ``PLANNER_BENCH_COPIES=100`` (opt-in:
 about ten times as long). ``--no-sample`` skips the sample's run, ``--keep DIR`` keeps
-lines, outputs and logs.
+lines, outputs and logs. ``--dask`` also runs the big line's cold night on a Dask cluster started here as a
+user starts one (``dask scheduler``; ``dask worker ADDRESS --nworkers 2 --nthreads 1``) and prints its wall
+and CPU against joblib's, and whether the published datasets are the same (issue 48: within 15 %).
 """
 from __future__ import annotations
 
@@ -51,9 +53,13 @@ MEMORY_RATIO_TARGET = 2.0
 SAMPLE_S = 0.2
 
 
-def job_folder(base: Path, line_dir: Path) -> Path:
-    """A project folder holding ``jobs/nightly.toml`` for ``line_dir`` (no daily feed) with its own output root."""
+def job_folder(base: Path, line_dir: Path, scheduler: str = "") -> Path:
+    """A project folder holding ``jobs/nightly.toml`` for ``line_dir`` (no daily feed) with its own output root;
+    with ``scheduler``, on that Dask cluster."""
     src = (ROOT / "jobs" / "nightly.toml").read_text()
+    if scheduler:
+        src = re.sub(r'(?m)^backend = .*$', 'backend = "dask"', src)
+        src = re.sub(r'(?m)^scheduler = .*$', f"scheduler = {json.dumps(scheduler)}", src)
     src = re.sub(r'(?m)^lines = .*$', f"lines = [{json.dumps(str(line_dir))}]", src)
     src = re.sub(r'(?m)^output_root = .*$', f"output_root = {json.dumps(str(base / 'outputs'))}", src)
     src = re.sub(r'(?m)^feeds = .*$', "feeds = []", src)
@@ -145,6 +151,94 @@ def edit_restriction(line_dir: Path, copies: int) -> str:
     return f"speed_limits row {i}: {lim[i] + 10:g} -> {lim[i]:g} km/h"
 
 
+class DaskCluster:
+    """A Dask cluster on this machine started the way a user starts one (README): ``dask scheduler`` and
+    ``dask worker ADDRESS --nworkers N --nthreads 1``, each its own process tree, ended on exit. ``cpu_s()``:
+    the CPU time (user + system) its processes have used so far."""
+
+    def __init__(self, workers: int, work: Path):
+        import socket
+
+        with socket.socket() as sk:
+            sk.bind(("127.0.0.1", 0))
+            port = sk.getsockname()[1]
+        self.address = f"tcp://127.0.0.1:{port}"
+        dask = str(Path(sys.executable).with_name("dask"))
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        self.log = open(work / "dask.log", "w")
+        self.procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                        "--no-dashboard"], stdout=self.log, stderr=subprocess.STDOUT, env=env)]
+        self.procs.append(subprocess.Popen([dask, "worker", self.address, "--nworkers", str(workers), "--nthreads",
+                                            "1", "--no-dashboard", "--memory-limit", "0"], cwd=ROOT,
+                                           stdout=self.log, stderr=subprocess.STDOUT, env=env))
+        from dask.distributed import Client
+
+        with Client(self.address, timeout=60) as c:
+            c.wait_for_workers(workers, timeout=120)
+
+    def cpu_s(self) -> float:
+        import psutil
+
+        total = 0.0
+        for p in self.procs:
+            try:
+                for q in [psutil.Process(p.pid)] + psutil.Process(p.pid).children(recursive=True):
+                    t = q.cpu_times()
+                    total += t.user + t.system
+            except psutil.Error:
+                pass
+        return total
+
+    def close(self) -> None:
+        for p in reversed(self.procs):
+            p.terminate()
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+        self.log.close()
+
+
+def same_datasets(a: Path, b: Path) -> tuple[int, list[str]]:
+    """How many Parquet files two published runs have, and those whose contents differ (the run's id and date
+    columns aside) or that only one has."""
+    import pyarrow.parquet as pq
+
+    fa = {p.relative_to(a).as_posix() for p in a.rglob("*.parquet")}
+    fb = {p.relative_to(b).as_posix() for p in b.rglob("*.parquet")}
+    bad = sorted(fa ^ fb)
+    for f in sorted(fa & fb):
+        ta, tb = pq.read_table(a / f), pq.read_table(b / f)
+        keep = [c for c in ta.column_names if c not in ("run_id", "run_date")]
+        if ta.column_names != tb.column_names or not ta.select(keep).equals(tb.select(keep)):
+            bad.append(f)
+    return len(fa), bad
+
+
+def dask_against_joblib(work: Path, big: Path, joblib_run: dict, workers: int = 2) -> bool:
+    """The cold night of ``big`` on a local Dask cluster (``workers`` workers, one thread each) against the
+    joblib run ``joblib_run`` of the same line: wall, CPU (the job's process tree and the cluster's), and
+    whether the published datasets are the same."""
+    cluster = DaskCluster(workers, work)
+    try:
+        base = job_folder(work / f"job-{big.name}-dask", big, cluster.address)
+        c0 = cluster.cpu_s()
+        r = run_job(base, "cold")
+        r["cpu_s"] += cluster.cpu_s() - c0  # the workers are the cluster's processes, not the job's children
+        r["worker_cpu_s"] = max(0.0, r["cpu_s"] - r["main_cpu_s"])
+    finally:
+        cluster.close()
+    _show(f"{big.name}, cold, Dask ({workers} workers x 1 thread)", r)
+    if r["rc"]:
+        return False
+    n, bad = same_datasets(work / f"job-{big.name}" / "outputs" / "latest", base / "outputs" / "latest")
+    ratio = r["wall_s"] / joblib_run["wall_s"]
+    print(f"bench_scaling: Dask vs joblib, cold: wall {r['wall_s']:.1f} / {joblib_run['wall_s']:.1f} s = {ratio:.2f} "
+          f"(target within 15 %: 0.87-1.15); datasets: {n - len(bad)} of {n} the same"
+          + (f", differ: {', '.join(bad[:5])}" if bad else ""), flush=True)
+    return not bad
+
+
 def _show(name: str, r: dict) -> None:
     status = "ok" if r["rc"] == 0 else f"FAILED (exit {r['rc']}): {r['log'][-600:]}"
     print(f"  {name:22s} wall {r['wall_s']:7.1f} s   CPU {r['cpu_s']:7.1f} s (main {r['main_cpu_s']:.1f}, workers "
@@ -163,6 +257,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--copies", type=int, default=int(os.environ.get("PLANNER_BENCH_COPIES", "10")))
     ap.add_argument("--no-sample", action="store_true", help="skip the sample's run (no ratios)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the lines, outputs and logs in this folder")
+    ap.add_argument("--dask", action="store_true",
+                    help="also the big line's cold night on a local Dask cluster (dask scheduler, dask worker "
+                         "--nworkers 2 --nthreads 1), against joblib: wall, CPU and the same datasets")
     args = ap.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="bench_scaling.")) if args.keep is None else args.keep
     try:
@@ -179,6 +276,8 @@ def main(argv: list[str] | None = None) -> int:
         results["cold"] = r = run_job(base, "cold")
         _show(f"{big.name}, cold", r)
         ok = r["rc"] == 0
+        if ok and args.dask:
+            ok = dask_against_joblib(work, big, r)
         if ok:
             what = edit_restriction(big, args.copies)
             results["edit"] = r = run_job(base, "edit")

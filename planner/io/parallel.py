@@ -403,16 +403,18 @@ class DaskPool(Pool):
 class Background:
     """``fn(*args)`` started on a local worker now, its result taken later with :meth:`result`.
 
-    Made by :func:`background`. Without a local worker pool (one job, or the Dask
-    backend, whose workers are for the units) the call runs in this process, in
+    Made by :func:`background`. On the run's Dask cluster (:func:`dask_run`) it is a future there;
+    without a local worker pool or a run's cluster (one job) the call runs in this process, in
     :meth:`result`. Either way the result is the same: the worker runs the same function.
     """
 
     _UNSET = object()
 
-    def __init__(self, fn: Callable, args: tuple, n_jobs: int):
+    def __init__(self, fn: Callable, args: tuple, n_jobs: int, pool: "DaskPool | None" = None):
         self._fn, self._args, self._gen, self._value = fn, args, None, self._UNSET
-        if n_jobs != 1:
+        if pool is not None:  # the run's Dask cluster
+            self._gen = pool.imap(fn, [args])
+        elif n_jobs != 1:
             # the same loky configuration as LocalPool's steps, so its workers are reused
             with _loky(n_jobs):
                 self._gen = _abandon_quietly(joblib.Parallel(return_as="generator")([joblib.delayed(fn)(*args)]), 1)
@@ -443,9 +445,11 @@ class Background:
 
 def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = -1) -> Background:
     """Start ``fn(*args)`` beside the main process (:class:`Background`): on a local worker with the
-    ``local`` backend and ``n_jobs != 1``, else later, in this process. For work of the main process
-    that nothing needs until a later step (the nightly job's bundles)."""
-    return Background(fn, args, n_jobs if name == "local" else 1)
+    ``local`` backend and ``n_jobs != 1``, on the run's Dask cluster with the ``dask`` backend inside
+    :func:`dask_run`, else later, in this process. For work of the main process that nothing needs until a
+    later step (the nightly job's bundles)."""
+    pool = run_pool() if name == "dask" else None
+    return Background(fn, args, n_jobs if name == "local" else 1, pool)
 
 
 @contextmanager
@@ -506,6 +510,8 @@ def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
         progress(0, total)
     if n_jobs == 1 or total <= 1:
         results = (fn(*t) for t in tasks)
+    elif run_pool() is not None:  # the job process of a run on a Dask cluster: its workers
+        results = run_pool().imap(fn, list(tasks))
     else:
         with _loky(n_jobs):  # its tasks are handed to the workers here, in the configuration's pool
             results = _abandon_quietly(joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
@@ -549,6 +555,40 @@ def backend(name: str = "local", *, n_jobs: int = -1, scheduler: str = "",
         return
     if name != "dask":
         raise JobError(f"unknown parallel backend {name!r}; use local or dask")
+    run = _RUN.get("pool")
+    if run is not None and run.scheduler == scheduler:  # the run's client: its futures outlive this step
+        yield run
+        return
+    with _dask_client(scheduler, lost_timeout_s) as pool:
+        yield pool
+
+
+_RUN: dict[str, "DaskPool"] = {}
+"""The Dask pool of the run in progress (:func:`dask_run`), while one is open in this process."""
+
+
+def run_pool() -> "DaskPool | None":
+    """The Dask pool of the run in progress in this process, or None (local backend; or a worker)."""
+    return _RUN.get("pool")
+
+
+@contextmanager
+def dask_run(scheduler: str, lost_timeout_s: float = 60.0) -> Iterator["DaskPool"]:
+    """One Dask client for a whole run: every step's units, the margin report's legs and the work started
+    beside the steps (:func:`background`) go to the cluster through it, and a step's units can still be
+    running while the job process goes on (as with local workers). The cluster's workers share the job
+    machine's file system at the same paths (the output root, its cache and staged run: units write their
+    datasets where they are made)."""
+    with _dask_client(scheduler, lost_timeout_s) as pool:
+        _RUN["pool"] = pool
+        try:
+            yield pool
+        finally:
+            _RUN.pop("pool", None)
+
+
+@contextmanager
+def _dask_client(scheduler: str, lost_timeout_s: float) -> Iterator["DaskPool"]:
     try:
         from dask.distributed import Client
     except ImportError:
@@ -568,4 +608,3 @@ def backend(name: str = "local", *, n_jobs: int = -1, scheduler: str = "",
                 client.close(timeout=min(5.0, float(lost_timeout_s)))
             except Exception:  # noqa: BLE001 - closing a client of a dead cluster must not mask the real error
                 pass
-

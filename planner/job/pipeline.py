@@ -43,6 +43,7 @@ import dataclasses
 import importlib.metadata
 import os
 import shutil
+from contextlib import ExitStack
 from concurrent.futures import ThreadPoolExecutor, wait as wait_futures
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -236,16 +237,18 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
     from planner.line.loader import load_line
 
     from planner.bundle.manifest import build_time_s
-    from planner.io.parallel import for_output_root, started_workers
+    from planner.io.parallel import dask_run, for_output_root, started_workers
 
     run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
     job = resolve_day(job)  # [day] day, else the next operating day by the clock, read here at the start too
     built_at_s = build_time_s()  # the run's build time: $SOURCE_DATE_EPOCH (reproducible rebuilds) or now
     # the staged run's files are flushed to disk once, by publish(), before it becomes visible
-    with job_lock(root), deferred_fsync(), for_output_root(root), \
-            started_workers(warm_worker, name=job.parallel.backend,
-                            n_jobs=1 if _probably_current(job, root, run_date, built_at_s, use_cache)
-                            else job.parallel.n_jobs):
+    with job_lock(root), deferred_fsync(), for_output_root(root), ExitStack() as stack:
+        current = _probably_current(job, root, run_date, built_at_s, use_cache)
+        if job.parallel.backend == "dask" and not current:  # one client for the whole run (dask_run)
+            stack.enter_context(dask_run(job.parallel.scheduler, job.parallel.dask_lost_timeout_s))
+        stack.enter_context(started_workers(warm_worker, name=job.parallel.backend,
+                                            n_jobs=1 if current else job.parallel.n_jobs))
         # the workers start (and import what the units and charts need) while this process reads the lines;
         # the first step's units queue behind that, and leaving the context takes the handles
         clean_stale_staging(root)

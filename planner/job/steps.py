@@ -72,7 +72,7 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
 
     key = digest(["margins", code_digest(), line_digest(line), lifted_key(lifted or {}), unit_keys,
                   result_params(job)])
-    n_jobs = 1 if job.parallel.backend == "dask" else job.parallel.n_jobs
+    n_jobs = job.parallel.n_jobs  # the legs on the local workers, or on the run's Dask cluster (map_tasks)
     from planner.job.leg_memo import KIND, LegMemo
 
     memo = LegMemo(runner.cache.root, enabled=runner.cache.enabled)

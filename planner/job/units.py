@@ -209,13 +209,13 @@ class Runner:
         """:meth:`run` without waiting: the units start on the local workers now and this process goes on
         with work of its own; :meth:`Started.results` takes them (stored in the cache as they are taken).
         For a step whose results nothing needs until later (the speed–distance charts, drawn while the
-        pages are written). With one job or the Dask backend (whose client lives only while it is
-        used) the units are computed here, as by :meth:`run`."""
+        pages are written). On the run's Dask cluster (:func:`planner.io.parallel.dask_run`) likewise; with
+        one job, or a Dask client of its own, the units are computed before it returns, as by :meth:`run`."""
         return self.start_steps([(step, units)], wait=False)
 
     def start_steps(self, groups: Sequence[tuple[str, Sequence[Unit]]], wait: bool) -> "Started":
         """The units of ``groups`` looked up in the cache and the rest started (:meth:`run_steps`, :meth:`start`)."""
-        from planner.io.parallel import LocalPool, backend
+        from planner.io.parallel import LocalPool, backend, run_pool
 
         started = Started(self, groups)
         for g, (step, units) in enumerate(groups):
@@ -240,15 +240,16 @@ class Runner:
         with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
                      lost_timeout_s=p.dask_lost_timeout_s) as pool:
             unit = started.unit
+            on_run = pool is run_pool()  # the run's Dask cluster: its futures outlive this context too
             if pool.n_jobs == 1 or (len(started.todo) == 1 and wait):  # one unit waited for: here
                 started.gen = (_call(unit(t).fn, unit(t).args) for t in started.todo)
             else:  # a local pool's tasks start now and go on after the context (joblib's generator)
-                if isinstance(pool, LocalPool):  # on this machine: such results stored and kept where they are made
+                if isinstance(pool, LocalPool) or on_run:  # such results stored and kept where they are made
                     started.kept = {t for t in started.todo if unit(t).after is not None}
                 started.gen = pool.imap(_call, [
                     (_call_kept, (unit(t).fn, unit(t).args, self.cache, unit(t).step, unit(t).key, unit(t).after))
                     if t in started.kept else (unit(t).fn, unit(t).args) for t in started.todo])
-            if wait or not isinstance(pool, LocalPool):
+            if wait or not (isinstance(pool, LocalPool) or on_run):
                 started.results()
         return started
 
