@@ -408,7 +408,8 @@ def test_an_up_to_date_run_starts_no_workers_and_any_change_does(project, monkey
     started = []
     real = parallel.Background.__init__
     monkeypatch.setattr(parallel.Background, "__init__",
-                        lambda self, fn, args, n_jobs: (started.append(n_jobs), real(self, fn, args, n_jobs))[1])
+                        lambda self, fn, args, n_jobs, pool=None: (started.append(n_jobs),
+                                                                   real(self, fn, args, n_jobs, pool))[1])
     assert _run(job_path).up_to_date and started == []  # nothing to do: no worker started
     _edit_restriction(project, 65.0)
     assert not current()

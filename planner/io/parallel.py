@@ -329,88 +329,17 @@ class LocalPool(Pool):
                                 len(arglist))
 
 
-class DaskPool(Pool):
-    """Futures on a ``dask.distributed`` client, with a bounded wait when the cluster is lost."""
-
-    n_jobs = -1
-
-    def __init__(self, client, scheduler: str, lost_timeout_s: float):
-        self.client = client
-        self.scheduler = scheduler
-        self.lost_timeout_s = float(lost_timeout_s)
-        self.poll_s = min(1.0, self.lost_timeout_s / 4.0)
-        self.ask_s = min(5.0, self.lost_timeout_s / 4.0)  # a busy scheduler may take a moment to answer
-
-    def _workers(self) -> int | None:
-        """Workers the scheduler has now, or None when it does not answer within ``ask_s``."""
-        try:
-            info = self.client.sync(self.client.scheduler.identity, n_workers=-1, callback_timeout=self.ask_s)
-        except Exception:  # noqa: BLE001 - any failure to get an answer means: no scheduler right now
-            return None
-        return len(info.get("workers", {}))
-
-    def _lost(self, done: int, total: int, why: str) -> ClusterLostError:
-        resume = (f"the {done} finished unit(s) are cached, so the next run resumes from them"
-                  if done else "no unit of this step finished; earlier steps' units are cached")
-        return ClusterLostError(f"dask cluster {self.scheduler} lost: {why}; {done} of {total} unit(s) of this step "
-                                f"done; {resume}; check the cluster, then run again")
-
-    def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
-        from concurrent.futures import CancelledError
-
-        from distributed import KilledWorker
-
-        total = len(arglist)
-        try:
-            futures = [self.client.submit(fn, *a, pure=False) for a in arglist]
-        except Exception as e:  # noqa: BLE001 - the scheduler went away between connect and submit
-            raise self._lost(0, total, f"cannot submit work ({type(e).__name__}: {e})") from None
-        done = 0
-        try:
-            for fut in futures:
-                lost_since: float | None = None
-                while True:
-                    try:
-                        res = fut.result(timeout=self.poll_s)
-                        break
-                    except TimeoutError:
-                        pass
-                    except CancelledError:  # includes distributed's FutureCancelledError
-                        raise self._lost(done, total, "the scheduler cancelled the work (scheduler gone or "
-                                                      "restarted)") from None
-                    except KilledWorker as e:
-                        raise self._lost(done, total, f"workers died running one unit ({e}); the unit may "
-                                                      "need more memory than a worker has") from None
-                    n = self._workers()
-                    if n:
-                        lost_since = None
-                        continue
-                    lost_since = time.monotonic() if lost_since is None else lost_since
-                    if time.monotonic() - lost_since >= self.lost_timeout_s:
-                        what = "no scheduler answer" if n is None else "no workers"
-                        raise self._lost(done, total, f"{what} for {self.lost_timeout_s:g} s "
-                                                      "([parallel] dask_lost_timeout_s)") from None
-                done += 1
-                yield res
-        finally:
-            if done < total:
-                try:
-                    self.client.cancel(futures[done:], asynchronous=False)
-                except Exception:  # noqa: BLE001 - best effort: the cluster may be gone
-                    pass
-
-
 class Background:
     """``fn(*args)`` started on a local worker now, its result taken later with :meth:`result`.
 
-    Made by :func:`background`. On the run's Dask cluster (:func:`dask_run`) it is a future there;
+    Made by :func:`background`. On the run's Dask cluster (:func:`planner.io.dask_pool.dask_run`) it is a future there;
     without a local worker pool or a run's cluster (one job) the call runs in this process, in
     :meth:`result`. Either way the result is the same: the worker runs the same function.
     """
 
     _UNSET = object()
 
-    def __init__(self, fn: Callable, args: tuple, n_jobs: int, pool: "DaskPool | None" = None):
+    def __init__(self, fn: Callable, args: tuple, n_jobs: int, pool: Pool | None = None):
         self._fn, self._args, self._gen, self._value = fn, args, None, self._UNSET
         if pool is not None:  # the run's Dask cluster
             self._gen = pool.imap(fn, [args])
@@ -446,7 +375,7 @@ class Background:
 def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = -1) -> Background:
     """Start ``fn(*args)`` beside the main process (:class:`Background`): on a local worker with the
     ``local`` backend and ``n_jobs != 1``, on the run's Dask cluster with the ``dask`` backend inside
-    :func:`dask_run`, else later, in this process. For work of the main process that nothing needs until a
+    :func:`planner.io.dask_pool.dask_run`, else later, in this process. For work of the main process that nothing needs until a
     later step (the nightly job's bundles)."""
     pool = run_pool() if name == "dask" else None
     return Background(fn, args, n_jobs if name == "local" else 1, pool)
@@ -555,56 +484,19 @@ def backend(name: str = "local", *, n_jobs: int = -1, scheduler: str = "",
         return
     if name != "dask":
         raise JobError(f"unknown parallel backend {name!r}; use local or dask")
-    run = _RUN.get("pool")
+    from planner.io.dask_pool import dask_client
+
+    run = run_pool()
     if run is not None and run.scheduler == scheduler:  # the run's client: its futures outlive this step
         yield run
         return
-    with _dask_client(scheduler, lost_timeout_s) as pool:
+    with dask_client(scheduler, lost_timeout_s) as pool:
         yield pool
 
 
-_RUN: dict[str, "DaskPool"] = {}
-"""The Dask pool of the run in progress (:func:`dask_run`), while one is open in this process."""
+def run_pool():
+    """The Dask pool of the run in progress in this process (:func:`planner.io.dask_pool.dask_run`), or None
+    (the local backend; a worker)."""
+    from planner.io.dask_pool import RUN
 
-
-def run_pool() -> "DaskPool | None":
-    """The Dask pool of the run in progress in this process, or None (local backend; or a worker)."""
-    return _RUN.get("pool")
-
-
-@contextmanager
-def dask_run(scheduler: str, lost_timeout_s: float = 60.0) -> Iterator["DaskPool"]:
-    """One Dask client for a whole run: every step's units, the margin report's legs and the work started
-    beside the steps (:func:`background`) go to the cluster through it, and a step's units can still be
-    running while the job process goes on (as with local workers). The cluster's workers share the job
-    machine's file system at the same paths (the output root, its cache and staged run: units write their
-    datasets where they are made)."""
-    with _dask_client(scheduler, lost_timeout_s) as pool:
-        _RUN["pool"] = pool
-        try:
-            yield pool
-        finally:
-            _RUN.pop("pool", None)
-
-
-@contextmanager
-def _dask_client(scheduler: str, lost_timeout_s: float) -> Iterator["DaskPool"]:
-    try:
-        from dask.distributed import Client
-    except ImportError:
-        raise JobError("backend dask needs the dask extra: pip install 'planner[dask]'") from None
-    # from connect to close: a lost scheduler is the one line of ClusterLostError, not the client's log
-    # of its failed reconnect and of the tasks its close cancels (each with a traceback)
-    with quiet_loggers("distributed"):
-        try:
-            client = Client(scheduler, timeout=f"{float(lost_timeout_s)}s")
-        except Exception as e:  # noqa: BLE001 - any connection failure is a user-facing setup problem
-            raise JobError(f"cannot reach the dask scheduler {scheduler!r} within {lost_timeout_s:g} s: "
-                           f"{e}") from None
-        try:
-            yield DaskPool(client, scheduler, lost_timeout_s)
-        finally:
-            try:
-                client.close(timeout=min(5.0, float(lost_timeout_s)))
-            except Exception:  # noqa: BLE001 - closing a client of a dead cluster must not mask the real error
-                pass
+    return RUN.get("pool")

@@ -237,7 +237,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
     from planner.line.loader import load_line
 
     from planner.bundle.manifest import build_time_s
-    from planner.io.parallel import dask_run, for_output_root, started_workers
+    from planner.io.dask_pool import dask_run
+    from planner.io.parallel import for_output_root, started_workers
 
     run_date = resolve_run_date(job)  # the only clock read: before any computation, part of the inputs digest
     job = resolve_day(job)  # [day] day, else the next operating day by the clock, read here at the start too
