@@ -151,12 +151,20 @@ def edit_restriction(line_dir: Path, copies: int) -> str:
     return f"speed_limits row {i}: {lim[i] + 10:g} -> {lim[i]:g} km/h"
 
 
+QUIET = {"DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False", "DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL": "1s",
+         "DASK_DISTRIBUTED__ADMIN__SYSTEM_MONITOR__INTERVAL": "5s"}
+"""The worker settings the README recommends: the worker's profiler off (it samples the task thread every
+10 ms) and its event loop's monitors slowed; the planner's task thread then runs ~1.1x a plain process's
+CPU instead of ~1.25x (``bench_dask_worker.py``)."""
+
+
 class DaskCluster:
     """A Dask cluster on this machine started the way a user starts one (README): ``dask scheduler`` and
-    ``dask worker ADDRESS --nworkers N --nthreads 1``, each its own process tree, ended on exit. ``cpu_s()``:
-    the CPU time (user + system) its processes have used so far."""
+    ``dask worker ADDRESS --nworkers N --nthreads 1`` with the README's settings (:data:`QUIET`, unless
+    ``quiet`` is False), each its own process tree, ended on exit. ``cpu_s()``: the CPU time (user +
+    system) its processes have used so far."""
 
-    def __init__(self, workers: int, work: Path):
+    def __init__(self, workers: int, work: Path, quiet: bool = True):
         import socket
 
         with socket.socket() as sk:
@@ -164,7 +172,7 @@ class DaskCluster:
             port = sk.getsockname()[1]
         self.address = f"tcp://127.0.0.1:{port}"
         dask = str(Path(sys.executable).with_name("dask"))
-        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        env = dict(os.environ, PYTHONPATH=str(ROOT), **(QUIET if quiet else {}))
         self.log = open(work / "dask.log", "w")
         self.procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
                                         "--no-dashboard"], stdout=self.log, stderr=subprocess.STDOUT, env=env)]
