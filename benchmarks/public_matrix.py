@@ -48,6 +48,7 @@ class Case:
     path: str  # railjson --path (operational points or track ids) / railML --line id
     stations: tuple = ()  # (id, position_m) where the source has no stations
     source: str = ""
+    extra: str = ""  # more --extra TOML: what the source does not say (e.g. [track_directions])
 
 
 _NS = "infras/nested_switches.json"
@@ -77,7 +78,10 @@ CASES = (
          (("KM29", 29000.0), ("KM38", 38000.0), ("KM46", 46000.0)), source="railML 2.2, Finnish Transport Agency "
                                                                           "(infra2railml)"),
     Case("RailCOMPLETE ICT 2018", "railml", "railml/railcomplete_ict2018.railml", "line_0",
-         (("S1", 462250.0), ("S2", 463250.0)), source="railML 2.2, RailCOMPLETE (CAD) export"),
+         (("S1", 462250.0), ("S2", 463250.0)), source="railML 2.2, RailCOMPLETE (CAD) export",
+         # both mains are signalled alike both ways and the file has no mainDir: which is which is only in their
+         # names (INBOUND, OUTBOUND); the through route tr_5 taken as the down main (km posts increasing)
+         extra='[track_directions]\ntr_4 = "up"\ntr_5 = "down"\n'),
 )
 
 
@@ -169,7 +173,7 @@ def run_case(case: Case, data: Path, files: list[Path], stock_toml: str, work: P
 
     out = work / f"{case.name}-{case.path.replace(',', '-')}".replace(" ", "_")
     out.mkdir(parents=True, exist_ok=True)
-    base = _stations_toml(case) + stock_toml
+    base = _stations_toml(case) + case.extra + stock_toml
     (out / "bare.toml").write_text(base)
     r = _import(case, data, files, out / "bare.toml", out / "bare")
     res = {"case": case, "import": r.returncode, "error": r.stderr.strip().splitlines()[-1:] if r.returncode else []}

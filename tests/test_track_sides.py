@@ -186,3 +186,41 @@ def test_a_csv_import_carries_the_direction_column(tmp_path, sample_dir, sample_
     assert {e.direction for e in line.network.edges} == {"down", "up", "both"}
     before, after = plan_routes(sample_line), plan_routes(line)
     assert all(before[t].nodes == after[t].nodes for t in before)
+
+
+# ---- what the source does not say: --extra [track_directions], and stop nodes beside the line
+def test_track_directions_from_extra_beat_the_signals_and_a_wrong_id_is_refused():
+    topo = _pair((2, 2), (2, 2))
+    topo.given_dir.update(A="down", B="up")  # RailCOMPLETE's mains: signalled alike, no mainDir, no coordinates
+    notes: list[str] = []
+    ways, _ = _ways(topo, None, notes)
+    assert (ways["A"], ways["B"]) == ("down", "up")
+    assert any("2 source track(s) as [track_directions] says" in n for n in notes)
+    topo = _pair((3, 0), (0, 3))
+    topo.given_dir["B"] = "both"  # given 'both' stays both, whatever the signals and the running side say
+    ways, _ = _ways(topo, "left")
+    assert ways["B"] == "both"
+    topo.given_dir["Z9"] = "up"
+    with pytest.raises(SourceError, match=r"\[track_directions\]: Z9 name\(s\) no track of the source"):
+        _ways(topo)
+
+
+def test_a_station_added_by_position_gets_a_stop_on_each_main_beside_the_line():
+    """Station S at 1,500 m (no platform in the source): a stop node on the line's track A and one on B beside
+    it, at the same chainage; none on P or Q (the line's own) twice, none on a track shorter than a main."""
+    from planner.line.importers.stop_nodes import stops_on_line
+
+    topo = _pair((2, 2), (2, 2))
+    notes: list[str] = []
+    stops_on_line(topo, ON_LINE, [("S", 1500.0)], notes)
+    nodes, edges = network_tables(topo, ON_LINE, "X", notes)
+    s = nodes[nodes["station_id"] == "S"]
+    assert sorted(s["position_m"]) == [1500.0, 1500.0]
+    on = {e.split(":")[0] for e, a, b in zip(edges["edge_id"], edges["from_node"], edges["to_node"])
+          if set(s["node_id"]) & {a, b}}
+    assert on == {"A", "B"}
+    assert any("and on the tracks beside it there (S: B)" in n for n in notes)
+    short = _pair((2, 2), (2, 2))
+    short.lengths.update(A=200.0, B=200.0)
+    stops_on_line(short, {"P": (0.0, 1), "A": (500.0, 1), "Q": (700.0, 1)}, [("S", 600.0)], [])
+    assert [p[2] for p in short.points if p[4] == "S"] == ["A"]

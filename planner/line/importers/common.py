@@ -27,7 +27,7 @@ import pandas as pd
 import pyarrow as pa
 
 from planner.errors import SourceError, SourceProblems, Violation
-from planner.line.schema import RUNNING_SIDES, SCHEMA_VERSION, TABLES, write_line_table
+from planner.line.schema import RUNNING_SIDES, SCHEMA_VERSION, TABLES, TRACK_DIRECTIONS, write_line_table
 from planner.line.importers.timetable import CLOCK_COLUMNS, clock_seconds
 
 EXTRA_EXAMPLE = """
@@ -52,6 +52,9 @@ stop_up_m = 1100.0
 
 [stations.HILL]              # a station the source does not have (no OCP / operational point there):
 position_m = 2500.0          #  give its chainage (railML: the absPos km post when every track has one)
+
+[track_directions]           # where the source does not say it (signals alike both ways, no mainDir):
+tr_4 = "up"                  #  the direction trains normally run a source track (down, up or both)
 
 [categories]                 # train type = the source's train category (railML speed trainCategory,
 EMU10 = "passenger"          #  railjson speed_limit_by_tag); as --category EMU10=passenger
@@ -116,7 +119,7 @@ OVERRIDABLE = frozenset(DEFAULTS) - {"stop_markers", "line_max_speed", "line_nam
 """Defaults with one value that ``[defaults]`` may replace (the others describe a rule or an absence)."""
 
 _ROLLING_STOCK_COLS = frozenset(f.name for f in TABLES["rolling_stock"].schema)  # train_type renames
-_SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable", "categories"}
+_SECTIONS = {"line", "defaults", "stations", "rolling_stock", "beacons", "timetable", "categories", "track_directions"}
 _LINE_KEYS = {"line_id", "name", "max_speed_kmh", "approach_m", "running_side"}
 _STATION_KEYS = {"station_id", "name", "platform_length_m", "stop_down_m", "stop_up_m", "position_m"}
 _BEACON_KEYS = {f.name for f in TABLES["beacons"].schema} | {"at"}
@@ -183,6 +186,7 @@ class Extras:
     beacons: list = field(default_factory=list)
     timetable: list = field(default_factory=list)
     categories: dict = field(default_factory=dict)
+    track_directions: dict = field(default_factory=dict)
 
     def err(self, where: str, message: str) -> SourceError:
         return SourceError(f"{self.path}: {where}: {message}")
@@ -219,6 +223,11 @@ def load_extras(path: str | Path | None) -> Extras:
     ex.categories = data.get("categories", {})
     if not isinstance(ex.categories, dict) or not all(isinstance(v, str) for v in ex.categories.values()):
         raise ex.err("[categories]", 'map train types to the source\'s category names, e.g. EMU = "passenger"')
+    ex.track_directions = data.get("track_directions", {})
+    if not isinstance(ex.track_directions, dict) or not all(
+            v in TRACK_DIRECTIONS for v in ex.track_directions.values()):
+        raise ex.err("[track_directions]", "give each source track id the direction trains normally run it: "
+                                           f"{', '.join(map(repr, TRACK_DIRECTIONS))}, e.g. tr_4 = \"up\"")
     ex.rolling_stock = data.get("rolling_stock", {})
     for k, v in ex.rolling_stock.items():
         _check_keys(ex, f"[rolling_stock.{k}]", v, set(_ROLLING_STOCK_COLS))

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 from planner.line.importers.sides import track_labels
+from planner.line.importers.stop_nodes import stops_on_line
 from planner.line.schema import TABLES
 
 
@@ -67,6 +68,8 @@ class Topology:
     """track id → the source's own direction of it: ``along`` (increasing pos), ``against`` or ``both``."""
     geo: dict[str, list] = field(default_factory=dict)
     """track id → its coordinates from pos 0 to its length (``(x, y)`` pairs; longitude, latitude allowed)."""
+    given_dir: dict[str, str] = field(default_factory=dict)
+    """source track id → down, up or both: the import's ``[track_directions]``."""
 
 
 class _UF:
@@ -253,6 +256,18 @@ def _orient(topo: Topology, on_line: dict) -> dict[str, tuple[float, int]]:
     return orient
 
 
+def placed(topo: Topology, on_line: dict) -> tuple[_UF, dict, set]:
+    """The joins' union-find, the chainage of every node (:func:`_chainage`) and the tracks
+    :func:`network_tables` keeps, before any point is placed: where each source track lies."""
+    uf = _UF()
+    for _, _, members in topo.joins:
+        keys = [_key(t, p) for t, p, _ in members]
+        for k in keys[1:]:
+            uf.union(keys[0], k)
+    pos, keep = _chainage(topo, on_line, uf, [])
+    return uf, pos, keep
+
+
 def _chainage(topo: Topology, on_line: dict, uf: _UF, notes: list[str]) -> tuple[dict, set]:
     """Chainage of every node, and the tracks kept: exact on the line, off it between the track's end nodes.
 
@@ -360,28 +375,6 @@ def stops_of(stations: pd.DataFrame) -> list[tuple[str, float]]:
     return out
 
 
-def stops_on_line(topo: Topology, on_line: dict[str, tuple[float, int]], stations, notes: list[str]) -> None:
-    """A ``stop`` on the line's own track at each ``(station_id, chainage)`` of ``stations`` the source gives
-    no platform (added by position, no parts, or its only part on a switch, which keeps the node there):
-    without one a train calling there could not be routed, failing the night on data the import accepted."""
-    joins = {_key(t, p) for _, _, members in topo.joins for t, p, _ in members}
-    have = {p[4] for p in topo.points if p[1] == "stop" and _key(p[2], p[3]) not in joins}
-    added: dict[str, int] = {}
-    for sid, x in stations:
-        if sid in have:
-            continue
-        for t, (offset, sign) in sorted(on_line.items()):
-            pos = (x - offset) * sign
-            if -1e-6 <= pos <= topo.lengths[t] + 1e-6:
-                k = added[sid] = added.get(sid, 0) + 1
-                topo.points.append((f"STOP-{sid}" + (f"-{k}" if k > 1 else ""), "stop", t,
-                                    min(max(pos, 0.0), topo.lengths[t]), sid))
-                break
-    if added:
-        notes.append(f"track network: {len(added)} station(s) without a platform in the source ({', '.join(added)}) "
-                     "get a stop node on the line's own track at each of their stop markers")
-
-
 def railjson_network(src, net, pieces, op_ids: list[str], extra, line_id: str,
                      notes: list[str], stations=()) -> tuple[pd.DataFrame, pd.DataFrame]:
     """nodes and edges of a railjson import: the line's path ``pieces``, its operational points ``op_ids``;
@@ -396,6 +389,7 @@ def _network(topo: Topology, on_line: dict, stations, line_id: str, notes: list[
              sources: str, extra) -> tuple[pd.DataFrame, pd.DataFrame]:
     """nodes and edges of an imported network (stop nodes for every station first), and a note counting them."""
     stops_on_line(topo, on_line, stations, notes)
+    topo.given_dir = dict(extra.track_directions) if extra is not None else {}
     given = extra.line.get("running_side") if extra is not None else None
     nodes, edges = network_tables(topo, on_line, str(line_id), notes, given)
     n_sw = int((nodes["kind"] == "switch").sum())

@@ -139,15 +139,10 @@ def track_places(topo, on_line: dict[str, tuple[float, int]],
     position ``p`` on it is at ``c0 + (c1 - c0) · p / length``, as its points are placed there (exactly the line's
     chainage on the line's own tracks). For what lies on a track off the line's path (a temporary restriction
     on the other main or a loop)."""
-    from planner.line.importers.network import _UF, _chainage, _key, _track_groups
+    from planner.line.importers.network import _key, _track_groups, placed
     from planner.line.importers.sides import track_labels
 
-    uf = _UF()
-    for _, _, members in topo.joins:
-        keys = [_key(t, p) for t, p, _ in members]
-        for k in keys[1:]:
-            uf.union(keys[0], k)
-    pos, keep = _chainage(topo, on_line, uf, [])
+    uf, pos, keep = placed(topo, on_line)
     label, _, _ = track_labels(topo, on_line, _track_groups(topo, None), _track_groups(topo, on_line), pos, uf,
                                running_side, [])
     return {t: (pos[uf.find(_key(t, 0.0))], pos[uf.find(_key(t, topo.lengths[t]))], label[t], topo.lengths[t])

@@ -3,13 +3,14 @@
 The route search keeps a train to the tracks of its direction (``edges.direction``: down, up or both). An
 importer decides each track's direction from what the source says, in this order:
 
-1. the source's own direction attribute of a track (railML ``<track mainDir>``), where it has one;
-2. the signals on the track: ``down`` where signals facing down outnumber those facing up two to one,
+1. the import's ``--extra`` ``[track_directions]`` (source track id → down, up or both), where given;
+2. the source's own direction attribute of a track (railML ``<track mainDir>``), where it has one;
+3. the signals on the track: ``down`` where signals facing down outnumber those facing up two to one,
    ``up`` the other way round, else ``both``. Counted on the track and the tracks linked end to end to it
    when they hold :data:`OWN_SIGNALS` or more, else over its group (tracks joined end to end by links; the
    line's own tracks are one group): counted over the whole line only, a double line whose path takes the
    down main here and the up main there was ``both`` throughout, and trains of both directions met head on;
-3. the side trains run on (``line.running_side``: right or left) where two parallel tracks are both still
+4. the side trains run on (``line.running_side``: right or left) where two parallel tracks are both still
    ``both`` (a double line signalled alike both ways): facing down, the track on the running side is the
    down main and the other the up main. Only tracks of :data:`MAIN_M` or more joined at both ends: a
    terminus's platforms (ending at buffer stops) stay both; a crossing loop of a single line is run on the
@@ -26,6 +27,8 @@ import math
 from collections import defaultdict
 
 import numpy as np
+
+from planner.errors import SourceError
 
 OWN_SIGNALS = 3
 """Signals a track needs to be named by its own; with fewer its group's decide."""
@@ -75,13 +78,23 @@ def track_labels(topo, on_line: dict, own, tuf, pos: dict, uf, running_side: str
             said += 1
     if said:
         notes.append(f"track directions: {said} track(s) as the source's own direction attribute says")
-    side = _running_side(topo, sgn, way, running_side, notes)
+    unknown = sorted(set(topo.given_dir) - {t.split("#")[0] for t in topo.lengths})
+    if unknown:
+        raise SourceError(f"--extra [track_directions]: {', '.join(unknown)} name(s) no track of the source; use "
+                          f"the source's track ids (railjson track section ids, railML <track> ids)")
+    given = {t: d for t in way if (d := topo.given_dir.get(t.split("#")[0]))}  # railML pieces: <track id>#k
+    way.update(given)
+    if given:
+        notes.append(f"track directions: {len({t.split('#')[0] for t in given})} source track(s) as "
+                     f"[track_directions] says")
+    side = _running_side(topo, sgn, way, running_side, notes, set(given))
     name = {t: f"{'D' if w == 'down' else 'U' if w == 'up' else 'B'}:{tuf.find(t)}" for t, w in way.items()}
     return name, way, side
 
 
-def _running_side(topo, sgn: dict, way: dict, given: str | None, notes: list[str]) -> str | None:
-    """The running side (given, or the data's), and ``way`` changed for pairs of parallel ``both`` tracks."""
+def _running_side(topo, sgn: dict, way: dict, given: str | None, notes: list[str], fixed: set) -> str | None:
+    """The running side (given, or the data's), and ``way`` changed for pairs of parallel ``both`` tracks (not
+    those in ``fixed``: their direction was given)."""
     joined = {_key(t, p) for _, _, members in topo.joins for t, p, _ in members}
     through = {t for t, n in topo.lengths.items()
                if n >= MAIN_M and _key(t, 0.0) in joined and _key(t, n) in joined}
@@ -98,7 +111,7 @@ def _running_side(topo, sgn: dict, way: dict, given: str | None, notes: list[str
                      f"{votes[side]} time(s), {votes['left' if side == 'right' else 'right']} the other way)")
     if side is None:
         return None
-    was_both = {t for t, w in way.items() if w == "both"}
+    was_both = {t for t, w in way.items() if w == "both" and t not in fixed}
     lies: dict[str, set] = defaultdict(set)  # the sides a both-ways track lies on of another beside it
     for t, u, left in pairs:
         if t in was_both and u in was_both:
