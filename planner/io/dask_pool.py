@@ -91,10 +91,10 @@ RUN: dict[str, "DaskPool"] = {}
 @contextmanager
 def dask_run(scheduler: str, lost_timeout_s: float = 60.0) -> Iterator["DaskPool"]:
     """One Dask client for a whole run: every step's units, the margin report's legs and the work started
-    beside the steps (:func:`planner.io.parallel.background`) go to the cluster through it, and a step's units can still be
-    running while the job process goes on (as with local workers). The cluster's workers share the job
-    machine's file system at the same paths (the output root, its cache and staged run: units write their
-    datasets where they are made)."""
+    beside the steps (:func:`planner.io.parallel.background`) go to the cluster through it, and a step's
+    units can still be running while the job process goes on (as with local workers). The cluster's workers
+    share the job machine's file system at the same paths (the output root, its cache and staged run: units
+    write their datasets where they are made)."""
     with dask_client(scheduler, lost_timeout_s) as pool:
         RUN["pool"] = pool
         try:

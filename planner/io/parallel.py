@@ -332,9 +332,9 @@ class LocalPool(Pool):
 class Background:
     """``fn(*args)`` started on a local worker now, its result taken later with :meth:`result`.
 
-    Made by :func:`background`. On the run's Dask cluster (:func:`planner.io.dask_pool.dask_run`) it is a future there;
-    without a local worker pool or a run's cluster (one job) the call runs in this process, in
-    :meth:`result`. Either way the result is the same: the worker runs the same function.
+    Made by :func:`background`. On the run's Dask cluster (:func:`planner.io.dask_pool.dask_run`) it is
+    a future there; without a local worker pool or a run's cluster (one job) the call runs in this
+    process, in :meth:`result`. Either way the result is the same: the worker runs the same function.
     """
 
     _UNSET = object()
@@ -375,8 +375,8 @@ class Background:
 def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = -1) -> Background:
     """Start ``fn(*args)`` beside the main process (:class:`Background`): on a local worker with the
     ``local`` backend and ``n_jobs != 1``, on the run's Dask cluster with the ``dask`` backend inside
-    :func:`planner.io.dask_pool.dask_run`, else later, in this process. For work of the main process that nothing needs until a
-    later step (the nightly job's bundles)."""
+    :func:`planner.io.dask_pool.dask_run`, else later, in this process. For work of the main process that
+    nothing needs until a later step (the nightly job's bundles)."""
     pool = run_pool() if name == "dask" else None
     return Background(fn, args, n_jobs if name == "local" else 1, pool)
 
