@@ -23,7 +23,8 @@ Targets (issue 38), cold, big line against sample: time ratio <= 0.8 x N, peak m
 ratio <= 2. Copies: ``--copies N`` or ``$PLANNER_BENCH_COPIES`` (default 10, what
 ``make bench`` runs); the network-sized night is ``PLANNER_BENCH_COPIES=100`` (opt-in:
 about ten times as long). ``--no-sample`` skips the sample's run, ``--keep DIR`` keeps
-lines, outputs and logs. ``--dask`` also runs the big line's cold night on a Dask cluster started here as a
+lines, outputs and logs. ``--verify-edit`` also runs the edited line cold in a fresh output root and
+compares the datasets with the edit night's. ``--dask`` also runs the big line's cold night on a Dask cluster started here as a
 user starts one (``dask scheduler``; ``dask worker ADDRESS --nworkers 2 --nthreads 1``) and prints its wall
 and CPU against joblib's, and whether the published datasets are the same (issue 48: within 15 %).
 """
@@ -207,13 +208,13 @@ class DaskCluster:
         self.log.close()
 
 
-def same_datasets(a: Path, b: Path) -> tuple[int, list[str]]:
-    """How many Parquet files two published runs have, and those whose contents differ (the run's id and date
-    columns aside) or that only one has."""
+def same_datasets(a: Path, b: Path, ignore: tuple[str, ...] = ()) -> tuple[int, list[str]]:
+    """How many Parquet files two published runs have (those of the datasets ``ignore`` aside), and those whose
+    contents differ (the run's id and date columns aside) or that only one has."""
     import pyarrow.parquet as pq
 
-    fa = {p.relative_to(a).as_posix() for p in a.rglob("*.parquet")}
-    fb = {p.relative_to(b).as_posix() for p in b.rglob("*.parquet")}
+    fa = {p.relative_to(a).as_posix() for p in a.rglob("*.parquet") if p.relative_to(a).parts[0] not in ignore}
+    fb = {p.relative_to(b).as_posix() for p in b.rglob("*.parquet") if p.relative_to(b).parts[0] not in ignore}
     bad = sorted(fa ^ fb)
     for f in sorted(fa & fb):
         ta, tb = pq.read_table(a / f), pq.read_table(b / f)
@@ -265,6 +266,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--copies", type=int, default=int(os.environ.get("PLANNER_BENCH_COPIES", "10")))
     ap.add_argument("--no-sample", action="store_true", help="skip the sample's run (no ratios)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the lines, outputs and logs in this folder")
+    ap.add_argument("--verify-edit", action="store_true",
+                    help="also a cold night of the edited line in a fresh output root: the edit night's datasets must "
+                         "be the same (run id and date aside)")
     ap.add_argument("--dask", action="store_true",
                     help="also the big line's cold night on a local Dask cluster (dask scheduler, dask worker "
                          "--nworkers 2 --nthreads 1), against joblib: wall, CPU and the same datasets")
@@ -292,6 +296,20 @@ def main(argv: list[str] | None = None) -> int:
             _show(f"{big.name}, one edit", r)
             print(f"      (edit: {what})")
             ok = r["rc"] == 0
+            if ok:
+                c = results["cold"]
+                print(f"      edit night against the cold night: CPU {r['cpu_s'] / c['cpu_s']:.0%} (target <= 10 %), "
+                      f"wall {r['wall_s'] / c['wall_s']:.0%}", flush=True)
+            if ok and args.verify_edit:  # what the edit night published is what a cold night of the edited line does
+                fresh = job_folder(work / f"job-{big.name}-edited-cold", big)
+                r2 = run_job(fresh, "cold")
+                _show(f"{big.name} edited, cold", r2)
+                # `changes` is what changed since the run before: the fresh root has none
+                n, bad = same_datasets(base / "outputs" / "latest", fresh / "outputs" / "latest", ("changes",))
+                print(f"bench_scaling: edit night vs a cold night of the edited line: {n - len(bad)} of {n} dataset "
+                      "files the same (run id and date aside; `changes`, the difference from the run before, left "
+                      "out)" + (f", differ: {', '.join(bad[:5])}" if bad else ""), flush=True)
+                ok = r2["rc"] == 0 and not bad
         if "sample" in results and ok and results["sample"]["rc"] == 0:
             s, b = results["sample"], results["cold"]
             tr, cr = b["wall_s"] / s["wall_s"], b["cpu_s"] / s["cpu_s"]
