@@ -43,3 +43,15 @@ def sample_line(sample_dir):
     import planner
 
     return planner.load_line(sample_dir)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """The test line of ``linedb.write_line_db`` (stations A, B, C; trains 101 and 202) without its track
+    network, loaded once per module; a module that needs another tiny line defines its own."""
+    from linedb import write_line_db
+    from planner import load_line
+
+    folder = tmp_path_factory.mktemp("line") / "tiny"
+    write_line_db(folder, nodes=None, edges=None)
+    return load_line(folder)

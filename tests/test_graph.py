@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from linedb import write_line_db
 from planner.errors import InputError
 from planner.report.train_graph import (
     TOL_T_S,
@@ -22,14 +21,6 @@ from planner.report.train_graph import (
 from planner.report.train_graph import train_graph_chart as draw_chart
 from planner.pages.train_graph import page_payload, render_page
 
-
-@pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    from planner import load_line
-
-    folder = tmp_path_factory.mktemp("line") / "tiny"
-    write_line_db(folder, nodes=None, edges=None)
-    return load_line(folder)
 
 
 @pytest.fixture(scope="module")

@@ -8,22 +8,13 @@ StallError, although the running-time tables (1 m step) had the leg with those r
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from planner.api import running_time
-from planner.line.loader import load_line
 from planner.network.arrivals import SimulatorCurves, interstation_keys
 from planner.network.check import check_timetable
-
-SAMPLE = Path(__file__).resolve().parents[1] / "lines" / "sample"
-
-
-@pytest.fixture(scope="module")
-def line():
-    return load_line(SAMPLE)
 
 
 def _with_turnout(line, kmh: float):
@@ -33,19 +24,19 @@ def _with_turnout(line, kmh: float):
     return dataclasses.replace(line, speed_limits=tuple(lim))
 
 
-def test_a_crawl_the_coarse_step_stalls_on_is_run_at_the_tables_step(line):
-    slow = _with_turnout(line, 8.0)
+def test_a_crawl_the_coarse_step_stalls_on_is_run_at_the_tables_step(sample_line):
+    slow = _with_turnout(sample_line, 8.0)
     check = check_timetable(slow)
-    assert len(check.trains) == len(line.trains) and not check.unrouted
+    assert len(check.trains) == len(sample_line.trains) and not check.unrouted
     # the curve at ratio 1.0 is the run the public API gives at its own (1 m) step, to the step's round-off
     x, T = SimulatorCurves(slow).table("E6", "MNT", "SKM")
     assert T[0, -1] == pytest.approx(running_time(slow, "E6", "MNT", "SKM", ratio=1.0).time_s, abs=0.5)
 
 
-def test_a_leg_no_ratio_gets_over_flags_its_trains_and_checks_the_others_as_without_them(line):
-    stuck = _with_turnout(line, 6.0)  # 1 km/h on board (the 5 km/h speed margin): E6 stalls at every ratio
+def test_a_leg_no_ratio_gets_over_flags_its_trains_and_checks_the_others_as_without_them(sample_line):
+    stuck = _with_turnout(sample_line, 6.0)  # 1 km/h on board (the 5 km/h speed margin): E6 stalls at every ratio
     check = check_timetable(stuck)
-    over = {t.train_id for t in line.trains if ("E6", "MNT", "SKM") in interstation_keys([t])}
+    over = {t.train_id for t in sample_line.trains if ("E6", "MNT", "SKM") in interstation_keys([t])}
     assert set(check.unrouted) == over and len(over) == 42
     assert all("no run curve MNT->SKM for E6" in why and "stalls" in why for why in check.unrouted.values())
     others = dataclasses.replace(stuck, trains=tuple(t for t in stuck.trains if t.train_id not in over))
@@ -57,4 +48,4 @@ def test_a_leg_no_ratio_gets_over_flags_its_trains_and_checks_the_others_as_with
     from planner.report.train_graph import train_paths
 
     drawn = {p.train_id for p in train_paths(stuck)}
-    assert drawn == {t.train_id for t in line.trains} - over
+    assert drawn == {t.train_id for t in sample_line.trains} - over

@@ -147,17 +147,6 @@ def test_running_side_from_extra_is_checked():
     assert line_table("L", 0.0, 1000.0, s)["running_side"][0] == "left"
 
 
-@pytest.fixture
-def sample_dir():
-    from pathlib import Path
-
-    return Path(__file__).resolve().parents[1] / "lines" / "sample"
-
-
-@pytest.fixture
-def sample_line(sample_dir):
-    return load_line(sample_dir)
-
 
 
 def test_a_csv_import_carries_the_direction_column(tmp_path, sample_dir, sample_line):

@@ -15,7 +15,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from linedb import write_line_db
 from planner.pages.train_graph import page_payload, predicted_summary, render_page, write_page
 from planner.report.graph_predicted import LATE_S, PREDICTED_COLUMNS, largest_delay, predicted_paths
 from planner.report.train_graph import graph_data, train_paths
@@ -26,14 +25,6 @@ LATE = {("101", 1, "arrival"): 30.0, ("101", 1, "departure"): 30.0, ("101", 2, "
 CAUSES = {("101", 1, "arrival"): "its run from A needs 230.0 s, 200.0 s scheduled",
           ("101", 2, "arrival"): HOSTILE}
 
-
-@pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    from planner import load_line
-
-    folder = tmp_path_factory.mktemp("line") / "tiny"
-    write_line_db(folder, nodes=None, edges=None)
-    return load_line(folder)
 
 
 @pytest.fixture(scope="module")

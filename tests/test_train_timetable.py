@@ -12,16 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from linedb import write_line_db
 
-
-@pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    from planner import load_line
-
-    folder = tmp_path_factory.mktemp("line") / "tiny"
-    write_line_db(folder, nodes=None, edges=None)
-    return load_line(folder)
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,6 @@ from pathlib import Path
 import pytest
 
 from browser import Browser, find_chromium
-from linedb import write_line_db
 
 pytestmark = pytest.mark.skipif(find_chromium() is None, reason="needs chromium (apt-get install chromium)")
 
@@ -29,14 +28,6 @@ def browser():
     with Browser(1200, 800) as b:
         yield b
 
-
-@pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    from planner import load_line
-
-    folder = tmp_path_factory.mktemp("line") / "tiny"
-    write_line_db(folder, nodes=None, edges=None)
-    return load_line(folder)
 
 
 def _clean(page) -> None:
