@@ -22,7 +22,6 @@ from planner.report.train_graph import train_graph_chart as draw_chart
 from planner.pages.train_graph import page_payload, render_page
 
 
-
 @pytest.fixture(scope="module")
 def data(tiny):
     return graph_data(tiny)

@@ -24,7 +24,6 @@ def _same(a, b) -> None:
     pd.testing.assert_frame_equal(a.sweep, b.sweep)
 
 
-
 def test_an_unchanged_line_reads_every_group_back(tmp_path, sample_line):
     cold = LegMemo(tmp_path)
     first = _report(sample_line, cold)

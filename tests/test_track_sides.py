@@ -147,8 +147,6 @@ def test_running_side_from_extra_is_checked():
     assert line_table("L", 0.0, 1000.0, s)["running_side"][0] == "left"
 
 
-
-
 def test_a_csv_import_carries_the_direction_column(tmp_path, sample_dir, sample_line):
     """The sample's network through CSV with its tracks renamed T1, T2, ... and a direction column: the routes
     are the sample's own."""

@@ -26,7 +26,6 @@ CAUSES = {("101", 1, "arrival"): "its run from A needs 230.0 s, 200.0 s schedule
           ("101", 2, "arrival"): HOSTILE}
 
 
-
 @pytest.fixture(scope="module")
 def paths(tiny):
     return train_paths(tiny)

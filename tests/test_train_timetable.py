@@ -13,8 +13,6 @@ import numpy as np
 import pytest
 
 
-
-
 @pytest.fixture(scope="module")
 def margins(tiny):
     from planner.report.margins import compute_margins

@@ -29,7 +29,6 @@ def browser():
         yield b
 
 
-
 def _clean(page) -> None:
     assert page.errors == [], page.errors
     assert page.failed == [] and page.requests == [page.url], page.requests  # self-contained: no request but the page
