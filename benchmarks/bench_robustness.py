@@ -21,7 +21,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
 from planner import load_line  # noqa: E402
-from planner.delay.montecarlo import CHUNK_DAYS, simulate  # noqa: E402
+from planner.delay.montecarlo import chunk_days, simulate  # noqa: E402
 from planner.delay.predicted import predict_day  # noqa: E402
 from planner.job.config import load_job  # noqa: E402
 from planner.job.robustness import connections, dwell_rule, rules  # noqa: E402
@@ -47,15 +47,16 @@ def measure(name: str, day, rs, days: int) -> None:
     net = day.net
     print(f"{name}: {len(net.train_ids)} trains, {net.n_events} events, {net.n_activities} activities "
           f"({int((net.act_kind == 2).sum())} headways, {net.dropped} left out)")
-    simulate(net, rs, CHUNK_DAYS, 1, n_jobs=1)  # the kernel compiled in this process
+    cd = chunk_days(net.n_events)
+    simulate(net, rs, cd, 1, n_jobs=1)  # the kernel compiled in this process
     for n_jobs in (-1, 1):
         t0 = time.perf_counter()
         st = simulate(net, rs, days, 1, n_jobs=n_jobs)
         wall = time.perf_counter() - t0
         print(f"  {days} days, n_jobs={n_jobs:>2}: {wall:6.2f} s wall "
               f"({wall / days * 1e3:.3f} ms per day); mean arrival delay {st.mean_s[net.ev_kind == 0].mean():.2f} s")
-    one = 2 * net.n_events * CHUNK_DAYS * 8 / 1e6
-    print(f"  delays held per chunk of {CHUNK_DAYS} days: {one:.0f} MB (whole network and each train alone)")
+    one = 2 * net.n_events * cd * 8 / 1e6
+    print(f"  delays held per chunk of {cd} days: {one:.0f} MB (whole network and each train alone)")
     try:
         from dagprop_peer import dagprop_delays, peer_primary
     except ImportError as e:

@@ -110,11 +110,11 @@ def test_primary_delays_are_reproducible_and_independent_of_the_workers():
     net = build_network(t, min_dwell_s=20.0)
     rules = [Rule("origin", "exponential", probability=0.5, mean_s=60.0),
              Rule("running", "empirical", values=(0.0, 10.0, 30.0))]
-    a = simulate(net, rules, 600, seed=11, n_jobs=1, chunk_days=250)
-    b = simulate(net, rules, 600, seed=11, n_jobs=2, chunk_days=250)
+    a = simulate(net, rules, 600, seed=11, n_jobs=1, chunk=250)
+    b = simulate(net, rules, 600, seed=11, n_jobs=2, chunk=250)
     for f in ("sum_s", "sumsq_s", "hist", "push_s", "absorbed_s"):
         assert getattr(a, f).tobytes() == getattr(b, f).tobytes()
-    c = simulate(net, rules, 600, seed=12, n_jobs=1, chunk_days=250)
+    c = simulate(net, rules, 600, seed=12, n_jobs=1, chunk=250)
     assert a.sum_s.tobytes() != c.sum_s.tobytes()
 
 
@@ -175,3 +175,49 @@ def test_the_built_kernels_give_the_just_in_time_bytes():
         out.append(b"".join(a.tobytes() for a in (z, push, binds, absorbed, hist)))
     assert out[0] == out[1]
     assert (net.act_kind == HEADWAY).sum() == 5
+
+
+def test_window_anchors_are_each_trains_last_event_at_or_before():
+    """The anchors by their definition (module doc of planner.delay.network), event by event, against
+    window_anchors on windows of many trains in no order."""
+    from planner.delay.network import TOL_S, window_anchors
+
+    rng = np.random.default_rng(4)
+    sizes = rng.integers(2, 9, size=40)
+    plan = np.concatenate([np.sort(rng.uniform(0, 5000, n)) for n in sizes])
+    first = np.r_[0, np.cumsum(sizes)]
+    n = 600
+    train = rng.integers(0, len(sizes), n)
+    entry = rng.uniform(-100, 5100, n)
+    end = entry + rng.uniform(0, 300, n)
+    w = windows(np.column_stack([train, np.zeros(n), entry - 10, entry, end]))
+    a_start, a_end = window_anchors(w, sizes.tolist(), plan)
+
+    def last_at_or_before(k, t):
+        evs = [e for e in range(first[k], first[k + 1]) if plan[e] <= t + TOL_S]
+        return evs[-1] if evs else first[k]
+
+    assert a_start.tolist() == [last_at_or_before(k, t) for k, t in zip(train, entry)]
+    assert a_end.tolist() == [last_at_or_before(k, t) for k, t in zip(train, end)]
+
+
+def test_chunks_keep_their_delays_in_bounds_and_sum_as_they_arrive():
+    """Days per chunk: the sample's 250, a network so large that 250 days pass CHUNK_BYTES fewer, never fewer than
+    MIN_CHUNK_DAYS; and a run's statistics are its chunks' statistics summed in order."""
+    from planner.delay.montecarlo import CHUNK_BYTES, CHUNK_DAYS, MIN_CHUNK_DAYS, chunk_days, chunk_stats
+
+    assert chunk_days(6_728) == CHUNK_DAYS
+    for n in (67_280, 672_800, 6_728_000):
+        d = chunk_days(n)
+        assert MIN_CHUNK_DAYS <= d < CHUNK_DAYS
+        assert d == MIN_CHUNK_DAYS or (d * n * 8 <= CHUNK_BYTES < (d + 1) * n * 8)
+    t = [two_stop_train(f"T{k}", 100.0 + 300 * k, 400.0 + 300 * k, 280.0) for k in range(4)]
+    net = build_network(t, min_dwell_s=20.0)
+    rules = [Rule("origin", "exponential", probability=0.5, mean_s=60.0)]
+    whole = simulate(net, rules, 25, seed=3, chunk=10)
+    alone = net.without((HEADWAY,))
+    parts = [chunk_stats(net, alone, rules, d, 3, i) for i, d in enumerate((10, 10, 5))]
+    by_hand = parts[0] + parts[1] + parts[2]
+    assert whole.days == by_hand.days == 25
+    for f in ("sum_s", "sumsq_s", "alone_sum_s", "primary_sum_s", "hist", "push_s", "binds", "absorbed_s"):
+        assert getattr(whole, f).tobytes() == getattr(by_hand, f).tobytes(), f

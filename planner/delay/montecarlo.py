@@ -2,11 +2,12 @@
 
 Takes the day's :class:`~planner.delay.network.DelayNetwork`, the primary-delay rules, a number of days
 and a seed; gives :class:`Stats` (sums, histograms and per-activity totals over all days). The days run
-in chunks of :data:`CHUNK_DAYS` (its primary delays drawn from its own stream:
-:func:`planner.delay.primary.sample`), in parallel on the job's workers
-(:func:`planner.io.parallel.map_tasks`); a chunk's statistics are summed in chunk order, so the result
-is the same bytes whatever the number of workers. Memory is one chunk's delays per worker
-(events × chunk days × 8 bytes, twice) plus the statistics.
+in chunks (:func:`chunk_days`: :data:`CHUNK_DAYS`, fewer on a network so large that a chunk's delays
+would pass :data:`CHUNK_BYTES`, never fewer than :data:`MIN_CHUNK_DAYS`), each with its primary delays
+drawn from its own stream (:func:`planner.delay.primary.sample`), in parallel on the job's workers
+(:func:`planner.io.parallel.iter_tasks`). The chunks' statistics are summed in chunk order as they
+arrive, so the result is the same bytes whatever the number of workers, and memory is one chunk's
+delays per worker (events × chunk days × 8 bytes, a few times) plus two chunks' statistics.
 
 Per day, each event's delay is propagated twice with the same primary delays: on the whole network and
 on each train alone (no headways, no connections). The difference is the **knock-on** (secondary)
@@ -27,7 +28,14 @@ from planner.delay.primary import Rule, sample
 from planner.delay.propagate import histogram, propagate
 
 CHUNK_DAYS = 250
-"""Days per chunk: a chunk of the 10× sample line (67,000 events) holds 2 × 134 MB of delays."""
+"""Days per chunk, at most (:func:`chunk_days`)."""
+CHUNK_BYTES = 32 * 2 ** 20
+"""A chunk's delays [bytes] (events × days × 8), at most, unless that is fewer than :data:`MIN_CHUNK_DAYS`."""
+MIN_CHUNK_DAYS = 64
+"""Days per chunk, at least: each event's update runs over the chunk's days, and fewer days than this cost more
+per day than the cache misses of a larger chunk (one process, 500 days, chunks of 250 / 62 / 16 / 6 days: 74 / 47 /
+55 / — ns per event and day on the 10× sample line, 100 / 53 / 70 / 109 on the 100× line). The sample (6,728 events)
+keeps :data:`CHUNK_DAYS`; the 10× line runs 64 days a chunk (34 MB of delays), the 100× line too (344 MB)."""
 
 EDGES_S = np.concatenate([[0.0], np.arange(10.0, 600.0 + 1, 10.0), np.arange(660.0, 3600.0 + 1, 60.0)])
 """Upper edges of the delay bins [s]: (−∞, 0], (0, 10], …, (590, 600], (600, 660], …, (3540, 3600]; then (3600, ∞)."""
@@ -46,6 +54,13 @@ class Stats:
     push_s: np.ndarray         # per activity: Σ delay it transmitted
     binds: np.ndarray          # per activity: days it set its event's delay
     absorbed_s: np.ndarray     # per activity: Σ delay its slack absorbed
+
+    def add(self, o: "Stats") -> "Stats":
+        """Add ``o``'s days into these statistics (in place; the same sums as ``self + o``) and return them."""
+        self.days += o.days
+        for f in ("sum_s", "sumsq_s", "alone_sum_s", "primary_sum_s", "hist", "push_s", "binds", "absorbed_s"):
+            getattr(self, f).__iadd__(getattr(o, f))
+        return self
 
     def __add__(self, o: "Stats") -> "Stats":
         return Stats(self.days + o.days, *(getattr(self, f) + getattr(o, f) for f in
@@ -98,7 +113,22 @@ def chunk_stats(net: DelayNetwork, alone: DelayNetwork, rules: list[Rule], days:
     alone_sum = za.sum(axis=1)
     del za
     hist = histogram(z, EDGES_S)
-    return Stats(days, z.sum(axis=1), (z * z).sum(axis=1), alone_sum, p.sum(axis=1), hist, push, binds, absorbed)
+    return Stats(days, z.sum(axis=1), _sum_squares(z), alone_sum, p.sum(axis=1), hist, push, binds, absorbed)
+
+
+def _sum_squares(z: np.ndarray, rows: int = 4096) -> np.ndarray:
+    """``(z * z).sum(axis=1)``, the same bytes, a block of rows at a time (no square of the whole chunk held)."""
+    out = np.empty(z.shape[0])
+    for i in range(0, z.shape[0], rows):
+        b = z[i:i + rows]
+        out[i:i + rows] = (b * b).sum(axis=1)
+    return out
+
+
+def chunk_days(n_events: int) -> int:
+    """Days per chunk for a network of ``n_events`` events: as many as keep a chunk's delays within
+    :data:`CHUNK_BYTES`, from :data:`MIN_CHUNK_DAYS` to :data:`CHUNK_DAYS`."""
+    return int(max(MIN_CHUNK_DAYS, min(CHUNK_DAYS, CHUNK_BYTES // (8 * max(int(n_events), 1)))))
 
 
 def plan_chunks(days: int, chunk_days: int = CHUNK_DAYS) -> list[int]:
@@ -108,16 +138,17 @@ def plan_chunks(days: int, chunk_days: int = CHUNK_DAYS) -> list[int]:
 
 
 def simulate(net: DelayNetwork, rules: list[Rule], days: int, seed: int, *, n_jobs: int = 1,
-             progress=None, chunk_days: int = CHUNK_DAYS) -> Stats:
-    """``days`` simulated days of the network, their statistics (module doc)."""
-    from planner.io.parallel import map_tasks
+             progress=None, chunk: int | None = None) -> Stats:
+    """``days`` simulated days of the network, their statistics (module doc); ``chunk`` days per chunk
+    (default :func:`chunk_days`)."""
+    from planner.io.parallel import iter_tasks
 
     if days < 1:
         raise ValueError("days must be ≥ 1")
     alone = net.without((HEADWAY, CONNECTION))
-    sizes = plan_chunks(days, chunk_days)
-    parts = map_tasks(chunk_stats, [(net, alone, rules, n, seed, i) for i, n in enumerate(sizes)], n_jobs, progress)
-    total = parts[0]
-    for s in parts[1:]:
-        total = total + s
+    sizes = plan_chunks(days, chunk_days(net.n_events) if chunk is None else chunk)
+    total = None
+    for part in iter_tasks(chunk_stats, [(net, alone, rules, n, seed, i) for i, n in enumerate(sizes)], n_jobs,
+                           progress):
+        total = part if total is None else total.add(part)
     return total

@@ -105,11 +105,16 @@ def predict_day(check, *, min_dwell_s: float | Callable[[str, str], float],
     by_name = {(KIND_NAMES[k % 2], v): k for k, v in names.items()}
     index = {t.train_id: k for k, t in enumerate(trains)}
     wait = np.zeros(len(w))
+    # each (resource, train)'s windows one slice of this order: a record's look-up is a search, not a pass
+    pair = rkey * max(len(trains), 1) + np.asarray(w.train, dtype=np.int64)
+    by_pair = np.argsort(pair, kind="stable")
+    sorted_pair = pair[by_pair]
     for r in records:  # the train that waits comes after the one that goes first, whatever their openings
         k = by_name.get((r["resource_kind"], r["resource_id"]))
         if k is None:
             continue
-        m = (rkey == k) & (np.asarray(w.train) == index[r["train_b"]])
+        p = k * max(len(trains), 1) + index[r["train_b"]]
+        m = by_pair[np.searchsorted(sorted_pair, p, side="left"):np.searchsorted(sorted_pair, p, side="right")]
         wait[m] = np.maximum(wait[m], float(r["delay_s"]))
     places = {v: _place(g, k) for k, v in names.items()}
     net = build_network(evs, min_dwell_s=min_dwell_s, windows=w, resource_ids=_ids(names), key_s=w_own.start_s + wait,

@@ -413,7 +413,8 @@ def stop_workers() -> None:
 
 def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
               progress: Callable[[int, int], None] | None = None) -> list:
-    """``[fn(*t) for t in tasks]``, in parallel: the one parallel map of the planner.
+    """``[fn(*t) for t in tasks]``, in parallel: the one parallel map of the planner
+    (:func:`iter_tasks`, its results kept).
 
     Parameters
     ----------
@@ -434,6 +435,13 @@ def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
         The results in task order, whatever the order the workers finish in, so
         outputs never depend on ``n_jobs`` or scheduling.
     """
+    return list(iter_tasks(fn, tasks, n_jobs, progress))
+
+
+def iter_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
+               progress: Callable[[int, int], None] | None = None) -> Iterator:
+    """:func:`map_tasks`'s results one at a time, in task order, each as soon as it and those before it are in:
+    a caller that folds them (sums a Monte Carlo's chunks) holds one result, not all of them."""
     total = len(tasks)
     if progress:
         progress(0, total)
@@ -445,15 +453,15 @@ def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
         with _loky(n_jobs):  # its tasks are handed to the workers here, in the configuration's pool
             results = _abandon_quietly(joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
                 joblib.delayed(fn)(*t) for t in tasks), total)
-    out = []
+    done = 0
     try:
         for r in results:
-            out.append(r)
+            done += 1
             if progress:
-                progress(len(out), total)
+                progress(done, total)
+            yield r
     finally:
         results.close()
-    return out
 
 
 @contextmanager
