@@ -615,3 +615,32 @@ def test_a_platform_named_for_the_other_direction_is_taken_where_the_own_one_can
     down = train("T1", "down", [("S0", NAN, 0.0, True), ("S1", 100.0, 130.0, True), ("S2", 230.0, NAN, True)])
     r = plan_routes(make_line([0.0, 1000.0, 2000.0], STUB_NODES, STUB_EDGES, [down]))
     assert r["T1"].nodes == ("a", "b", "X", "z")
+
+
+@given(st.lists(st.floats(-500.0, 12_000.0, allow_nan=False), min_size=1, max_size=8), st.data())
+@settings(max_examples=40, deadline=None)
+def test_resource_station_is_the_nearest_by_its_definition(positions, data):
+    """Every resource's station against the definition (the station nearest the extent; of those it spans the
+    one nearest the middle; then the lower chainage; then the first listed), over all stations, on the sample
+    with its stations moved to arbitrary chainages, some of them the same."""
+    import planner
+    from pathlib import Path
+    from planner.network.routes import KIND_NODE, KIND_SECTION, TrackGraph
+
+    if "line" not in _SAMPLE:  # loaded once: hypothesis runs the test body many times
+        _SAMPLE["line"] = planner.load_line(Path(__file__).resolve().parents[1] / "lines" / "sample")
+    line = _SAMPLE["line"]
+    pos = [data.draw(st.sampled_from(positions)) for _ in line.stations]
+    moved = dataclasses.replace(line, stations=tuple(dataclasses.replace(s, position_m=p)
+                                                     for s, p in zip(line.stations, pos)))
+    g = TrackGraph(moved)
+    for kind, count in ((KIND_NODE, len(g.node_ids)), (KIND_SECTION, len(g.piece_edge))):
+        for i in range(count):
+            lo, hi = g.resource_extent(kind, i)
+            gap = [max(lo - s.position_m, s.position_m - hi, 0.0) for s in moved.stations]
+            key = [(d, abs(s.position_m - 0.5 * (lo + hi)), s.position_m) for d, s in zip(gap, moved.stations)]
+            k = key.index(min(key))
+            assert g.resource_station(kind, i) == (moved.stations[k].station_id, gap[k])
+
+
+_SAMPLE: dict = {}

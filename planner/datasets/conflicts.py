@@ -212,10 +212,13 @@ def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingPara
     rid = [names[x][0] for x in kr]
     il = [names[x][1] for x in kr]
     track = [names[x][2] for x in kr]
+    # each window's rank by item within its train (ties in window order): one sort, not a pass per train
+    order = np.lexsort((np.arange(len(w)), w.item, tr))
+    tr_sorted = np.asarray(tr)[order]
+    starts = np.flatnonzero(np.r_[True, tr_sorted[1:] != tr_sorted[:-1]]) if len(w) else np.zeros(0, dtype=np.int64)
+    first = np.repeat(starts, np.diff(np.r_[starts, len(w)]))
     seq = np.zeros(len(w), dtype=np.int32)
-    for k in np.unique(tr):
-        m = tr == k
-        seq[m] = np.argsort(np.argsort(w.item[m], kind="stable"), kind="stable")
+    seq[order] = np.arange(len(w)) - first
     df = pd.DataFrame({
         "line": line_id,
         "direction": [trains[k].direction for k in tr],

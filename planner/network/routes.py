@@ -87,6 +87,8 @@ class TrackGraph:
                 f"line {line.line_id}: no track network; add nodes.parquet and edges.parquet to check conflicts"
             )
         self.line = line
+        self._station_by_pos = np.argsort([s.position_m for s in line.stations], kind="stable")
+        self._station_pos = np.array([line.stations[k].position_m for k in self._station_by_pos], dtype=float)
         nodes = sorted(net.nodes, key=lambda n: n.node_id)
         self.node_ids = [n.node_id for n in nodes]
         self.index = {nid: i for i, nid in enumerate(self.node_ids)}
@@ -193,8 +195,20 @@ class TrackGraph:
         """
         lo, hi = self.resource_extent(kind, i)
         mid = 0.5 * (lo + hi)
-        best = min(self.line.stations, key=lambda s: (max(lo - s.position_m, s.position_m - hi, 0.0),
-                                                      abs(s.position_m - mid), s.position_m))
+        stations = self.line.stations
+        pos = self._station_pos
+        # the minimum of the key below is among the stations the extent spans and the nearest on either side
+        # (with those at the same chainage); they are compared in the stations' order, as over all of them
+        a = np.searchsorted(pos, lo, side="left")
+        b = np.searchsorted(pos, hi, side="right")
+        near = set(range(a, b))
+        if a > 0:
+            near.update(np.flatnonzero(pos == pos[a - 1]).tolist())
+        if b < len(pos):
+            near.update(np.flatnonzero(pos == pos[b]).tolist())
+        cands = sorted(int(self._station_by_pos[k]) for k in near)
+        best = min((stations[k] for k in cands), key=lambda s: (max(lo - s.position_m, s.position_m - hi, 0.0),
+                                                               abs(s.position_m - mid), s.position_m))
         return best.station_id, max(lo - best.position_m, best.position_m - hi, 0.0)
 
     def candidates(self, station_id: str, direction: str) -> list[int]:
