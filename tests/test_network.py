@@ -617,12 +617,13 @@ def test_a_platform_named_for_the_other_direction_is_taken_where_the_own_one_can
     assert r["T1"].nodes == ("a", "b", "X", "z")
 
 
-@given(st.lists(st.floats(-500.0, 12_000.0, allow_nan=False), min_size=1, max_size=8), st.data())
-@settings(max_examples=40, deadline=None)
+@given(st.lists(st.one_of(st.floats(-500.0, 12_000.0, allow_nan=False), st.sampled_from([0.0, 5e-324, 1e-300])),
+                min_size=1, max_size=8), st.data())
+@settings(max_examples=60, deadline=None)
 def test_resource_station_is_the_nearest_by_its_definition(positions, data):
     """Every resource's station against the definition (the station nearest the extent; of those it spans the
     one nearest the middle; then the lower chainage; then the first listed), over all stations, on the sample
-    with its stations moved to arbitrary chainages, some of them the same."""
+    with its stations moved to arbitrary chainages, some of them the same or as far from an extent to the last bit."""
     import planner
     from pathlib import Path
     from planner.network.routes import KIND_NODE, KIND_SECTION, TrackGraph

@@ -198,14 +198,18 @@ class TrackGraph:
         stations = self.line.stations
         pos = self._station_pos
         # the minimum of the key below is among the stations the extent spans and the nearest on either side
-        # (with those at the same chainage); they are compared in the stations' order, as over all of them
-        a = np.searchsorted(pos, lo, side="left")
-        b = np.searchsorted(pos, hi, side="right")
+        # (with those as far, to the last bit); they are compared in the stations' order, as over all of them
+        a = int(np.searchsorted(pos, lo, side="left"))
+        b = int(np.searchsorted(pos, hi, side="right"))
         near = set(range(a, b))
-        if a > 0:
-            near.update(np.flatnonzero(pos == pos[a - 1]).tolist())
-        if b < len(pos):
-            near.update(np.flatnonzero(pos == pos[b]).tolist())
+        k = a - 1
+        while k >= 0 and lo - pos[k] == lo - pos[a - 1]:
+            near.add(k)
+            k -= 1
+        k = b
+        while k < len(pos) and pos[k] - hi == pos[b] - hi:
+            near.add(k)
+            k += 1
         cands = sorted(int(self._station_by_pos[k]) for k in near)
         best = min((stations[k] for k in cands), key=lambda s: (max(lo - s.position_m, s.position_m - hi, 0.0),
                                                                abs(s.position_m - mid), s.position_m))
