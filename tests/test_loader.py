@@ -167,6 +167,25 @@ def test_beacons_and_signals(line):
     assert [(s.signal_id, s.direction) for s in line.signals] == [("SG1", "down"), ("SG2", "up")]
 
 
+def test_beacons_within_a_stretch_are_those_of_the_pass_over_all(sample_line):
+    """``beacons_for(d, within=(lo, hi))`` (a search in the line's index) against the filter over every beacon,
+    in running order, on the sample with each beacon also given twice at a chainage another has."""
+    rng = np.random.default_rng(7)
+    extra = tuple(dataclasses.replace(b, beacon_id=b.beacon_id + "x") for b in sample_line.beacons[::3])
+    line = dataclasses.replace(sample_line, beacons=sample_line.beacons + extra)
+    pos = sorted({b.position_m for b in line.beacons})
+    ends = [(rng.uniform(-100.0, 21_000.0), rng.uniform(-100.0, 21_000.0)) for _ in range(200)]
+    ends += [(a, b) for a, b in zip(pos, pos[3:])]  # ends on beacons: both ends count
+    for d in ("down", "up"):
+        for a, b in ends:
+            lo, hi = min(a, b), max(a, b)
+            sg = 1.0 if d == "down" else -1.0
+            want = [x.beacon_id for x in sorted(line.beacons, key=lambda x: sg * x.position_m)
+                    if x.direction == d and lo <= x.position_m <= hi]
+            assert [x.beacon_id for x in line.beacons_for(d, within=(lo, hi))] == want
+            assert [x.beacon_id for x in line.beacons_for(d, within=(hi, lo))] == want
+
+
 def test_trains_calls_in_seq_order_with_nan_for_missing_times(tmp_path):
     tt = default_tables()["timetable"].iloc[[5, 3, 1, 4, 0, 2]].reset_index(drop=True)
     line = load_line(write_line_db(tmp_path / "tiny", timetable=tt))

@@ -230,13 +230,14 @@ def _restrictions_pages(job, lines, stage: Path, manifest: dict, summary) -> Non
                    job.tables.ds_m, legs)
 
 
-def _robustness_pages(lines, stage: Path, manifest: dict, summary) -> None:
-    """``report/<line>_robustness.html`` of each line whose conflict check computed the day as it runs
-    (:mod:`planner.pages.robustness`), from the datasets the check's worker wrote."""
-    from planner.pages.robustness import write_page
+def _robustness_pages(job, lines, stage: Path, manifest: dict, summary) -> list:
+    """Start ``report/<line>_robustness.html`` of each line whose conflict check computed the day as it runs
+    (:func:`robustness_page`) on a worker, while this process writes the run's other pages; the handles to wait
+    for."""
+    from planner.io.parallel import background
     from planner.pages.run_head import nav_html
-    from planner.report.published_run import read_line_dataset
 
+    started = []
     for line in lines:
         s = summary.robustness.get(line.line_id)
         if s is None:
@@ -248,10 +249,27 @@ def _robustness_pages(lines, stage: Path, manifest: dict, summary) -> None:
         od = manifest.get("operating_day") or {}
         day = od.get("day") or ""
         rec = next((x for x in od.get("lines", []) if x.get("line_id") == line.line_id), {})
-        s = {**s, "restrictions": [r["restriction_id"] for r in rec.get("restrictions") or []]}
-        frames = [read_line_dataset(stage, n, line.line_id) for n in
-                  ("robustness_trains", "robustness_stations", "robustness_activities", "delay_events")]
-        write_page(stage / "report" / f"{lid}_robustness.html", line.name, {**s, "day": day}, *frames, nav=nav)
+        s = {**s, "restrictions": [r["restriction_id"] for r in rec.get("restrictions") or []], "day": day}
+        page = background(robustness_page, (stage, line.line_id, line.name, s, nav), name=job.parallel.backend,
+                          n_jobs=job.parallel.n_jobs)
+        summary.pending.append(page)
+        started.append(page)
+    return started
+
+
+def robustness_page(stage: Path, line_id: str, name: str, summary: dict, nav: str) -> None:
+    """Write a line's robustness page (:mod:`planner.pages.robustness`) from the datasets its conflict check's
+    worker wrote into the staged run. Module level: the nightly job runs it on a worker (on a line a hundred
+    times the sample its 35,600 trains' rows took 21 s of the job process)."""
+    from planner.pages.robustness import write_page
+    from planner.report.published_run import read_line_dataset
+
+    lid = check_path_id(line_id, "line id")
+    frames = [read_line_dataset(stage, n, line_id) for n in
+              ("robustness_trains", "robustness_stations", "robustness_activities", "delay_events")]
+    write_page(stage / "report" / f"{lid}_robustness.html", name, summary, *frames, nav=nav)
+    del frames
+    give_back()
 
 
 def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
@@ -312,7 +330,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
         _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
-        _robustness_pages(lines, stage, manifest, summary)
+        robustness = _robustness_pages(job, lines, stage, manifest, summary)
     # the speed–distance charts, drawn while the pages above were written: their pages are written here while
     # a worker may still write a train graph page (the last long unit of a large line)
     for pages in summary.chart_pages:
@@ -320,6 +338,9 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     with prog.step("graph"):  # each line's train graph page, written on a worker meanwhile
         for page in summary.graph_pages:
             page.result()
+    for page in robustness:  # and the robustness pages
+        page.result()
+        summary.pending.remove(page)
     with prog.step("overview"):  # its bundles verified meanwhile
         brows = verified.result()
     summary.rows.update(rows)

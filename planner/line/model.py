@@ -308,10 +308,16 @@ class Line:
         st = sorted(self.stations, key=lambda s: s.position_m, reverse=(direction == "up"))
         return list(zip(st[:-1], st[1:]))
 
-    def beacons_for(self, direction: str) -> list[Beacon]:
-        """Beacons read in ``direction``, in running order."""
-        b = [x for x in self.beacons if x.direction == direction]
-        return sorted(b, key=lambda x: sign(direction) * x.position_m)
+    def beacons_for(self, direction: str, within: tuple[float, float] | None = None) -> list[Beacon]:
+        """Beacons read in ``direction``, in running order; with ``within`` = (lo, hi) [m], only those at
+        lo ≤ position_m ≤ hi (a search in the line's index, not a pass over every beacon)."""
+        b, pos = _index(self).beacons_for(self, direction)
+        if within is None:
+            return list(b)
+        lo, hi = (float(x) for x in within)
+        ks = pos * sign(direction)  # ascending: running order
+        a, z = sorted((lo * sign(direction), hi * sign(direction)))
+        return list(b[int(np.searchsorted(ks, a, side="left")):int(np.searchsorted(ks, z, side="right"))])
 
     def limits_for(self, direction: str, train_type: str) -> list[SpeedLimit]:
         """Speed restrictions that apply to ``direction`` and ``train_type``."""
@@ -371,6 +377,16 @@ class _Index:
         self.limit_start_m = np.array([x.start_m for x in line.speed_limits], float)
         self.limit_end_m = np.array([x.end_m for x in line.speed_limits], float)
         self.beacon_m = np.array([b.position_m for b in line.beacons], float)
+        self._beacons_for: dict = {}
+
+    def beacons_for(self, line: "Line", direction: str) -> tuple[tuple, np.ndarray]:
+        """The beacons read in ``direction`` in running order (a stable sort of the line's), and their positions."""
+        hit = self._beacons_for.get(direction)
+        if hit is None:
+            b = tuple(sorted((x for x in line.beacons if x.direction == direction),
+                             key=lambda x: sign(direction) * x.position_m))
+            hit = self._beacons_for[direction] = (b, np.array([x.position_m for x in b], float))
+        return hit
 
 
 _INDEXES: "weakref.WeakKeyDictionary[Line, _Index]" = weakref.WeakKeyDictionary()

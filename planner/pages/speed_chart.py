@@ -167,7 +167,7 @@ def _speed_panel(fig, line, run, calls, pattern, eval_points, signals, xlim, leg
     if len(sig):
         p.markers(np.asarray(sig, float) / 1000.0, np.full(len(sig), top * 0.07), "v", size=8, fill=c["signal"])
         legend.append((swatch("marker", shape="v", color=c["signal"]), "signal"))
-    bea = [b.position_m for b in line.beacons_for(d) if lo <= b.position_m <= hi]
+    bea = [b.position_m for b in line.beacons_for(d, within=(lo, hi))]
     if bea:
         p.markers(np.asarray(bea, float) / 1000.0, np.full(len(bea), top * 0.03), "|", size=9, fill=c["beacon"],
                   width=1.5)

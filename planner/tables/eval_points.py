@@ -241,7 +241,9 @@ def evaluation_points(
             after = float(after_departure_m)
             pts.append(EvalPoint(odometer_id(after), after, stop0 + sg * after, "after_departure"))
     beacons = []
-    for b in line.beacons_for(d):
+    ends = (stop0, stop0 + sg * length)
+    # the leg's beacons, from a metre beyond its ends (the test on s below decides, as over all of them)
+    for b in line.beacons_for(d, within=(min(ends) - 1.0, max(ends) + 1.0)):
         if not b.evaluation_point:
             continue
         if b.beacon_id == "dep" or b.beacon_id.startswith("dep+"):
