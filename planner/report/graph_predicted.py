@@ -80,24 +80,27 @@ def predicted_paths(line, events, trains: Sequence) -> dict[str, PredictedPath]:
     ev["_k"] = (ev["event"] != "arrival").astype(int)  # a call's arrival before its departure
     ev = ev.sort_values(["train_id", "seq", "_k"], kind="stable")
     rows = ev.groupby("train_id", sort=False).indices
+    # the columns as arrays once, each train's rows taken from them (a frame's row selection per train was most of
+    # the page's time on a line of 35,600 trains)
+    col = {c: ev[c].to_numpy(dtype=float if c in ("delay_s", "scheduled_s", "predicted_s") else object)
+           for c in ("delay_s", "station_id", "event", "scheduled_s", "predicted_s", "cause")}
     stops: dict[tuple[str, str], float] = {}
     out = {}
     for tp in trains:
         ix = rows.get(tp.train_id)
         if ix is None:
             continue
-        g = ev.iloc[ix]
-        delay = np.maximum(g["delay_s"].to_numpy(float), 0.0)
+        delay = np.maximum(col["delay_s"][ix], 0.0)
         if not (delay > LATE_S).any():
             continue
-        sids = tuple(str(s) for s in g["station_id"])
+        sids = tuple(str(s) for s in col["station_id"][ix])
         for s in sids:
             if (s, tp.direction) not in stops:
                 stops[(s, tp.direction)] = float(line.station(s).stop_m(tp.direction))
         out[tp.train_id] = PredictedPath(
-            tp.train_id, tp.direction, sids, tuple(str(e) for e in g["event"]), g["scheduled_s"].to_numpy(float),
-            g["predicted_s"].to_numpy(float), np.array([stops[(s, tp.direction)] for s in sids]), delay,
-            tuple("" if c is None else str(c) for c in g["cause"]))
+            tp.train_id, tp.direction, sids, tuple(str(e) for e in col["event"][ix]), col["scheduled_s"][ix],
+            col["predicted_s"][ix], np.array([stops[(s, tp.direction)] for s in sids]), delay,
+            tuple("" if c is None else str(c) for c in col["cause"][ix]))
     return out
 
 
