@@ -259,6 +259,25 @@ def test_overtaken_local_takes_the_loop_and_the_fast_train_the_main():
     assert r["LOC"].stop_nodes == {0: "a", 1: "l", 2: "c"}
 
 
+@given(st.lists(st.tuples(st.integers(0, 12), st.integers(0, 6), st.booleans(), st.sampled_from(["down", "up"])),
+                min_size=1, max_size=14))
+@settings(max_examples=80, deadline=None)
+def test_overtaken_calls_by_their_definition(calls):
+    """Each train calls at S0, S1 (arrival, dwell, stops or passes) and S2; a stop at S1 is overtaken when a train of
+    its direction is there strictly inside its stand (arrives after it arrives and leaves before it leaves). Whole
+    seconds, so arrivals tie often."""
+    trains = [train(f"T{i}", dr, [("S0", NAN, 0.0, True), ("S1", float(a), float(a + (w if stops else 0)), stops),
+                                  ("S2", 100.0, NAN, True)]) for i, (a, w, stops, dr) in enumerate(calls)]
+    want = {}
+    for t in trains:
+        c = t.calls[1]
+        a, d = c.arrival_s, c.departure_s
+        if c.stops and d > a and any(u.train_id != t.train_id and u.direction == t.direction
+                                     and a < u.calls[1].arrival_s and u.calls[1].departure_s < d for u in trains):
+            want[t.train_id] = {1}
+    assert overtaken_calls(trains) == want
+
+
 def test_local_not_overtaken_stays_on_the_main():
     line = loop_line(450.0)  # passes after the local has left
     assert overtaken_calls(line.trains) == {}

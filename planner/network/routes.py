@@ -34,6 +34,7 @@ its track.
 """
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import heapq
 import math
@@ -290,10 +291,15 @@ def overtaken_calls(trains: Iterable[Train]) -> dict[str, set[int]]:
     out: dict[str, set[int]] = defaultdict(set)
     for calls in at.values():
         calls.sort()
+        arrive = [c[0] for c in calls]
+        ordered = not any(math.isnan(x) for x in arrive)
         for a, d, stands, tid, seq in calls:
             if not stands or not d > a:
                 continue
-            for a2, d2, _, tid2, _ in calls:
+            # the calls arriving after a, in order (those before cannot be inside): a search, not a pass from the
+            # station's first call, which grew with the square of its calls
+            for j in range(bisect.bisect_right(arrive, a) if ordered else 0, len(calls)):
+                a2, d2, _, tid2, _ = calls[j]
                 if a2 >= d:
                     break
                 if tid2 != tid and a < a2 and d2 < d:
