@@ -33,9 +33,10 @@ CHUNK_BYTES = 32 * 2 ** 20
 """A chunk's delays [bytes] (events × days × 8), at most, unless that is fewer than :data:`MIN_CHUNK_DAYS`."""
 MIN_CHUNK_DAYS = 64
 """Days per chunk, at least: each event's update runs over the chunk's days, and fewer days than this cost more
-per day than the cache misses of a larger chunk (one process, 500 days, chunks of 250 / 62 / 16 / 6 days: 74 / 47 /
-55 / — ns per event and day on the 10× sample line, 100 / 53 / 70 / 109 on the 100× line). The sample (6,728 events)
-keeps :data:`CHUNK_DAYS`; the 10× line runs 64 days a chunk (34 MB of delays), the 100× line too (344 MB)."""
+per day than the cache misses of a larger chunk. Measured in one process, ns per event and day: the 10× sample
+line 74 / 47 / 55 / 101 with chunks of 250 / 62 / 16 / 4 days (1,000 days); the 100× line 100 / 53 / 70 / 109 with
+chunks of 250 / 62 / 16 / 6 days (500 days). The sample (6,728 events) keeps :data:`CHUNK_DAYS`; the 10× line runs
+64 days a chunk (34 MB of delays), the 100× line too (344 MB)."""
 
 EDGES_S = np.concatenate([[0.0], np.arange(10.0, 600.0 + 1, 10.0), np.arange(660.0, 3600.0 + 1, 60.0)])
 """Upper edges of the delay bins [s]: (−∞, 0], (0, 10], …, (590, 600], (600, 660], …, (3540, 3600]; then (3600, ∞)."""
