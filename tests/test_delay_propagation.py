@@ -199,6 +199,8 @@ def test_window_anchors_are_each_trains_last_event_at_or_before():
 
     assert a_start.tolist() == [last_at_or_before(k, t) for k, t in zip(train, entry)]
     assert a_end.tolist() == [last_at_or_before(k, t) for k, t in zip(train, end)]
+    none = windows(np.zeros((0, 5)))  # a day without windows (no train routed)
+    assert [a.tolist() for a in window_anchors(none, sizes.tolist(), plan)] == [[], []]
 
 
 def test_chunks_keep_their_delays_in_bounds_and_sum_as_they_arrive():

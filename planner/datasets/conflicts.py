@@ -215,7 +215,7 @@ def _occupation_frame(g: TrackGraph, trains, routes, w: Windows, p: BlockingPara
     # each window's rank by item within its train (ties in window order): one sort, not a pass per train
     order = np.lexsort((np.arange(len(w)), w.item, tr))
     tr_sorted = np.asarray(tr)[order]
-    starts = np.flatnonzero(np.r_[True, tr_sorted[1:] != tr_sorted[:-1]]) if len(w) else np.zeros(0, dtype=np.int64)
+    starts = np.flatnonzero(np.r_[True, tr_sorted[1:] != tr_sorted[:-1]])
     first = np.repeat(starts, np.diff(np.r_[starts, len(w)]))
     seq = np.zeros(len(w), dtype=np.int32)
     seq[order] = np.arange(len(w)) - first

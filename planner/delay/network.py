@@ -142,7 +142,7 @@ def window_anchors(w, sizes: Sequence[int], plan_s: np.ndarray) -> tuple[np.ndar
     a_start = np.empty(len(w), dtype=np.int64)
     a_end = np.empty(len(w), dtype=np.int64)
     by_train = np.argsort(tr, kind="stable")  # each train's windows one slice: linear in the windows, not trains × windows
-    bounds = np.flatnonzero(np.r_[True, tr[by_train][1:] != tr[by_train][:-1], True])
+    bounds = np.flatnonzero(np.r_[True, tr[by_train][1:] != tr[by_train][:-1], True]) if len(tr) else []
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         m = by_train[lo:hi]
         k = int(tr[m[0]])

@@ -106,14 +106,15 @@ def predict_day(check, *, min_dwell_s: float | Callable[[str, str], float],
     index = {t.train_id: k for k, t in enumerate(trains)}
     wait = np.zeros(len(w))
     # each (resource, train)'s windows one slice of this order: a record's look-up is a search, not a pass
-    pair = rkey * max(len(trains), 1) + np.asarray(w.train, dtype=np.int64)
+    n_tr = max(len(trains), 1)
+    pair = rkey * n_tr + np.asarray(w.train, dtype=np.int64)
     by_pair = np.argsort(pair, kind="stable")
     sorted_pair = pair[by_pair]
     for r in records:  # the train that waits comes after the one that goes first, whatever their openings
         k = by_name.get((r["resource_kind"], r["resource_id"]))
         if k is None:
             continue
-        p = k * max(len(trains), 1) + index[r["train_b"]]
+        p = k * n_tr + index[r["train_b"]]
         m = by_pair[np.searchsorted(sorted_pair, p, side="left"):np.searchsorted(sorted_pair, p, side="right")]
         wait[m] = np.maximum(wait[m], float(r["delay_s"]))
     places = {v: _place(g, k) for k, v in names.items()}

@@ -319,6 +319,11 @@ class Line:
         a, z = sorted((lo * sign(direction), hi * sign(direction)))
         return list(b[int(np.searchsorted(ks, a, side="left")):int(np.searchsorted(ks, z, side="right"))])
 
+    def beacons_on(self, ext: "RunExtent") -> list[Beacon]:
+        """Beacons read on the run ``ext`` (:meth:`run_between`), in running order: those from a metre before its
+        start to a metre past its end (the caller's test on the running distance decides at the ends)."""
+        return self.beacons_for(ext.direction, within=(ext.start_m - ext.sign, ext.end_m + ext.sign))
+
     def limits_for(self, direction: str, train_type: str) -> list[SpeedLimit]:
         """Speed restrictions that apply to ``direction`` and ``train_type``."""
         return [s for s in self.speed_limits if s.applies(direction, train_type)]

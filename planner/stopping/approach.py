@@ -123,9 +123,7 @@ def approach_start(line: Line, origin: str, destination: str, approach_m: float 
     """
     ext = line.run_between(origin, destination)
     best = None
-    ends = (ext.start_m, ext.start_m + ext.sign * ext.length_m)
-    # running order: the last one inside wins (from a metre beyond the ends: the test below decides)
-    for b in line.beacons_for(ext.direction, within=(min(ends) - 1.0, max(ends) + 1.0)):
+    for b in line.beacons_on(ext):  # running order: the last one inside wins
         if b.kind == "tasc" and 0.0 < ext.sign * (b.position_m - ext.start_m) < ext.length_m:
             best = b
     if best is not None:

@@ -54,7 +54,7 @@ import math
 from dataclasses import dataclass
 
 from planner.errors import InputError
-from planner.line.model import Line, sign
+from planner.line.model import Line
 
 DEFAULT_AFTER_DEPARTURE_M = 200.0
 """Default distance of the point after departure [m] (docs/design.md §3)."""
@@ -223,10 +223,8 @@ def evaluation_points(
     >>> [p.eval_point_id for p in evaluation_points(testing.line(), "S0", "S1", fill_interval_m=1500)]
     ['dep', 'dep+200', 'dep+1700']
     """
-    d = line.direction_between(origin, destination)
-    sg = sign(d)
-    stop0 = line.station(origin).stop_m(d)
-    length = interstation_length_m(line, origin, destination)
+    ext = line.run_between(origin, destination)
+    d, sg, stop0, length = ext.direction, ext.sign, ext.start_m, ext.length_m
     if not length > 0:
         raise InputError(
             f"interstation {origin}->{destination} ({d}): stop markers do not follow the running direction "
@@ -241,9 +239,7 @@ def evaluation_points(
             after = float(after_departure_m)
             pts.append(EvalPoint(odometer_id(after), after, stop0 + sg * after, "after_departure"))
     beacons = []
-    ends = (stop0, stop0 + sg * length)
-    # the leg's beacons, from a metre beyond its ends (the test on s below decides, as over all of them)
-    for b in line.beacons_for(d, within=(min(ends) - 1.0, max(ends) + 1.0)):
+    for b in line.beacons_on(ext):
         if not b.evaluation_point:
             continue
         if b.beacon_id == "dep" or b.beacon_id.startswith("dep+"):
