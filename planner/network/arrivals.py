@@ -287,8 +287,11 @@ class SimulatorCurves:
         if not todo:
             return
         ratios = self.ratios if self.mode == "match" else (1.0,)
-        tabs = map_tasks(_interstation_or_stall, [(self.line, *key, ratios, self.ds_m) for key in todo],
-                         self.n_jobs, progress)
+        # each task carries its interstation's window of the line (what its run sees, as the tables' units do), not
+        # the line: on a line a hundred times the sample, pickling the whole line into each of its 7,400 tasks kept
+        # the workers waiting on this process for minutes
+        tabs = map_tasks(_interstation_or_stall, [(self.line.window(o, d, tt), tt, o, d, ratios, self.ds_m)
+                                                  for tt, o, d in todo], self.n_jobs, progress)
         for key, tab in zip(todo, tabs):
             if isinstance(tab, str):  # the train stalls there at every ratio: no curve (its trains are flagged)
                 self._stalled[key] = tab
