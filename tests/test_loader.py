@@ -169,7 +169,7 @@ def test_beacons_and_signals(line):
 
 def test_beacons_within_a_stretch_are_those_of_the_pass_over_all(sample_line):
     """``beacons_for(d, within=(lo, hi))`` (a search in the line's index) against the filter over every beacon,
-    in running order, on the sample with each beacon also given twice at a chainage another has."""
+    in running order, on the sample with every third beacon given again at the same chainage."""
     rng = np.random.default_rng(7)
     extra = tuple(dataclasses.replace(b, beacon_id=b.beacon_id + "x") for b in sample_line.beacons[::3])
     line = dataclasses.replace(sample_line, beacons=sample_line.beacons + extra)

@@ -639,17 +639,13 @@ def test_a_platform_named_for_the_other_direction_is_taken_where_the_own_one_can
 @given(st.lists(st.one_of(st.floats(-500.0, 12_000.0, allow_nan=False), st.sampled_from([0.0, 5e-324, 1e-300])),
                 min_size=1, max_size=8), st.data())
 @settings(max_examples=60, deadline=None)
-def test_resource_station_is_the_nearest_by_its_definition(positions, data):
+def test_resource_station_is_the_nearest_by_its_definition(sample_line, positions, data):
     """Every resource's station against the definition (the station nearest the extent; of those it spans the
     one nearest the middle; then the lower chainage; then the first listed), over all stations, on the sample
     with its stations moved to arbitrary chainages, some of them the same or as far from an extent to the last bit."""
-    import planner
-    from pathlib import Path
     from planner.network.routes import KIND_NODE, KIND_SECTION, TrackGraph
 
-    if "line" not in _SAMPLE:  # loaded once: hypothesis runs the test body many times
-        _SAMPLE["line"] = planner.load_line(Path(__file__).resolve().parents[1] / "lines" / "sample")
-    line = _SAMPLE["line"]
+    line = sample_line
     pos = [data.draw(st.sampled_from(positions)) for _ in line.stations]
     moved = dataclasses.replace(line, stations=tuple(dataclasses.replace(s, position_m=p)
                                                      for s, p in zip(line.stations, pos)))
@@ -662,5 +658,3 @@ def test_resource_station_is_the_nearest_by_its_definition(positions, data):
             k = key.index(min(key))
             assert g.resource_station(kind, i) == (moved.stations[k].station_id, gap[k])
 
-
-_SAMPLE: dict = {}
