@@ -188,6 +188,11 @@ class Cache:
         self.hits += 1
         return obj
 
+    def present(self, kind: str, key: str) -> bool:
+        """Whether an entry is stored under the key (its name only: :meth:`get` reads and checks it); False when
+        the cache is not read (``enabled=False``)."""
+        return self.enabled and self.path(kind, key).is_file()
+
     def _reject(self, kind: str, key: str, why: str) -> None:
         self.misses += 1
         self.rejected += 1

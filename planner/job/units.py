@@ -175,6 +175,19 @@ def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable):
     return _stored(cache, step, key, after, fn(*args))
 
 
+def _read_kept(fn, args, cache: Cache, step: str, key: str, after: Callable):
+    """Worker: a stored unit with :attr:`Unit.after` read back here, where what the job keeps of it is made (the
+    whole result never comes to the job process); ``(kept, why)``: ``why`` None, or why the entry was not
+    trusted (then the unit was computed again here and stored). Its own :class:`Cache` on the same root, so
+    that the job's counts the rejection once (:meth:`Cache.rejected_elsewhere`) wherever this runs."""
+    mine = Cache(cache.root, enabled=cache.enabled)
+    obj = mine.get(step, key)
+    if obj is not None:
+        return _kept(after, obj), None
+    why = mine.rejected_why[-1][2] if mine.rejected_why else "gone before it was read"
+    return _stored(mine, step, key, after, fn(*args)), why
+
+
 class Runner:
     """Runs units through the cache and the parallel backend, counting what it computed."""
 
@@ -218,9 +231,21 @@ class Runner:
         from planner.io.parallel import LocalPool, backend, run_pool
 
         started = Started(self, groups)
+        p = self.job.parallel
+        run = run_pool()
+        # a stored unit with Unit.after is read where it is used, on a worker, when there are workers: the job
+        # process looks at the entry's name only, not at its contents
+        elsewhere = (p.backend == "local" and p.n_jobs != 1) or (
+            p.backend == "dask" and run is not None and run.scheduler == p.scheduler)
         for g, (step, units) in enumerate(groups):
             missing = 0
+            reads = 0
             for i, u in enumerate(units):
+                if elsewhere and u.after is not None and self.cache.present(step, u.key):
+                    started.todo.append((g, i))
+                    started.reads.add((g, i))
+                    reads += 1
+                    continue
                 obj = self.cache.get(step, u.key)
                 if obj is None:
                     started.todo.append((g, i))
@@ -229,26 +254,33 @@ class Runner:
                     started.out[g][i] = _kept(u.after, obj)
             self.reused[step] = self.reused.get(step, 0) + len(units) - missing
             self.computed[step] = self.computed.get(step, 0) + missing
-            self.progress.start(step, len(units), done=len(units) - missing)
+            self.progress.start(step, len(units), done=len(units) - missing - reads)
         started.left = [sum(1 for t in started.todo if t[0] == g) for g in range(len(groups))]
         for g, (step, _) in enumerate(groups):
             if not started.left[g]:
                 self.progress.finish(step)
         if not started.todo:
             return started
-        p = self.job.parallel
         with backend(p.backend, n_jobs=p.n_jobs, scheduler=p.scheduler,
                      lost_timeout_s=p.dask_lost_timeout_s) as pool:
             unit = started.unit
             on_run = pool is run_pool()  # the run's Dask cluster: its futures outlive this context too
+
+            def task(t):
+                u = unit(t)
+                if t in started.reads:
+                    return _read_kept, (u.fn, u.args, self.cache, u.step, u.key, u.after)
+                if t in started.kept:
+                    return _call_kept, (u.fn, u.args, self.cache, u.step, u.key, u.after)
+                return u.fn, u.args
+
+            started.kept = set(started.reads)  # read and kept where they are used
             if pool.n_jobs == 1 or (len(started.todo) == 1 and wait):  # one unit waited for: here
-                started.gen = (_call(unit(t).fn, unit(t).args) for t in started.todo)
+                started.gen = (_call(*task(t)) for t in started.todo)
             else:  # a local pool's tasks start now and go on after the context (joblib's generator)
                 if isinstance(pool, LocalPool) or on_run:  # such results stored and kept where they are made
-                    started.kept = {t for t in started.todo if unit(t).after is not None}
-                started.gen = pool.imap(_call, [
-                    (_call_kept, (unit(t).fn, unit(t).args, self.cache, unit(t).step, unit(t).key, unit(t).after))
-                    if t in started.kept else (unit(t).fn, unit(t).args) for t in started.todo])
+                    started.kept |= {t for t in started.todo if unit(t).after is not None}
+                started.gen = pool.imap(_call, [task(t) for t in started.todo])
             if wait or not (isinstance(pool, LocalPool) or on_run):
                 started.results()
         return started
@@ -262,6 +294,7 @@ class Started:
         self.out: list[list] = [[None] * len(units) for _, units in groups]
         self.todo: list[tuple[int, int]] = []
         self.kept: set[tuple[int, int]] = set()  # units stored and kept on their worker (Unit.after)
+        self.reads: set[tuple[int, int]] = set()  # stored units read back on a worker (of kept: see _read_kept)
         self.left: list[int] = []
         self.gen = None
 
@@ -285,7 +318,13 @@ class Started:
         try:
             for (g, i), res in zip(self.todo, gen):
                 step, u = self.groups[g][0], self.unit((g, i))
-                if (g, i) not in self.kept:  # else stored on its worker already, and kept there
+                if (g, i) in self.reads:
+                    res, why = res
+                    if why is not None:  # not trusted where it was read: computed there again, and counted here
+                        r.cache.rejected_elsewhere(step, u.key, why)
+                        r.reused[step] -= 1
+                        r.computed[step] = r.computed.get(step, 0) + 1
+                elif (g, i) not in self.kept:  # else stored on its worker already, and kept there
                     res = _stored(r.cache, step, u.key, u.after, res)
                 _kill_point()
                 self.out[g][i] = res
