@@ -29,7 +29,11 @@ def robustness(
     from planner.datasets.delays import events_frame, write_day
     from planner.errors import InputError
     from planner.job.config import load_job
-    from planner.job.robustness import day_as_it_runs
+    import pandas as pd
+
+    from planner.delay.network import ARRIVAL
+    from planner.job.robustness import connections, day_as_it_runs, merged_summary
+    from planner.network.sections import part_names, plan_sections, restricted, section_line, stream_of
     from planner.network.arrivals import train_curves
     from planner.network.check import check_timetable
     from planner.pages.robustness import write_page
@@ -47,24 +51,37 @@ def robustness(
     dest = out if out is not None else job.resolve(job.job.output_root) / "robustness"
     check_out_dir(dest, "--out", "robustness datasets")
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}  # as the night's
+    links = connections(job)
     for path in job.job.lines:
         lifted: dict = {}
         line = day_line(load_line(job.resolve(path)), job_file, day, lifted)
         if line.network is None:
             raise InputError(f"{path}: no track network; the day as it runs needs nodes.parquet and edges.parquet")
+        # section by section, as the night computes it (planner.network.sections): the same draws, the same files
+        sections = plan_sections(line, links)
+        files, frames, events, summaries = [], [], [], []
         with progress_bar() as bar:
             t = bar.add_task(f"{line.line_id}: run curves", total=None)
-            check = check_timetable(line, params, curves=train_curves(line, lifted, n_jobs=jobs),
-                                    curve_progress=lambda d, n: bar.update(t, completed=d, total=n))
             s = bar.add_task(f"{line.line_id}: simulated days", total=None)
-            pday, stats, summary, held = day_as_it_runs(check, line, job, days=days, seed=seed, n_jobs=jobs,
-                                                  progress=lambda d, n: bar.update(s, completed=d, total=n))
-        directions = {tr.train_id: tr.direction for tr in check.trains}
-        files, frames = write_day(pday, stats, held, line, directions, dest)
+            for sec, part in zip(sections, part_names(len(sections))):
+                sl, lift = section_line(line, sec), restricted(lifted, sec)
+                check = check_timetable(sl, params, curves=train_curves(sl, lift, n_jobs=jobs),
+                                        curve_progress=lambda d, n: bar.update(t, completed=d, total=n))
+                pday, stats, summary, held = day_as_it_runs(
+                    check, sl, job, days=days, seed=seed, n_jobs=jobs, stream=stream_of(sec, line),
+                    progress=lambda d, n: bar.update(s, completed=d, total=n))
+                directions = {tr.train_id: tr.direction for tr in check.trains}
+                written, fr = write_day(pday, stats, held, sl, directions, dest, part)
+                files += written
+                frames.append(fr)
+                events.append(events_frame(pday, directions))
+                summaries.append((summary, int((pday.net.ev_kind == ARRIVAL).sum())))
+        summary = {**merged_summary(summaries)}
+        frames = None if frames[0] is None else tuple(pd.concat(list(f), ignore_index=True) for f in zip(*frames))
         page = dest / "report" / f"{check_path_id(line.line_id, 'line id ')}_robustness.html"
         summary["day"] = day or job.day.day
         summary["restrictions"] = _in_force(line)
-        write_page(page, line.name, summary, *(frames or (None, None, None)), events_frame(pday, directions))
+        write_page(page, line.name, summary, *(frames or (None, None, None)), pd.concat(events, ignore_index=True))
         for msg in summary_lines(line.line_id, summary, frames):
             typer.echo(msg)
         typer.echo(f"  wrote {len(files)} datasets under {dest} and {page}")

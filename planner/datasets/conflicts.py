@@ -18,6 +18,7 @@ import pandas as pd
 import pyarrow as pa
 
 from planner.io.parquet import declare, write_parquet_atomic, write_partitioned
+from planner.io.paths import check_path_id
 from planner.line.model import Line
 from planner.network.arrivals import RunCurveSource
 from planner.network.check import ConflictCheck, check_timetable
@@ -356,43 +357,75 @@ def conflicts_table(line: Line, params: BlockingParams | Mapping[str, Any] | Non
 
 
 def write_conflicts(report: ConflictReport, out_dir) -> list:
-    """Write ``conflicts``, ``headways`` and ``occupation`` datasets under ``out_dir`` (hive-partitioned, atomic).
+    """Write ``conflicts``, ``headways``, ``unrouted`` and ``occupation`` datasets under ``out_dir`` (hive-partitioned,
+    atomic): :func:`write_conflict_tables` and :func:`write_occupation`."""
+    return (write_conflict_tables(report.line_id, report.conflicts, report.headways, report.unrouted, out_dir)
+            + write_occupation(report.occupation, out_dir))
 
-    ``conflicts/line=L/part-0.parquet`` and ``headways/line=L/part-0.parquet``
-    (a conflict or a resource can involve both directions, so they are
-    partitioned by line only) and
-    ``occupation/line=L/direction=D/train_type=T/part-0.parquet``.
-    """
-    occ_schema, con_schema = OCCUPATION_SCHEMA, CONFLICTS_SCHEMA
+
+def write_conflict_tables(line_id: str, con, heads, unrouted, out_dir) -> list:
+    """Write the line's ``conflicts``, ``headways`` and ``unrouted`` datasets, one file each:
+    ``conflicts/line=L/part-0.parquet`` and so on (a conflict or a resource can involve both directions, so they
+    are partitioned by line only); an empty file where there are no rows, so readers find the schema."""
     out = Path(out_dir)
     written = []
-    con = report.conflicts
+    lid = check_path_id(line_id, "line id ")
     if len(con):
         written += write_partitioned(pa.Table.from_pandas(con, preserve_index=False), out, "conflicts",
-                                     ("line",), schema=con_schema,
+                                     ("line",), schema=CONFLICTS_SCHEMA,
                                      sort_by=("conflict_id", "from_m", "resource_kind", "resource_id"))
     else:  # an empty file, so readers find the dataset and its schema
-        path = out / "conflicts" / f"line={report.line_id}" / "part-0.parquet"
-        write_parquet_atomic(con_schema.empty_table(), path)
+        path = out / "conflicts" / f"line={lid}" / "part-0.parquet"
+        write_parquet_atomic(CONFLICTS_SCHEMA.empty_table(), path)
         written.append(path)
-    heads = report.headways
     if heads is not None:
         if len(heads):
             written += write_partitioned(pa.Table.from_pandas(heads, preserve_index=False), out, "headways",
                                          ("line",), schema=HEADWAYS_SCHEMA,
                                          sort_by=("from_m", "to_m", "resource_kind", "resource_id"))
         else:
-            path = out / "headways" / f"line={report.line_id}" / "part-0.parquet"
+            path = out / "headways" / f"line={lid}" / "part-0.parquet"
             write_parquet_atomic(HEADWAYS_SCHEMA.empty_table(), path)
             written.append(path)
-    unrouted = report.unrouted if report.unrouted is not None else pd.DataFrame(columns=["line"])
-    path = out / "unrouted" / f"line={report.line_id}" / "part-0.parquet"  # always: readers find its schema
+    unrouted = unrouted if unrouted is not None else pd.DataFrame(columns=["line"])
+    path = out / "unrouted" / f"line={lid}" / "part-0.parquet"  # always: readers find its schema
     table = (pa.Table.from_pandas(unrouted.drop(columns=["line"]), preserve_index=False, schema=UNROUTED_SCHEMA)
              if len(unrouted) else UNROUTED_SCHEMA.empty_table())
     write_parquet_atomic(table, path)
     written.append(path)
-    occ = report.occupation
-    if len(occ):
-        written += write_partitioned(pa.Table.from_pandas(occ, preserve_index=False), out, "occupation",
-                                     schema=occ_schema, sort_by=("train_id", "seq"))
     return written
+
+
+def write_occupation(occ, out_dir, part: str = "0") -> list:
+    """Write the ``occupation`` dataset's rows: ``occupation/line=L/direction=D/train_type=T/part-<part>.parquet``
+    (a line checked in sections writes one part per section, :mod:`planner.network.sections`)."""
+    if not len(occ):
+        return []
+    return write_partitioned(pa.Table.from_pandas(occ, preserve_index=False), Path(out_dir), "occupation",
+                             schema=OCCUPATION_SCHEMA, sort_by=("train_id", "seq"), part=part)
+
+
+def renumbered(parts) -> pd.DataFrame:
+    """The conflicts tables of a line's sections as one, numbered from 1 in time order across them, as the whole
+    line's check numbers them: by each conflict's earliest window opening of the two trains, then the pair, then
+    (within a section, where the check numbered them in this same order) its number there."""
+    parts = [c for c in parts if len(c)]
+    if not parts:
+        return pd.DataFrame(columns=["line"] + [f.name for f in CONFLICTS_SCHEMA])
+    if len(parts) == 1:
+        return parts[0]
+    keys = []
+    for k, c in enumerate(parts):
+        t0 = np.minimum(c["a_start_s"].to_numpy(float), c["b_start_s"].to_numpy(float))
+        f = pd.DataFrame({"t0": t0, "a": c["train_a"].to_numpy(), "b": c["train_b"].to_numpy(),
+                          "part": k, "cid": c["conflict_id"].to_numpy()})
+        keys.append(f.sort_values(["t0", "a", "b", "cid"], kind="stable").drop_duplicates(["part", "cid"]))
+    first = pd.concat(keys, ignore_index=True).sort_values(["t0", "a", "b", "part", "cid"], kind="stable")
+    number = {(int(p), int(c)): n for n, (p, c) in enumerate(zip(first["part"], first["cid"]), start=1)}
+    out = []
+    for k, c in enumerate(parts):
+        c = c.copy()
+        c["conflict_id"] = np.array([number[(k, int(x))] for x in c["conflict_id"]], dtype=np.int64)
+        out.append(c)
+    return pd.concat(out, ignore_index=True).sort_values(
+        ["conflict_id", "from_m", "resource_kind", "resource_id"], kind="stable").reset_index(drop=True)

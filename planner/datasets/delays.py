@@ -194,35 +194,38 @@ def robustness_frames(day: PredictedDay, stats: Stats, line, directions: dict[st
     return trains, stations, acts
 
 
-def _write(frame: pd.DataFrame, schema: pa.Schema, out: Path, name: str, line_id: str) -> Path:
-    path = Path(out) / name / f"line={check_path_id(line_id, 'line id ')}" / "part-0.parquet"
+def _write(frame: pd.DataFrame, schema: pa.Schema, out: Path, name: str, line_id: str, part: str = "0") -> Path:
+    path = (Path(out) / name / f"line={check_path_id(line_id, 'line id ')}"
+            / f"part-{check_path_id(part, 'part ')}.parquet")
     table = pa.Table.from_pandas(frame[[f.name for f in schema]], preserve_index=False, schema=schema) \
         if len(frame) else schema.empty_table()
     write_parquet_atomic(table, path)
     return path
 
 
-def write_delays(day: PredictedDay, line_id: str, directions: dict[str, str], out, held=()) -> list[Path]:
+def write_delays(day: PredictedDay, line_id: str, directions: dict[str, str], out, held=(), part: str = "0"
+                 ) -> list[Path]:
     """Write ``delay_events``, ``delay_activities`` and ``delay_conflicts`` (``held``:
-    :func:`planner.delay.predicted.holds`) of the predicted day (one file each, by line)."""
+    :func:`planner.delay.predicted.holds`) of the predicted day (one file each, by line: ``part-<part>.parquet``,
+    a part per section of a line checked in sections, :mod:`planner.network.sections`)."""
     con = pd.DataFrame.from_records(list(held), columns=[f.name for f in DELAY_CONFLICTS_SCHEMA])
-    return [_write(events_frame(day, directions), DELAY_EVENTS_SCHEMA, out, "delay_events", line_id),
-            _write(activities_frame(day), DELAY_ACTIVITIES_SCHEMA, out, "delay_activities", line_id),
-            _write(con, DELAY_CONFLICTS_SCHEMA, out, "delay_conflicts", line_id)]
+    return [_write(events_frame(day, directions), DELAY_EVENTS_SCHEMA, out, "delay_events", line_id, part),
+            _write(activities_frame(day), DELAY_ACTIVITIES_SCHEMA, out, "delay_activities", line_id, part),
+            _write(con, DELAY_CONFLICTS_SCHEMA, out, "delay_conflicts", line_id, part)]
 
 
-def write_day(day: PredictedDay, stats: Stats | None, held, line, directions: dict[str, str], out):
+def write_day(day: PredictedDay, stats: Stats | None, held, line, directions: dict[str, str], out, part: str = "0"):
     """Every dataset of the day as it runs (:func:`write_delays`, and :func:`write_robustness` when days were
     simulated): ``(files written, the robustness frames or None)``; the nightly job and ``planner robustness``
     both write through it."""
-    files = write_delays(day, line.line_id, directions, out, held)
+    files = write_delays(day, line.line_id, directions, out, held, part)
     frames = robustness_frames(day, stats, line, directions) if stats is not None else None
     if frames is not None:
-        files += write_robustness(frames, line.line_id, out)
+        files += write_robustness(frames, line.line_id, out, part)
     return files, frames
 
 
-def write_robustness(frames, line_id: str, out) -> list[Path]:
-    """Write ``robustness_trains``, ``robustness_stations`` and ``robustness_activities`` (one file each)."""
+def write_robustness(frames, line_id: str, out, part: str = "0") -> list[Path]:
+    """Write ``robustness_trains``, ``robustness_stations`` and ``robustness_activities`` (one file each per part)."""
     names = ("robustness_trains", "robustness_stations", "robustness_activities")
-    return [_write(f, SCHEMAS[n], out, n, line_id) for f, n in zip(frames, names)]
+    return [_write(f, SCHEMAS[n], out, n, line_id, part) for f, n in zip(frames, names)]

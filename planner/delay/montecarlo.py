@@ -106,9 +106,10 @@ def bins(z: np.ndarray) -> np.ndarray:
 
 
 def chunk_stats(net: DelayNetwork, alone: DelayNetwork, rules: list[Rule], days: int, seed: int,
-                chunk: int) -> Stats:
-    """Statistics of one chunk of ``days`` days (chunk index ``chunk``: its own random stream)."""
-    p = sample(net, rules, days, seed, chunk)
+                chunk: int, stream: tuple[int, ...] = ()) -> Stats:
+    """Statistics of one chunk of ``days`` days (chunk index ``chunk``: its own random stream; ``stream``:
+    :func:`planner.delay.primary.sample`)."""
+    p = sample(net, rules, days, seed, chunk, stream)
     z, push, binds, absorbed = propagate(net, p, attribution=True)
     za = propagate(alone, p)
     alone_sum = za.sum(axis=1)
@@ -139,9 +140,10 @@ def plan_chunks(days: int, chunk_days: int = CHUNK_DAYS) -> list[int]:
 
 
 def simulate(net: DelayNetwork, rules: list[Rule], days: int, seed: int, *, n_jobs: int = 1,
-             progress=None, chunk: int | None = None) -> Stats:
+             progress=None, chunk: int | None = None, stream: tuple[int, ...] = ()) -> Stats:
     """``days`` simulated days of the network, their statistics (module doc); ``chunk`` days per chunk
-    (default :func:`chunk_days`)."""
+    (default :func:`chunk_days`); ``stream``: the draws' own stream (a section of a line,
+    :func:`planner.delay.primary.sample`)."""
     from planner.io.parallel import iter_tasks
 
     if days < 1:
@@ -149,7 +151,7 @@ def simulate(net: DelayNetwork, rules: list[Rule], days: int, seed: int, *, n_jo
     alone = net.without((HEADWAY, CONNECTION))
     sizes = plan_chunks(days, chunk_days(net.n_events) if chunk is None else chunk)
     total = None
-    for part in iter_tasks(chunk_stats, [(net, alone, rules, n, seed, i) for i, n in enumerate(sizes)], n_jobs,
+    for part in iter_tasks(chunk_stats, [(net, alone, rules, n, seed, i, stream) for i, n in enumerate(sizes)], n_jobs,
                            progress):
         total = part if total is None else total.add(part)
     return total

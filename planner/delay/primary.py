@@ -70,13 +70,15 @@ def groups(net: DelayNetwork, rules: list[Rule]) -> list[tuple[Rule, np.ndarray]
             if rules[i].distribution != "none" and (which == i).any()]
 
 
-def sample(net: DelayNetwork, rules: list[Rule], days: int, seed: int, chunk: int) -> np.ndarray:
+def sample(net: DelayNetwork, rules: list[Rule], days: int, seed: int, chunk: int, stream: tuple[int, ...] = ()
+           ) -> np.ndarray:
     """Primary delays ``(n_events, days)`` [s] of chunk ``chunk`` of a run seeded ``seed``.
 
-    Each chunk has its own stream (``SeedSequence(seed, spawn_key=(chunk,))``), so a chunk's days are the same
-    whichever worker draws them and however many there are.
+    Each chunk has its own stream (``SeedSequence(seed, spawn_key=(chunk, *stream))``), so a chunk's days are the
+    same whichever worker draws them and however many there are; ``stream``: a section's own numbers
+    (:func:`planner.network.sections.stream_of`; none for a whole line), so that sections draw apart.
     """
-    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(int(chunk),)))
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(int(chunk), *map(int, stream))))
     out = np.zeros((net.n_events, int(days)))
     for r, idx in groups(net, rules):
         shape = (len(idx), int(days))

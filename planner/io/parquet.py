@@ -102,6 +102,7 @@ def write_partitioned(
     *,
     schema: pa.Schema | None = None,
     sort_by: Sequence[str] = (),
+    part: str = "0",
 ) -> list[Path]:
     """Write ``table`` as a hive-partitioned dataset under ``root/dataset``.
 
@@ -120,6 +121,9 @@ def write_partitioned(
         the stored table is conformed to it.
     sort_by : sequence of str
         Columns to sort rows by inside each file, for determinism.
+    part : str
+        The file's name in each partition folder, ``part-<part>.parquet``: ``0``, or a section's number where a
+        line's rows are written in sections (:mod:`planner.network.sections`).
 
     Returns
     -------
@@ -139,7 +143,7 @@ def write_partitioned(
         folder = root / dataset
         for c, v in zip(parts, key):  # validated already; checked again where the path is built
             folder = folder / f"{c}={check_path_id(v, f'partition value {c}=')}"
-        path = folder / "part-0.parquet"
+        path = folder / f"part-{check_path_id(part, 'part ')}.parquet"
         write_parquet_atomic(sub, path)
         written.append(path)
     return written

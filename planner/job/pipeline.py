@@ -76,7 +76,8 @@ from planner.job.units import (
 from planner.job.steps import (
     bundles_step,
     conflicts_step,
-    conflicts_unit_of,
+    conflicts_units,
+    line_section_inputs,
     count_rows,
     line_types,
     margins_step,
@@ -367,8 +368,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # on the line alone, so they run beside it (first: the longest unit)
     side = []
     checks_conflicts = job.conflicts.enabled and line.network is not None
+    # the line's sections (trains that share no track with the others'): the units of its conflicts, its day as
+    # it runs and its train graph are per section, each keyed by its stretch
+    sections = line_section_inputs(job, line, lifted)
     if checks_conflicts:
-        side.insert(0, ("conflicts", [conflicts_unit_of(job, line, stage, lifted)]))
+        side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections)))
     cp = job.closed_loop
     ahead: dict[str, Any] = {}
 
@@ -440,7 +444,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     *side_results, loop_batches = loop.results()
     summary.pending.remove(loop)  # taken: nothing left to wait for on a failure, and its results are let go
     del loop
-    got = {step: res[0] for (step, _), res in zip(side, side_results)}
+    got = {step: res for (step, _), res in zip(side, side_results)}
     loops = [r for batch in loop_batches for r in batch]
     unit_keys = [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units]
     flagged = [flagged_tables, no_stop, [r for r in loops if r.flags]]
@@ -449,9 +453,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # bundles need the tables and stops datasets only: built on the other from when they are written, beside
     # the margins (the worker loads the key from its file; both datasets are counted, so written, before),
     # while this process makes the closed loop's rows for the margins
-    from planner.job.views import graph_unit
+    from planner.job.views import graph_units, line_paths
 
-    graph = runner.start("graph", [graph_unit(job, line, lifted)])
+    graph = runner.start("graph", graph_units(job, sections))
+    del sections
     summary.pending.append(graph)
     count_rows(summary, tables_written.result())
     count_rows(summary, stops_written.result())
@@ -467,7 +472,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     conflicts = None
     if checks_conflicts:
-        conflicts = conflicts_step(summary, got.pop("conflicts"), line.line_id)
+        conflicts = conflicts_step(summary, got.pop("conflicts"), line, stage)
     read = given.result()
     summary.pending.remove(given)
     report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, read, lifted, closed_loop)
@@ -498,7 +503,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.job.views import line_views  # inputs copy, train graph page
 
     count_rows(summary, margins_written.result())  # the train graph page reads the margin totals
-    trajectories = graph.results()[0][0]
+    trajectories = line_paths(line, graph.results()[0])
     summary.pending.remove(graph)
     del graph
     line_views(job, line, stage, runner, summary, trajectories, charts, bday)

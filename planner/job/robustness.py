@@ -153,9 +153,10 @@ def key_of(job) -> list:
 
 
 def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | None = None, n_jobs: int = 1,
-                   progress=None):
+                   progress=None, stream: tuple[int, ...] = ()):
     """The predicted day, the statistics of ``days`` simulated days (None when 0), the page's summary and the
-    day's holds (:func:`planner.delay.predicted.holds`, each marked knock-on or not)."""
+    day's holds (:func:`planner.delay.predicted.holds`, each marked knock-on or not); ``stream``: a section's
+    own draws (:func:`planner.network.sections.stream_of`)."""
     from planner.delay.montecarlo import simulate
     from planner.delay.predicted import predict_day
 
@@ -163,7 +164,7 @@ def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | Non
     seed = job.robustness.seed if seed is None else int(seed)
     rs = rules(job)
     day = predict_day(check, min_dwell_s=dwell_rule(job), connections=connections(job))
-    stats = simulate(day.net, rs, days, seed, n_jobs=n_jobs, progress=progress) if days > 0 else None
+    stats = simulate(day.net, rs, days, seed, n_jobs=n_jobs, progress=progress, stream=stream) if days > 0 else None
     # the day's conflicts are its holds; knock-on: those the timetable as planned does not have (pair and place)
     from planner.delay.predicted import LATE_S, holds
 
@@ -186,3 +187,21 @@ def day_as_it_runs(check, line, job, *, days: int | None = None, seed: int | Non
         for m in (60, 180, 300):  # share of all arrivals × days within m seconds
             summary[f"within_{m}s"] = float(stats.within(float(m))[arr].mean()) if arr.any() else 1.0
     return day, stats, summary, held
+
+
+def merged_summary(parts: list[tuple[dict, int]]) -> dict:
+    """The summary of a line's day as it runs from its sections' (:mod:`planner.network.sections`), each with the
+    count of arrivals its shares are over: counts added, places joined, the largest delay the largest, each share
+    of arrivals within a margin weighted by the section's arrivals. A line of one section: its summary."""
+    if len(parts) == 1:
+        return parts[0][0]
+    first = parts[0][0]
+    out = dict(first)
+    for k in ("trains", "events", "activities", "dropped", "day_conflicts", "knock_on_conflicts", "late_trains"):
+        out[k] = sum(p[k] for p, _ in parts)
+    out["knock_on_places"] = sorted(set().union(*(p["knock_on_places"] for p, _ in parts)))
+    out["max_delay_s"] = max(p["max_delay_s"] for p, _ in parts)
+    total = sum(n for _, n in parts)
+    for k in (k for k in first if k.startswith("within_")):
+        out[k] = float(sum(p[k] * n for p, n in parts) / total) if total else 1.0
+    return out

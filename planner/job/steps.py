@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
@@ -163,7 +164,9 @@ def bundles_step(stage: Path, runner: Runner, summary: RunSummary, key, bundles)
     summary.bundles += [Path(i.path).name for i in infos]
 
 
-def conflicts_unit(line, params, lifted=None, job=None):
+def conflicts_unit(line, params, lifted=None, job=None, stream=()):
+    """A section's conflict check (the whole line's when it is one section) and its day as it runs; ``stream``:
+    the section's own draws (:func:`planner.network.sections.stream_of`)."""
     from planner.datasets.conflicts import conflict_report
     from planner.network.arrivals import train_curves
     from planner.network.check import check_timetable
@@ -172,61 +175,130 @@ def conflicts_unit(line, params, lifted=None, job=None):
         check = check_timetable(line, params, curves=train_curves(line, lifted))
         if job is None:
             return conflict_report(check), None
+        from planner.delay.network import ARRIVAL
         from planner.job.robustness import day_as_it_runs
 
         # the day as it will run, on this worker from the check it has (chunks of days one after the other:
         # the other workers are busy with the line's other units)
-        runs = day_as_it_runs(check, line, job, n_jobs=1)
+        runs = day_as_it_runs(check, line, job, n_jobs=1, stream=stream)
         directions = {t.train_id: t.direction for t in check.trains}
-        return conflict_report(check, runs[0].windows), (directions, *runs)
+        arrivals = int((runs[0].net.ev_kind == ARRIVAL).sum())
+        return conflict_report(check, runs[0].windows), (directions, *runs, arrivals)
 
-    # the worker's pages of the whole line's run curves given back, for the units after it
+    # the worker's pages of the section's run curves given back, for the units after it
     return then_give_back(compute)
 
 
-def conflicts_unit_of(job: Job, line: Line, stage: Path, lifted=None) -> Unit:
-    """The unit of the line's route conflicts (its whole timetable; each train's run with the restrictions
-    that apply to it: ``lifted``, :func:`planner.job.day.lifted_restrictions`) and of the day as it will run
+@dataclasses.dataclass(frozen=True)
+class SectionInputs:
+    """What a section's units (its conflicts and day as it runs, its train graph trajectories) are given and
+    keyed by: its line (:func:`planner.network.sections.section_line`), its trains' lifted restrictions, its own
+    draws, the digest of what it sees and the name of its dataset files."""
+
+    line: Line
+    lifted: dict
+    stream: tuple
+    seen: str
+    part: str
+
+
+def line_section_inputs(job: Job, line: Line, lifted=None) -> list[SectionInputs]:
+    """The sections of a line (:mod:`planner.network.sections`, the job's connections joining theirs) with what
+    their units see: where a section is the whole line, the line's own key (:func:`planner.job.day.line_digest`),
+    else the digest of its stretch's content (not of the line folder's bytes, which an edit elsewhere changes)."""
+    from planner.job.robustness import connections
+    from planner.network.sections import part_names, plan_sections, restricted, section_line, stream_of
+
+    sections = plan_sections(line, connections(job))
+    out = []
+    for sec, part in zip(sections, part_names(len(sections))):
+        sline = section_line(line, sec)
+        seen = line_digest(line) if sline is line else section_digest(sline)
+        out.append(SectionInputs(sline, restricted(lifted, sec), stream_of(sec, line), seen, part))
+    return out
+
+
+def section_digest(sline: Line) -> str:
+    """Digest of a section's line, its content (module doc of :mod:`planner.network.sections`): the trains by
+    their text (strings and numbers only, a float's text exact), the rest as plain data (arrays by value), the
+    folder's digest and path left out."""
+    from planner.job.leg_memo import _plain
+
+    rest = dataclasses.replace(sline, trains=(), source_digest="", source_path="", upgrade_notes=())
+    return digest([_plain(rest), hashlib.sha256("\n".join(map(repr, sline.trains)).encode()).hexdigest()])
+
+
+def conflicts_units(job: Job, line: Line, stage: Path, sections: list[SectionInputs]) -> list[Unit]:
+    """The units of the line's route conflicts and of the day as it will run, one per section of the line
+    (``sections``: :func:`line_section_inputs`; trains that share no track with the others' are checked on their
+    own, and each unit sees and digests its stretch alone, so an edit recomputes the sections it reaches). Each
+    checks its trains' timetable (each train's run with the restrictions that apply to it,
+    :func:`planner.job.day.lifted_restrictions`) and computes their day as it will run
     (:func:`planner.job.robustness.day_as_it_runs`: the predicted day, and the simulated days of
-    ``[robustness]``). The job keeps its conflicts table, the robustness summary and the datasets' files: the
-    datasets are written into ``stage`` where they are made (:func:`conflicts_written`), so its occupation
-    windows (tens of megabytes on a line ten times the sample) never come to the job process."""
+    ``[robustness]``). Its large datasets (occupation windows, the day's events) are written into ``stage`` where
+    the unit is made or read back (:func:`section_written`), a part per section; the job keeps the small rest,
+    which :func:`conflicts_step` puts together."""
     from planner.io.parquet import current_stamp
     from planner.job.robustness import key_of
 
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
-    key = digest(["conflicts", code_digest(), line_digest(line), lifted_key(lifted or {}), params, job.tables.ds_m,
-                  key_of(job), job.day.day])
-    return Unit("conflicts", key, "conflicts", conflicts_unit, (line, params, lifted, job),
-                after=functools.partial(write_stamped, current_stamp(), conflicts_written, stage, line))
+    common = [code_digest(), params, job.tables.ds_m, key_of(job), job.day.day]
+    return [Unit("conflicts", digest(["conflicts", s.seen, lifted_key(s.lifted), list(s.stream), *common]),
+                 f"conflicts {s.part}", conflicts_unit, (s.line, params, s.lifted, job, s.stream),
+                 after=functools.partial(write_stamped, current_stamp(), section_written, stage,
+                                         _Stations(line.line_id, s.line.stations), s.part))
+            for s in sections]
 
 
-def conflicts_written(stage: Path, line, result) -> tuple:
-    """Write a conflict report's datasets, and those of the day as it runs, into the staged run; (its conflicts
-    table, the files written, the reasons of the trains it could not route, the robustness summary)."""
-    from planner.datasets.conflicts import write_conflicts
+def section_written(stage: Path, line: "_Stations", part: str, result) -> tuple:
+    """Write a section's occupation windows and the datasets of its day as it runs into the staged run (part
+    ``part`` of each); what the job keeps: (its conflicts, headways and unrouted frames, the files written, the
+    robustness summary and the count of arrivals it is over, or None)."""
+    from planner.datasets.conflicts import write_occupation
     from planner.datasets.delays import write_day
 
     report, runs = result
-    reasons = list(report.unrouted["reason"]) if report.unrouted is not None else []
-    files = [str(f) for f in write_conflicts(report, stage)]
+    files = [str(f) for f in write_occupation(report.occupation, stage, part)]
     summary = None
     if runs is not None:
-        directions, pday, stats, summary, held = runs
-        files += [str(f) for f in write_day(pday, stats, held, line, directions, stage)[0]]
-    return report.conflicts, files, reasons, summary
+        directions, pday, stats, summary, held, arrivals = runs
+        files += [str(f) for f in write_day(pday, stats, held, line, directions, stage, part)[0]]
+        summary = (summary, arrivals)
+    return report.conflicts, report.headways, report.unrouted, files, summary
 
 
-def conflicts_step(summary: RunSummary, kept: tuple, line_id: str = ""):
-    """Count the route conflicts found, the trains the network cannot carry (a flag and a note each: the night
-    goes on without them) and their datasets' rows (``kept``: :func:`conflicts_written` of the unit of
-    :func:`conflicts_unit_of`); returns the conflicts table for the report."""
-    conflicts, files, unrouted, robustness = kept
-    count_rows(summary, files)
-    if robustness is not None:
-        summary.robustness[line_id] = robustness  # the robustness page's head (job.views)
+@dataclasses.dataclass(frozen=True)
+class _Stations:
+    """What :func:`planner.datasets.delays.write_day` reads of a section's line: its id and stations (the unit's
+    ``after`` carries this, not the section's line)."""
+
+    line_id: str
+    stations: tuple
+
+
+def conflicts_step(summary: RunSummary, kept: list, line: Line, stage: Path):
+    """Put the sections' results together (``kept``: each :func:`section_written`): the line's conflicts numbered
+    in time order across its sections, its headways and unrouted trains written as one dataset each; count the
+    route conflicts found, the trains the network cannot carry (a flag and a note each: the night goes on
+    without them) and the datasets' rows; returns the conflicts table for the report."""
+    import pandas as pd
+
+    from planner.datasets.conflicts import renumbered, write_conflict_tables
+    from planner.job.robustness import merged_summary
+
+    conflicts = renumbered([k[0] for k in kept])
+    heads = pd.concat([k[1] for k in kept], ignore_index=True).sort_values(
+        ["from_m", "to_m", "resource_kind", "resource_id"], kind="stable").reset_index(drop=True)
+    unrouted = [k[2] for k in kept if k[2] is not None and len(k[2])]  # each section's, in the sections' order
+    unrouted = pd.concat(unrouted, ignore_index=True) if unrouted else None
+    files = write_conflict_tables(line.line_id, conflicts, heads, unrouted, stage)
+    count_rows(summary, files + [f for k in kept for f in k[3]])
+    parts = [k[4] for k in kept if k[4] is not None]
+    if parts:
+        summary.robustness[line.line_id] = merged_summary(parts)  # the robustness page's head (job.views)
     summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(
         conflicts["conflict_id"].nunique() if len(conflicts) else 0)
-    summary.flags["unrouted"] = summary.flags.get("unrouted", 0) + len(unrouted)
-    summary.notes += [f"not routed, left out of the conflict check: {why}" for why in unrouted]
+    reasons = list(unrouted["reason"]) if unrouted is not None else []
+    summary.flags["unrouted"] = summary.flags.get("unrouted", 0) + len(reasons)
+    summary.notes += [f"not routed, left out of the conflict check: {why}" for why in reasons]
     return conflicts

@@ -68,16 +68,27 @@ def _graph_unit(line, check: bool, lifted=None):
         give_back()  # the worker's pages of the whole line's run curves, for the units after it
 
 
-def graph_unit(job, line, lifted=None):
-    """The unit of a line's train graph trajectories (:func:`_graph_unit`), keyed by the line and the code."""
+def graph_units(job, sections) -> list:
+    """The units of a line's train graph trajectories (:func:`_graph_unit`), one per section of the line
+    (``sections``: :func:`planner.job.steps.line_section_inputs`; a train's trajectory is the same on its section
+    as on the whole line), each keyed by what its section sees and the code."""
     from planner.report.train_graph import TOL_T_S, TOL_X_M
     from planner.job.units import code_digest
-    from planner.job.day import lifted_key, line_digest
+    from planner.job.day import lifted_key
     from planner.job.publish import digest
 
     check = bool(job.conflicts.enabled)
-    key = digest(["graph", code_digest(), line_digest(line), lifted_key(lifted or {}), check, TOL_T_S, TOL_X_M])
-    return _unit("graph", key, _graph_unit, (line, check, lifted))
+    return [_unit("graph", digest(["graph", code_digest(), s.seen, lifted_key(s.lifted), check, TOL_T_S, TOL_X_M]),
+                  _graph_unit, (s.line, check, s.lifted)) for s in sections]
+
+
+def line_paths(line, results: list) -> list:
+    """The trajectories of a line's sections (:func:`graph_units`' results) as one list, in the line's timetable
+    order (as one unit of the whole line gives them)."""
+    order = {t.train_id: i for i, t in enumerate(line.trains)}
+    if len(results) == 1:
+        return results[0]
+    return sorted((p for r in results for p in r), key=lambda p: order[p.train_id])
 
 
 def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday=None) -> None:

@@ -1,0 +1,232 @@
+"""Sections of a line (planner.network.sections): each section's check gives what the whole line's gives.
+
+The line here is two copies of the sample line joined end to end (``benchmarks/big_line.py``: no train runs
+over the junction), so its trains fall into two groups that share no track. Every expected value comes from
+the whole line's own check, computed here beside the sections'.
+"""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pytest
+
+from planner.datasets.conflicts import conflict_report, renumbered
+from planner.delay.predicted import predict_day
+from planner.line.loader import load_line
+from planner.network.check import check_timetable
+from planner.network.routes import TrackGraph, plan_routes
+from planner.network.sections import Section, line_sections, section_line, stream_of, train_span
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _big_line_module():
+    spec = importlib.util.spec_from_file_location("big_line", ROOT / "benchmarks" / "big_line.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def joined(tmp_path_factory):
+    """Two copies of the sample line, end to end."""
+    return load_line(_big_line_module().build(2, tmp_path_factory.mktemp("joined")))
+
+
+def _sections(line, connections=()):
+    g = TrackGraph(line)
+    return line_sections(line, g, plan_routes(line, g, unrouted={}), connections)
+
+
+def test_joined_copies_are_two_sections_apart(joined):
+    secs = _sections(joined)
+    assert len(secs) == 2
+    copy = [{t.train_id for t in joined.trains if t.train_id.endswith(s)} for s in ("-k00", "-k01")]
+    assert [set(s.train_ids) for s in secs] == copy
+    assert secs[0].hi_m < secs[1].lo_m  # apart along the line, not only on other tracks
+    order = [t.train_id for t in joined.trains]
+    for s in secs:  # the line's timetable order
+        assert list(s.train_ids) == [t for t in order if t in set(s.train_ids)]
+
+
+def test_a_train_span_covers_its_route_and_its_legs(joined):
+    g = TrackGraph(joined)
+    routes = plan_routes(joined, g, unrouted={})
+    t = joined.trains[0]
+    lo, hi = train_span(joined, g, routes[t.train_id], t)
+    r = routes[t.train_id]
+    assert lo <= g.pos_m[r.node_idx].min() and g.pos_m[r.node_idx].max() <= hi
+    calls = t.stop_calls()
+    a, b = joined.window_m(calls[0].station_id, calls[1].station_id, t.train_type)
+    assert lo <= a and b <= hi
+
+
+def test_the_sample_is_one_section_and_sees_the_whole_line(sample_line):
+    secs = _sections(sample_line)
+    assert len(secs) == 1 and len(secs[0].train_ids) == len(sample_line.trains)
+    assert section_line(sample_line, secs[0]) is sample_line
+    assert stream_of(secs[0], sample_line) == ()
+
+
+def test_a_connection_joins_two_sections(joined):
+    a = next(t.train_id for t in joined.trains if t.train_id.endswith("-k00"))
+    b = next(t.train_id for t in joined.trains if t.train_id.endswith("-k01"))
+    secs = _sections(joined, [(a, b, "X", 60.0)])
+    assert len(secs) == 1
+
+
+def test_each_section_checks_as_the_whole_line(joined):
+    whole = check_timetable(joined)
+    rep = conflict_report(whole)
+    secs = _sections(joined)
+    checks = [check_timetable(section_line(joined, s)) for s in secs]
+    reps = [conflict_report(c) for c in checks]
+    # the section's line is smaller: what a unit ships and digests is its stretch
+    small = section_line(joined, secs[1])
+    assert len(small.stations) < len(joined.stations) and len(small.network.nodes) < len(joined.network.nodes)
+    occ = pd.concat([r.occupation for r in reps]).sort_values(["train_id", "seq"]).reset_index(drop=True)
+    pd.testing.assert_frame_equal(occ, rep.occupation.sort_values(["train_id", "seq"]).reset_index(drop=True))
+    heads = pd.concat([r.headways for r in reps]).sort_values(
+        ["from_m", "to_m", "resource_kind", "resource_id"], kind="stable").reset_index(drop=True)
+    pd.testing.assert_frame_equal(heads, rep.headways)
+    # the conflicts numbered across the sections as the whole line numbers them (ids included)
+    assert all(len(r.conflicts) for r in reps)  # both sections have conflicts: the numbering interleaves them
+    pd.testing.assert_frame_equal(renumbered([r.conflicts for r in reps]), rep.conflicts)
+
+
+def test_each_section_predicts_its_day_as_the_whole_line(joined):
+    whole = predict_day(check_timetable(joined), min_dwell_s=20.0)
+    delay = dict(zip(zip(np.asarray(whole.net.train_ids)[whole.net.ev_train], whole.net.ev_seq.tolist(),
+                         whole.net.ev_kind.tolist()), whole.delay_s))
+    n = 0
+    for s in _sections(joined):
+        day = predict_day(check_timetable(section_line(joined, s)), min_dwell_s=20.0)
+        for key, d in zip(zip(np.asarray(day.net.train_ids)[day.net.ev_train], day.net.ev_seq.tolist(),
+                              day.net.ev_kind.tolist()), day.delay_s):
+            assert d == delay[key]
+            n += 1
+    assert n == whole.net.n_events and whole.delay_s.max() > 0  # some train is late: the day is not trivial
+
+
+def test_streams_differ_per_section_and_do_not_move_with_the_others(joined):
+    secs = _sections(joined)
+    s0, s1 = (stream_of(s, joined) for s in secs)
+    assert s0 != s1 and s0 and s1
+    # the stream is the section's own: a section with the same first train draws the same
+    assert stream_of(Section(secs[1].train_ids, 0.0, 1.0), joined) == s1
+
+
+def test_merged_summary_weights_by_arrivals():
+    from planner.job.robustness import merged_summary
+
+    a = {"days": 10, "seed": 1, "trains": 2, "events": 8, "activities": 9, "dropped": 0, "day_conflicts": 1,
+         "knock_on_conflicts": 1, "knock_on_places": ["B", "A"], "late_trains": 1, "max_delay_s": 30.0,
+         "within_60s": 0.5}
+    b = {**a, "trains": 3, "events": 12, "knock_on_places": ["C"], "max_delay_s": 90.0, "within_60s": 1.0}
+    m = merged_summary([(a, 1), (b, 3)])
+    assert m["trains"] == 5 and m["events"] == 20 and m["knock_on_places"] == ["A", "B", "C"]
+    assert m["max_delay_s"] == 90.0 and m["within_60s"] == pytest.approx((0.5 * 1 + 1.0 * 3) / 4)
+    assert m["days"] == 10 and merged_summary([(a, 1)]) is a
+
+
+def test_section_line_keeps_every_track_piece_of_its_nodes(joined):
+    sec = _sections(joined)[0]
+    small = section_line(joined, sec)
+    kept = {n.node_id for n in small.network.nodes}
+    inside = {n.node_id for n in joined.network.nodes if sec.lo_m <= n.position_m <= sec.hi_m}
+    assert inside <= kept
+    for e in joined.network.edges:
+        if e.from_node in inside or e.to_node in inside:
+            assert e in small.network.edges
+
+
+def _job(tmp: Path, line_dir: Path, out: Path):
+    from planner.job.config import load_job
+
+    text = (ROOT / "jobs" / "nightly.toml").read_text()
+    text = text.replace('lines = ["lines/sample"]', f'lines = ["{line_dir}"]')
+    text = text.replace('output_root = "outputs"', f'output_root = "{out}"')
+    text = text.replace('feeds = ["feeds/sample"]', "feeds = []")
+    text = text.replace("days = 1000 ", "days = 64 ")
+    p = tmp / f"{out.name}.toml"
+    p.write_text(text)
+    return load_job(p)
+
+
+def _rows(run: Path, dataset: str) -> pd.DataFrame:
+    from planner.io.parquet import read_dataset
+
+    t = read_dataset(run, dataset)
+    return t.drop_columns([c for c in ("run_id", "run_date") if c in t.column_names]).to_pandas()
+
+
+def test_an_edit_in_one_section_recomputes_that_section_and_publishes_what_a_cold_run_does(tmp_path):
+    import pyarrow.parquet as pq
+
+    from planner.job.pipeline import run_job
+
+    folder = _big_line_module().build(2, tmp_path / "line")
+    first = run_job(_job(tmp_path, folder, tmp_path / "out"), show_progress=False)
+    assert first.computed["conflicts"] == 2
+    # a part per section in each partition of the line's datasets
+    assert {p.name for p in (first.run_dir / "occupation").rglob("*.parquet")} == {"part-0.parquet", "part-1.parquet"}
+    assert {p.name for p in (first.run_dir / "delay_events").rglob("*.parquet")} == {"part-0.parquet",
+                                                                                       "part-1.parquet"}
+    # one speed limit of the second copy lowered
+    line = load_line(folder)
+    lo = _sections(line)[1].lo_m
+    t = pq.read_table(folder / "speed_limits.parquet")
+    lim = t.column("limit_kmh").to_numpy().copy()
+    row = int(np.flatnonzero(t.column("start_m").to_numpy() > lo)[0])
+    lim[row] *= 0.8
+    i = t.column_names.index("limit_kmh")
+    pq.write_table(t.set_column(i, t.schema.field(i), pa.array(lim)), folder / "speed_limits.parquet")
+    edit = run_job(_job(tmp_path, folder, tmp_path / "out"), show_progress=False)
+    assert (edit.computed["conflicts"], edit.reused["conflicts"]) == (1, 1)
+    cold = run_job(_job(tmp_path, folder, tmp_path / "cold"), show_progress=False, use_cache=False)
+    for name in ("conflicts", "headways", "occupation", "delay_events", "robustness_trains", "robustness_stations"):
+        pd.testing.assert_frame_equal(_rows(edit.run_dir, name), _rows(cold.run_dir, name), obj=name)
+    assert edit.robustness == cold.robustness
+    assert len(_rows(cold.run_dir, "conflicts"))  # the check is not empty
+
+
+def test_each_section_draws_the_train_graph_as_the_whole_line(joined):
+    from planner.job.views import _graph_unit, line_paths
+
+    whole = _graph_unit(joined, True)
+    parts = [_graph_unit(section_line(joined, s), True) for s in _sections(joined)]
+    merged = line_paths(joined, parts)
+    assert [p.train_id for p in merged] == [p.train_id for p in whole]
+    assert any(p.loop_stations for p in whole)  # a train stands in a loop: the routes are part of the answer
+    for a, b in zip(merged, whole):
+        assert a.calls == b.calls and a.loop_stations == b.loop_stations
+        np.testing.assert_array_equal(a.t_s, b.t_s)
+        np.testing.assert_array_equal(a.x_m, b.x_m)
+
+
+def _boom(*_):
+    raise AssertionError("computed, but the entry was stored")
+
+
+def test_a_stored_unit_is_read_where_it_is_used_and_recomputed_there_when_damaged(tmp_path):
+    from planner.job.cache import Cache
+    from planner.job.units import _read_kept
+
+    cache = Cache(tmp_path / "c")
+    key = "ab" * 32
+    cache.put("conflicts", key, {"x": np.arange(3.0)})
+    assert cache.present("conflicts", key) and not cache.present("conflicts", "cd" * 32)
+    kept, why = _read_kept(_boom, (), cache, "conflicts", key, len)
+    assert (kept, why) == (1, None)
+    path = cache.path("conflicts", key)
+    data = bytearray(path.read_bytes())
+    data[-1] ^= 0xFF  # one bit of the payload flipped
+    path.write_bytes(bytes(data))
+    kept, why = _read_kept(lambda: {"y": 1, "z": 2}, (), cache, "conflicts", key, len)
+    assert kept == 2 and why  # computed again where it was read, and why it was not trusted
+    assert cache.get("conflicts", key) == {"y": 1, "z": 2}  # and stored again
+    assert Cache(tmp_path / "c", enabled=False).present("conflicts", key) is False  # --no-cache reads nothing
