@@ -44,7 +44,7 @@ import importlib.metadata
 import os
 import shutil
 from contextlib import ExitStack
-from concurrent.futures import ThreadPoolExecutor, wait as wait_futures
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -63,6 +63,7 @@ from planner.job.keys import signing_key_path
 from planner.job.units import (
     Progress,
     Runner,
+    Stored,
     Unit,
     _closed_loop_unit,
     _kill_point,
@@ -82,7 +83,10 @@ from planner.job.steps import (
     line_types,
     margins_step,
     result_params,
-    start_stops_written,
+    partition_keys,
+    start_written,
+    stops_seen,
+    tables_seen,
     start_bundles,
 )
 from planner.job.publish import (
@@ -331,7 +335,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     manifest the overview's verification of the bundles reads (the operating day); the run's bundles are
     verified on a worker from when this line's are written (:attr:`RunSummary.bundles_verified`)."""
     from planner.tables.ratios import leg_ratio_grid
-    from planner.stopping.sweep import adhesion_levels, no_stop_leg
+    from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
 
     tp, code = job.tables, code_digest()
@@ -349,7 +353,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grids[k]))]),
              f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
              (windows[k], k[0], k[2], k[3], grids[k], tp.eval_offset_m, tp.ds_m, tp.eval_interval_m,
-              tp.eval_auto_s))
+              tp.eval_auto_s), after=tables_seen)  # the job keeps the flags; the tables stay in the cache
         for k in tasks
     ]
     # stopping patterns, one unit per arrival
@@ -358,10 +362,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     adh_ms2 = [a * KMH_S for a in levels]
     s_units = [
         Unit("stops", digest(["stops", code, unit_in[k], dataclasses.asdict(sp), tp.ds_m]),
-             f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m))
+             f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m),
+             after=stops_seen)  # the job keeps the verdicts; the patterns are written from the cache
         for k in tasks
     ]
-    from planner.datasets.tables import write_tables
     from planner.report.margins import given_tables
 
     # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts depend
@@ -376,40 +380,30 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     cp = job.closed_loop
     ahead: dict[str, Any] = {}
 
-    def tables_in(tables: list) -> None:
-        """Every table of the line is in: its closed loop (and the line's conflicts) start on the workers
-        behind the stops' last units, and the tables are written on the writer thread while the stops come in
-        (then read back: :func:`read_back`)."""
+    root = str(runner.cache.root)
+
+    def tables_in() -> None:
+        """Every table of the line is in (stored): its closed loop (and the line's conflicts) start on the workers
+        behind the stops' last units, each closed-loop unit reading its leg's tables from the cache, and the
+        tables' datasets are written on a worker from the cache while the stops come in (then read back for the
+        margins). No table passes through this process."""
         ahead["c_units"] = [
             Unit("closed_loop",
                  digest(["closed_loop", code, u.key, [dataclasses.asdict(sc) for sc in cp.scenarios],
                          list(cp.modes), cp.horizon_s, cp.step_s]),
                  u.label, _closed_loop_unit,
-                 (windows[k], tab.train_type, tab.onboard(), cp.scenarios, list(cp.modes), cp.horizon_s, cp.step_s,
-                  tp.ds_m))
-            for k, u, tab in zip(tasks, t_units, tables)
+                 (windows[k], k[0], Stored(root, "tables", u.key), cp.scenarios, list(cp.modes), cp.horizon_s,
+                  cp.step_s, tp.ds_m))
+            for k, u in zip(tasks, t_units)
         ]
         ahead["loop"] = runner.start_steps(side + [("closed_loop", ahead["c_units"])], wait=False)
         summary.pending.append(ahead["loop"])  # a run failing meanwhile waits for it (and caches what it did)
-        ahead["tables_written"] = _on_writer(writes, write_tables, tables, stage)
-
-    def read_back() -> None:
-        """Once the tables are written, they are read back for the margin report (the margins read what the
-        vehicles get) on a worker, beside the stops and the closed loop: in this process that was its largest
-        passing use of memory on a line ten times the sample (a partition's table (d) and its arrays), beside
-        the stops' results coming in."""
-        written = ahead.get("tables_written")
-        if "given" in ahead or written is None or not written.done() or written.exception() is not None:
-            return  # not yet (or it failed: the run raises its error where it counts the rows)
-        from planner.io.parallel import background
-
-        ahead["given"] = background(given_tables, (line, types, stage), name=job.parallel.backend,
-                                    n_jobs=job.parallel.n_jobs)
-        summary.pending.append(ahead["given"])
+        ahead["tables_written"] = start_written(job, stage, summary, runner.cache, "tables",
+                                                partition_keys(line.line_id, tasks, t_units))
 
     # the stops do not depend on the tables: one pass of the workers, the stops' short units filling the
     # tables' last ones; the closed loop starts as soon as the last table is in (tables_in), so no worker
-    # waits between the two passes while this process stores the stops' results
+    # waits between the two passes
     pass1 = runner.start_steps([("tables", t_units), ("stops", s_units)], wait=False)
     tables_left = len(t_units)
 
@@ -418,27 +412,31 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         if g == 0:
             tables_left -= 1
             if not tables_left:
-                tables_in(pass1.out[0])
-        read_back()
+                tables_in()
 
     tables, stops = pass1.results(each=arrived)
     if "loop" not in ahead:  # a line without interstations
-        tables_in(tables)
-    stops_written = start_stops_written(job, stage, summary, stops)
-    wait_futures([ahead["tables_written"]])  # the tables read back from when they are written
-    read_back()
-    summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(
-        len(r.patterns) - r.n_feasible for r in stops)
-    no_stop = [f for f in map(no_stop_leg, stops) if f is not None]  # legs flagged no_stop: record_verdicts notes them
+        tables_in()
+    stops_written = start_written(job, stage, summary, runner.cache, "stops", partition_keys(line.line_id, tasks, s_units))
+    # the tables are read back for the margin report (the margins read what the vehicles get) on a worker once
+    # they are written, beside the stops and the closed loop
+    tables_files = ahead["tables_written"].result()
+    summary.pending.remove(ahead.pop("tables_written"))
+    from planner.io.parallel import background
+
+    ahead["given"] = background(given_tables, (line, types, stage), name=job.parallel.backend,
+                                n_jobs=job.parallel.n_jobs)
+    summary.pending.append(ahead["given"])
+    summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(r.infeasible for r in stops)
+    no_stop = [r.no_stop for r in stops if r.no_stop is not None]  # legs flagged no_stop: record_verdicts notes them
     for r in stops:  # every level stops: what the sweep still says (an approach moved back from a TASC beacon)
-        if r.n_feasible == len(r.patterns):
-            summary.notes += [f"{line.line_id}: {w}" for w in r.warnings]
+        summary.notes += [f"{line.line_id}: {w}" for w in r.warnings]
 
     # what the rest of the line needs of the tables and stops (the verdicts: record_verdicts); the rest is let
     # go before the closed loop's results come in, so that the whole line's results are not held through the
     # later steps
     flagged_tables = [r for r in tables if r.flags]
-    c_units, tables_written, given = ahead.pop("c_units"), ahead.pop("tables_written"), ahead.pop("given", None)
+    c_units, given = ahead.pop("c_units"), ahead.pop("given")
     del tables, stops, pass1  # the started pass holds every result and unit (its windows) too
     loop = ahead.pop("loop")
     *side_results, loop_batches = loop.results()
@@ -458,7 +456,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     graph = runner.start("graph", graph_units(job, sections))
     del sections
     summary.pending.append(graph)
-    count_rows(summary, tables_written.result())
+    count_rows(summary, tables_files)
     count_rows(summary, stops_written.result())
     summary.pending.remove(stops_written)
     bundles = start_bundles(job, line, stage, runner, summary, key_path, bday)

@@ -125,15 +125,74 @@ def write_stamped(stamp: tuple | None, fn, *args):
         return then_give_back(fn, *args)
 
 
-def start_stops_written(job: Job, stage: Path, summary: RunSummary, stops: list):
-    """Write the line's stopping-pattern datasets on a worker (their samples, a partition at a time, were the
-    job process's largest passing use of memory on a line ten times the sample); ``.result()``: the files."""
+def tables_seen(r):
+    """What the job keeps of an interstation's tables (made where the result is): the leg and its flags
+    (:class:`~planner.tables.flags.FlaggedLeg`). The tables stay in the cache, from where a worker writes their
+    datasets and each closed-loop unit reads its leg's (:class:`planner.job.units.Stored`)."""
+    from planner.tables.flags import FlaggedLeg
+
+    return FlaggedLeg(r.train_type, r.direction, r.origin, r.destination, tuple(r.flags))
+
+
+@dataclasses.dataclass(frozen=True)
+class StopsSeen:
+    """What the job keeps of an approach's stopping patterns (:func:`stops_seen`, made where the result is): its
+    verdicts. The patterns themselves stay in the cache, from where a worker writes their datasets
+    (:func:`start_stops_written`), so they never come to the job process."""
+
+    infeasible: int
+    """Adhesion levels without a pattern."""
+    no_stop: Any
+    """The leg flagged no_stop (:func:`planner.stopping.sweep.no_stop_leg`), or None."""
+    warnings: tuple
+    """What the sweep says where every level stops (an approach moved back from a TASC beacon); else none."""
+
+
+def stops_seen(r) -> StopsSeen:
+    """:class:`StopsSeen` of an :class:`~planner.stopping.sweep.ApproachResult`."""
+    from planner.stopping.sweep import no_stop_leg
+
+    every = r.n_feasible == len(r.patterns)
+    return StopsSeen(len(r.patterns) - r.n_feasible, no_stop_leg(r), tuple(r.warnings) if every else ())
+
+
+def partition_keys(line_id: str, tasks: list, units: list) -> list[list[str]]:
+    """The keys of a line's interstation units (``tasks``: (train type, direction, origin, destination) each) by
+    the dataset partition their rows go to, as :func:`planner.io.parquet.by_partition` groups the results: the
+    partitions in sorted order, each unit in its order."""
+    groups: dict = {}
+    for (t, d, _o, _de), u in zip(tasks, units):
+        groups.setdefault((line_id, d, t), []).append(u.key)
+    return [groups[g] for g in sorted(groups)]
+
+
+def write_stored(writer: Callable, root: str, step: str, groups: list[list[str]], stage: Path) -> list:
+    """Worker: ``writer(results, stage)`` for each partition's stored results in turn (``groups``:
+    :func:`partition_keys`), read from the work cache at ``root``, checked by their digests like every read,
+    one partition in memory at a time. This run stored every one of them (with ``--no-cache`` too: such a run
+    reads nothing it did not write itself); one missing or damaged fails the run, naming it."""
+    from planner.job.units import Stored
+
+    written = []
+    for keys in groups:
+        results = [Stored(root, step, k).load() for k in keys]
+        written += writer(results, stage)
+        del results
+    return written
+
+
+def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, groups: list[list[str]]):
+    """Write a step's datasets (the tables', the stopping patterns') on a worker, from the results its units stored
+    (``groups``: their keys by partition, :func:`partition_keys`): the results never come to the job process;
+    ``.result()``: the files."""
     from planner.datasets.stops import write_stops
+    from planner.datasets.tables import write_tables
     from planner.io.parallel import background
     from planner.io.parquet import current_stamp
 
-    b = background(write_stamped, (current_stamp(), write_stops, stops, stage), name=job.parallel.backend,
-                   n_jobs=job.parallel.n_jobs)
+    writer = {"tables": write_tables, "stops": write_stops}[step]
+    b = background(write_stamped, (current_stamp(), write_stored, writer, str(cache.root), step, groups, stage),
+                   name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)
     return b
 

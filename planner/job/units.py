@@ -133,10 +133,35 @@ def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):
     return approach_patterns(line, tt, o, d, adhesions_ms2, approach_m, settings=SimSettings(ds_m=ds_m))
 
 
+@dataclass(frozen=True)
+class Stored:
+    """A unit's result by its entry in the work cache (``root``, ``step``, ``key``): what a unit that needs another's
+    result is given instead of the result, so that it never passes through the job process. :meth:`load` reads it
+    where it is used (checked by its digest like every read); this run stored it (with ``--no-cache`` too)."""
+
+    root: str
+    step: str
+    key: str
+
+    def load(self):
+        from planner.errors import JobError
+
+        cache = Cache(Path(self.root))
+        obj = cache.get(self.step, self.key)
+        if obj is None:
+            why = cache.rejected_why[-1][2] if cache.rejected_why else "missing"
+            raise JobError(f"{cache.path(self.step, self.key)}: a result this run stored is {why}; check the disk "
+                           "and run the job again")
+        return obj
+
+
 def _closed_loop_unit(line, tt, tables, scenarios, modes, horizon_s, step_s, ds_m):
+    """``tables``: the leg's on-board tables, or the tables unit's :class:`Stored` result (read here)."""
     from planner.tables.closed_loop import Scenario, closed_loop_batch
     from planner.physics.track import SimSettings
 
+    if isinstance(tables, Stored):
+        tables = tables.load().onboard()
     return closed_loop_batch(line, tt, tables, scenarios=[Scenario(s.name, s.load, s.traction) for s in scenarios],
                              modes=modes, extra_s=horizon_s, step_s=step_s, settings=SimSettings(ds_m=ds_m))
 
@@ -169,9 +194,9 @@ def _stored(cache: Cache, step: str, key: str, after: Callable | None, res):
     return _kept(after, res)
 
 
-def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable):
-    """Local worker (run by :func:`_call`): a unit with :attr:`Unit.after`: its result stored in the cache here, then
-    what the job keeps."""
+def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable | None):
+    """Local worker (run by :func:`_call`): a unit's result stored in the cache here, then what the job keeps
+    (:attr:`Unit.after`; the whole result without one)."""
     return _stored(cache, step, key, after, fn(*args))
 
 
@@ -278,8 +303,10 @@ class Runner:
             if pool.n_jobs == 1 or (len(started.todo) == 1 and wait):  # one unit waited for: here
                 started.gen = (_call(*task(t)) for t in started.todo)
             else:  # a local pool's tasks start now and go on after the context (joblib's generator)
-                if isinstance(pool, LocalPool) or on_run:  # such results stored and kept where they are made
-                    started.kept |= {t for t in started.todo if unit(t).after is not None}
+                # results stored where they are made (the encoding is the worker's work), and what the job keeps
+                # made there; under the kill-point test hook, here as they are taken (KILL_ENV)
+                if (isinstance(pool, LocalPool) or on_run) and not os.environ.get(KILL_ENV):
+                    started.kept |= set(started.todo)
                 started.gen = pool.imap(_call, [task(t) for t in started.todo])
             if wait or not (isinstance(pool, LocalPool) or on_run):
                 started.results()
@@ -293,7 +320,7 @@ class Started:
         self.runner, self.groups = runner, groups
         self.out: list[list] = [[None] * len(units) for _, units in groups]
         self.todo: list[tuple[int, int]] = []
-        self.kept: set[tuple[int, int]] = set()  # units stored and kept on their worker (Unit.after)
+        self.kept: set[tuple[int, int]] = set()  # units stored on their worker, and kept there (Unit.after)
         self.reads: set[tuple[int, int]] = set()  # stored units read back on a worker (of kept: see _read_kept)
         self.left: list[int] = []
         self.gen = None
@@ -326,7 +353,8 @@ class Started:
                         r.computed[step] = r.computed.get(step, 0) + 1
                 elif (g, i) not in self.kept:  # else stored on its worker already, and kept there
                     res = _stored(r.cache, step, u.key, u.after, res)
-                _kill_point()
+                if (g, i) not in self.reads:  # a unit just stored (test hook), not one read back
+                    _kill_point()
                 self.out[g][i] = res
                 r.progress.advance(step)
                 self.left[g] -= 1
@@ -363,7 +391,10 @@ class Started:
 KILL_ENV = "PLANNER_TEST_KILL_AT"
 """Tests only: with ``N`` in this environment variable a run SIGKILLs its own process at its N-th
 kill point (each unit just stored in the cache, then the staged run just before publishing), so
-tests kill runs at deterministic moments instead of after a wall-clock delay. Unset normally."""
+tests kill runs at deterministic moments instead of after a wall-clock delay. With it set, the job
+process stores each computed result as it takes it (normally the worker that made it does), so that
+the N-th kill point is the N-th unit stored whatever the workers have finished meanwhile; a stored unit
+read back on a worker is not a kill point. Unset normally."""
 
 
 _kill_points = 0
