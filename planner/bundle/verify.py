@@ -126,8 +126,17 @@ def _check_expect(m: dict, expect: Expect, pub_id: str, where: str) -> None:
                           f"checked at {format_time(now)}: outside its window, that day's bundle is needed (refused)")
 
 
-def _verified(path, public_key, expect: Expect | None = None
-              ) -> tuple[BundleInfo, dict[str, bytes], dict[str, pa.Table]]:
+def read_signed(path, public_key, *, expect: Expect | None = None) -> tuple[BundleInfo, dict[str, bytes]]:
+    """A bundle's signed manifest and its members' bytes, each checked against the manifest's size and SHA-256, the
+    tables not decoded: for a reader that decodes only the members it needs (the comparison of two runs' bundles,
+    which decodes the tables whose digests differ). What :func:`read_bundle` checks beyond this (the tables'
+    contents against each other) is not checked: nothing read this way may be loaded onto a vehicle."""
+    where, m, members, size_digest = _signed(path, public_key, expect)
+    return manifest_info(where, m, size_digest), members
+
+
+def _signed(path, public_key, expect: Expect | None) -> tuple[str, dict, dict[str, bytes], str]:
+    """The signature, the manifest, the expectations and every member's size and digest checked."""
     expect = Expect() if expect is None else expect
     where = "<bytes>" if isinstance(path, (bytes, bytearray, memoryview)) else str(path)
     pub = signing.load_public_key(public_key)
@@ -156,6 +165,13 @@ def _verified(path, public_key, expect: Expect | None = None
             raise fail(where, f"{name} is {len(data)} bytes, the manifest says {e['size']}")
         if hashlib.sha256(data).hexdigest() != e["sha256"]:
             raise fail(where, f"{name} SHA-256 does not match the manifest (altered)")
+    return where, m, members, size_digest
+
+
+def _verified(path, public_key, expect: Expect | None = None
+              ) -> tuple[BundleInfo, dict[str, bytes], dict[str, pa.Table]]:
+    where, m, members, size_digest = _signed(path, public_key, expect)
+    listed = {e["name"]: e for e in m["files"]}
     tables = {}
     for name, e in listed.items():
         try:

@@ -175,30 +175,48 @@ def _unit(step, key, fn, args):
     return Unit(step, key, step, fn, args)
 
 
+def _failure_text(e: BaseException) -> str:
+    what = f"{type(e).__name__}: {e}" if not isinstance(e, PlannerError) else str(e)
+    return " ".join(what.split())[:300]
+
+
 def _comparison_failed(base: str, e: BaseException, summary) -> str:
     """One line for a comparison that failed; the run says it and publishes without the changes."""
-    what = f"{type(e).__name__}: {e}" if not isinstance(e, PlannerError) else str(e)
-    what = " ".join(what.split())[:300]
+    what = _failure_text(e)
     summary.warnings.append(f"changes: comparing with run {base} failed ({what}); "
                             "this run is published without its list of changes")
     return what
 
 
-def _compare_with(base: str | None, root: Path, stage: Path, lines, summary) -> tuple[dict, str]:
+def _compare_with(job, base: str | None, root: Path, stage: Path, lines, summary) -> tuple[dict, str]:
     """Each line's changes against the previous published run, and the failure (empty when none).
 
     Whatever goes wrong in the comparison (a damaged old run, a bug in the comparison itself) is
     reported in one line and marks the comparison as failed: the run's own outputs are complete,
     so it still publishes (the changes step can never block a night).
     """
-    from planner.report.changes import compare_runs
+    from planner.io.parallel import background
 
     if base is None:
         return {}, ""
+    # on a worker: the two runs' margins, conflicts and changed bundle tables are read there, not in the job process
+    found, what = background(compare_lines, (root / base, stage, [ln.line_id for ln in lines]),
+                             name=job.parallel.backend, n_jobs=job.parallel.n_jobs).result()
+    if what:
+        summary.warnings.append(f"changes: comparing with run {base} failed ({what}); "
+                                "this run is published without its list of changes")
+    return found, what
+
+
+def compare_lines(base_dir: Path, stage: Path, line_ids: list[str]) -> tuple[dict, str]:
+    """Worker: each line's changes against the run ``base_dir`` (:func:`planner.report.changes.compare_runs`), and
+    what went wrong in one line (empty when nothing did)."""
+    from planner.report.changes import compare_runs
+
     try:
-        return {c.line_id: c for c in compare_runs(root / base, stage, lines=[ln.line_id for ln in lines])}, ""
-    except Exception as e:  # noqa: BLE001 - see the docstring
-        return {}, _comparison_failed(base, e, summary)
+        return {c.line_id: c for c in compare_runs(base_dir, stage, lines=line_ids)}, ""
+    except Exception as e:  # noqa: BLE001 - see _compare_with
+        return {}, _failure_text(e)
 
 
 def _write_line_changes(ch, stage: Path) -> int:
@@ -308,7 +326,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     rows: dict[str, int] = {}
     counts: dict[str, dict[str, int]] = {}
     with prog.step("changes", len(lines)):
-        found, failure = _compare_with(base, root, stage, lines, summary)
+        found, failure = _compare_with(job, base, root, stage, lines, summary)
         for line in lines:
             ch = found.get(line.line_id)
             if ch is not None:

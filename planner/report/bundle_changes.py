@@ -1,7 +1,9 @@
 """What changed in the bundles between two runs: members whose content differs, with the rows that differ.
 
 Part of :func:`planner.report.changes.compare_runs` (the ``bundle`` rows of the ``changes``
-dataset). Both bundles are verified against their own run's public key (signature, digests, tables),
+dataset). Both bundles are checked against their own run's public key (the signature, every member's
+digest; only the tables whose digests differ are decoded, one at a time, so a network's bundles compare
+in the memory of the tables that changed),
 whatever kind of key signed them and whenever they are valid (a comparison loads nothing onto a vehicle:
 the previous run's bundles are for the previous operating day); a change of key kind is a row of its own.
 """
@@ -22,7 +24,10 @@ expiry) change at every build, so two bundles that differ only there hold the sa
 
 
 def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
-    from planner.bundle.verify import Expect, read_bundle
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from planner.bundle.verify import Expect, read_signed
     from planner.errors import PlannerError
 
     whenever = Expect(allow_dev=True, check_time=False)
@@ -39,39 +44,42 @@ def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
         if po.read_bytes() == pn.read_bytes():
             continue
         try:  # compared whatever kind of key signed them (a comparison loads nothing onto a vehicle)
-            a = read_bundle(po, ob / "signing_key.pub.pem", expect=whenever)
-            b = read_bundle(pn, nb / "signing_key.pub.pem", expect=whenever)
+            a_info, a_members = read_signed(po, ob / "signing_key.pub.pem", expect=whenever)
+            b_info, b_members = read_signed(pn, nb / "signing_key.pub.pem", expect=whenever)
         except PlannerError as e:  # named by run id, not by this machine's paths
             why = str(e).replace(str(Path(old_dir)), ch.base_run).replace(str(Path(new_dir)), ch.run)
             ch.add("bundle", name, f"bundle {name} changed but could not be compared: {why}", field_="sha256")
             continue
         d, t = _bundle_keys(name, ch.line_id)
-        if a.info.key_kind != b.info.key_kind:
-            ch.add("bundle", name, f"bundle {name}: signed with a {a.info.key_kind} key before, a {b.info.key_kind} "
-                   "key now", field_="key_kind", before=a.info.key_kind, after=b.info.key_kind, direction=d,
+        if a_info.key_kind != b_info.key_kind:
+            ch.add("bundle", name, f"bundle {name}: signed with a {a_info.key_kind} key before, a {b_info.key_kind} "
+                   "key now", field_="key_kind", before=a_info.key_kind, after=b_info.key_kind, direction=d,
                    train_type=t)
-        fa = {f.name: f for f in a.info.files}
-        fb = {f.name: f for f in b.info.files}
+        fa = {f.name: f for f in a_info.files}
+        fb = {f.name: f for f in b_info.files}
+
+        def table(members, m):  # a member whose digest the signed manifest vouches for, decoded when it differs
+            return None if m not in members else pq.read_table(pa.BufferReader(members[m]))
         parts, rows_changed, bytes_changed = [], 0, 0
         for m in sorted(set(fa) | set(fb)):
             x, y = fa.get(m), fb.get(m)
             if x and y and x.sha256 == y.sha256:
                 continue
             tname = m.removesuffix(".parquet")
-            nd = _rows_differing(a.tables.get(tname), b.tables.get(tname))
+            nd = _rows_differing(table(a_members, m) if x else None, table(b_members, m) if y else None)
             rows_changed += nd
             bytes_changed += abs((y.size if y else 0) - (x.size if x else 0))
             parts.append(f"{tname} {nd} rows")
-        key_note = " (signed with another key)" if a.info.key_id != b.info.key_id else ""
+        key_note = " (signed with another key)" if a_info.key_id != b_info.key_id else ""
         if parts:
             what = f"{len(parts)} table{'s' if len(parts) != 1 else ''} changed: {', '.join(parts)}"
         else:
-            fields = [label for f, label in MANIFEST_CONTENT if getattr(a.info, f) != getattr(b.info, f)]
+            fields = [label for f, label in MANIFEST_CONTENT if getattr(a_info, f) != getattr(b_info, f)]
             if not fields:  # the same content re-issued (build time, version, expiry): no change
                 continue
             what = "no table changed, only the signed manifest's " + " and ".join(fields)
-        ch.add("bundle", name, f"bundle {name}: {what}; {a.info.size_bytes} → {b.info.size_bytes} bytes{key_note}",
-               field_="rows_differing", before=a.info.sha256, after=b.info.sha256, delta=float(rows_changed),
+        ch.add("bundle", name, f"bundle {name}: {what}; {a_info.size_bytes} → {b_info.size_bytes} bytes{key_note}",
+               field_="rows_differing", before=a_info.sha256, after=b_info.sha256, delta=float(rows_changed),
                direction=d, train_type=t)
 
 
@@ -85,20 +93,27 @@ def _rows_differing(a, b) -> int:
     """Rows in one table and not the other (as multisets of whole rows)."""
     if a is None or b is None:
         return (a.num_rows if a is not None else 0) + (b.num_rows if b is not None else 0)
-    from collections import Counter
-
+    import numpy as np
     import pandas as pd
 
-    def rows(t) -> Counter:
-        try:  # one 64-bit hash per row: fast for the large tables (b) and (d)
-            return Counter(pd.util.hash_pandas_object(t.to_pandas(), index=False).tolist())
-        except TypeError:  # list columns cannot be hashed by pandas
-            from planner.report.changes import _canon
+    try:  # one 64-bit hash per row, counted as sorted arrays (a table (d) of a network has millions of rows)
+        ha = pd.util.hash_pandas_object(a.to_pandas(), index=False).to_numpy()
+        hb = pd.util.hash_pandas_object(b.to_pandas(), index=False).to_numpy()
+    except TypeError:  # list columns cannot be hashed by pandas
+        from collections import Counter
 
-            return Counter(tuple(_canon(v) for v in r.values()) for r in t.to_pylist())
+        from planner.report.changes import _canon
 
-    ca, cb = rows(a), rows(b)
-    return sum(((ca - cb) + (cb - ca)).values())
+        ca, cb = (Counter(tuple(_canon(v) for v in r.values()) for r in t.to_pylist()) for t in (a, b))
+        return sum(((ca - cb) + (cb - ca)).values())
+    va, na = np.unique(ha, return_counts=True)
+    vb, nb = np.unique(hb, return_counts=True)
+    every = np.union1d(va, vb)
+    count_a = np.zeros(len(every), dtype=np.int64)
+    count_b = np.zeros(len(every), dtype=np.int64)
+    count_a[np.searchsorted(every, va)] = na
+    count_b[np.searchsorted(every, vb)] = nb
+    return int(np.abs(count_a - count_b).sum())  # each row value: how many more one table has than the other
 
 
 # ---------------------------------------------------------------------------
