@@ -20,12 +20,14 @@ restriction recomputes only the interstations (and approaches) it reaches.
 
 What does not depend on a step runs beside it, so that both cores stay busy:
 the workers start while the lines are read; the stopping patterns share the
-tables' pass of the workers, and the closed loop (with the line's conflicts)
-starts as soon as the last table is in, behind the stops' last units; the tables
-datasets are written on a thread while the workers compute the next steps (and
-read back for the margins on a worker as soon as they are written), the stops
-datasets on a worker; the train graph's trajectories and the bundles start on the workers when
-the closed loop ends, while that thread writes the closed loop and the margins
+tables' pass of the workers, and the closed loop (with the line's conflicts, a
+unit per section of the line) starts as soon as the last table is in, behind the
+stops' last units; every unit's result is stored in the cache by the worker that
+made it, and the tables and stopping patterns never come to this process: it
+keeps their flags, a worker writes their datasets from the cache (the tables then
+read back for the margins), and each closed-loop unit reads its leg's tables
+there; the train graph's trajectories and the bundles start on the workers when
+the closed loop ends, while the writer thread writes the closed loop and the margins
 take its rows from memory; the legs' speed–distance charts start as soon as the
 margins are computed; the overview's check of the bundles starts on a worker as
 soon as the last line's bundles are written, and the train graph page is written

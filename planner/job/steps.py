@@ -138,7 +138,7 @@ def tables_seen(r):
 class StopsSeen:
     """What the job keeps of an approach's stopping patterns (:func:`stops_seen`, made where the result is): its
     verdicts. The patterns themselves stay in the cache, from where a worker writes their datasets
-    (:func:`start_stops_written`), so they never come to the job process."""
+    (:func:`start_written`), so they never come to the job process."""
 
     infeasible: int
     """Adhesion levels without a pattern."""
