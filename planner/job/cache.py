@@ -199,6 +199,10 @@ class Cache:
         self.rejected_why.append((kind, key, why))
         return None
 
+    def why_missed(self) -> str:
+        """Why the last :meth:`get` found nothing it could trust: the rejection's reason, else ``missing``."""
+        return self.rejected_why[-1][2] if self.rejected_why else "missing"
+
     def rejected_elsewhere(self, kind: str, key: str, why: str) -> None:
         """Count an entry of this cache that a reader elsewhere (a worker's own :class:`Cache` on the same root)
         rejected, so the run's one warning counts it."""

@@ -149,9 +149,8 @@ class Stored:
         cache = Cache(Path(self.root))
         obj = cache.get(self.step, self.key)
         if obj is None:
-            why = cache.rejected_why[-1][2] if cache.rejected_why else "missing"
-            raise JobError(f"{cache.path(self.step, self.key)}: a result this run stored is {why}; check the disk "
-                           "and run the job again")
+            raise JobError(f"{cache.path(self.step, self.key)}: a result this run stored is {cache.why_missed()}; "
+                           "check the disk and run the job again")
         return obj
 
 
@@ -209,7 +208,7 @@ def _read_kept(fn, args, cache: Cache, step: str, key: str, after: Callable):
     obj = mine.get(step, key)
     if obj is not None:
         return _kept(after, obj), None
-    why = mine.rejected_why[-1][2] if mine.rejected_why else "gone before it was read"
+    why = mine.why_missed()
     return _stored(mine, step, key, after, fn(*args)), why
 
 
