@@ -351,6 +351,42 @@ def test_tables_read_back_as_built_whatever_the_row_order_of_the_files(hilly, tm
             _assert_same_tables(shuffled[k], w)
 
 
+def test_a_margin_leg_given_its_stored_tables_computes_what_the_datasets_give(hilly, tmp_path):
+    """The nightly job gives each margin leg a reference to the tables step's stored result, read on the worker
+    (report.margins.given_leg), instead of the tables read back from their datasets: the same tables and table (a)
+    energy as the datasets hold, and so the same leg, to the bit."""
+    from planner.datasets.tables import load_tables
+    from planner.report.leg_margin import leg_result
+    from planner.report.margin_datasets import read_energy
+    from planner.report.margins import given_leg
+
+    class Ref:  # what a stored result is to the margins: something with load()
+        def __init__(self, built):
+            self.built = built
+
+        def load(self):
+            return self.built
+
+    ln, results = hilly
+    write_tables(results, tmp_path)
+    for r in results:
+        tabs, energy = given_leg(Ref(r), None)
+        _assert_same_tables(tabs, load_tables(tmp_path, ln.line_id, r.direction, r.train_type)[(r.origin, r.destination)])
+        np.testing.assert_array_equal(energy, read_energy(tmp_path, ln.line_id, r.direction, r.train_type)[(r.origin, r.destination)])
+    r = results[0]
+    sched = [float(r.time_a_s.min()) * 1.08]
+    want = leg_result(ln, r.train_type, r.origin, r.destination, sched,
+                      tables=load_tables(tmp_path, ln.line_id, r.direction, r.train_type)[(r.origin, r.destination)],
+                      energy_a_kwh=read_energy(tmp_path, ln.line_id, r.direction, r.train_type)[(r.origin, r.destination)])
+    tabs, energy = given_leg(Ref(r), None)
+    got = leg_result(ln, r.train_type, r.origin, r.destination, sched, tables=tabs, energy_a_kwh=energy)
+    assert len(want.schedules) == 1 and math.isfinite(want.schedules[0]["arrival_error_s"])
+    assert got.schedules == want.schedules
+    for f in ("min_time_s", "energy_full_kwh", "degraded_min_s", "stop_time_degraded_s"):
+        g, w = getattr(got, f), getattr(want, f)
+        assert g == w or (math.isnan(g) and math.isnan(w)), f
+
+
 @pytest.mark.parametrize("damage", ["foreign_ratio", "missing_row"])
 def test_tables_that_do_not_fit_together_are_one_line_errors(flat, tmp_path, damage):
     """load_tables: a table_b row at a ratio table (a) does not have, or a row missing, names the

@@ -368,8 +368,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
              after=stops_seen)  # the job keeps the verdicts; the patterns are written from the cache
         for k in tasks
     ]
-    from planner.report.margins import given_tables
-
     # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts depend
     # on the line alone, so they run beside it (first: the longest unit)
     side = []
@@ -420,15 +418,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     if "loop" not in ahead:  # a line without interstations
         tables_in()
     stops_written = start_written(job, stage, summary, runner.cache, "stops", partition_keys(line.line_id, tasks, s_units))
-    # the tables are read back for the margin report (the margins read what the vehicles get) on a worker once
-    # they are written, beside the stops and the closed loop
     tables_files = ahead["tables_written"].result()
     summary.pending.remove(ahead.pop("tables_written"))
-    from planner.io.parallel import background
-
-    ahead["given"] = background(given_tables, (line, types, stage), name=job.parallel.backend,
-                                n_jobs=job.parallel.n_jobs)
-    summary.pending.append(ahead["given"])
+    # each margin leg reads its tables from the cache on the worker that computes it (the vehicle's view of them,
+    # the numbers their datasets hold): the line's tables are never read back whole, nor sent to a cluster
+    given = ({(k[1], k[0], k[2], k[3]): Stored(root, "tables", u.key) for k, u in zip(tasks, t_units)}, {})
     summary.flags["infeasible_stops"] = summary.flags.get("infeasible_stops", 0) + sum(r.infeasible for r in stops)
     no_stop = [r.no_stop for r in stops if r.no_stop is not None]  # legs flagged no_stop: record_verdicts notes them
     for r in stops:  # every level stops: what the sweep still says (an approach moved back from a TASC beacon)
@@ -438,7 +432,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # go before the closed loop's results come in, so that the whole line's results are not held through the
     # later steps
     flagged_tables = [r for r in tables if r.flags]
-    c_units, given = ahead.pop("c_units"), ahead.pop("given")
+    c_units = ahead.pop("c_units")
     del tables, stops, pass1  # the started pass holds every result and unit (its windows) too
     loop = ahead.pop("loop")
     *side_results, loop_batches = loop.results()
@@ -473,10 +467,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     conflicts = None
     if checks_conflicts:
         conflicts = conflicts_step(summary, got.pop("conflicts"), line, stage)
-    read = given.result()
-    summary.pending.remove(given)
-    report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, read, lifted, closed_loop)
-    del given, read, closed_loop  # the tables read back and the closed loop's rows, for the margins
+    report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given, lifted, closed_loop)
+    del given, closed_loop  # the tables' references and the closed loop's rows, for the margins
     # the legs' speed–distance charts start on the workers now (their pages are written last), while the margins'
     # datasets are written on the writer thread and this process finishes the line's bundles
     from planner.job.day import window

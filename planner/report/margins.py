@@ -226,11 +226,23 @@ class MarginReport:
 
 def _leg_task(line, tt, o, d, sched, tabs, energy, kw):
     """Worker: one leg (module level, picklable inputs). Given tables are not sent back (``tables`` None):
-    the caller has them, and a copy of every leg's would double them in its memory."""
+    the caller has them (or their reference), and a copy of every leg's would double them in its memory."""
+    given, (tabs, energy) = tabs, given_leg(tabs, energy)
     r = leg_result(line, tt, o, d, sched, tables=tabs, energy_a_kwh=energy, **kw)
-    if tabs is not None and r.tables is tabs:
+    if given is not None and r.tables is tabs:
         r.tables = None
     return r
+
+
+def given_leg(tabs, energy):
+    """A leg's given tables and table (a) energy: as given, or, given a reference to the tables step's stored result
+    (anything with ``load()`` giving :class:`~planner.tables.build.InterstationTables`, e.g. the nightly job's
+    :class:`planner.job.units.Stored`), read from it where the leg is computed: the vehicle's view of them
+    (``onboard()``, the same numbers as the datasets :func:`given_tables` reads) and their energy per ratio."""
+    if tabs is None or not hasattr(tabs, "load"):
+        return tabs, energy
+    built = tabs.load()
+    return built.onboard(), np.asarray(built.energy_a_kwh, float)
 
 
 def margin_options(job, line: Line) -> dict:
@@ -336,8 +348,9 @@ def compute_margins(
         Worker processes over legs (1 = this process, -1 = all cores).
     progress : callable ``(done, total)``, optional
     given : (tables, energy), optional
-        :func:`given_tables` of the same line, types and ``tables_dir``, read beforehand
-        (the nightly job reads them while the closed loop runs); else read here.
+        :func:`given_tables` of the same line, types and ``tables_dir``, read beforehand; else read here.
+        A table may be a reference to it instead (:func:`given_leg`: the nightly job gives each leg the
+        tables step's stored result, read on the worker that computes the leg), its energy then left out.
     lifted : mapping, optional
         ``(train_id, leg_seq)`` → ids of the line's temporary restrictions lifted while that train runs
         that leg (:func:`planner.job.day.lifted_restrictions`): such trains' legs are rows of their own,
@@ -397,7 +410,7 @@ def compute_margins(
     results: list[LegResult] = _memoised(memo, line, keys, tasks, n_jobs, progress)
     for k, r, task in zip(keys, results, tasks):  # the window holds only the leg's two stations: the passed ones
         r.passes = passed_stations(line, r.origin, r.destination)  # from the line
-        if r.tables is None:  # the given tables it used (_leg_task)
+        if r.tables is None:  # the given tables it used (_leg_task), or their reference: read if drawn
             r.tables = task[5]
         r.lifted, r.restrictions = k[4], applied_restrictions(windows[k], k[0], k[1])
     results = [no_stop(r, no_pattern) for r in results]
@@ -576,8 +589,9 @@ def _chosen_curves(line: Line, rows, results: Sequence[LegResult], chosen, kw: d
     s = [] if not np.isfinite(pick.scheduled_running_time_s) else [float(pick.scheduled_running_time_s)]
     done = next(r for r in results if (r.direction, r.train_type, r.origin, r.destination) == k
                 and list(r.restrictions) == list(pick.restrictions))
-    lr = leg_result(group_window(line, (*k, done.lifted)), k[1], k[2], k[3], s, tables=done.tables,
-                    energy_a_kwh=done.energy_a_kwh, record=True,
+    tabs, energy = given_leg(done.tables, done.energy_a_kwh)
+    lr = leg_result(group_window(line, (*k, done.lifted)), k[1], k[2], k[3], s, tables=tabs,
+                    energy_a_kwh=energy, record=True,
                     **(kw | {"adhesion_kmh_s": (adh_of or {}).get(k[1], kw["adhesion_kmh_s"])}))
     if lr.curves is None:  # a stalled leg has no bad-day curve to draw
         return None, None
