@@ -141,11 +141,36 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
         lo, hi = run.span_m
         signals = [s.position_m for s in line.signals if s.direction == d and lo <= s.position_m <= hi]
         rest = (calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de), signals)
+        # drawn on a worker and kept in the cache, from where a worker writes its page (ChartPages.finish): the
+        # job keeps nothing of a chart (unless it waits for the SVGs here)
         units.append(Unit("charts", _chart_key(line, run, ds_m, rest, bad), "charts", _chart_task,
-                          (win, key, run.row, ds_m) + rest + (bad,)))
+                          (win, key, run.row, ds_m) + rest + (bad,), after=None if wait else drawn_elsewhere))
         pages.append((stage / chart_name(lid, key), win, run, calls, trains))
     drawn = runner.run("charts", units) if wait else runner.start("charts", units)
-    return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs={k: r for k, (r, _w) in legs.items()})
+    return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs={k: r for k, (r, _w) in legs.items()},
+                      stored=None if wait else (str(runner.cache.root), [u.key for u in units]),
+                      backend=(job.parallel.backend, job.parallel.n_jobs))
+
+
+def drawn_elsewhere(_svg: str) -> None:
+    """What the job keeps of a drawn chart (:attr:`planner.job.units.Unit.after`): nothing; its page is written
+    from the cache on a worker (:func:`write_chart_pages`)."""
+    return None
+
+
+def write_chart_pages(pages: list, root: str, keys: list, page: dict) -> int:
+    """Worker: the chart pages ``pages`` (:class:`ChartPages`), each chart's SVG read from the work cache at ``root``
+    (its unit's key in ``keys``; this run stored or found every one, checked by its digest like every read), with the
+    run's id, day and date (``page``) around it. Returns the pages written."""
+    from planner.job.units import Stored
+    from planner.pages.speed_chart import chart_page, write_chart
+
+    for (p, win, run, calls, trains), key in zip(pages, keys):
+        svg = Stored(root, "charts", key).load()
+        write_chart(p, chart_page(win, run, calls, trains, svg, page["back"], nav=page["nav"], run_id=page["run_id"],
+                                  day=page["day"], run_date=page["run_date"]))
+    give_back()
+    return len(pages)
 
 
 def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
@@ -155,42 +180,32 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     record) are named at the top of each page.
 
     The charts start on the workers first (:func:`start_charts`, unless ``charts`` were started already);
-    the dataset and the tables page are written meanwhile. With a list ``later`` the chart pages are left
+    the dataset and the tables page are written meanwhile, on a worker (:func:`timetable_written`). With a list ``later`` the chart pages are left
     to the :class:`ChartPages`, appended to it (the job writes its other pages while the charts are drawn,
     then calls :meth:`ChartPages.finish`); else they are written before this returns.
 
     Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
     legs with a chart in running order (the train graph links them); ``legs_known`` is called with it as soon as
-    it is known, before the dataset and the page are written (the job starts the train graph page with it).
+    it is known (the job starts the train graph page with it).
     """
-    from planner.job.steps import count_rows
-    from planner.pages.timetable import page_parts, write_page
-    from planner.report.train_timetable import timetable_rows, write_timetable
+    from planner.io.parallel import background
+    from planner.io.parquet import current_stamp
+    from planner.job.steps import count_rows, write_stamped
 
-    lid = line.line_id
     if charts is None:
         charts = start_charts(job, line, stage, report, runner, run_id, day, getattr(summary, "run_date", None),
                               wait=later is None)
-    runs = charts.runs
-    with runner.progress.step("timetable"):  # while the workers draw the charts
-        types = set(report.rows["train_type"])  # the job's train types ([job] train_types)
-        from planner.report.published_run import read_line_dataset
-
-        # the predicted day, written by the line's conflict check before this step
-        pred = read_line_dataset(stage, "delay_events", lid, columns=["train_id", "seq", "event", "predicted_s", "cause"])
-        recs = timetable_rows(line, runs, types, pred)  # made once: the dataset's rows and the page's
-        legs: dict[str, list] = {}
-        for r in recs:
-            if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
-                legs.setdefault(r["train_id"], []).append((f"{r['leg_origin']}→{r['station_id']}", r["chart"]))
+    page = dict(run_id=run_id, day=day, run_date=getattr(summary, "run_date", None))
+    types = sorted(set(report.rows["train_type"]))  # the job's train types ([job] train_types)
+    with runner.progress.step("timetable"):  # on a worker, while the other draws the charts
+        made = background(write_stamped, (current_stamp(), timetable_written, line, charts.runs, types, stage, page),
+                          name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+        summary.pending.append(made)
+        legs, files = made.result()
+        summary.pending.remove(made)
         if legs_known is not None:
             legs_known(legs)
-        count_rows(summary, write_timetable(line, runs, stage, types, recs))
-        links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
-                 ("train graph", f"../graph/{lid}_graph.html")]
-        write_page(stage / timetable_href(lid), page_parts(lid, line.name, recs, links=links, run_id=run_id, day=day,
-                                                          run_date=getattr(summary, "run_date", None),
-                                                          graph_href=f"../graph/{lid}_graph.html"))
+        count_rows(summary, files)
     if later is None:
         charts.finish()
     else:
@@ -198,13 +213,42 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     return legs
 
 
-class ChartPages:
-    """A line's speed–distance chart pages (:func:`train_views`): each written as its chart arrives."""
+def timetable_written(line, runs: dict, types, stage: Path, page: dict) -> tuple[dict[str, list], list]:
+    """Worker: the line's ``train_timetable`` dataset and its page (``page``: the run's id, day and date named at its
+    top), from the legs' runs (:class:`planner.report.train_timetable.LegTimes`) and the predicted day the line's
+    conflict check wrote before. Module level: the nightly job runs it on a worker, so the rows of every call of
+    every train are made and held there. Returns each train's legs with a chart (:func:`train_views`) and the
+    files written."""
+    from planner.pages.timetable import page_parts, write_page
+    from planner.report.published_run import read_line_dataset
+    from planner.report.train_timetable import timetable_rows, write_timetable
 
-    def __init__(self, started, pages: list, back: str, nav: list, run_id, day, run_date, runs: dict | None = None):
+    lid = line.line_id
+    pred = read_line_dataset(stage, "delay_events", lid, columns=["train_id", "seq", "event", "predicted_s", "cause"])
+    recs = timetable_rows(line, runs, set(types), pred)  # made once: the dataset's rows and the page's
+    legs: dict[str, list] = {}
+    for r in recs:
+        if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
+            legs.setdefault(r["train_id"], []).append((f"{r['leg_origin']}→{r['station_id']}", r["chart"]))
+    files = write_timetable(line, runs, stage, set(types), recs)
+    links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
+             ("train graph", f"../graph/{lid}_graph.html")]
+    write_page(stage / timetable_href(lid), page_parts(lid, line.name, recs, links=links, graph_href=f"../graph/{lid}_graph.html",
+                                                      **page))
+    return legs, files
+
+
+class ChartPages:
+    """A line's speed–distance chart pages (:func:`train_views`): written from the cache on the workers once the
+    charts are drawn (each as its chart arrives where the job holds the SVGs)."""
+
+    def __init__(self, started, pages: list, back: str, nav: list, run_id, day, run_date, runs: dict | None = None,
+                 stored: tuple[str, list] | None = None, backend: tuple[str, int] = ("local", 1)):
         self.started, self.pages = started, pages  # a list of the charts' SVGs, or Runner.start's handle
         self.page = dict(back=back, nav=nav, run_id=run_id, day=day, run_date=run_date)
         self.runs = runs  # the legs' runs (report.train_timetable.leg_runs), for the tables page
+        self.stored = stored  # (cache root, the charts' keys): the SVGs are in the cache, not here
+        self.backend = backend  # where the pages are written from the cache: the job's (name, n_jobs)
 
     def _write(self, _g: int, i: int, svg: str) -> None:
         from planner.pages.speed_chart import chart_page, write_chart
@@ -215,12 +259,25 @@ class ChartPages:
                                   day=kw["day"], run_date=kw["run_date"]))
 
     def finish(self) -> None:
-        """Write every page, waiting for the charts still being drawn."""
+        """Write every page, waiting for the charts still being drawn: with the SVGs in the cache (``stored``), on
+        the workers, half of the pages each (what a page holds never comes to the job process)."""
         if isinstance(self.started, list):
             for i, svg in enumerate(self.started):
                 self._write(0, i, svg)
-        else:
+            return
+        if self.stored is None:
             self.started.results(each=self._write)
+            return
+        from planner.io.parallel import background
+
+        self.started.results()  # every chart drawn and stored (the job keeps nothing of them)
+        root, keys = self.stored
+        name, n_jobs = self.backend
+        n = 2 if len(self.pages) > 1 else 1
+        parts = [background(write_chart_pages, (self.pages[i::n], root, keys[i::n], self.page), name=name,
+                            n_jobs=n_jobs) for i in range(n)]
+        for b in parts:
+            b.result()
 
     def discard(self) -> None:
         """The run failed: wait for the charts being drawn, write nothing."""

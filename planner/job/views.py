@@ -108,8 +108,8 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday
     blocks = restriction_blocks(line, bday)  # the day's restrictions, drawn on the train graph
 
     def start_page(legs: dict) -> None:
-        """The train graph page starts on a worker as soon as the legs' chart links are known, while this
-        process writes the tables' dataset and page: on a large line it is the run's last long unit."""
+        """The train graph page starts on a worker as soon as the legs' chart links are known (with the tables'
+        dataset and page, written on a worker): on a large line it is the run's last long unit."""
         with runner.progress.step("graph"):  # the page's own time is counted where run_views takes it
             page = background(graph_page, (line, stage, paths, legs, label, check, blocks),
                               name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
