@@ -105,6 +105,20 @@ def test_closed_loop_in_hand_is_the_folder(linedir, tmp_path):
                                   conflicts=False).rows
     in_hand = compute_margins(line, train_types=["EMU6"], tables_dir=tdir, closed_loop=both, conflicts=False).rows
     assert from_folder.equals(in_hand)
+    # the nightly job: what the margins read, made a direction at a time where the rows are (ClosedLoopFacts), at
+    # the times the margins look up; nothing added from no legs
+    from planner.report.margin_datasets import ClosedLoopFacts
+    from planner.report.margins import looked_up_times
+
+    times = looked_up_times(line, ["EMU6"]) + sorted({k[5] for k in index})[::7]  # some the sweep has
+    facts = ClosedLoopFacts()
+    for d in ("up", "down"):
+        facts.add(datasets([r for r in results if r.direction == d]), line.line_id, rule, times)
+    facts.add(datasets([]), line.line_id, rule, times)
+    assert facts.index == closed_loop_index(cdir, line.line_id, rule, times=times) and len(facts.index) > 0
+    assert facts.worst == worst
+    made = compute_margins(line, train_types=["EMU6"], tables_dir=tdir, closed_loop=facts, conflicts=False).rows
+    assert from_folder.equals(made)
 
 
 def test_the_closed_loop_index_keeps_the_times_looked_up(tmp_path, monkeypatch):

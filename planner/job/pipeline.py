@@ -78,11 +78,13 @@ from planner.job.units import (
 )
 from planner.job.steps import (
     bundles_step,
+    closed_loop_written,
     conflicts_step,
     conflicts_units,
     line_section_inputs,
     count_rows,
     line_types,
+    loops_seen,
     margins_step,
     result_params,
     partition_keys,
@@ -90,6 +92,7 @@ from planner.job.steps import (
     stops_seen,
     tables_seen,
     start_bundles,
+    write_stamped,
 )
 from planner.job.publish import (
     canonical_json,
@@ -393,7 +396,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
                          list(cp.modes), cp.horizon_s, cp.step_s]),
                  u.label, _closed_loop_unit,
                  (windows[k], k[0], Stored(root, "tables", u.key), cp.scenarios, list(cp.modes), cp.horizon_s,
-                  cp.step_s, tp.ds_m))
+                  cp.step_s, tp.ds_m), after=loops_seen)  # the job keeps the flags; the runs stay in the cache
             for k, u in zip(tasks, t_units)
         ]
         ahead["loop"] = runner.start_steps(side + [("closed_loop", ahead["c_units"])], wait=False)
@@ -439,9 +442,19 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     summary.pending.remove(loop)  # taken: nothing left to wait for on a failure, and its results are let go
     del loop
     got = {step: res for (step, _), res in zip(side, side_results)}
-    loops = [r for batch in loop_batches for r in batch]
     unit_keys = [u.key for u in t_units] + [u.key for u in s_units] + [u.key for u in c_units]
-    flagged = [flagged_tables, no_stop, [r for r in loops if r.flags]]
+    flagged = [flagged_tables, no_stop, [f for batch in loop_batches for f in batch]]
+    # the closed loop's datasets are written on a worker from the cache, which makes there what the margins read of
+    # them (the errors at the timetable's times, the worst per leg): the runs never come to this process
+    from planner.io.parallel import background
+    from planner.io.parquet import current_stamp
+    from planner.report.margins import looked_up_times, margin_options
+
+    loops_written = background(write_stamped, (current_stamp(), closed_loop_written, root, line.line_id,
+                                               partition_keys(line.line_id, tasks, c_units), stage,
+                                               margin_options(job, line)["rule"], looked_up_times(line, types, lifted)),
+                               name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+    summary.pending.append(loops_written)
     del side_results, loop_batches, t_units, s_units, c_units, windows
     # the train graph's trajectories (the line alone, taken by line_views) start first, on one worker; the
     # bundles need the tables and stops datasets only: built on the other from when they are written, beside
@@ -456,19 +469,16 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     count_rows(summary, stops_written.result())
     summary.pending.remove(stops_written)
     bundles = start_bundles(job, line, stage, runner, summary, key_path, bday)
-    from planner.datasets.closed_loop import datasets as closed_loop_datasets, write_closed_loop
-
-    # the closed loop's rows are written on the writer thread while the margins read them from memory
-    closed_loop = closed_loop_datasets(loops)
-    del loops
-    loops_written = _on_writer(writes, write_closed_loop, closed_loop, stage)
     give_back()  # the pages of what was let go (planner.io.memory)
 
     conflicts = None
     if checks_conflicts:
         conflicts = conflicts_step(summary, got.pop("conflicts"), line, stage)
-    report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given, lifted, closed_loop)
-    del given, closed_loop  # the tables' references and the closed loop's rows, for the margins
+    loop_files, loop_facts = loops_written.result()
+    summary.pending.remove(loops_written)
+    count_rows(summary, loop_files)
+    report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given, lifted, loop_facts)
+    del given, loop_facts  # the tables' references and what the margins read of the closed loop
     # the legs' speed–distance charts start on the workers now (their pages are written last), while the margins'
     # datasets are written on the writer thread and this process finishes the line's bundles
     from planner.job.day import window
@@ -479,7 +489,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
                           window(job).record() if job.day.day else None, summary.run_date)
     summary.pending.append(charts)
     margins_written = _on_writer(writes, write_margins, report, stage)
-    count_rows(summary, loops_written.result())
     give_back()
     bundles_step(stage, runner, summary, key, bundles)
     if verify is not None:  # every bundle of the run is written: the overview's check of them, on a worker

@@ -56,8 +56,8 @@ def line_unit(runner: Runner, step: str, key: str, fn: Callable, *args):
 def margins_unit(line, options, types, stage, n_jobs, given=None, lifted=None, closed_loop=None, memo=None):
     from planner.report.margins import compute_margins
 
-    # conflicts come from their own step (conflicts_step); ``given``: the tables read beforehand;
-    # ``closed_loop``: the closed loop's rows, being written to ``stage`` meanwhile; ``memo``: each leg group
+    # conflicts come from their own step (conflicts_step); ``given``: the tables (or their stored results);
+    # ``closed_loop``: what the margins read of the closed loop, made where it was written; ``memo``: each leg group
     # a unit of its own in the work cache (planner.job.leg_memo)
     return compute_margins(line, **(options | {"conflicts": False}), train_types=types, tables_dir=stage,
                            stops_dir=stage, closed_loop_dir=stage, n_jobs=n_jobs, given=given, lifted=lifted,
@@ -179,6 +179,33 @@ def write_stored(writer: Callable, root: str, step: str, groups: list[list[str]]
         written += writer(results, stage)
         del results
     return written
+
+
+def loops_seen(batch):
+    """What the job keeps of an interstation's closed loop (every scenario and mode, made where the results are): its
+    flagged runs' legs and flags (:class:`~planner.tables.flags.FlaggedLeg`). The runs stay in the cache, from where a
+    worker writes their datasets and makes what the margins read of them (:func:`closed_loop_written`)."""
+    from planner.tables.flags import FlaggedLeg
+
+    return [FlaggedLeg(r.train_type, r.direction, r.origin, r.destination, tuple(r.flags)) for r in batch if r.flags]
+
+
+def closed_loop_written(root: str, line_id: str, groups: list[list[str]], stage: Path, rule, times) -> tuple:
+    """Worker: the line's ``closed_loop`` and ``closed_loop_summary`` datasets, written from the closed-loop units'
+    stored results (``groups``: their keys by partition, :func:`partition_keys`), one partition group in memory at
+    a time, and what the margins read of them (:class:`~planner.report.margin_datasets.ClosedLoopFacts` at the
+    ``times`` they look up, the margin ``rule``'s scenarios). Returns (the files, the facts)."""
+    from planner.datasets.closed_loop import datasets, write_closed_loop
+    from planner.job.units import Stored
+    from planner.report.margin_datasets import ClosedLoopFacts
+
+    files, facts = [], ClosedLoopFacts()
+    for keys in groups:
+        tables = datasets([r for k in keys for r in Stored(root, "closed_loop", k).load()])
+        files += write_closed_loop(tables, stage)
+        facts.add(tables, line_id, rule, times)
+        del tables
+    return files, facts
 
 
 def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, groups: list[list[str]]):

@@ -9,6 +9,8 @@ steps' folders: table (a) energy (``planner tables``), the closed-loop errors
 """
 from __future__ import annotations
 
+import dataclasses
+
 from pathlib import Path
 
 import numpy as np
@@ -267,6 +269,25 @@ def closed_loop_index(closed_loop_dir: Path, line_id: str, rule, tables: dict | 
     err = t.column("error_s").to_numpy(zero_copy_only=False).astype(float).tolist()
     return {(d, tt, o, de, s, x): e for d, tt, o, de, s, x, e in zip(*keys, scen, designated, err)
             if wanted is None or x in wanted}
+
+
+@dataclasses.dataclass
+class ClosedLoopFacts:
+    """What the margins read of a line's closed loop, made where its rows are (the nightly job makes them on the
+    worker that writes the closed loop's datasets, so the rows never come to the job process)."""
+
+    index: dict = dataclasses.field(default_factory=dict)
+    """:func:`closed_loop_index` (at the times the margins look up)."""
+    worst: dict = dataclasses.field(default_factory=dict)
+    """:func:`closed_loop_worst`."""
+
+    def add(self, tables: dict, line_id: str, rule, times) -> None:
+        """Add the facts of the ``closed_loop`` and ``closed_loop_summary`` Arrow tables ``tables``
+        (:func:`planner.datasets.closed_loop.datasets`) of some of the line's legs (each leg's rows all in them)."""
+        if tables["closed_loop"].num_columns:  # no column at all: none of these legs has a run
+            self.index.update(closed_loop_index(Path("."), line_id, rule, tables, times))
+        if tables["closed_loop_summary"].num_rows:
+            self.worst.update(closed_loop_worst(Path("."), line_id, tables))
 
 
 def _near(x: np.ndarray, wanted: set) -> np.ndarray:

@@ -165,6 +165,7 @@ from planner.report.margin_legs import (
 )
 from planner.report.margin_datasets import (
     MARGINS_SCHEMA,
+    ClosedLoopFacts,
     closed_loop_index,
     closed_loop_worst,
     read_energy,
@@ -356,10 +357,12 @@ def compute_margins(
         that leg (:func:`planner.job.day.lifted_restrictions`): such trains' legs are rows of their own,
         computed on the line without them (:mod:`planner.report.margin_legs`; the given tables and
         closed loop, made with them, are not used there).
-    closed_loop : dict, optional
+    closed_loop : dict or ClosedLoopFacts, optional
         The ``closed_loop`` and ``closed_loop_summary`` Arrow tables of the line
         (:func:`planner.datasets.closed_loop.datasets`), used instead of reading them from
-        ``closed_loop_dir`` (the nightly job has them in hand while they are written).
+        ``closed_loop_dir``; or what the margins read of them, made beforehand
+        (:class:`~planner.report.margin_datasets.ClosedLoopFacts` at :func:`looked_up_times`: the nightly job
+        makes them on the worker that writes the closed loop's datasets).
     memo : optional
         Each leg group as a unit of its own (:class:`planner.job.leg_memo.LegMemo`: ``key(line, group,
         times, options)``, ``get(key)``, ``put(key, result)``): a group whose key is stored is not computed
@@ -381,9 +384,12 @@ def compute_margins(
     tabs, energy = given if given is not None else given_tables(line, types, tables_dir)
     cl_from = bool(closed_loop_dir) or closed_loop is not None
     cl_dir = Path(closed_loop_dir) if closed_loop_dir else None
-    times = [t for k, v in sched.items() if not k[4] for t in v]  # what the legs look up (known_errors)
-    cl_index = closed_loop_index(cl_dir, line.line_id, rule, closed_loop, times) if cl_from else {}
-    cl_worst = closed_loop_worst(cl_dir, line.line_id, closed_loop) if cl_from else {}
+    if isinstance(closed_loop, ClosedLoopFacts):  # made where the closed loop's rows are
+        cl_index, cl_worst = closed_loop.index, closed_loop.worst
+    else:
+        times = _looked_up(sched)
+        cl_index = closed_loop_index(cl_dir, line.line_id, rule, closed_loop, times) if cl_from else {}
+        cl_worst = closed_loop_worst(cl_dir, line.line_id, closed_loop) if cl_from else {}
     kw = dict(ratios=ratios, min_target_speed_ms=min_target_speed_ms, rule=rule, adhesion_kmh_s=adh,
               approach_m=approach_m, after_departure_m=after_departure_m, eval_interval_m=eval_interval_m,
               eval_auto_s=eval_auto_s, settings=settings)
@@ -438,6 +444,19 @@ def compute_margins(
                  "closed_loop_dataset": bool(cl_index)},
         legs={} if memo is None else memo.stats(),
     )
+
+
+def _looked_up(sched: dict) -> list[float]:
+    """The running times the legs look the closed loop's errors up at (``known_errors``): the scheduled times of
+    the legs with nothing lifted (``sched``: :func:`planner.report.margin_legs.scheduled_times`)."""
+    return [t for k, v in sched.items() if not k[4] for t in v]
+
+
+def looked_up_times(line: Line, types: Sequence[str], lifted: Lifted | None = None) -> list[float]:
+    """What :func:`compute_margins` of ``line`` looks the closed loop's errors up at (:class:`ClosedLoopFacts`
+    made beforehand must hold them)."""
+    legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
+    return _looked_up(scheduled_times(line, types, legs, lifted))
 
 
 def _memoised(memo, line: Line, keys: list, tasks: list, n_jobs: int, progress) -> list[LegResult]:
