@@ -460,9 +460,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # bundles need the tables and stops datasets only: built on the other from when they are written, beside
     # the margins (the worker loads the key from its file; both datasets are counted, so written, before),
     # while this process makes the closed loop's rows for the margins
-    from planner.job.views import graph_units, line_paths
+    from planner.job.views import graph_units
 
-    graph = runner.start("graph", graph_units(job, sections))
+    g_units = graph_units(job, sections)
+    graph = runner.start("graph", g_units)
     del sections
     summary.pending.append(graph)
     count_rows(summary, tables_files)
@@ -504,7 +505,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.job.views import line_views  # inputs copy, train graph page
 
     count_rows(summary, margins_written.result())  # the train graph page reads the margin totals
-    trajectories = line_paths(line, graph.results()[0])
+    graph.results()  # every section's trajectories stored: the page's worker reads them (graph_page)
+    trajectories = [Stored(root, "graph", u.key) for u in g_units]
     summary.pending.remove(graph)
     del graph
     line_views(job, line, stage, runner, summary, trajectories, charts, bday)

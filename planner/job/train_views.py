@@ -115,7 +115,7 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
     workers (cached units: an unchanged leg's chart is not redrawn; ``wait``: drawn before this returns); the
     pages are written by :meth:`ChartPages.finish`. The nightly job calls it as soon as the line's margins are
     computed, so the charts are drawn while it writes the margins, the bundles' key and the other pages."""
-    from planner.job.units import Unit
+    from planner.job.units import Unit, nothing_kept
     from planner.report.train_timetable import chart_name, leg_times
 
     lid = line.line_id
@@ -144,18 +144,12 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
         # drawn on a worker and kept in the cache, from where a worker writes its page (ChartPages.finish): the
         # job keeps nothing of a chart (unless it waits for the SVGs here)
         units.append(Unit("charts", _chart_key(line, run, ds_m, rest, bad), "charts", _chart_task,
-                          (win, key, run.row, ds_m) + rest + (bad,), after=None if wait else drawn_elsewhere))
+                          (win, key, run.row, ds_m) + rest + (bad,), after=None if wait else nothing_kept))
         pages.append((stage / chart_name(lid, key), win, run, calls, trains))
     drawn = runner.run("charts", units) if wait else runner.start("charts", units)
     return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs={k: r for k, (r, _w) in legs.items()},
                       stored=None if wait else (str(runner.cache.root), [u.key for u in units]),
                       backend=(job.parallel.backend, job.parallel.n_jobs))
-
-
-def drawn_elsewhere(_svg: str) -> None:
-    """What the job keeps of a drawn chart (:attr:`planner.job.units.Unit.after`): nothing; its page is written
-    from the cache on a worker (:func:`write_chart_pages`)."""
-    return None
 
 
 def write_chart_pages(pages: list, root: str, keys: list, page: dict) -> int:

@@ -182,6 +182,12 @@ def _call(fn, args):
         return fn(*args)
 
 
+def nothing_kept(_result) -> None:
+    """:attr:`Unit.after` of a unit whose result the job never needs: nothing comes back; a worker that does need it
+    reads it from the cache by its key (:class:`Stored`)."""
+    return None
+
+
 def _kept(after: Callable | None, res):
     """What the job keeps of a unit's result (:attr:`Unit.after`), wherever it is made."""
     return res if after is None else after(res)

@@ -77,14 +77,19 @@ def graph_units(job, sections) -> list:
     from planner.job.day import lifted_key
     from planner.job.publish import digest
 
+    from planner.job.units import Unit, nothing_kept
+
     check = bool(job.conflicts.enabled)
-    return [_unit("graph", digest(["graph", code_digest(), s.seen, lifted_key(s.lifted), check, TOL_T_S, TOL_X_M]),
-                  _graph_unit, (s.line, check, s.lifted)) for s in sections]
+    # the trajectories stay in the cache: the train graph page's worker reads them (graph_page), not the job
+    return [Unit("graph", digest(["graph", code_digest(), s.seen, lifted_key(s.lifted), check, TOL_T_S, TOL_X_M]),
+                 "graph", _graph_unit, (s.line, check, s.lifted), after=nothing_kept) for s in sections]
 
 
 def line_paths(line, results: list) -> list:
-    """The trajectories of a line's sections (:func:`graph_units`' results) as one list, in the line's timetable
-    order (as one unit of the whole line gives them)."""
+    """The trajectories of a line's sections (:func:`graph_units`' results, or their stored entries:
+    :class:`planner.job.units.Stored`, read here) as one list, in the line's timetable order (as one unit of the
+    whole line gives them)."""
+    results = [r.load() if hasattr(r, "load") else r for r in results]
     order = {t.train_id: i for i, t in enumerate(line.trains)}
     if len(results) == 1:
         return results[0]
@@ -92,8 +97,8 @@ def line_paths(line, results: list) -> list:
 
 
 def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday=None) -> None:
-    """Inputs copy, running-time tables and train graph page of one line (module doc); ``paths``: the result of
-    :func:`graph_unit`; ``bday``: its operating day (:func:`planner.job.day.bundle_day`, None without a daily
+    """Inputs copy, running-time tables and train graph page of one line (module doc); ``paths``: the trajectories,
+    or the stored results of :func:`graph_units` (:func:`line_paths`, on the page's worker); ``bday``: its operating day (:func:`planner.job.day.bundle_day`, None without a daily
     feed); ``charts``: the line's speed–distance charts if started already
     (:func:`planner.job.train_views.start_charts`). The train graph page is written on a worker
     (:func:`graph_page`, in ``summary.graph_pages``) while this process writes the run's other pages."""
@@ -126,7 +131,8 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday
 
 def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool, blocks=()) -> None:
     """Write ``graph/<line>_graph.html``: the line's train graph from its trajectories (``paths``) and the run's
-    occupation, conflicts, margin totals and delay events datasets (the late trains' predicted runs), each train linked to its legs' charts (``legs``, from
+    occupation, conflicts, margin totals and delay events datasets (the late trains' predicted runs; ``paths``:
+    the trajectories, or the graph units' stored results, :func:`line_paths`), each train linked to its legs' charts (``legs``, from
     :func:`planner.job.train_views.train_views`) and the day's restrictions as time–location blocks (``blocks``,
     :func:`planner.job.day.restriction_blocks`). Module level: the nightly job runs it on a worker."""
     from planner.job.train_views import timetable_href
@@ -140,6 +146,7 @@ def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool, bl
     mt = read_line_dataset(stage, "margin_totals", line.line_id)
     # the predicted day, written by the line's conflicts step before this page (None without it: not drawn)
     ev = read_line_dataset(stage, "delay_events", line.line_id, columns=PREDICTED_COLUMNS)
+    paths = line_paths(line, paths) if paths and hasattr(paths[0], "load") else paths
     data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False, delay_events=ev)
     data.restrictions = list(blocks)
     if check and line.network is not None and (occ is None or con is None):
@@ -167,12 +174,6 @@ def _run_label(job, summary) -> str:
     from planner.pages.run_head import run_words
 
     return run_words(summary.run_id, window(job).record() if job.day.day else None, getattr(summary, "run_date", None))
-
-
-def _unit(step, key, fn, args):
-    from planner.job.units import Unit
-
-    return Unit(step, key, step, fn, args)
 
 
 def _failure_text(e: BaseException) -> str:
