@@ -16,7 +16,8 @@ restrictions) is now a unit of its own, keyed by exactly what its computation re
 
 The tables a leg uses come from the tables step's units, keyed by the same slice and parameters, so they
 are what the key already says. A group whose key is stored is read back (the pickle-free codec, checked by
-its digest like every cache entry) instead of computed; one whose key is new is computed and stored.
+its digest like every cache entry) instead of computed; one whose key is new is computed and stored. In the
+nightly job each group is a unit of the run's runner (:class:`LegUnits`), so both happen on the workers.
 """
 from __future__ import annotations
 
@@ -32,21 +33,22 @@ from planner.job.units import code_digest, interstation_inputs
 KIND = "margin_leg"
 
 
-def _plain(v):
-    """``v`` as JSON can hold it, exactly (a float's repr is exact; dataclasses and arrays as their values)."""
+def plain(v):
+    """``v`` as JSON can hold it, exactly (a float's repr is exact; dataclasses and arrays as their values): what a
+    unit's key digests of plain data (a leg group's options; a section's line, :func:`planner.job.steps.section_digest`)."""
     if dataclasses.is_dataclass(v) and not isinstance(v, type):
-        return {f.name: _plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
+        return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
     if isinstance(v, dict):
-        return sorted((repr(k), _plain(x)) for k, x in v.items())
+        return sorted((repr(k), plain(x)) for k, x in v.items())
     if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
+        return [plain(x) for x in v]
     if isinstance(v, np.ndarray):
-        return [_plain(x) for x in v.tolist()]
+        return [plain(x) for x in v.tolist()]
     if isinstance(v, (np.floating, float)):
         return repr(float(v))
     if isinstance(v, (np.integer, int, bool, str)) or v is None:
         return v if not isinstance(v, np.integer) else int(v)
-    raise TypeError(f"a margin leg's key cannot hold {type(v).__name__}")
+    raise TypeError(f"a unit's key cannot hold {type(v).__name__}")
 
 
 class LegMemo:
@@ -82,7 +84,7 @@ class LegMemo:
         seen = interstation_inputs(without_temporary(line, lifted), train_type, origin, destination)
         return digest([KIND, code_digest(), seen, [direction, train_type, origin, destination,
                                                                  list(lifted)],
-                       [float(t) for t in times], {k: _plain(v) for k, v in sorted(options.items())}])
+                       [float(t) for t in times], {k: plain(v) for k, v in sorted(options.items())}])
 
     def get(self, key: str):
         r = self.cache.get(KIND, key)
@@ -98,3 +100,32 @@ class LegMemo:
     def put(self, key: str, result) -> None:
         self.computed += 1
         self.cache.put(KIND, key, result)
+
+
+def leg_kept(result):
+    """What the job keeps of a leg group's result (:attr:`planner.job.units.Unit.after`): all of it (a row's
+    figures, without tables); declared so that a stored group is read back on a worker, not in the job process."""
+    return result
+
+
+class LegUnits(LegMemo):
+    """The nightly job's leg groups, each a unit of the run's runner (:class:`planner.job.units.Runner`, step
+    :data:`KIND`): a computed group is stored by the worker that computed it and a stored one read back on a worker
+    (checked by its digest there), counted with the run's other units; the job process neither encodes nor decodes
+    them. Keys as :class:`LegMemo`'s."""
+
+    def __init__(self, runner):
+        super().__init__(runner.cache.root, enabled=runner.cache.enabled)
+        self.runner = runner
+
+    def run(self, keys: list[str], tasks: list) -> list:
+        """The groups' results: :func:`planner.report.margins.leg_task` of each task, each keyed by ``keys``."""
+        from planner.job.units import Unit
+        from planner.report.margins import leg_task
+
+        return self.runner.run(KIND, [Unit(KIND, k, f"{t[1]} {t[2]}->{t[3]}", leg_task, tuple(t), after=leg_kept)
+                                      for k, t in zip(keys, tasks)])
+
+    def stats(self) -> dict:
+        """Nothing: the runner counts the groups with the run's units."""
+        return {}

@@ -74,17 +74,11 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
     key = digest(["margins", code_digest(), line_digest(line), lifted_key(lifted or {}), unit_keys,
                   result_params(job)])
     n_jobs = job.parallel.n_jobs  # the legs on the local workers, or on the run's Dask cluster (map_tasks)
-    from planner.job.leg_memo import KIND, LegMemo
+    from planner.job.leg_memo import LegUnits
 
-    memo = LegMemo(runner.cache.root, enabled=runner.cache.enabled)
-    before = runner.computed.get("margins", 0)
+    # each leg group a unit of the run (stored and read back on the workers, counted with the run's units)
     report = line_unit(runner, "margins", key, margins_unit, line, margin_options(job, line), line_types(job, line),
-                        stage, n_jobs, given, lifted, closed_loop, memo)
-    if runner.computed.get("margins", 0) > before and report.legs:  # made now: its legs are this run's units
-        runner.computed[KIND] = runner.computed.get(KIND, 0) + report.legs["computed"]
-        runner.reused[KIND] = runner.reused.get(KIND, 0) + report.legs["hits"]
-        for kind, k, why in report.legs["rejected"]:
-            runner.cache.rejected_elsewhere(kind, k, why)
+                        stage, n_jobs, given, lifted, closed_loop, LegUnits(runner))
     if conflicts is not None:
         report.conflicts, report.conflicts_note = conflicts, ""
     elif not job.conflicts.enabled:
@@ -308,10 +302,10 @@ def section_digest(sline: Line) -> str:
     """Digest of a section's line, its content (module doc of :mod:`planner.network.sections`): the trains by
     their text (strings and numbers only, a float's text exact), the rest as plain data (arrays by value), the
     folder's digest and path left out."""
-    from planner.job.leg_memo import _plain
+    from planner.job.leg_memo import plain
 
     rest = dataclasses.replace(sline, trains=(), source_digest="", source_path="", upgrade_notes=())
-    return digest([_plain(rest), hashlib.sha256("\n".join(map(repr, sline.trains)).encode()).hexdigest()])
+    return digest([plain(rest), hashlib.sha256("\n".join(map(repr, sline.trains)).encode()).hexdigest()])
 
 
 def conflicts_units(job: Job, line: Line, stage: Path, sections: list[SectionInputs]) -> list[Unit]:

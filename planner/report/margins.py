@@ -225,7 +225,7 @@ class MarginReport:
     legs: dict = field(default_factory=dict)
 
 
-def _leg_task(line, tt, o, d, sched, tabs, energy, kw):
+def leg_task(line, tt, o, d, sched, tabs, energy, kw):
     """Worker: one leg (module level, picklable inputs). Given tables are not sent back (``tables`` None):
     the caller has them (or their reference), and a copy of every leg's would double them in its memory."""
     given, (tabs, energy) = tabs, given_leg(tabs, energy)
@@ -366,7 +366,8 @@ def compute_margins(
     memo : optional
         Each leg group as a unit of its own (:class:`planner.job.leg_memo.LegMemo`: ``key(line, group,
         times, options)``, ``get(key)``, ``put(key, result)``): a group whose key is stored is not computed
-        again, so an edit recomputes the legs it touches.
+        again, so an edit recomputes the legs it touches. With ``run(keys, tasks)`` it computes or reads the groups
+        itself (the nightly job's :class:`planner.job.leg_memo.LegUnits`: units of its runner).
 
     Returns
     -------
@@ -416,7 +417,7 @@ def compute_margins(
     results: list[LegResult] = _memoised(memo, line, keys, tasks, n_jobs, progress)
     for k, r, task in zip(keys, results, tasks):  # the window holds only the leg's two stations: the passed ones
         r.passes = passed_stations(line, r.origin, r.destination)  # from the line
-        if r.tables is None:  # the given tables it used (_leg_task), or their reference: read if drawn
+        if r.tables is None:  # the given tables it used (leg_task), or their reference: read if drawn
             r.tables = task[5]
         r.lifted, r.restrictions = k[4], applied_restrictions(windows[k], k[0], k[1])
     results = [no_stop(r, no_pattern) for r in results]
@@ -460,14 +461,17 @@ def looked_up_times(line: Line, types: Sequence[str], lifted: Lifted | None = No
 
 
 def _memoised(memo, line: Line, keys: list, tasks: list, n_jobs: int, progress) -> list[LegResult]:
-    """The legs' results: ``_leg_task`` for each task, those ``memo`` holds taken from it (each computed one
-    stored in it as ``_leg_task`` gave it)."""
+    """The legs' results: :func:`leg_task` for each task, those ``memo`` holds taken from it (each computed one
+    stored in it as :func:`leg_task` gave it); or, with a ``memo`` that runs them (``run(keys, tasks)``), its
+    results."""
     if memo is None:
-        return map_tasks(_leg_task, tasks, n_jobs, progress)
+        return map_tasks(leg_task, tasks, n_jobs, progress)
     ids = [memo.key(line, k, t[4], t[7]) for k, t in zip(keys, tasks)]
+    if hasattr(memo, "run"):  # the nightly job's: each group a unit of its runner (planner.job.leg_memo.LegUnits)
+        return memo.run(ids, tasks)
     results = [memo.get(i) for i in ids]
     todo = [j for j, r in enumerate(results) if r is None]
-    for j, r in zip(todo, map_tasks(_leg_task, [tasks[j] for j in todo], n_jobs, progress)):
+    for j, r in zip(todo, map_tasks(leg_task, [tasks[j] for j in todo], n_jobs, progress)):
         memo.put(ids[j], r)
         results[j] = r
     return results
