@@ -70,13 +70,16 @@ def job_folder(base: Path, line_dir: Path, scheduler: str = "") -> Path:
 
 
 class _TreeSampler(threading.Thread):
-    """Samples a process tree's resident memory and per-process CPU time every :data:`SAMPLE_S`."""
+    """Samples a process tree's resident memory and per-process CPU time every :data:`SAMPLE_S`; ``also``: the roots
+    of other trees the run uses (a Dask cluster's scheduler and workers), counted in the tree's and a worker's peak
+    (not in the CPU: :meth:`DaskCluster.cpu_s` counts theirs)."""
 
-    def __init__(self, pid: int):
+    def __init__(self, pid: int, also: tuple[int, ...] = ()):
         super().__init__(daemon=True)
         import psutil
 
         self.root = psutil.Process(pid)
+        self.also = [psutil.Process(a) for a in also]
         self.peak_sum = 0
         self.peak_main = 0
         self.peak_worker = 0
@@ -91,15 +94,22 @@ class _TreeSampler(threading.Thread):
                 procs = [self.root] + self.root.children(recursive=True)
             except psutil.Error:
                 return
+            mine = len(procs)
+            for a in self.also:
+                try:
+                    procs += [a] + a.children(recursive=True)
+                except psutil.Error:
+                    pass
             total = 0
-            for p in procs:
+            for n, p in enumerate(procs):
                 try:
                     rss = p.memory_info().rss
                     t = p.cpu_times()
                 except psutil.Error:
                     continue
                 total += rss
-                self.cpu[p.pid] = t.user + t.system
+                if n < mine:
+                    self.cpu[p.pid] = t.user + t.system
                 if p.pid == self.root.pid:
                     self.peak_main = max(self.peak_main, rss)
                 else:
@@ -108,14 +118,15 @@ class _TreeSampler(threading.Thread):
             self.stop.wait(SAMPLE_S)
 
 
-def run_job(base: Path, label: str) -> dict:
-    """``planner run jobs/nightly.toml`` in ``base`` (log: ``base/<label>.log``), measured from here."""
+def run_job(base: Path, label: str, also: tuple[int, ...] = ()) -> dict:
+    """``planner run jobs/nightly.toml`` in ``base`` (log: ``base/<label>.log``), measured from here; ``also``: the
+    process trees of the cluster it runs on, counted in its memory peaks (:class:`_TreeSampler`)."""
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     with open(base / f"{label}.log", "w") as log:
         p = subprocess.Popen([sys.executable, "-m", "planner.cli", "run", "jobs/nightly.toml", "--no-progress"],
                              cwd=base, stdout=log, stderr=subprocess.STDOUT)
-        sampler = _TreeSampler(p.pid)
+        sampler = _TreeSampler(p.pid, also)
         sampler.start()
         rc = p.wait()
         sampler.stop.set()
@@ -232,7 +243,7 @@ def dask_against_joblib(work: Path, big: Path, joblib_run: dict, workers: int = 
     try:
         base = job_folder(work / f"job-{big.name}-dask", big, cluster.address)
         c0 = cluster.cpu_s()
-        r = run_job(base, "cold")
+        r = run_job(base, "cold", also=tuple(p.pid for p in cluster.procs))
         r["cpu_s"] += cluster.cpu_s() - c0  # the workers are the cluster's processes, not the job's children
         r["worker_cpu_s"] = max(0.0, r["cpu_s"] - r["main_cpu_s"])
     finally:

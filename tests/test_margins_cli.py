@@ -108,7 +108,7 @@ def test_closed_loop_in_hand_is_the_folder(linedir, tmp_path):
     # the nightly job: what the margins read, made a direction at a time where the rows are (ClosedLoopFacts), at
     # the times the margins look up; nothing added from no legs
     from planner.report.margin_datasets import ClosedLoopFacts
-    from planner.report.margins import looked_up_times
+    from planner.report.margin_legs import looked_up_times
 
     times = looked_up_times(line, ["EMU6"]) + sorted({k[5] for k in index})[::7]  # some the sweep has
     facts = ClosedLoopFacts()

@@ -353,12 +353,12 @@ def test_tables_read_back_as_built_whatever_the_row_order_of_the_files(hilly, tm
 
 def test_a_margin_leg_given_its_stored_tables_computes_what_the_datasets_give(hilly, tmp_path):
     """The nightly job gives each margin leg a reference to the tables step's stored result, read on the worker
-    (report.margins.given_leg), instead of the tables read back from their datasets: the same tables and table (a)
+    (report.margin_datasets.given_leg), instead of the tables read back from their datasets: the same tables and table (a)
     energy as the datasets hold, and so the same leg, to the bit."""
     from planner.datasets.tables import load_tables
     from planner.report.leg_margin import leg_result
     from planner.report.margin_datasets import read_energy
-    from planner.report.margins import given_leg
+    from planner.report.margin_datasets import given_leg
 
     class Ref:  # what a stored result is to the margins: something with load()
         def __init__(self, built):

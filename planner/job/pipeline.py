@@ -448,7 +448,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # them (the errors at the timetable's times, the worst per leg): the runs never come to this process
     from planner.io.parallel import background
     from planner.io.parquet import current_stamp
-    from planner.report.margins import looked_up_times, margin_options
+    from planner.report.margin_legs import looked_up_times
+    from planner.report.margins import margin_options
 
     loops_written = background(write_stamped, (current_stamp(), closed_loop_written, root, line.line_id,
                                                partition_keys(line.line_id, tasks, c_units), stage,
@@ -456,10 +457,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
                                name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(loops_written)
     del side_results, loop_batches, t_units, s_units, c_units, windows
-    # the train graph's trajectories (the line alone, taken by line_views) start first, on one worker; the
-    # bundles need the tables and stops datasets only: built on the other from when they are written, beside
-    # the margins (the worker loads the key from its file; both datasets are counted, so written, before),
-    # while this process makes the closed loop's rows for the margins
+    # the train graph's trajectories (stored for the page's worker) start next; the bundles need the tables and
+    # stops datasets only: built from when they are written, beside the margins (the worker loads the key from
+    # its file; both datasets are counted, so written, before)
     from planner.job.views import graph_units
 
     g_units = graph_units(job, sections)

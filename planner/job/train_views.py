@@ -192,11 +192,8 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     page = dict(run_id=run_id, day=day, run_date=getattr(summary, "run_date", None))
     types = sorted(set(report.rows["train_type"]))  # the job's train types ([job] train_types)
     with runner.progress.step("timetable"):  # on a worker, while the other draws the charts
-        made = background(write_stamped, (current_stamp(), timetable_written, line, charts.runs, types, stage, page),
-                          name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
-        summary.pending.append(made)
-        legs, files = made.result()
-        summary.pending.remove(made)
+        legs, files = background(write_stamped, (current_stamp(), timetable_written, line, charts.runs, types, stage,
+                                                 page), name=job.parallel.backend, n_jobs=job.parallel.n_jobs).result()
         if legs_known is not None:
             legs_known(legs)
         count_rows(summary, files)

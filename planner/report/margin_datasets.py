@@ -366,3 +366,34 @@ def stops_facts(stops_dir: Path, line_id: str) -> tuple[np.ndarray, dict, dict]:
             by_type[str(tt)] = np.unique(np.round(v[np.isfinite(v)], 9))
     # the levels as the job file spells them
     return np.unique(np.round(vals[np.isfinite(vals)], 9)), missing, by_type
+
+
+def given_leg(tabs, energy):
+    """A leg's given tables and table (a) energy: as given, or, given a reference to the tables step's stored result
+    (anything with ``load()`` giving :class:`~planner.tables.build.InterstationTables`, e.g. the nightly job's
+    :class:`planner.job.units.Stored`), read from it where the leg is computed: the vehicle's view of them
+    (``onboard()``, the same numbers as the datasets :func:`given_tables` reads) and their energy per ratio."""
+    if tabs is None or not hasattr(tabs, "load"):
+        return tabs, energy
+    built = tabs.load()
+    return built.onboard(), np.asarray(built.energy_a_kwh, float)
+
+
+def given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, dict]:
+    """The tables and table (a) energy of a ``--tables`` folder, by (direction, type, origin, destination)
+    (:func:`compute_margins` reads them, unless given them read beforehand)."""
+    from planner.datasets.tables import load_tables
+    from planner.line.model import DIRECTIONS
+
+    tabs: dict = {}
+    energy: dict = {}
+    if tables_dir is None:
+        return tabs, energy
+    for t in types:
+        for d in DIRECTIONS:
+            got = load_tables(tables_dir, line.line_id, d, t)
+            en = read_energy(Path(tables_dir), line.line_id, d, t)
+            for (o, de), tb in got.items():
+                tabs[(d, t, o, de)] = tb
+                energy[(d, t, o, de)] = en.get((o, de))
+    return tabs, energy

@@ -99,5 +99,18 @@ def applied_restrictions(window: Line, direction: str, train_type: str) -> tuple
                  if s.kind == TEMPORARY_KIND and s.applies(direction, train_type))
 
 
-__all__ = ["Lifted", "TrainLeg", "applied_restrictions", "group_window", "lifted_of", "scheduled_times",
-           "timetable_legs"]
+def looked_up(sched: dict) -> list[float]:
+    """The running times the legs look the closed loop's errors up at (``known_errors``): the scheduled times of
+    the legs with nothing lifted (``sched``: :func:`scheduled_times`)."""
+    return [t for k, v in sched.items() if not k[4] for t in v]
+
+
+def looked_up_times(line: Line, types: Sequence[str], lifted: Lifted | None = None) -> list[float]:
+    """What :func:`planner.report.margins.compute_margins` of ``line`` looks the closed loop's errors up at
+    (:class:`planner.report.margin_datasets.ClosedLoopFacts` made beforehand must hold them)."""
+    legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
+    return looked_up(scheduled_times(line, types, legs, lifted))
+
+
+__all__ = ["Lifted", "TrainLeg", "applied_restrictions", "group_window", "lifted_of", "looked_up", "looked_up_times",
+           "scheduled_times", "timetable_legs"]

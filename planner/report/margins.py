@@ -160,6 +160,7 @@ from planner.report.margin_legs import (
     applied_restrictions,
     group_window,
     lifted_of,
+    looked_up,
     scheduled_times,
     timetable_legs,
 )
@@ -168,7 +169,8 @@ from planner.report.margin_datasets import (
     ClosedLoopFacts,
     closed_loop_index,
     closed_loop_worst,
-    read_energy,
+    given_leg,
+    given_tables,
     stops_facts,
 )
 from planner.report.margin_rule import TOTALS_COLUMNS, MarginRule, margin_columns, margin_totals
@@ -233,17 +235,6 @@ def leg_task(line, tt, o, d, sched, tabs, energy, kw):
     if given is not None and r.tables is tabs:
         r.tables = None
     return r
-
-
-def given_leg(tabs, energy):
-    """A leg's given tables and table (a) energy: as given, or, given a reference to the tables step's stored result
-    (anything with ``load()`` giving :class:`~planner.tables.build.InterstationTables`, e.g. the nightly job's
-    :class:`planner.job.units.Stored`), read from it where the leg is computed: the vehicle's view of them
-    (``onboard()``, the same numbers as the datasets :func:`given_tables` reads) and their energy per ratio."""
-    if tabs is None or not hasattr(tabs, "load"):
-        return tabs, energy
-    built = tabs.load()
-    return built.onboard(), np.asarray(built.energy_a_kwh, float)
 
 
 def margin_options(job, line: Line) -> dict:
@@ -349,9 +340,10 @@ def compute_margins(
         Worker processes over legs (1 = this process, -1 = all cores).
     progress : callable ``(done, total)``, optional
     given : (tables, energy), optional
-        :func:`given_tables` of the same line, types and ``tables_dir``, read beforehand; else read here.
-        A table may be a reference to it instead (:func:`given_leg`: the nightly job gives each leg the
-        tables step's stored result, read on the worker that computes the leg), its energy then left out.
+        :func:`~planner.report.margin_datasets.given_tables` of the same line, types and ``tables_dir``, read
+        beforehand; else read here. A table may be a reference to it instead
+        (:func:`~planner.report.margin_datasets.given_leg`: the nightly job gives each leg the tables step's
+        stored result, read on the worker that computes the leg), its energy then left out.
     lifted : mapping, optional
         ``(train_id, leg_seq)`` → ids of the line's temporary restrictions lifted while that train runs
         that leg (:func:`planner.job.day.lifted_restrictions`): such trains' legs are rows of their own,
@@ -361,8 +353,9 @@ def compute_margins(
         The ``closed_loop`` and ``closed_loop_summary`` Arrow tables of the line
         (:func:`planner.datasets.closed_loop.datasets`), used instead of reading them from
         ``closed_loop_dir``; or what the margins read of them, made beforehand
-        (:class:`~planner.report.margin_datasets.ClosedLoopFacts` at :func:`looked_up_times`: the nightly job
-        makes them on the worker that writes the closed loop's datasets).
+        (:class:`~planner.report.margin_datasets.ClosedLoopFacts` at
+        :func:`~planner.report.margin_legs.looked_up_times`: the nightly job makes them on the worker that
+        writes the closed loop's datasets).
     memo : optional
         Each leg group as a unit of its own (:class:`planner.job.leg_memo.LegMemo`: ``key(line, group,
         times, options)``, ``get(key)``, ``put(key, result)``): a group whose key is stored is not computed
@@ -388,7 +381,7 @@ def compute_margins(
     if isinstance(closed_loop, ClosedLoopFacts):  # made where the closed loop's rows are
         cl_index, cl_worst = closed_loop.index, closed_loop.worst
     else:
-        times = _looked_up(sched)
+        times = looked_up(sched)
         cl_index = closed_loop_index(cl_dir, line.line_id, rule, closed_loop, times) if cl_from else {}
         cl_worst = closed_loop_worst(cl_dir, line.line_id, closed_loop) if cl_from else {}
     kw = dict(ratios=ratios, min_target_speed_ms=min_target_speed_ms, rule=rule, adhesion_kmh_s=adh,
@@ -447,19 +440,6 @@ def compute_margins(
     )
 
 
-def _looked_up(sched: dict) -> list[float]:
-    """The running times the legs look the closed loop's errors up at (``known_errors``): the scheduled times of
-    the legs with nothing lifted (``sched``: :func:`planner.report.margin_legs.scheduled_times`)."""
-    return [t for k, v in sched.items() if not k[4] for t in v]
-
-
-def looked_up_times(line: Line, types: Sequence[str], lifted: Lifted | None = None) -> list[float]:
-    """What :func:`compute_margins` of ``line`` looks the closed loop's errors up at (:class:`ClosedLoopFacts`
-    made beforehand must hold them)."""
-    legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
-    return _looked_up(scheduled_times(line, types, legs, lifted))
-
-
 def _memoised(memo, line: Line, keys: list, tasks: list, n_jobs: int, progress) -> list[LegResult]:
     """The legs' results: :func:`leg_task` for each task, those ``memo`` holds taken from it (each computed one
     stored in it as :func:`leg_task` gave it); or, with a ``memo`` that runs them (``run(keys, tasks)``), its
@@ -497,25 +477,6 @@ def no_stop(r: LegResult, no_pattern: dict) -> LegResult:
     return dataclasses.replace(r, degraded_min_s=nan, degraded_loss_running_s=nan, degraded_loss_stop_s=nan,
                                degraded_loss_load_s=nan, degraded_loss_traction_s=nan, degraded_loss_stop_model_s=nan,
                                stop_time_degraded_s=nan, note=why, flags=(LegFlag(NO_STOP, "stops", stop_m, why),))
-
-
-def given_tables(line: Line, types: Sequence[str], tables_dir) -> tuple[dict, dict]:
-    """The tables and table (a) energy of a ``--tables`` folder, by (direction, type, origin, destination)
-    (:func:`compute_margins` reads them, unless given them read beforehand)."""
-    from planner.datasets.tables import load_tables
-
-    tabs: dict = {}
-    energy: dict = {}
-    if tables_dir is None:
-        return tabs, energy
-    for t in types:
-        for d in DIRECTIONS:
-            got = load_tables(tables_dir, line.line_id, d, t)
-            en = read_energy(Path(tables_dir), line.line_id, d, t)
-            for (o, de), tb in got.items():
-                tabs[(d, t, o, de)] = tb
-                energy[(d, t, o, de)] = en.get((o, de))
-    return tabs, energy
 
 
 def _rows(line: Line, results: Sequence[LegResult], legs: Sequence[TrainLeg], rule: MarginRule,
