@@ -35,7 +35,8 @@ KIND = "margin_leg"
 
 def plain(v):
     """``v`` as JSON can hold it, exactly (a float's repr is exact; dataclasses and arrays as their values): what a
-    unit's key digests of plain data (a leg group's options; a section's line, :func:`planner.job.steps.section_digest`)."""
+    unit's key digests of plain data (a leg group's options; a section's line,
+    :func:`planner.job.steps.section_digest`)."""
     if dataclasses.is_dataclass(v) and not isinstance(v, type):
         return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
     if isinstance(v, dict):

@@ -174,9 +174,9 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     record) are named at the top of each page.
 
     The charts start on the workers first (:func:`start_charts`, unless ``charts`` were started already);
-    the dataset and the tables page are written meanwhile, on a worker (:func:`timetable_written`). With a list ``later`` the chart pages are left
-    to the :class:`ChartPages`, appended to it (the job writes its other pages while the charts are drawn,
-    then calls :meth:`ChartPages.finish`); else they are written before this returns.
+    the dataset and the tables page are written meanwhile, on a worker (:func:`timetable_written`). With a list
+    ``later`` the chart pages are left to the :class:`ChartPages`, appended to it (the job writes its other pages
+    while the charts are drawn, then calls :meth:`ChartPages.finish`); else they are written before this returns.
 
     Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
     legs with a chart in running order (the train graph links them); ``legs_known`` is called with it as soon as
@@ -224,8 +224,8 @@ def timetable_written(line, runs: dict, types, stage: Path, page: dict) -> tuple
     files = write_timetable(line, runs, stage, set(types), recs)
     links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
              ("train graph", f"../graph/{lid}_graph.html")]
-    write_page(stage / timetable_href(lid), page_parts(lid, line.name, recs, links=links, graph_href=f"../graph/{lid}_graph.html",
-                                                      **page))
+    write_page(stage / timetable_href(lid), page_parts(lid, line.name, recs, links=links,
+                                                      graph_href=f"../graph/{lid}_graph.html", **page))
     return legs, files
 
 
@@ -267,8 +267,14 @@ class ChartPages:
         n = 2 if len(self.pages) > 1 else 1
         parts = [background(write_chart_pages, (self.pages[i::n], root, keys[i::n], self.page), name=name,
                             n_jobs=n_jobs) for i in range(n)]
-        for b in parts:
-            b.result()
+        failed = []
+        for b in parts:  # both waited for, so that neither writes into a run that is being given up
+            try:
+                b.result()
+            except BaseException as e:  # noqa: BLE001 - raised below, once the other has ended
+                failed.append(e)
+        if failed:
+            raise failed[0]
 
     def discard(self) -> None:
         """The run failed: wait for the charts being drawn, write nothing."""

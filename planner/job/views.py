@@ -76,7 +76,6 @@ def graph_units(job, sections) -> list:
     from planner.job.units import code_digest
     from planner.job.day import lifted_key
     from planner.job.publish import digest
-
     from planner.job.units import Unit, nothing_kept
 
     check = bool(job.conflicts.enabled)
@@ -98,10 +97,10 @@ def line_paths(line, results: list) -> list:
 
 def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday=None) -> None:
     """Inputs copy, running-time tables and train graph page of one line (module doc); ``paths``: the trajectories,
-    or the stored results of :func:`graph_units` (:func:`line_paths`, on the page's worker); ``bday``: its operating day (:func:`planner.job.day.bundle_day`, None without a daily
-    feed); ``charts``: the line's speed–distance charts if started already
-    (:func:`planner.job.train_views.start_charts`). The train graph page is written on a worker
-    (:func:`graph_page`, in ``summary.graph_pages``) while this process writes the run's other pages."""
+    or the stored results of :func:`graph_units` (:func:`line_paths`, on the page's worker); ``bday``: its operating
+    day (:func:`planner.job.day.bundle_day`, None without a daily feed); ``charts``: the line's speed–distance
+    charts if started already (:func:`planner.job.train_views.start_charts`). The train graph page is written on a
+    worker (:func:`graph_page`, in ``summary.graph_pages``) while this process writes the run's other pages."""
     from planner.io.parallel import background
     from planner.job.train_views import train_views
 
@@ -132,8 +131,8 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday
 def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool, blocks=()) -> None:
     """Write ``graph/<line>_graph.html``: the line's train graph from its trajectories (``paths``) and the run's
     occupation, conflicts, margin totals and delay events datasets (the late trains' predicted runs; ``paths``:
-    the trajectories, or the graph units' stored results, :func:`line_paths`), each train linked to its legs' charts (``legs``, from
-    :func:`planner.job.train_views.train_views`) and the day's restrictions as time–location blocks (``blocks``,
+    the trajectories, or the graph units' stored results, :func:`line_paths`), each train linked to its legs'
+    charts (``legs``, from :func:`planner.job.train_views.train_views`) and the day's restrictions as time–location blocks (``blocks``,
     :func:`planner.job.day.restriction_blocks`). Module level: the nightly job runs it on a worker."""
     from planner.job.train_views import timetable_href
     from planner.pages.train_graph import write_page
