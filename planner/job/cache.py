@@ -4,13 +4,13 @@ A cache entry is trusted no more than the inputs it stands for. Each entry is
 one file ``OUTPUT_ROOT/.cache/<kind>/<ab>/<key>.pce`` (``ab`` = the first two
 hex digits of the key) laid out as::
 
-    PLANNER-CACHE 1\\n                   magic line (format version)
+    PLANNER-CACHE 2\\n                   magic line (format version)
     {"kind": ..., "key": ..., "payload_bytes": N, "payload_sha256": ...}\\n
-    <payload: N bytes, an NPZ archive>
+    <payload: N bytes>
 
-The payload is an NPZ archive (numpy's zip of ``.npy`` members, read with
-``allow_pickle=False``; the codec is :mod:`planner.job.codec`): member ``tree`` holds the result's structure as UTF-8
-JSON and the other members its numeric arrays. DataFrames are stored column by
+The payload (:func:`planner.job.codec.payload_pieces`) holds the result's structure as UTF-8 JSON (the tree)
+and its arrays' raw bytes, each named in a directory by its numeric dtype and shape; nothing in it can
+hold a Python object. DataFrames are stored column by
 column (numeric columns as arrays, text columns as one Arrow stream each, list columns in the JSON).
 Dataclasses and named tuples are rebuilt only when the JSON names a class of
 the ``planner`` package of that kind, with exactly its fields; nothing read
@@ -31,11 +31,9 @@ output root like the signing key's folder.
 from __future__ import annotations
 
 import hashlib
-import itertools
 import json
 import re
 import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator
@@ -44,10 +42,9 @@ import numpy as np
 
 from planner.io.atomic import write_chunks_atomic
 from planner.io.memory import give_back
-from planner.job.codec import (  # noqa: F401 (re-exported)
-    CacheEntryError, decode, encode, members, npz_buffer, write_npz)
+from planner.job.codec import CacheEntryError, decode, encode, members, payload_pieces  # noqa: F401 (re-exported)
 
-MAGIC = b"PLANNER-CACHE 1\n"
+MAGIC = b"PLANNER-CACHE 2\n"
 """First line of every entry; bump the number when the layout changes (old entries then miss)."""
 SUFFIX = ".pce"
 """Entry file suffix (planner cache entry)."""
@@ -58,8 +55,8 @@ KIND_RE = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
 
 # --- entries --------------------------------------------------------------------------------
 BIG_ENTRY_BYTES = 8 << 20
-"""An entry whose members are at least this large is written through a file, not memory (:func:`_write_big`), and
-gives its encoding's memory back once written (:func:`planner.io.memory.give_back`)."""
+"""An entry whose members are at least this large gives its encoding's memory back once written
+(:func:`planner.io.memory.give_back`)."""
 
 
 def pack(kind: str, key: str, obj: Any) -> bytes:
@@ -68,35 +65,21 @@ def pack(kind: str, key: str, obj: Any) -> bytes:
 
 
 def _entry(kind: str, key: str, tree: np.ndarray, arrays: dict[str, np.ndarray]) -> list:
-    """:func:`pack`'s bytes of the members ``tree`` and ``arrays`` in two pieces, the payload a view of the buffer it
-    was written to: an entry is written from them without copying it twice more."""
-    payload = npz_buffer(tree, arrays).getbuffer()
-    return [_header(kind, key, payload.nbytes, hashlib.sha256(payload).hexdigest()), payload]
+    """:func:`pack`'s bytes of the members ``tree`` and ``arrays`` as pieces: the header, then the payload's pieces,
+    each array's a view of its own memory. The payload is hashed piece by piece and written the same way, so an
+    entry is never held whole (a line's conflict report is 66 MB on a line ten times the sample)."""
+    pieces = payload_pieces(tree, arrays)
+    h, size = hashlib.sha256(), 0
+    for p in pieces:
+        h.update(p)
+        size += memoryview(p).nbytes
+    return [_header(kind, key, size, h.hexdigest()), *pieces]
 
 
 def _header(kind: str, key: str, payload_bytes: int, payload_sha256: str) -> bytes:
     """The magic line and the header line of an entry."""
     header = {"kind": kind, "key": key, "payload_bytes": payload_bytes, "payload_sha256": payload_sha256}
     return MAGIC + json.dumps(header, sort_keys=True, separators=(",", ":")).encode() + b"\n"
-
-
-def _write_big(path: Path, kind: str, key: str, tree: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
-    """Write a large entry without holding its bytes: the payload is written to an unnamed file beside the entry
-    (numpy writes each member in pieces), hashed from there, then copied behind the header into the entry
-    (atomically, as :meth:`Cache.put`). The same bytes as :func:`pack`; a line's conflict report (66 MB on a line
-    ten times the sample) made the job process hold about three times its size while it was encoded in memory."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryFile(dir=path.parent) as f:
-        write_npz(f, tree, arrays)
-        size = f.tell()
-        f.seek(0)
-        sha = hashlib.file_digest(f, "sha256").hexdigest()
-        f.seek(0)
-        write_chunks_atomic(path, itertools.chain([_header(kind, key, size, sha)], iter(lambda: f.read(_COPY), b"")),
-                            fsync=False)
-
-
-_COPY = 1 << 20
 """Bytes per read when a large entry's payload is hashed and copied (:func:`_write_big`)."""
 
 
@@ -231,12 +214,11 @@ class Cache:
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)
         tree, arrays = members(obj)
-        if tree.nbytes + sum(a.nbytes for a in arrays.values()) < BIG_ENTRY_BYTES:
-            write_chunks_atomic(p, _entry(kind, key, tree, arrays), fsync=False)
-            return
-        _write_big(p, kind, key, tree, arrays)
-        del tree, arrays
-        give_back()  # its encoding's buffers (text columns' Arrow streams), before the next one is made
+        big = tree.nbytes + sum(a.nbytes for a in arrays.values()) >= BIG_ENTRY_BYTES
+        write_chunks_atomic(p, _entry(kind, key, tree, arrays), fsync=False)
+        if big:
+            del tree, arrays
+            give_back()  # its encoding's buffers (text columns' Arrow streams), before the next one is made
 
     # --- maintenance: `planner cache verify` and `planner cache clear`
     def entries(self) -> Iterator[Path]:

@@ -1,9 +1,9 @@
-"""The work cache's pickle-free codec: a result as a JSON tree and numeric arrays, an NPZ archive's members.
+"""The work cache's pickle-free codec: a result as a JSON tree and numeric arrays, laid out in one payload.
 
 :func:`encode` stores dataclasses, named tuples, containers, numbers, text, numpy arrays, DataFrames
 (column by column: numeric columns as arrays, text columns as one Arrow stream each, list columns in
 the JSON) and Arrow tables exactly, and refuses anything else (TypeError). :func:`decode` rebuilds
-them from an archive read with ``allow_pickle=False``: dataclasses and named tuples only when the JSON
+them from a payload (:func:`payload_pieces`) whose arrays are numeric only: dataclasses and named tuples only when the JSON
 names a class of the ``planner`` package of that kind, with exactly its fields, so nothing read back
 can import or run anything else; anything unexpected is a :class:`CacheEntryError`. The entries
 around the payload (header, digest) and the cache itself are :mod:`planner.job.cache`'s.
@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import io
 import json
+import math
 import re
-import zipfile
+import struct
 from typing import Any
 
 import numpy as np
@@ -164,6 +164,16 @@ def _arrow_text(a: np.ndarray) -> list:
     return t.column("v").to_pylist()
 
 
+_PLAIN = (str, int, bool)
+
+
+def _float(h: Any) -> float:
+    try:
+        return float.fromhex(h)
+    except (TypeError, ValueError):
+        raise CacheEntryError("bad float") from None
+
+
 class _Decoder:
     """(tree, arrays) → Python object; every node is checked, anything unexpected is a CacheEntryError."""
 
@@ -175,6 +185,11 @@ class _Decoder:
         if not isinstance(ref, dict) or set(ref) != {"$a"} or ref["$a"] not in self.arrays:
             raise CacheEntryError("bad array reference")
         return self.arrays[ref["$a"]]
+
+    def items(self, xs: list) -> list:
+        """The nodes of a list, its plain values and floats (the bulk of a long one) read in place."""
+        return [x if x is None or type(x) in _PLAIN else _float(x["$f"]) if type(x) is dict and len(x) == 1
+                and "$f" in x else self(x) for x in xs]
 
     def __call__(self, n: Any) -> Any:
         self.depth += 1
@@ -189,15 +204,12 @@ class _Decoder:
         if n is None or isinstance(n, (bool, str, int)):
             return n
         if isinstance(n, list):
-            return [self(x) for x in n]
+            return self.items(n)
         if not isinstance(n, dict) or len(n) == 0:
             raise CacheEntryError(f"unexpected node {type(n).__name__}")
         tag = next(iter(n))
         if tag == "$f":
-            try:
-                return float.fromhex(n["$f"])
-            except (TypeError, ValueError):
-                raise CacheEntryError("bad float") from None
+            return _float(n["$f"])
         if tag == "$a":
             return self.array(n).copy()
         if tag == "$ao":
@@ -214,7 +226,7 @@ class _Decoder:
                 raise CacheEntryError("bad numpy scalar")
             return a[()]
         if tag == "$t":
-            return tuple(self(x) for x in _list(n["$t"]))
+            return tuple(self.items(_list(n["$t"])))
         if tag == "$d":
             out = {}
             for kv in _list(n["$d"]):
@@ -302,7 +314,9 @@ class _Decoder:
             out[:] = vals
             return out
         if dt in ("str", "string"):
-            vals = _list(c.get("v")) if "arrow" not in c else _arrow_text(self.array(c["arrow"]))
+            if "arrow" in c:  # a large_string Arrow column (checked): str or None each
+                return pd.array(_arrow_text(self.array(c["arrow"])), dtype=dt)
+            vals = _list(c.get("v"))
             if not all(v is None or isinstance(v, str) for v in vals):
                 raise CacheEntryError("bad text column")
             return pd.array(vals, dtype=dt)
@@ -326,42 +340,93 @@ def members(obj: Any) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return np.frombuffer(tree, dtype=np.uint8), enc.arrays
 
 
-def write_npz(f, tree: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
-    """Write the payload of :func:`members` into the binary file ``f``: the one writer of a payload's bytes, in
-    memory (:func:`npz_buffer`) or, for a large entry, in a file (:mod:`planner.job.cache`)."""
-    np.savez(f, tree=tree, **arrays)
+PAYLOAD_MAGIC = b"PCP1"
+"""First bytes of a payload (planner cache payload, layout 1)."""
+ALIGN = 64
+"""Every array's bytes start at a multiple of this from the start of the data section."""
+_LENGTHS = struct.Struct("<QQ")
+_NAME = re.compile(r"a[0-9]{1,9}")
 
 
-def npz_buffer(tree: np.ndarray, arrays: dict[str, np.ndarray]) -> io.BytesIO:
-    """The payload of :func:`members`, written in memory (:func:`planner.job.cache` writes a large one to a file)."""
-    buf = io.BytesIO()
-    write_npz(buf, tree, arrays)
-    return buf
+def payload_pieces(tree: np.ndarray, arrays: dict[str, np.ndarray]) -> list:
+    """The payload of :func:`members` as pieces to be written one after another, each array's piece a view of its
+    own memory (nothing is copied, however large)::
+
+        PCP1 | directory length, tree length (two little-endian uint64) | directory (JSON) | tree (JSON)
+        | zero bytes to a multiple of ALIGN | the arrays' bytes, each starting at a multiple of ALIGN
+
+    The directory is ``{"arrays": [[name, dtype, shape, offset], ...]}``: ``dtype`` numpy's string for it
+    (``"<f8"``), ``offset`` from the start of the data section. One NPZ member per array cost a zip entry and
+    a header parsed with ``ast`` each; this layout is read with one JSON parse and a view per array."""
+    directory, pieces, offset = [], [], 0
+    for name, a in arrays.items():
+        raw = a.reshape(-1).view(np.uint8)  # C-contiguous (the encoder made it so): a view
+        pad = -offset % ALIGN
+        if pad:
+            pieces.append(bytes(pad))
+            offset += pad
+        directory.append([name, a.dtype.str, list(a.shape), offset])
+        pieces.append(memoryview(raw))
+        offset += raw.nbytes
+    head = json.dumps({"arrays": directory}, separators=(",", ":")).encode()
+    tree = memoryview(tree).cast("B")
+    lead = PAYLOAD_MAGIC + _LENGTHS.pack(len(head), tree.nbytes) + head
+    start = len(lead) + tree.nbytes
+    return [lead, tree, bytes(-start % ALIGN), *pieces]
 
 
-def _payload(obj: Any) -> io.BytesIO:
-    return npz_buffer(*members(obj))
+def _arrays(payload: bytes) -> tuple[bytes, dict[str, np.ndarray]]:
+    """(tree, arrays) of a payload, every part checked: read-only views of ``payload``."""
+    lead = len(PAYLOAD_MAGIC) + _LENGTHS.size
+    if len(payload) < lead or payload[:len(PAYLOAD_MAGIC)] != PAYLOAD_MAGIC:
+        raise CacheEntryError("payload is not a planner cache payload (bad magic)")
+    head_len, tree_len = _LENGTHS.unpack_from(payload, len(PAYLOAD_MAGIC))
+    tree_at = lead + head_len
+    data = tree_at + tree_len + (-(tree_at + tree_len) % ALIGN)
+    if data > len(payload):
+        raise CacheEntryError("payload is shorter than its lengths say")
+    try:
+        head = json.loads(payload[lead:tree_at])
+    except (UnicodeDecodeError, ValueError, RecursionError):
+        raise CacheEntryError("payload directory is not JSON") from None
+    if not isinstance(head, dict) or set(head) != {"arrays"} or not isinstance(head["arrays"], list):
+        raise CacheEntryError("bad payload directory")
+    arrays: dict[str, np.ndarray] = {}
+    for item in head["arrays"]:
+        if not (isinstance(item, list) and len(item) == 4 and isinstance(item[0], str) and _NAME.fullmatch(item[0])
+                and item[0] not in arrays and isinstance(item[1], str) and isinstance(item[2], list)
+                and all(type(n) is int and 0 <= n < 2**40 for n in item[2]) and len(item[2]) <= 32
+                and type(item[3]) is int and 0 <= item[3] and item[3] % ALIGN == 0):
+            raise CacheEntryError("bad array in the payload directory")
+        name, dt, shape, offset = item
+        try:
+            dtype = np.dtype(dt)
+        except (TypeError, ValueError, SyntaxError):
+            raise CacheEntryError(f"bad dtype {dt!r}") from None
+        if dtype.hasobject or dtype.kind not in "biufcSUMm" or dtype.fields is not None or dtype.str != dt \
+                or dtype.subdtype is not None:
+            raise CacheEntryError(f"dtype {dt!r} is not a plain numeric or text dtype")
+        count = math.prod(shape)
+        start = data + offset
+        if start + count * dtype.itemsize > len(payload):
+            raise CacheEntryError("an array runs past the end of the payload")
+        if count == 0 or dtype.itemsize == 0:
+            arrays[name] = np.zeros(shape, dtype=dtype)
+        else:
+            arrays[name] = np.frombuffer(payload, dtype=dtype, count=count, offset=start).reshape(shape)
+    return payload[tree_at:tree_at + tree_len], arrays
 
 
 def encode(obj: Any) -> bytes:
-    """The NPZ payload of ``obj`` (TypeError for a value the cache cannot store exactly)."""
-    return _payload(obj).getvalue()
+    """The payload of ``obj``, whole (TypeError for a value the cache cannot store exactly)."""
+    return b"".join(payload_pieces(*members(obj)))
 
 
 def decode(payload: bytes) -> Any:
     """The object an :func:`encode` payload holds; :class:`CacheEntryError` if it does not decode."""
+    tree, arrays = _arrays(bytes(payload))
     try:
-        with np.load(io.BytesIO(payload), allow_pickle=False) as z:  # never unpickles: object arrays fail
-            arrays = {name: z[name] for name in z.files}
-    except (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:
-        raise CacheEntryError(f"payload is not a readable NPZ archive ({type(e).__name__})") from None
-    if not all(isinstance(a, np.ndarray) for a in arrays.values()):
-        raise CacheEntryError("payload has members that are not arrays")
-    tree = arrays.pop("tree", None)
-    if tree is None or tree.dtype != np.uint8 or tree.ndim != 1:
-        raise CacheEntryError("payload has no tree")
-    try:
-        node = json.loads(tree.tobytes().decode("utf-8"))
+        node = json.loads(tree.decode("utf-8"))
     except (UnicodeDecodeError, ValueError, RecursionError):
         raise CacheEntryError("tree is not JSON") from None
     try:
@@ -372,4 +437,4 @@ def decode(payload: bytes) -> Any:
         raise CacheEntryError(f"payload does not decode ({type(e).__name__})") from None
 
 
-__all__ = ["CacheEntryError", "decode", "encode", "members", "npz_buffer", "write_npz"]
+__all__ = ["ALIGN", "CacheEntryError", "PAYLOAD_MAGIC", "decode", "encode", "members", "payload_pieces"]
