@@ -205,17 +205,18 @@ def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable | No
     return _stored(cache, step, key, after, fn(*args))
 
 
-def _read_kept(fn, args, cache: Cache, step: str, key: str, after: Callable):
+def _read_kept(cache: Cache, step: str, key: str, after: Callable):
     """Worker: a stored unit with :attr:`Unit.after` read back here, where what the job keeps of it is made (the
-    whole result never comes to the job process); ``(kept, why)``: ``why`` None, or why the entry was not
-    trusted (then the unit was computed again here and stored). Its own :class:`Cache` on the same root, so
-    that the job's counts the rejection once (:meth:`Cache.rejected_elsewhere`) wherever this runs."""
+    whole result never comes to the job process); ``(kept, None)``, or ``(None, why)`` when the entry was not
+    trusted: the job then has it computed again (:meth:`Runner.recompute`). The unit's inputs are not sent for a
+    read, only its key: on a night that changed little they are most of what would travel, for nothing. Its own
+    :class:`Cache` on the same root, so that the job's counts the rejection once (:meth:`Cache.rejected_elsewhere`)
+    wherever this runs."""
     mine = Cache(cache.root, enabled=cache.enabled)
     obj = mine.get(step, key)
     if obj is not None:
         return _kept(after, obj), None
-    why = mine.why_missed()
-    return _stored(mine, step, key, after, fn(*args)), why
+    return None, mine.why_missed()
 
 
 class Runner:
@@ -227,6 +228,16 @@ class Runner:
         self.progress = progress
         self.computed: dict[str, int] = {}
         self.reused: dict[str, int] = {}
+
+    def recompute(self, u: Unit):
+        """A stored unit that was not trusted where it was read (:func:`_read_kept`) started again on a worker (here,
+        later, with one job), where it is stored; :meth:`planner.io.parallel.Background.result` is what the job
+        keeps of it. Started as each is found, so that a damaged cache is computed again in parallel."""
+        from planner.io.parallel import background
+
+        p = self.job.parallel
+        return background(_call, (_call_kept, (u.fn, u.args, self.cache, u.step, u.key, u.after)),
+                          name=p.backend, n_jobs=p.n_jobs)
 
     def run(self, step: str, units: Sequence[Unit]) -> list:
         """Results of ``units`` in order; cached ones loaded, the rest computed in parallel.
@@ -299,7 +310,7 @@ class Runner:
             def task(t):
                 u = unit(t)
                 if t in started.reads:
-                    return _read_kept, (u.fn, u.args, self.cache, u.step, u.key, u.after)
+                    return _read_kept, (self.cache, u.step, u.key, u.after)
                 if t in started.kept:
                     return _call_kept, (u.fn, u.args, self.cache, u.step, u.key, u.after)
                 return u.fn, u.args
@@ -347,28 +358,42 @@ class Started:
         if gen is None:
             return self.out
         r = self.runner
+        redo = []  # (unit, started again): stored units not trusted where they were read
+
+        def take(g: int, i: int, res) -> None:
+            self.out[g][i] = res
+            r.progress.advance(self.groups[g][0])
+            self.left[g] -= 1
+            if not self.left[g]:
+                r.progress.finish(self.groups[g][0])
+            if each is not None:
+                each(g, i, res)
+
         try:
             for (g, i), res in zip(self.todo, gen):
                 step, u = self.groups[g][0], self.unit((g, i))
                 if (g, i) in self.reads:
                     res, why = res
-                    if why is not None:  # not trusted where it was read: computed there again, and counted here
+                    if why is not None:  # not trusted where it was read: computed again, and counted here
                         r.cache.rejected_elsewhere(step, u.key, why)
                         r.reused[step] -= 1
                         r.computed[step] = r.computed.get(step, 0) + 1
+                        redo.append(((g, i), r.recompute(u)))
+                        continue
                 elif (g, i) not in self.kept:  # else stored on its worker already, and kept there
                     res = _stored(r.cache, step, u.key, u.after, res)
                 if (g, i) not in self.reads:  # a unit just stored (test hook), not one read back
                     _kill_point()
-                self.out[g][i] = res
-                r.progress.advance(step)
-                self.left[g] -= 1
-                if not self.left[g]:
-                    r.progress.finish(step)
-                if each is not None:
-                    each(g, i, res)
+                take(g, i, res)
+            while redo:
+                t, h = redo[0]
+                res = h.result()
+                redo.pop(0)
+                take(*t, res)
         finally:
             gen.close()  # a failed run (a full disk): stop the workers' tasks now, in this thread
+            for _, h in redo:
+                h.discard()
         return self.out
 
     def discard(self) -> None:
