@@ -129,3 +129,27 @@ def test_the_printed_summary_names_each_leg_and_each_place_once():
         "impossible appeared; after restriction NEW (#0)",
         "  [conflict] 2 conflicts appeared at W2 (Bashi (B) track 1, km 1.0–1.1): 202 waits 4.4 s for 201, 204 waits "
         "4.4 s for 203"]
+
+
+def test_rows_differing_counts_rows_as_multisets():
+    """Rows in one table and not the other, whole rows as a multiset: counted by hand for small tables, and against
+    a Counter of the rows for random ones (duplicates included)."""
+    import random
+    from collections import Counter
+
+    import pyarrow as pa
+
+    from planner.report.bundle_changes import _rows_differing
+
+    t = lambda rows: pa.table({"a": [r[0] for r in rows], "b": [r[1] for r in rows]})  # noqa: E731
+    assert _rows_differing(t([(1, 1.0), (2, 2.0)]), t([(1, 1.0), (2, 2.0)])) == 0
+    assert _rows_differing(t([(1, 1.0), (2, 2.0)]), t([(1, 1.0), (2, 2.5)])) == 2  # one row changed: out and in
+    assert _rows_differing(t([(1, 1.0), (1, 1.0)]), t([(1, 1.0)])) == 1  # a duplicate dropped
+    assert _rows_differing(t([]), t([(1, 1.0)])) == 1
+    assert _rows_differing(None, t([(1, 1.0), (2, 2.0)])) == 2
+    rnd = random.Random(7)
+    for _ in range(50):
+        a = [(rnd.randrange(6), rnd.choice([0.5, 1.5])) for _ in range(rnd.randrange(30))]
+        b = [(rnd.randrange(6), rnd.choice([0.5, 1.5])) for _ in range(rnd.randrange(30))]
+        ca, cb = Counter(a), Counter(b)
+        assert _rows_differing(t(a), t(b)) == sum(((ca - cb) + (cb - ca)).values())

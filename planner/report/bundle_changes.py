@@ -108,12 +108,12 @@ def _rows_differing(a, b) -> int:
         return sum(((ca - cb) + (cb - ca)).values())
     va, na = np.unique(ha, return_counts=True)
     vb, nb = np.unique(hb, return_counts=True)
-    every = np.union1d(va, vb)
-    count_a = np.zeros(len(every), dtype=np.int64)
-    count_b = np.zeros(len(every), dtype=np.int64)
-    count_a[np.searchsorted(every, va)] = na
-    count_b[np.searchsorted(every, vb)] = nb
-    return int(np.abs(count_a - count_b).sum())  # each row value: how many more one table has than the other
+    if not len(va) or not len(vb):
+        return len(ha) + len(hb)
+    at = np.minimum(np.searchsorted(vb, va), len(vb) - 1)  # each value of a, where b has it if it does
+    both = vb[at] == va
+    common = int(np.minimum(na[both], nb[at[both]]).sum())  # rows the two have alike, counted once in each
+    return len(ha) + len(hb) - 2 * common
 
 
 # ---------------------------------------------------------------------------
