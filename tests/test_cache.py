@@ -348,6 +348,8 @@ def test_forged_payloads_that_do_not_decode_are_misses(tmp_path):
         _raw([["a0", "<f8", [1], 0], ["a0", "<f8", [1], 0]], ref, bytes(64)),  # a name twice
         _raw([["../a0", "<f8", [1], 0]], ref, bytes(64)),
         _raw({"a0": 1}, ref),
+        _raw([["a0", "<f8", [0] + [2**39] * 31, 0]], ref),  # empty, but too big a shape for numpy
+        _raw([["a0", "<U0", [2**39] * 32, 0]], ref),  # no bytes, but too big a shape for numpy
         _payload(deep.encode()),
         _payload({"$d": [[[1], 2]]}),  # unhashable key
         _payload({"$df": {"columns": ["a"], "data": [{"dtype": "<f8", "v": {"$a": "a0"}}],

@@ -424,7 +424,12 @@ def encode(obj: Any) -> bytes:
 
 def decode(payload: bytes) -> Any:
     """The object an :func:`encode` payload holds; :class:`CacheEntryError` if it does not decode."""
-    tree, arrays = _arrays(bytes(payload))
+    try:
+        tree, arrays = _arrays(bytes(payload))
+    except CacheEntryError:
+        raise
+    except Exception as e:  # noqa: BLE001 - e.g. a shape numpy refuses to make: a miss, never a crash
+        raise CacheEntryError(f"payload directory does not decode ({type(e).__name__})") from None
     try:
         node = json.loads(tree.decode("utf-8"))
     except (UnicodeDecodeError, ValueError, RecursionError):
