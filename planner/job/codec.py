@@ -3,10 +3,11 @@
 :func:`encode` stores dataclasses, named tuples, containers, numbers, text, numpy arrays, DataFrames
 (column by column: numeric columns as arrays, text columns as one Arrow stream each, list columns in
 the JSON) and Arrow tables exactly, and refuses anything else (TypeError). :func:`decode` rebuilds
-them from a payload (:func:`payload_pieces`) whose arrays are numeric only: dataclasses and named tuples only when the JSON
-names a class of the ``planner`` package of that kind, with exactly its fields, so nothing read back
-can import or run anything else; anything unexpected is a :class:`CacheEntryError`. The entries
-around the payload (header, digest) and the cache itself are :mod:`planner.job.cache`'s.
+them from a payload (:func:`payload_pieces`) whose arrays are plain numbers or text only: dataclasses
+and named tuples only when the JSON names a class of the ``planner`` package of that kind, with
+exactly its fields, so nothing read back can import or run anything else; anything unexpected is a
+:class:`CacheEntryError`. The entries around the payload (header, digest) and the cache itself are
+:mod:`planner.job.cache`'s.
 """
 from __future__ import annotations
 
