@@ -80,7 +80,6 @@ def _header(kind: str, key: str, payload_bytes: int, payload_sha256: str) -> byt
     """The magic line and the header line of an entry."""
     header = {"kind": kind, "key": key, "payload_bytes": payload_bytes, "payload_sha256": payload_sha256}
     return MAGIC + json.dumps(header, sort_keys=True, separators=(",", ":")).encode() + b"\n"
-"""Bytes per read when a large entry's payload is hashed and copied (:func:`_write_big`)."""
 
 
 def unpack(data: bytes, kind: str | None = None, key: str | None = None) -> tuple[dict, bytes]:
