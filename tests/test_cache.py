@@ -3,7 +3,6 @@ swapped, forged or planted entry is ever returned (nor runs any code)."""
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import math
 import pickle
@@ -287,14 +286,6 @@ def test_planted_files_never_run_code(tmp_path):
     rep = c.verify()
     assert rep.good == 0 and len(rep.bad) == 1 and len(rep.foreign) == 1
     assert not marker.exists()
-
-
-class _Reducer:
-    def __init__(self, marker: Path):
-        self.marker = marker
-
-    def __reduce__(self):
-        return (Path.write_text, (self.marker, "code ran"))
 
 
 @pytest.mark.parametrize("kind,key", [("../x", KEY), ("tables", "../" + KEY[3:]), ("tables", KEY.upper()),
