@@ -210,7 +210,7 @@ def test_each_section_draws_the_train_graph_as_the_whole_line(joined):
 
 def test_a_stored_unit_is_read_where_it_is_used_and_given_back_when_damaged(tmp_path):
     """A read on a worker takes the unit's key, not its inputs: an entry it trusts gives what the job keeps of it;
-    a damaged one gives nothing but why (the job has the unit computed again: test_quiet_faults)."""
+    a damaged one gives nothing but why (the job has the unit computed again and stored: test_cache_probes)."""
     from planner.job.cache import Cache
     from planner.job.units import _read_kept
 
