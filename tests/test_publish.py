@@ -146,3 +146,17 @@ def test_a_copy_into_a_full_output_root_names_the_destination_not_the_input(tmp_
     assert str(e.value).startswith(f"{root / 'x.parquet'}: no space left on device (output root {root}); free space")
     with pytest.raises(JobError, match=f"^{src}: permission denied; check that path"), output_root_errors(root):
         raise PermissionError(errno.EACCES, "Permission denied", str(src))  # an input: still named
+
+
+def test_work_started_in_the_background_flushes_as_its_caller_would():
+    """A worker does not share the job's context: work started with background() from inside deferred_fsync (the
+    chart pages, the train graph's page, the bundles) defers its flush there too, on a local worker and in this
+    process alike; from outside, it flushes as usual."""
+    import planner.io.atomic as atomic
+    from planner.io.parallel import background
+
+    with atomic.deferred_fsync():
+        inside = [background(atomic.deferring, (), n_jobs=n) for n in (2, 1)]
+        assert [b.result() for b in inside] == [True, True]
+    outside = [background(atomic.deferring, (), n_jobs=n) for n in (2, 1)]
+    assert [b.result() for b in outside] == [False, False]

@@ -329,25 +329,3 @@ def test_the_bad_day_run_is_the_margin_reports_bad_day_minimum_and_is_drawn(tiny
         seen += 1
     assert seen > 1
 
-
-def test_chart_pages_written_on_a_worker_are_flushed_when_the_run_is_published(tmp_path, monkeypatch):
-    """A worker's writes are not in the job's context: write_chart_pages defers its pages' flush to the publish
-    (which flushes the whole staged tree) itself, instead of flushing each page and its folder one by one."""
-    import planner.io.atomic as atomic
-    import planner.pages.speed_chart as speed_chart
-    from planner.job.cache import Cache
-    from planner.job.train_views import write_chart_pages
-
-    key = "ab" * 32
-    Cache(tmp_path / "cache").put("charts", key, "<svg>drawn</svg>")
-    monkeypatch.setattr(speed_chart, "chart_page", lambda win, run, calls, trains, svg, back, **kw: f"<p>{svg}</p>")
-    flushed = []
-    monkeypatch.setattr(atomic, "_fsync_file", flushed.append)
-    monkeypatch.setattr(atomic, "_fsync_dir", flushed.append)
-    page = tmp_path / "run" / "charts" / "leg.html"
-    page_kw = {"back": "../x.html", "nav": [], "run_id": "r0001-0123456789", "day": None, "run_date": None}
-    assert atomic._DEFERRED.get() is False  # a worker's context: writes flushed one by one
-    assert write_chart_pages([(page, None, None, None, None)], str(tmp_path / "cache"), [key], page_kw) == 1
-    assert page.read_text() == "<p><svg>drawn</svg></p>" and flushed == []
-    atomic.write_bytes_atomic(tmp_path / "control.bin", b"x")  # positive control: outside, a write is flushed
-    assert len(flushed) == 2

@@ -376,9 +376,12 @@ def background(fn: Callable, args: tuple, *, name: str = "local", n_jobs: int = 
     """Start ``fn(*args)`` beside the main process (:class:`Background`): on a local worker with the
     ``local`` backend and ``n_jobs != 1``, on the run's Dask cluster with the ``dask`` backend inside
     :func:`planner.io.dask_pool.dask_run`, else later, in this process. For work of the main process that
-    nothing needs until a later step (the nightly job's bundles)."""
+    nothing needs until a later step (the nightly job's bundles). Its writes are flushed as the caller's would be
+    (:func:`planner.io.atomic.in_worker_context`): inside the staged run's deferred flush, with the run."""
+    from planner.io.atomic import in_worker_context
+
     pool = run_pool() if name == "dask" else None
-    return Background(fn, args, n_jobs if name == "local" else 1, pool)
+    return Background(*in_worker_context(fn, args), n_jobs if name == "local" else 1, pool)
 
 
 @contextmanager

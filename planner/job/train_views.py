@@ -155,18 +155,14 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
 def write_chart_pages(pages: list, root: str, keys: list, page: dict) -> int:
     """Worker: the chart pages ``pages`` (:class:`ChartPages`), each chart's SVG read from the work cache at ``root``
     (its unit's key in ``keys``; this run stored or found every one, checked by its digest like every read), with the
-    run's id, day and date (``page``) around it. Returns the pages written. Flushed to disk with the rest of the run
-    when it is published (:func:`planner.io.atomic.deferred_fsync`), not one by one: a worker's writes are not in
-    the job's context, and thousands of pages each flushed twice cost seconds a night for nothing."""
-    from planner.io.atomic import deferred_fsync
+    run's id, day and date (``page``) around it. Returns the pages written."""
     from planner.job.units import Stored
     from planner.pages.speed_chart import chart_page, write_chart
 
-    with deferred_fsync():
-        for (p, win, run, calls, trains), key in zip(pages, keys):
-            svg = Stored(root, "charts", key).load()
-            write_chart(p, chart_page(win, run, calls, trains, svg, page["back"], nav=page["nav"],
-                                      run_id=page["run_id"], day=page["day"], run_date=page["run_date"]))
+    for (p, win, run, calls, trains), key in zip(pages, keys):
+        svg = Stored(root, "charts", key).load()
+        write_chart(p, chart_page(win, run, calls, trains, svg, page["back"], nav=page["nav"],
+                                  run_id=page["run_id"], day=page["day"], run_date=page["run_date"]))
     give_back()
     return len(pages)
 
