@@ -328,4 +328,3 @@ def test_the_bad_day_run_is_the_margin_reports_bad_day_minimum_and_is_drawn(tiny
         assert any("on a bad day" in s for s in _texts(svg))
         seen += 1
     assert seen > 1
-
