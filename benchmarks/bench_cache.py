@@ -4,8 +4,8 @@ A cold night of the sample line (``planner run``, in a temporary output root) fi
 of each kind is read back as the job reads it (:meth:`planner.job.cache.Cache.get`: the file, its digest,
 :func:`planner.job.codec.decode`) and packed again (:func:`planner.job.cache.pack`). Printed per kind: entries,
 mean size, read and pack time per entry in CPU milliseconds of this process (``time.process_time``: the machine
-is shared, wall time says little). An edit night of a large line reads every entry of its unchanged units (about 36,000 at 100x), so the read figure, times that, is
-what it pays to learn that nothing changed.
+is shared, wall time says little). An edit night of a large line reads every entry of its unchanged units
+(about 36,000 at 100x), so the read figure, times that, is what it pays to learn that nothing changed.
 
 Run: ``.venv/bin/python benchmarks/bench_cache.py [--repeat N]``
 """

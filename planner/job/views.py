@@ -132,8 +132,9 @@ def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool, bl
     """Write ``graph/<line>_graph.html``: the line's train graph from its trajectories (``paths``) and the run's
     occupation, conflicts, margin totals and delay events datasets (the late trains' predicted runs; ``paths``:
     the trajectories, or the graph units' stored results, :func:`line_paths`), each train linked to its legs'
-    charts (``legs``, from :func:`planner.job.train_views.train_views`) and the day's restrictions as time–location blocks (``blocks``,
-    :func:`planner.job.day.restriction_blocks`). Module level: the nightly job runs it on a worker."""
+    charts (``legs``, from :func:`planner.job.train_views.train_views`) and the day's restrictions as
+    time–location blocks (``blocks``, :func:`planner.job.day.restriction_blocks`). Module level: the nightly job
+    runs it on a worker."""
     from planner.job.train_views import timetable_href
     from planner.pages.train_graph import write_page
     from planner.report.published_run import path_id, read_line_dataset
