@@ -94,9 +94,9 @@ def test_the_day_is_in_the_manifest_and_another_day_recomputes_what_its_restrict
     # holds 1000-1400 m (A-B and B-A of both types) and EMU10's B-C, whose scheduled times lost 101's; the 3
     # others between B and C are read back
     assert holiday.computed == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 1, "margin_leg": 5,
-                                "graph": 1, "charts": 0}
+                                "graph": 1, "charts": 0, "timetable": 1}
     assert holiday.reused == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 0, "margin_leg": 3, "graph": 0,
-                              "charts": 0}
+                              "charts": 0, "timetable": 0}
     assert any("no train runs on 2026-11-23 (Monday)" in n for n in holiday.notes)
     assert _manifest(project)["operating_day"]["lines"][0]["trains_not_running"] == ["101", "202"]
     again = run_job(with_day(job, "2026-11-23"), show_progress=False)

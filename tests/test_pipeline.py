@@ -298,12 +298,12 @@ def test_failing_step_leaves_latest_untouched(project, monkeypatch):
 def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_path_factory, monkeypatch):
     """SIGKILL a run at deterministic points, each signalled by the run itself (no wall-clock race).
 
-    After one edited restriction a run stores 12 units in the cache, in this order: tables 2, stops 2,
-    closed loop 2, margin leg groups 3, margins 1, train graph 1, charts 1; its 13th kill point is the
-    complete staged run just before publishing. Successive runs are killed at the 1st (mid tables), 3rd
-    (first stop pattern), 5th (mid closed loop), 8th (mid margin legs), 10th (the margin report cached,
-    bundles not yet written), 11th (the graph's trajectories), 12th (the last chart) and 13th of those
-    points; each resumes from what the killed ones cached. After every kill ``latest`` and the published run are untouched; the
+    After one edited restriction a run stores 13 units in the cache, in this order: tables 2, stops 2,
+    closed loop 2, margin leg groups 3, margins 1, train graph 1, running-time tables 1, charts 1; its 14th
+    kill point is the complete staged run just before publishing. Successive runs are killed at the 1st (mid
+    tables), 3rd (first stop pattern), 5th (mid closed loop), 8th (mid margin legs), 10th (the margin report
+    cached, bundles not yet written), 11th (the graph's trajectories), 12th (the running-time tables), 13th
+    (the last chart) and 14th of those points; each resumes from what the killed ones cached. After every kill ``latest`` and the published run are untouched; the
     run that finally completes computes nothing and publishes exactly what an uninterrupted run from
     the same starting cache publishes.
     """
@@ -329,14 +329,14 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     # stretches (stop markers ± a train length) do not reach 4000 m or are down runs
     assert {k: v for k, v in clean.computed.items() if v} == {"tables": 2, "stops": 2, "closed_loop": 2,
                                                               "margins": 1, "margin_leg": 3, "graph": 1,
-                                                              "charts": 1}
+                                                              "charts": 1, "timetable": 1}
 
     # bundles carry their build time (issue 21): the killed runs and the reference share one
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent), SOURCE_DATE_EPOCH="1767225600")
     code = ("from planner.job.config import load_job; from planner.job.pipeline import run_job; "
             f"run_job(load_job({str(job)!r}), show_progress=False)")
     done = 0
-    for point in (1, 3, 5, 8, 10, 11, 12, 13):  # 11: after the graph unit, 13: before publishing
+    for point in (1, 3, 5, 8, 10, 11, 12, 13, 14):  # 11: after the graph unit, 14: before publishing
         p = subprocess.Popen([sys.executable, "-c", code], env=env | {KILL_ENV: str(point - done)},
                              start_new_session=True)
         rc = p.wait()

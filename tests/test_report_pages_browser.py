@@ -142,7 +142,6 @@ def test_every_leg_row_has_the_hover_note_the_page_promises(report, report_page,
 def run_pages(tmp_path_factory):
     """A run folder's running-time tables and charts of the tiny line (tests/linedb.py) on a day with a temporary
     restriction TSR-T1 (40 km/h, km 0.600–0.900, down) on train 101's leg A → B, written by the nightly job's code."""
-    import contextlib
     from types import SimpleNamespace
 
     from planner import load_line
@@ -160,8 +159,10 @@ def run_pages(tmp_path_factory):
     line = dataclasses.replace(static, speed_limits=static.speed_limits + (tsr.as_speed_limit(),))
     job = Job(str(tmp / "job.toml"), str(tmp))
     job = dataclasses.replace(job, parallel=dataclasses.replace(job.parallel, n_jobs=1))
-    progress = SimpleNamespace(step=lambda *a: contextlib.nullcontext(), advance=lambda *a: None)
-    runner = SimpleNamespace(progress=progress, run=lambda step, units: [u.fn(*u.args) for u in units])
+    from planner.job.cache import Cache
+    from planner.job.units import Progress, Runner
+
+    runner = Runner(job, Cache(tmp / "cache"), Progress(enabled=False))  # the job's units, cached
     run = tmp / RUN
     train_views(job, line, run, compute_margins(line, conflicts=False), runner, SimpleNamespace(rows={}),
                 run_id=RUN, day=DAY)

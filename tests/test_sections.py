@@ -187,9 +187,14 @@ def test_an_edit_in_one_section_recomputes_that_section_and_publishes_what_a_col
     pq.write_table(t.set_column(i, t.schema.field(i), pa.array(lim)), folder / "speed_limits.parquet")
     edit = run_job(_job(tmp_path, folder, tmp_path / "out"), show_progress=False)
     assert (edit.computed["conflicts"], edit.reused["conflicts"]) == (1, 1)
+    assert (edit.computed["timetable"], edit.reused["timetable"]) == (1, 1)  # the tables of the edited section
     cold = run_job(_job(tmp_path, folder, tmp_path / "cold"), show_progress=False, use_cache=False)
-    for name in ("conflicts", "headways", "occupation", "delay_events", "robustness_trains", "robustness_stations"):
+    for name in ("conflicts", "headways", "occupation", "delay_events", "robustness_trains", "robustness_stations",
+                 "train_timetable"):
         pd.testing.assert_frame_equal(_rows(edit.run_dir, name), _rows(cold.run_dir, name), obj=name)
+    page = f"timetable/{line.line_id}_timetable.html"
+    assert ((edit.run_dir / page).read_text().replace(edit.run_dir.name, "RUN")
+            == (cold.run_dir / page).read_text().replace(cold.run_dir.name, "RUN"))
     assert edit.robustness == cold.robustness
     assert len(_rows(cold.run_dir, "conflicts"))  # the check is not empty
 
@@ -229,3 +234,46 @@ def test_a_stored_unit_is_read_where_it_is_used_and_given_back_when_damaged(tmp_
     kept, why = _read_kept(cache, "conflicts", "cd" * 32, len)
     assert kept is None and why == "missing"
     assert Cache(tmp_path / "c", enabled=False).present("conflicts", key) is False  # --no-cache reads nothing
+
+
+def test_the_tables_page_and_dataset_put_together_from_sections_are_the_whole_lines(joined, tmp_path):
+    """The running-time tables are made a unit per section (planner.job.train_views) and put together on one page
+    and one dataset: the same bytes as the page and dataset made from the whole line's rows at once."""
+    from planner.io.parquet import read_dataset
+    from planner.job.cache import Cache
+    from planner.job.train_views import TimetablePart, timetable_units, timetable_written
+    from planner.pages.timetable import render_page
+    from planner.report.margins import compute_margins
+    from planner.report.train_timetable import leg_times, timetable_rows, write_timetable
+
+    rows = compute_margins(joined, conflicts=False).rows
+    runs = {k: r for k, (r, _w) in leg_times(joined, rows).items()}
+    types = sorted(set(rows["train_type"]))
+    lid = joined.line_id
+    page = dict(run_id="r0001-0123456789", day=None, run_date="2026-12-06")
+    links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
+             ("train graph", f"../graph/{lid}_graph.html")]
+    whole = timetable_rows(joined, runs, set(types))
+    expect = render_page(lid, joined.name, whole, links=links, graph_href=f"../graph/{lid}_graph.html", **page)
+    write_timetable(joined, runs, tmp_path / "whole", set(types), whole)
+
+    secs = _sections(joined)
+    assert len(secs) == 2
+    parts = [TimetablePart(section_line(joined, s), str(i), f"section {i}", None) for i, s in enumerate(secs)]
+    units = timetable_units(joined, runs, {k: f"chart {k}" for k in runs}, types, tmp_path / "run", parts)
+    cache = Cache(tmp_path / "cache")
+    for u in units:
+        assert 0 < len(u.args[1]) < len(runs)  # each section is given its own legs' runs only
+        cache.put("timetable", u.key, u.fn(*u.args))
+    legs, files = timetable_written(str(cache.root), [u.key for u in units], tmp_path / "run", lid, joined.name, page)
+    got = (tmp_path / "run" / "timetable" / f"{lid}_timetable.html").read_text()
+    assert got == expect
+    assert expect.count('<section class="tt"') == len({r["train_id"] for r in whole}) > 100
+    assert len(files) == len(list((tmp_path / "whole").rglob("*.parquet")))
+    a = read_dataset(tmp_path / "run", "train_timetable").to_pandas()
+    b = read_dataset(tmp_path / "whole", "train_timetable").to_pandas()
+    pd.testing.assert_frame_equal(a, b)
+    for t in {r["train_id"] for r in whole}:
+        ends = [(f"{r['leg_origin']}→{r['station_id']}", r["chart"]) for r in whole
+                if r["train_id"] == t and r["chart"] and r["leg_flag"]]
+        assert legs.get(t, []) == ends

@@ -223,7 +223,6 @@ def test_graph_page_conflict_box_is_visible_and_a_click_shows_both_stairways_and
 
 def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
     """A run's pages hang together: click a train in the graph → its running-time table → a leg's chart."""
-    import contextlib
     from types import SimpleNamespace
 
     from planner.job.config import Job
@@ -238,9 +237,11 @@ def test_graph_links_to_the_train_table_and_its_chart(browser, tiny, tmp_path):
 
     job = Job(str(tmp_path / "job.toml"), str(tmp_path))
     job = dataclasses.replace(job, parallel=dataclasses.replace(job.parallel, n_jobs=1))
-    progress = SimpleNamespace(step=lambda *a: contextlib.nullcontext(), advance=lambda *a: None)
     summary = SimpleNamespace(rows={})
-    runner = SimpleNamespace(progress=progress, run=lambda step, units: [u.fn(*u.args) for u in units])
+    from planner.job.cache import Cache
+    from planner.job.units import Progress, Runner
+
+    runner = Runner(job, Cache(tmp_path / "cache"), Progress(enabled=False))  # the job's units, cached
     legs = train_views(job, tiny, run, compute_margins(tiny, conflicts=False), runner, summary)
     assert legs == {"101": [("A→B", "charts/tiny/down_EMU10_A-B_200s.html"),
                             ("B→C", "charts/tiny/down_EMU10_B-C_270s.html")],

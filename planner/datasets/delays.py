@@ -194,9 +194,24 @@ def robustness_frames(day: PredictedDay, stats: Stats, line, directions: dict[st
     return trains, stations, acts
 
 
-def _write(frame: pd.DataFrame, schema: pa.Schema, out: Path, name: str, line_id: str, part: str = "0") -> Path:
-    path = (Path(out) / name / f"line={check_path_id(line_id, 'line id ')}"
+def part_path(out: Path, name: str, line_id: str, part: str = "0") -> Path:
+    """The file of dataset ``name`` that holds a line's part ``part`` (a section's rows,
+    :mod:`planner.network.sections`; ``0`` for the whole line)."""
+    return (Path(out) / name / f"line={check_path_id(line_id, 'line id ')}"
             / f"part-{check_path_id(part, 'part ')}.parquet")
+
+
+def read_part(out: Path, name: str, line_id: str, part: str, columns: list[str]) -> pd.DataFrame | None:
+    """The rows of a line's part of dataset ``name`` (:func:`part_path`), ``columns`` only; None without the file
+    (a run that does not compute the day as it runs)."""
+    import pyarrow.parquet as pq
+
+    path = part_path(out, name, line_id, part)
+    return pq.read_table(path, columns=columns).to_pandas() if path.is_file() else None
+
+
+def _write(frame: pd.DataFrame, schema: pa.Schema, out: Path, name: str, line_id: str, part: str = "0") -> Path:
+    path = part_path(out, name, line_id, part)
     table = pa.Table.from_pandas(frame[[f.name for f in schema]], preserve_index=False, schema=schema) \
         if len(frame) else schema.empty_table()
     write_parquet_atomic(table, path)

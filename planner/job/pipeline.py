@@ -464,6 +464,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
 
     g_units = graph_units(job, sections)
     graph = runner.start("graph", g_units)
+    from planner.job.train_views import timetable_parts
+
+    tt_parts = timetable_parts(sections, dict(side).get("conflicts"))  # the tables' units, a section each
     del sections
     summary.pending.append(graph)
     count_rows(summary, tables_files)
@@ -509,7 +512,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     trajectories = [Stored(root, "graph", u.key) for u in g_units]
     summary.pending.remove(graph)
     del graph
-    line_views(job, line, stage, runner, summary, trajectories, charts, bday)
+    line_views(job, line, stage, runner, summary, trajectories, charts, bday, tt_parts)
 
 
 def conflicts_status(job: Job, line: Line) -> str:

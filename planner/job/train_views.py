@@ -8,6 +8,10 @@ timetabled leg × scheduled time) it records each leg's two runs
 * the ``train_timetable`` dataset (a row per call of every train);
 * ``timetable/<line>_timetable.html``, all trains on one page, ``#train-<id>``
   anchors (:mod:`planner.pages.timetable`);
+
+both made a cached unit per section of the line (:func:`timetable_units`: a section's rows and its trains'
+tables on the page) and put together on a worker (:func:`timetable_written`), so an edit remakes the sections
+it reaches;
 * ``charts/<line>/<leg>.html``, one speed–distance chart page per leg ×
   train type × scheduled time the tables link to (:mod:`planner.pages.speed_chart`),
   drawn on the job's workers as cached units (:func:`_chart_key`), so a run after an edit redraws only
@@ -15,6 +19,7 @@ timetabled leg × scheduled time) it records each leg's two runs
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Callable
 
@@ -149,7 +154,8 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
     drawn = runner.run("charts", units) if wait else runner.start("charts", units)
     return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs={k: r for k, (r, _w) in legs.items()},
                       stored=None if wait else (str(runner.cache.root), [u.key for u in units]),
-                      backend=(job.parallel.backend, job.parallel.n_jobs))
+                      backend=(job.parallel.backend, job.parallel.n_jobs),
+                      chart_keys={k: u.key for k, u in zip(sorted(legs), units)})
 
 
 def write_chart_pages(pages: list, root: str, keys: list, page: dict) -> int:
@@ -169,18 +175,21 @@ def write_chart_pages(pages: list, root: str, keys: list, page: dict) -> int:
 
 def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
                 day: dict | None = None, later: list | None = None, charts: "ChartPages | None" = None,
-                legs_known: Callable[[dict], None] | None = None) -> dict[str, list]:
+                legs_known: Callable[[dict], None] | None = None,
+                parts: "list[TimetablePart] | None" = None) -> dict[str, list]:
     """Dataset, page and charts of a line's trains (module doc); ``run_id`` and ``day`` (the operating day's
     record) are named at the top of each page.
 
-    The charts start on the workers first (:func:`start_charts`, unless ``charts`` were started already);
-    the dataset and the tables page are written meanwhile, on a worker (:func:`timetable_written`). With a list
-    ``later`` the chart pages are left to the :class:`ChartPages`, appended to it (the job writes its other pages
-    while the charts are drawn, then calls :meth:`ChartPages.finish`); else they are written before this returns.
+    The charts start on the workers first (:func:`start_charts`, unless ``charts`` were started already); the
+    dataset's rows and the tables page's pieces are made meanwhile, a unit per section of the line (``parts``:
+    :func:`timetable_parts`; default the whole line as one), and put together on a worker
+    (:func:`timetable_written`). With a list ``later`` the chart pages are left to the :class:`ChartPages`,
+    appended to it (the job writes its other pages while the charts are drawn, then calls
+    :meth:`ChartPages.finish`); else they are written before this returns.
 
     Returns ``{train_id: [(label "ORIGIN→DESTINATION", chart path relative to the run folder)]}``, each train's
-    legs with a chart in running order (the train graph links them); ``legs_known`` is called with it as soon as
-    it is known (the job starts the train graph page with it).
+    legs with a chart in running order, its trains in the line's timetable order (the train graph links them);
+    ``legs_known`` is called with it as soon as it is known (the job starts the train graph page with it).
     """
     from planner.io.parallel import background
     from planner.io.parquet import current_stamp
@@ -191,9 +200,17 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
                               wait=later is None)
     page = dict(run_id=run_id, day=day, run_date=getattr(summary, "run_date", None))
     types = sorted(set(report.rows["train_type"]))  # the job's train types ([job] train_types)
-    with runner.progress.step("timetable"):  # on a worker, while the other draws the charts
-        legs, files = background(write_stamped, (current_stamp(), timetable_written, line, charts.runs, types, stage,
-                                                 page), name=job.parallel.backend, n_jobs=job.parallel.n_jobs).result()
+    if parts is None:
+        from planner.job.day import line_digest
+
+        parts = [TimetablePart(line, "0", line_digest(line), None)]
+    units = timetable_units(line, charts.runs, charts.chart_keys, types, stage, parts)
+    with runner.progress.step("timetable"):  # on the workers, while they draw the charts
+        runner.run("timetable", units)
+        legs, files = background(write_stamped, (current_stamp(), timetable_written, str(runner.cache.root),
+                                                 [u.key for u in units], stage, line.line_id, line.name, page),
+                                 name=job.parallel.backend, n_jobs=job.parallel.n_jobs).result()
+        legs = {t.train_id: legs[t.train_id] for t in line.trains if t.train_id in legs}  # the line's order
         if legs_known is not None:
             legs_known(legs)
         count_rows(summary, files)
@@ -204,28 +221,129 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     return legs
 
 
-def timetable_written(line, runs: dict, types, stage: Path, page: dict) -> tuple[dict[str, list], list]:
-    """Worker: the line's ``train_timetable`` dataset and its page (``page``: the run's id, day and date named at its
-    top), from the legs' runs (:class:`planner.report.train_timetable.LegTimes`) and the predicted day the line's
-    conflict check wrote before. Module level: the nightly job runs it on a worker, so the rows of every call of
-    every train are made and held there. Returns each train's legs with a chart (:func:`train_views`) and the
-    files written."""
-    from planner.pages.timetable import page_parts, write_page
-    from planner.report.published_run import read_line_dataset
-    from planner.report.train_timetable import timetable_rows, write_timetable
+@dataclasses.dataclass(frozen=True)
+class TimetablePart:
+    """A section of the line as its tables unit sees it (:func:`timetable_units`): its line
+    (:func:`planner.network.sections.section_line`), its part name (its rows of the day as it runs are that part
+    of ``delay_events``), the digest of what it holds (:func:`planner.job.steps.line_section_inputs`) and the key
+    of the unit that computed its day as it runs (its conflicts unit; None: the key digests the part's file as it
+    is)."""
+
+    line: object
+    part: str
+    seen: str
+    predicted_key: str | None
+
+
+def timetable_parts(sections, conflict_units=None) -> list[TimetablePart]:
+    """The :class:`TimetablePart` of each section (:func:`planner.job.steps.line_section_inputs`), with its
+    conflicts unit (``conflict_units``, in the same order; None: the run computes no day as it runs)."""
+    keys = [u.key for u in conflict_units] if conflict_units else [None] * len(sections)
+    return [TimetablePart(s.line, s.part, s.seen, k) for s, k in zip(sections, keys)]
+
+
+def timetable_units(line, runs: dict, chart_keys: dict, types: list, stage: Path, parts: list) -> list:
+    """The units of the line's running-time tables, one per section (``parts``): each makes its trains' rows of
+    the ``train_timetable`` dataset and their tables on the page (:func:`_timetable_unit`), keyed by what they
+    are made from: the section's line, its day as it runs, and the runs of its trains' legs, each by its chart's
+    key (the leg's window of the line, the code, the step and the row's figures: the chart is drawn from the
+    same run) and its margins row. An edit recomputes the sections whose legs or trains it reaches; the others'
+    rows and pieces come from the cache as they are."""
+    import hashlib
+
+    from planner.datasets.delays import part_path
+    from planner.job.leg_memo import plain
+    from planner.job.publish import digest
+    from planner.job.units import Unit, code_digest, nothing_kept
+    from planner.report.train_timetable import train_legs
+
+    wanted = set(types)
+    by_leg: dict[tuple, list] = {}  # a leg's first five key fields -> its runs' keys (rows with restrictions lifted)
+    for k in runs:
+        by_leg.setdefault(k[:5], []).append(k)
+    code = code_digest()
+    units = []
+    for p in parts:
+        legs = {key for tr in p.line.trains if tr.train_type in wanted for _a, _b, key in train_legs(tr)}
+        keys = sorted(k for leg in legs for k in by_leg.get(leg, ()))
+        at = np.unique(np.array([float(s.position_m) for s in p.line.stations], float))
+        predicted = p.predicted_key
+        if predicted is None:
+            f = part_path(stage, "delay_events", line.line_id, p.part)
+            predicted = hashlib.sha256(f.read_bytes()).hexdigest() if f.is_file() else None
+        key = digest(["timetable", code, line.line_id, p.seen, predicted, list(types),
+                      [[repr(k), chart_keys[k], plain(runs[k].row)] for k in keys]])
+        units.append(Unit("timetable", key, f"timetable {p.part}", _timetable_unit,
+                          (p.line, {k: runs[k].only(at) for k in keys}, list(types), str(stage), p.part),
+                          after=nothing_kept))
+    return units
+
+
+def _timetable_unit(line, runs: dict, types: list, stage: str, part: str) -> dict:
+    """Worker: a section's rows of the ``train_timetable`` dataset and its trains' tables on the page
+    (:func:`planner.pages.timetable.train_pieces`), from its legs' runs and its part of the predicted day. Stored
+    in the cache as arrays: the table, the pieces' UTF-8 bytes one after the other with where each ends, their
+    places on the page, and each train's legs with a chart."""
+    import pyarrow as pa
+
+    from planner.datasets.delays import read_part
+    from planner.io.parquet import PARTITION_COLS, conform
+    from planner.pages.timetable import train_pieces
+    from planner.report.train_timetable import TIMETABLE_SCHEMA, timetable_rows, timetable_table
 
     lid = line.line_id
-    pred = read_line_dataset(stage, "delay_events", lid, columns=["train_id", "seq", "event", "predicted_s", "cause"])
-    recs = timetable_rows(line, runs, set(types), pred)  # made once: the dataset's rows and the page's
+    pred = read_part(Path(stage), "delay_events", lid, part, ["train_id", "seq", "event", "predicted_s", "cause"])
+    recs = timetable_rows(line, runs, set(types), pred)
+    schema = pa.schema([pa.field(c, pa.string()) for c in PARTITION_COLS] + list(TIMETABLE_SCHEMA))
+    table = conform(timetable_table(line, runs, set(types), recs), schema)
     legs: dict[str, list] = {}
     for r in recs:
         if r["chart"] and r["leg_flag"]:  # the stop that ends a leg
-            legs.setdefault(r["train_id"], []).append((f"{r['leg_origin']}→{r['station_id']}", r["chart"]))
-    files = write_timetable(line, runs, stage, set(types), recs)
+            legs.setdefault(r["train_id"], []).append([f"{r['leg_origin']}→{r['station_id']}", r["chart"]])
+    pieces = train_pieces(recs, graph_href=f"../graph/{lid}_graph.html")
+    del recs
+    html = [q.html.encode("utf-8") for q in pieces]
+    return {"table": table, "html": np.frombuffer(b"".join(html), np.uint8),
+            "ends": np.cumsum([len(h) for h in html], dtype=np.int64),
+            "down": np.array([q.down for q in pieces], np.uint8),
+            "departure_s": np.array([q.departure_s for q in pieces], np.float64),
+            "train_ids": [q.train_id for q in pieces], "directions": [q.direction for q in pieces],
+            "legs": [[t, v] for t, v in legs.items()]}
+
+
+def timetable_written(root: str, keys: list, stage: Path, lid: str, name: str, page: dict
+                      ) -> tuple[dict[str, list], list]:
+    """Worker: the line's ``train_timetable`` dataset and its page (``page``: the run's id, day and date named at
+    its top), put together from its sections' stored units (``keys``, :func:`timetable_units`): the rows of every
+    section as one dataset, the trains' tables merged into page order behind the page's head. Returns each
+    train's legs with a chart (:func:`train_views`) and the files written."""
+    import pyarrow as pa
+
+    from planner.io.atomic import write_chunks_atomic
+    from planner.job.units import Stored
+    from planner.pages.timetable import END, TrainPiece, page_head, page_order
+    from planner.report.train_timetable import write_timetable_table
+
+    got = [Stored(root, "timetable", k).load() for k in keys]
+    files = write_timetable_table(pa.concat_tables([g["table"] for g in got]), stage)
+    legs = {t: [tuple(x) for x in v] for g in got for t, v in g["legs"]}
+    order = sorted((page_order(TrainPiece(bool(g["down"][i]), float(g["departure_s"][i]), t, "", "")), j, i)
+                   for j, g in enumerate(got) for i, t in enumerate(g["train_ids"]))
     links = [("overview", "../index.html"), ("margin report", f"../report/{lid}_margins.html"),
              ("train graph", f"../graph/{lid}_graph.html")]
-    write_page(stage / timetable_href(lid), page_parts(lid, line.name, recs, links=links,
-                                                      graph_href=f"../graph/{lid}_graph.html", **page))
+    head = page_head(lid, name, [(got[j]["train_ids"][i], got[j]["directions"][i]) for _o, j, i in order],
+                     links=links, **page)
+
+    def chunks():
+        yield head.encode("utf-8")
+        for _o, j, i in order:
+            ends = got[j]["ends"]
+            yield got[j]["html"][(int(ends[i - 1]) if i else 0):int(ends[i])].tobytes()
+        yield END.encode("utf-8")
+
+    path = stage / timetable_href(lid)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_chunks_atomic(path, chunks())
     return legs, files
 
 
@@ -234,8 +352,10 @@ class ChartPages:
     charts are drawn (each as its chart arrives where the job holds the SVGs)."""
 
     def __init__(self, started, pages: list, back: str, nav: list, run_id, day, run_date, runs: dict | None = None,
-                 stored: tuple[str, list] | None = None, backend: tuple[str, int] = ("local", 1)):
+                 stored: tuple[str, list] | None = None, backend: tuple[str, int] = ("local", 1),
+                 chart_keys: dict | None = None):
         self.started, self.pages = started, pages  # a list of the charts' SVGs, or Runner.start's handle
+        self.chart_keys = chart_keys or {}  # each leg's chart's key: what its run is made from (timetable_units)
         self.page = dict(back=back, nav=nav, run_id=run_id, day=day, run_date=run_date)
         self.runs = runs  # the legs' runs (report.train_timetable.leg_runs), for the tables page
         self.stored = stored  # (cache root, the charts' keys): the SVGs are in the cache, not here
@@ -312,4 +432,4 @@ def _chart_key(line, run, ds_m: float, rest, bad=None) -> str:
                    [float(x) for x in signals]])
 
 
-__all__ = ["start_charts", "timetable_href", "train_views"]
+__all__ = ["TimetablePart", "start_charts", "timetable_href", "timetable_parts", "timetable_units", "train_views"]

@@ -95,11 +95,12 @@ def line_paths(line, results: list) -> list:
     return sorted((p for r in results for p in r), key=lambda p: order[p.train_id])
 
 
-def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday=None) -> None:
+def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday=None, parts=None) -> None:
     """Inputs copy, running-time tables and train graph page of one line (module doc); ``paths``: the trajectories,
     or the stored results of :func:`graph_units` (:func:`line_paths`, on the page's worker); ``bday``: its operating
     day (:func:`planner.job.day.bundle_day`, None without a daily feed); ``charts``: the line's speed–distance
-    charts if started already (:func:`planner.job.train_views.start_charts`). The train graph page is written on a
+    charts if started already (:func:`planner.job.train_views.start_charts`); ``parts``: its sections as the
+    tables' units see them (:func:`planner.job.train_views.timetable_parts`). The train graph page is written on a
     worker (:func:`graph_page`, in ``summary.graph_pages``) while this process writes the run's other pages."""
     from planner.io.parallel import background
     from planner.job.train_views import train_views
@@ -123,7 +124,7 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday
     # the chart pages are written by run_views, once the rest of the run's pages are: the charts are drawn meanwhile
     train_views(job, line, stage, summary.reports[line.line_id], runner, summary,  # tables, charts
                 run_id=summary.run_id, day=window(job).record() if job.day.day else None,
-                later=summary.chart_pages, charts=charts, legs_known=start_page)
+                later=summary.chart_pages, charts=charts, legs_known=start_page, parts=parts)
     summary.pending += [c for c in summary.chart_pages[-1:] if c not in summary.pending]
     give_back()  # the pages of the legs' runs (planner.io.memory)
 

@@ -14,7 +14,7 @@ import html
 import math
 from itertools import groupby
 from pathlib import Path
-from typing import Iterable, Iterator, Sequence
+from typing import Iterable, Iterator, NamedTuple, Sequence
 
 from planner.line.units import fixed
 from planner.report.leg_flags import FLAG
@@ -109,45 +109,49 @@ def page_parts(line_id: str, line_name: str, records: Sequence[dict], *, links: 
                graph_href: str = "") -> Iterator[str]:
     """:func:`render_page`'s text in pieces, a train's section at a time: what :func:`write_page` writes without
     holding the whole page (tens of megabytes, several times over while joined, on a line of thousands of
-    trains)."""
+    trains). The head (:func:`page_head`), each train's table in page order (:func:`train_pieces`), :data:`END`."""
+    pieces = train_pieces(records, graph_href)
+    yield page_head(line_id, line_name, [(p.train_id, p.direction) for p in pieces], links=links, run_id=run_id,
+                    day=day, run_date=run_date)
+    for p in pieces:
+        yield p.html
+    yield END
+
+
+END = "</main></body></html>\n"
+"""The page's last piece."""
+
+
+class TrainPiece(NamedTuple):
+    """A train's table on the page, with its place there: trains of direction ``down`` first, then by their
+    scheduled departure, then by id (:func:`page_order`)."""
+
+    down: bool
+    departure_s: float
+    train_id: str
+    direction: str
+    html: str
+
+
+def page_order(p) -> tuple:
+    """Where a train's table (a :class:`TrainPiece`, or the same fields) stands on the page."""
+    return (not p.down, p.departure_s, p.train_id)
+
+
+def train_pieces(records: Sequence[dict], graph_href: str = "") -> list[TrainPiece]:
+    """Each train's table of the page, in page order (:func:`page_order`). A train's table depends on its own
+    records alone, so the pages of a line's sections are the same pieces, merged in this order
+    (:mod:`planner.job.train_views`)."""
     from urllib.parse import quote
 
-    from planner.pages.margin_report import CSS
-
     by_train = {k: list(g) for k, g in groupby(records, key=lambda r: r["train_id"])}
-    order = sorted(by_train, key=lambda t: (by_train[t][0]["direction"] != "down",
-                                            by_train[t][0].get("scheduled_departure_s") or 0.0, t))
-    idx = []
-    for d in ("down", "up"):
-        ids = [t for t in order if by_train[t][0]["direction"] == d]
-        if ids:
-            idx.append(f"<h3>{d} ({len(ids)} trains)</h3><div>" + "".join(
-                f'<a href="#train-{_e(t)}">{_e(t)}</a>' for t in ids) + "</div>")
-    from planner.pages.margin_report import line_title
-    from planner.pages.run_head import nav_html
-
-    title = f"Running-time tables — {line_title(line_name, line_id)}"
-    yield (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>'
-           f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}{EXTRA_CSS}</style>'
-           f'</head><body><main id="top">{nav_html(links, run_id, day, run_date)}'
-           f"<h1>{_e(title)}</h1>"
-           '<p class="sub">Every train of the timetable, every station of its path. <b>Computed</b>: each leg (stop '
-           "to next stop) run from its scheduled departure at the ratio the on-board logic picks for an on-time "
-           "departure (the nearest table (a) time to the scheduled one); a train leaves each stop at its scheduled "
-           "time, so the computed departure is the scheduled one; <b>minimum</b>: the same leg at ratio "
-           "100 %. Both at the tables' conditions (empty, full traction). <b>Supplement</b>: scheduled − minimum "
-           "time of the section from the previous call; a leg's supplements add up to its margin. The bad-day margin "
-           "and the flag are the margin report's. <b>Predicted</b>: the day as it will run, every delay carried forward (a late arrival delays the departure, "
-           "never before arrival + the minimum dwell; a train held by another waits), with the delay and, on "
-           "hover, why it grew at that stop. The same rows are the <code>train_timetable</code> dataset.</p>"
-           f'<div class="note idx">{"".join(idx)}</div>')
-    for t in order:
-        rs = by_train[t]
+    out = []
+    for t, rs in by_train.items():
         first, last = rs[0], rs[-1]
         n_stop = sum(r["activity"] in ("stops",) for r in rs)
         n_pass = sum(r["activity"] == "passes" for r in rs)
         tot_sup = sum(r["supplement_s"] for r in rs if r["supplement_s"] == r["supplement_s"])
-        yield (
+        html = (
             f'<section class="tt" id="train-{_e(t)}"><h3>{_e(t)} · {_e(first["train_type"])} {_e(first["direction"])}: '
             f'{_e(first["station_id"])} {_e(first["scheduled_departure"] or "")} → {_e(last["station_id"])} '
             f'{_e(last["scheduled_arrival"] or "")} <a class="self" href="#train-{_e(t)}">#</a>'
@@ -156,7 +160,40 @@ def page_parts(line_id: str, line_name: str, records: Sequence[dict], *, links: 
             f'<p class="caption">{n_stop} intermediate stops, {n_pass} passes; running-time supplement over the '
             f"whole run {tot_sup:.1f} s.</p>"
             f'<div class="tw"><table>{HEAD}{"".join(_row(r, "../") for r in rs)}</table></div></section>')
-    yield "</main></body></html>\n"
+        out.append(TrainPiece(first["direction"] == "down", first.get("scheduled_departure_s") or 0.0, t,
+                              first["direction"], html))
+    return sorted(out, key=page_order)
+
+
+def page_head(line_id: str, line_name: str, trains: Sequence[tuple[str, str]], *,
+              links: Sequence[tuple[str, str]] = (), run_id: str | None = None, day: dict | None = None,
+              run_date: str | None = None) -> str:
+    """The page's head: its title, the run's id, date and day, what the tables show and the index of
+    ``trains`` (train id, direction; in page order)."""
+    from planner.pages.margin_report import CSS, line_title
+    from planner.pages.run_head import nav_html
+
+    idx = []
+    for d in ("down", "up"):
+        ids = [t for t, td in trains if td == d]
+        if ids:
+            idx.append(f"<h3>{d} ({len(ids)} trains)</h3><div>" + "".join(
+                f'<a href="#train-{_e(t)}">{_e(t)}</a>' for t in ids) + "</div>")
+    title = f"Running-time tables — {line_title(line_name, line_id)}"
+    return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{CSS}{EXTRA_CSS}</style>'
+            f'</head><body><main id="top">{nav_html(links, run_id, day, run_date)}'
+            f"<h1>{_e(title)}</h1>"
+            '<p class="sub">Every train of the timetable, every station of its path. <b>Computed</b>: each leg (stop '
+            "to next stop) run from its scheduled departure at the ratio the on-board logic picks for an on-time "
+            "departure (the nearest table (a) time to the scheduled one); a train leaves each stop at its scheduled "
+            "time, so the computed departure is the scheduled one; <b>minimum</b>: the same leg at ratio "
+            "100 %. Both at the tables' conditions (empty, full traction). <b>Supplement</b>: scheduled − minimum "
+            "time of the section from the previous call; a leg's supplements add up to its margin. The bad-day margin "
+            "and the flag are the margin report's. <b>Predicted</b>: the day as it will run, every delay carried forward (a late arrival delays the departure, "
+            "never before arrival + the minimum dwell; a train held by another waits), with the delay and, on "
+            "hover, why it grew at that stop. The same rows are the <code>train_timetable</code> dataset.</p>"
+            f'<div class="note idx">{"".join(idx)}</div>')
 
 
 def write_page(path: Path, text: str | Iterable[str]) -> Path:
@@ -171,4 +208,5 @@ def write_page(path: Path, text: str | Iterable[str]) -> Path:
     return path
 
 
-__all__ = ["render_page", "page_parts", "write_page", "clock"]
+__all__ = ["END", "TrainPiece", "page_head", "page_order", "page_parts", "render_page", "train_pieces", "write_page",
+           "clock"]

@@ -200,6 +200,14 @@ class LegTimes:
     def end_s(self, run: int) -> float:
         return self.end[run]
 
+    def only(self, chainages_m: np.ndarray) -> "LegTimes":
+        """The same runs with the times at ``chainages_m`` only (sorted, each one this holds): what a section of
+        the line reads of them (its stations), not the whole line's."""
+        i = np.searchsorted(self.chainage_m, chainages_m)
+        if len(i) and (i.max() >= len(self.chainage_m) or np.any(self.chainage_m[i] != chainages_m)):
+            raise KeyError(f"leg {self.key}: not every chainage asked for has a time kept")
+        return LegTimes(self.key, self.ratio, self.row, self.span_m, self.end, self.chainage_m[i], self.at_s[:, i])
+
     def time_at(self, chainage_m: float, run: int) -> float:
         i = int(np.searchsorted(self.chainage_m, chainage_m))
         if i == len(self.chainage_m) or self.chainage_m[i] != chainage_m:
@@ -284,11 +292,10 @@ def timetable_rows(line, runs: dict[tuple, LegRun | LegTimes], train_types=None,
         if train_types is not None and tr.train_type not in train_types:
             continue
         last = len(tr.calls) - 1
-        stops = tr.stop_indices()
-        leg_of = {}  # call index -> (start call index, end call index)
-        for a, b in zip(stops[:-1], stops[1:]):
+        leg_of = {}  # call index -> (start call index, end call index, the leg's key)
+        for a, b, key in train_legs(tr):
             for k in range(a + 1, b + 1):
-                leg_of[k] = (a, b)
+                leg_of[k] = (a, b, key)
         prev_sched = prev_min = nan
         for k, c in enumerate(tr.calls):
             st = line.station(c.station_id)
@@ -304,11 +311,9 @@ def timetable_rows(line, runs: dict[tuple, LegRun | LegTimes], train_types=None,
                    "leg_scheduled_running_time_s": nan, "leg_min_running_time_s": nan, "leg_margin_s": nan,
                    "leg_remaining_margin_s": nan, "leg_flag": None, "chart": None}
             if k in leg_of:
-                a, b = leg_of[k]
-                ca, cb = tr.calls[a], tr.calls[b]
+                a, b, key = leg_of[k]
+                ca = tr.calls[a]
                 dep0 = float(ca.departure_s)
-                key = leg_key(tr.direction, tr.train_type, ca.station_id, cb.station_id,
-                              float(cb.arrival_s) - dep0)
                 run = own.get((key, tr.train_id), runs.get(key))
                 rec["leg_origin"] = ca.station_id
                 if run is not None:
@@ -351,6 +356,18 @@ def timetable_rows(line, runs: dict[tuple, LegRun | LegTimes], train_types=None,
     return recs
 
 
+def train_legs(train) -> list[tuple[int, int, tuple]]:
+    """A train's legs, stop to next stop: the two calls' indices and the leg's key (:func:`leg_key`, without the
+    restrictions lifted: the first five fields of a margins row's key)."""
+    stops = train.stop_indices()
+    out = []
+    for a, b in zip(stops[:-1], stops[1:]):
+        ca, cb = train.calls[a], train.calls[b]
+        out.append((a, b, leg_key(train.direction, train.train_type, ca.station_id, cb.station_id,
+                                  float(cb.arrival_s) - float(ca.departure_s))))
+    return out
+
+
 def predicted_calls(events) -> dict:
     """``(train_id, call seq, "arrival" | "departure")`` → (predicted time [s], cause) of a ``delay_events`` frame."""
     if events is None or not len(events):
@@ -378,9 +395,16 @@ def write_timetable(line, runs: dict[tuple, LegRun], out_dir: str | Path, train_
                     records: list[dict] | None = None) -> list[Path]:
     """Write the ``train_timetable`` dataset of a line (its trains of ``train_types``, default all) under
     ``out_dir``; the files written. ``records``: as for :func:`timetable_table`."""
-    return write_partitioned(timetable_table(line, runs, train_types, records), Path(out_dir), "train_timetable",
-                             schema=TIMETABLE_SCHEMA, sort_by=("train_id", "seq"))
+    return write_timetable_table(timetable_table(line, runs, train_types, records), out_dir)
+
+
+def write_timetable_table(table: pa.Table, out_dir: str | Path) -> list[Path]:
+    """Write rows of :func:`timetable_table` (a line's, or its sections' put together in any order: each file's rows
+    are sorted by train and call) as the ``train_timetable`` dataset under ``out_dir``; the files written."""
+    return write_partitioned(table, Path(out_dir), "train_timetable", schema=TIMETABLE_SCHEMA,
+                             sort_by=("train_id", "seq"))
 
 
 __all__ = ["TIMETABLE_SCHEMA", "SCHEMAS", "CHARTS_DIR", "clock", "leg_key", "chart_name", "LegRun", "LegTimes",
-           "leg_runs", "leg_times", "leg_window", "legs", "record_leg", "timetable_rows", "timetable_table", "write_timetable"]
+           "leg_runs", "leg_times", "leg_window", "legs", "record_leg", "timetable_rows", "train_legs", "timetable_table", "write_timetable",
+           "write_timetable_table"]
