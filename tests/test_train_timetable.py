@@ -110,9 +110,10 @@ def test_page_has_an_anchor_per_train_and_chart_links(tiny, rows):
 
 
 def test_the_times_the_job_keeps_are_the_runs_times(tiny, margins, runs):
-    """The job's process keeps each leg's ends and its times at the line's stations (leg_times), not the runs'
-    node arrays: the timetable from those is the timetable from the runs, value for value (train 202 passes B,
-    a time between two grid nodes), and a chainage it did not keep is an error, not a guess."""
+    """The job's process keeps each leg's ends and its times at the line's stations inside the run (leg_times),
+    not the runs' node arrays: the timetable from those is the timetable from the runs, value for value (train
+    202 passes B, a time between two grid nodes); a station outside the run has the time at its nearer end, as
+    the run gives it; a chainage it did not keep is an error, not a guess."""
     from planner.report.train_timetable import leg_times, timetable_rows
 
     kept = leg_times(tiny, margins)
@@ -123,10 +124,14 @@ def test_the_times_the_job_keeps_are_the_runs_times(tiny, margins, runs):
     for k, t in times.items():
         r = runs[k]
         assert not hasattr(t, "t_s") and t.span_m == (float(r.position_m.min()), float(r.position_m.max()))
-        for s in tiny.stations:
-            assert t.time_at(s.position_m, 1) == r.time_at(s.position_m, 1)
+        lo, hi = t.span_m
+        assert len(t.chainage_m) == 2 + sum(lo < s.position_m < hi for s in tiny.stations)  # not the whole line's
+        for x in [s.position_m for s in tiny.stations] + [lo - 100.0, hi + 100.0]:
+            assert t.time_at(x, 1) == r.time_at(x, 1) and t.time_at(x, 0) == r.time_at(x, 0)
+        inside = lo + 0.37 * (hi - lo)
+        assert inside not in t.chainage_m
         with pytest.raises(KeyError, match="no time kept"):
-            t.time_at(tiny.stations[0].position_m + 0.5, 0)
+            t.time_at(inside, 0)
 
 
 def test_the_page_written_in_pieces_is_the_page(tiny, rows, tmp_path, monkeypatch):
@@ -171,3 +176,18 @@ def test_a_chart_is_named_safely_whatever_the_station_ids():
     for p in odd:
         folder, name = p.rsplit("/", 1)
         assert folder == "charts/L" and is_path_id(name.removesuffix(".html")) and name.startswith("down_E10_leg-")
+
+
+def test_the_tables_read_no_field_of_a_margins_row_but_those_their_key_digests(tiny, runs):
+    """A section's tables unit digests each leg's run by its chart's key and the row's fields in row_fields: rows
+    cut down to those fields give the same tables, so no field the key leaves out can change them."""
+    import dataclasses
+
+    from planner.report.train_timetable import row_fields, timetable_rows
+
+    cut = {k: dataclasses.replace(r, row={f: r.row.get(f) for f in row_fields()}) for k, r in runs.items()}
+    assert any(len(r.row) > len(row_fields()) for r in runs.values())
+    assert timetable_rows(tiny, cut) == timetable_rows(tiny, runs)
+    less = {k: dataclasses.replace(r, row={f: v for f, v in r.row.items() if f != "remaining_margin_s"})
+            for k, r in runs.items()}
+    assert timetable_rows(tiny, less) != timetable_rows(tiny, runs)  # a field the tables do read

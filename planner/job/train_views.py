@@ -247,7 +247,8 @@ def timetable_units(line, runs: dict, chart_keys: dict, types: list, stage: Path
     the ``train_timetable`` dataset and their tables on the page (:func:`_timetable_unit`), keyed by what they
     are made from: the section's line, its day as it runs, and the runs of its trains' legs, each by its chart's
     key (the leg's window of the line, the code, the step and the row's figures: the chart is drawn from the
-    same run) and its margins row. An edit recomputes the sections whose legs or trains it reaches; the others'
+    same run) and the fields of its margins row that the tables read
+    (:func:`planner.report.train_timetable.row_fields`). An edit recomputes the sections whose legs or trains it reaches; the others'
     rows and pieces come from the cache as they are."""
     import hashlib
 
@@ -255,8 +256,9 @@ def timetable_units(line, runs: dict, chart_keys: dict, types: list, stage: Path
     from planner.job.leg_memo import plain
     from planner.job.publish import digest
     from planner.job.units import Unit, code_digest, nothing_kept
-    from planner.report.train_timetable import train_legs
+    from planner.report.train_timetable import row_fields, train_legs
 
+    fields = row_fields()
     wanted = set(types)
     by_leg: dict[tuple, list] = {}  # a leg's first five key fields -> its runs' keys (rows with restrictions lifted)
     for k in runs:
@@ -266,15 +268,14 @@ def timetable_units(line, runs: dict, chart_keys: dict, types: list, stage: Path
     for p in parts:
         legs = {key for tr in p.line.trains if tr.train_type in wanted for _a, _b, key in train_legs(tr)}
         keys = sorted(k for leg in legs for k in by_leg.get(leg, ()))
-        at = np.unique(np.array([float(s.position_m) for s in p.line.stations], float))
         predicted = p.predicted_key
         if predicted is None:
             f = part_path(stage, "delay_events", line.line_id, p.part)
             predicted = hashlib.sha256(f.read_bytes()).hexdigest() if f.is_file() else None
         key = digest(["timetable", code, line.line_id, p.seen, predicted, list(types),
-                      [[repr(k), chart_keys[k], plain(runs[k].row)] for k in keys]])
+                      [[repr(k), chart_keys[k], plain([runs[k].row.get(f) for f in fields])] for k in keys]])
         units.append(Unit("timetable", key, f"timetable {p.part}", _timetable_unit,
-                          (p.line, {k: runs[k].only(at) for k in keys}, list(types), str(stage), p.part),
+                          (p.line, {k: runs[k] for k in keys}, list(types), str(stage), p.part),
                           after=nothing_kept))
     return units
 

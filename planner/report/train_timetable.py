@@ -176,16 +176,21 @@ class LegRun:
         return float(got) if np.ndim(got) == 0 else got
 
     def times(self, chainages_m: np.ndarray) -> "LegTimes":
-        """What the tables page and the chart pages read of the two runs, at the given chainages (sorted)."""
-        at = np.array([self.time_at(chainages_m, 0), self.time_at(chainages_m, 1)]).reshape(2, len(chainages_m))
-        return LegTimes(self.key, self.ratio, self.row, self.span_m, (self.end_s(0), self.end_s(1)), chainages_m, at)
+        """What the tables page and the chart pages read of the two runs, at those of the given chainages (sorted)
+        that lie inside the run and at its two ends (a time outside the run is the time at its nearer end, as
+        :meth:`time_at` gives it)."""
+        lo, hi = self.span_m
+        x = np.unique(np.concatenate([chainages_m[(chainages_m > lo) & (chainages_m < hi)], [lo, hi]]))
+        at = np.array([self.time_at(x, 0), self.time_at(x, 1)]).reshape(2, len(x))
+        return LegTimes(self.key, self.ratio, self.row, self.span_m, (self.end_s(0), self.end_s(1)), x, at)
 
 
 @dataclass
 class LegTimes:
     """A leg's two runs as the job's process keeps them (:meth:`LegRun.times`): their ends and the times at the
-    line's stations, without the runs' node arrays (on a line ten times the sample those were a hundred
-    megabytes through the job's last steps). The tables page reads the times from it as from the
+    line's stations inside the run, without the runs' node arrays (on a line ten times the sample those were a
+    hundred megabytes through the job's last steps; the times at every station of the line, 200 MB on a line a
+    hundred times the sample). The tables page reads the times from it as from the
     :class:`LegRun` (the same numbers: the same interpolation, made beforehand); the charts' workers record the
     run again."""
 
@@ -194,21 +199,14 @@ class LegTimes:
     row: dict
     span_m: tuple[float, float]
     end: tuple[float, float]
-    chainage_m: np.ndarray  # sorted chainages with a time: the line's stations
+    chainage_m: np.ndarray  # sorted chainages with a time: the line's stations inside the run, and its two ends
     at_s: np.ndarray  # (2, n) the runs' times there [s]
 
     def end_s(self, run: int) -> float:
         return self.end[run]
 
-    def only(self, chainages_m: np.ndarray) -> "LegTimes":
-        """The same runs with the times at ``chainages_m`` only (sorted, each one this holds): what a section of
-        the line reads of them (its stations), not the whole line's."""
-        i = np.searchsorted(self.chainage_m, chainages_m)
-        if len(i) and (i.max() >= len(self.chainage_m) or np.any(self.chainage_m[i] != chainages_m)):
-            raise KeyError(f"leg {self.key}: not every chainage asked for has a time kept")
-        return LegTimes(self.key, self.ratio, self.row, self.span_m, self.end, self.chainage_m[i], self.at_s[:, i])
-
     def time_at(self, chainage_m: float, run: int) -> float:
+        chainage_m = min(max(chainage_m, self.span_m[0]), self.span_m[1])  # outside the run: its nearer end
         i = int(np.searchsorted(self.chainage_m, chainage_m))
         if i == len(self.chainage_m) or self.chainage_m[i] != chainage_m:
             raise KeyError(f"leg {self.key}: no time kept at chainage {chainage_m} m (only at the line's stations)")
@@ -276,6 +274,14 @@ def _flag(row: dict) -> str:
     from planner.report.leg_flags import FLAGS, flag_of
 
     return flag_of(SimpleNamespace(**{f: row.get(f) for f in FLAGS}))
+
+
+def row_fields() -> tuple[str, ...]:
+    """The fields of a margins row that :func:`timetable_rows` reads (beside the run's own: its key and ratio):
+    what a section's tables unit digests of each leg's row (:func:`planner.job.train_views.timetable_units`)."""
+    from planner.report.leg_flags import FLAGS
+
+    return ("train_ids", "scheduled_running_time_s", "min_running_time_s", "margin_s", "remaining_margin_s") + FLAGS
 
 
 def timetable_rows(line, runs: dict[tuple, LegRun | LegTimes], train_types=None, predicted=None) -> list[dict]:
@@ -406,5 +412,5 @@ def write_timetable_table(table: pa.Table, out_dir: str | Path) -> list[Path]:
 
 
 __all__ = ["TIMETABLE_SCHEMA", "SCHEMAS", "CHARTS_DIR", "clock", "leg_key", "chart_name", "LegRun", "LegTimes",
-           "leg_runs", "leg_times", "leg_window", "legs", "record_leg", "timetable_rows", "train_legs", "timetable_table", "write_timetable",
+           "leg_runs", "leg_times", "leg_window", "legs", "record_leg", "row_fields", "timetable_rows", "train_legs", "timetable_table", "write_timetable",
            "write_timetable_table"]
