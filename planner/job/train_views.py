@@ -8,14 +8,14 @@ timetabled leg × scheduled time) it records each leg's two runs
 * the ``train_timetable`` dataset (a row per call of every train);
 * ``timetable/<line>_timetable.html``, all trains on one page, ``#train-<id>``
   anchors (:mod:`planner.pages.timetable`);
-
-both made a cached unit per section of the line (:func:`timetable_units`: a section's rows and its trains'
-tables on the page) and put together on a worker (:func:`timetable_written`), so an edit remakes the sections
-it reaches;
 * ``charts/<line>/<leg>.html``, one speed–distance chart page per leg ×
   train type × scheduled time the tables link to (:mod:`planner.pages.speed_chart`),
   drawn on the job's workers as cached units (:func:`_chart_key`), so a run after an edit redraws only
   the legs it reaches.
+
+The dataset's rows and the tables on the page are made a cached unit per section of the line
+(:func:`timetable_units`) and put together on a worker (:func:`timetable_written`), so an edit remakes the
+tables of the sections it reaches.
 """
 from __future__ import annotations
 
@@ -205,8 +205,8 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
 
         parts = [TimetablePart(line, "0", line_digest(line), None)]
     units = timetable_units(line, charts.runs, charts.chart_keys, types, stage, parts)
-    with runner.progress.step("timetable"):  # on the workers, while they draw the charts
-        runner.run("timetable", units)
+    runner.run("timetable", units)  # on the workers, while they draw the charts (the step's first interval)
+    with runner.progress.step("timetable"):  # then put together on a worker (its next)
         legs, files = background(write_stamped, (current_stamp(), timetable_written, str(runner.cache.root),
                                                  [u.key for u in units], stage, line.line_id, line.name, page),
                                  name=job.parallel.backend, n_jobs=job.parallel.n_jobs).result()
@@ -248,8 +248,8 @@ def timetable_units(line, runs: dict, chart_keys: dict, types: list, stage: Path
     are made from: the section's line, its day as it runs, and the runs of its trains' legs, each by its chart's
     key (the leg's window of the line, the code, the step and the row's figures: the chart is drawn from the
     same run) and the fields of its margins row that the tables read
-    (:func:`planner.report.train_timetable.row_fields`). An edit recomputes the sections whose legs or trains it reaches; the others'
-    rows and pieces come from the cache as they are."""
+    (:func:`planner.report.train_timetable.row_fields`). An edit recomputes the sections whose legs or trains it
+    reaches; the others' rows and pieces come from the cache as they are."""
     import hashlib
 
     from planner.datasets.delays import part_path
