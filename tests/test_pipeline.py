@@ -303,9 +303,9 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     kill point is the complete staged run just before publishing. Successive runs are killed at the 1st (mid
     tables), 3rd (first stop pattern), 5th (mid closed loop), 8th (mid margin legs), 10th (the margin report
     cached, bundles not yet written), 11th (the graph's trajectories), 12th (the running-time tables), 13th
-    (the last chart) and 14th of those points; each resumes from what the killed ones cached. After every kill ``latest`` and the published run are untouched; the
-    run that finally completes computes nothing and publishes exactly what an uninterrupted run from
-    the same starting cache publishes.
+    (the last chart) and 14th of those points; each resumes from what the killed ones cached. After every
+    kill ``latest`` and the published run are untouched; the run that finally completes computes nothing and
+    publishes exactly what an uninterrupted run from the same starting cache publishes.
     """
     import shutil
 

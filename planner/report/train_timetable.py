@@ -209,7 +209,8 @@ class LegTimes:
         chainage_m = min(max(chainage_m, self.span_m[0]), self.span_m[1])  # outside the run: its nearer end
         i = int(np.searchsorted(self.chainage_m, chainage_m))
         if i == len(self.chainage_m) or self.chainage_m[i] != chainage_m:
-            raise KeyError(f"leg {self.key}: no time kept at chainage {chainage_m} m (only at the line's stations)")
+            raise KeyError(f"leg {self.key}: no time kept at chainage {chainage_m} m "
+                           "(only at the line's stations inside the run)")
         return float(self.at_s[run, i])
 
 
@@ -254,8 +255,8 @@ def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
 
 
 def leg_times(line, margins, ds_m: float = 1.0) -> dict[tuple, tuple[LegTimes, object]]:
-    """:func:`leg_runs`, each run kept as its :class:`LegTimes` at the line's stations, with its window: a run's
-    node arrays are let go as soon as it is summed up."""
+    """:func:`leg_runs`, each run kept as its :class:`LegTimes` at the line's stations inside it, with its
+    window: a run's node arrays are let go as soon as it is summed up."""
     at = np.unique(np.array([float(s.position_m) for s in line.stations], float))
     out = {}
     for key, row in legs(line, margins):
@@ -412,5 +413,5 @@ def write_timetable_table(table: pa.Table, out_dir: str | Path) -> list[Path]:
 
 
 __all__ = ["TIMETABLE_SCHEMA", "SCHEMAS", "CHARTS_DIR", "clock", "leg_key", "chart_name", "LegRun", "LegTimes",
-           "leg_runs", "leg_times", "leg_window", "legs", "record_leg", "row_fields", "timetable_rows", "train_legs", "timetable_table", "write_timetable",
-           "write_timetable_table"]
+           "leg_runs", "leg_times", "leg_window", "legs", "record_leg", "row_fields", "timetable_rows", "train_legs",
+           "timetable_table", "write_timetable", "write_timetable_table"]
