@@ -320,9 +320,8 @@ def timetable_written(root: str, keys: list, stage: Path, lid: str, name: str, p
     train's legs with a chart (:func:`train_views`) and the files written."""
     import pyarrow as pa
 
-    from planner.io.atomic import write_chunks_atomic
     from planner.job.units import Stored
-    from planner.pages.timetable import END, TrainPiece, page_head, page_order
+    from planner.pages.timetable import END, TrainPiece, page_head, page_order, write_page
     from planner.report.train_timetable import write_timetable_table
 
     got = [Stored(root, "timetable", k).load() for k in keys]
@@ -336,15 +335,13 @@ def timetable_written(root: str, keys: list, stage: Path, lid: str, name: str, p
                      links=links, **page)
 
     def chunks():
-        yield head.encode("utf-8")
+        yield head
         for _o, j, i in order:
             ends = got[j]["ends"]
             yield got[j]["html"][(int(ends[i - 1]) if i else 0):int(ends[i])].tobytes()
-        yield END.encode("utf-8")
+        yield END
 
-    path = stage / timetable_href(lid)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_chunks_atomic(path, chunks())
+    write_page(stage / timetable_href(lid), chunks())
     return legs, files
 
 

@@ -196,15 +196,16 @@ def page_head(line_id: str, line_name: str, trains: Sequence[tuple[str, str]], *
             f'<div class="note idx">{"".join(idx)}</div>')
 
 
-def write_page(path: Path, text: str | Iterable[str]) -> Path:
-    """Write the page (its text, or :func:`page_parts`' pieces, written as they come) atomically to ``path``."""
+def write_page(path: Path, text: str | Iterable[str | bytes]) -> Path:
+    """Write the page (its text, or pieces of it written as they come: :func:`page_parts`' text, or UTF-8 bytes
+    a train's table kept in the work cache) atomically to ``path``."""
     from planner.io.atomic import write_bytes_atomic, write_chunks_atomic
 
     path.parent.mkdir(parents=True, exist_ok=True)
     if isinstance(text, str):
         write_bytes_atomic(path, text.encode("utf-8"))
     else:
-        write_chunks_atomic(path, (part.encode("utf-8") for part in text))
+        write_chunks_atomic(path, (part.encode("utf-8") if isinstance(part, str) else part for part in text))
     return path
 
 
