@@ -32,7 +32,7 @@ from planner.job.publish import latest_run
 from test_network_cli import EDGES, NODES
 
 VOLATILE = ("run_id", "timings_s", "units_computed", "units_reused", "changes")  # wall-clock, how a run got there, what it is compared with
-KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1, "margin_leg": 4, "graph": 1,
+KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1, "margin_leg": 4, "graph": 2,
          "charts": 2, "timetable": 1}  # speed-distance charts: the EMU10 train 101's legs A-B and B-C; margin legs:
 # one per group; the running-time tables: one unit, the line is one section
 

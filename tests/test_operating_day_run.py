@@ -89,12 +89,13 @@ def test_the_day_is_in_the_manifest_and_another_day_recomputes_what_its_restrict
     # R1 (1000-1400 m, both directions, every type) is not in force on the 23rd: it lies between A (200 m)
     # and B (2500 m) only, so 2 directions x 2 types of the 8 interstation units change (tables, stops,
     # closed loop each), and the line-level units (the trains that run changed too); B-C is reused
-    # no train runs, so there is no leg to chart (and the running-time tables are empty, not a crash)
+    # (the train graph's two: the trajectories and the page's share of the line's one section); no train runs, so
+    # there is no leg to chart (and the running-time tables are empty, not a crash)
     # the margin report's leg groups: 8 that day (202 runs EMU6's only C-A); computed again the 4 whose stretch
     # holds 1000-1400 m (A-B and B-A of both types) and EMU10's B-C, whose scheduled times lost 101's; the 3
     # others between B and C are read back
     assert holiday.computed == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 1, "margin_leg": 5,
-                                "graph": 1, "charts": 0, "timetable": 1}
+                                "graph": 2, "charts": 0, "timetable": 1}
     assert holiday.reused == {"tables": 4, "stops": 4, "closed_loop": 4, "margins": 0, "margin_leg": 3, "graph": 0,
                               "charts": 0, "timetable": 0}
     assert any("no train runs on 2026-11-23 (Monday)" in n for n in holiday.notes)

@@ -323,12 +323,13 @@ def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_pat
     for d in (".cache", ".dev-key"):
         shutil.copytree(out / d, ref / "out" / d)
     clean = _run(_job(ref))
-    # the train graph's trajectories are one unit keyed by the whole line database: it changes too
+    # the train graph's trajectories and its page's share are a unit each keyed by the whole line database (the
+    # sample is one section): they change too
     # and of the speed-distance charts only the up leg's (202, C-A passing B): the down legs do not see it
     # of the margin report's 9 leg groups the 3 up groups from C (EMU10 C-B, EMU6 C-B and C-A): the others'
     # stretches (stop markers ± a train length) do not reach 4000 m or are down runs
     assert {k: v for k, v in clean.computed.items() if v} == {"tables": 2, "stops": 2, "closed_loop": 2,
-                                                              "margins": 1, "margin_leg": 3, "graph": 1,
+                                                              "margins": 1, "margin_leg": 3, "graph": 2,
                                                               "charts": 1, "timetable": 1}
 
     # bundles carry their build time (issue 21): the killed runs and the reference share one

@@ -188,6 +188,8 @@ def test_an_edit_in_one_section_recomputes_that_section_and_publishes_what_a_col
     edit = run_job(_job(tmp_path, folder, tmp_path / "out"), show_progress=False)
     assert (edit.computed["conflicts"], edit.reused["conflicts"]) == (1, 1)
     assert (edit.computed["timetable"], edit.reused["timetable"]) == (1, 1)  # the tables of the edited section
+    # the train graph: the edited section's trajectories and share of the page (2), the other's reused (2)
+    assert (edit.computed["graph"], edit.reused["graph"]) == (2, 2)
     cold = run_job(_job(tmp_path, folder, tmp_path / "cold"), show_progress=False, use_cache=False)
     for name in ("conflicts", "headways", "occupation", "delay_events", "robustness_trains", "robustness_stations",
                  "train_timetable"):
@@ -197,14 +199,51 @@ def test_an_edit_in_one_section_recomputes_that_section_and_publishes_what_a_col
             == (cold.run_dir / page).read_text().replace(cold.run_dir.name, "RUN"))
     assert edit.robustness == cold.robustness
     assert len(_rows(cold.run_dir, "conflicts"))  # the check is not empty
+    graph = f"graph/{line.line_id}_graph.html"
+    assert ((edit.run_dir / graph).read_text().replace(edit.run_dir.name, "RUN")
+            == (cold.run_dir / graph).read_text().replace(cold.run_dir.name, "RUN"))
+    # the page put together from the sections' shares is the page of the whole line's graph data at once
+    _same_graph_page_as_the_whole_lines(load_line(folder), cold.run_dir)  # the edited line
+
+
+def _same_graph_page_as_the_whole_lines(line, run: Path) -> None:
+    import html
+    import json
+
+    from planner.job.views import _graph_unit, graph_links
+    from planner.pages.train_graph import render_page
+    from planner.report.graph_predicted import PREDICTED_COLUMNS
+    from planner.report.published_run import read_line_dataset
+    from planner.report.train_graph import WINDOW_COLUMNS, graph_data
+
+    lid = line.line_id
+    got = (run / "graph" / f"{lid}_graph.html").read_text()
+    data = graph_data(line, paths=_graph_unit(line, True), check=False,
+                      windows=read_line_dataset(run, "occupation", lid, columns=WINDOW_COLUMNS),
+                      conflicts=read_line_dataset(run, "conflicts", lid),
+                      margin_totals=read_line_dataset(run, "margin_totals", lid),
+                      delay_events=read_line_dataset(run, "delay_events", lid, columns=PREDICTED_COLUMNS))
+    payload = json.loads(got.split("id='graph-data'>")[1].split("</script>")[0])
+    # both sections' trains are drawn with windows, conflicts and a predicted day: the merge has work to do
+    assert {t["id"][-4:] for t in payload["trains"]} == {"-k00", "-k01"}
+    assert {t[-4:] for t in payload["windows"]} == {"-k00", "-k01"} and payload["conflicts"]
+    assert {t["id"][-4:] for t in payload["predicted"]["trains"]} == {"-k00", "-k01"}
+    # the links to the legs' charts and the run's words are what the job gave the page (not made by the merge)
+    legs = payload["charts"]["legs"]
+    charts = {t: [tuple(legs[i]) for i in v] for t, v in payload["charts"]["by_train"].items()}
+    label = html.unescape(got.split("<span id='run'>")[1].split("</span>")[0])
+    expect = render_page(data, run_label=label, timetable_href=f"../timetable/{lid}_timetable.html", charts=charts,
+                         links=graph_links(lid))
+    assert got == expect
 
 
 def test_each_section_draws_the_train_graph_as_the_whole_line(joined):
-    from planner.job.views import _graph_unit, line_paths
+    from planner.job.views import _graph_unit
 
     whole = _graph_unit(joined, True)
     parts = [_graph_unit(section_line(joined, s), True) for s in _sections(joined)]
-    merged = line_paths(joined, parts)
+    order = {t.train_id: i for i, t in enumerate(joined.trains)}
+    merged = sorted((p for part in parts for p in part), key=lambda p: order[p.train_id])
     assert [p.train_id for p in merged] == [p.train_id for p in whole]
     assert any(p.loop_stations for p in whole)  # a train stands in a loop: the routes are part of the answer
     for a, b in zip(merged, whole):

@@ -137,18 +137,29 @@ def test_without_a_predicted_day_the_page_is_as_it_was(tiny, paths):
 
 
 def test_the_runs_page_reads_delay_events(tiny, paths, tmp_path):
-    """graph_page reads the run's delay_events (as the line's conflicts step writes them) and draws the late
-    train; a run without the dataset gives the page without a predicted day."""
+    """The job's page reads the run's delay_events (as the line's conflicts step writes them, a part per section)
+    and draws the late train; a run without the dataset gives the page without a predicted day."""
     from planner.datasets.delays import DELAY_EVENTS_SCHEMA, _write
-    from planner.job.views import graph_page
+    from planner.job.cache import Cache
+    from planner.job.units import Stored
+    from planner.job.views import _page_unit, graph_head, graph_written
 
-    graph_page(tiny, tmp_path / "none", paths, {}, "", False)
-    plain = (tmp_path / "none" / "graph" / "tiny_graph.html").read_text()
-    assert "predicted" not in _payload(plain)
+    cache = Cache(tmp_path / "cache")
+    cache.put("graph", "ab" * 32, paths)  # the section's trajectories, as its graph unit stores them
+
+    def page(stage):
+        share = _page_unit(tiny, Stored(str(cache.root), "graph", "ab" * 32), str(stage), "0", True)
+        cache.put("graph", "cd" * 32, share)
+        graph_written(str(cache.root), ["cd" * 32], stage, graph_head(tiny), {}, "", False)
+        return (stage / "graph" / "tiny_graph.html").read_text()
+
+    assert "predicted" not in _payload(page(tmp_path / "none"))
     _write(delay_events(tiny), DELAY_EVENTS_SCHEMA, tmp_path / "run", "delay_events", "tiny")
-    graph_page(tiny, tmp_path / "run", paths, {}, "", False)
-    page = (tmp_path / "run" / "graph" / "tiny_graph.html").read_text()
-    assert [t["id"] for t in _payload(page)["predicted"]["trains"]] == ["101"] and "id='show-predicted'" in page
+    got = page(tmp_path / "run")
+    assert [t["id"] for t in _payload(got)["predicted"]["trains"]] == ["101"] and "id='show-predicted'" in got
+    # the same page as the whole line's graph data gives (one section here)
+    data = graph_data(tiny, paths=paths, check=False, delay_events=delay_events(tiny))
+    assert _payload(got)["predicted"] == page_payload(data)["predicted"]
 
 
 def test_the_page_in_a_browser_draws_the_late_trains_dashed(tiny, paths, tmp_path):

@@ -405,6 +405,18 @@ def write_occupation(occ, out_dir, part: str = "0") -> list:
                              schema=OCCUPATION_SCHEMA, sort_by=("train_id", "seq"), part=part)
 
 
+def read_occupation_part(out, line_id: str, part: str, columns: list[str]) -> pd.DataFrame | None:
+    """A line's part ``part`` of the ``occupation`` dataset (a section's windows, :func:`write_occupation`),
+    ``columns`` only, its partitions' files in their folders' order; None when the part has no windows."""
+    import pyarrow.parquet as pq
+
+    folder = Path(out) / "occupation" / f"line={check_path_id(line_id, 'line id ')}"
+    files = sorted(folder.glob(f"*/*/part-{check_path_id(part, 'part ')}.parquet"))
+    if not files:
+        return None
+    return pa.concat_tables([pq.read_table(f, columns=columns) for f in files]).to_pandas()
+
+
 def renumbered(parts) -> pd.DataFrame:
     """The conflicts tables of a line's sections as one, numbered from 1 in time order across them, as the whole
     line's check numbers them: by each conflict's earliest window opening of the two trains, then the pair, then

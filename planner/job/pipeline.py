@@ -142,7 +142,7 @@ class RunSummary:
     robustness: dict = field(default_factory=dict, repr=False, compare=False)
     """Each line's summary of the day as it runs (:func:`planner.job.robustness.day_as_it_runs`), for its page."""
     graph_pages: list = field(default_factory=list, repr=False, compare=False)
-    """Each line's train graph page, being written on a worker (:func:`planner.job.views.graph_page`; taken by
+    """Each line's train graph page, being written on a worker (:func:`planner.job.views.graph_written`; taken by
     :func:`planner.job.views.run_views`)."""
     bundles_verified: Any = field(default=None, repr=False, compare=False)
     """The overview's rows of the run's bundles, being verified on a worker once the last line's bundles are
@@ -460,13 +460,15 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # the train graph's trajectories (stored for the page's worker) start next; the bundles need the tables and
     # stops datasets only: built from when they are written, beside the margins (the worker loads the key from
     # its file; both datasets are counted, so written, before)
-    from planner.job.views import graph_units
+    from planner.job.views import graph_units, page_units
 
     g_units = graph_units(job, sections)
     graph = runner.start("graph", g_units)
     from planner.job.train_views import timetable_parts
 
     tt_parts = timetable_parts(sections, dict(side).get("conflicts"))  # the tables' units, a section each
+    # the train graph page's shares, a section each, started once the trajectories they draw are stored
+    p_units = page_units(stage, root, sections, g_units, dict(side).get("conflicts"))
     del sections
     summary.pending.append(graph)
     count_rows(summary, tables_files)
@@ -508,11 +510,12 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.job.views import line_views  # inputs copy, train graph page
 
     count_rows(summary, margins_written.result())  # the train graph page reads the margin totals
-    graph.results()  # every section's trajectories stored: the page's worker reads them (graph_page)
-    trajectories = [Stored(root, "graph", u.key) for u in g_units]
+    graph.results()  # every section's trajectories stored: the page's units read them (views.page_units)
     summary.pending.remove(graph)
-    del graph
-    line_views(job, line, stage, runner, summary, trajectories, charts, bday, tt_parts)
+    del graph, g_units
+    shares = runner.start("graph", p_units)  # made while the tables are, then put together (views.graph_written)
+    summary.pending.append(shares)
+    line_views(job, line, stage, runner, summary, (shares, [u.key for u in p_units]), charts, bday, tt_parts)
 
 
 def conflicts_status(job: Job, line: Line) -> str:

@@ -4,16 +4,18 @@ Two hooks called by :mod:`planner.job.pipeline`:
 
 * :func:`line_views`, after a line's bundles: keep a copy of the line's tables
   in the run (``inputs/<line_id>/``, so a later run can name the rows that
-  changed), and write its interactive train graph
-  (``graph/<line_id>_graph.html``, on a worker: :func:`graph_page`, taken by
-  :func:`run_views` before the manifest). The trajectories are a cached unit keyed by
-  the line database, the code and the run-curve step (:func:`graph_unit`, run
-  on a worker beside the bundles), so an unchanged line reuses them; windows,
-  conflicts and margins come from the run's own
-  ``occupation``, ``conflicts`` and ``margin_totals`` datasets; before it, the running-time tables per
-  train and the speed–distance charts (:func:`planner.job.train_views.train_views`), which a selected
-  train in the graph links to; the charts are drawn on the workers while the rest is written, and
-  their pages are written by :func:`run_views` once the other pages are.
+  changed), and write its interactive train graph (``graph/<line_id>_graph.html``). The graph is made per
+  section of the line, as cached units: each section's trajectories (:func:`graph_units`, keyed by what the
+  section sees, the code and the run-curve step; run on a worker beside the bundles), then its trains' share of
+  the page (:func:`page_units`: their JSON, their windows from the section's part of the ``occupation`` dataset,
+  their predicted day from its part of ``delay_events``; keyed by the trajectories' and the section's conflicts
+  unit's keys), so an edit remakes the sections it reaches. A worker puts the shares together in the line's
+  order (:func:`graph_written`, taken by :func:`run_views` before the manifest), numbering the blocking resources
+  and the predicted day's causes across the line and adding the run's conflicts and margin totals. Before it,
+  the running-time tables per train and the speed–distance charts
+  (:func:`planner.job.train_views.train_views`), which a selected train in the graph links to; the charts are
+  drawn on the workers while the rest is written, and their pages are written by :func:`run_views` once the
+  other pages are.
 * :func:`run_views`, after the manifest: compare the run with the previous
   published one (:func:`planner.report.changes.compare_runs`), write the ``changes``
   dataset and put the section at the top of each margin report, add the
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 
 from planner.errors import JobError, PlannerError
@@ -79,29 +82,19 @@ def graph_units(job, sections) -> list:
     from planner.job.units import Unit, nothing_kept
 
     check = bool(job.conflicts.enabled)
-    # the trajectories stay in the cache: the train graph page's worker reads them (graph_page), not the job
+    # the trajectories stay in the cache: the train graph page's units read them (page_units), not the job
     return [Unit("graph", digest(["graph", code_digest(), s.seen, lifted_key(s.lifted), check, TOL_T_S, TOL_X_M]),
                  "graph", _graph_unit, (s.line, check, s.lifted), after=nothing_kept) for s in sections]
 
 
-def line_paths(line, results: list) -> list:
-    """The trajectories of a line's sections (:func:`graph_units`' results, or their stored entries:
-    :class:`planner.job.units.Stored`, read here) as one list, in the line's timetable order (as one unit of the
-    whole line gives them)."""
-    results = [r.load() if hasattr(r, "load") else r for r in results]
-    order = {t.train_id: i for i, t in enumerate(line.trains)}
-    if len(results) == 1:
-        return results[0]
-    return sorted((p for r in results for p in r), key=lambda p: order[p.train_id])
-
-
-def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday=None, parts=None) -> None:
-    """Inputs copy, running-time tables and train graph page of one line (module doc); ``paths``: the trajectories,
-    or the stored results of :func:`graph_units` (:func:`line_paths`, on the page's worker); ``bday``: its operating
-    day (:func:`planner.job.day.bundle_day`, None without a daily feed); ``charts``: the line's speed–distance
-    charts if started already (:func:`planner.job.train_views.start_charts`); ``parts``: its sections as the
-    tables' units see them (:func:`planner.job.train_views.timetable_parts`). The train graph page is written on a
-    worker (:func:`graph_page`, in ``summary.graph_pages``) while this process writes the run's other pages."""
+def line_views(job, line, stage: Path, runner, summary, shares, charts=None, bday=None, parts=None) -> None:
+    """Inputs copy, running-time tables and train graph page of one line (module doc); ``shares``: the train
+    graph page's units, started (:meth:`planner.job.units.Runner.start` of :func:`page_units`), and their keys;
+    ``bday``: its operating day (:func:`planner.job.day.bundle_day`, None without a daily feed); ``charts``: the
+    line's speed–distance charts if started already (:func:`planner.job.train_views.start_charts`); ``parts``: its
+    sections as the tables' units see them (:func:`planner.job.train_views.timetable_parts`). The train graph page
+    is put together on a worker (:func:`graph_written`, in ``summary.graph_pages``) while this process writes the
+    run's other pages."""
     from planner.io.parallel import background
     from planner.job.train_views import train_views
 
@@ -111,12 +104,17 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday
 
     label = _run_label(job, summary)
     blocks = restriction_blocks(line, bday)  # the day's restrictions, drawn on the train graph
+    head = graph_head(line)
+    started, keys = shares
 
     def start_page(legs: dict) -> None:
         """The train graph page starts on a worker as soon as the legs' chart links are known (with the tables'
-        dataset and page, written on a worker): on a large line it is the run's last long unit."""
+        dataset and page, written on a worker) and its shares are made: on a large line it is the run's last long
+        unit."""
+        started.results()  # every section's share stored (made while the tables were)
+        summary.pending.remove(started)
         with runner.progress.step("graph"):  # the page's own time is counted where run_views takes it
-            page = background(graph_page, (line, stage, paths, legs, label, check, blocks),
+            page = background(graph_written, (str(runner.cache.root), keys, stage, head, legs, label, check, blocks),
                               name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
         summary.pending.append(page)
         summary.graph_pages.append(page)
@@ -129,34 +127,92 @@ def line_views(job, line, stage: Path, runner, summary, paths, charts=None, bday
     give_back()  # the pages of the legs' runs (planner.io.memory)
 
 
-def graph_page(line, stage: Path, paths, legs: dict, label: str, check: bool, blocks=()) -> None:
-    """Write ``graph/<line>_graph.html``: the line's train graph from its trajectories (``paths``) and the run's
-    occupation, conflicts, margin totals and delay events datasets (the late trains' predicted runs; ``paths``:
-    the trajectories, or the graph units' stored results, :func:`line_paths`), each train linked to its legs'
-    charts (``legs``, from :func:`planner.job.train_views.train_views`) and the day's restrictions as
-    time–location blocks (``blocks``, :func:`planner.job.day.restriction_blocks`). Module level: the nightly job
-    runs it on a worker."""
-    from planner.job.train_views import timetable_href
-    from planner.pages.train_graph import write_page
-    from planner.report.published_run import path_id, read_line_dataset
-    from planner.report.graph_predicted import PREDICTED_COLUMNS
-    from planner.report.train_graph import WINDOW_COLUMNS, graph_data
+def page_units(stage: Path, root: str, sections, g_units: list, conflict_units=None) -> list:
+    """The units of a line's train graph page, one per section (``sections``, with their trajectories' units
+    ``g_units``, :func:`graph_units`, and their conflicts units ``conflict_units``; None: the run checks no
+    conflicts): each makes its trains' share of the page (:func:`_page_unit`), keyed by its trajectories' key
+    and its conflicts unit's (its occupation windows and predicted day), so an edit remakes the sections it
+    reaches. The page is put together from them on a worker (:func:`graph_written`)."""
+    from planner.job.publish import digest
+    from planner.job.units import Stored, Unit, code_digest, nothing_kept
 
-    occ = read_line_dataset(stage, "occupation", line.line_id, columns=WINDOW_COLUMNS)
-    con = read_line_dataset(stage, "conflicts", line.line_id)
-    mt = read_line_dataset(stage, "margin_totals", line.line_id)
-    # the predicted day, written by the line's conflicts step before this page (None without it: not drawn)
-    ev = read_line_dataset(stage, "delay_events", line.line_id, columns=PREDICTED_COLUMNS)
-    paths = line_paths(line, paths) if paths and hasattr(paths[0], "load") else paths
-    data = graph_data(line, paths=paths, windows=occ, conflicts=con, margin_totals=mt, check=False, delay_events=ev)
-    data.restrictions = list(blocks)
-    if check and line.network is not None and (occ is None or con is None):
-        data.notes.append("the run has no occupation/conflicts datasets for this line")
-    write_page(data, stage / "graph" / f"{path_id(line.line_id)}_graph.html", run_label=label,
-               timetable_href="../" + timetable_href(line.line_id),
-               charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()},
-               links=graph_links(line.line_id))
-    del data, occ, con, ev
+    keys = [u.key for u in conflict_units] if conflict_units else [None] * len(sections)
+    return [Unit("graph", digest(["graph page", code_digest(), g.key, k]), f"graph page {s.part}", _page_unit,
+                 (s.line, Stored(root, "graph", g.key), str(stage), s.part, k is not None), after=nothing_kept)
+            for s, g, k in zip(sections, g_units, keys)]
+
+
+def _page_unit(line, trajectories, stage: str, part: str, checked: bool):
+    """Worker: a section's share of the train graph page (:func:`planner.pages.train_graph.trains_part`): its
+    trains' trajectories (``trajectories``: the stored result of its :func:`graph_units` unit), and with
+    ``checked`` its part of the run's occupation windows and predicted day (``delay_events``)."""
+    from planner.datasets.conflicts import read_occupation_part
+    from planner.datasets.delays import read_part
+    from planner.pages.train_graph import trains_part
+    from planner.report.graph_predicted import PREDICTED_COLUMNS, predicted_paths
+    from planner.report.train_graph import WINDOW_COLUMNS, GraphData
+
+    paths = trajectories.load()
+    occ = ev = None
+    if checked:
+        occ = read_occupation_part(Path(stage), line.line_id, part, list(WINDOW_COLUMNS))
+        ev = read_part(Path(stage), "delay_events", line.line_id, part, list(PREDICTED_COLUMNS))
+    predicted = None if ev is None else predicted_paths(line, ev, paths)
+    try:
+        return trains_part(GraphData(line.line_id, line.name, float(line.start_m), float(line.end_m), [], paths,
+                                     occ, predicted=predicted))
+    finally:
+        give_back()
+
+
+@dataclass(frozen=True)
+class GraphHead:
+    """What the train graph page's worker needs of the line (:func:`graph_written`): not the line itself, which on
+    a network is large."""
+
+    line_id: str
+    name: str
+    start_m: float
+    end_m: float
+    stations: list
+    network: bool
+    order: list
+
+
+def graph_head(line) -> GraphHead:
+    from planner.report.train_graph import line_stations
+
+    return GraphHead(line.line_id, line.name, float(line.start_m), float(line.end_m), line_stations(line),
+                     line.network is not None, [t.train_id for t in line.trains])
+
+
+def graph_written(root: str, keys: list, stage: Path, head: GraphHead, legs: dict, label: str, check: bool,
+                  blocks=()) -> None:
+    """Worker: write ``graph/<line>_graph.html``, the line's train graph put together from its sections' shares
+    (``keys``: :func:`page_units`' stored results) in the line's timetable order, with the run's conflicts and
+    margin totals, each train linked to its legs' charts (``legs``, from
+    :func:`planner.job.train_views.train_views`) and the day's restrictions as time–location blocks (``blocks``,
+    :func:`planner.job.day.restriction_blocks`)."""
+    from planner.job.train_views import timetable_href
+    from planner.job.units import Stored
+    from planner.pages.train_graph import GraphFrame, write_parts_page
+    from planner.report.published_run import path_id, read_line_dataset
+    from planner.report.train_graph import graph_notes, margins_by_train
+
+    parts = [Stored(root, "graph", k).load() for k in keys]
+    con = read_line_dataset(stage, "conflicts", head.line_id)
+    drawn = head.network and (stage / "occupation").is_dir() and con is not None  # windows and conflicts given
+    margins = margins_by_train(read_line_dataset(stage, "margin_totals", head.line_id))
+    notes = graph_notes(head.network, drawn, margins)
+    if check and head.network and not drawn:
+        notes.append("the run has no occupation/conflicts datasets for this line")
+    frame = GraphFrame(head.line_id, head.name, head.start_m, head.end_m, head.stations,
+                       con if drawn else None, margins, notes, list(blocks))
+    write_parts_page(frame, parts, stage / "graph" / f"{path_id(head.line_id)}_graph.html", order=head.order,
+                     run_label=label, timetable_href="../" + timetable_href(head.line_id),
+                     charts={t: [(lbl, "../" + h) for lbl, h in v] for t, v in legs.items()},
+                     links=graph_links(head.line_id))
+    del parts, frame
     give_back()  # the pages of the graph's data, for the work after it on this worker
 
 
@@ -394,4 +450,4 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
         write_overview(stage, manifest, notes=notes, bundles=brows)
 
 
-__all__ = ["copy_inputs", "graph_links", "graph_page", "line_views", "run_views"]
+__all__ = ["copy_inputs", "graph_links", "graph_written", "line_views", "page_units", "run_views"]

@@ -58,7 +58,8 @@ from planner.line.model import Line, Train, sign
 
 __all__ = [
     "TOL_T_S", "TOL_X_M", "WINDOW_COLUMNS", "TrainPath", "GraphData", "service_of", "simplify", "train_paths",
-    "graph_data", "parse_hhmm", "hhmm", "time_window", "start_window", "match_train", "clip_path", "train_graph_chart",
+    "graph_data", "graph_notes", "line_stations", "parse_hhmm", "hhmm", "time_window", "day_window", "start_window",
+    "peak_window", "match_train", "clip_path", "train_graph_chart",
 ]
 
 TOL_T_S = 1.0
@@ -296,6 +297,24 @@ def margins_by_train(margin_totals) -> dict[str, dict[str, float]]:
     return out
 
 
+def line_stations(line: Line) -> list[tuple[str, str, float]]:
+    """The stations as a graph lists them: ``(station_id, name, position_m)`` along the line."""
+    return [(s.station_id, s.name, float(s.position_m)) for s in sorted(line.stations, key=lambda s: s.position_m)]
+
+
+def graph_notes(network: bool, drawn: bool, margins: Mapping) -> list[str]:
+    """What a graph says it lacks: the blocking windows and conflicts, when the line has no track network or they
+    are not ``drawn`` (not checked), and the per-train margins when there are none."""
+    notes = []
+    if not network:
+        notes.append("the line database has no track network: no blocking windows or conflicts to draw")
+    elif not drawn:
+        notes.append("route conflicts not checked ([conflicts] enabled = false): no blocking windows or conflicts")
+    if not margins:
+        notes.append("per-train margins not given (they come from a run's margin_totals dataset)")
+    return notes
+
+
 def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=None, conflicts=None,
                margin_totals=None, params=None, curves=None, check: bool = True, delay_events=None) -> GraphData:
     """Collect the graph of a line: trajectories, and (with a track network) windows and conflicts.
@@ -324,10 +343,10 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
     from planner.network.arrivals import SimulatorCurves
     from planner.network.routes import plan_routes
 
-    notes: list[str] = []
     src = curves if curves is not None else SimulatorCurves(line)
     loops: dict[str, tuple[str, ...]] = {}
-    if line.network is not None and (check or (windows is not None and conflicts is not None)):
+    drawn = line.network is not None and (check or (windows is not None and conflicts is not None))
+    if drawn:
         if windows is None or conflicts is None:
             report = check_conflicts(line, params, curves=src)
             windows, conflicts = report.occupation, report.conflicts
@@ -335,28 +354,22 @@ def graph_data(line: Line, *, paths: Sequence[TrainPath] | None = None, windows=
         else:
             routes = plan_routes(line, unrouted={})  # a train the network cannot carry is drawn without a loop
         loops = loop_stations(line, routes)
-    elif line.network is None:
-        windows = conflicts = None  # not checked: the page says so, never "0 conflicts"
-        notes.append("the line database has no track network: no blocking windows or conflicts to draw")
     else:
-        windows = conflicts = None
-        notes.append("route conflicts not checked ([conflicts] enabled = false): no blocking windows or conflicts")
+        windows = conflicts = None  # not checked: the page says so, never "0 conflicts"
     if paths is None:
         paths = train_paths(line, src, loops=loops)
     elif loops:
         paths = [p if p.loop_stations or p.train_id not in loops
                  else TrainPath(p.train_id, p.train_type, p.direction, p.service, p.t_s, p.x_m, p.calls,
                                 loops[p.train_id]) for p in paths]
-    stations = [(s.station_id, s.name, float(s.position_m)) for s in sorted(line.stations, key=lambda s: s.position_m)]
     margins = margins_by_train(margin_totals)
-    if not margins:
-        notes.append("per-train margins not given (they come from a run's margin_totals dataset)")
+    notes = graph_notes(line.network is not None, drawn, margins)
     predicted = None
     if delay_events is not None:
         from planner.report.graph_predicted import predicted_paths
 
         predicted = predicted_paths(line, delay_events, paths)
-    return GraphData(line.line_id, line.name, float(line.start_m), float(line.end_m), stations, list(paths),
+    return GraphData(line.line_id, line.name, float(line.start_m), float(line.end_m), line_stations(line), list(paths),
                      windows, conflicts, margins, notes, predicted=predicted)
 
 
@@ -389,7 +402,13 @@ def hhmm(t: float, seconds: bool = False) -> str:
 
 
 def time_window(data: GraphData, t0: float | None, t1: float | None) -> tuple[float, float]:
-    a, b = data.day_s
+    """The window [s] from ``t0`` to ``t1``, each defaulting to the day's whole hour around it (:func:`day_window`)."""
+    return day_window(data.day_s, t0, t1)
+
+
+def day_window(day_s: tuple[float, float], t0: float | None, t1: float | None) -> tuple[float, float]:
+    """:func:`time_window` of a day from ``day_s[0]`` to ``day_s[1]``."""
+    a, b = day_s
     lo = math.floor(a / 3600) * 3600 if t0 is None else t0
     hi = math.ceil(b / 3600) * 3600 if t1 is None else t1
     if not hi > lo:
@@ -409,15 +428,21 @@ def start_window(data: GraphData, hours: float = START_HOURS) -> tuple[float, fl
     when the day starts after noon; the earliest on a tie). A day no longer than that is shown whole.
 
     A train counts in a window when its run overlaps it (it is drawn there)."""
-    lo, hi = time_window(data, None, None)
+    return peak_window(data.day_s, np.array([t.start_s for t in data.trains]),
+                       np.array([t.end_s for t in data.trains]), hours)
+
+
+def peak_window(day_s: tuple[float, float], start_s: np.ndarray, end_s: np.ndarray,
+                hours: float = START_HOURS) -> tuple[float, float]:
+    """:func:`start_window` of trains that run from ``start_s`` to ``end_s`` on a day ``day_s``."""
+    lo, hi = day_window(day_s, None, None)
     span = hours * 3600.0
-    if hi - lo <= span or not data.trains:
+    if hi - lo <= span or not len(start_s):
         return lo, hi
     starts = np.arange(lo, hi - span + 1.0, 3600.0)
     if (starts < 12 * 3600.0).any():
         starts = starts[starts < 12 * 3600.0]
-    a = np.array([t.start_s for t in data.trains])
-    b = np.array([t.end_s for t in data.trains])
+    a, b = np.asarray(start_s, float), np.asarray(end_s, float)
     n = [int(np.count_nonzero((a < s + span) & (b > s))) for s in starts]
     best = float(starts[int(np.argmax(n))])
     return best, best + span
