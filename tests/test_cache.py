@@ -354,3 +354,40 @@ def test_forged_payloads_that_do_not_decode_are_misses(tmp_path):
         p.write_bytes(_forge("tables", KEY, payload))
         assert c.get("tables", KEY) is None
     assert c.rejected == len(payloads)
+
+
+def test_a_read_back_checks_every_entry_and_decodes_only_what_the_job_keeps(tmp_path):
+    """planner.job.units._read_kept: an entry is always checked by its digest; a unit whose result the job keeps
+    nothing of is not decoded (a forged payload with a good digest passes the check and fails get), and what the
+    job keeps is read from beside the result when stored there, made again from the result when that is missing."""
+    from planner.job.units import _read_kept, _stored, kept_beside, nothing_kept
+
+    c = Cache(tmp_path)
+    p = c.path("charts", KEY)
+    p.parent.mkdir(parents=True)
+    p.write_bytes(_forge("charts", KEY, b"PK\x03\x04 not a payload"))  # its digest is right
+    assert _read_kept(c, "charts", KEY, nothing_kept) == (None, None)  # checked, not decoded
+    assert c.get("charts", KEY) is None and c.rejected == 1  # a get would refuse it
+    data = bytearray(p.read_bytes())
+    data[-1] ^= 1
+    p.write_bytes(bytes(data))
+    kept, why = _read_kept(c, "charts", KEY, nothing_kept)
+    assert kept is None and "digest" in why
+
+    @kept_beside
+    def first(r):
+        return r[0]
+
+    assert _stored(c, "stops", KEY, first, [7, 8, 9]) == 7
+    assert c.get("stops_kept", KEY) == 7  # stored beside the result
+    c.put("stops_kept", KEY, 70)  # read from beside: the result is not decoded
+    assert _read_kept(c, "stops", KEY, first) == (70, None)
+    c.path("stops_kept", KEY).write_bytes(b"damaged")  # not trusted: made again from the result, and stored
+    assert _read_kept(c, "stops", KEY, first) == (7, None) and c.get("stops_kept", KEY) == 7
+    c.path("stops_kept", KEY).unlink()
+    assert _read_kept(c, "stops", KEY, first) == (7, None) and c.get("stops_kept", KEY) == 7
+    c.put("stops", KEY, [1, 2])  # a result not trusted is not vouched for by what is beside it
+    c.path("stops", KEY).write_bytes(c.path("stops", KEY).read_bytes()[:-3])
+    kept, why = _read_kept(c, "stops", KEY, first)
+    assert kept is None and "bytes" in why
+    assert _read_kept(c, "stops", OTHER, first) == (None, "missing")

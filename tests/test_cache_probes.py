@@ -35,6 +35,7 @@ VOLATILE = ("run_id", "timings_s", "units_computed", "units_reused", "changes") 
 KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1, "margin_leg": 4, "graph": 2,
          "charts": 2, "timetable": 1}  # speed-distance charts: the EMU10 train 101's legs A-B and B-C; margin legs:
 # one per group; the running-time tables: one unit, the line is one section
+BESIDE = {"tables_kept": 4, "stops_kept": 4, "closed_loop_kept": 4}  # what the job keeps, beside the result
 
 
 def _job(project: Path, output_root: str) -> Path:
@@ -218,9 +219,29 @@ def test_a_damaged_cache_never_reaches_a_published_file(clean, capsys, probe, tm
     assert len(warnings) == 1 and warnings[0].startswith(f"warning: {n_bad} cache entr"), err
     assert not marker.exists()
     rep = Cache(root / ".cache").verify()  # the rejected entries were replaced by good ones
-    assert rep.good == sum(KINDS.values()) and not rep.bad
+    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) and not rep.bad
     manifest = json.loads((root / "latest" / "manifest.json").read_text())
     assert sum(manifest["units_computed"].values()) == n_bad
+
+
+def test_what_is_kept_beside_a_result_is_made_again_from_it_when_damaged(clean, capsys):
+    """An entry beside a result (what the job keeps of it) that is damaged or missing is made again from the result,
+    which is checked and decoded; no unit is computed again, the published files are the clean run's."""
+    root, job = _fresh_root(clean, "beside")
+    beside = {k: sorted((root / ".cache" / k).rglob(f"*{SUFFIX}")) for k in BESIDE}
+    assert {k: len(v) for k, v in beside.items()} == BESIDE
+    rnd = random.Random(5)
+    for p in beside["tables_kept"] + beside["stops_kept"]:
+        _flip_bits(p, rnd)
+    for p in beside["closed_loop_kept"]:
+        p.unlink()
+    code, err = _cli(capsys, "run", job, "--no-progress")
+    assert code == 0, err
+    assert _published(root) == clean[2]
+    manifest = json.loads((root / "latest" / "manifest.json").read_text())
+    assert sum(manifest["units_computed"].values()) == 0
+    rep = Cache(root / ".cache").verify()
+    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) and not rep.bad
 
 
 # --- the output root fails ---------------------------------------------------------------------

@@ -24,6 +24,10 @@ it must decode. Anything else is a *rejected* entry: treated as a miss (the
 caller recomputes and :meth:`Cache.put` replaces it) and counted in
 :attr:`Cache.rejected`, which the nightly job reports once per run.
 
+What the nightly job keeps of a unit's result, when that is small, is an entry of its own beside the
+result's (kind ``<kind>_kept``, the same key: :func:`planner.job.units.kept_beside`), checked the same way;
+one that is missing or rejected is made again from the result, which is checked and decoded then.
+
 The digest guards against damage, not against someone who can write the
 output root: such a person could also write the published runs. Protect the
 output root like the signing key's folder.
@@ -169,6 +173,30 @@ class Cache:
             return self._reject(kind, key, str(e))
         self.hits += 1
         return obj
+
+    def check(self, kind: str, key: str) -> bool:
+        """Whether the entry is there and trusted as :meth:`get` trusts it (kind, key, length, digest) without
+        decoding it: for a reader that needs to know the result is there for whoever reads it next. A missing or
+        rejected entry counts as :meth:`get` counts it."""
+        p = self.path(kind, key)
+        if not self.enabled:
+            self.misses += 1
+            return False
+        try:
+            data = p.read_bytes()
+        except FileNotFoundError:
+            self.misses += 1
+            return False
+        except OSError as e:
+            self._reject(kind, key, f"unreadable ({e.strerror or type(e).__name__})")
+            return False
+        try:
+            unpack(data, kind, key)
+        except CacheEntryError as e:
+            self._reject(kind, key, str(e))
+            return False
+        self.hits += 1
+        return True
 
     def present(self, kind: str, key: str) -> bool:
         """Whether an entry is stored under the key (its name only: :meth:`get` reads and checks it); False when

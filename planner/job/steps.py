@@ -18,7 +18,7 @@ from planner.io.memory import give_back, then_give_back
 from planner.job.config import Job
 from planner.job.day import lifted_key, line_digest
 from planner.job.publish import digest
-from planner.job.units import Runner, Unit, code_digest
+from planner.job.units import Runner, Unit, code_digest, kept_beside
 from planner.line.model import Line
 
 if TYPE_CHECKING:
@@ -119,6 +119,7 @@ def write_stamped(stamp: tuple | None, fn, *args):
         return then_give_back(fn, *args)
 
 
+@kept_beside
 def tables_seen(r):
     """What the job keeps of an interstation's tables (made where the result is): the leg and its flags
     (:class:`~planner.tables.flags.FlaggedLeg`). The tables stay in the cache, from where a worker writes their
@@ -142,6 +143,7 @@ class StopsSeen:
     """What the sweep says where every level stops (an approach moved back from a TASC beacon); else none."""
 
 
+@kept_beside
 def stops_seen(r) -> StopsSeen:
     """:class:`StopsSeen` of an :class:`~planner.stopping.sweep.ApproachResult`."""
     from planner.stopping.sweep import no_stop_leg
@@ -175,6 +177,7 @@ def write_stored(writer: Callable, root: str, step: str, groups: list[list[str]]
     return written
 
 
+@kept_beside
 def loops_seen(batch):
     """What the job keeps of an interstation's closed loop (every scenario and mode, made where the results are): its
     flagged runs' legs and flags (:class:`~planner.tables.flags.FlaggedLeg`). The runs stay in the cache, from where a

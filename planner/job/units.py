@@ -188,15 +188,32 @@ def nothing_kept(_result) -> None:
     return None
 
 
+def kept_beside(fn: Callable) -> Callable:
+    """Mark a module-level :attr:`Unit.after` whose result is small beside the unit's: what it keeps is stored
+    too, as its own entry beside the result's (kind ``<step>_kept``, the same key), so that a read of the stored
+    unit (:func:`_read_kept`) checks the result's digest and decodes only that. For a function of the result
+    alone (the code is in every key)."""
+    fn.kept_beside = True
+    return fn
+
+
+def _beside(after: Callable | None) -> bool:
+    return getattr(after, "kept_beside", False) is True
+
+
 def _kept(after: Callable | None, res):
     """What the job keeps of a unit's result (:attr:`Unit.after`), wherever it is made."""
     return res if after is None else after(res)
 
 
 def _stored(cache: Cache, step: str, key: str, after: Callable | None, res):
-    """A unit's result stored in the cache (it survives a later failure), then what the job keeps of it."""
+    """A unit's result stored in the cache (it survives a later failure), then what the job keeps of it (stored
+    beside it too when :func:`kept_beside`: after the result, so that it never stands for a result not stored)."""
     cache.put(step, key, res)
-    return _kept(after, res)
+    kept = _kept(after, res)
+    if _beside(after):
+        cache.put(f"{step}_kept", key, kept)
+    return kept
 
 
 def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable | None):
@@ -205,18 +222,35 @@ def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable | No
     return _stored(cache, step, key, after, fn(*args))
 
 
-def _read_kept(cache: Cache, step: str, key: str, after: Callable):
+def _read_kept(cache: Cache, step: str, key: str, after: Callable, own: bool = True):
     """Worker: a stored unit with :attr:`Unit.after` read back here, where what the job keeps of it is made (the
     whole result never comes to the job process); ``(kept, None)``, or ``(None, why)`` when the entry was not
     trusted: the job then has it computed again (:meth:`Runner.recompute`). The unit's inputs are not sent for a
     read, only its key: on a night that changed little they are most of what would travel, for nothing. Its own
     :class:`Cache` on the same root, so that the job's counts the rejection once (:meth:`Cache.rejected_elsewhere`)
-    wherever this runs."""
-    mine = Cache(cache.root, enabled=cache.enabled)
+    wherever this runs (``own=False``: read in the job process, with its cache).
+
+    The entry is always checked (its name, kind, key and digest); it is decoded only when what the job keeps
+    needs it: not for :func:`nothing_kept` (whoever needs the result reads it by its key), nor when what is kept
+    is stored beside it (:func:`kept_beside`; an entry beside that is missing or not trusted is made again from
+    the decoded result, and the unit is not recomputed)."""
+    mine = Cache(cache.root, enabled=cache.enabled) if own else cache
+    if after is nothing_kept or _beside(after):
+        if not mine.check(step, key):
+            return None, mine.why_missed()
+        if after is nothing_kept:
+            return None, None
+        # beside it: a damaged one is made again below, not a rejected unit (the job's counts do not see it)
+        kept = Cache(cache.root, enabled=cache.enabled).get(f"{step}_kept", key)
+        if kept is not None:
+            return kept, None
     obj = mine.get(step, key)
-    if obj is not None:
-        return _kept(after, obj), None
-    return None, mine.why_missed()
+    if obj is None:
+        return None, mine.why_missed()
+    kept = _kept(after, obj)
+    if _beside(after):
+        mine.put(f"{step}_kept", key, kept)
+    return kept, None
 
 
 class Runner:
@@ -287,12 +321,17 @@ class Runner:
                     started.reads.add((g, i))
                     reads += 1
                     continue
-                obj = self.cache.get(step, u.key)
-                if obj is None:
+                if u.after is None:
+                    obj = self.cache.get(step, u.key)
+                    kept, found = obj, obj is not None
+                else:  # what the job keeps of it (Unit.after), here: it was made before
+                    kept, why = _read_kept(self.cache, step, u.key, u.after, own=False)
+                    found = why is None
+                if not found:
                     started.todo.append((g, i))
                     missing += 1
-                else:  # what the job keeps of it (Unit.after), here: it was made before
-                    started.out[g][i] = _kept(u.after, obj)
+                else:
+                    started.out[g][i] = kept
             self.reused[step] = self.reused.get(step, 0) + len(units) - missing
             self.computed[step] = self.computed.get(step, 0) + missing
             self.progress.start(step, len(units), done=len(units) - missing - reads)
