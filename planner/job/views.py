@@ -246,20 +246,32 @@ def _comparison_failed(base: str, e: BaseException, summary) -> str:
     return what
 
 
-def _compare_with(job, base: str | None, root: Path, stage: Path, lines, summary) -> tuple[dict, str]:
-    """Each line's changes against the previous published run, and the failure (empty when none).
+def _start_compare(job, base: str | None, root: Path, stage: Path, lines, summary):
+    """Start comparing each line with the previous published run on a worker (the two runs' margins, conflicts and
+    changed bundle tables are read there, not in the job process); None when there is no previous run. Taken by
+    :func:`_compared`."""
+    from planner.io.parallel import background
+
+    if base is None:
+        return None
+    b = background(compare_lines, (root / base, stage, [ln.line_id for ln in lines]),
+                   name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+    summary.pending.append(b)
+    return b
+
+
+def _compared(started, base: str | None, summary) -> tuple[dict, str]:
+    """Each line's changes against the previous published run (:func:`_start_compare`), and the failure (empty
+    when none).
 
     Whatever goes wrong in the comparison (a damaged old run, a bug in the comparison itself) is
     reported in one line and marks the comparison as failed: the run's own outputs are complete,
     so it still publishes (the changes step can never block a night).
     """
-    from planner.io.parallel import background
-
-    if base is None:
+    if started is None:
         return {}, ""
-    # on a worker: the two runs' margins, conflicts and changed bundle tables are read there, not in the job process
-    found, what = background(compare_lines, (root / base, stage, [ln.line_id for ln in lines]),
-                             name=job.parallel.backend, n_jobs=job.parallel.n_jobs).result()
+    found, what = started.result()
+    summary.pending.remove(started)
     if what:
         summary.warnings.append(f"changes: comparing with run {base} failed ({what}); "
                                 "this run is published without its list of changes")
@@ -273,7 +285,7 @@ def compare_lines(base_dir: Path, stage: Path, line_ids: list[str]) -> tuple[dic
 
     try:
         return {c.line_id: c for c in compare_runs(base_dir, stage, lines=line_ids)}, ""
-    except Exception as e:  # noqa: BLE001 - see _compare_with
+    except Exception as e:  # noqa: BLE001 - see _compared
         return {}, _failure_text(e)
 
 
@@ -384,7 +396,12 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     rows: dict[str, int] = {}
     counts: dict[str, dict[str, int]] = {}
     with prog.step("changes", len(lines)):
-        found, failure = _compare_with(job, base, root, stage, lines, summary)
+        comparing = _start_compare(job, base, root, stage, lines, summary)
+        # meanwhile the robustness pages start on the workers too, and this process writes the restrictions pages
+        # (their findings go into the manifest): neither needs the comparison
+        robustness = _robustness_pages(job, lines, stage, manifest, summary)
+        _restrictions_pages(job, lines, stage, manifest, summary)
+        found, failure = _compared(comparing, base, summary)
         for line in lines:
             ch = found.get(line.line_id)
             if ch is not None:
@@ -416,8 +433,6 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                 write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
-        _restrictions_pages(job, lines, stage, manifest, summary)  # its findings go into the manifest
-        robustness = _robustness_pages(job, lines, stage, manifest, summary)
     # the speed–distance charts, drawn while the pages above were written: their pages are written here while
     # a worker may still write a train graph page (the last long unit of a large line)
     for pages in summary.chart_pages:
