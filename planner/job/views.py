@@ -180,6 +180,7 @@ class GraphHead:
 
 
 def graph_head(line) -> GraphHead:
+    """The :class:`GraphHead` of ``line``."""
     from planner.report.train_graph import line_stations
 
     return GraphHead(line.line_id, line.name, float(line.start_m), float(line.end_m), line_stations(line),

@@ -27,7 +27,7 @@ import numpy as np
 
 from planner.errors import InputError
 from planner.line.model import line_title
-from planner.report.graph_predicted import LATE_S
+from planner.report.graph_predicted import LATE_S, first_largest
 from planner.report.train_graph import (COLOURS, CONFLICT_COLOUR, CONFLICT_MIN_PX, STAIR_B_COLOUR, STAIR_COLOUR, GraphData,
                                         hhmm, match_train, peak_window, day_window)
 
@@ -236,10 +236,7 @@ def _predicted_words(late: list | None) -> str:
         return ""
     if not late:
         return "no train late on the predicted day"
-    best = None  # the first of equals, in the graph's order
-    for r in late:
-        if best is None or r[9][0] > best[9][0] + 1e-9:
-            best = r
+    best = late[first_largest([r[9][0] for r in late])]  # the first of equals, in the graph's order
     d, sid, event, t = best[9]
     n = len(late)
     return (f"{n} train{'s' if n != 1 else ''} late on the predicted day, the largest {d:.0f} s "

@@ -17,7 +17,7 @@ import numpy as np
 
 from planner.delay.predicted import LATE_S  # a train is late when an event is more than this late: every page's
 
-__all__ = ["LATE_S", "PREDICTED_COLUMNS", "PredictedPath", "predicted_paths", "largest_delay"]
+__all__ = ["LATE_S", "PREDICTED_COLUMNS", "PredictedPath", "first_largest", "predicted_paths", "largest_delay"]
 
 PREDICTED_COLUMNS = ("train_id", "seq", "station_id", "event", "scheduled_s", "predicted_s", "delay_s", "cause")
 """What the graph reads of ``delay_events``."""
@@ -104,11 +104,17 @@ def predicted_paths(line, events, trains: Sequence) -> dict[str, PredictedPath]:
     return out
 
 
+def first_largest(values: Sequence[float]) -> int | None:
+    """The index of the largest of ``values``, the first of equals (within 1e-9); None when there are none."""
+    best = None
+    for k, v in enumerate(values):
+        if best is None or v > values[best] + 1e-9:
+            best = k
+    return best
+
+
 def largest_delay(predicted: dict[str, PredictedPath]) -> tuple[PredictedPath, int] | None:
     """The late train and event index of the day's largest delay (the first of equals, in the graph's order)."""
-    best = None
-    for p in predicted.values():
-        i = int(np.argmax(p.delay_s))
-        if best is None or p.delay_s[i] > best[0].delay_s[best[1]] + 1e-9:
-            best = (p, i)
-    return best
+    paths = list(predicted.values())
+    k = first_largest([float(p.delay_s[int(np.argmax(p.delay_s))]) for p in paths])
+    return None if k is None else (paths[k], int(np.argmax(paths[k].delay_s)))
