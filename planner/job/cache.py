@@ -155,6 +155,28 @@ class Cache:
 
     def get(self, kind: str, key: str) -> Any | None:
         """The stored result, or None: a missing, damaged, swapped or undecodable entry is a miss."""
+        payload = self._payload(kind, key)
+        if payload is None:
+            return None
+        try:
+            obj = decode(payload)
+        except CacheEntryError as e:
+            return self._reject(kind, key, str(e))
+        self.hits += 1
+        return obj
+
+    def check(self, kind: str, key: str) -> bool:
+        """Whether the entry is there and trusted as :meth:`get` trusts it (kind, key, length, digest) without
+        decoding it: for a reader that needs to know the result is there for whoever reads it next. A missing or
+        rejected entry counts as :meth:`get` counts it."""
+        if self._payload(kind, key) is None:
+            return False
+        self.hits += 1
+        return True
+
+    def _payload(self, kind: str, key: str) -> bytes | None:
+        """The entry's payload, checked (:func:`unpack`); None, counted as a miss (a rejection with its reason),
+        when it is missing or not trusted."""
         p = self.path(kind, key)
         if not self.enabled:
             self.misses += 1
@@ -167,36 +189,9 @@ class Cache:
         except OSError as e:  # a folder in its place, unreadable, ...: not trusted, recomputed
             return self._reject(kind, key, f"unreadable ({e.strerror or type(e).__name__})")
         try:
-            _, payload = unpack(data, kind, key)
-            obj = decode(payload)
+            return unpack(data, kind, key)[1]
         except CacheEntryError as e:
             return self._reject(kind, key, str(e))
-        self.hits += 1
-        return obj
-
-    def check(self, kind: str, key: str) -> bool:
-        """Whether the entry is there and trusted as :meth:`get` trusts it (kind, key, length, digest) without
-        decoding it: for a reader that needs to know the result is there for whoever reads it next. A missing or
-        rejected entry counts as :meth:`get` counts it."""
-        p = self.path(kind, key)
-        if not self.enabled:
-            self.misses += 1
-            return False
-        try:
-            data = p.read_bytes()
-        except FileNotFoundError:
-            self.misses += 1
-            return False
-        except OSError as e:
-            self._reject(kind, key, f"unreadable ({e.strerror or type(e).__name__})")
-            return False
-        try:
-            unpack(data, kind, key)
-        except CacheEntryError as e:
-            self._reject(kind, key, str(e))
-            return False
-        self.hits += 1
-        return True
 
     def present(self, kind: str, key: str) -> bool:
         """Whether an entry is stored under the key (its name only: :meth:`get` reads and checks it); False when
