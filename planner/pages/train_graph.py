@@ -179,6 +179,7 @@ class _Page:
         self.seq = seq
         self.win = sorted((t, j, i) for j, p in enumerate(self.parts) for i, t in enumerate(p.win_ids))
         self.ids = [self.parts[j].ids[i] for j, i in seq]
+        self.late = self._late()
 
     def column(self, name: str) -> np.ndarray:
         return np.array([getattr(self.parts[j], name)[i] for j, i in self.seq])
@@ -191,7 +192,7 @@ class _Page:
         return (min(float(p.start_s.min()) for p in self.parts if len(p.ids)),
                 max(float(p.end_s.max()) for p in self.parts if len(p.ids)))
 
-    def predicted(self) -> list | None:
+    def _late(self) -> list | None:
         """The late trains in page order (None: no predicted day)."""
         if all(p.predicted is None for p in self.parts):
             return None
@@ -246,7 +247,7 @@ def _predicted_words(late: list | None) -> str:
 def predicted_summary(data: GraphData) -> str:
     """The predicted day in words (plain text): how many trains are late, the largest delay and where; "" when
     the graph has no predicted day."""
-    return _predicted_words(_Page([trains_part(data)]).predicted())
+    return _predicted_words(_Page([trains_part(data)]).late)
 
 
 def _payload_texts(frame: GraphFrame, page: _Page) -> Iterator[tuple[str, str]]:
@@ -280,7 +281,7 @@ def _payload_texts(frame: GraphFrame, page: _Page) -> Iterator[tuple[str, str]]:
     yield "conflicts", _dumps(_conflicts(frame.conflicts))
     yield "restrictions", _dumps([[rid, _num(a, 0), _num(b, 0), _num(t0), _num(t1), lim, d]
                                   for rid, a, b, t0, t1, lim, d in frame.restrictions])
-    late = page.predicted()
+    late = page.late
     if late:  # only when a train is late: a page without a predicted day stays as it was
         yield "predicted", _dumps(_predicted(frame, late))
     yield "notes", _dumps(frame.notes)
@@ -390,7 +391,7 @@ def render_parts(frame: GraphFrame, parts: Sequence[TrainsPart], *, order: Seque
     keys = " ".join(f"<span><span class='key' style='border-color:{c}'></span>{e(d)} {e(s)} ({svc[(d, s)]})</span>"
                     for (d, s), c in COLOURS.items())
     notes = "".join(f"<li>{e(x)}</li>" for x in frame.notes)
-    late_trains = page.predicted()
+    late_trains = page.late
     late = bool(late_trains)
     pred = _predicted_words(late_trains)
     pred_html = f" · <b id='predicted-summary'>{e(pred)}</b>" if pred else ""
