@@ -283,10 +283,11 @@ def test_the_tables_page_and_dataset_put_together_from_sections_are_the_whole_li
     from planner.job.train_views import TimetablePart, timetable_units, timetable_written
     from planner.pages.timetable import render_page
     from planner.report.margins import compute_margins
-    from planner.report.train_timetable import leg_times, timetable_rows, write_timetable
+    from planner.report.train_timetable import leg_times, planned_legs, timetable_rows, write_timetable
 
     rows = compute_margins(joined, conflicts=False).rows
-    runs = {k: r for k, (r, _w) in leg_times(joined, rows).items()}
+    runs = leg_times(joined, rows)  # recorded here, at once; the sections' units record their own legs'
+    planned = planned_legs(joined, rows)
     types = sorted(set(rows["train_type"]))
     lid = joined.line_id
     page = dict(run_id="r0001-0123456789", day=None, run_date="2026-12-06")
@@ -299,10 +300,10 @@ def test_the_tables_page_and_dataset_put_together_from_sections_are_the_whole_li
     secs = _sections(joined)
     assert len(secs) == 2
     parts = [TimetablePart(section_line(joined, s), str(i), f"section {i}", None) for i, s in enumerate(secs)]
-    units = timetable_units(joined, runs, {k: f"chart {k}" for k in runs}, types, tmp_path / "run", parts)
+    units = timetable_units(joined, planned, {k: f"chart {k}" for k in planned}, types, tmp_path / "run", parts)
     cache = Cache(tmp_path / "cache")
     for u in units:
-        assert 0 < len(u.args[1]) < len(runs)  # each section is given its own legs' runs only
+        assert 0 < len(u.args[1]) < len(planned)  # each section is given its own legs only
         cache.put("timetable", u.key, u.fn(*u.args))
     legs, files = timetable_written(str(cache.root), [u.key for u in units], tmp_path / "run", lid, joined.name, page)
     got = (tmp_path / "run" / "timetable" / f"{lid}_timetable.html").read_text()

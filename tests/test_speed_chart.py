@@ -198,11 +198,11 @@ def test_a_charts_key_follows_what_the_run_depends_on(tiny):
     not by its arrays: another step, ratio or speed limit on the leg is another key; the same inputs, the same."""
     from planner.job.train_views import _chart_key
     from planner.report.margins import compute_margins
-    from planner.report.train_timetable import leg_times
+    from planner.report.train_timetable import planned_legs
 
     line, _ = tiny
     rows = compute_margins(line, conflicts=False).rows
-    key, (t, _w) = sorted(leg_times(line, rows).items())[0]
+    key, (t, _w) = sorted(planned_legs(line, rows).items())[0]
     rest = ([], None, [], [])
     k0 = _chart_key(line, t, 1.0, rest)
     assert _chart_key(line, t, 1.0, rest) == k0

@@ -116,9 +116,8 @@ def test_the_times_the_job_keeps_are_the_runs_times(tiny, margins, runs):
     the run gives it; a chainage it did not keep is an error, not a guess."""
     from planner.report.train_timetable import leg_times, timetable_rows
 
-    kept = leg_times(tiny, margins)
-    assert sorted(kept) == sorted(runs)
-    times = {k: t for k, (t, _win) in kept.items()}
+    times = leg_times(tiny, margins)
+    assert sorted(times) == sorted(runs)
     assert any(r["activity"] == "passes" for r in timetable_rows(tiny, runs))
     assert timetable_rows(tiny, times) == timetable_rows(tiny, runs)
     for k, t in times.items():
@@ -132,6 +131,61 @@ def test_the_times_the_job_keeps_are_the_runs_times(tiny, margins, runs):
         assert inside not in t.chainage_m
         with pytest.raises(KeyError, match="no time kept"):
             t.time_at(inside, 0)
+
+
+def test_a_legs_span_known_before_it_is_run_is_its_runs_span(tiny, margins, runs):
+    """The job's process plans a leg without running it (planned_legs): the chainages it gives the leg's run
+    (leg_span, read by the chart's page and key) are those of the recorded run, to the bit, both ways; and it
+    plans the legs leg_runs runs, with their on-time ratios."""
+    from planner.report.train_timetable import planned_legs
+
+    planned = planned_legs(tiny, margins)
+    assert sorted(planned) == sorted(runs) and {k[0] for k in planned} == {"down", "up"}
+    for k, (leg, _win) in planned.items():
+        r = runs[k]
+        assert leg.span_m == r.span_m and leg.ratio == r.ratio and leg.key == k
+        lo, hi = leg.span_m
+        assert lo < hi
+
+
+def test_a_leg_that_stalls_has_no_chart_no_page_and_no_computed_times(tiny, margins, runs, tmp_path, monkeypatch):
+    """A leg whose run stalls at its on-time ratio (record_leg raises) is left out where it is run, on the
+    workers, as leg_runs leaves it out: its chart unit stores an empty chart, no page is written for it, and the
+    tables' times of its calls stay empty; the other legs are untouched."""
+    import hashlib
+
+    import planner.report.train_timetable as tt
+    from planner.errors import InfeasibleError
+    from planner.job.cache import Cache
+    from planner.job.train_views import _chart_task, write_chart_pages
+
+    planned = tt.planned_legs(tiny, margins)
+    stalls, other = sorted(planned)[:2]
+    real = tt.record_leg
+
+    def record(win, key, row, ds_m):
+        if key == stalls:
+            raise InfeasibleError("the train stalls")
+        return real(win, key, row, ds_m)
+
+    monkeypatch.setattr(tt, "record_leg", record)
+    times = tt.leg_times_of(planned, tt.station_chainages(tiny))
+    assert sorted(times) == sorted(k for k in runs if k != stalls)
+    kept = {k: r for k, r in runs.items() if k != stalls}
+    assert tt.timetable_rows(tiny, times) == tt.timetable_rows(tiny, kept) != tt.timetable_rows(tiny, runs)
+
+    cache = Cache(tmp_path / "cache")
+    pages, keys = [], []
+    for key in (stalls, other):
+        leg, win = planned[key]
+        d, _, o, de = key[:4]
+        calls = [(o, True, tiny.station(o).stop_m(d)), (de, True, tiny.station(de).stop_m(d))]
+        keys.append(hashlib.sha256(repr(key).encode()).hexdigest())
+        cache.put("charts", keys[-1], _chart_task(win, key, leg.row, 1.0, calls, None, None, None))
+        pages.append((tmp_path / "run" / f"{len(pages)}.html", win, leg, calls, []))
+    page = dict(back="t.html", nav=[], run_id="r0001-0123456789", day=None, run_date="2026-12-06")
+    assert write_chart_pages(pages, str(cache.root), keys, page) == 1
+    assert not pages[0][0].exists() and "<svg" in pages[1][0].read_text()
 
 
 def test_the_page_written_in_pieces_is_the_page(tiny, rows, tmp_path, monkeypatch):

@@ -2,8 +2,10 @@
 
 Called by :func:`planner.job.views.line_views` once a line's margin report is
 computed. From the report's rows (the on-time ratio and the minimum of every
-timetabled leg × scheduled time) it records each leg's two runs
-(:func:`planner.report.train_timetable.leg_runs`), then writes
+timetabled leg × scheduled time) it plans each leg
+(:func:`planner.report.train_timetable.planned_legs`: its window of the line, not
+yet run); the legs' two runs are recorded on the workers, by the units that need
+them (:func:`planner.report.train_timetable.record_leg`), and it writes
 
 * the ``train_timetable`` dataset (a row per call of every train);
 * ``timetable/<line>_timetable.html``, all trains on one page, ``#train-<id>``
@@ -100,34 +102,41 @@ def _eval_points(job, line, train_type: str, origin: str, destination: str) -> l
 
 def _chart_task(win, key, row, ds_m, calls, pattern, evp, signals, bad=None):
     """Worker: one leg's chart, inline SVG (``win``: the leg's window, :func:`planner.report.train_timetable.legs`;
-    the signals come from the whole line). The leg's two runs are recorded here again
-    (:func:`planner.report.train_timetable.record_leg`, the same function on the same window as the job's
-    process, so the same bits): the job's process keeps only their times. The page around the chart (the run's
-    id and day, the trains) is put together in the job's process, so a leg whose chart is unchanged is not
-    redrawn for a new run."""
+    the signals come from the whole line), or an empty text for a leg that stalls at its on-time ratio (it has no
+    chart and no page, as it has no computed times in the tables; a stored None would read as a missing entry). The leg's two runs are recorded here
+    (:func:`planner.report.train_timetable.record_leg`, the same function on the same window as the tables'
+    units, so the same bits). The page around the chart (the run's id and day, the trains) is put together
+    apart (:func:`write_chart_pages`), so a leg whose chart is unchanged is not redrawn for a new run."""
+    from planner.errors import PlannerError
     from planner.pages.speed_chart import chart_svg
     from planner.report.leg_margin import bad_day_run
     from planner.report.train_timetable import record_leg
 
+    try:
+        run = record_leg(win, key, row, ds_m)
+    except PlannerError:
+        return ""
     # the bad day's run (``bad``: the rule's load, traction and whether its stop is at the bad day's adhesion)
     worst = bad_day_run(win, key[1], key[2], key[3], row, *bad, ds_m) if bad is not None else None
-    return chart_svg(win, record_leg(win, key, row, ds_m), calls, pattern, evp, signals, bad_day=worst)
+    return chart_svg(win, run, calls, pattern, evp, signals, bad_day=worst)
 
 
 def start_charts(job, line, stage: Path, report, runner, run_id: str | None = None, day: dict | None = None,
                  run_date: str | None = None, wait: bool = False) -> "ChartPages":
-    """Record each leg's two runs from the margin report's rows and start their speed–distance charts on the
-    workers (cached units: an unchanged leg's chart is not redrawn; ``wait``: drawn before this returns); the
-    pages are written by :meth:`ChartPages.finish`. The nightly job calls it as soon as the line's margins are
-    computed, so the charts are drawn while it writes the margins, the bundles' key and the other pages."""
+    """Plan each leg from the margin report's rows (:func:`planner.report.train_timetable.planned_legs`) and
+    start their speed–distance charts on the workers (cached units: an unchanged leg's chart is not redrawn;
+    ``wait``: drawn before this returns); the pages are written by :meth:`ChartPages.finish`. The nightly job
+    calls it as soon as the line's margins are computed, so the charts are drawn while it writes the margins,
+    the bundles' key and the other pages. No leg is run here: the charts' and the tables' units record the runs
+    they draw and tabulate, on the workers."""
     from planner.job.units import Unit, nothing_kept
-    from planner.report.train_timetable import chart_name, leg_times
+    from planner.report.train_timetable import chart_name, planned_legs
 
     lid = line.line_id
     ds_m = job.tables.ds_m
     with runner.progress.step("timetable"):
-        legs = leg_times(line, report.rows, ds_m=ds_m)
-    give_back()  # what the margins' results and the legs' runs left free (~100 MB on the 10x line), before the patterns
+        legs = planned_legs(line, report.rows)
+    give_back()  # what the margins' results left free, before the patterns
     pats = _patterns(stage, lid)
     from planner.report.margins import margin_options
 
@@ -137,7 +146,7 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
     back = "../../" + timetable_href(lid)
     nav = [("running-time tables", back), ("margin report", f"../../report/{lid}_margins.html"),
            ("train graph", f"../../graph/{lid}_graph.html"), ("overview", "../../index.html")]
-    for key, (run, win) in sorted(legs.items(), key=lambda kv: kv[0]):
+    for key, (run, win) in sorted(legs.items(), key=lambda kv: kv[0]):  # run: the leg's Leg (not run yet)
         d, t, o, de = key[:4]
         passes = list(run.row.get("passes") if run.row.get("passes") is not None else [])
         calls = [(sid, stops, line.station(sid).stop_m(d) if stops else line.station(sid).position_m)
@@ -152,7 +161,7 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
                           (win, key, run.row, ds_m) + rest + (bad,), after=None if wait else nothing_kept))
         pages.append((stage / chart_name(lid, key), win, run, calls, trains))
     drawn = runner.run("charts", units) if wait else runner.start("charts", units)
-    return ChartPages(drawn, pages, back, nav, run_id, day, run_date, runs={k: r for k, (r, _w) in legs.items()},
+    return ChartPages(drawn, pages, back, nav, run_id, day, run_date, legs=legs,
                       stored=None if wait else (str(runner.cache.root), [u.key for u in units]),
                       backend=(job.parallel.backend, job.parallel.n_jobs),
                       chart_keys={k: u.key for k, u in zip(sorted(legs), units)})
@@ -161,16 +170,21 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
 def write_chart_pages(pages: list, root: str, keys: list, page: dict) -> int:
     """Worker: the chart pages ``pages`` (:class:`ChartPages`), each chart's SVG read from the work cache at ``root``
     (its unit's key in ``keys``; this run stored or found every one, checked by its digest like every read), with the
-    run's id, day and date (``page``) around it. Returns the pages written."""
+    run's id, day and date (``page``) around it. A leg without a chart (it stalls at its on-time ratio:
+    :func:`_chart_task`) has no page. Returns the pages written."""
     from planner.job.units import Stored
     from planner.pages.speed_chart import chart_page, write_chart
 
+    n = 0
     for (p, win, run, calls, trains), key in zip(pages, keys):
         svg = Stored(root, "charts", key).load()
+        if not svg:
+            continue
         write_chart(p, chart_page(win, run, calls, trains, svg, page["back"], nav=page["nav"],
                                   run_id=page["run_id"], day=page["day"], run_date=page["run_date"]))
+        n += 1
     give_back()
-    return len(pages)
+    return n
 
 
 def train_views(job, line, stage: Path, report, runner, summary, run_id: str | None = None,
@@ -204,7 +218,7 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
         from planner.job.day import line_digest
 
         parts = [TimetablePart(line, "0", line_digest(line), None)]
-    units = timetable_units(line, charts.runs, charts.chart_keys, types, stage, parts)
+    units = timetable_units(line, charts.legs, charts.chart_keys, types, stage, parts, ds_m=job.tables.ds_m)
     runner.run("timetable", units)  # on the workers, while they draw the charts (the step's first interval)
     with runner.progress.step("timetable"):  # then put together on a worker (its next)
         legs, files = background(write_stamped, (current_stamp(), timetable_written, str(runner.cache.root),
@@ -242,57 +256,63 @@ def timetable_parts(sections, conflict_units=None) -> list[TimetablePart]:
     return [TimetablePart(s.line, s.part, s.seen, k) for s, k in zip(sections, keys)]
 
 
-def timetable_units(line, runs: dict, chart_keys: dict, types: list, stage: Path, parts: list) -> list:
-    """The units of the line's running-time tables, one per section (``parts``): each makes its trains' rows of
-    the ``train_timetable`` dataset and their tables on the page (:func:`_timetable_unit`), keyed by what they
-    are made from: the section's line, its day as it runs, and the runs of its trains' legs, each by its chart's
-    key (the leg's window of the line, the code, the step and the row's figures: the chart is drawn from the
-    same run) and the fields of its margins row that the tables read
-    (:func:`planner.report.train_timetable.row_fields`). An edit recomputes the sections whose legs or trains it
-    reaches; the others' rows and pieces come from the cache as they are."""
+def timetable_units(line, legs: dict, chart_keys: dict, types: list, stage: Path, parts: list,
+                    ds_m: float = 1.0) -> list:
+    """The units of the line's running-time tables, one per section (``parts``): each runs its trains' legs
+    (``legs``: :func:`planner.report.train_timetable.planned_legs`) and makes their rows of the
+    ``train_timetable`` dataset and their tables on the page (:func:`_timetable_unit`), keyed by what they are
+    made from: the section's line, its day as it runs, the line's station chainages (where a run's times are
+    kept) and the runs of its trains' legs, each by its chart's key (the leg's window of the line, the code,
+    the step and the row's figures: the chart is drawn from the same run) and the fields of its margins row
+    that the tables read (:func:`planner.report.train_timetable.row_fields`). An edit recomputes the sections
+    whose legs or trains it reaches; the others' rows and pieces come from the cache as they are."""
     import hashlib
 
     from planner.datasets.delays import part_path
     from planner.job.leg_memo import plain
     from planner.job.publish import digest
     from planner.job.units import Unit, code_digest, nothing_kept
-    from planner.report.train_timetable import row_fields, train_legs
+    from planner.report.train_timetable import row_fields, station_chainages, train_legs
 
     fields = row_fields()
     wanted = set(types)
     by_leg: dict[tuple, list] = {}  # a leg's first five key fields -> its runs' keys (rows with restrictions lifted)
-    for k in runs:
+    for k in legs:
         by_leg.setdefault(k[:5], []).append(k)
     code = code_digest()
+    at = station_chainages(line)
+    at_seen = hashlib.sha256(at.tobytes()).hexdigest()
     units = []
     for p in parts:
-        legs = {key for tr in p.line.trains if tr.train_type in wanted for _a, _b, key in train_legs(tr)}
-        keys = sorted(k for leg in legs for k in by_leg.get(leg, ()))
+        mine = {key for tr in p.line.trains if tr.train_type in wanted for _a, _b, key in train_legs(tr)}
+        keys = sorted(k for leg in mine for k in by_leg.get(leg, ()))
         predicted = p.predicted_key
         if predicted is None:
             f = part_path(stage, "delay_events", line.line_id, p.part)
             predicted = hashlib.sha256(f.read_bytes()).hexdigest() if f.is_file() else None
-        key = digest(["timetable", code, line.line_id, p.seen, predicted, list(types),
-                      [[repr(k), chart_keys[k], plain([runs[k].row.get(f) for f in fields])] for k in keys]])
+        key = digest(["timetable", code, line.line_id, p.seen, predicted, list(types), at_seen, float(ds_m),
+                      [[repr(k), chart_keys[k], plain([legs[k][0].row.get(f) for f in fields])] for k in keys]])
         units.append(Unit("timetable", key, f"timetable {p.part}", _timetable_unit,
-                          (p.line, {k: runs[k] for k in keys}, list(types), str(stage), p.part),
+                          (p.line, {k: legs[k] for k in keys}, list(types), str(stage), p.part, at, ds_m),
                           after=nothing_kept))
     return units
 
 
-def _timetable_unit(line, runs: dict, types: list, stage: str, part: str) -> dict:
+def _timetable_unit(line, legs: dict, types: list, stage: str, part: str, at: np.ndarray, ds_m: float) -> dict:
     """Worker: a section's rows of the ``train_timetable`` dataset and its trains' tables on the page
-    (:func:`planner.pages.timetable.train_pieces`), from its legs' runs and its part of the predicted day. Stored
-    in the cache as arrays: the table, the pieces' UTF-8 bytes one after the other with where each ends, their
-    places on the page, and each train's legs with a chart."""
+    (:func:`planner.pages.timetable.train_pieces`), from its legs' runs (recorded here, each kept at the line's
+    station chainages ``at``: :func:`planner.report.train_timetable.leg_times_of`) and its part of the predicted
+    day. Stored in the cache as arrays: the table, the pieces' UTF-8 bytes one after the other with where each
+    ends, their places on the page, and each train's legs with a chart."""
     import pyarrow as pa
 
     from planner.datasets.delays import read_part
     from planner.io.parquet import PARTITION_COLS, conform
     from planner.pages.timetable import train_pieces
-    from planner.report.train_timetable import TIMETABLE_SCHEMA, timetable_rows, timetable_table
+    from planner.report.train_timetable import TIMETABLE_SCHEMA, leg_times_of, timetable_rows, timetable_table
 
     lid = line.line_id
+    runs = leg_times_of(legs, at, ds_m)
     pred = read_part(Path(stage), "delay_events", lid, part, ["train_id", "seq", "event", "predicted_s", "cause"])
     recs = timetable_rows(line, runs, set(types), pred)
     schema = pa.schema([pa.field(c, pa.string()) for c in PARTITION_COLS] + list(TIMETABLE_SCHEMA))
@@ -349,19 +369,21 @@ class ChartPages:
     """A line's speed–distance chart pages (:func:`train_views`): written from the cache on the workers once the
     charts are drawn (each as its chart arrives where the job holds the SVGs)."""
 
-    def __init__(self, started, pages: list, back: str, nav: list, run_id, day, run_date, runs: dict | None = None,
+    def __init__(self, started, pages: list, back: str, nav: list, run_id, day, run_date, legs: dict | None = None,
                  stored: tuple[str, list] | None = None, backend: tuple[str, int] = ("local", 1),
                  chart_keys: dict | None = None):
         self.started, self.pages = started, pages  # a list of the charts' SVGs, or Runner.start's handle
         self.chart_keys = chart_keys or {}  # each leg's chart's key: what its run is made from (timetable_units)
         self.page = dict(back=back, nav=nav, run_id=run_id, day=day, run_date=run_date)
-        self.runs = runs  # the legs' runs (report.train_timetable.leg_runs), for the tables page
+        self.legs = legs  # the legs planned (report.train_timetable.planned_legs), for the tables' units
         self.stored = stored  # (cache root, the charts' keys): the SVGs are in the cache, not here
         self.backend = backend  # where the pages are written from the cache: the job's (name, n_jobs)
 
     def _write(self, _g: int, i: int, svg: str) -> None:
         from planner.pages.speed_chart import chart_page, write_chart
 
+        if not svg:  # a leg that stalls at its on-time ratio: no chart, no page (_chart_task)
+            return
         p, win, run, calls, trains = self.pages[i]
         kw = self.page
         write_chart(p, chart_page(win, run, calls, trains, svg, kw["back"], nav=kw["nav"], run_id=kw["run_id"],

@@ -254,18 +254,65 @@ def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
     return out
 
 
-def leg_times(line, margins, ds_m: float = 1.0) -> dict[tuple, tuple[LegTimes, object]]:
-    """:func:`leg_runs`, each run kept as its :class:`LegTimes` at the line's stations inside it, with its
-    window: a run's node arrays are let go as soon as it is summed up."""
-    at = np.unique(np.array([float(s.position_m) for s in line.stations], float))
+@dataclass(frozen=True)
+class Leg:
+    """A timetabled leg × scheduled time before it is run: what its chart's key and page read (its key, on-time
+    ratio, margins row and the chainages its run spans, :func:`leg_span`). The job's process knows its legs this
+    way; their runs are recorded on the workers (:func:`leg_times_of`)."""
+
+    key: tuple
+    ratio: float
+    row: dict
+    span_m: tuple[float, float]
+
+
+def leg_span(win, key: tuple) -> tuple[float, float]:
+    """The lowest and highest chainage of leg ``key``'s run on its window ``win`` without running it: the
+    departure stop marker and the marker plus the leg's length along the direction, the two ends of
+    :func:`planner.physics.track.make_track`'s grid (so :attr:`LegRun.span_m` to the bit)."""
+    ext = win.run_between(key[2], key[3])
+    x0 = float(ext.start_m)
+    x1 = float(x0 + ext.sign * ext.length_m)
+    return min(x0, x1), max(x0, x1)
+
+
+def planned_legs(line, margins) -> dict[tuple, tuple[Leg, object]]:
+    """Every timetabled leg × scheduled time of a ``margins`` table (pandas) with an on-time ratio, not run:
+    its :class:`Leg` and its window (:func:`leg_window`). A leg whose window cannot be made is left out, as
+    :func:`leg_runs` leaves it out."""
     out = {}
     for key, row in legs(line, margins):
         try:
             win = leg_window(line, key)
-            out[key] = (record_leg(win, key, row, ds_m).times(at), win)
+            out[key] = (Leg(key, float(row["ratio_on_time"]), row, leg_span(win, key)), win)
         except PlannerError:
             continue
     return out
+
+
+def station_chainages(line) -> np.ndarray:
+    """The line's station chainages, sorted and unique: where a leg's times are kept (:meth:`LegRun.times`)."""
+    return np.unique(np.array([float(s.position_m) for s in line.stations], float))
+
+
+def leg_times_of(planned: dict[tuple, tuple[Leg, object]], at: np.ndarray, ds_m: float = 1.0
+                 ) -> dict[tuple, LegTimes]:
+    """The legs ``planned`` (:func:`planned_legs`) run (:func:`record_leg`), each kept as its :class:`LegTimes`
+    at the chainages ``at`` inside it (:func:`station_chainages`): a run's node arrays are let go as soon as it
+    is summed up. A leg that stalls at its on-time ratio is left out (:func:`leg_runs`)."""
+    out = {}
+    for key, (leg, win) in planned.items():
+        try:
+            out[key] = record_leg(win, key, leg.row, ds_m).times(at)
+        except PlannerError:
+            continue
+    return out
+
+
+def leg_times(line, margins, ds_m: float = 1.0) -> dict[tuple, LegTimes]:
+    """:func:`leg_runs`, each run kept as its :class:`LegTimes` at the line's stations inside it
+    (:func:`leg_times_of` of :func:`planned_legs`)."""
+    return leg_times_of(planned_legs(line, margins), station_chainages(line), ds_m)
 
 
 def _flag(row: dict) -> str:
@@ -413,5 +460,6 @@ def write_timetable_table(table: pa.Table, out_dir: str | Path) -> list[Path]:
 
 
 __all__ = ["TIMETABLE_SCHEMA", "SCHEMAS", "CHARTS_DIR", "clock", "leg_key", "chart_name", "LegRun", "LegTimes",
-           "leg_runs", "leg_times", "leg_window", "legs", "record_leg", "row_fields", "timetable_rows", "train_legs",
+           "Leg", "leg_runs", "leg_span", "leg_times", "leg_times_of", "leg_window", "legs",
+           "planned_legs", "station_chainages", "record_leg", "row_fields", "timetable_rows", "train_legs",
            "timetable_table", "write_timetable", "write_timetable_table"]
