@@ -13,7 +13,7 @@ from linedb import default_tables, write_line_db
 from planner.api import running_time
 from planner.job.day import day_line, line_digest
 from planner.job.publish import digest
-from planner.job.units import interstation_inputs
+from planner.job.units import interstation_digest, interstation_inputs
 from planner.line.daily import TemporaryRestriction
 from planner.line.loader import load_line
 from planner.line.model import DIRECTIONS
@@ -35,7 +35,7 @@ def day_of(line, *restrictions, trains=None) -> DayInputs:
 
 def unit_keys(line) -> dict:
     types = [t.train_type for t in line.train_types]
-    return {(t, d, a.station_id, b.station_id): digest(interstation_inputs(line, t, a.station_id, b.station_id))
+    return {(t, d, a.station_id, b.station_id): interstation_digest(line, t, a.station_id, b.station_id)
             for t in types for d in DIRECTIONS for a, b in line.interstations(d)}
 
 
@@ -54,6 +54,20 @@ def test_a_restriction_changes_the_key_of_exactly_the_units_it_reaches(tiny):
     two = unit_keys(day_line(tiny, day_of(tiny, tsr("X", 1000.0, 1100.0, 45.0))))
     assert sorted(k for k in base if base[k] != two[k]) == sorted(
         (t, d, *(("A", "B") if d == "down" else ("B", "A"))) for t in ("EMU10", "EMU6") for d in DIRECTIONS)
+
+
+def test_the_slice_a_unit_sees_is_digested_once_per_line_and_an_edited_line_is_digested_afresh(tiny):
+    """interstation_digest keeps a line's slices' digests (the tables', stops', margins' and charts' keys digest
+    the same slice): each is the digest of interstation_inputs, asked again it is the same, and a line with a
+    lowered limit (another, immutable, line object) gets its own digests, not the first line's."""
+    keys = unit_keys(tiny)
+    assert keys == {k: digest(interstation_inputs(tiny, k[0], k[2], k[3])) for k in keys} == unit_keys(tiny)
+    lim = tiny.speed_limits[0]
+    slower = dataclasses.replace(tiny, speed_limits=(dataclasses.replace(lim, limit_ms=lim.limit_ms - 1.0),)
+                                 + tiny.speed_limits[1:])
+    moved = unit_keys(slower)
+    assert moved == {k: digest(interstation_inputs(slower, k[0], k[2], k[3])) for k in keys}
+    assert any(moved[k] != keys[k] for k in keys)
 
 
 def test_a_units_key_does_not_depend_on_the_restrictions_place_in_the_feed_or_its_validity(tiny):

@@ -6,7 +6,7 @@ touched a handful of legs). Inside it, each leg group (direction, train type, or
 restrictions) is now a unit of its own, keyed by exactly what its computation reads:
 
 - the slice of the line the leg can see (:func:`planner.job.units.interstation_inputs` of the day's line
-  without the group's lifted restrictions: the leg's stop markers, gradients, curves, the limits and
+  without the group's lifted restrictions, by its digest: the leg's stop markers, gradients, curves, the limits and
   beacons of its direction and train type, the train type, the line's maximum and approach);
 - its trains' scheduled running times;
 - the options its computation is given: the closed loop's errors at those times, the train type's
@@ -28,7 +28,7 @@ import numpy as np
 
 from planner.job.cache import Cache
 from planner.job.publish import digest
-from planner.job.units import code_digest, interstation_inputs
+from planner.job.units import code_digest, interstation_digest
 
 KIND = "margin_leg"
 
@@ -82,7 +82,7 @@ class LegMemo:
         from planner.line.operating_day import without_temporary
 
         direction, train_type, origin, destination, lifted = group
-        seen = interstation_inputs(without_temporary(line, lifted), train_type, origin, destination)
+        seen = interstation_digest(without_temporary(line, lifted), train_type, origin, destination)
         return digest([KIND, code_digest(), seen, [direction, train_type, origin, destination,
                                                                  list(lifted)],
                        [float(t) for t in times], {k: plain(v) for k, v in sorted(options.items())}])

@@ -73,6 +73,7 @@ from planner.job.units import (
     _tables_unit,
     code_digest,
     kernel_backends,
+    interstation_digest,
     interstation_inputs,
     warm_worker,
 )
@@ -348,7 +349,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     tasks = [(t, d, a.station_id, b.station_id) for t in types for d in DIRECTIONS for a, b in line.interstations(d)]
     # the floor of each leg's grid: ratio × the train's highest maximum on the leg = min_target_kmh
     grids = {k: leg_ratio_grid(tp.ratios, line, k[0], k[2], k[3], tp.min_target_kmh * KMH) for k in tasks}
-    unit_in = {k: digest(interstation_inputs(line, k[0], k[2], k[3])) for k in tasks}
+    unit_in = {k: interstation_digest(line, k[0], k[2], k[3]) for k in tasks}
     # each unit ships only the slice of the line it can see (the slice its key digests), so what a
     # parallel task costs to send does not grow with the line
     windows = {k: line.window(k[2], k[3], k[0]) for k in tasks}
