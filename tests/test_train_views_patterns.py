@@ -43,3 +43,27 @@ def test_lowest_and_highest_level_per_stop_in_dataset_order(tmp_path):
 
 def test_no_samples(tmp_path):
     assert _patterns(tmp_path, "L") == {}
+
+
+def test_a_file_read_a_row_group_at_a_time_gives_what_the_whole_file_gives(tmp_path):
+    """_patterns reads a file a row group at a time (twice: the levels, then their samples): a stop whose lowest
+    and highest levels are in different row groups, each row group with its own dictionary of stations, gives
+    the patterns of the same rows written as one row group."""
+    rows = [("B", 3.0, 10, 30), ("A", 2.5, 1, 5), ("B", 2.5, 11, 31), ("C", 1.0, 3, 3), ("B", 3.5, 12, 32),
+            ("B", 2.5, 13, 33), ("A", 2.5, 2, 6), ("B", 3.5, 14, 34), ("C", 4.0, 5, 5)]
+    _write(tmp_path / "one", "L", "down", "E1", "part-0.parquet", rows)
+    d = tmp_path / "split" / "stop_samples" / "line=L" / "direction=down" / "train_type=E1"
+    d.mkdir(parents=True)
+    st, a, x, v = zip(*rows)
+    pq.write_table(pa.table({"station_id": list(st), "adhesion_ms2": [k * KMH_S for k in a],
+                             "position_m": list(map(float, x)), "speed_kmh": list(map(float, v))}),
+                   d / "part-0.parquet", row_group_size=2)
+    assert pq.ParquetFile(d / "part-0.parquet").metadata.num_row_groups == 5
+    one, split = _patterns(tmp_path / "one", "L"), _patterns(tmp_path / "split", "L")
+    assert set(one) == set(split) == {("down", "E1", s) for s in "ABC"}
+    for k in one:
+        assert list(one[k]) == list(split[k])
+        for level in one[k]:
+            assert all(np.array_equal(p, q) for p, q in zip(one[k][level], split[k][level]))
+    assert split[("down", "E1", "B")][3.5][0].tolist() == [12.0, 14.0]  # two row groups, in the file's order
+    assert list(split[("down", "E1", "C")]) == [1.0, 4.0]

@@ -44,39 +44,56 @@ def _patterns(stage: Path, line_id: str) -> dict:
     """Stopping-pattern samples by arrival stop, lowest and highest adhesion, from the run's ``stop_samples``.
 
     ``{(direction, train_type, station_id): {adhesion [km/h/s, 6 decimals]: (position_m, speed_kmh)}}``, the
-    samples of a level in the dataset's order. Read one file (a direction × train type) at a time, keeping the
-    samples of its lowest and highest level per stop only, so what is held does not grow with the levels
-    between them (the whole dataset read at once, with its keys, was the main process's peak memory on a
-    line ten times the sample)."""
+    samples of a level in the dataset's order. Read one file (a direction × train type) at a time and each file a
+    batch (a row group) at a time, twice: the stops' lowest and highest levels from the station and adhesion
+    columns, then those levels' samples only. What is held is a batch and the samples kept, not a file's four
+    columns (the job process's peak memory on the 100x line, 4 million samples a file)."""
     import pyarrow.compute as pc
     import pyarrow.dataset as ds
 
     if not (stage / "stop_samples").is_dir():
         return {}
+
+    def batches(frag, columns):
+        """(station names, each row's index into them, adhesion levels [km/h/s, 6 decimals], the batch)."""
+        for b in frag.to_batches(columns=columns):
+            st = b.column(0)
+            yield st.dictionary.to_pylist(), st.indices.to_numpy(), \
+                np.round(b.column(1).to_numpy() / KMH_S, 6), b
+
     found: dict = {}  # (direction, type, station) -> {level: [(positions, speeds) per file]}
     # the stations as the files store them (a name once, a code per sample), not a str per sample
     fmt = ds.ParquetFileFormat(read_options=ds.ParquetReadOptions(dictionary_columns=["station_id"]))
     for frag in ds.dataset(stage / "stop_samples", format=fmt, partitioning="hive").get_fragments(
             filter=pc.field("line") == line_id):
         part = ds.get_partition_keys(frag.partition_expression)
-        t = frag.to_table(columns=["station_id", "adhesion_ms2", "position_m", "speed_kmh"]).unify_dictionaries()
-        st = t.column("station_id").combine_chunks()
-        names, codes = st.dictionary.to_pylist(), st.indices.to_numpy()
-        a = np.round(t.column("adhesion_ms2").to_numpy() / KMH_S, 6)
-        lo, hi = np.full(len(names), np.inf), np.full(len(names), -np.inf)
-        np.minimum.at(lo, codes, a)
-        np.maximum.at(hi, codes, a)
-        rows = np.flatnonzero((a == lo[codes]) | (a == hi[codes]))  # this file's lowest and highest per stop
-        c, lv = codes[rows], a[rows]
-        order = np.lexsort((lv, c))  # by stop, then level; stable: a level's samples in the dataset's order
-        rows, c, lv = rows[order], c[order], lv[order]
-        x = t.column("position_m").to_numpy().astype(float)[rows]
-        v = t.column("speed_kmh").to_numpy().astype(float)[rows]
-        del t, st
+        ends: dict[str, list] = {}  # station -> [lowest, highest] level of this file
+        for names, codes, a, _b in batches(frag, ["station_id", "adhesion_ms2"]):
+            lo, hi = np.full(len(names), np.inf), np.full(len(names), -np.inf)
+            np.minimum.at(lo, codes, a)
+            np.maximum.at(hi, codes, a)
+            for i, n in enumerate(names):
+                if lo[i] <= hi[i]:  # a name this batch has samples of
+                    e = ends.setdefault(n, [lo[i], hi[i]])
+                    e[0], e[1] = min(e[0], lo[i]), max(e[1], hi[i])
+        stops = {n: k for k, n in enumerate(ends)}  # this file's stations, numbered
+        lo = np.array([e[0] for e in ends.values()])
+        hi = np.array([e[1] for e in ends.values()])
+        kept = []  # per batch: (station numbers, levels, positions, speeds) of the lowest and highest levels' rows
+        for names, codes, a, b in batches(frag, ["station_id", "adhesion_ms2", "position_m", "speed_kmh"]):
+            c = np.array([stops[n] for n in names], np.int64)[codes] if len(names) else codes.astype(np.int64)
+            rows = np.flatnonzero((a == lo[c]) | (a == hi[c]))
+            kept.append((c[rows], a[rows], b.column(2).to_numpy().astype(float)[rows],
+                         b.column(3).to_numpy().astype(float)[rows]))
+            del b
         give_back()  # the file's pages, before the next one is read
+        c, lv, x, v = (np.concatenate([k[i] for k in kept]) if kept else np.empty(0) for i in range(4))
+        order = np.lexsort((lv, c))  # by stop, then level; stable: a level's samples in the dataset's order
+        c, lv, x, v = c[order], lv[order], x[order], v[order]
+        names = list(ends)
         cut = np.flatnonzero((c[1:] != c[:-1]) | (lv[1:] != lv[:-1])) + 1
         for i, j in zip(np.r_[0, cut], np.r_[cut, len(c)]) if len(c) else ():
-            by = found.setdefault((part["direction"], part["train_type"], names[c[i]]), {})
+            by = found.setdefault((part["direction"], part["train_type"], names[int(c[i])]), {})
             by.setdefault(np.float64(lv[i]), []).append((x[i:j], v[i:j]))
             if len(by) > 2:  # a stop in several files: its extremes so far
                 for level in sorted(by)[1:-1]:
