@@ -213,6 +213,12 @@ def test_a_charts_key_follows_what_the_run_depends_on(tiny):
     slower = dataclasses.replace(line, speed_limits=tuple(
         dataclasses.replace(s, limit_ms=s.limit_ms - 1.0) if s is lim else s for s in line.speed_limits))
     assert _chart_key(slower, t, 1.0, rest) != k0
+    # the arrival's patterns read on the worker from the stops unit: the key names that unit (what they are made of)
+    from planner.job.units import Stored
+
+    by = [_chart_key(line, t, 1.0, ([], Stored("/c", "stops", k * 64), [], [])) for k in "ab"]
+    assert by[0] != by[1] and k0 not in by and by[0] == _chart_key(line, t, 1.0, ([], Stored("/d", "stops", "a" * 64),
+                                                                                   [], []))
 
 
 def test_same_inputs_same_bytes_whatever_was_drawn_before(charts):

@@ -75,6 +75,38 @@ def _nan_to_none(x: float):
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else x
 
 
+def pattern_samples(r: ApproachResult, p, dt_s: float = DEFAULT_SAMPLE_DT_S) -> dict[str, np.ndarray]:
+    """A feasible pattern ``p`` of approach ``r`` sampled every ``dt_s``: the sampled columns of its
+    ``stop_samples`` rows (time, chainage, distance to the stop, speed [km/h], acceleration, jerk), in time order."""
+    s = p.sample(dt_s)
+    return {"t_s": s.t_s, "position_m": r.chainage_m(s.x_m), "distance_to_stop_m": r.approach_length_m - s.x_m,
+            "speed_kmh": kmh(s.v_ms), "accel_ms2": s.a_ms2, "jerk_ms3": s.j_ms3}
+
+
+def extreme_patterns(r: ApproachResult, dt_s: float = DEFAULT_SAMPLE_DT_S) -> dict | None:
+    """The samples of approach ``r``'s feasible patterns at its lowest and highest adhesion level (the level in
+    km/h/s to 6 decimals, as the charts name it): ``{level: (position_m, speed_kmh)}``, lowest first (one entry
+    when they are the same level); None without a feasible pattern. Its ``stop_samples`` rows of those levels,
+    in the dataset's order (the rows of a level sorted by time)."""
+    from planner.line.units import KMH_S
+
+    levels: dict = {}
+    for a, p in zip(r.adhesion_ms2, r.patterns):
+        if p.feasible:
+            levels.setdefault(np.float64(np.round(float(a) / KMH_S, 6)), []).append((float(a), p))
+    if not levels:
+        return None
+    out = {}
+    for level in (min(levels), max(levels)):
+        got = [(a, pattern_samples(r, p, dt_s)) for a, p in levels[level]]
+        t = np.concatenate([g["t_s"] for _a, g in got])
+        a = np.concatenate([np.full(g["t_s"].size, a) for a, g in got])
+        order = np.lexsort((t, a))  # as the dataset sorts its rows (SORT_BY): by adhesion, then time
+        out[level] = tuple(np.concatenate([g[c] for _a, g in got]).astype(float)[order]
+                           for c in ("position_m", "speed_kmh"))
+    return out
+
+
 def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_DT_S) -> dict[str, pa.Table]:
     """The ``stop_summary`` and ``stop_samples`` rows (with partition columns line/direction/train_type).
 
@@ -112,16 +144,12 @@ def datasets(results: Sequence[ApproachResult], *, dt_s: float = DEFAULT_SAMPLE_
                 summ[k].append(v)
             if not p.feasible:
                 continue
-            s = p.sample(dt_s)
-            n_rows.append(s.t_s.size)
+            got = pattern_samples(r, p, dt_s)
+            n_rows.append(got["t_s"].size)
             for k in shared:
                 shared[k].append(row[k])
-            sampled["t_s"].append(s.t_s)
-            sampled["position_m"].append(r.chainage_m(s.x_m))
-            sampled["distance_to_stop_m"].append(r.approach_length_m - s.x_m)
-            sampled["speed_kmh"].append(kmh(s.v_ms))
-            sampled["accel_ms2"].append(s.a_ms2)
-            sampled["jerk_ms3"].append(s.j_ms3)
+            for k, v in got.items():
+                sampled[k].append(v)
     # a shared value is converted once per pattern and repeated by take (the samples' strings as Python
     # lists, one item per row, were most of this function's time): the same column as converting every
     # row's copy, nulls included

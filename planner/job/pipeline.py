@@ -75,6 +75,7 @@ from planner.job.units import (
     kernel_backends,
     interstation_digest,
     interstation_inputs,
+    stops_key,
     warm_worker,
 )
 from planner.job.steps import (
@@ -367,7 +368,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     levels = adhesion_levels(sp.adhesion_kmh_s)
     adh_ms2 = [a * KMH_S for a in levels]
     s_units = [
-        Unit("stops", digest(["stops", code, unit_in[k], dataclasses.asdict(sp), tp.ds_m]),
+        Unit("stops", stops_key(job, line, k[0], k[2], k[3]),
              f"{k[0]} {k[3]}", _stops_unit, (windows[k], k[0], k[2], k[3], adh_ms2, sp.approach_m, tp.ds_m),
              after=stops_seen)  # the job keeps the verdicts; the patterns are written from the cache
         for k in tasks

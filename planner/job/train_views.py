@@ -28,7 +28,6 @@ from typing import Callable
 import numpy as np
 
 from planner.io.memory import give_back
-from planner.line.units import KMH_S
 
 TIMETABLE_DIR = "timetable"
 
@@ -38,71 +37,6 @@ def timetable_href(line_id: str) -> str:
     from planner.io.paths import check_path_id
 
     return f"{TIMETABLE_DIR}/{check_path_id(line_id, 'line id')}_timetable.html"
-
-
-def _patterns(stage: Path, line_id: str) -> dict:
-    """Stopping-pattern samples by arrival stop, lowest and highest adhesion, from the run's ``stop_samples``.
-
-    ``{(direction, train_type, station_id): {adhesion [km/h/s, 6 decimals]: (position_m, speed_kmh)}}``, the
-    samples of a level in the dataset's order. Read one file (a direction × train type) at a time and each file a
-    batch (a row group) at a time, twice: the stops' lowest and highest levels from the station and adhesion
-    columns, then those levels' samples only. What is held is a batch and the samples kept, not a file's four
-    columns (the job process's peak memory on the 100x line, 4 million samples a file)."""
-    import pyarrow.compute as pc
-    import pyarrow.dataset as ds
-
-    if not (stage / "stop_samples").is_dir():
-        return {}
-
-    def batches(frag, columns):
-        """(station names, each row's index into them, adhesion levels [km/h/s, 6 decimals], the batch)."""
-        for b in frag.to_batches(columns=columns):
-            st = b.column(0)
-            yield st.dictionary.to_pylist(), st.indices.to_numpy(), \
-                np.round(b.column(1).to_numpy() / KMH_S, 6), b
-
-    found: dict = {}  # (direction, type, station) -> {level: [(positions, speeds) per file]}
-    # the stations as the files store them (a name once, a code per sample), not a str per sample
-    fmt = ds.ParquetFileFormat(read_options=ds.ParquetReadOptions(dictionary_columns=["station_id"]))
-    for frag in ds.dataset(stage / "stop_samples", format=fmt, partitioning="hive").get_fragments(
-            filter=pc.field("line") == line_id):
-        part = ds.get_partition_keys(frag.partition_expression)
-        ends: dict[str, list] = {}  # station -> [lowest, highest] level of this file
-        for names, codes, a, _b in batches(frag, ["station_id", "adhesion_ms2"]):
-            lo, hi = np.full(len(names), np.inf), np.full(len(names), -np.inf)
-            np.minimum.at(lo, codes, a)
-            np.maximum.at(hi, codes, a)
-            for i, n in enumerate(names):
-                if lo[i] <= hi[i]:  # a name this batch has samples of
-                    e = ends.setdefault(n, [lo[i], hi[i]])
-                    e[0], e[1] = min(e[0], lo[i]), max(e[1], hi[i])
-        stops = {n: k for k, n in enumerate(ends)}  # this file's stations, numbered
-        lo = np.array([e[0] for e in ends.values()])
-        hi = np.array([e[1] for e in ends.values()])
-        kept = []  # per batch: (station numbers, levels, positions, speeds) of the lowest and highest levels' rows
-        for names, codes, a, b in batches(frag, ["station_id", "adhesion_ms2", "position_m", "speed_kmh"]):
-            c = np.array([stops[n] for n in names], np.int64)[codes] if len(names) else codes.astype(np.int64)
-            rows = np.flatnonzero((a == lo[c]) | (a == hi[c]))
-            kept.append((c[rows], a[rows], b.column(2).to_numpy().astype(float)[rows],
-                         b.column(3).to_numpy().astype(float)[rows]))
-            del b
-        give_back()  # the file's pages, before the next one is read
-        c, lv, x, v = (np.concatenate([k[i] for k in kept]) if kept else np.empty(0) for i in range(4))
-        order = np.lexsort((lv, c))  # by stop, then level; stable: a level's samples in the dataset's order
-        c, lv, x, v = c[order], lv[order], x[order], v[order]
-        names = list(ends)
-        cut = np.flatnonzero((c[1:] != c[:-1]) | (lv[1:] != lv[:-1])) + 1
-        for i, j in zip(np.r_[0, cut], np.r_[cut, len(c)]) if len(c) else ():
-            by = found.setdefault((part["direction"], part["train_type"], names[int(c[i])]), {})
-            by.setdefault(np.float64(lv[i]), []).append((x[i:j], v[i:j]))
-            if len(by) > 2:  # a stop in several files: its extremes so far
-                for level in sorted(by)[1:-1]:
-                    del by[level]
-    pats: dict = {}
-    for k, by in found.items():
-        lv = sorted(by)
-        pats[k] = {a: tuple(np.concatenate([p[i] for p in by[a]]) for i in (0, 1)) for a in (lv[0], lv[-1])}
-    return pats
 
 
 def _eval_points(job, line, train_type: str, origin: str, destination: str) -> list:
@@ -119,16 +53,23 @@ def _eval_points(job, line, train_type: str, origin: str, destination: str) -> l
 
 def _chart_task(win, key, row, ds_m, calls, pattern, evp, signals, bad=None):
     """Worker: one leg's chart, inline SVG (``win``: the leg's window, :func:`planner.report.train_timetable.legs`;
-    the signals come from the whole line), or an empty text for a leg that stalls at its on-time ratio (it has no
-    chart and no page, as it has no computed times in the tables; a stored None would read as a missing entry). The leg's two runs are recorded here
-    (:func:`planner.report.train_timetable.record_leg`, the same function on the same window as the tables'
-    units, so the same bits). The page around the chart (the run's id and day, the trains) is put together
-    apart (:func:`write_chart_pages`), so a leg whose chart is unchanged is not redrawn for a new run."""
+    the signals come from the whole line; ``pattern``: the stopping patterns at the arrival, or the stops step's
+    stored unit of the arrival, read here for its lowest and highest adhesion level,
+    :func:`planner.datasets.stops.extreme_patterns`), or an empty text for a leg that stalls at its on-time
+    ratio (it has no chart and no page, as it has no computed times in the tables; a stored None would read as a
+    missing entry). The leg's two runs are recorded here (:func:`planner.report.train_timetable.record_leg`, the
+    same function on the same window as the tables' units, so the same bits). The page around the chart (the
+    run's id and day, the trains) is put together apart (:func:`write_chart_pages`), so a leg whose chart is
+    unchanged is not redrawn for a new run."""
+    from planner.datasets.stops import extreme_patterns
     from planner.errors import PlannerError
+    from planner.job.units import Stored
     from planner.pages.speed_chart import chart_svg
     from planner.report.leg_margin import bad_day_run
     from planner.report.train_timetable import record_leg
 
+    if isinstance(pattern, Stored):
+        pattern = extreme_patterns(pattern.load())
     try:
         run = record_leg(win, key, row, ds_m)
     except PlannerError:
@@ -154,9 +95,22 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
     ds_m = job.tables.ds_m
     with runner.progress.step("timetable"):
         legs = planned_legs(line, report.rows)
-    give_back()  # what the margins' results left free, before the patterns
-    pats = _patterns(stage, lid)
+    give_back()  # what the margins' results left free
+    from planner.job.cache import Cache
+    from planner.job.units import Stored, stops_key
     from planner.report.margins import margin_options
+
+    # each arrival's stopping patterns: the stops step's unit of the interstation that ends there, read by the
+    # chart's worker (the patterns of every stop were 200 MB in the job process on the 100x line); none where the
+    # run has not stored it (the tables and charts of a margin report made on its own)
+    root = str(runner.cache.root)
+    stored = Cache(runner.cache.root)
+    arriving = {d: {b.station_id: a.station_id for a, b in line.interstations(d)} for d in DIRECTIONS}
+
+    def pattern(d: str, t: str, de: str):
+        o = arriving.get(d, {}).get(de)
+        k = stops_key(job, line, t, o, de) if o is not None else None
+        return Stored(root, "stops", k) if k is not None and stored.present("stops", k) else None
 
     rule = margin_options(job, line)["rule"]
     bad = (float(rule.bad_load), float(rule.bad_traction), bool(rule.bad_day_adhesion))
@@ -176,7 +130,7 @@ def start_charts(job, line, stage: Path, report, runner, run_id: str | None = No
         lo, hi = run.span_m
         at = sig_at.get(d, np.empty(0))  # the direction's signals on the leg, in the line's order
         signals = at[(at >= lo) & (at <= hi)].tolist()
-        rest = (calls, pats.get((d, t, de)), _eval_points(job, line, t, o, de), signals)
+        rest = (calls, pattern(d, t, de), _eval_points(job, line, t, o, de), signals)
         # drawn on a worker and kept in the cache, from where a worker writes its page (ChartPages.finish): the
         # job keeps nothing of a chart (unless it waits for the SVGs here)
         units.append(Unit("charts", _chart_key(line, run, ds_m, rest, bad), "charts", _chart_task,
@@ -459,9 +413,13 @@ def _chart_key(line, run, ds_m: float, rest, bad=None) -> str:
     from planner.report.train_timetable import leg_line
 
     d, t, o, de, sched = run.key[:5]
+    from planner.job.units import Stored
+
     h = hashlib.sha256()
     calls, pattern, evp, signals = rest
-    for a, (px, pv) in sorted((pattern or {}).items()):
+    if isinstance(pattern, Stored):  # the arrival's stops unit, by its key (what its patterns are made from)
+        h.update(f"stops {pattern.key}".encode())
+    for a, (px, pv) in sorted((pattern if isinstance(pattern, dict) else {}).items()):
         h.update(json.dumps(float(a)).encode())
         h.update(np.ascontiguousarray(px, float).tobytes() + np.ascontiguousarray(pv, float).tobytes())
     figures = [float(run.row[c]) for c in ("min_running_time_s", "margin_s")] + [run.ratio, float(sched), float(ds_m)]

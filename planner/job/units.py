@@ -119,6 +119,16 @@ def interstation_digest(line: Line, train_type: str, origin: str, destination: s
     return got
 
 
+def stops_key(job: Job, line: Line, train_type: str, origin: str, destination: str) -> str:
+    """The cache key of the stops step's unit of the approach from ``origin`` to ``destination``: its slice of the
+    line, the job's stopping-pattern parameters and step, and the code. The step's units are keyed by it, and a
+    leg's chart finds its arrival's patterns by it."""
+    from planner.job.publish import digest
+
+    return digest(["stops", code_digest(), interstation_digest(line, train_type, origin, destination),
+                   dataclasses.asdict(job.stops), job.tables.ds_m])
+
+
 # --- units of work -----------------------------------------------------------------
 @dataclass(frozen=True)
 class Unit:

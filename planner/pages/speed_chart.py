@@ -25,7 +25,8 @@ under it; up legs with the chainage running right to left, so the train runs lef
   restrictions (kind ``temporary``, from the daily feed) in force at some time
   of the run's operating day, which the run applies all day;
 * the stopping pattern at the arrival stop, lowest and highest adhesion of the
-  run's stopping-pattern sweep (``stop_samples``);
+  run's stopping-pattern sweep (its ``stop_samples`` rows of those levels,
+  :func:`planner.datasets.stops.extreme_patterns`);
 * the stopping pattern (stops and passes) as station lines, signals, ATS-P
   beacons and the evaluation points of the leg (``eval_points``);
 * below: the gradient [‰] and the curves (radius) along the leg.
