@@ -87,7 +87,8 @@ def extreme_patterns(r: ApproachResult, dt_s: float = DEFAULT_SAMPLE_DT_S) -> di
     """The samples of approach ``r``'s feasible patterns at its lowest and highest adhesion level (the level in
     km/h/s to 6 decimals, as the charts name it): ``{level: (position_m, speed_kmh)}``, lowest first (one entry
     when they are the same level); None without a feasible pattern. Its ``stop_samples`` rows of those levels,
-    in the dataset's order (the rows of a level sorted by time)."""
+    in the dataset's order (:data:`SORT_BY`: a level's rows by adhesion, then time). What a leg's speed–distance
+    chart draws at its arrival."""
     from planner.line.units import KMH_S
 
     levels: dict = {}
