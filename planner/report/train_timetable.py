@@ -245,13 +245,7 @@ def leg_window(line, key: tuple):
 
 def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
     """The recorded runs of every timetabled leg × scheduled time of a ``margins`` table (pandas)."""
-    out = {}
-    for key, row in legs(line, margins):
-        try:
-            out[key] = record_leg(leg_window(line, key), key, row, ds_m)
-        except PlannerError:  # a leg that stalls at its on-time ratio: no computed times, its rows stay null
-            continue
-    return out
+    return dict(_recorded(planned_legs(line, margins), ds_m))
 
 
 @dataclass(frozen=True)
@@ -278,8 +272,7 @@ def leg_span(win, key: tuple) -> tuple[float, float]:
 
 def planned_legs(line, margins) -> dict[tuple, tuple[Leg, object]]:
     """Every timetabled leg × scheduled time of a ``margins`` table (pandas) with an on-time ratio, not run:
-    its :class:`Leg` and its window (:func:`leg_window`). A leg whose window cannot be made is left out, as
-    :func:`leg_runs` leaves it out."""
+    its :class:`Leg` and its window (:func:`leg_window`). A leg whose window cannot be made is left out."""
     out = {}
     for key, row in legs(line, margins):
         try:
@@ -299,14 +292,20 @@ def leg_times_of(planned: dict[tuple, tuple[Leg, object]], at: np.ndarray, ds_m:
                  ) -> dict[tuple, LegTimes]:
     """The legs ``planned`` (:func:`planned_legs`) run (:func:`record_leg`), each kept as its :class:`LegTimes`
     at the chainages ``at`` inside it (:func:`station_chainages`): a run's node arrays are let go as soon as it
-    is summed up. A leg that stalls at its on-time ratio is left out (:func:`leg_runs`)."""
-    out = {}
+    is summed up. A leg that stalls at its on-time ratio is left out (:func:`_recorded`)."""
+    return {key: run.times(at) for key, run in _recorded(planned, ds_m)}
+
+
+def _recorded(planned: dict[tuple, tuple[Leg, object]], ds_m: float) -> Iterator[tuple[tuple, LegRun]]:
+    """Each leg of ``planned`` run on its window (:func:`record_leg`), with its key. A leg that stalls at its
+    on-time ratio is left out: it has no computed times, its rows stay null (its chart, drawn on its own worker,
+    is left out the same way: :func:`planner.job.train_views._chart_task`)."""
     for key, (leg, win) in planned.items():
         try:
-            out[key] = record_leg(win, key, leg.row, ds_m).times(at)
+            run = record_leg(win, key, leg.row, ds_m)
         except PlannerError:
             continue
-    return out
+        yield key, run
 
 
 def leg_times(line, margins, ds_m: float = 1.0) -> dict[tuple, LegTimes]:
