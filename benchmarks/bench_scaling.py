@@ -221,17 +221,17 @@ class DaskCluster:
 
 def same_datasets(a: Path, b: Path, ignore: tuple[str, ...] = ()) -> tuple[int, list[str]]:
     """How many Parquet files two published runs have (those of the datasets ``ignore`` aside), and those whose
-    contents differ (the run's id and date columns aside) or that only one has."""
-    import pyarrow.parquet as pq
+    bytes differ or that only one has (paired by their paths without the run's ``run_id=``/``run_date=`` folders:
+    a file does not name its run)."""
+    from planner.io.parquet import without_run
 
-    fa = {p.relative_to(a).as_posix() for p in a.rglob("*.parquet") if p.relative_to(a).parts[0] not in ignore}
-    fb = {p.relative_to(b).as_posix() for p in b.rglob("*.parquet") if p.relative_to(b).parts[0] not in ignore}
-    bad = sorted(fa ^ fb)
-    for f in sorted(fa & fb):
-        ta, tb = pq.read_table(a / f), pq.read_table(b / f)
-        keep = [c for c in ta.column_names if c not in ("run_id", "run_date")]
-        if ta.column_names != tb.column_names or not ta.select(keep).equals(tb.select(keep)):
-            bad.append(f)
+    def files(run: Path) -> dict[str, Path]:
+        return {without_run(p.relative_to(run).as_posix()): p for p in run.rglob("*.parquet")
+                if p.relative_to(run).parts[0] not in ignore}
+
+    fa, fb = files(a), files(b)
+    bad = sorted(set(fa) ^ set(fb))
+    bad += [f for f in sorted(set(fa) & set(fb)) if fa[f].read_bytes() != fb[f].read_bytes()]
     return len(fa), bad
 
 

@@ -38,7 +38,7 @@ def run_dir(tmp_path_factory):
 
 
 def _dataset(run: Path, name: str, line: str) -> pd.DataFrame:
-    files = sorted((run / name).glob(f"line={line}/**/*.parquet"))
+    files = sorted((run / name).glob(f"run_id=*/run_date=*/line={line}/**/*.parquet"))
     return pd.concat([pd.read_parquet(p) for p in files]) if files else pd.DataFrame()
 
 

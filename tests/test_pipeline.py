@@ -13,12 +13,14 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pandas as pd
 import pyarrow.dataset as ds
 import pytest
 
 from linedb import default_tables, write_line_db
 from planner import load_line
 from planner.errors import PlannerError
+from planner.io.parquet import without_run
 from planner.job.config import load_job
 from planner.job.publish import latest_run, list_runs
 
@@ -77,14 +79,12 @@ def _tree_digest(folder: Path) -> dict[str, str]:
 
 def _assert_same_but_run_id(run_a: Path, run_b: Path, skip: str = "", no_changes: bool = False) -> None:
     """Two published runs hold the same files, byte for byte, except the manifest and overview page
-    (they name the run and its timings), the run's id on the graph and timetable pages, and each dataset
-    row's run_id (issue 17: every row carries its run's id); the rest of every dataset is equal. ``no_changes``: one run has no earlier run, so the
+    (they name the run and its timings), the run's id on the graph and timetable pages, and each dataset's
+    run_id= and run_date= folders (a file's bytes do not name its run). ``no_changes``: one run has no earlier run, so the
     ``changes`` dataset and the report's "what changed" section are left out of the comparison."""
     import re
 
-    import pyarrow.parquet as pq
-
-    a, b = _tree_digest(run_a), _tree_digest(run_b)
+    a, b = ({without_run(k): v for k, v in _tree_digest(run).items()} for run in (run_a, run_b))
     for run_page in ("manifest.json", "index.html"):
         a.pop(run_page, None), b.pop(run_page, None)
     for d, folder in ((a, run_a), (b, run_b)):  # the graph and the tables name their run under the title
@@ -104,15 +104,7 @@ def _assert_same_but_run_id(run_a: Path, run_b: Path, skip: str = "", no_changes
         b = {k: v for k, v in b.items() if not k.startswith(skip)}
     assert sorted(a) == sorted(b)
     for k in a:
-        if not k.endswith(".parquet"):
-            assert a[k] == b[k], k
-            continue
-        ta = pq.read_table(run_a / k, partitioning=None)
-        tb = pq.read_table(run_b / k, partitioning=None)
-        stamped = [c for c in ("run_id",) if c in ta.column_names]  # datasets; not the inputs/ copies
-        ta, tb = ta.drop_columns(stamped), tb.drop_columns(stamped)
-        assert ta.schema.equals(tb.schema, check_metadata=True), k
-        assert ta.to_pandas().equals(tb.to_pandas()), k  # NaN in the same places counts as equal
+        assert a[k] == b[k], k
 
 
 def test_cold_run_publishes_everything_and_reads_back(project):
@@ -191,20 +183,15 @@ def test_unchanged_rerun_computes_nothing(project, monkeypatch):
     b = _tree_digest(project / "out" / third.run_id)
     for run_page in ("manifest.json", "index.html"):  # they name the run and its timings
         a.pop(run_page), b.pop(run_page)
-    # byte-identical report and bundles from cache; datasets identical but for their run_id column
-    pq_files = [k for k in a if k.endswith(".parquet") and not k.startswith("inputs/")]  # datasets
-    assert {k: v for k, v in a.items() if k not in pq_files} == {k: v for k, v in b.items() if k not in pq_files}
-    assert sorted(pq_files) == sorted(k for k in b if k.endswith(".parquet") and not k.startswith("inputs/"))
+    # byte-identical report, bundles and datasets from cache: a dataset names its run in its folders only
+    assert any(k.startswith(f"margins/run_id={first.run_id}/run_date=") for k in a)
+    assert any(k.startswith(f"margins/run_id={third.run_id}/run_date=") for k in b)
+    assert {without_run(k): v for k, v in a.items()} == {without_run(k): v for k, v in b.items()}
     import pyarrow.parquet as pq
 
-    for k in pq_files:
-        ta = pq.read_table(project / "out" / first.run_id / k, partitioning=None)
-        tb = pq.read_table(project / "out" / third.run_id / k, partitioning=None)
-        assert set(ta.column("run_id").to_pylist()) == {first.run_id}, k
-        assert set(tb.column("run_id").to_pylist()) == {third.run_id}, k
-        ta, tb = ta.drop_columns(["run_id"]), tb.drop_columns(["run_id"])
-        assert ta.schema.equals(tb.schema, check_metadata=True), k
-        assert ta.to_pandas().equals(tb.to_pandas()), k  # NaN in the same places counts as equal
+    assert "run_id" not in pq.read_schema(project / "out" / third.run_id / next(k for k in b if k.startswith("margins/"))).names
+    got = pd.read_parquet(project / "out" / "latest" / "margins")  # a reader of the dataset sees the run's columns
+    assert set(got["run_id"].astype(str)) == {third.run_id} and got["run_date"].nunique() == 1
 
 
 def test_a_csv_round_trip_of_the_line_recomputes_nothing(project):

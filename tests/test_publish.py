@@ -4,7 +4,7 @@ import os
 import pyarrow as pa
 import pytest
 
-from planner.errors import JobError
+from planner.errors import InputError, JobError
 from planner.job.publish import (
     Cache,
     clean_stale_staging,
@@ -90,32 +90,52 @@ def test_staged_files_are_flushed_once_by_publish_before_the_rename(tmp_path, mo
     assert events[-1] == ("rename", "")  # every flush before the run becomes visible
 
 
-def test_stamping_on_the_writer_thread_stamps_and_keeps_the_deferred_flush(tmp_path, monkeypatch):
-    """Files written inside stamping() get the run's id and date on every row, on a thread handed the
-    context too (the run's writer thread), without flushing one by one inside deferred_fsync; a file
-    written outside it is left as it is."""
-    import datetime
+def test_the_writer_thread_keeps_the_deferred_flush(tmp_path, monkeypatch):
+    """A file written inside deferred_fsync, on a thread handed the context (the run's writer thread), is not
+    flushed one by one; a file written outside it is. The bytes are the table's alone: the same in both."""
     from concurrent.futures import ThreadPoolExecutor
 
-    import pyarrow.parquet as pq
-
     import planner.io.atomic as atomic
-    from planner.io.parquet import stamping, write_parquet_atomic
+    from planner.io.parquet import write_parquet_atomic
 
-    t = pa.table({"x": [1.0, 2.0], "run_id": ["stale", "stale"]})
+    t = pa.table({"x": [1.0, 2.0]})
     flushed = []
     monkeypatch.setattr(atomic, "_fsync_file", flushed.append)
-    with atomic.deferred_fsync(), stamping("r0001-0123456789", "2026-11-23"), ThreadPoolExecutor(1) as pool:
+    with atomic.deferred_fsync(), ThreadPoolExecutor(1) as pool:
         write_parquet_atomic(t, tmp_path / "here.parquet")
         pool.submit(atomic.in_this_context(write_parquet_atomic), t, tmp_path / "thread.parquet").result()
     write_parquet_atomic(t, tmp_path / "outside.parquet")
     assert flushed and all("outside" in str(f) for f in flushed)  # only the write outside the run flushed
-    for name in ("here", "thread"):
-        got = pq.read_table(tmp_path / f"{name}.parquet")
-        assert got.column_names == ["x", "run_id", "run_date"]  # the stale column replaced, at the end
-        assert got.column("run_id").to_pylist() == ["r0001-0123456789"] * 2
-        assert got.column("run_date").to_pylist() == [datetime.date(2026, 11, 23)] * 2
-    assert pq.read_table(tmp_path / "outside.parquet").column("run_id").to_pylist() == ["stale", "stale"]
+    assert len({(tmp_path / f"{n}.parquet").read_bytes() for n in ("here", "thread", "outside")}) == 1
+
+
+def test_a_published_run_puts_its_id_and_date_above_each_dataset(tmp_path):
+    """place_in_run moves each dataset's line= folders under run_id=/run_date= (the files untouched), leaves the
+    run's other folders alone; a hive reader sees the run's columns, and a file's path pairs with another run's
+    once the run's folders are taken out."""
+    import pyarrow.dataset as pds
+
+    from planner.io.parquet import place_in_run, run_dataset_dir, without_run, write_partitioned
+
+    stage = tmp_path / ".staging-r0002-0123456789"
+    t = pa.table({"line": ["L", "L"], "direction": ["down", "up"], "train_type": ["T", "T"], "x": [1.0, 2.0]})
+    files = write_partitioned(t, stage, "margins")
+    before = {f.relative_to(stage).as_posix(): f.read_bytes() for f in files}
+    (stage / "inputs" / "L").mkdir(parents=True)
+    (stage / "inputs" / "L" / "line.parquet").write_bytes(b"copy")
+    (stage / "report").mkdir()
+    assert run_dataset_dir(stage, "margins") == stage / "margins"  # staged: no run folders yet
+    assert place_in_run(stage, "r0002-0123456789", "2026-12-06") == ["margins"]
+    after = {p.relative_to(stage).as_posix(): p.read_bytes() for p in (stage / "margins").rglob("*.parquet")}
+    assert all(k.startswith("margins/run_id=r0002-0123456789/run_date=2026-12-06/line=L/") for k in after)
+    assert {without_run(k): v for k, v in after.items()} == before  # moved, not rewritten
+    assert (stage / "inputs" / "L" / "line.parquet").read_bytes() == b"copy"
+    assert run_dataset_dir(stage, "margins") == stage / "margins" / "run_id=r0002-0123456789" / "run_date=2026-12-06"
+    got = pds.dataset(stage / "margins", format="parquet", partitioning="hive").to_table().to_pydict()
+    assert set(got["run_id"]) == {"r0002-0123456789"} and set(got["run_date"]) == {"2026-12-06"}
+    assert sorted(got["x"]) == [1.0, 2.0]
+    with pytest.raises(InputError, match="run id"):
+        place_in_run(tmp_path / "other", "../r1", "2026-12-06")
 
 
 def test_a_copy_into_a_full_output_root_names_the_destination_not_the_input(tmp_path):

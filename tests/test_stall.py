@@ -136,14 +136,15 @@ DATASETS = ("eval_points", "table_a", "table_b", "table_c", "table_d", "stop_sum
 
 
 def _rows_of(run, train_type: str) -> dict:
-    """Every dataset file of one train type (its partitions), by path, as an Arrow table without the run's
-    id and date (they name the run)."""
+    """Every dataset file of one train type (its partitions), by path without the run's folders (they name the
+    run), as an Arrow table."""
+    from planner.io.parquet import without_run
+
     out = {}
     for name in DATASETS:
         for f in sorted((run / name).rglob("*.parquet")):
             if f"train_type={train_type}" in f.parts:
-                t = pq.read_table(f, partitioning=None)
-                out[str(f.relative_to(run))] = t.drop_columns([c for c in ("run_id", "run_date") if c in t.column_names])
+                out[without_run(f.relative_to(run).as_posix())] = pq.read_table(f, partitioning=None)
     return out
 
 

@@ -24,7 +24,7 @@ from planner.bundle import atsp
 from planner.bundle.contents import (ATSP_SCHEMA, BEACONS_SCHEMA, MAX_PROFILE_SCHEMA, RESTRICTIONS_SCHEMA,
                                      TIMETABLE_SCHEMA, check_keys)
 from planner.errors import BundleError
-from planner.io.parquet import RUN_FIELDS
+from planner.io.parquet import RUN_FIELDS, run_dataset_dir
 from planner.line.model import Line, sign
 from planner.line.units import kmh
 from planner.physics.speed_profile import onboard_max_ms, restriction_spans
@@ -222,15 +222,16 @@ def read_partition(root: str | os.PathLike, dataset: str, line_id: str, directio
     Files are read in sorted name order and concatenated, so the row order is
     the writer's; the partition columns are added as plain strings.
     """
-    folder = Path(root) / dataset / f"line={line_id}" / f"direction={direction}" / f"train_type={train_type}"
+    # a published run's datasets are under its run_id= and run_date= folders; a step's own output is not
+    folder = run_dataset_dir(root, dataset) / f"line={line_id}" / f"direction={direction}" / f"train_type={train_type}"
     files = sorted(folder.glob("*.parquet"), key=lambda p: p.name) if folder.is_dir() else []
     if not files:
         return None
-    run_fields = {c for c, _, _ in RUN_FIELDS}
+    old_run = {c for c, _, _ in RUN_FIELDS}
     try:
-        # a published run's files carry its id and date; a bundle's bytes do not depend on the run: not read
+        # a run published before the run's fields became folders has them in its files; a bundle does not read them
         parts = [pq.read_table(f, partitioning=None,
-                               columns=[c for c in pq.read_schema(f).names if c not in run_fields]) for f in files]
+                               columns=[c for c in pq.read_schema(f).names if c not in old_run]) for f in files]
         t = pa.concat_tables(parts) if len(parts) > 1 else parts[0]
     except (pa.ArrowInvalid, OSError) as e:
         raise BundleError(f"cannot read {folder}: {e}; rebuild the {dataset} dataset") from None

@@ -233,8 +233,8 @@ def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> 
 
 
 _KNOWN = ("line", "direction", "train_type", "run_id", "run_date")
-"""Columns :func:`load_tables` does not read back: the partition it asks for, and the run's stamp (on the 10x line
-these were most of the bytes of table_b read back, each value repeated on every row)."""
+"""Columns :func:`load_tables` does not read back: the partition it asks for, and a published run's id and date
+(its top partition folders: each value would be repeated on every row)."""
 _CODED = ("origin", "destination", "eval_point_id")
 """String columns :func:`load_tables` reads as codes into their values (:meth:`_Rows._codes`)."""
 

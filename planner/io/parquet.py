@@ -4,7 +4,9 @@ Every dataset the planner writes is laid out as
 
     ROOT/<dataset>/line=L/direction=D/train_type=T/part-0.parquet
 
-so analysts can filter by partition without reading everything
+and a published run puts its own two partition folders on top
+(``<dataset>/run_id=R/run_date=D/line=L/...``, :func:`place_in_run`), so
+analysts can filter by partition without reading everything
 (``pyarrow.dataset.dataset(ROOT/<dataset>, partitioning="hive")``, DuckDB's
 ``read_parquet('.../**/*.parquet', hive_partitioning=true)``). Partition
 columns are not stored inside the files (hive style); each file carries the
@@ -18,8 +20,7 @@ writer settings) and atomic per file (temp file in the same folder, then
 """
 from __future__ import annotations
 
-import contextvars
-from contextlib import contextmanager
+import os
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
@@ -68,11 +69,8 @@ def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
 
 
 def write_parquet_atomic(table: pa.Table, path: Path) -> None:
-    """Write ``table`` to ``path`` deterministically; the final name appears only when complete.
-
-    Inside :func:`stamping` (a run's datasets), every row also gets the run's :data:`RUN_FIELDS`.
-    """
-    table = _stamped(table)
+    """Write ``table`` to ``path`` deterministically; the final name appears only when complete. The bytes depend
+    on the table alone: no run's id or date is in a file (a run's are folders, :func:`place_in_run`)."""
     with atomic_path(path) as tmp:
         pq.write_table(
             table,
@@ -218,8 +216,8 @@ def read_dataset(root: Path, dataset: str, *, without: Sequence[str] = (), dicti
     if without:
         columns = [c for c in (d.schema.names if columns is None else columns) if c not in without]
     t = d.to_table(filter=expr, columns=columns)
-    # Partition columns inferred as dictionary/int by pyarrow; make them plain strings.
-    for name in PARTITION_COLS:
+    # Partition columns inferred as dictionary/int by pyarrow; make them plain strings (a published run's too).
+    for name in (*PARTITION_COLS, *(c for c, _, _ in RUN_FIELDS)):
         if name in t.column_names:
             idx = t.column_names.index(name)
             t = t.set_column(idx, name, pc.cast(t.column(name), pa.string()))
@@ -227,15 +225,18 @@ def read_dataset(root: Path, dataset: str, *, without: Sequence[str] = (), dicti
 
 
 RUN_FIELDS = (
-    ("run_id", pa.string(), "the published run these rows belong to (outputs/<run_id>/), e.g. r0007-3f9a2c01d4"),
-    ("run_date", pa.date32(), "the run's date: [job] run_date, else the UTC date when `planner run` started "
-                              "(part of the run's inputs digest, so one run id always has one date)"),
+    ("run_id", pa.string(), "the published run these rows belong to (outputs/<run_id>/), e.g. r0007-3f9a2c01d4; "
+                            "a partition folder (run_id=...), not stored in the files"),
+    ("run_date", pa.string(), "the run's date, YYYY-MM-DD: [job] run_date, else the UTC date when `planner run` "
+                              "started (part of the run's inputs digest, so one run id always has one date); a "
+                              "partition folder (run_date=...), not stored in the files (DuckDB reads it as a DATE)"),
 )
-"""Columns `planner run` appends to every row of every published dataset, so runs compare in one query."""
+"""The partition columns a published run puts above every dataset's own (:func:`place_in_run`), so runs compare in
+one query while a file's bytes do not depend on the run that wrote it."""
 
 
 def with_run_fields(schema: pa.Schema) -> pa.Schema:
-    """``schema`` plus the :data:`RUN_FIELDS` (what a published file holds)."""
+    """``schema`` plus the :data:`RUN_FIELDS` (what a reader of a published dataset sees)."""
     out = schema
     for col, typ, desc in RUN_FIELDS:
         if col not in out.names:
@@ -243,44 +244,48 @@ def with_run_fields(schema: pa.Schema) -> pa.Schema:
     return out
 
 
-_STAMP = contextvars.ContextVar("planner_run_stamp", default=None)
-
-
-@contextmanager
-def stamping(run_id: str, run_date) -> Iterator[None]:
-    """Within this context (and the threads given it by :func:`planner.io.atomic.in_this_context`),
-    every Parquet file written gets ``run_id`` and ``run_date`` appended to every row.
-
-    `planner run` writes its datasets in it, so a published file holds its run's columns from its
-    first write and nothing is rewritten at the end.
-    """
+def run_folders(run_id: str, run_date) -> tuple[str, str]:
+    """The two partition folders of a published run's datasets, ``run_id=R`` and ``run_date=YYYY-MM-DD``."""
     import datetime
 
     if not isinstance(run_date, datetime.date):
         run_date = datetime.date.fromisoformat(str(run_date))
-    token = _STAMP.set((run_id, run_date))
-    try:
-        yield
-    finally:
-        _STAMP.reset(token)
+    return (f"run_id={check_path_id(run_id, 'run id ')}", f"run_date={run_date.isoformat()}")
 
 
-def current_stamp() -> tuple | None:
-    """The ``(run_id, run_date)`` of the :func:`stamping` around this call, or None: what a worker process is given
-    to stamp the files it writes for the run as this process would."""
-    return _STAMP.get()
+def place_in_run(stage: Path, run_id: str, run_date) -> list[str]:
+    """Put every dataset of a staged run under its run's partition folders: ``<dataset>/line=L/...`` becomes
+    ``<dataset>/run_id=R/run_date=D/line=L/...`` (renames of the ``line=`` folders, no file rewritten). A dataset is
+    a folder of ``stage`` holding ``line=`` folders; the run's other folders (inputs, pages, bundles) have none.
+    The datasets moved, sorted."""
+    stage = Path(stage)
+    top = run_folders(run_id, run_date)
+    moved = []
+    for ds in sorted(p for p in stage.iterdir() if p.is_dir() and not p.is_symlink()):
+        lines = sorted(p for p in ds.iterdir() if p.is_dir() and p.name.startswith("line="))
+        if not lines:
+            continue
+        into = ds.joinpath(*top)
+        into.mkdir(parents=True)
+        for p in lines:
+            os.replace(p, into / p.name)
+        moved.append(ds.name)
+    return moved
 
 
-def _stamped(table: pa.Table) -> pa.Table:
-    """``table`` with the :data:`RUN_FIELDS` of the current :func:`stamping` appended (replacing any
-    it has), or as it is outside one."""
-    stamp = _STAMP.get()
-    if stamp is None:
-        return table
-    for (col, typ, desc), val in zip(RUN_FIELDS, stamp):
-        if col in table.column_names:
-            table = table.drop_columns([col])
-        # the value repeated by Arrow, not a Python list of it per row (the same column)
-        table = table.append_column(pa.field(col, typ, metadata={"description": desc}),
-                                    pa.repeat(pa.scalar(val, type=typ), table.num_rows))
-    return table
+def without_run(rel: str) -> str:
+    """A published file's path relative to its run folder without the run's partition folders (``run_id=``,
+    ``run_date=``): the same for the same file of two runs, so their files pair up to be compared."""
+    return "/".join(p for p in Path(rel).as_posix().split("/")
+                    if not p.startswith(tuple(f"{c}=" for c, _, _ in RUN_FIELDS)))
+
+
+def run_dataset_dir(root: Path, dataset: str) -> Path:
+    """The folder holding ``dataset``'s ``line=`` folders under ``root``: a published run's
+    ``<dataset>/run_id=R/run_date=D`` (:func:`place_in_run`), else ``<dataset>`` (a staged run, or a step's own
+    output folder)."""
+    base = Path(root) / dataset
+    runs = sorted(base.glob("run_id=*/run_date=*")) if base.is_dir() else []
+    if len(runs) > 1:
+        raise ValueError(f"{base}: {len(runs)} runs' folders in one dataset; a run folder holds one run")
+    return runs[0] if runs else base

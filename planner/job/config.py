@@ -43,7 +43,8 @@ class JobSection:
     keep_runs: int = 5
     """How many complete runs to keep (older ones are deleted after a publish)."""
     run_date: str = ""
-    """The run's date (YYYY-MM-DD) stamped on every dataset row; "" = the UTC date when `planner run` starts."""
+    """The run's date (YYYY-MM-DD), a partition folder of every dataset (run_date=); "" = the UTC date when
+    `planner run` starts."""
 
 
 @dataclass(frozen=True)

@@ -53,8 +53,8 @@ from typing import Any, Callable, Sequence
 
 from planner import __version__
 from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomic
+from planner.io.parquet import place_in_run
 from planner.io.memory import give_back, then_give_back
-from planner.io.parquet import stamping
 from planner.errors import JobError, PlannerError
 from planner.job.config import Job
 from planner.job.day import day_digest, plan_day, resolve_day
@@ -94,7 +94,7 @@ from planner.job.steps import (
     stops_seen,
     tables_seen,
     start_bundles,
-    write_stamped,
+    write_staged,
 )
 from planner.job.publish import (
     canonical_json,
@@ -131,7 +131,7 @@ class RunSummary:
     release: Any = None
     """The :class:`planner.bundle.container.Release` the run's bundles were issued with."""
     run_date: str = ""
-    """The run's date, YYYY-MM-DD (stamped on every dataset row; the pages show it)."""
+    """The run's date, YYYY-MM-DD (a partition folder of every dataset, run_date=; the pages show it)."""
     wall_s: float = 0.0
     """Wall time of the whole run [s]: less than the steps' sum, as some steps run beside others."""
     reports: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
@@ -165,8 +165,8 @@ def _renewal_due(last_manifest: dict, now_s: int) -> bool:
 
 def _inputs_digest(job: Job, lines: Sequence[Line | str], key_id: str, run_date: str = "") -> str:
     """Digest of everything a run depends on: code, parameters, line databases (each a Line or its
-    :func:`planner.line.loader.source_digest`), signing key (its public id), and the run's date (stamped
-    on every dataset row, so one run id always has one date)."""
+    :func:`planner.line.loader.source_digest`), signing key (its public id), and the run's date (a
+    partition folder of every dataset, so one run id always has one date)."""
     return digest({"code": code_digest(), "params": result_params(job),
                    "lines": [ln if isinstance(ln, str) else ln.source_digest for ln in lines],
                    "key": key_id, "run_date": run_date, "day": day_digest(job)})
@@ -298,27 +298,28 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             summary = RunSummary(run_id, None, False, notes=notes, run_date=run_date, warnings=[over] if over else [])
             runner = Runner(job, cache, prog)
             summary.release = release
-            # every dataset file carries the run's id and date from its first write (nothing is rewritten)
-            with stamping(run_id, run_date):
-                try:
-                    # a writer thread: a step's datasets are written while the workers compute the next
-                    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
-                        for i, (line, bday, off) in enumerate(zip(lines, bundle_days, lifted)):
-                            last = i == len(lines) - 1  # then every bundle of the run is written in it
-                            _run_line(job, line, stage, runner, summary, key, key_path, writes, bday, off,
-                                      {"operating_day": day} if last else None)
-                    summary.computed, summary.reused = runner.computed, runner.reused
-                    if cache.rejected:  # once per run, with the count
-                        summary.warnings.append(cache.rejected_note())
-                    _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date, day)
-                    from planner.job.views import run_views  # changes since the last run, overview page
+            try:
+                # a writer thread: a step's datasets are written while the workers compute the next
+                with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
+                    for i, (line, bday, off) in enumerate(zip(lines, bundle_days, lifted)):
+                        last = i == len(lines) - 1  # then every bundle of the run is written in it
+                        _run_line(job, line, stage, runner, summary, key, key_path, writes, bday, off,
+                                  {"operating_day": day} if last else None)
+                summary.computed, summary.reused = runner.computed, runner.reused
+                if cache.rejected:  # once per run, with the count
+                    summary.warnings.append(cache.rejected_note())
+                _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date, day)
+                from planner.job.views import run_views  # changes since the last run, overview page
 
-                    run_views(job, lines, stage, root, prog, summary)  # takes the speed charts drawn meanwhile
-                except BaseException:
-                    for pending in summary.pending:  # work on a worker: let it finish first
-                        pending.discard()
-                    shutil.rmtree(stage, ignore_errors=True)  # a failed run leaves nothing in the output root
-                    raise
+                run_views(job, lines, stage, root, prog, summary)  # takes the speed charts drawn meanwhile
+                # the run's id and date are its datasets' top partition folders, not columns in their files: a file's
+                # bytes depend on its rows alone (a rename per line and dataset, nothing rewritten)
+                place_in_run(stage, run_id, run_date)
+            except BaseException:
+                for pending in summary.pending:  # work on a worker: let it finish first
+                    pending.discard()
+                shutil.rmtree(stage, ignore_errors=True)  # a failed run leaves nothing in the output root
+                raise
             _kill_point()
             with prog.step("publish"):
                 summary.run_dir = publish(root, stage, run_id, job.job.keep_runs)
@@ -449,11 +450,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # the closed loop's datasets are written on a worker from the cache, which makes there what the margins read of
     # them (the errors at the timetable's times, the worst per leg): the runs never come to this process
     from planner.io.parallel import background
-    from planner.io.parquet import current_stamp
+    from planner.io.atomic import deferring
     from planner.report.margin_legs import looked_up_times
     from planner.report.margins import margin_options
 
-    loops_written = background(write_stamped, (current_stamp(), closed_loop_written, root, line.line_id,
+    loops_written = background(write_staged, (deferring(), closed_loop_written, root, line.line_id,
                                                partition_keys(line.line_id, tasks, c_units), stage,
                                                margin_options(job, line)["rule"], looked_up_times(line, types, lifted)),
                                name=job.parallel.backend, n_jobs=job.parallel.n_jobs)

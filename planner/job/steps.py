@@ -105,17 +105,16 @@ def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, t
                           train_types=types, day=day)  # and the pages of the line's tables, for the units after it
 
 
-def write_stamped(stamp: tuple | None, fn, *args):
-    """Worker: ``fn(*args)``, a step's datasets written into the staged run, stamped with the run's id and date
-    (:func:`planner.io.parquet.current_stamp` of the job's process) and flushed with the rest of the run when
-    it is published, as the job's own writes are; the worker's pages given back afterwards."""
+def write_staged(deferred: bool, fn, *args):
+    """Worker: ``fn(*args)``, a step's datasets written into the staged run and, when ``deferred`` (the job's
+    :func:`planner.io.atomic.deferring`), flushed with the rest of the run when it is published, as the job's own
+    writes are; the worker's pages given back afterwards."""
     from planner.io.atomic import deferred_fsync
-    from planner.io.parquet import stamping
 
     give_back()  # what a unit before it on this worker freed
-    if stamp is None:
+    if not deferred:
         return then_give_back(fn, *args)
-    with stamping(*stamp), deferred_fsync():
+    with deferred_fsync():
         return then_give_back(fn, *args)
 
 
@@ -212,10 +211,10 @@ def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, 
     from planner.datasets.stops import write_stops
     from planner.datasets.tables import write_tables
     from planner.io.parallel import background
-    from planner.io.parquet import current_stamp
+    from planner.io.atomic import deferring
 
     writer = {"tables": write_tables, "stops": write_stops}[step]
-    b = background(write_stamped, (current_stamp(), write_stored, writer, str(cache.root), step, groups, stage),
+    b = background(write_staged, (deferring(), write_stored, writer, str(cache.root), step, groups, stage),
                    name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)
     return b
@@ -321,14 +320,14 @@ def conflicts_units(job: Job, line: Line, stage: Path, sections: list[SectionInp
     ``[robustness]``). Its large datasets (occupation windows, the day's events) are written into ``stage`` where
     the unit is made or read back (:func:`section_written`), a part per section; the job keeps the small rest,
     which :func:`conflicts_step` puts together."""
-    from planner.io.parquet import current_stamp
+    from planner.io.atomic import deferring
     from planner.job.robustness import key_of
 
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
     common = [code_digest(), params, job.tables.ds_m, key_of(job), job.day.day]
     return [Unit("conflicts", digest(["conflicts", s.seen, lifted_key(s.lifted), list(s.stream), *common]),
                  f"conflicts {s.part}", conflicts_unit, (s.line, params, s.lifted, job, s.stream),
-                 after=functools.partial(write_stamped, current_stamp(), section_written, stage,
+                 after=functools.partial(write_staged, deferring(), section_written, stage,
                                          _Stations(line.line_id, s.line.stations), s.part))
             for s in sections]
 

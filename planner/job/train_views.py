@@ -182,8 +182,8 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     ``legs_known`` is called with it as soon as it is known (the job starts the train graph page with it).
     """
     from planner.io.parallel import background
-    from planner.io.parquet import current_stamp
-    from planner.job.steps import count_rows, write_stamped
+    from planner.io.atomic import deferring
+    from planner.job.steps import count_rows, write_staged
 
     if charts is None:
         charts = start_charts(job, line, stage, report, runner, run_id, day, getattr(summary, "run_date", None),
@@ -197,7 +197,7 @@ def train_views(job, line, stage: Path, report, runner, summary, run_id: str | N
     units = timetable_units(line, charts.legs, charts.chart_keys, types, stage, parts, ds_m=job.tables.ds_m)
     runner.run("timetable", units)  # on the workers, while they draw the charts (the step's first interval)
     with runner.progress.step("timetable"):  # then put together on a worker (its next)
-        legs, files = background(write_stamped, (current_stamp(), timetable_written, str(runner.cache.root),
+        legs, files = background(write_staged, (deferring(), timetable_written, str(runner.cache.root),
                                                  [u.key for u in units], stage, line.line_id, line.name, page),
                                  name=job.parallel.backend, n_jobs=job.parallel.n_jobs).result()
         legs = {t.train_id: legs[t.train_id] for t in line.trains if t.train_id in legs}  # the line's order

@@ -146,13 +146,13 @@ def _kernels(sw: dict) -> str:
 
 
 def _dates(manifest: dict[str, Any]) -> str:
-    """The run's operating day (what it plans) and run date (the date stamped on its rows), as a line."""
+    """The run's operating day (what it plans) and run date (its datasets' run_date= folder), as a line."""
     from planner.pages.run_head import day_words
 
     day = day_words(manifest.get("operating_day"))
     words = [f"<b>{_e(day[0].upper() + day[1:])}</b>" if day else ""]
     if manifest.get("run_date"):
-        words.append(f"run date {_e(manifest['run_date'])} (stamped on every dataset row)")
+        words.append(f"run date {_e(manifest['run_date'])} (a partition folder of every dataset: run_date=)")
     words = [w for w in words if w]
     return f"<p class='date'>{' · '.join(words)}</p>" if words else ""
 
