@@ -68,7 +68,7 @@ def test_missing_job_file(tmp_path):
 
 
 def test_run_date_is_part_of_the_inputs_digest(tmp_path):
-    """Same inputs, another date: another run id (the date is stamped on every row, issue 17)."""
+    """Same inputs, another date: another run id (the date is a partition folder of every dataset)."""
     import dataclasses
 
     from planner.job.pipeline import _inputs_digest, resolve_run_date

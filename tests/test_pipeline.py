@@ -226,6 +226,45 @@ def test_one_edited_restriction_recomputes_only_its_interstation(project):
     _check_changes_name_the_restriction(project, old_line, load_line(project / "lines" / "tiny"))
 
 
+def _made_files(run: Path, datasets=("eval_points", "table_a", "table_b", "table_c", "table_d", "stop_summary",
+                                     "stop_samples")) -> dict[str, Path]:
+    return {without_run(p.relative_to(run).as_posix()): p for d in datasets for p in (run / d).rglob("*.parquet")}
+
+
+def test_an_edit_reuses_the_files_of_the_partitions_it_did_not_touch(project):
+    """The tables' and stops' files of the partitions an edit did not touch are the previous run's files (the same
+    inode: linked, not written again); those of the partitions it touched are new. A previous file that was
+    altered after its run is not reused: its group is written again, to the bytes it had."""
+    job = _job(project)
+    first = project / "out" / _run(job).run_id
+    before = _made_files(first)
+    down = [k for k in before if "direction=down" in k]
+    assert down and len(down) < len(before)
+    bad = first / next(p for p in before.values() if "table_b" in p.parts and "direction=down" in p.parts) \
+        .relative_to(first)
+    good = bad.read_bytes()
+    bad.unlink()  # a new file under the old name, as any later write makes it (the other run's link is kept)
+    bad.write_bytes(good[:-8] + b"\0" * 8)
+    _edit_restriction(project, 65.0)  # seen by the up runs C->B alone
+    second = project / "out" / _run(job).run_id
+    after = _made_files(second)
+    assert sorted(after) == sorted(before)
+    bad_group = {k for k in before if k.split("/")[0] in ("eval_points", "table_a", "table_b", "table_c", "table_d")
+                 and k.split("/", 1)[1] == without_run(bad.relative_to(first).as_posix()).split("/", 1)[1]}
+    assert len(bad_group) == 5  # the files one write of a part of the tables makes
+    for k, p in after.items():
+        same = p.stat().st_ino == before[k].stat().st_ino
+        if "direction=up" in k or k in bad_group:
+            assert not same, k  # touched by the edit, or a file of its group no longer its digest: written
+        else:
+            assert same, k  # the previous run's file
+    assert after[without_run(bad.relative_to(first).as_posix())].read_bytes() == good
+    import json
+
+    made = json.loads((second / "manifest.json").read_text())["made"]
+    assert sorted(r for files in made.values() for r, _ in files) == sorted(after)
+
+
 def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> None:
     """The run's `changes` dataset and the report's top section name the edited restriction and the legs it slowed."""
     from planner.api import running_time

@@ -217,4 +217,4 @@ def test_overview_says_the_operating_day_and_the_run_date(wide, tmp_path):
     _clean(page)
     _fits(page, 1400)
     assert page.eval("document.querySelector('p.date').innerText") == (
-        "O" + DAY_WORDS[1:] + " · run date 2026-11-27 (stamped on every dataset row)")
+        "O" + DAY_WORDS[1:] + " · run date 2026-11-27 (every dataset's run_date= folder)")

@@ -166,9 +166,11 @@ def _type(name: str, schema: pa.Schema) -> pa.DataType:
     return schema.field(name).type if name in schema.names else pa.string()
 
 
-def write_stops(results: Sequence[ApproachResult], out_dir: str | Path, *,
+def write_stops(results: Sequence[ApproachResult], out_dir: str | Path, part: str = "0", *,
                 dt_s: float = DEFAULT_SAMPLE_DT_S) -> list[Path]:
-    """Write ``stop_summary`` and ``stop_samples`` under ``out_dir`` (atomic per file, deterministic).
+    """Write ``stop_summary`` and ``stop_samples`` under ``out_dir`` (atomic per file, deterministic); ``part``:
+    the files' name in each partition folder, ``part-<part>.parquet`` (the nightly job writes a line's
+    interstations in parts, :func:`planner.job.steps.partition_keys`).
 
     Returns
     -------
@@ -176,7 +178,8 @@ def write_stops(results: Sequence[ApproachResult], out_dir: str | Path, *,
         Files written.
     """
     written: list[Path] = []
-    for part in by_partition(results):  # one partition's rows in memory at a time
-        for name, table in datasets(part, dt_s=dt_s).items():
-            written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=SORT_BY[name])
+    for group in by_partition(results):  # one partition's rows in memory at a time
+        for name, table in datasets(group, dt_s=dt_s).items():
+            written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], sort_by=SORT_BY[name],
+                                         part=part)
     return written

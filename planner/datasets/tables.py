@@ -222,13 +222,15 @@ SCHEMAS = {"eval_points": EVAL_POINTS_SCHEMA, "table_a": TABLE_A_SCHEMA, "table_
            "table_c": TABLE_C_SCHEMA, "table_d": TABLE_D_SCHEMA}
 
 
-def write_tables(results: Sequence[InterstationTables], out_dir: str | Path) -> list[Path]:
-    """Write the datasets under ``out_dir`` (atomic per file, deterministic); return the files."""
+def write_tables(results: Sequence[InterstationTables], out_dir: str | Path, part: str = "0") -> list[Path]:
+    """Write the datasets under ``out_dir`` (atomic per file, deterministic); return the files. ``part``: the
+    files' name in each partition folder, ``part-<part>.parquet`` (the nightly job writes a line's interstations
+    in parts, :func:`planner.job.steps.partition_keys`)."""
     written: list[Path] = []
-    for part in by_partition(results):  # one partition's rows of one dataset in memory at a time (table (d)'s
+    for group in by_partition(results):  # one partition's rows of one dataset in memory at a time (table (d)'s
         for wanted in SCHEMAS:  # rows of a partition of the 10x line: about a hundred megabytes)
-            for name, table in datasets(part, [wanted]).items():
-                written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name])
+            for name, table in datasets(group, [wanted]).items():
+                written += write_partitioned(table, Path(out_dir), name, schema=SCHEMAS[name], part=part)
     return written
 
 

@@ -143,6 +143,10 @@ class RunSummary:
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
     robustness: dict = field(default_factory=dict, repr=False, compare=False)
     """Each line's summary of the day as it runs (:func:`planner.job.robustness.day_as_it_runs`), for its page."""
+    previous: Any = field(default=None, repr=False, compare=False)
+    """The previous run's dataset files that this run may reuse (:func:`planner.job.made.previous`)."""
+    made: dict = field(default_factory=dict, repr=False, compare=False)
+    """The record of the dataset files made from stored results, for the manifest (:mod:`planner.job.made`)."""
     graph_pages: list = field(default_factory=list, repr=False, compare=False)
     """Each line's train graph page, being written on a worker (:func:`planner.job.views.graph_written`; taken by
     :func:`planner.job.views.run_views`)."""
@@ -298,6 +302,9 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             summary = RunSummary(run_id, None, False, notes=notes, run_date=run_date, warnings=[over] if over else [])
             runner = Runner(job, cache, prog)
             summary.release = release
+            from planner.job.made import previous
+
+            summary.previous = previous(root, use_cache)  # its files no edit touched are this run's (job.made)
             try:
                 # a writer thread: a step's datasets are written while the workers compute the next
                 with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
@@ -424,7 +431,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     if "loop" not in ahead:  # a line without interstations
         tables_in()
     stops_written = start_written(job, stage, summary, runner.cache, "stops", partition_keys(line.line_id, tasks, s_units))
-    tables_files = ahead["tables_written"].result()
+    tables_files, made = ahead["tables_written"].result()
+    summary.made.update(made)
     summary.pending.remove(ahead.pop("tables_written"))
     # each margin leg reads its tables from the cache on the worker that computes it (the vehicle's view of them,
     # the numbers their datasets hold): the line's tables are never read back whole, nor sent to a cluster
@@ -475,7 +483,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     del sections
     summary.pending.append(graph)
     count_rows(summary, tables_files)
-    count_rows(summary, stops_written.result())
+    stops_files, made = stops_written.result()
+    summary.made.update(made)
+    count_rows(summary, stops_files)
     summary.pending.remove(stops_written)
     bundles = start_bundles(job, line, stage, runner, summary, key_path, bday)
     give_back()  # the pages of what was let go (planner.io.memory)
@@ -566,6 +576,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "flags": dict(sorted(summary.flags.items())),
         "bundles": sorted(summary.bundles),
         "bundles_release": _release_record(summary.release),
+        "made": dict(sorted(summary.made.items())),
     }
     write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
     from planner.report.catalog import readme

@@ -151,29 +151,57 @@ def stops_seen(r) -> StopsSeen:
     return StopsSeen(len(r.patterns) - r.n_feasible, no_stop_leg(r), tuple(r.warnings) if every else ())
 
 
-def partition_keys(line_id: str, tasks: list, units: list) -> list[list[str]]:
+PART_UNITS = 32
+"""Interstations per file of a partition of the tables' and stopping patterns' datasets: an edit rewrites the
+part of each partition it touches, and the others are the previous run's files (:mod:`planner.job.made`). The
+sample's partitions (a dozen interstations) are one file each; the 100x line's about 38."""
+
+
+def partition_keys(line_id: str, tasks: list, units: list, size: int | None = PART_UNITS) -> list[tuple]:
     """The keys of a line's interstation units (``tasks``: (train type, direction, origin, destination) each) by
-    the dataset partition their rows go to, as :func:`planner.io.parquet.by_partition` groups the results: the
-    partitions in sorted order, each unit in its order."""
+    the dataset partition their rows go to, as :func:`planner.io.parquet.by_partition` groups the results, and
+    in parts of at most ``size`` units (None: one part): ``(partition, part name, keys)`` each, the partitions in
+    sorted order, each partition's parts and units in the line's order (the parts' names sort in that order,
+    :func:`planner.network.sections.part_names`)."""
+    from planner.network.sections import part_names
+
     groups: dict = {}
     for (t, d, _o, _de), u in zip(tasks, units):
         groups.setdefault((line_id, d, t), []).append(u.key)
-    return [groups[g] for g in sorted(groups)]
+    out = []
+    for g in sorted(groups):
+        keys = groups[g]
+        n = size or len(keys)
+        chunks = [keys[i:i + n] for i in range(0, len(keys), n)]
+        out += [(g, name, chunk) for name, chunk in zip(part_names(len(chunks)), chunks)]
+    return out
 
 
-def write_stored(writer: Callable, root: str, step: str, groups: list[list[str]], stage: Path) -> list:
-    """Worker: ``writer(results, stage)`` for each partition's stored results in turn (``groups``:
-    :func:`partition_keys`), read from the work cache at ``root``, checked by their digests like every read,
-    one partition in memory at a time. This run stored every one of them (with ``--no-cache`` too: such a run
-    reads nothing it did not write itself); one missing or damaged fails the run, naming it."""
+def made_key(step: str, partition: tuple, part: str, keys: list[str]) -> str:
+    """What a group of a step's dataset files depends on (:mod:`planner.job.made`): the code, the step (its
+    writer), the partition and part, and the keys of the units whose results it holds."""
+    return digest(["made", code_digest(), step, list(partition), part, list(keys)])
+
+
+def write_stored(writer: Callable, root: str, step: str, groups: list[tuple], stage: Path, prev=None) -> tuple:
+    """Worker: ``writer(results, stage, part)`` for each part of each partition in turn (``groups``:
+    :func:`partition_keys`), its results read from the work cache at ``root``, checked by their digests like
+    every read, one part in memory at a time; or, for a part whose inputs did not change since the previous run
+    (``prev``: :class:`planner.job.made.Previous`), that run's files, checked by their digests. This run stored
+    every result (with ``--no-cache`` too: such a run reads nothing it did not write itself); one missing or
+    damaged fails the run, naming it. Returns (the files, ``{group key: record}`` for the manifest)."""
+    from planner.job.made import made_once
     from planner.job.units import Stored
 
-    written = []
-    for keys in groups:
-        results = [Stored(root, step, k).load() for k in keys]
-        written += writer(results, stage)
-        del results
-    return written
+    written, made = [], {}
+    for partition, part, keys in groups:
+        def write(keys=keys, part=part) -> list:
+            return writer([Stored(root, step, k).load() for k in keys], stage, part)
+
+        key = made_key(step, partition, part, keys)
+        files, made[key] = made_once(key, prev, stage, write)
+        written += files
+    return written, made
 
 
 @kept_beside
@@ -196,7 +224,7 @@ def closed_loop_written(root: str, line_id: str, groups: list[list[str]], stage:
     from planner.report.margin_datasets import ClosedLoopFacts
 
     files, facts = [], ClosedLoopFacts()
-    for keys in groups:
+    for _partition, _part, keys in groups:
         tables = datasets([r for k in keys for r in Stored(root, "closed_loop", k).load()])
         files += write_closed_loop(tables, stage)
         facts.add(tables, line_id, rule, times)
@@ -206,15 +234,16 @@ def closed_loop_written(root: str, line_id: str, groups: list[list[str]], stage:
 
 def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, groups: list[list[str]]):
     """Write a step's datasets (the tables', the stopping patterns') on a worker, from the results its units stored
-    (``groups``: their keys by partition, :func:`partition_keys`): the results never come to the job process;
-    ``.result()``: the files."""
+    (``groups``: their keys by partition and part, :func:`partition_keys`): the results never come to the job
+    process; ``.result()``: the files and their record (:func:`write_stored`)."""
     from planner.datasets.stops import write_stops
     from planner.datasets.tables import write_tables
     from planner.io.parallel import background
     from planner.io.atomic import deferring
 
     writer = {"tables": write_tables, "stops": write_stops}[step]
-    b = background(write_staged, (deferring(), write_stored, writer, str(cache.root), step, groups, stage),
+    b = background(write_staged, (deferring(), write_stored, writer, str(cache.root), step, groups, stage,
+                                  summary.previous),
                    name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)
     return b

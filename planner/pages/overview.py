@@ -152,7 +152,7 @@ def _dates(manifest: dict[str, Any]) -> str:
     day = day_words(manifest.get("operating_day"))
     words = [f"<b>{_e(day[0].upper() + day[1:])}</b>" if day else ""]
     if manifest.get("run_date"):
-        words.append(f"run date {_e(manifest['run_date'])} (a partition folder of every dataset: run_date=)")
+        words.append(f"run date {_e(manifest['run_date'])} (every dataset's run_date= folder)")
     words = [w for w in words if w]
     return f"<p class='date'>{' · '.join(words)}</p>" if words else ""
 
