@@ -187,6 +187,14 @@ def test_an_edit_in_one_section_recomputes_that_section_and_publishes_what_a_col
     pq.write_table(t.set_column(i, t.schema.field(i), pa.array(lim)), folder / "speed_limits.parquet")
     edit = run_job(_job(tmp_path, folder, tmp_path / "out"), show_progress=False)
     assert (edit.computed["conflicts"], edit.reused["conflicts"]) == (1, 1)
+    # the section the edit did not reach keeps the previous run's files (linked: the same inode), the other's are new
+    from planner.io.parquet import without_run
+
+    for name in ("occupation", "delay_events", "robustness_trains"):
+        old, new = ({without_run(p.relative_to(r).as_posix()): p.stat().st_ino for p in (r / name).rglob("*.parquet")}
+                    for r in (first.run_dir, edit.run_dir))
+        assert old.keys() == new.keys() and len(new) >= 2, name
+        assert all((new[k] == old[k]) == k.endswith("/part-0.parquet") for k in new), name
     assert (edit.computed["timetable"], edit.reused["timetable"]) == (1, 1)  # the tables of the edited section
     # the train graph: the edited section's trajectories and share of the page (2), the other's reused (2)
     assert (edit.computed["graph"], edit.reused["graph"]) == (2, 2)

@@ -389,7 +389,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # it runs and its train graph are per section, each keyed by its stretch
     sections = line_section_inputs(job, line, lifted)
     if checks_conflicts:
-        side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections)))
+        side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections, summary.previous)))
     cp = job.closed_loop
     ahead: dict[str, Any] = {}
 

@@ -339,7 +339,7 @@ def section_digest(sline: Line) -> str:
     return digest([plain(rest), hashlib.sha256("\n".join(map(repr, sline.trains)).encode()).hexdigest()])
 
 
-def conflicts_units(job: Job, line: Line, stage: Path, sections: list[SectionInputs]) -> list[Unit]:
+def conflicts_units(job: Job, line: Line, stage: Path, sections: list[SectionInputs], previous=None) -> list[Unit]:
     """The units of the line's route conflicts and of the day as it will run, one per section of the line
     (``sections``: :func:`line_section_inputs`; trains that share no track with the others' are checked on their
     own, and each unit sees and digests its stretch alone, so an edit recomputes the sections it reaches). Each
@@ -348,34 +348,47 @@ def conflicts_units(job: Job, line: Line, stage: Path, sections: list[SectionInp
     (:func:`planner.job.robustness.day_as_it_runs`: the predicted day, and the simulated days of
     ``[robustness]``). Its large datasets (occupation windows, the day's events) are written into ``stage`` where
     the unit is made or read back (:func:`section_written`), a part per section; the job keeps the small rest,
-    which :func:`conflicts_step` puts together."""
+    which :func:`conflicts_step` puts together. A section's files that its unit's key says did not change since
+    the previous run (``previous``: :class:`planner.job.made.Previous`) are that run's (:mod:`planner.job.made`)."""
     from planner.io.atomic import deferring
     from planner.job.robustness import key_of
 
     params = {k: v for k, v in dataclasses.asdict(job.conflicts).items() if k != "enabled"}
     common = [code_digest(), params, job.tables.ds_m, key_of(job), job.day.day]
-    return [Unit("conflicts", digest(["conflicts", s.seen, lifted_key(s.lifted), list(s.stream), *common]),
-                 f"conflicts {s.part}", conflicts_unit, (s.line, params, s.lifted, job, s.stream),
-                 after=functools.partial(write_staged, deferring(), section_written, stage,
-                                         _Stations(line.line_id, s.line.stations), s.part))
-            for s in sections]
+    units = []
+    for s in sections:
+        key = digest(["conflicts", s.seen, lifted_key(s.lifted), list(s.stream), *common])
+        made = made_key("conflicts", (line.line_id,), s.part, [key])
+        units.append(Unit("conflicts", key, f"conflicts {s.part}", conflicts_unit,
+                          (s.line, params, s.lifted, job, s.stream),
+                          after=functools.partial(write_staged, deferring(), section_written, stage,
+                                                  _Stations(line.line_id, s.line.stations), s.part, made,
+                                                  previous.of([made]) if previous is not None else None)))
+    return units
 
 
-def section_written(stage: Path, line: "_Stations", part: str, result) -> tuple:
+def section_written(stage: Path, line: "_Stations", part: str, made: str, previous, result) -> tuple:
     """Write a section's occupation windows and the datasets of its day as it runs into the staged run (part
-    ``part`` of each); what the job keeps: (its conflicts, headways and unrouted frames, the files written, the
-    robustness summary and the count of arrivals it is over, or None)."""
+    ``part`` of each), or link the previous run's (``made``: their key, ``previous``: that run's record,
+    :func:`planner.job.made.made_once`); what the job keeps: (its conflicts, headways and unrouted frames, the
+    files written, the robustness summary and the count of arrivals it is over, or None, and the files' record
+    ``(made, record)``)."""
     from planner.datasets.conflicts import write_occupation
     from planner.datasets.delays import write_day
+    from planner.job.made import made_once
 
     report, runs = result
-    files = [str(f) for f in write_occupation(report.occupation, stage, part)]
-    summary = None
-    if runs is not None:
-        directions, pday, stats, summary, held, arrivals = runs
-        files += [str(f) for f in write_day(pday, stats, held, line, directions, stage, part)[0]]
-        summary = (summary, arrivals)
-    return report.conflicts, report.headways, report.unrouted, files, summary
+
+    def write() -> list:
+        files = write_occupation(report.occupation, stage, part)
+        if runs is not None:
+            directions, pday, stats, _summary, held, _arrivals = runs
+            files += write_day(pday, stats, held, line, directions, stage, part)[0]
+        return files
+
+    files, record = made_once(made, previous, stage, write)
+    summary = None if runs is None else (runs[3], runs[5])
+    return report.conflicts, report.headways, report.unrouted, [str(f) for f in files], summary, (made, record)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -404,6 +417,7 @@ def conflicts_step(summary: RunSummary, kept: list, line: Line, stage: Path):
     unrouted = pd.concat(unrouted, ignore_index=True) if unrouted else None
     files = write_conflict_tables(line.line_id, conflicts, heads, unrouted, stage)
     count_rows(summary, files + [f for k in kept for f in k[3]])
+    summary.made.update(k[5] for k in kept)
     parts = [k[4] for k in kept if k[4] is not None]
     if parts:
         summary.robustness[line.line_id] = merged_summary(parts)  # the robustness page's head (job.views)
