@@ -36,7 +36,8 @@ VOLATILE = ("run_id", "timings_s", "units_computed", "units_reused", "changes") 
 KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1, "margin_leg": 4, "graph": 2,
          "charts": 2, "timetable": 1}  # speed-distance charts: the EMU10 train 101's legs A-B and B-C; margin legs:
 # one per group; the running-time tables: one unit, the line is one section
-BESIDE = {"tables_kept": 4, "stops_kept": 4, "closed_loop_kept": 4}  # what the job keeps, beside the result
+# what the job keeps, beside the result
+BESIDE = {"tables_kept": 4, "stops_kept": 4, "closed_loop_kept": 4, "conflicts_kept": 1}
 
 
 def _job(project: Path, output_root: str) -> Path:
@@ -227,7 +228,7 @@ def test_what_is_kept_beside_a_result_is_made_again_from_it_when_damaged(clean, 
     rnd = random.Random(5)
     for p in beside["tables_kept"] + beside["stops_kept"]:
         _flip_bits(p, rnd)
-    for p in beside["closed_loop_kept"]:
+    for p in beside["closed_loop_kept"] + beside["conflicts_kept"]:  # made again from the result
         p.unlink()
     code, err = _cli(capsys, "run", job, "--no-progress")
     assert code == 0, err

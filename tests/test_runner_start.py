@@ -3,13 +3,14 @@ train graph trajectories), through the cache like Runner.run."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import operator
 
 import pytest
 
 from planner.job.cache import Cache
 from planner.job.config import Job
-from planner.job.units import Progress, Runner, Unit
+from planner.job.units import Progress, Runner, Unit, kept_beside
 
 
 def _runner(tmp_path, n_jobs: int) -> Runner:
@@ -104,3 +105,38 @@ def test_a_failing_after_on_a_worker_fails_the_unit_and_keeps_its_entry(tmp_path
     assert e.value.errno == 28 and e.value.filename == "/run/stage/occupation/part-0.parquet"
     got = runner.cache.get("demo", units[0].key)
     assert got is not None and got["table"] == [0, "kept"]
+
+
+@kept_beside
+def _table(res: dict) -> list:
+    return res["table"]
+
+
+def _place(decode: bool, load):
+    """A Placed unit's files: the result's first window when ``decode``, else nothing read (the previous run's)."""
+    return float(load()["windows"][0]) if decode else "not decoded"
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2])
+def test_a_placed_unit_read_back_decodes_its_result_only_when_its_files_need_it(tmp_path, monkeypatch, n_jobs):
+    """Placed: what the job keeps is stored beside the result and read back without decoding it; the placed part
+    gets a loader that decodes the result only when called. With the kept entry gone, it is made again from the
+    decoded result."""
+    from planner.job.units import Placed
+
+    runner = _runner(tmp_path, n_jobs)
+    units = [Unit("demo", f"{i:064x}", f"unit {i}", _report, (i,), after=Placed(_table, functools.partial(_place, i == 1)))
+             for i in range(3)]
+    assert runner.start("demo", units).results()[0] == [([i, "kept"], float(i) if i == 1 else "not decoded")
+                                                        for i in range(3)]
+    read = []
+    get = Cache.get
+    monkeypatch.setattr(Cache, "get", lambda self, kind, key: (read.append((kind, int(key, 16))), get(self, kind, key))[1])
+    again = _runner(tmp_path, 1)  # read back in this process: the reads counted here
+    again.cache.path("demo_kept", units[2].key).unlink()
+    assert again.start("demo", units).results()[0] == [([i, "kept"], float(i) if i == 1 else "not decoded")
+                                                       for i in range(3)]
+    assert again.computed.get("demo", 0) == 0 and again.reused == {"demo": 3}
+    # unit 0: what is kept, read beside; unit 1: its files read the result; unit 2: what is kept made again from it
+    assert sorted(k for kind, k in read if kind == "demo") == [1, 2]
+    assert again.cache.get("demo_kept", units[2].key) == [2, "kept"]

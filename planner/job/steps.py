@@ -18,7 +18,7 @@ from planner.io.memory import give_back, then_give_back
 from planner.job.config import Job
 from planner.job.day import lifted_key, line_digest
 from planner.job.publish import digest
-from planner.job.units import Runner, Unit, code_digest, kept_beside
+from planner.job.units import Placed, Runner, Unit, code_digest, kept_beside
 from planner.line.model import Line
 
 if TYPE_CHECKING:
@@ -361,25 +361,32 @@ def conflicts_units(job: Job, line: Line, stage: Path, sections: list[SectionInp
         made = made_key("conflicts", (line.line_id,), s.part, [key])
         units.append(Unit("conflicts", key, f"conflicts {s.part}", conflicts_unit,
                           (s.line, params, s.lifted, job, s.stream),
-                          after=functools.partial(write_staged, deferring(), section_written, stage,
-                                                  _Stations(line.line_id, s.line.stations), s.part, made,
-                                                  previous.of([made]) if previous is not None else None)))
+                          after=Placed(section_kept, functools.partial(
+                              write_staged, deferring(), section_written, stage,
+                              _Stations(line.line_id, s.line.stations), s.part, made,
+                              previous.of([made]) if previous is not None else None))))
     return units
 
 
-def section_written(stage: Path, line: "_Stations", part: str, made: str, previous, result) -> tuple:
+@kept_beside
+def section_kept(result) -> tuple:
+    """What the job keeps of a section's unit (stored beside it): its conflicts, headways and unrouted frames, and
+    the robustness summary with the count of arrivals it is over, or None."""
+    report, runs = result
+    return report.conflicts, report.headways, report.unrouted, None if runs is None else (runs[3], runs[5])
+
+
+def section_written(stage: Path, line: "_Stations", part: str, made: str, previous, load) -> tuple:
     """Write a section's occupation windows and the datasets of its day as it runs into the staged run (part
-    ``part`` of each), or link the previous run's (``made``: their key, ``previous``: that run's record,
-    :func:`planner.job.made.made_once`); what the job keeps: (its conflicts, headways and unrouted frames, the
-    files written, the robustness summary and the count of arrivals it is over, or None, and the files' record
-    ``(made, record)``)."""
+    ``part`` of each), from its result (``load()``), or link the previous run's files without decoding the result
+    (``made``: their key, ``previous``: that run's record, :func:`planner.job.made.made_once`); returns (the files,
+    their record ``(made, record)``)."""
     from planner.datasets.conflicts import write_occupation
     from planner.datasets.delays import write_day
     from planner.job.made import made_once
 
-    report, runs = result
-
     def write() -> list:
+        report, runs = load()
         files = write_occupation(report.occupation, stage, part)
         if runs is not None:
             directions, pday, stats, _summary, held, _arrivals = runs
@@ -387,8 +394,7 @@ def section_written(stage: Path, line: "_Stations", part: str, made: str, previo
         return files
 
     files, record = made_once(made, previous, stage, write)
-    summary = None if runs is None else (runs[3], runs[5])
-    return report.conflicts, report.headways, report.unrouted, [str(f) for f in files], summary, (made, record)
+    return [str(f) for f in files], (made, record)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -401,8 +407,8 @@ class _Stations:
 
 
 def conflicts_step(summary: RunSummary, kept: list, line: Line, stage: Path):
-    """Put the sections' results together (``kept``: each :func:`section_written`): the line's conflicts numbered
-    in time order across its sections, its headways and unrouted trains written as one dataset each; count the
+    """Put the sections' results together (``kept``: each section's :func:`section_kept` and
+    :func:`section_written`): the line's conflicts numbered in time order across its sections, its headways and unrouted trains written as one dataset each; count the
     route conflicts found, the trains the network cannot carry (a flag and a note each: the night goes on
     without them) and the datasets' rows; returns the conflicts table for the report."""
     import pandas as pd
@@ -410,15 +416,16 @@ def conflicts_step(summary: RunSummary, kept: list, line: Line, stage: Path):
     from planner.datasets.conflicts import renumbered, write_conflict_tables
     from planner.job.robustness import merged_summary
 
+    kept, placed = [k[0] for k in kept], [k[1] for k in kept]  # section_kept's, section_written's
     conflicts = renumbered([k[0] for k in kept])
     heads = pd.concat([k[1] for k in kept], ignore_index=True).sort_values(
         ["from_m", "to_m", "resource_kind", "resource_id"], kind="stable").reset_index(drop=True)
     unrouted = [k[2] for k in kept if k[2] is not None and len(k[2])]  # each section's, in the sections' order
     unrouted = pd.concat(unrouted, ignore_index=True) if unrouted else None
     files = write_conflict_tables(line.line_id, conflicts, heads, unrouted, stage)
-    count_rows(summary, files + [f for k in kept for f in k[3]])
-    summary.made.update(k[5] for k in kept)
-    parts = [k[4] for k in kept if k[4] is not None]
+    count_rows(summary, files + [f for p in placed for f in p[0]])
+    summary.made.update(p[1] for p in placed)
+    parts = [k[3] for k in kept if k[3] is not None]
     if parts:
         summary.robustness[line.line_id] = merged_summary(parts)  # the robustness page's head (job.views)
     summary.flags["conflicts"] = summary.flags.get("conflicts", 0) + int(

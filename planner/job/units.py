@@ -25,6 +25,7 @@ from typing import Any, Callable, Sequence
 
 import planner
 from planner import __version__
+from planner.errors import PlannerError
 from planner.io.compiled import COMPILERS  # their versions are part of the code digest
 from planner.job.cache import Cache
 from planner.job.config import Job
@@ -226,7 +227,23 @@ def kept_beside(fn: Callable) -> Callable:
     return fn
 
 
+@dataclasses.dataclass(frozen=True)
+class Placed:
+    """A :attr:`Unit.after` in two parts: what the job keeps of the result (``kept``: a :func:`kept_beside` function of
+    the result alone, stored beside it) and what this run makes of it in its own folder (``place(load)``, module
+    level or a partial of one: its files, given ``load``, which decodes the result when called; a run whose files
+    are the previous run's does not call it, :mod:`planner.job.made`). What the job gets: ``(kept, placed)``."""
+
+    kept: Callable
+    place: Callable
+
+    def __call__(self, res):
+        return self.kept(res), self.place(lambda: res)
+
+
 def _beside(after: Callable | None) -> bool:
+    if isinstance(after, Placed):
+        after = after.kept
     return getattr(after, "kept_beside", False) is True
 
 
@@ -235,14 +252,31 @@ def _kept(after: Callable | None, res):
     return res if after is None else after(res)
 
 
+def _beside_part(after: Callable | None, kept):
+    """What of ``kept`` is stored beside the result: all of it, or a :class:`Placed` after's ``kept`` part (the
+    placed part names this run's files)."""
+    return kept[0] if isinstance(after, Placed) else kept
+
+
 def _stored(cache: Cache, step: str, key: str, after: Callable | None, res):
     """A unit's result stored in the cache (it survives a later failure), then what the job keeps of it (stored
     beside it too when :func:`kept_beside`: after the result, so that it never stands for a result not stored)."""
     cache.put(step, key, res)
     kept = _kept(after, res)
     if _beside(after):
-        cache.put(f"{step}_kept", key, kept)
+        cache.put(f"{step}_kept", key, _beside_part(after, kept))
     return kept
+
+
+def _loader(cache: Cache, step: str, key: str) -> Callable:
+    """A function that decodes the stored unit (checked just before) when a :class:`Placed` after needs it."""
+    def load():
+        obj = cache.get(step, key)
+        if obj is None:
+            raise PlannerError(f"the stored {step} unit {key[:12]} could not be read back ({cache.why_missed()}); "
+                               "run the job again: it is computed then")
+        return obj
+    return load
 
 
 def _call_kept(fn, args, cache: Cache, step: str, key: str, after: Callable | None):
@@ -272,13 +306,15 @@ def _read_kept(cache: Cache, step: str, key: str, after: Callable, own: bool = T
         # beside it: a damaged one is made again below, not a rejected unit (the job's counts do not see it)
         kept = Cache(cache.root, enabled=cache.enabled).get(f"{step}_kept", key)
         if kept is not None:
+            if isinstance(after, Placed):  # this run's files: the result is decoded only if they are not reused
+                return (kept, after.place(_loader(mine, step, key))), None
             return kept, None
     obj = mine.get(step, key)
     if obj is None:
         return None, mine.why_missed()
     kept = _kept(after, obj)
     if _beside(after):
-        mine.put(f"{step}_kept", key, kept)
+        mine.put(f"{step}_kept", key, _beside_part(after, kept))
     return kept, None
 
 
