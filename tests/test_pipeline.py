@@ -231,6 +231,32 @@ def _made_files(run: Path, datasets=("eval_points", "table_a", "table_b", "table
     return {without_run(p.relative_to(run).as_posix()): p for d in datasets for p in (run / d).rglob("*.parquet")}
 
 
+def test_a_partition_written_in_parts_holds_the_rows_written_whole(project, monkeypatch):
+    """The tables', stopping patterns' and closed loop's datasets written in parts of one interstation (two files a
+    partition on the tiny line) hold the rows written in one part, in the same order (the stopping patterns' rows
+    are sorted within a file: the same rows), and count alike: no part's file is another's."""
+    import json
+
+    import planner.job.steps as steps
+
+    whole = project / "out" / _run(_job(project)).run_id
+    job = project / "jobs" / "parts.toml"
+    job.write_text((project / "jobs" / "job.toml").read_text().replace('output_root = "out"', 'output_root = "parts"'))
+    monkeypatch.setattr(steps, "PART_UNITS", 1)
+    parts = project / "parts" / _run(job).run_id
+    names = ("eval_points", "table_a", "table_b", "table_c", "table_d", "stop_summary", "stop_samples",
+             "closed_loop", "closed_loop_summary")
+    for name in names:
+        a, b = (sorted((run / name).rglob("*.parquet")) for run in (whole, parts))
+        assert {p.name for p in a} == {"part-0.parquet"} and {p.name for p in b} == {"part-0.parquet", "part-1.parquet"}
+        fa, fb = (pd.read_parquet(run / name).drop(columns=["run_id"]) for run in (whole, parts))
+        if name.startswith("stop_"):
+            fa, fb = (f.sort_values(list(f.columns), kind="stable").reset_index(drop=True) for f in (fa, fb))
+        pd.testing.assert_frame_equal(fa, fb, obj=name)
+    rows = [json.loads((run / "manifest.json").read_text())["rows"] for run in (whole, parts)]
+    assert rows[0] == rows[1] and all(rows[0][n] for n in names)
+
+
 def test_an_edit_reuses_the_files_of_the_partitions_it_did_not_touch(project):
     """The tables' and stops' files of the partitions an edit did not touch are the previous run's files (the same
     inode: linked, not written again); those of the partitions it touched are new. A previous file that was

@@ -186,12 +186,14 @@ def _runs(results: Sequence[ClosedLoopResult]) -> pa.Table:
     return pa.table(cols)
 
 
-def write_closed_loop(results: Sequence[ClosedLoopResult] | dict[str, pa.Table], out_dir: str | Path) -> list[Path]:
+def write_closed_loop(results: Sequence[ClosedLoopResult] | dict[str, pa.Table], out_dir: str | Path,
+                      part: str = "0") -> list[Path]:
     """Write ``closed_loop`` and ``closed_loop_summary`` under ``out_dir`` (atomic per file): of the results,
     or their :func:`datasets` made beforehand (the nightly job's margins read those tables while they are
-    written)."""
+    written); ``part``: the files' name in each partition folder, ``part-<part>.parquet`` (the nightly job writes a
+    line's interstations in parts, :func:`planner.job.steps.partition_keys`)."""
     schemas = {"closed_loop": CLOSED_LOOP_SCHEMA, "closed_loop_summary": CLOSED_LOOP_SUMMARY_SCHEMA}
     written: list[Path] = []
     for name, table in (results if isinstance(results, dict) else datasets(results)).items():
-        written += write_partitioned(table, Path(out_dir), name, PARTITION_COLS, schema=schemas[name])
+        written += write_partitioned(table, Path(out_dir), name, PARTITION_COLS, schema=schemas[name], part=part)
     return written

@@ -157,12 +157,13 @@ part of each partition it touches, and the others are the previous run's files (
 sample's partitions (a dozen interstations) are one file each; the 100x line's about 38."""
 
 
-def partition_keys(line_id: str, tasks: list, units: list, size: int | None = PART_UNITS) -> list[tuple]:
+def partition_keys(line_id: str, tasks: list, units: list) -> list[tuple]:
     """The keys of a line's interstation units (``tasks``: (train type, direction, origin, destination) each) by
     the dataset partition their rows go to, as :func:`planner.io.parquet.by_partition` groups the results, and
-    in parts of at most ``size`` units (None: one part): ``(partition, part name, keys)`` each, the partitions in
-    sorted order, each partition's parts and units in the line's order (the parts' names sort in that order,
-    :func:`planner.network.sections.part_names`)."""
+    in parts of at most :data:`PART_UNITS` units: ``(partition, part name, keys)`` each, the partitions in sorted
+    order, each partition's parts and units in the line's order (the parts' names sort in that order,
+    :func:`planner.network.sections.part_names`). Every writer of a group writes its files as ``part-<part name>``,
+    so that no part's file is another's."""
     from planner.network.sections import part_names
 
     groups: dict = {}
@@ -171,7 +172,7 @@ def partition_keys(line_id: str, tasks: list, units: list, size: int | None = PA
     out = []
     for g in sorted(groups):
         keys = groups[g]
-        n = size or len(keys)
+        n = PART_UNITS
         chunks = [keys[i:i + n] for i in range(0, len(keys), n)]
         out += [(g, name, chunk) for name, chunk in zip(part_names(len(chunks)), chunks)]
     return out
@@ -214,9 +215,9 @@ def loops_seen(batch):
     return [FlaggedLeg(r.train_type, r.direction, r.origin, r.destination, tuple(r.flags)) for r in batch if r.flags]
 
 
-def closed_loop_written(root: str, line_id: str, groups: list[list[str]], stage: Path, rule, times) -> tuple:
+def closed_loop_written(root: str, line_id: str, groups: list[tuple], stage: Path, rule, times) -> tuple:
     """Worker: the line's ``closed_loop`` and ``closed_loop_summary`` datasets, written from the closed-loop units'
-    stored results (``groups``: their keys by partition, :func:`partition_keys`), one partition group in memory at
+    stored results (``groups``: their keys by partition and part, :func:`partition_keys`), one part in memory at
     a time, and what the margins read of them (:class:`~planner.report.margin_datasets.ClosedLoopFacts` at the
     ``times`` they look up, the margin ``rule``'s scenarios). Returns (the files, the facts)."""
     from planner.datasets.closed_loop import datasets, write_closed_loop
@@ -224,9 +225,9 @@ def closed_loop_written(root: str, line_id: str, groups: list[list[str]], stage:
     from planner.report.margin_datasets import ClosedLoopFacts
 
     files, facts = [], ClosedLoopFacts()
-    for _partition, _part, keys in groups:
+    for _partition, part, keys in groups:
         tables = datasets([r for k in keys for r in Stored(root, "closed_loop", k).load()])
-        files += write_closed_loop(tables, stage)
+        files += write_closed_loop(tables, stage, part)
         facts.add(tables, line_id, rule, times)
         del tables
     return files, facts
