@@ -152,9 +152,10 @@ def stops_seen(r) -> StopsSeen:
 
 
 PART_UNITS = 32
-"""Interstations per file of a partition of the tables' and stopping patterns' datasets: an edit rewrites the
-part of each partition it touches, and the others are the previous run's files (:mod:`planner.job.made`). The
-sample's partitions (a dozen interstations) are one file each; the 100x line's about 38."""
+"""Interstations per file of a partition of the tables', stopping patterns' and closed loop's datasets: an edit
+rewrites the part of each partition it touches, and the tables' and stops' others are the previous run's files
+(:mod:`planner.job.made`). The sample's partitions (a dozen interstations) are one file each; the 100x line's
+about 38."""
 
 
 def partition_keys(line_id: str, tasks: list, units: list) -> list[tuple]:

@@ -81,7 +81,7 @@ def readme() -> str:
         "",
         "Partition columns (`line`, `direction`, `train_type`, ...) are folder names, not stored in",
         "the files: read with hive partitioning (a folder may hold several files, in chainage order: the",
-        "tables' and stopping patterns' datasets have a `part-<n>.parquet` per 32 interstations, and the",
+        "tables', stopping patterns' and closed loop's datasets have a `part-<n>.parquet` per 32 interstations, and the",
         "route conflicts' and the day as it runs' datasets of a line whose trains fall into sections that",
         "share no track one per section; rows are sorted within a file). Every column carries its unit in its name",
         "(`_s` seconds, `_m` metres, `_kmh` km/h, `_ms2` m/s², `_kmh_s` km/h/s, `_kwh` kWh). Times in the",
