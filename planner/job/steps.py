@@ -173,8 +173,7 @@ def partition_keys(line_id: str, tasks: list, units: list) -> list[tuple]:
     out = []
     for g in sorted(groups):
         keys = groups[g]
-        n = PART_UNITS
-        chunks = [keys[i:i + n] for i in range(0, len(keys), n)]
+        chunks = [keys[i:i + PART_UNITS] for i in range(0, len(keys), PART_UNITS)]
         out += [(g, name, chunk) for name, chunk in zip(part_names(len(chunks)), chunks)]
     return out
 
@@ -234,7 +233,7 @@ def closed_loop_written(root: str, line_id: str, groups: list[tuple], stage: Pat
     return files, facts
 
 
-def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, groups: list[list[str]]):
+def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, groups: list[tuple]):
     """Write a step's datasets (the tables', the stopping patterns') on a worker, from the results its units stored
     (``groups``: their keys by partition and part, :func:`partition_keys`): the results never come to the job
     process; ``.result()``: the files and their record (:func:`write_stored`)."""
