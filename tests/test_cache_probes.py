@@ -38,6 +38,8 @@ KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1
 # one per group; the running-time tables: one unit, the line is one section
 # what the job keeps, beside the result
 BESIDE = {"tables_kept": 4, "stops_kept": 4, "closed_loop_kept": 4, "conflicts_kept": 1}
+# what the margins read of each part of the closed loop's datasets (a direction each), made with its files
+FACTS = {"closed_loop_facts": 2}
 
 
 def _job(project: Path, output_root: str) -> Path:
@@ -214,7 +216,7 @@ def test_a_damaged_cache_never_reaches_a_published_file(clean, capsys, probe, tm
     assert len(warnings) == 1 and warnings[0].startswith(f"warning: {n_bad} cache entr"), err
     assert not marker.exists()
     rep = Cache(root / ".cache").verify()  # the rejected entries were replaced by good ones
-    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) and not rep.bad
+    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) + sum(FACTS.values()) and not rep.bad
     manifest = json.loads((root / "latest" / "manifest.json").read_text())
     assert sum(manifest["units_computed"].values()) == n_bad
 
@@ -236,7 +238,7 @@ def test_what_is_kept_beside_a_result_is_made_again_from_it_when_damaged(clean, 
     manifest = json.loads((root / "latest" / "manifest.json").read_text())
     assert sum(manifest["units_computed"].values()) == 0
     rep = Cache(root / ".cache").verify()
-    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) and not rep.bad
+    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) + sum(FACTS.values()) and not rep.bad
 
 
 # --- the output root fails ---------------------------------------------------------------------

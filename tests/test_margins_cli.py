@@ -119,6 +119,28 @@ def test_closed_loop_in_hand_is_the_folder(linedir, tmp_path):
     assert facts.worst == worst
     made = compute_margins(line, train_types=["EMU6"], tables_dir=tdir, closed_loop=facts, conflicts=False).rows
     assert from_folder.equals(made)
+    # each leg's own times (what the nightly job gives, a part of the line's legs at a time): a leg keeps its
+    # errors at its own scheduled times only (another leg's times are not its), and the margins are the same
+    from planner.report.margin_legs import looked_up_by_leg
+
+    sweep: dict = {}
+    for k in index:
+        sweep.setdefault(k[:4], set()).add(k[5])
+    scheduled = looked_up_by_leg(line, ["EMU6"])
+    assert scheduled and all(v == sorted(v) for v in scheduled.values())
+    # each leg its scheduled times and some of its sweep's, every leg others
+    by_leg = {leg: sorted(set(scheduled.get(leg, ())) | set(sorted(sweep[leg])[i % 7::7]))
+              for i, leg in enumerate(sorted(sweep))}
+    own = ClosedLoopFacts()
+    for d in ("up", "down"):
+        own.add(datasets([r for r in results if r.direction == d]), line.line_id, rule,
+                {k: v for k, v in by_leg.items() if k[0] == d})
+    union = closed_loop_index(cdir, line.line_id, rule, times=[t for v in by_leg.values() for t in v])
+    assert own.index == {k: v for k, v in union.items() if k[5] in {round(t, 6) for t in by_leg[k[:4]]}}
+    assert 0 < len(own.index) < len(union)  # a leg's entries at another leg's times are not its
+    assert own.worst == worst
+    assert from_folder.equals(compute_margins(line, train_types=["EMU6"], tables_dir=tdir, closed_loop=own,
+                                              conflicts=False).rows)
 
 
 def test_the_closed_loop_index_keeps_the_times_looked_up(tmp_path, monkeypatch):

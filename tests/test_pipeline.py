@@ -227,7 +227,7 @@ def test_one_edited_restriction_recomputes_only_its_interstation(project):
 
 
 def _made_files(run: Path, datasets=("eval_points", "table_a", "table_b", "table_c", "table_d", "stop_summary",
-                                     "stop_samples")) -> dict[str, Path]:
+                                     "stop_samples", "closed_loop", "closed_loop_summary")) -> dict[str, Path]:
     return {without_run(p.relative_to(run).as_posix()): p for d in datasets for p in (run / d).rglob("*.parquet")}
 
 
@@ -258,9 +258,9 @@ def test_a_partition_written_in_parts_holds_the_rows_written_whole(project, monk
 
 
 def test_an_edit_reuses_the_files_of_the_partitions_it_did_not_touch(project):
-    """The tables' and stops' files of the partitions an edit did not touch are the previous run's files (the same
-    inode: linked, not written again); those of the partitions it touched are new. A previous file that was
-    altered after its run is not reused: its group is written again, to the bytes it had."""
+    """The tables', stops' and closed loop's files of the partitions an edit did not touch are the previous run's
+    files (the same inode: linked, not written again); those of the partitions it touched are new. A previous file
+    that was altered after its run is not reused: its group is written again, to the bytes it had."""
     job = _job(project)
     first = project / "out" / _run(job).run_id
     before = _made_files(first)
@@ -271,8 +271,13 @@ def test_an_edit_reuses_the_files_of_the_partitions_it_did_not_touch(project):
     good = bad.read_bytes()
     bad.unlink()  # a new file under the old name, as any later write makes it (the other run's link is kept)
     bad.write_bytes(good[:-8] + b"\0" * 8)
+    facts = {p: p.stat().st_ino for p in (project / "out" / ".cache" / "closed_loop_facts").rglob("*.pce")}
+    assert len(facts) == 4  # what the margins read of each closed-loop part (a direction and type each)
     _edit_restriction(project, 65.0)  # seen by the up runs C->B alone
     second = project / "out" / _run(job).run_id
+    # the down parts' facts read back, not made again (stored anew); the up parts' made for their new runs
+    again = {p: p.stat().st_ino for p in (project / "out" / ".cache" / "closed_loop_facts").rglob("*.pce")}
+    assert {p: again.get(p) for p in facts} == facts and len(again) == 6
     after = _made_files(second)
     assert sorted(after) == sorted(before)
     bad_group = {k for k in before if k.split("/")[0] in ("eval_points", "table_a", "table_b", "table_c", "table_d")
@@ -289,6 +294,28 @@ def test_an_edit_reuses_the_files_of_the_partitions_it_did_not_touch(project):
 
     made = json.loads((second / "manifest.json").read_text())["made"]
     assert sorted(r for files in made.values() for r, _ in files) == sorted(after)
+
+
+def test_damaged_facts_of_a_closed_loop_part_are_made_again_from_its_rows(project):
+    """What the margins read of a closed-loop part an edit did not touch comes from its cache entry; an entry that
+    fails its digest is made again from the part's rows: the run warns once, counting them, and its margins are
+    those of a run that read nothing from the cache."""
+    from planner.job.pipeline import run_job
+
+    job = _job(project)
+    _run(job)
+    for p in (project / "out" / ".cache" / "closed_loop_facts").rglob("*.pce"):
+        data = bytearray(p.read_bytes())
+        data[-1] ^= 1  # one bit of the payload
+        p.write_bytes(bytes(data))
+    _edit_restriction(project, 65.0)  # the down parts' files are the previous run's: their facts are read
+    s = _run(job)
+    assert [w[:19] for w in s.warnings] == ["2 cache entries in "], s.warnings
+    fresh = run_job(load_job(job), show_progress=False, use_cache=False)
+    margins = [{k: v for k, v in _tree_digest(project / "out" / r).items() if k.startswith(("margins/", "margin_"))}
+               for r in (s.run_id, fresh.run_id)]
+    assert margins[0] and [{without_run(k): v for k, v in m.items()} for m in margins][0] == \
+        {without_run(k): v for k, v in margins[1].items()}
 
 
 def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> None:

@@ -2,11 +2,12 @@
 
 A published dataset file does not name its run (the run's id and date are folders,
 :func:`planner.io.parquet.place_in_run`), so the file a writer makes from the same stored results is the same
-bytes on every night. Each group of files a writer makes in one call (a part of a partition of the tables'
-or the stopping patterns' datasets, :func:`planner.job.steps.partition_keys`; a section's occupation windows
-and day as it runs, :func:`planner.job.steps.section_written`) is named by a key that digests what the bytes
-depend on (the writer, the code, the partition and part, and the keys of the units whose results it writes). The run's manifest records, under ``made``, each group's key and the files it made, with
-their SHA-256.
+bytes on every night. Each group of files a writer makes in one call (a part of a partition of the tables',
+the stopping patterns' or the closed loop's datasets, :func:`planner.job.steps.partition_keys`; a section's
+occupation windows and day as it runs, :func:`planner.job.steps.section_written`) is named by a key that digests
+what the bytes depend on (the writer, the code, the partition and part, and the keys of the units whose results
+it writes). The run's manifest records, under ``made``, each group's key and the files it made, with their
+SHA-256.
 
 On the next night a group whose key is in the previous run's record is not written again: each of its files is
 read and checked against the SHA-256 recorded, and then hard-linked into the staged run (copied where the output

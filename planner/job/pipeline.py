@@ -459,12 +459,16 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # them (the errors at the timetable's times, the worst per leg): the runs never come to this process
     from planner.io.parallel import background
     from planner.io.atomic import deferring
-    from planner.report.margin_legs import looked_up_times
+    from planner.report.margin_legs import looked_up_by_leg
     from planner.report.margins import margin_options
 
-    loops_written = background(write_staged, (deferring(), closed_loop_written, root, line.line_id,
-                                               partition_keys(line.line_id, tasks, c_units), stage,
-                                               margin_options(job, line)["rule"], looked_up_times(line, types, lifted)),
+    loop_groups = partition_keys(line.line_id, tasks, c_units)
+    leg_of = {u.key: (k[1], k[0], k[2], k[3]) for k, u in zip(tasks, c_units)}  # (direction, type, from, to)
+    by_leg = looked_up_by_leg(line, types, lifted)
+    loop_times = [{leg_of[k]: by_leg[leg_of[k]] for k in keys if leg_of[k] in by_leg} for _, _, keys in loop_groups]
+    loops_written = background(write_staged, (deferring(), closed_loop_written, root, line.line_id, loop_groups,
+                                               stage, margin_options(job, line)["rule"], loop_times,
+                                               summary.previous),
                                name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(loops_written)
     del side_results, loop_batches, t_units, s_units, c_units, windows
@@ -493,7 +497,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     conflicts = None
     if checks_conflicts:
         conflicts = conflicts_step(summary, got.pop("conflicts"), line, stage)
-    loop_files, loop_facts = loops_written.result()
+    loop_files, loop_facts, made, rejected = loops_written.result()
+    summary.made.update(made)
+    for kind, entry, why in rejected:  # facts of a part whose entry was not trusted: made again from its rows
+        runner.cache.rejected_elsewhere(kind, entry, why)
     summary.pending.remove(loops_written)
     count_rows(summary, loop_files)
     report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given, lifted, loop_facts)

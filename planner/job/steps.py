@@ -153,7 +153,7 @@ def stops_seen(r) -> StopsSeen:
 
 PART_UNITS = 32
 """Interstations per file of a partition of the tables', stopping patterns' and closed loop's datasets: an edit
-rewrites the part of each partition it touches, and the tables' and stops' others are the previous run's files
+rewrites the part of each partition it touches, and the others are the previous run's files
 (:mod:`planner.job.made`). The sample's partitions (a dozen interstations) are one file each; the 100x line's
 about 38."""
 
@@ -215,22 +215,47 @@ def loops_seen(batch):
     return [FlaggedLeg(r.train_type, r.direction, r.origin, r.destination, tuple(r.flags)) for r in batch if r.flags]
 
 
-def closed_loop_written(root: str, line_id: str, groups: list[tuple], stage: Path, rule, times) -> tuple:
+def closed_loop_written(root: str, line_id: str, groups: list[tuple], stage: Path, rule, times: list[dict],
+                        prev=None) -> tuple:
     """Worker: the line's ``closed_loop`` and ``closed_loop_summary`` datasets, written from the closed-loop units'
     stored results (``groups``: their keys by partition and part, :func:`partition_keys`), one part in memory at
-    a time, and what the margins read of them (:class:`~planner.report.margin_datasets.ClosedLoopFacts` at the
-    ``times`` they look up, the margin ``rule``'s scenarios). Returns (the files, the facts)."""
+    a time, and what the margins read of them (:class:`~planner.report.margin_datasets.ClosedLoopFacts` at each
+    part's legs' ``times``, :func:`planner.report.margin_legs.looked_up_by_leg`; the margin ``rule``'s scenarios).
+
+    A part whose inputs did not change since the previous run (``prev``, :mod:`planner.job.made`) is that run's
+    files, and its facts are the entry stored in the work cache when they were made (kind
+    ``closed_loop_facts``, keyed by the files' key, the rule and the part's times; checked by its digest like
+    every read): its results are not read. Returns (the files, the facts, ``{group key: record}``, the entries
+    rejected here: ``(kind, key, why)`` each, for the run's one warning, :meth:`Cache.rejected_elsewhere`)."""
     from planner.datasets.closed_loop import datasets, write_closed_loop
+    from planner.job.cache import Cache
+    from planner.job.made import made_once
     from planner.job.units import Stored
     from planner.report.margin_datasets import ClosedLoopFacts
 
-    files, facts = [], ClosedLoopFacts()
-    for _partition, part, keys in groups:
-        tables = datasets([r for k in keys for r in Stored(root, "closed_loop", k).load()])
-        files += write_closed_loop(tables, stage, part)
-        facts.add(tables, line_id, rule, times)
-        del tables
-    return files, facts
+    cache = Cache(Path(root), enabled=prev is not None)  # --no-cache: no previous run, and no entry read either
+    files, facts, made = [], ClosedLoopFacts(), {}
+    for (partition, part, keys), part_times in zip(groups, times, strict=True):
+        key = made_key("closed_loop", partition, part, keys)
+        fkey = digest(["closed_loop_facts", key, dataclasses.asdict(rule), sorted(part_times.items())])
+        loaded: list = []
+
+        def tables(keys=keys, loaded=loaded) -> dict:
+            if not loaded:
+                loaded.append(datasets([r for k in keys for r in Stored(root, "closed_loop", k).load()]))
+            return loaded[0]
+
+        got, made[key] = made_once(key, prev, stage, lambda part=part, tables=tables: write_closed_loop(
+            tables(), stage, part))
+        files += got
+        mine = cache.get("closed_loop_facts", fkey)
+        if not isinstance(mine, ClosedLoopFacts):
+            mine = ClosedLoopFacts()
+            mine.add(tables(), line_id, rule, part_times)
+            cache.put("closed_loop_facts", fkey, mine)
+        facts.update(mine)
+        loaded.clear()
+    return files, facts, made, cache.rejected_why
 
 
 def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, groups: list[tuple]):

@@ -283,11 +283,23 @@ class ClosedLoopFacts:
 
     def add(self, tables: dict, line_id: str, rule, times) -> None:
         """Add the facts of the ``closed_loop`` and ``closed_loop_summary`` Arrow tables ``tables``
-        (:func:`planner.datasets.closed_loop.datasets`) of some of the line's legs (each leg's rows all in them)."""
+        (:func:`planner.datasets.closed_loop.datasets`) of some of the line's legs (each leg's rows all in them).
+        ``times``: the running times the margins look up (:func:`closed_loop_index`), or each leg's own
+        (:func:`planner.report.margin_legs.looked_up_by_leg`): then a leg keeps its errors at its own times only."""
         if tables["closed_loop"].num_columns:  # no column at all: none of these legs has a run
-            self.index.update(closed_loop_index(Path("."), line_id, rule, tables, times))
+            if isinstance(times, dict):
+                own = {leg: {round(float(x), 6) for x in v} for leg, v in times.items()}
+                index = closed_loop_index(Path("."), line_id, rule, tables, sorted(set().union(*own.values())))
+                self.index.update((k, v) for k, v in index.items() if k[5] in own.get(k[:4], ()))
+            else:
+                self.index.update(closed_loop_index(Path("."), line_id, rule, tables, times))
         if tables["closed_loop_summary"].num_rows:
             self.worst.update(closed_loop_worst(Path("."), line_id, tables))
+
+    def update(self, other: "ClosedLoopFacts") -> None:
+        """Add another part's facts (of other legs)."""
+        self.index.update(other.index)
+        self.worst.update(other.worst)
 
 
 def _near(x: np.ndarray, wanted: set) -> np.ndarray:

@@ -112,5 +112,17 @@ def looked_up_times(line: Line, types: Sequence[str], lifted: Lifted | None = No
     return looked_up(scheduled_times(line, types, legs, lifted))
 
 
-__all__ = ["Lifted", "TrainLeg", "applied_restrictions", "group_window", "lifted_of", "looked_up", "looked_up_times",
-           "scheduled_times", "timetable_legs"]
+def looked_up_by_leg(line: Line, types: Sequence[str], lifted: Lifted | None = None) -> dict[tuple, list[float]]:
+    """:func:`looked_up_times` by leg: ``{(direction, train_type, origin, destination): [times, s]}``, sorted, the legs
+    with none left out. What the margins look up of a leg's closed loop is at its own times only, so what a leg
+    keeps of it (:class:`planner.report.margin_datasets.ClosedLoopFacts`) changes only when they do."""
+    legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
+    out: dict[tuple, set] = {}
+    for k, v in scheduled_times(line, types, legs, lifted).items():
+        if not k[4] and v:
+            out.setdefault(k[:4], set()).update(v)
+    return {k: sorted(v) for k, v in out.items()}
+
+
+__all__ = ["Lifted", "TrainLeg", "applied_restrictions", "group_window", "lifted_of", "looked_up", "looked_up_by_leg",
+           "looked_up_times", "scheduled_times", "timetable_legs"]
