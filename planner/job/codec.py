@@ -376,10 +376,10 @@ def payload_pieces(tree: np.ndarray, arrays: dict[str, np.ndarray]) -> list:
     return [lead, tree, bytes(-start % ALIGN), *pieces]
 
 
-def _arrays(payload: bytes) -> tuple[bytes, dict[str, np.ndarray]]:
-    """(tree, arrays) of a payload, every part checked: read-only views of ``payload``."""
+def _arrays(payload: memoryview) -> tuple[bytes, dict[str, np.ndarray]]:
+    """(tree, arrays) of a payload, every part checked: the arrays read-only views of ``payload``."""
     lead = len(PAYLOAD_MAGIC) + _LENGTHS.size
-    if len(payload) < lead or payload[:len(PAYLOAD_MAGIC)] != PAYLOAD_MAGIC:
+    if len(payload) < lead or bytes(payload[:len(PAYLOAD_MAGIC)]) != PAYLOAD_MAGIC:
         raise CacheEntryError("payload is not a planner cache payload (bad magic)")
     head_len, tree_len = _LENGTHS.unpack_from(payload, len(PAYLOAD_MAGIC))
     tree_at = lead + head_len
@@ -387,7 +387,7 @@ def _arrays(payload: bytes) -> tuple[bytes, dict[str, np.ndarray]]:
     if data > len(payload):
         raise CacheEntryError("payload is shorter than its lengths say")
     try:
-        head = json.loads(payload[lead:tree_at])
+        head = json.loads(bytes(payload[lead:tree_at]))
     except (UnicodeDecodeError, ValueError, RecursionError):
         raise CacheEntryError("payload directory is not JSON") from None
     if not isinstance(head, dict) or set(head) != {"arrays"} or not isinstance(head["arrays"], list):
@@ -415,7 +415,7 @@ def _arrays(payload: bytes) -> tuple[bytes, dict[str, np.ndarray]]:
             arrays[name] = np.zeros(shape, dtype=dtype)
         else:
             arrays[name] = np.frombuffer(payload, dtype=dtype, count=count, offset=start).reshape(shape)
-    return payload[tree_at:tree_at + tree_len], arrays
+    return bytes(payload[tree_at:tree_at + tree_len]), arrays
 
 
 def encode(obj: Any) -> bytes:
@@ -423,10 +423,11 @@ def encode(obj: Any) -> bytes:
     return b"".join(payload_pieces(*members(obj)))
 
 
-def decode(payload: bytes) -> Any:
-    """The object an :func:`encode` payload holds; :class:`CacheEntryError` if it does not decode."""
+def decode(payload: bytes | memoryview) -> Any:
+    """The object an :func:`encode` payload holds (its arrays views of it); :class:`CacheEntryError` if it does
+    not decode."""
     try:
-        tree, arrays = _arrays(bytes(payload))
+        tree, arrays = _arrays(memoryview(payload).toreadonly().cast("B"))
     except CacheEntryError:
         raise
     except Exception as e:  # noqa: BLE001 - e.g. a shape numpy refuses to make: a miss, never a crash
