@@ -554,3 +554,46 @@ def test_assemble_refuses_a_stored_partition_column_that_disagrees(tmp_path, lin
     pq.write_table(synthetic_tables(line, "down", "E6")["table_a"], folder / "part-0.parquet")
     with pytest.raises(BundleError, match="column train_type holds \\['E6'\\]"):
         assemble(line, "down", "E10", tables_dir=tmp_path / "tables")
+
+
+# --- the steps' tables given as the bytes a bundle holds them in (the nightly job's previous bundle) ------------
+def _given(tables: dict) -> tuple[dict, dict]:
+    """The steps' tables as their member bytes, and the tables a build is then given: the line's own and the two
+    given ones it decodes (eval_points, stop_summary), from those bytes."""
+    from planner.bundle.container import DECODED_GIVEN, STEP_TABLES
+
+    given = {n: parquet_bytes(tables[n]) for n in STEP_TABLES if n in tables}
+    rest = {n: t for n, t in tables.items() if n not in given}
+    return given, rest | {n: pq.read_table(pa.BufferReader(given[n])) for n in DECODED_GIVEN if n in given}
+
+
+def test_steps_tables_given_as_their_bytes_make_the_same_bundle(keys, tmp_path, line):
+    """Given as the bytes a bundle holds them in, the steps' tables make the same bundle, byte for byte, as the
+    tables encoded; only the steps' tables may be given."""
+    tables = all_tables(line)
+    given, rest = _given(tables)
+    assert {"table_d", "stop_samples", "eval_points"} <= set(given) and "table_d" not in rest
+    a = build(tables, tmp_path / "a", keys[0])
+    b = build(rest, tmp_path / "b", keys[0], given=given)
+    assert Path(a.path).read_bytes() == Path(b.path).read_bytes()
+    assert verify_bundle(b.path, keys[1]).complete
+    with pytest.raises(BundleError, match="only the steps' tables"):
+        build(tables, tmp_path / "c", keys[0], given={"restrictions": parquet_bytes(tables["restrictions"])})
+
+
+def test_given_eval_points_are_checked_against_this_bundles_beacons(keys, tmp_path, line):
+    """The line's own tables are made again with given steps' tables: evaluation points that name a beacon the line
+    no longer has are refused, as when the tables are encoded; nothing is written."""
+    tables = all_tables(line)
+    ep = tables["eval_points"]
+    kinds = ep.column("eval_point_kind").to_pylist() if "eval_point_kind" in ep.column_names else None
+    ids = ep.column("eval_point_id").to_pylist()
+    gone = next(x for i, x in enumerate(ids) if (kinds[i] == "beacon" if kinds else not x.startswith("dep")))
+    b = tables["beacons"]
+    i = b.schema.get_field_index("beacon_id")  # the line's beacon renamed: the evaluation point names none
+    tables["beacons"] = b.set_column(i, b.schema.field(i), pa.array(
+        ["ZZ9" if x == gone else x for x in b.column(i).to_pylist()], type=b.schema.field(i).type))
+    given, rest = _given(tables)
+    with pytest.raises(BundleError, match="eval_points name beacon"):
+        build(rest, tmp_path, keys[0], given=given)
+    assert not list(tmp_path.iterdir())

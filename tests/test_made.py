@@ -90,3 +90,16 @@ def test_a_missing_previous_file_means_the_group_is_written(tmp_path, missing):
     files, _ = made_once(KEY, previous(tmp_path, use_cache=True), stage, _write(stage, calls))
     assert bool(calls) == missing
     assert len(files) == (1 if missing else 2)
+
+
+def test_the_bundles_record_is_read_strictly():
+    """The previous run's bundle inputs keys: a name that is not a bundle file's, or a key that is not a digest,
+    drops the whole record (no bundle takes anything from the previous run)."""
+    from planner.job.bundle_reuse import recorded
+
+    good = {"sample_down_E10.pdb": "a" * 64, "sample_up_E10.pdb": "b" * 64}
+    assert recorded({"bundle_inputs": good}) == good
+    for bad in ({"../sample_down_E10.pdb": "a" * 64}, {"sample_down_E10.pdb": "A" * 64},
+                {"sample_sideways_E10.pdb": "a" * 64}, {"sample_down_E10.pdb": 7}, ["sample_down_E10.pdb"]):
+        assert recorded({"bundle_inputs": bad}) == {}
+    assert recorded({}) == {}

@@ -318,6 +318,75 @@ def test_damaged_facts_of_a_closed_loop_part_are_made_again_from_its_rows(projec
         {without_run(k): v for k, v in margins[1].items()}
 
 
+def _resigned_with_other_bytes(path: Path, key_pem: Path, member: str) -> bytes:
+    """The bundle at ``path`` signed again (with the run's key) with ``member`` in other bytes of the same table
+    (snappy, not zstd): a bundle that verifies and whose ``member`` the nightly job's encoding never gives. Returns
+    those bytes."""
+    import io
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from planner.bundle import signing
+    from planner.bundle.archive import pack, read_members
+    from planner.bundle.manifest import canonical_json
+
+    members, _ = read_members(path)
+    buf = io.BytesIO()
+    pq.write_table(pq.read_table(pa.BufferReader(members[member])), buf, compression="snappy", store_schema=False)
+    other = members[member] = buf.getvalue()
+    m = json.loads(members["manifest.json"])
+    for e in m["files"]:
+        if e["name"] == member:
+            e["size"], e["sha256"] = len(other), hashlib.sha256(other).hexdigest()
+    members["manifest.json"] = canonical_json(m)
+    members["manifest.sig"] = signing.sign(signing.load_private_key(key_pem), members["manifest.json"])
+    path.unlink()
+    path.write_bytes(pack(members))
+    return other
+
+
+def _codec(parquet: bytes) -> str:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    return pq.ParquetFile(pa.BufferReader(parquet)).metadata.row_group(0).column(0).compression
+
+
+def test_an_edit_signs_the_bundles_it_did_not_touch_with_their_previous_tables(project):
+    """A bundle whose datasets an edit did not touch takes its steps' tables from the previous run's bundle, as
+    they are there (only its line's own tables are made again, and its manifest signed anew); a bundle the edit
+    touched is built from the datasets, and so is one whose previous bundle no longer verifies."""
+    import json
+
+    from planner.bundle.archive import read_members
+    from planner.bundle.verify import verify_bundle
+
+    job = _job(project)
+    first = project / "out" / _run(job).run_id
+    key = project / "out" / ".dev-key" / "signing_key.pem"
+    names = ("tiny_down_EMU6.pdb", "tiny_up_EMU6.pdb", "tiny_down_EMU10.pdb")
+    before = {n: read_members(first / "bundles" / n)[0] for n in names}
+    other = {n: _resigned_with_other_bytes(first / "bundles" / n, key, "table_c.parquet") for n in names[:2]}
+    (first / "bundles" / names[2]).write_bytes(b"not a bundle any more")
+    _edit_restriction(project, 65.0)  # the up runs C->B alone
+    second = project / "out" / _run(job).run_id
+    pub = first / "bundles" / "signing_key.pub.pem"
+    after = {n: read_members(second / "bundles" / n)[0] for n in names}
+    for n in names:
+        assert verify_bundle(second / "bundles" / n, pub.read_bytes(), allow_dev=True).complete
+    assert after[names[0]]["table_c.parquet"] == other[names[0]]  # taken from the previous bundle, as it was there
+    assert after[names[0]]["table_d.parquet"] == before[names[0]]["table_d.parquet"]
+    assert after[names[0]]["manifest.json"] != before[names[0]]["manifest.json"]  # signed anew
+    assert _codec(after[names[0]]["table_c.parquet"]) == "SNAPPY"
+    assert _codec(after[names[1]]["table_c.parquet"]) == "ZSTD"  # the edit's: encoded from the datasets
+    assert after[names[2]]["table_c.parquet"] == before[names[2]]["table_c.parquet"]  # built again, the same
+    keys = [json.loads((run / "manifest.json").read_text())["bundle_inputs"] for run in (first, second)]
+    assert len(keys[0]) == 4 and sorted(keys[0]) == sorted(keys[1])
+    assert {n for n in keys[0] if keys[0][n] == keys[1][n]} == {"tiny_down_EMU6.pdb", "tiny_down_EMU10.pdb"}
+
+
 def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> None:
     """The run's `changes` dataset and the report's top section name the edited restriction and the legs it slowed."""
     from planner.api import running_time

@@ -49,7 +49,7 @@ import pyarrow.parquet as pq
 from planner import __version__
 from planner.bundle import signing
 from planner.bundle.archive import pack, unpack
-from planner.bundle.assemble import assemble
+from planner.bundle.assemble import TABLE_SOURCES, assemble
 from planner.bundle.contents import CORE_SCHEMAS, check_keys, check_schema, check_tables
 from planner.bundle.manifest import (CORE_TABLES, BundleDay, EXPECTED_TABLES, FORMAT, MANIFEST, MAX_MEMBER_BYTES,
                                      MAX_TOTAL_BYTES, SCHEMA_VERSION, SHA256_RE, SIGNATURE, VEHICLE_TABLES,
@@ -66,6 +66,13 @@ _PARQUET_OPTIONS = dict(compression="zstd", use_dictionary=True, write_statistic
 schema (with the column descriptions, about 2-3 KB per file, two thirds of a small
 bundle): the vehicle needs names and types, which Parquet's own schema carries; the
 descriptions are declared in :mod:`planner.bundle.contents`."""
+
+
+STEP_TABLES = TABLE_SOURCES["tables"] + TABLE_SOURCES["stops"]
+"""The tables a bundle takes from the tables' and stops' datasets; those :func:`build_line` may be given as bytes."""
+DECODED_GIVEN = ("eval_points", "stop_summary")
+"""Given tables decoded all the same: the beacon check reads the evaluation points, the manifest's ``no_stop`` the
+stop summary (both small)."""
 
 
 # --- writing -----------------------------------------------------------------
@@ -89,7 +96,8 @@ def _private_key(key) -> "signing.Ed25519PrivateKey":
 
 def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
                  private_key, release: Release, line_digest: str = "", line_schema_version: int = 1,
-                 expected: Sequence[str] | None = None, day: BundleDay | None = None) -> bytes:
+                 expected: Sequence[str] | None = None, day: BundleDay | None = None,
+                 given: Mapping[str, bytes] | None = None) -> bytes:
     """The bytes of a signed bundle holding ``tables`` (no file is written).
 
     Parameters
@@ -115,8 +123,18 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     day : BundleDay, optional
         The operating day the bundle is for: its window and the temporary restrictions it includes
         (those of ``day`` named ``T.<id>`` in its restrictions table) go into the manifest.
+    given : mapping of name -> bytes, optional
+        Members of the steps' tables (:data:`STEP_TABLES`) as the Parquet bytes of a bundle signed before
+        from the same datasets with the same code (:func:`build_line`'s ``reused``): taken as they are, not
+        encoded again; a given table is not in ``tables`` but for ``eval_points`` and ``stop_summary``, which
+        the cross-checks and the manifest's ``no_stop`` read (decoded from these bytes). The tables were
+        checked against each other when those bytes were first signed; here the given eval points are checked
+        against this bundle's beacons again, the rest against the line's own tables as always.
     """
     key = _private_key(private_key)
+    given = dict(given or {})
+    if not set(given) <= set(STEP_TABLES):
+        raise BundleError(f"only the steps' tables may be given as bytes, not {sorted(set(given) - set(STEP_TABLES))}")
     if not isinstance(release, Release):
         raise BundleError("a bundle needs a Release (version, build time, validity); see Release.issue")
     expected = EXPECTED_TABLES if expected is None else tuple(expected)
@@ -131,21 +149,24 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     members: dict[str, bytes] = {}
     files = []
     total = 0
-    for name in sorted(tables):
+    for name in sorted(set(tables) | set(given)):
         if not _TABLE_NAME.fullmatch(name):
             raise BundleError(f"table name {name!r} not allowed: use lower-case letters, digits and '_'")
-        t = tables[name]
-        if name in CORE_SCHEMAS:
-            check_schema(name, t.schema, CORE_SCHEMAS[name], "build")
-        check_keys(name, t, line_id, direction, train_type, "build")
-        data = parquet_bytes(t)
+        if name in given:
+            data = given[name]
+            rows = pq.read_metadata(pa.BufferReader(data)).num_rows
+        else:
+            t = tables[name]
+            if name in CORE_SCHEMAS:
+                check_schema(name, t.schema, CORE_SCHEMAS[name], "build")
+            check_keys(name, t, line_id, direction, train_type, "build")
+            data, rows = parquet_bytes(t), t.num_rows
         if len(data) > MAX_MEMBER_BYTES:
             raise BundleError(f"table {name} is {len(data)} bytes, above the {MAX_MEMBER_BYTES}-byte member bound")
         total += len(data)
         fname = f"{name}.parquet"
         members[fname] = data
-        files.append({"name": fname, "size": len(data), "sha256": hashlib.sha256(data).hexdigest(),
-                      "rows": t.num_rows})
+        files.append({"name": fname, "size": len(data), "sha256": hashlib.sha256(data).hexdigest(), "rows": rows})
     if total > MAX_TOTAL_BYTES:
         raise BundleError(f"bundle tables total {total} bytes, above the {MAX_TOTAL_BYTES}-byte bound")
     manifest = {
@@ -164,7 +185,7 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
         "built_at": format_time(release.built_at_s),
         "expires": format_time(release.expires_s),
         "files": files,
-        "missing": sorted(t for t in expected if t not in tables),
+        "missing": sorted(t for t in expected if t not in tables and t not in given),
     }
     if day is not None:
         have = set(tables["restrictions"].column("restriction_id").to_pylist())
@@ -194,7 +215,7 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
 def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str, train_type: str,
                  out_dir: str | os.PathLike, private_key, release: Release, line_digest: str = "",
                  line_schema_version: int = 1, expected: Sequence[str] | None = None,
-                 day: BundleDay | None = None) -> BundleInfo:
+                 day: BundleDay | None = None, given: Mapping[str, bytes] | None = None) -> BundleInfo:
     """Build, sign and atomically write one bundle into ``out_dir``; see :func:`bundle_bytes`.
 
     Returns
@@ -212,7 +233,7 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     out = Path(out_dir)
     data = bundle_bytes(tables, line_id=line_id, direction=direction, train_type=train_type,
                         private_key=private_key, release=release, line_digest=line_digest,
-                        line_schema_version=line_schema_version, expected=expected, day=day)
+                        line_schema_version=line_schema_version, expected=expected, day=day, given=given)
     path = out / bundle_name(line_id, direction, train_type)
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(path, data)
@@ -220,15 +241,26 @@ def build_bundle(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     return manifest_info(str(path), json.loads(members[MANIFEST]), (len(data), hashlib.sha256(data).hexdigest()))
 
 
+def _read_given(given: Mapping[str, bytes]) -> dict[str, pa.Table]:
+    """The given tables a bundle's checks and manifest read (:data:`DECODED_GIVEN`), decoded from their bytes."""
+    return {name: pq.read_table(pa.BufferReader(given[name])) for name in DECODED_GIVEN if name in given}
+
+
 def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: Release, tables_dir=None,
                stops_dir=None, directions: Sequence[str] | None = None, train_types: Sequence[str] | None = None,
-               on_built: Callable[[BundleInfo], None] | None = None, day: BundleDay | None = None
-               ) -> list[BundleInfo]:
+               on_built: Callable[[BundleInfo], None] | None = None, day: BundleDay | None = None,
+               reused: Callable[[str, str], Mapping[str, bytes] | None] | None = None) -> list[BundleInfo]:
     """Build every bundle of a line (each direction × train type, or the ones asked for).
 
     ``day``: the operating day the bundles are for (``line`` is then the day's line, its temporary
     restrictions among its speed limits): the manifest names it, and each DB-fed pattern of a temporary
     restriction carries its window.
+
+    ``reused(direction, train_type)``: the steps' tables of that bundle as the member bytes of a bundle signed
+    before from the same datasets' files with the same code (the nightly job's previous run,
+    :mod:`planner.job.bundle_reuse`), or None: then they are read from ``tables_dir`` and ``stops_dir`` and
+    encoded. Only the line's own tables are made again and the manifest signed anew (its release and line
+    digest are this build's).
 
     The key is loaded once; every bundle gets the same ``release``; each is
     written atomically as soon as it is complete. ``on_built`` is called after
@@ -245,12 +277,16 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: 
     done = []
     for d in dirs:
         for t in types:
-            tables = assemble(line, d, t, tables_dir=tables_dir, stops_dir=stops_dir,
+            given = reused(d, t) if reused is not None else None
+            tables = assemble(line, d, t, tables_dir=tables_dir if given is None else None,
+                              stops_dir=stops_dir if given is None else None,
                               validity=day.validity() if day is not None else None)
+            if given is not None:
+                tables.update(_read_given(given))
             info = build_bundle(tables, line_id=line.line_id, direction=d, train_type=t, out_dir=out_dir,
                                 private_key=key, release=release, line_digest=line.source_digest,
                                 line_schema_version=line.schema_version,
-                                expected=expected_tables(line.train_type(t).cruise), day=day)
+                                expected=expected_tables(line.train_type(t).cruise), day=day, given=given)
             done.append(info)
             del tables  # a bundle's tables (a partition's table (d) on a long line) before the next bundle's
             give_back()

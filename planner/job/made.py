@@ -50,10 +50,12 @@ class Previous:
 
     run_dir: Path
     made: dict
+    bundles: dict = dataclasses.field(default_factory=dict)
+    """Its bundles' inputs keys (:func:`planner.job.bundle_reuse.recorded`)."""
 
     def of(self, keys) -> "Previous":
         """Only the groups of ``keys`` (what one writer task is sent)."""
-        return Previous(self.run_dir, {k: self.made[k] for k in keys if k in self.made})
+        return Previous(self.run_dir, {k: self.made[k] for k in keys if k in self.made}, self.bundles)
 
 
 def previous(root: Path, use_cache: bool) -> Previous | None:
@@ -67,9 +69,10 @@ def previous(root: Path, use_cache: bool) -> Previous | None:
         return None
     run_dir = Path(root) / last
     try:
-        made = json.loads((run_dir / "manifest.json").read_text()).get("made")
+        manifest = json.loads((run_dir / "manifest.json").read_text())
     except (OSError, ValueError):
         return None
+    made = manifest.get("made") if isinstance(manifest, dict) else None
     if not isinstance(made, dict):
         return None
     out = {}
@@ -80,7 +83,9 @@ def previous(root: Path, use_cache: bool) -> Previous | None:
                    and isinstance(f[1], str) and _SHA.fullmatch(f[1]) for f in files):
             return None
         out[key] = tuple((f[0], f[1]) for f in files)
-    return Previous(run_dir, out)
+    from planner.job.bundle_reuse import recorded
+
+    return Previous(run_dir, out, recorded(manifest))
 
 
 def _in_run(run_dir: Path, rel: str) -> Path:

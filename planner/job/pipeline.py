@@ -147,6 +147,8 @@ class RunSummary:
     """The previous run's dataset files that this run may reuse (:func:`planner.job.made.previous`)."""
     made: dict = field(default_factory=dict, repr=False, compare=False)
     """The record of the dataset files made from stored results, for the manifest (:mod:`planner.job.made`)."""
+    bundle_inputs: dict = field(default_factory=dict, repr=False, compare=False)
+    """Each bundle's inputs key, for the manifest (:mod:`planner.job.bundle_reuse`)."""
     graph_pages: list = field(default_factory=list, repr=False, compare=False)
     """Each line's train graph page, being written on a worker (:func:`planner.job.views.graph_written`; taken by
     :func:`planner.job.views.run_views`)."""
@@ -584,6 +586,7 @@ def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timi
         "bundles": sorted(summary.bundles),
         "bundles_release": _release_record(summary.release),
         "made": dict(sorted(summary.made.items())),
+        "bundle_inputs": dict(sorted(summary.bundle_inputs.items())),
     }
     write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
     from planner.report.catalog import readme

@@ -95,14 +95,18 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
     return report
 
 
-def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None) -> list:
+def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None,
+                  reuse=None) -> tuple[list, dict]:
     """Every bundle of the line for the operating day ``day`` (:func:`planner.job.day.bundle_day`; runs on a
-    worker: module level, the key read from its file there)."""
+    worker: module level, the key read from its file there); ``reuse``: a
+    :class:`planner.job.bundle_reuse.BundleReuse`, the steps' tables of a bundle whose datasets did not change
+    taken from the previous run's. Returns (the bundles, each one's inputs key for the manifest)."""
     from planner.bundle.container import build_line
 
     give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
-    return then_give_back(build_line, line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
-                          train_types=types, day=day)  # and the pages of the line's tables, for the units after it
+    infos = then_give_back(build_line, line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
+                           train_types=types, day=day, reused=reuse)  # and the pages of the line's tables after it
+    return infos, dict(reuse.keys) if reuse is not None else {}
 
 
 def write_staged(deferred: bool, fn, *args):
@@ -279,10 +283,16 @@ def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
                    bday=None):
     """Start the line's bundles on a worker; the step's time runs from here to when they are written."""
     from planner.io.parallel import background
+    from planner.job.bundle_reuse import BundleReuse
 
     runner.progress.start("bundles", 2 * len(line_types(job, line)))
-    b = background(build_bundles, (line, stage / "bundles", key_path, summary.release, stage, line_types(job, line), bday),
-                   name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+    prev = summary.previous
+    mine = f"line={line.line_id}"  # the line's files (the tables' and stops' are in the record by now)
+    reuse = BundleReuse(stage, line.line_id, {rel: sha for files in summary.made.values() for rel, sha in files
+                                              if rel.split("/")[1] == mine},
+                        key_path, prev.run_dir if prev is not None else None, prev.bundles if prev is not None else {})
+    b = background(build_bundles, (line, stage / "bundles", key_path, summary.release, stage, line_types(job, line),
+                                   bday, reuse), name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)
     return b
 
@@ -293,7 +303,8 @@ def bundles_step(stage: Path, runner: Runner, summary: RunSummary, key, bundles)
     from cryptography.hazmat.primitives import serialization
 
     out = stage / "bundles"
-    infos = bundles.result()
+    infos, keys = bundles.result()
+    summary.bundle_inputs.update(keys)
     runner.progress.advance("bundles", len(infos))
     runner.progress.finish("bundles")
     pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
