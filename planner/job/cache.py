@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 import shutil
 from dataclasses import dataclass, field
@@ -135,10 +136,10 @@ def check_file(path: Path, kind: str | None = None, key: str | None = None) -> N
     """:func:`unpack`'s checks of the entry file at ``path`` (kind, key, length, digest), read a block at a time
     into one buffer: an entry that is not decoded is never held whole (twice as fast as reading it whole on
     entries of tens of MB: no fresh pages to fault in)."""
-    buf = bytearray(CHECK_BLOCK_BYTES)
-    view = memoryview(buf)
     h, size = hashlib.sha256(), 0
-    with open(path, "rb") as f:
+    with open(path, "rb", buffering=0) as f:
+        buf = bytearray(min(CHECK_BLOCK_BYTES, max(os.fstat(f.fileno()).st_size, 1)))  # a small entry: its size
+        view = memoryview(buf)
         n = f.readinto(buf)
         header, start = _header_of(view[:n], kind, key)
         if start > n:
