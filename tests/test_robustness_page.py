@@ -166,3 +166,32 @@ def test_a_realistic_day_keeps_the_page_small_and_says_what_it_leaves_out():
     assert "The 30 latest of 350 late trains; 320 more are in the dataset" in html
     assert html.count("<details><summary><span><b>T") == 350
     assert "The other" in html  # the margins table's further legs
+
+
+def test_each_trains_distribution_line_and_stops_read_as_written():
+    """A train's line shows its destination's figures (a p90 over 3 min in red, a share as a percent, a mean that
+    rounds to zero without its sign, a missing percentile as a dash); its stops are its departure and its arrivals,
+    not the departures on the way; a train with no arrival has dashes; trains in order of departure."""
+    from planner.pages.robustness import _distribution
+
+    nan = float("nan")
+    cols = ("train_id", "train_type", "direction", "seq", "station_name", "event", "scheduled_s", "mean_delay_s",
+            "p50_s", "p90_s", "p99_s", "within_60s", "within_180s", "within_300s", "knock_on_s", "predicted_delay_s")
+    rows = [("A1", "E6", "down", 0, "X", "departure", 21600.0, 1.0, 0.0, 10.0, 20.0, 1.0, 1.0, 1.0, 0.0, 0.0),
+            ("A1", "E6", "down", 1, "Y", "departure", 21810.0, 2.0, 0.0, 10.0, 20.0, 1.0, 1.0, 1.0, 0.0, 0.0),
+            ("A1", "E6", "down", 1, "Y", "arrival", 21780.0, 2.5, 0.0, 10.0, 20.0, 0.5, 1.0, 1.0, 0.0, 1.0),
+            ("A1", "E6", "down", 2, "Z & Co", "arrival", 22050.0, -0.01, 0.0, 185.4, nan, 0.934, 1.0, 1.0, 12.345,
+             3.0),
+            ("B2", "E6", "down", 0, "X", "departure", 18000.0, 4.0, 0.0, 10.0, 20.0, 1.0, 1.0, 1.0, 0.0, 0.0)]
+    html = "".join(_distribution(pd.DataFrame(rows, columns=cols), 100))
+    a1 = html[html.index("<b>A1</b>"):]
+    assert a1.startswith("<b>A1</b></span><span>down</span><span>X → Z &amp; Co</span><span>06:00:00</span>"
+                         "<span>06:07:30</span><span class=r>0.0</span><span class=r>0</span><span class=r>"
+                         "<span class='hi'>185</span></span><span class=r>–</span><span class=r>93.4 %</span>"
+                         "<span class=r>100.0 %</span><span class=r>100.0 %</span><span class=r>12.3</span></summary>")
+    assert a1.count("<tr><td>") == 3  # X (departure), Y and Z (arrivals)
+    assert "<tr><td>Y<td>arr.<td>06:03:00<td>2.5<td>0<td>10<td>20<td>50.0<td>100.0<td>100.0<td>0.0<td>1.0" in a1
+    assert "<tr><td>Z &amp; Co<td>arr.<td>06:07:30<td>0.0<td>0<td><span class='hi'>185</span><td>–<td>93.4" in a1
+    b2 = html[html.index("<b>B2</b>"):html.index("<b>A1</b>")]  # departs first: listed first
+    assert "<span>05:00:00</span><span>–</span>" + "<span class=r>–</span>" * 8 + "</summary>" in b2
+    assert "E6 · 2 trains" in html

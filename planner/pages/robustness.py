@@ -379,6 +379,31 @@ def _q(x, limit: float) -> str:
     return f"<span class='hi'>{t}</span>" if x > limit else t
 
 
+def _each(values, fn) -> list:
+    """``[fn(v) for v in values]``, each distinct value formatted once (most of a page's columns hold few: shares of
+    the days, percentiles, times of day, station names)."""
+    done: dict = {}
+    out = []
+    for v in values:
+        t = done.get(v)
+        if t is None:
+            t = done[v] = fn(v)
+        out.append(t)
+    return out
+
+
+def _fixed1(values) -> list[str]:
+    """:func:`fixed` with one decimal of each of ``values`` (floats), for columns whose values are mostly distinct."""
+    out = []
+    for x in values:
+        if x != x or x == np.inf or x == -np.inf:
+            out.append("–")
+            continue
+        t = f"{x:.1f}"
+        out.append(t[1:] if t[0] == "-" and float(t) == 0.0 else t)
+    return out
+
+
 def _distribution(tr: pd.DataFrame, days: int) -> list[str]:
     parts = ["<h2 id='distribution'>Each train's delay distribution</h2>"]
     if days <= 0 or tr.empty:
@@ -387,48 +412,60 @@ def _distribution(tr: pd.DataFrame, days: int) -> list[str]:
                  "percentiles p50 / p90 / p99 in seconds, share of days within 1 / 3 / 5 min, mean knock-on). Open "
                  "a train for every stop (its arrivals and its departure from the origin). Trains by type, then "
                  "direction and departure; a p90 or p99 over 3 min in red.</p>")
-    cols = ["train_id", "train_type", "direction", "station_name", "event", "scheduled_s", "mean_delay_s", "p50_s",
-            "p90_s", "p99_s", "within_60s", "within_180s", "within_300s", "knock_on_s", "predicted_delay_s"]
     t = _ordered(tr)
     t = t.assign(**{c: _text(t[c]) for c in ("train_id", "train_type", "direction", "station_name", "event")})
-    trains: dict[str, list[dict]] = {}
-    for r in t[cols].to_dict("records"):
-        trains.setdefault(r["train_id"], []).append(r)
-    dirs = direction_order({g[0]["direction"] for g in trains.values()})
+    # a train's stops: its first event (the departure from its origin) and its arrivals; rows of a train are
+    # together (in running order), so each column is formatted once for the whole page, a column at a time
+    ids = t["train_id"].to_numpy(object)
+    first = np.ones(len(t), dtype=bool)
+    first[1:] = ids[1:] != ids[:-1]
+    t = t[first | (t["event"].to_numpy(object) == "arrival")]
+    ids = t["train_id"].to_numpy(object)
+    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+    ends = np.r_[starts[1:], len(t)]
+    col = {c: t[c].to_numpy() for c in t.columns}
+    name = _each(col["station_name"], _e)
+    sched = _each(col["scheduled_s"].astype(float).tolist(), clock)
+    mean, knock = _fixed1(col["mean_delay_s"].astype(float).tolist()), _fixed1(col["knock_on_s"].astype(float).tolist())
+    pct = {c: _each(col[c].astype(float).tolist(), lambda x, c=c: _q(x, 180)) for c in ("p50_s", "p90_s", "p99_s")}
+    share = {c: _each(col[c].astype(float).tolist(), lambda x: fixed(100.0 * x, 1))
+             for c in ("within_60s", "within_180s", "within_300s")}
+    pred = _each(col["predicted_delay_s"].astype(float).tolist(), lambda x: fixed(x, 1))
+    kind = ["arr." if e == "arrival" else "dep." for e in col["event"]]
+    # a row of a train's stops: no end tags, shares without their % (a third smaller)
+    rows = ["<tr><td>" + "<td>".join(r) for r in zip(
+        name, kind, sched, mean, pct["p50_s"], pct["p90_s"], pct["p99_s"], share["within_60s"],
+        share["within_180s"], share["within_300s"], knock, pred)]
     head = "<div class='hd'>" + "".join(f"<span{' class=r' if i > 5 else ''}>{_e(h)}</span>"
                                         for i, h in enumerate(_DIST_HEAD)) + "</div>"
-
-    def figures(r: dict) -> list[str]:
-        return [fixed(r["mean_delay_s"], 1), _q(r["p50_s"], 180), _q(r["p90_s"], 180), _q(r["p99_s"], 180),
-                _pc(r["within_60s"]), _pc(r["within_180s"]), _pc(r["within_300s"]), fixed(r["knock_on_s"], 1)]
-
-    def stop(r: dict) -> str:  # a row of a train's stops: no end tags, shares without their % (a third smaller)
-        cells = [_e(r["station_name"]), "arr." if r["event"] == "arrival" else "dep.", clock(r["scheduled_s"]),
-                 *figures(r)[:4], *(fixed(100.0 * r[c], 1) for c in ("within_60s", "within_180s", "within_300s")),
-                 fixed(r["knock_on_s"], 1), fixed(r["predicted_delay_s"], 1)]
-        return "<tr><td>" + "<td>".join(cells)
-
-    for tt in sorted({g[0]["train_type"] for g in trains.values()}):
-        order = sorted((k for k, g in trains.items() if g[0]["train_type"] == tt),
-                       key=lambda k: (dirs.index(trains[k][0]["direction"]), float(trains[k][0]["scheduled_s"]), k))
-        out = []
-        for k in order:
-            g = trains[k]
-            stops = [g[0]] + [r for r in g[1:] if r["event"] == "arrival"]
-            o, d = g[0], stops[-1]
-            cells = [f"<b>{_e(k)}</b>", _e(o["direction"]), _e(f"{o['station_name']} → {d['station_name']}"),
-                     clock(o["scheduled_s"]), clock(d["scheduled_s"]) if len(stops) > 1 else "–",
-                     *(figures(d) if len(stops) > 1 else ["–"] * 8)]
-            # the summary's first grid cell is its ::before marker
-            summ = "".join(f"<span class=r>{c}</span>" if i > 4 else f"<span>{c}</span>" for i, c in enumerate(cells))
-            rows = "".join(stop(r) for r in stops)
-            out.append(f"<details><summary>{summ}</summary><table><thead><tr><th class='l'>station</th>"
-                       "<th></th><th>scheduled</th><th>mean [s]</th><th>p50</th><th>p90</th><th>p99</th><th>≤ 1 min [%]</th>"
-                       "<th>≤ 3 min [%]</th><th>≤ 5 min [%]</th><th>knock-on [s]</th><th>predicted day [s]</th></tr>"
-                       "</thead>"
-                       f"<tbody>{rows}</tbody></table></details>")
-        parts.append(f"<h3>{_e(tt)} · {len(out)} trains</h3><div class='tw'><div class='dist'>{head}{''.join(out)}"
-                     "</div></div>")
+    dirs = direction_order(set(col["direction"][starts].tolist()))
+    types = col["train_type"][starts].tolist()
+    order_of = {d: i for i, d in enumerate(dirs)}
+    trains = sorted(range(len(starts)), key=lambda k: (types[k], order_of[col["direction"][starts[k]]],
+                                                       float(col["scheduled_s"][starts[k]]), ids[starts[k]]))
+    table_head = ("<table><thead><tr><th class='l'>station</th>"
+                  "<th></th><th>scheduled</th><th>mean [s]</th><th>p50</th><th>p90</th><th>p99</th><th>≤ 1 min [%]</th>"
+                  "<th>≤ 3 min [%]</th><th>≤ 5 min [%]</th><th>knock-on [s]</th><th>predicted day [s]</th></tr>"
+                  "</thead>")
+    out: dict[str, list[str]] = {}
+    for k in trains:
+        o, d = starts[k], ends[k] - 1
+        if d > o:  # its destination's figures
+            figures = [mean[d], pct["p50_s"][d], pct["p90_s"][d], pct["p99_s"][d],
+                       *(x if x == "–" else f"{x} %" for x in (share["within_60s"][d], share["within_180s"][d],
+                                                             share["within_300s"][d])), knock[d]]
+            arrive = sched[d]
+        else:
+            figures, arrive = ["–"] * 8, "–"
+        cells = [f"<b>{_e(ids[o])}</b>", _e(col["direction"][o]),
+                 _e(f"{col['station_name'][o]} → {col['station_name'][d]}"), sched[o], arrive, *figures]
+        # the summary's first grid cell is its ::before marker
+        summ = "".join(f"<span class=r>{c}</span>" if i > 4 else f"<span>{c}</span>" for i, c in enumerate(cells))
+        out.setdefault(types[k], []).append(f"<details><summary>{summ}</summary>{table_head}"
+                                            f"<tbody>{''.join(rows[o:ends[k]])}</tbody></table></details>")
+    for tt in sorted(out):
+        parts.append(f"<h3>{_e(tt)} · {len(out[tt])} trains</h3><div class='tw'><div class='dist'>{head}"
+                     f"{''.join(out[tt])}</div></div>")
     return parts
 
 
