@@ -351,25 +351,24 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     for the per-train units (margins, conflicts, train graph). ``verify``, for the run's last line: what of the
     manifest the overview's verification of the bundles reads (the operating day); the run's bundles are
     verified on a worker from when this line's are written (:attr:`RunSummary.bundles_verified`)."""
-    from planner.tables.ratios import leg_ratio_grid
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
 
     tp, code = job.tables, code_digest()
     types = line_types(job, line)
     tasks = [(t, d, a.station_id, b.station_id) for t in types for d in DIRECTIONS for a, b in line.interstations(d)]
-    # the floor of each leg's grid: ratio × the train's highest maximum on the leg = min_target_kmh
-    grids = {k: leg_ratio_grid(tp.ratios, line, k[0], k[2], k[3], tp.min_target_kmh * KMH) for k in tasks}
     unit_in = {k: interstation_digest(line, k[0], k[2], k[3]) for k in tasks}
     # each unit ships only the slice of the line it can see (the slice its key digests), so what a
     # parallel task costs to send does not grow with the line
     windows = {k: line.window(k[2], k[3], k[0]) for k in tasks}
 
-    # tables
+    # tables; the floor of each leg's grid (ratio × the train's highest maximum on the leg = min_target_kmh) is
+    # made by its unit from its slice of the line, which its key digests with the grid's settings
+    ratios = (tp.ratios, tp.min_target_kmh * KMH)
     t_units = [
-        Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp), list(map(float, grids[k]))]),
+        Unit("tables", digest(["tables", code, unit_in[k], dataclasses.asdict(tp)]),
              f"{k[0]} {k[2]}->{k[3]}", _tables_unit,
-             (windows[k], k[0], k[2], k[3], grids[k], tp.eval_offset_m, tp.ds_m, tp.eval_interval_m,
+             (windows[k], k[0], k[2], k[3], ratios, tp.eval_offset_m, tp.ds_m, tp.eval_interval_m,
               tp.eval_auto_s), after=tables_seen)  # the job keeps the flags; the tables stay in the cache
         for k in tasks
     ]

@@ -147,10 +147,14 @@ class Unit:
     job needs of it: a line's conflict report, whose occupation windows the job only writes as datasets."""
 
 
-def _tables_unit(line, tt, o, d, grid, eval_offset_m, ds_m, eval_interval_m=0.0, eval_auto_s=0.0):
+def _tables_unit(line, tt, o, d, ratios, eval_offset_m, ds_m, eval_interval_m=0.0, eval_auto_s=0.0):
+    """``ratios``: the job's ratio grid and its floor's minimum target [m/s]; the leg's grid is made here, from the
+    slice of the line the unit sees (its key digests that slice and both), not in the job process for every leg."""
     from planner.physics.track import SimSettings
     from planner.tables.build import interstation_tables
+    from planner.tables.ratios import leg_ratio_grid
 
+    grid = leg_ratio_grid(ratios[0], line, tt, o, d, ratios[1])
     return interstation_tables(line, tt, o, d, grid, after_departure_m=eval_offset_m,
                                eval_interval_m=eval_interval_m or None, settings=SimSettings(ds_m=ds_m),
                                eval_auto_s=eval_auto_s or None)
