@@ -19,7 +19,6 @@ import time
 import warnings
 import weakref
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -131,7 +130,7 @@ def stops_key(job: Job, line: Line, train_type: str, origin: str, destination: s
 
 
 # --- units of work -----------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True)
 class Unit:
     """One cacheable piece of work: ``fn(*args)`` whose result is keyed by ``key``."""
 
@@ -148,16 +147,14 @@ class Unit:
 
 
 def _tables_unit(line, tt, o, d, ratios, eval_offset_m, ds_m, eval_interval_m=0.0, eval_auto_s=0.0):
-    """``ratios``: the job's ratio grid and its floor's minimum target [m/s]; the leg's grid is made here, from the
-    slice of the line the unit sees (its key digests that slice and both), not in the job process for every leg."""
+    """``ratios``: (grid spec, its floor's minimum target [m/s]): the leg's grid is made here, from its slice."""
     from planner.physics.track import SimSettings
     from planner.tables.build import interstation_tables
     from planner.tables.ratios import leg_ratio_grid
 
-    grid = leg_ratio_grid(ratios[0], line, tt, o, d, ratios[1])
-    return interstation_tables(line, tt, o, d, grid, after_departure_m=eval_offset_m,
-                               eval_interval_m=eval_interval_m or None, settings=SimSettings(ds_m=ds_m),
-                               eval_auto_s=eval_auto_s or None)
+    return interstation_tables(line, tt, o, d, leg_ratio_grid(ratios[0], line, tt, o, d, ratios[1]),
+                               after_departure_m=eval_offset_m, eval_interval_m=eval_interval_m or None,
+                               settings=SimSettings(ds_m=ds_m), eval_auto_s=eval_auto_s or None)
 
 
 def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):
@@ -167,7 +164,7 @@ def _stops_unit(line, tt, o, d, adhesions_ms2, approach_m, ds_m):
     return approach_patterns(line, tt, o, d, adhesions_ms2, approach_m, settings=SimSettings(ds_m=ds_m))
 
 
-@dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True)
 class Stored:
     """A unit's result by its entry in the work cache (``root``, ``step``, ``key``): what a unit that needs another's
     result is given instead of the result, so that it never passes through the job process. :meth:`load` reads it
