@@ -14,8 +14,8 @@ def run(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar per step."),
     no_cache: bool = typer.Option(False, "--no-cache",
                                   help="Trust no cache entry: recompute every unit, write every dataset file "
-                                       "(none linked from the previous run) and publish a new run even if nothing "
-                                       "changed (fresh entries replace the old ones)."),
+                                       "and encode every bundle (nothing taken from the previous run) and publish "
+                                       "a new run even if nothing changed (fresh entries replace the old ones)."),
     day: str = typer.Option("", "--day", metavar="YYYY-MM-DD",
                             help="Plan this operating day instead of the job's [day] day (default: the next one)."),
 ) -> None:
