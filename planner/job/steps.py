@@ -242,12 +242,10 @@ def closed_loop_written(root: str, line_id: str, groups: list[tuple], stage: Pat
     for (partition, part, keys), part_times in zip(groups, times, strict=True):
         key = made_key("closed_loop", partition, part, keys)
         fkey = digest(["closed_loop_facts", key, dataclasses.asdict(rule), sorted(part_times.items())])
-        loaded: list = []
 
-        def tables(keys=keys, loaded=loaded) -> dict:
-            if not loaded:
-                loaded.append(datasets([r for k in keys for r in Stored(root, "closed_loop", k).load()]))
-            return loaded[0]
+        @functools.cache
+        def tables(keys=keys) -> dict:  # the part's rows, read once if its files or its facts need them
+            return datasets([r for k in keys for r in Stored(root, "closed_loop", k).load()])
 
         got, made[key] = made_once(key, prev, stage, lambda part=part, tables=tables: write_closed_loop(
             tables(), stage, part))
@@ -258,7 +256,7 @@ def closed_loop_written(root: str, line_id: str, groups: list[tuple], stage: Pat
             mine.add(tables(), line_id, rule, part_times)
             cache.put("closed_loop_facts", fkey, mine)
         facts.update(mine)
-        loaded.clear()
+        tables.cache_clear()
     return files, facts, made, cache.rejected_why
 
 

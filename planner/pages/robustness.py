@@ -392,18 +392,6 @@ def _each(values, fn) -> list:
     return out
 
 
-def _fixed1(values) -> list[str]:
-    """:func:`fixed` with one decimal of each of ``values`` (floats), for columns whose values are mostly distinct."""
-    out = []
-    for x in values:
-        if x != x or x == np.inf or x == -np.inf:
-            out.append("–")
-            continue
-        t = f"{x:.1f}"
-        out.append(t[1:] if t[0] == "-" and float(t) == 0.0 else t)
-    return out
-
-
 def _distribution(tr: pd.DataFrame, days: int) -> list[str]:
     parts = ["<h2 id='distribution'>Each train's delay distribution</h2>"]
     if days <= 0 or tr.empty:
@@ -426,11 +414,11 @@ def _distribution(tr: pd.DataFrame, days: int) -> list[str]:
     col = {c: t[c].to_numpy() for c in t.columns}
     name = _each(col["station_name"], _e)
     sched = _each(col["scheduled_s"].astype(float).tolist(), clock)
-    mean, knock = _fixed1(col["mean_delay_s"].astype(float).tolist()), _fixed1(col["knock_on_s"].astype(float).tolist())
+    mean, knock = (_each(col[c].astype(float).tolist(), fixed) for c in ("mean_delay_s", "knock_on_s"))
     pct = {c: _each(col[c].astype(float).tolist(), lambda x, c=c: _q(x, 180)) for c in ("p50_s", "p90_s", "p99_s")}
     share = {c: _each(col[c].astype(float).tolist(), lambda x: fixed(100.0 * x, 1))
              for c in ("within_60s", "within_180s", "within_300s")}
-    pred = _each(col["predicted_delay_s"].astype(float).tolist(), lambda x: fixed(x, 1))
+    pred = _each(col["predicted_delay_s"].astype(float).tolist(), fixed)
     kind = ["arr." if e == "arrival" else "dep." for e in col["event"]]
     # a row of a train's stops: no end tags, shares without their % (a third smaller)
     rows = ["<tr><td>" + "<td>".join(r) for r in zip(
