@@ -108,9 +108,10 @@ def test_closed_loop_in_hand_is_the_folder(linedir, tmp_path):
     # the nightly job: what the margins read, made a direction at a time where the rows are (ClosedLoopFacts), at
     # the times the margins look up; nothing added from no legs
     from planner.report.margin_datasets import ClosedLoopFacts
-    from planner.report.margin_legs import looked_up_times
+    from planner.report.margin_legs import looked_up_by_leg
 
-    times = looked_up_times(line, ["EMU6"]) + sorted({k[5] for k in index})[::7]  # some the sweep has
+    scheduled = [t for v in looked_up_by_leg(line, ["EMU6"]).values() for t in v]
+    times = scheduled + sorted({k[5] for k in index})[::7]  # some the sweep has
     facts = ClosedLoopFacts()
     for d in ("up", "down"):
         facts.add(datasets([r for r in results if r.direction == d]), line.line_id, rule, times)
@@ -121,8 +122,6 @@ def test_closed_loop_in_hand_is_the_folder(linedir, tmp_path):
     assert from_folder.equals(made)
     # each leg's own times (what the nightly job gives, a part of the line's legs at a time): a leg keeps its
     # errors at its own scheduled times only (another leg's times are not its), and the margins are the same
-    from planner.report.margin_legs import looked_up_by_leg
-
     sweep: dict = {}
     for k in index:
         sweep.setdefault(k[:4], set()).add(k[5])

@@ -105,17 +105,12 @@ def looked_up(sched: dict) -> list[float]:
     return [t for k, v in sched.items() if not k[4] for t in v]
 
 
-def looked_up_times(line: Line, types: Sequence[str], lifted: Lifted | None = None) -> list[float]:
-    """What :func:`planner.report.margins.compute_margins` of ``line`` looks the closed loop's errors up at
-    (:class:`planner.report.margin_datasets.ClosedLoopFacts` made beforehand must hold them)."""
-    legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
-    return looked_up(scheduled_times(line, types, legs, lifted))
-
-
 def looked_up_by_leg(line: Line, types: Sequence[str], lifted: Lifted | None = None) -> dict[tuple, list[float]]:
-    """:func:`looked_up_times` by leg: ``{(direction, train_type, origin, destination): [times, s]}``, sorted, the legs
-    with none left out. What the margins look up of a leg's closed loop is at its own times only, so what a leg
-    keeps of it (:class:`planner.report.margin_datasets.ClosedLoopFacts`) changes only when they do."""
+    """What :func:`planner.report.margins.compute_margins` of ``line`` looks the closed loop's errors up at, by leg:
+    ``{(direction, train_type, origin, destination): [times, s]}``, sorted, the legs with none left out (the
+    scheduled times of the legs with nothing lifted, :func:`looked_up`). What the margins look up of a leg's
+    closed loop is at its own times only, so what a leg keeps of it
+    (:class:`planner.report.margin_datasets.ClosedLoopFacts`) changes only when they do."""
     legs = [lg for lg in timetable_legs(line) if lg.train_type in types]
     out: dict[tuple, set] = {}
     for k, v in scheduled_times(line, types, legs, lifted).items():
@@ -125,4 +120,4 @@ def looked_up_by_leg(line: Line, types: Sequence[str], lifted: Lifted | None = N
 
 
 __all__ = ["Lifted", "TrainLeg", "applied_restrictions", "group_window", "lifted_of", "looked_up", "looked_up_by_leg",
-           "looked_up_times", "scheduled_times", "timetable_legs"]
+           "scheduled_times", "timetable_legs"]

@@ -354,7 +354,7 @@ def compute_margins(
         (:func:`planner.datasets.closed_loop.datasets`), used instead of reading them from
         ``closed_loop_dir``; or what the margins read of them, made beforehand
         (:class:`~planner.report.margin_datasets.ClosedLoopFacts` at
-        :func:`~planner.report.margin_legs.looked_up_times`: the nightly job makes them on the worker that
+        :func:`~planner.report.margin_legs.looked_up_by_leg`: the nightly job makes them on the worker that
         writes the closed loop's datasets).
     memo : optional
         Each leg group as a unit of its own (:class:`planner.job.leg_memo.LegMemo`: ``key(line, group,
