@@ -13,6 +13,14 @@ from planner.errors import JobError
 from planner.io.parallel import ClusterLostError, Pool, quiet_loggers
 
 
+WAITED_FOR = 1
+"""The Dask priority of work the job process waits for next (:meth:`DaskPool.imap`); a step's units have 0."""
+BATCH_MAX = 16
+"""A step's units per task on Dask at most (:meth:`DaskPool.batch_size`): a table's unit on the sample takes
+about 0.05 s, so a task of 16 about a second, against a few milliseconds of the cluster's own CPU per task."""
+BATCHES_PER_WORKER = 8
+
+
 class DaskPool(Pool):
     """Futures on a ``dask.distributed`` client, with a bounded wait when the cluster is lost."""
 
@@ -39,17 +47,42 @@ class DaskPool(Pool):
         return ClusterLostError(f"dask cluster {self.scheduler} lost: {why}; {done} of {total} unit(s) of this step "
                                 f"done; {resume}; check the cluster, then run again")
 
-    def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
+    def batch_size(self, total: int) -> int:
+        """Units per task for a step of ``total``: :data:`BATCH_MAX` at most, and at least
+        :data:`BATCHES_PER_WORKER` tasks for each of the cluster's workers (so the step's last tasks still
+        spread over them)."""
+        workers = self._workers() or 1
+        return max(1, min(BATCH_MAX, total // (BATCHES_PER_WORKER * workers)))
+
+    def imap(self, fn: Callable, arglist: Sequence[tuple], waited_for: bool = False) -> Iterator[Any]:
+        """Every task submitted now (before the first result is asked for: a started step or a background task
+        runs while the job process goes on, as on local workers), results in order.
+
+        A step's units go in batches (:meth:`batch_size`), as joblib batches the local workers' short tasks: the
+        scheduler and each worker spend a few milliseconds of CPU on every task, and a step has thousands of
+        units of a few tens of milliseconds. The scheduler runs what was submitted first first, so a step's
+        queued units would hold back work the job process needs before them (a step's datasets written, the
+        margin legs, a page); ``waited_for`` work is submitted with a higher priority, and runs as soon as a
+        worker is free, as it does among the local workers' few queued tasks."""
+        total = len(arglist)
+        try:
+            size = self.batch_size(total) if total > 1 else 1
+            batches = [arglist[i:i + size] for i in range(0, total, size)]
+            futures = [self.client.submit(run_batch, fn, list(b), pure=False,
+                                          priority=WAITED_FOR if waited_for else 0) for b in batches]
+        except Exception as e:  # noqa: BLE001 - the scheduler went away between connect and submit
+            raise self._lost(0, total, f"cannot submit work ({type(e).__name__}: {e})") from None
+        return self._taken(futures, total)
+
+    def _taken(self, futures: list, total: int) -> Iterator[Any]:
+        """The units' results of ``futures`` (batches of :meth:`imap`, submitted), in order, each batch waited for
+        with a bounded wait when the cluster is lost."""
         from concurrent.futures import CancelledError
 
         from distributed import KilledWorker
 
-        total = len(arglist)
-        try:
-            futures = [self.client.submit(fn, *a, pure=False) for a in arglist]
-        except Exception as e:  # noqa: BLE001 - the scheduler went away between connect and submit
-            raise self._lost(0, total, f"cannot submit work ({type(e).__name__}: {e})") from None
         done = 0
+        taken = 0  # batches whose results were taken
         try:
             for fut in futures:
                 lost_since: float | None = None
@@ -63,7 +96,7 @@ class DaskPool(Pool):
                         raise self._lost(done, total, "the scheduler cancelled the work (scheduler gone or "
                                                       "restarted)") from None
                     except KilledWorker as e:
-                        raise self._lost(done, total, f"workers died running one unit ({e}); the unit may "
+                        raise self._lost(done, total, f"workers died running one task ({e}); its units may "
                                                       "need more memory than a worker has") from None
                     n = self._workers()
                     if n:
@@ -74,14 +107,21 @@ class DaskPool(Pool):
                         what = "no scheduler answer" if n is None else "no workers"
                         raise self._lost(done, total, f"{what} for {self.lost_timeout_s:g} s "
                                                       "([parallel] dask_lost_timeout_s)") from None
-                done += 1
-                yield res
+                taken += 1
+                for r in res:
+                    done += 1
+                    yield r
         finally:
-            if done < total:
+            if taken < len(futures):
                 try:
-                    self.client.cancel(futures[done:], asynchronous=False)
+                    self.client.cancel(futures[taken:], asynchronous=False)
                 except Exception:  # noqa: BLE001 - best effort: the cluster may be gone
                     pass
+
+
+def run_batch(fn: Callable, arglist: list[tuple]) -> list:
+    """Worker: ``fn(*args)`` of each of a batch's units, in order (:meth:`DaskPool.imap`)."""
+    return [fn(*a) for a in arglist]
 
 
 RUN: dict[str, "DaskPool"] = {}

@@ -314,7 +314,10 @@ class Pool:
 
     n_jobs: int = 1
 
-    def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
+    def imap(self, fn: Callable, arglist: Sequence[tuple], waited_for: bool = False) -> Iterator[Any]:
+        """``waited_for``: work the job process waits for next (:func:`background`, :func:`iter_tasks`): a pool
+        that queues all its tasks at once runs it before the units queued earlier (:class:`planner.io.dask_pool.
+        DaskPool`). Local workers take a step's tasks a few at a time, so later work gets its turn there anyway."""
         raise NotImplementedError
 
 
@@ -322,7 +325,7 @@ class LocalPool(Pool):
     def __init__(self, n_jobs: int):
         self.n_jobs = n_jobs
 
-    def imap(self, fn: Callable, arglist: Sequence[tuple]) -> Iterator[Any]:
+    def imap(self, fn: Callable, arglist: Sequence[tuple], waited_for: bool = False) -> Iterator[Any]:
         from joblib import Parallel, delayed
 
         return _abandon_quietly(Parallel(n_jobs=self.n_jobs, return_as="generator")(delayed(fn)(*a) for a in arglist),
@@ -342,7 +345,7 @@ class Background:
     def __init__(self, fn: Callable, args: tuple, n_jobs: int, pool: Pool | None = None):
         self._fn, self._args, self._gen, self._value = fn, args, None, self._UNSET
         if pool is not None:  # the run's Dask cluster
-            self._gen = pool.imap(fn, [args])
+            self._gen = pool.imap(fn, [args], waited_for=True)
         elif n_jobs != 1:
             # the same loky configuration as LocalPool's steps, so its workers are reused
             with _loky(n_jobs):
@@ -451,7 +454,7 @@ def iter_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
     if n_jobs == 1 or total <= 1:
         results = (fn(*t) for t in tasks)
     elif run_pool() is not None:  # the job process of a run on a Dask cluster: its workers
-        results = run_pool().imap(fn, list(tasks))
+        results = run_pool().imap(fn, list(tasks), waited_for=True)
     else:
         with _loky(n_jobs):  # its tasks are handed to the workers here, in the configuration's pool
             results = _abandon_quietly(joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
