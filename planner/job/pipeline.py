@@ -383,14 +383,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         for k in tasks
     ]
     # closed loop: every scenario and mode of an interstation in one batch; the line's conflicts depend
-    # on the line alone, so they run beside it (first: the longest unit)
-    side = []
+    # on the line alone, so they run beside it (first: the longest unit; planned below, once the tables run)
+    side: list = []
     checks_conflicts = job.conflicts.enabled and line.network is not None
-    # the line's sections (trains that share no track with the others'): the units of its conflicts, its day as
-    # it runs and its train graph are per section, each keyed by its stretch
-    sections = line_section_inputs(job, line, lifted)
-    if checks_conflicts:
-        side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections, summary.previous)))
     cp = job.closed_loop
     ahead: dict[str, Any] = {}
 
@@ -419,6 +414,12 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # tables' last ones; the closed loop starts as soon as the last table is in (tables_in), so no worker
     # waits between the two passes
     pass1 = runner.start_steps([("tables", t_units), ("stops", s_units)], wait=False)
+    # meanwhile, the line's sections (trains that share no track with the others'): the units of its conflicts, its
+    # day as it runs and its train graph are per section, each keyed by its stretch (on a line a hundred times the
+    # sample, 5 s of this process that the workers no longer wait for)
+    sections = line_section_inputs(job, line, lifted)
+    if checks_conflicts:
+        side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections, summary.previous)))
     tables_left = len(t_units)
 
     def arrived(g: int, _i: int, _res) -> None:
