@@ -443,6 +443,28 @@ def test_failing_step_leaves_latest_untouched(project, monkeypatch):
     assert s.computed["tables"] == 0 and s.computed["stops"] == 0 and s.computed["closed_loop"] == 0
 
 
+def test_sections_failing_while_the_tables_run_lets_them_finish_and_leaves_latest(project, monkeypatch):
+    """The line's sections are planned while its tables and stops run on the workers: a failure there ends the run
+    as any step's does, once the started units are in (cached: the next run computes none of them again)."""
+    job = _job(project)
+    first = _run(job)
+    import planner.job.pipeline as pl
+
+    def boom(*a, **k):
+        raise PlannerError("sections failed on purpose")
+
+    monkeypatch.setattr(pl, "line_section_inputs", boom)
+    _edit_restriction(project, 65.0)
+    with pytest.raises(PlannerError, match="on purpose"):
+        _run(job)
+    out = project / "out"
+    assert latest_run(out) == first.run_id and list_runs(out) == [first.run_id]
+    monkeypatch.undo()
+    s = _run(job)
+    assert not [p for p in out.iterdir() if p.name.startswith(".staging")]
+    assert s.computed["tables"] == 0 and s.computed["stops"] == 0 and s.computed["closed_loop"] > 0
+
+
 def test_sigkill_at_each_kind_of_moment_leaves_the_previous_run(project, tmp_path_factory, monkeypatch):
     """SIGKILL a run at deterministic points, each signalled by the run itself (no wall-clock race).
 

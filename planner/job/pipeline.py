@@ -417,9 +417,13 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # meanwhile, the line's sections (trains that share no track with the others'): the units of its conflicts, its
     # day as it runs and its train graph are per section, each keyed by its stretch (on a line a hundred times the
     # sample, 5 s of this process that the workers no longer wait for)
-    sections = line_section_inputs(job, line, lifted)
-    if checks_conflicts:
-        side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections, summary.previous)))
+    try:
+        sections = line_section_inputs(job, line, lifted)
+        if checks_conflicts:
+            side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections, summary.previous)))
+    except BaseException:
+        pass1.discard()  # the units started are let finish (and cached) before the run fails
+        raise
     tables_left = len(t_units)
 
     def arrived(g: int, _i: int, _res) -> None:
