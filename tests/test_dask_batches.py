@@ -11,7 +11,6 @@ import pytest
 
 distributed = pytest.importorskip("dask.distributed")
 
-from planner.io import dask_pool  # noqa: E402
 from planner.io.dask_pool import BATCH_MAX, BATCHES_PER_WORKER, DaskPool  # noqa: E402
 from planner.io.parallel import backend  # noqa: E402
 
@@ -92,7 +91,7 @@ def test_a_failing_unit_in_a_batch_raises_its_own_error_after_the_units_before_i
     assert got == list(range(36))  # the six batches before it
 
 
-def test_work_the_job_waits_for_runs_before_the_units_queued_earlier(cluster, monkeypatch):
+def test_work_the_job_waits_for_runs_before_the_units_queued_earlier():
     """Every unit waits until the waited-for task is submitted too, so all are queued when the first ends:
     the cluster's one thread takes the waited-for task before the batches still queued."""
     GO.clear()
@@ -107,7 +106,3 @@ def test_work_the_job_waits_for_runs_before_the_units_queued_earlier(cluster, mo
             assert list(units) == list(range(64))
     at = RAN.index(("waited", 0))
     assert at < 64 - 8, f"the waited-for task ran after {at} units: it was queued behind the step"
-
-
-def test_the_cluster_pools_batches_through_run_batch():
-    assert dask_pool.run_batch(square, [(2,), (3,)]) == [4, 9]
