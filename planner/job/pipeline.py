@@ -414,9 +414,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # tables' last ones; the closed loop starts as soon as the last table is in (tables_in), so no worker
     # waits between the two passes
     pass1 = runner.start_steps([("tables", t_units), ("stops", s_units)], wait=False)
-    # meanwhile, the line's sections (trains that share no track with the others'): the units of its conflicts, its
-    # day as it runs and its train graph are per section, each keyed by its stretch (on a line a hundred times the
-    # sample, 5 s of this process that the workers no longer wait for)
+    # meanwhile (5 s at 100x), the line's sections (trains sharing no track with others'): the units of its conflicts,
+    # its day as it runs and its train graph are per section, each keyed by its stretch
     try:
         sections = line_section_inputs(job, line, lifted)
         if checks_conflicts:
