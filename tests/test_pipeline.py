@@ -421,47 +421,41 @@ def _edit_restriction(project: Path, limit_kmh: float) -> None:
     _write_tiny(project / "lines" / "tiny", speed_limits=sl)
 
 
-def test_failing_step_leaves_latest_untouched(project, monkeypatch):
-    job = _job(project)
-    first = _run(job)
-    before = _tree_digest(project / "out" / first.run_id)
+def _failed_then_again(project: Path, monkeypatch, name: str):
+    """A run after an edit with ``planner.job.pipeline.<name>`` failing: it raises and leaves ``latest`` (its files
+    too) as the run before made it; then the same run without the failure, whose summary is returned (it cleans
+    the failed staging folder and reuses what the failed run computed)."""
     import planner.job.pipeline as pl
 
-    def boom(*a, **k):
-        raise PlannerError("bundle step failed on purpose")
+    job = _job(project)
+    first = _run(job)
+    out = project / "out"
+    before = _tree_digest(out / first.run_id)
 
-    monkeypatch.setattr(pl, "bundles_step", boom)
+    def boom(*a, **k):
+        raise PlannerError(f"{name} failed on purpose")
+
+    monkeypatch.setattr(pl, name, boom)
     _edit_restriction(project, 65.0)
     with pytest.raises(PlannerError, match="on purpose"):
         _run(job)
-    out = project / "out"
     assert latest_run(out) == first.run_id and list_runs(out) == [first.run_id]
     assert _tree_digest(out / first.run_id) == before
     monkeypatch.undo()
-    s = _run(job)  # cleans the failed staging folder and reuses what the failed run computed
+    s = _run(job)
     assert latest_run(out) == s.run_id and not [p for p in out.iterdir() if p.name.startswith(".staging")]
+    return s
+
+
+def test_failing_step_leaves_latest_untouched(project, monkeypatch):
+    s = _failed_then_again(project, monkeypatch, "bundles_step")
     assert s.computed["tables"] == 0 and s.computed["stops"] == 0 and s.computed["closed_loop"] == 0
 
 
 def test_sections_failing_while_the_tables_run_lets_them_finish_and_leaves_latest(project, monkeypatch):
     """The line's sections are planned while its tables and stops run on the workers: a failure there ends the run
     as any step's does, once the started units are in (cached: the next run computes none of them again)."""
-    job = _job(project)
-    first = _run(job)
-    import planner.job.pipeline as pl
-
-    def boom(*a, **k):
-        raise PlannerError("sections failed on purpose")
-
-    monkeypatch.setattr(pl, "line_section_inputs", boom)
-    _edit_restriction(project, 65.0)
-    with pytest.raises(PlannerError, match="on purpose"):
-        _run(job)
-    out = project / "out"
-    assert latest_run(out) == first.run_id and list_runs(out) == [first.run_id]
-    monkeypatch.undo()
-    s = _run(job)
-    assert not [p for p in out.iterdir() if p.name.startswith(".staging")]
+    s = _failed_then_again(project, monkeypatch, "line_section_inputs")
     assert s.computed["tables"] == 0 and s.computed["stops"] == 0 and s.computed["closed_loop"] > 0
 
 
