@@ -16,8 +16,8 @@ from planner.io.parallel import ClusterLostError, Pool, quiet_loggers
 WAITED_FOR = 1
 """The Dask priority of work the job process waits for next (:meth:`DaskPool.imap`); a step's units have 0."""
 BATCH_MAX = 16
-"""A step's units per task on Dask at most (:meth:`DaskPool.batch_size`): a table's unit on the sample takes
-about 0.05 s, so a task of 16 about a second, against a few milliseconds of the cluster's own CPU per task."""
+"""A step's units per task on Dask at most (:meth:`DaskPool.batch_size`): a table's unit takes 0.05-0.1 s of CPU
+(100x line; sample), so a task of 16 about a second, against a few milliseconds of the cluster's own CPU per task."""
 BATCHES_PER_WORKER = 8
 """A step's tasks on Dask for each of the cluster's workers at least (:meth:`DaskPool.batch_size`), so that its
 last tasks still spread over the workers."""
