@@ -388,3 +388,48 @@ def test_datasets_schema_partitions_and_determinism(report, tmp_path):
     for t_s, text in zip(tot.first_departure_s, tot.first_departure_clock):
         h, m, sec = (int(x) for x in text.split(":"))
         assert len(text) == 8 and h * 3600 + m * 60 + sec == round(t_s), (t_s, text)
+
+
+def test_totals_per_train_same_bits_as_each_train_alone():
+    """The trains' totals, computed a leg count at a time, are each train's own numpy sums over its legs in leg
+    order, bit for bit (what a train's total was when it was summed alone): trains of 1 to 40 legs (past
+    numpy's 8-wide pairwise blocks), values over nine decades, NaN (unassessed) and -0.0 among them."""
+    import pandas as pd
+
+    from planner.report.margin_rule import COUNTED, TOTAL_SUM_COLS, UNKNOWN_WHEN_UNASSESSED, margin_totals
+
+    rng = np.random.default_rng(7)
+    legs, rows = [], []
+    for i in range(300):
+        n = int(rng.integers(1, 41))
+        for s in range(n):
+            legs.append({"train_id": f"T{i:03d}", "direction": "down" if i % 3 else "up", "train_type": "E",
+                         "origin": f"S{s}", "destination": f"S{s + 1}", "scheduled_running_time_s": float(len(rows)),
+                         "departure_s": float(rng.uniform(0, 86400)), "leg_seq": s})
+            x = rng.standard_normal(len(TOTAL_SUM_COLS)) * 10.0 ** rng.uniform(-3, 6, len(TOTAL_SUM_COLS))
+            r = dict(zip(TOTAL_SUM_COLS, x))
+            r["min_running_time_s"] = abs(r["min_running_time_s"]) + 1.0
+            if rng.random() < 0.03:
+                r["degraded_min_running_time_s"] = r["remaining_margin_s"] = np.nan
+            if rng.random() < 0.03:
+                r["energy_saved_kwh"] = -0.0
+            rows.append({**r, **{k: legs[-1][k] for k in ("direction", "train_type", "origin", "destination",
+                                                       "scheduled_running_time_s")},
+                         "supplement_met": bool(rng.random() < 0.5), **{f: bool(rng.random() < 0.2) for f in COUNTED}})
+    legs, rows = pd.DataFrame(legs), pd.DataFrame(rows)
+    got = margin_totals(rows, legs).query("level == 'train'").set_index("train_id")
+    assert len(got) == 300
+    merged = legs.merge(rows, on=["direction", "train_type", "origin", "destination", "scheduled_running_time_s"])
+    for tid, g in merged.sort_values(["train_id", "leg_seq"]).groupby("train_id"):
+        r = got.loc[tid]
+        for c in TOTAL_SUM_COLS:
+            x = g[c].to_numpy(float)
+            want = x.sum() if c in UNKNOWN_WHEN_UNASSESSED else np.where(np.isnan(x), 0.0, x).sum()
+            assert np.float64(r[c]).tobytes() == np.float64(want).tobytes(), (tid, c)
+        rm = g["remaining_margin_s"].to_numpy(float)
+        assert np.float64(r.min_remaining_margin_s).tobytes() == np.float64(rm.min()).tobytes()
+        assert np.float64(r.bad_day_shortfall_s).tobytes() == np.maximum(-rm, 0.0).sum().tobytes()
+        assert r.first_departure_s == g["departure_s"].min() and r.n_legs == len(g)
+        assert (r.origin, r.destination) == (g["origin"].iloc[0], g["destination"].iloc[-1])
+        assert r.n_supplement_short == int((~g["supplement_met"]).sum())
+        assert [r[f"n_{f}"] for f in COUNTED] == [int(g[f].sum()) for f in COUNTED]

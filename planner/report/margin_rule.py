@@ -285,21 +285,29 @@ def margin_totals(rows, train_legs, key_extra: Sequence[str] = ()):
     origins, destinations = legs["origin"].to_numpy(object), legs["destination"].to_numpy(object)
 
     def agg(at: np.ndarray) -> dict:
+        """The figures of the groups whose rows are ``at``: one group's positions (1-D), or several groups of as
+        many rows each, a group a row (2-D). Each sum is numpy's over a row of the group's values in ``legs``
+        order: a row of a C-ordered 2-D array is summed as that row alone would be, so the same bits."""
+        one = at.ndim == 1
+        at = np.atleast_2d(at)
         out = {}
         for c in TOTAL_SUM_COLS:
             x = f[c][at]
-            out[c] = float(np.where(np.isnan(x), 0.0, x).sum())
+            out[c] = np.where(np.isnan(x), 0.0, x).sum(axis=1)
         for c in UNKNOWN_WHEN_UNASSESSED:  # a partial sum would pass for the whole: unknown instead
-            out[c] = float(f[c][at].sum())
-        out["margin_percent"] = 100.0 * out["margin_s"] / out["min_running_time_s"]
+            out[c] = f[c][at].sum(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out["margin_percent"] = 100.0 * out["margin_s"] / out["min_running_time_s"]
         rm = f["remaining_margin_s"][at]
-        out["min_remaining_margin_s"] = float(rm.min())  # NaN when one is unknown
-        out["bad_day_shortfall_s"] = float(np.maximum(-rm, 0.0).sum())
-        out["n_legs"] = int(len(at))
-        out["n_supplement_short"] = int(n["short"][at].sum())
+        out["min_remaining_margin_s"] = rm.min(axis=1)  # NaN when one is unknown
+        out["bad_day_shortfall_s"] = np.maximum(-rm, 0.0).sum(axis=1)
+        out["n_legs"] = np.full(len(at), at.shape[1], dtype=np.int64)
+        out["n_supplement_short"] = n["short"][at].sum(axis=1)
         for flag in COUNTED:
-            out[f"n_{flag}"] = int(n[f"n_{flag}"][at].sum())
-        out["first_departure_s"] = float(np.fmin.reduce(f["departure_s"][at]))
+            out[f"n_{flag}"] = n[f"n_{flag}"][at].sum(axis=1)
+        out["first_departure_s"] = np.fmin.reduce(f["departure_s"][at], axis=1)
+        if one:
+            return {k: int(v[0]) if v.dtype.kind in "iu" else float(v[0]) for k, v in out.items()}
         return out
 
     def groups(by) -> list:
@@ -307,18 +315,31 @@ def margin_totals(rows, train_legs, key_extra: Sequence[str] = ()):
         idx = legs.groupby(by, sort=True).indices
         return [(k, idx[k]) for k in sorted(idx)]
 
+    # the trains' level, a column at a time, the trains with as many legs as each other together: a train's legs
+    # are one block of rows in ``legs`` (sorted by train id, as groupby sorts its keys)
+    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]]) if len(ids) else np.zeros(0, dtype=np.int64)
+    sizes = np.diff(np.r_[starts, len(ids)])
+    each = {"level": ["train"] * len(starts), "train_id": ids[starts], "direction": dirs[starts],
+            "train_type": types[starts], "origin": origins[starts], "destination": destinations[starts + sizes - 1],
+            "n_trains": np.ones(len(starts), dtype=np.int64)}
+    got: dict[str, np.ndarray] = {}
+    for size in np.unique(sizes):
+        which = np.flatnonzero(sizes == size)
+        for k, v in agg(starts[which][:, None] + np.arange(size)).items():
+            got.setdefault(k, np.zeros(len(starts), dtype=v.dtype))[which] = v
+    each |= got
+    # the columns as plain values, as records would give them: the same column types
+    columns = {c: np.asarray(each[c]).tolist() if c in each else [] for c in TOTALS_COLUMNS}
     recs = []
-    for tid, at in groups("train_id"):
-        recs.append({"level": "train", "train_id": tid, "direction": dirs[at[0]],
-                     "train_type": types[at[0]], "origin": origins[at[0]],
-                     "destination": destinations[at[-1]], "n_trains": 1} | agg(at))
     for (d, t), at in groups(["direction", "train_type"]):
         recs.append({"level": "type", "train_id": None, "direction": d, "train_type": t, "origin": None,
                      "destination": None, "n_trains": len(set(ids[at]))} | agg(at))
     for d, at in groups("direction"):
         recs.append({"level": "line", "train_id": None, "direction": d, "train_type": ALL_TYPES,
                      "origin": None, "destination": None, "n_trains": len(set(ids[at]))} | agg(at))
-    out = pd.DataFrame.from_records(recs, columns=TOTALS_COLUMNS)
-    return out
+    for r in recs:
+        for c in TOTALS_COLUMNS:
+            columns[c].append(r[c])
+    return pd.DataFrame(columns, columns=TOTALS_COLUMNS)
 
 
