@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Callable, Collection, Iterator, Mapping
 
 import numpy as np
 import pyarrow as pa
@@ -215,42 +216,71 @@ def _timetable(line: Line, target: tuple[str, str, str]) -> pa.Table:
 
 
 # --- reading the other steps' datasets -----------------------------------------
-def read_partition(root: str | os.PathLike, dataset: str, line_id: str, direction: str,
-                   train_type: str) -> pa.Table | None:
-    """One partition of a hive dataset ``root/dataset/line=/direction=/train_type=``, or None if absent.
+@dataclass(frozen=True)
+class Partition:
+    """One partition's files of a step's dataset (``dataset/line=/direction=/train_type=``), read a file at a time
+    (:meth:`pieces`): a bundle's large tables (millions of rows on a long line) are checked and encoded piece by
+    piece (:func:`planner.bundle.contents.streamed`), never held whole."""
 
-    Files are read in sorted name order and concatenated, so the row order is
-    the writer's; the partition columns are added as plain strings.
-    """
+    dataset: str
+    folder: Path
+    files: tuple[Path, ...]
+    values: tuple[str, str, str]
+    """The partition's line, direction and train type."""
+
+    def pieces(self) -> Iterator[pa.Table]:
+        """Each file's rows, in sorted name order (the writer's row order), the partition columns added as plain
+        strings."""
+        old_run = {c for c, _, _ in RUN_FIELDS}
+        for f in self.files:
+            try:
+                # a run published before the run's fields became folders has them in its files; a bundle does not
+                # read them
+                t = pq.read_table(f, partitioning=None,
+                                  columns=[c for c in pq.read_schema(f).names if c not in old_run])
+            except (pa.ArrowInvalid, OSError) as e:
+                raise BundleError(f"cannot read {self.folder}: {e}; rebuild the {self.dataset} dataset") from None
+            for col, val in zip(_PARTITION_COLS, self.values):
+                if col in t.column_names:  # hive files normally leave it out; if stored, it must agree
+                    check_keys(self.dataset, t.select([col]), *self.values, str(self.folder))
+                    t = t.drop_columns([col])
+                t = t.append_column(pa.field(col, pa.string()), pa.repeat(pa.scalar(val, pa.string()), t.num_rows))
+            yield t
+
+
+def partition(root: str | os.PathLike, dataset: str, line_id: str, direction: str,
+              train_type: str) -> Partition | None:
+    """One partition of a hive dataset ``root/dataset/line=/direction=/train_type=``, or None if absent."""
     # a published run's datasets are under its run_id= and run_date= folders; a step's own output is not
     folder = run_dataset_dir(root, dataset) / f"line={line_id}" / f"direction={direction}" / f"train_type={train_type}"
     files = sorted(folder.glob("*.parquet"), key=lambda p: p.name) if folder.is_dir() else []
-    if not files:
+    return Partition(dataset, folder, tuple(files), (line_id, direction, train_type)) if files else None
+
+
+def read_partition(root: str | os.PathLike, dataset: str, line_id: str, direction: str,
+                   train_type: str) -> pa.Table | None:
+    """One partition of a hive dataset ``root/dataset/line=/direction=/train_type=`` as one table, or None if
+    absent: its files (:meth:`Partition.pieces`) concatenated."""
+    p = partition(root, dataset, line_id, direction, train_type)
+    if p is None:
         return None
-    old_run = {c for c, _, _ in RUN_FIELDS}
+    parts = list(p.pieces())
     try:
-        # a run published before the run's fields became folders has them in its files; a bundle does not read them
-        parts = [pq.read_table(f, partitioning=None,
-                               columns=[c for c in pq.read_schema(f).names if c not in old_run]) for f in files]
-        t = pa.concat_tables(parts) if len(parts) > 1 else parts[0]
-    except (pa.ArrowInvalid, OSError) as e:
-        raise BundleError(f"cannot read {folder}: {e}; rebuild the {dataset} dataset") from None
-    for col, val in zip(_PARTITION_COLS, (line_id, direction, train_type)):
-        if col in t.column_names:  # hive files normally leave it out; if stored, it must agree
-            check_keys(dataset, t.select([col]), line_id, direction, train_type, str(folder))
-            t = t.drop_columns([col])
-        t = t.append_column(pa.field(col, pa.string()), pa.repeat(pa.scalar(val, pa.string()), t.num_rows))
-    return t
+        return pa.concat_tables(parts) if len(parts) > 1 else parts[0]
+    except pa.ArrowInvalid as e:
+        raise BundleError(f"cannot read {p.folder}: {e}; rebuild the {dataset} dataset") from None
 
 
 def assemble(line: Line, direction: str, train_type: str, *, tables_dir=None,
-             stops_dir=None, validity: Mapping[str, tuple[int, int]] | None = None) -> dict[str, pa.Table]:
+             stops_dir=None, validity: Mapping[str, tuple[int, int]] | None = None,
+             streamed: Collection[str] = ()) -> dict[str, pa.Table | Partition]:
     """Every table of one bundle that exists: the line's own tables plus the datasets found.
 
     ``tables_dir`` is the output folder of ``planner tables`` (``eval_points``,
     ``table_a``, ``table_b``), ``stops_dir`` that of the stopping step
     (``stop_summary``, ``stop_samples``). Tables not found are left out; the
-    builder records them as missing in the manifest.
+    builder records them as missing in the manifest. The datasets named in ``streamed`` are given as their
+    :class:`Partition`, to be read a file at a time (:func:`planner.bundle.container.bundle_bytes`).
     """
     tables = line_tables(line, direction, train_type, validity)
     for key, root in (("tables", tables_dir), ("stops", stops_dir)):
@@ -259,7 +289,7 @@ def assemble(line: Line, direction: str, train_type: str, *, tables_dir=None,
         if not Path(root).is_dir():
             raise BundleError(f"--{key} {root} is not a folder; give the output folder of that step")
         for name in TABLE_SOURCES[key]:
-            t = read_partition(root, name, line.line_id, direction, train_type)
+            t = (partition if name in streamed else read_partition)(root, name, line.line_id, direction, train_type)
             if t is not None:
                 tables[name] = t
     return tables

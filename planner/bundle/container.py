@@ -49,8 +49,9 @@ import pyarrow.parquet as pq
 from planner import __version__
 from planner.bundle import signing
 from planner.bundle.archive import pack, unpack
-from planner.bundle.assemble import TABLE_SOURCES, assemble
-from planner.bundle.contents import CORE_SCHEMAS, check_keys, check_schema, check_tables
+from planner.bundle.assemble import TABLE_SOURCES, Partition, assemble
+from planner.bundle.contents import (CORE_SCHEMAS, STREAMED, Streamed, check_keys, check_schema, check_tables,
+                                     streamed)
 from planner.bundle.manifest import (CORE_TABLES, BundleDay, EXPECTED_TABLES, FORMAT, MANIFEST, MAX_MEMBER_BYTES,
                                      MAX_TOTAL_BYTES, SCHEMA_VERSION, SHA256_RE, SIGNATURE, VEHICLE_TABLES,
                                      BundleInfo, Release, bundle_name, canonical_json, check_manifest,
@@ -76,14 +77,38 @@ stop summary (both small)."""
 
 
 # --- writing -----------------------------------------------------------------
-def parquet_bytes(table: pa.Table) -> bytes:
-    """Deterministic Parquet bytes of ``table`` (fixed writer settings, no pandas metadata)."""
+def _plain(table: pa.Table) -> pa.Table:
+    """``table`` without pandas metadata."""
     meta = dict(table.schema.metadata or {})
     meta.pop(b"pandas", None)
-    table = table.replace_schema_metadata(meta or None)
+    return table.replace_schema_metadata(meta or None)
+
+
+def parquet_bytes(table: pa.Table) -> bytes:
+    """Deterministic Parquet bytes of ``table`` (fixed writer settings, no pandas metadata)."""
     buf = io.BytesIO()
-    pq.write_table(table, buf, **_PARQUET_OPTIONS)
+    pq.write_table(_plain(table), buf, **_PARQUET_OPTIONS)
     return buf.getvalue()
+
+
+def streamed_bytes(name: str, part: Partition, target: tuple[str, str, str]) -> tuple[bytes, Streamed]:
+    """Deterministic Parquet bytes of a dataset's partition (fixed writer settings, no pandas metadata), written a
+    file of it at a time (a row group or more each, in the files' order), each checked as it is read
+    (:func:`planner.bundle.contents.streamed`); and what the cross-checks need of it. A table of millions of rows
+    (table (d) on a long line) is encoded holding one file's rows, not the whole table's."""
+    buf = io.BytesIO()
+    writer: list[pq.ParquetWriter] = []
+
+    def write(piece: pa.Table) -> None:
+        piece = _plain(piece)
+        if not writer:
+            writer.append(pq.ParquetWriter(buf, piece.schema, **_PARQUET_OPTIONS))
+        writer[0].write_table(piece)
+
+    summary = streamed(name, part.pieces(), target, "build", write)
+    if writer:
+        writer[0].close()
+    return buf.getvalue(), summary
 
 
 def _private_key(key) -> "signing.Ed25519PrivateKey":
@@ -102,10 +127,12 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
 
     Parameters
     ----------
-    tables : mapping of name -> pyarrow.Table
+    tables : mapping of name -> pyarrow.Table or Partition
         Must hold every name in :data:`CORE_TABLES`; may hold those in
         :data:`EXPECTED_TABLES` and other names ``[a-z][a-z0-9_]*``. Core
-        tables must match their declared schema.
+        tables must match their declared schema. A step's table may be given as its dataset's
+        :class:`~planner.bundle.assemble.Partition`: it is then read, checked and encoded a file at a time
+        (:func:`streamed_bytes`).
     line_id, direction, train_type : str
         What the bundle is for; every row of a table with a ``line``,
         ``direction`` or ``train_type`` column must carry these values.
@@ -149,12 +176,16 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     members: dict[str, bytes] = {}
     files = []
     total = 0
+    checked = dict(tables)  # what the cross-checks read: a streamed table's summary in place of its partition
     for name in sorted(set(tables) | set(given)):
         if not _TABLE_NAME.fullmatch(name):
             raise BundleError(f"table name {name!r} not allowed: use lower-case letters, digits and '_'")
         if name in given:
             data = given[name]
             rows = pq.read_metadata(pa.BufferReader(data)).num_rows
+        elif isinstance(tables[name], Partition):  # read, checked and encoded a file at a time
+            data, checked[name] = streamed_bytes(name, tables[name], (line_id, direction, train_type))
+            rows = checked[name].num_rows
         else:
             t = tables[name]
             if name in CORE_SCHEMAS:
@@ -194,7 +225,7 @@ def bundle_bytes(tables: Mapping[str, pa.Table], *, line_id: str, direction: str
     if no_stop:  # signed: the vehicle knows where the bundle cannot stop it (never only a smaller stop_samples)
         manifest["no_stop"] = no_stop
     check_manifest(manifest, "build")
-    check_tables(tables, manifest, "build")  # never sign what verify would refuse
+    check_tables(checked, manifest, "build")  # never sign what verify would refuse
     mbytes = canonical_json(manifest)
     members[MANIFEST] = mbytes
     members[SIGNATURE] = signing.sign(key, mbytes)
@@ -280,7 +311,7 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: 
             given = reused(d, t) if reused is not None else None
             tables = assemble(line, d, t, tables_dir=tables_dir if given is None else None,
                               stops_dir=stops_dir if given is None else None,
-                              validity=day.validity() if day is not None else None)
+                              validity=day.validity() if day is not None else None, streamed=STREAMED)
             if given is not None:
                 tables.update(_read_given(given))
             info = build_bundle(tables, line_id=line.line_id, direction=d, train_type=t, out_dir=out_dir,

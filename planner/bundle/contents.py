@@ -9,7 +9,8 @@ direction, train type); returns nothing when they hold and raises
 """
 from __future__ import annotations
 
-from typing import Mapping
+from dataclasses import dataclass, field
+from typing import Callable, Iterable, Mapping
 
 import numpy as np
 import pyarrow as pa
@@ -153,11 +154,66 @@ def _col(t: pa.Table, name: str) -> list:
     return t.column(name).to_pylist()
 
 
-def _distinct(t: pa.Table, *names: str) -> set:
-    """The distinct rows of columns ``names`` of ``t`` as a set of tuples, made from the distinct rows only
-    (not from a Python object per row and column: tables (b) to (d) have millions of rows on a long line)."""
+def _distinct(t, *names: str) -> set:
+    """The distinct rows of columns ``names`` of ``t`` (a table, or the :class:`Streamed` summary of one) as a set
+    of tuples, made from the distinct rows only (not from a Python object per row and column: tables (b) to (d)
+    have millions of rows on a long line)."""
+    if isinstance(t, Streamed):
+        return t.distinct[names]
     u = t.select(list(names)).group_by(list(names), use_threads=False).aggregate([])
     return set(zip(*(u.column(c).to_pylist() for c in names)))
+
+
+STREAMED = ("table_a", "table_b", "table_c", "table_d", "stop_samples")
+"""The steps' tables that are checked a piece at a time, never held whole, where a bundle is built from the
+datasets or only verified (:func:`streamed`): on a long line tables (b) to (d) and the stop samples have millions
+of rows each. The evaluation points and the stop summary, which the checks read row by row, are read whole."""
+
+CROSS_KEYS = {
+    "table_a": (("origin", "destination", "ratio"),),
+    "table_b": (("origin", "destination", "ratio_before"), ("origin", "destination", "ratio_after"),
+                ("origin", "destination", "eval_point_id")),
+    "table_c": (("origin", "destination", "ratio"),),
+    "table_d": (("origin", "destination", "eval_point_id"),),
+}
+"""The columns of each step table whose distinct rows the cross-checks compare (:func:`_check_step_tables`)."""
+
+
+@dataclass
+class Streamed:
+    """What the checks need of a table that is read, checked and encoded a piece at a time and never held whole
+    (:func:`streamed`): its schema, its rows and the distinct rows of its :data:`CROSS_KEYS`."""
+
+    schema: pa.Schema
+    num_rows: int = 0
+    distinct: dict = field(default_factory=dict)
+
+    @property
+    def column_names(self) -> list[str]:
+        return list(self.schema.names)
+
+
+def streamed(name: str, pieces: Iterable[pa.Table], target: tuple[str, str, str], where: str,
+             each: Callable[[pa.Table], None] | None = None) -> Streamed | None:
+    """Check ``pieces`` of table ``name`` one at a time (each piece's rows carry the bundle's ``target``: line,
+    direction, train type; all pieces have the first one's columns), give each to ``each`` (the builder encodes
+    it) and gather what the cross-checks compare; None when there is no piece. A table of millions of rows is
+    then checked holding one piece of it, not all."""
+    out = None
+    for piece in pieces:
+        if out is None:
+            out = Streamed(piece.schema, distinct={k: set() for k in CROSS_KEYS.get(name, ())
+                                                   if set(k) <= set(piece.column_names)})
+        elif piece.schema != out.schema:
+            raise fail(where, f"table {name}: its pieces differ in their columns ({out.schema.names} and "
+                              f"{piece.schema.names})")
+        check_keys(name, piece, *target, where)
+        for k, seen in out.distinct.items():
+            seen |= _distinct(piece, *k)
+        out.num_rows += piece.num_rows
+        if each is not None:
+            each(piece)
+    return out
 
 
 _REQUIRED_COLUMNS = {
@@ -180,7 +236,8 @@ def check_tables(tables: Mapping[str, pa.Table], m: dict, where: str) -> None:
             if lost:
                 raise fail(where, f"table {name} lacks column(s) {', '.join(lost)}")
     for name, t in tables.items():
-        check_keys(name, t, m["line_id"], m["direction"], m["train_type"], where)
+        if not isinstance(t, Streamed):  # a streamed table's pieces were checked as they were read
+            check_keys(name, t, m["line_id"], m["direction"], m["train_type"], where)
         if name in CORE_SCHEMAS:
             check_schema(name, t.schema, CORE_SCHEMAS[name], where)
     _check_core(tables, sign(m["direction"]), where)

@@ -42,7 +42,7 @@ import pyarrow.parquet as pq
 
 from planner.bundle import signing
 from planner.bundle.archive import read_members
-from planner.bundle.contents import check_tables
+from planner.bundle.contents import STREAMED, check_tables, streamed
 from planner.bundle.manifest import (MANIFEST, SIGNATURE, BundleInfo, check_manifest, fail, format_time, no_stop_rows,
                                      manifest_info, parse_manifest, parse_time)
 from planner.errors import BundleError
@@ -168,19 +168,38 @@ def _signed(path, public_key, expect: Expect | None) -> tuple[str, dict, dict[st
     return where, m, members, size_digest
 
 
-def _verified(path, public_key, expect: Expect | None = None
-              ) -> tuple[BundleInfo, dict[str, bytes], dict[str, pa.Table]]:
+def _row_groups(name: str, data: bytes, where: str):
+    """The row groups of member ``name`` one at a time."""
+    try:
+        f = pq.ParquetFile(pa.BufferReader(data))
+        for i in range(f.num_row_groups):
+            yield f.read_row_group(i)
+    except (pa.ArrowException, OSError) as err:
+        raise fail(where, f"{name} is not a readable Parquet file ({err})") from None
+
+
+def _verified(path, public_key, expect: Expect | None = None, keep: bool = True
+              ) -> tuple[BundleInfo, dict[str, bytes], dict]:
+    """The bundle's info, members and tables, every check passed; ``keep`` False: the large step tables
+    (:data:`planner.bundle.contents.STREAMED`) are checked a row group at a time and given as their summaries."""
     where, m, members, size_digest = _signed(path, public_key, expect)
     listed = {e["name"]: e for e in m["files"]}
     tables = {}
+    target = (m["line_id"], m["direction"], m["train_type"])
     for name, e in listed.items():
-        try:
-            t = pq.read_table(pa.BufferReader(members[name]))
-        except (pa.ArrowException, OSError) as err:
-            raise fail(where, f"{name} is not a readable Parquet file ({err})") from None
+        table = name.removesuffix(".parquet")
+        if not keep and table in STREAMED:
+            t = streamed(table, _row_groups(name, members[name], where), target, where)
+            if t is None:  # no row group: the table as it is, empty
+                t = pq.read_table(pa.BufferReader(members[name]))
+        else:
+            try:
+                t = pq.read_table(pa.BufferReader(members[name]))
+            except (pa.ArrowException, OSError) as err:
+                raise fail(where, f"{name} is not a readable Parquet file ({err})") from None
         if t.num_rows != e["rows"]:
             raise fail(where, f"{name} has {t.num_rows} rows, the manifest says {e['rows']}")
-        tables[name.removesuffix(".parquet")] = t
+        tables[table] = t
     check_tables(tables, m, where)
     # the stops without a pattern from the signed stop_summary itself, also where the manifest predates no_stop
     info = dataclasses.replace(manifest_info(where, m, size_digest),
@@ -248,7 +267,7 @@ def verify_bundle(path: str | os.PathLike | bytes, public_key, *, expect: str | 
         and SHA-256 of each, row counts, table schemas, line/direction/train
         type in every row, cross-table consistency.
     """
-    return _verified(path, public_key, _expect(expect, min_version, at, allow_dev))[0]
+    return _verified(path, public_key, _expect(expect, min_version, at, allow_dev), keep=False)[0]
 
 
 def read_bundle(path: str | os.PathLike | bytes, public_key, *, expect: str | Expect | None = None,
