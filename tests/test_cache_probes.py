@@ -34,8 +34,8 @@ from test_network_cli import EDGES, NODES
 
 VOLATILE = ("run_id", "timings_s", "units_computed", "units_reused", "changes")  # wall-clock, how a run got there, what it is compared with
 KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1, "margin_leg": 4, "graph": 2,
-         "charts": 2, "timetable": 1}  # speed-distance charts: the EMU10 train 101's legs A-B and B-C; margin legs:
-# one per group; the running-time tables: one unit, the line is one section
+         "charts": 2, "timetable": 1, "robustness": 1}  # speed-distance charts: the EMU10 train 101's legs A-B and
+# B-C; margin legs: one per group; the running-time tables and the robustness page: one unit, the line is one section
 # what the job keeps, beside the result
 BESIDE = {"tables_kept": 4, "stops_kept": 4, "closed_loop_kept": 4, "conflicts_kept": 1}
 # what the margins read of each part of the closed loop's datasets (a direction each), made with its files

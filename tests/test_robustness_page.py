@@ -173,6 +173,7 @@ def test_each_trains_distribution_line_and_stops_read_as_written():
     rounds to zero without its sign, a missing percentile as a dash); its stops are its departure and its arrivals,
     not the departures on the way; a train with no arrival has dashes; trains in order of departure."""
     from planner.pages.robustness import _distribution
+    from planner.pages.robustness_share import RobustnessShare, _distribution as trains_of
 
     nan = float("nan")
     cols = ("train_id", "train_type", "direction", "seq", "station_name", "event", "scheduled_s", "mean_delay_s",
@@ -183,7 +184,8 @@ def test_each_trains_distribution_line_and_stops_read_as_written():
             ("A1", "E6", "down", 2, "Z & Co", "arrival", 22050.0, -0.01, 0.0, 185.4, nan, 0.934, 1.0, 1.0, 12.345,
              3.0),
             ("B2", "E6", "down", 0, "X", "departure", 18000.0, 4.0, 0.0, 10.0, 20.0, 1.0, 1.0, 1.0, 0.0, 0.0)]
-    html = "".join(_distribution(pd.DataFrame(rows, columns=cols), 100))
+    tr = pd.DataFrame(rows, columns=cols)
+    html = "".join(_distribution([RobustnessShare(trains_rows=len(tr), dist=trains_of(tr))], 100))
     a1 = html[html.index("<b>A1</b>"):]
     assert a1.startswith("<b>A1</b></span><span>down</span><span>X → Z &amp; Co</span><span>06:00:00</span>"
                          "<span>06:07:30</span><span class=r>0.0</span><span class=r>0</span><span class=r>"
@@ -195,3 +197,40 @@ def test_each_trains_distribution_line_and_stops_read_as_written():
     b2 = html[html.index("<b>B2</b>"):html.index("<b>A1</b>")]  # departs first: listed first
     assert "<span>05:00:00</span><span>–</span>" + "<span class=r>–</span>" * 8 + "</summary>" in b2
     assert "E6 · 2 trains" in html
+
+
+def _split(frame, groups: dict, col: str = "train_id"):
+    return {g: frame[frame[col].map(groups) == g] for g in sorted(set(groups.values()))}
+
+
+def test_a_line_in_sections_renders_as_the_whole_line():
+    """The page put together from the shares of a line's sections (each with its trains' rows) is the page of the
+    whole line's frames, byte for byte: split by direction (as sections are: trains that share no track), and
+    split across a train's headways (a place and cause met in two sections, a leg in several)."""
+    from planner.pages.robustness import render_shares
+    from planner.pages.robustness_share import share
+
+    s, tr, st, acts, ev = frames(n_trains=40, n_stations=8)
+    whole = render("Sample Line", s, tr, st, acts, ev)
+    ids = sorted(set(tr["train_id"]), key=lambda t: int(t[1:]))
+    for groups in ({t: int(t[1:]) % 2 for t in ids}, {t: int(t[1:]) // 7 for t in ids}):
+        trs, evs = _split(tr, groups), _split(ev, groups)
+        acs = _split(acts, groups, "to_train")
+        shares = [share(trs[g], st, acs[g], evs[g], s["days"]) for g in sorted(trs)]
+        assert len(shares) > 1 and sum(len(x.dist) for x in shares) == 40
+        assert render_shares("Sample Line", s, st, shares) == whole
+
+
+def test_the_largest_rows_come_from_any_section():
+    """Each "largest" table over the line takes its rows from whichever section has them: the section order does
+    not matter, only the figures."""
+    from planner.pages.robustness import render_shares
+    from planner.pages.robustness_share import share
+
+    s, tr, st, acts, ev = frames(n_trains=60, n_stations=6, seed=11)
+    groups = {t: int(t[1:]) % 3 for t in set(tr["train_id"])}
+    trs, evs, acs = _split(tr, groups), _split(ev, groups), _split(acts, groups, "to_train")
+    shares = [share(trs[g], st, acs[g], evs[g], s["days"]) for g in sorted(trs)]
+    one = render_shares("L", s, st, shares)
+    assert render_shares("L", s, st, shares[::-1]).split("<h2 id='spread'>")[1] == one.split("<h2 id='spread'>")[1]
+    assert one == render("L", s, tr, st, acts, ev)

@@ -143,6 +143,8 @@ class RunSummary:
     """Every :class:`planner.io.parallel.Background` of the run (waited for when the run fails)."""
     robustness: dict = field(default_factory=dict, repr=False, compare=False)
     """Each line's summary of the day as it runs (:func:`planner.job.robustness.day_as_it_runs`), for its page."""
+    robustness_shares: dict = field(default_factory=dict, repr=False, compare=False)
+    """Each line's robustness page's shares being made, the cache and their keys (:func:`planner.job.views.start_robustness`)."""
     previous: Any = field(default=None, repr=False, compare=False)
     """The previous run's dataset files that this run may reuse (:func:`planner.job.made.previous`)."""
     made: dict = field(default_factory=dict, repr=False, compare=False)
@@ -480,11 +482,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # the train graph's trajectories (stored for the page's worker) start next; the bundles need the tables and
     # stops datasets only: built from when they are written, beside the margins (the worker loads the key from
     # its file; both datasets are counted, so written, before)
-    from planner.job.views import graph_units, page_units
+    from planner.job.views import graph_units, line_views, page_units, start_robustness
 
     g_units = graph_units(job, sections)
     graph = runner.start("graph", g_units)
-    from planner.job.train_views import timetable_parts
+    from planner.job.train_views import start_charts, timetable_parts
 
     tt_parts = timetable_parts(sections, dict(side).get("conflicts"))  # the tables' units, a section each
     # the train graph page's shares, a section each, started once the trajectories they draw are stored
@@ -502,6 +504,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     conflicts = None
     if checks_conflicts:
         conflicts = conflicts_step(summary, got.pop("conflicts"), line, stage)
+        start_robustness(runner, summary, line.line_id, stage, tt_parts)  # the robustness page's shares
     loop_files, loop_facts, made, rejected = loops_written.result()
     summary.made.update(made)
     for kind, entry, why in rejected:  # facts of a part whose entry was not trusted: made again from its rows
@@ -513,7 +516,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # the legs' speed–distance charts start on the workers now (their pages are written last), while the margins'
     # datasets are written on the writer thread and this process finishes the line's bundles
     from planner.job.day import window
-    from planner.job.train_views import start_charts
     from planner.report.margin_datasets import write_margins
 
     charts = start_charts(job, line, stage, report, runner, summary.run_id,
@@ -523,7 +525,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     give_back()
     bundles_step(stage, runner, summary, key, bundles)
     if verify is not None:  # every bundle of the run is written: the overview's check of them, on a worker
-        from planner.io.parallel import background
         from planner.pages.overview import bundle_rows
 
         summary.bundles_verified = background(bundle_rows, (stage, verify), name=job.parallel.backend,
@@ -532,7 +533,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     from planner.job.verdicts import record_verdicts
 
     record_verdicts(line.line_id, summary, *flagged, report)
-    from planner.job.views import line_views  # inputs copy, train graph page
 
     count_rows(summary, margins_written.result())  # the train graph page reads the margin totals
     graph.results()  # every section's trajectories stored: the page's units read them (views.page_units)
