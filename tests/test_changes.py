@@ -139,7 +139,7 @@ def test_rows_differing_counts_rows_as_multisets():
 
     import pyarrow as pa
 
-    from planner.report.bundle_changes import _rows_differing
+    from planner.report.bundle_changes import _rows_differing, _same_groups
 
     t = lambda rows: pa.table({"a": [r[0] for r in rows], "b": [r[1] for r in rows]})  # noqa: E731
     assert _rows_differing(t([(1, 1.0), (2, 2.0)]), t([(1, 1.0), (2, 2.0)])) == 0
@@ -153,3 +153,27 @@ def test_rows_differing_counts_rows_as_multisets():
         b = [(rnd.randrange(6), rnd.choice([0.5, 1.5])) for _ in range(rnd.randrange(30))]
         ca, cb = Counter(a), Counter(b)
         assert _rows_differing(t(a), t(b)) == sum(((ca - cb) + (cb - ca)).values())
+        # a bundle's members as they are read: Parquet bytes, a row group at a time (here of 4 rows)
+        assert _rows_differing(parquet(t(a)), parquet(t(b))) == sum(((ca - cb) + (cb - ca)).values())
+    # most row groups the same bytes in both (an edit touched one dataset file): only the others' rows differ;
+    # a row group the other has once less, or moved, is counted as the multisets say
+    rows = [(i, float(i % 5)) for i in range(40)]
+    edited = rows[:17] + [(17, 9.5)] + rows[18:]
+    assert _rows_differing(parquet(t(rows)), parquet(t(edited))) == 2
+    same = _same_groups(parquet(t(rows)), parquet(t(edited)))
+    assert same == (set(range(10)) - {4}, set(range(10)) - {4})  # only the edited group's rows are read
+    assert _rows_differing(parquet(t(rows + rows[:4])), parquet(t(rows))) == 4
+    assert _rows_differing(parquet(t(rows[4:8] + rows)), parquet(t(rows + rows[4:8]))) == 0
+    assert _rows_differing(parquet(t([])), parquet(t([(1, 1.0)]))) == 1
+    assert _rows_differing(None, parquet(t([(1, 1.0), (2, 2.0)]))) == 2
+
+
+def parquet(table) -> bytes:
+    """``table`` as Parquet bytes in row groups of 4 rows."""
+    import io
+
+    import pyarrow.parquet as pq
+
+    buf = io.BytesIO()
+    pq.write_table(table, buf, row_group_size=4)
+    return buf.getvalue()

@@ -24,9 +24,6 @@ expiry) change at every build, so two bundles that differ only there hold the sa
 
 
 def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     from planner.bundle.verify import Expect, read_signed
     from planner.errors import PlannerError
 
@@ -58,15 +55,14 @@ def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
         fa = {f.name: f for f in a_info.files}
         fb = {f.name: f for f in b_info.files}
 
-        def table(members, m):  # a member whose digest the signed manifest vouches for, decoded when it differs
-            return None if m not in members else pq.read_table(pa.BufferReader(members[m]))
         parts, rows_changed, bytes_changed = [], 0, 0
         for m in sorted(set(fa) | set(fb)):
             x, y = fa.get(m), fb.get(m)
             if x and y and x.sha256 == y.sha256:
                 continue
             tname = m.removesuffix(".parquet")
-            nd = _rows_differing(table(a_members, m) if x else None, table(b_members, m) if y else None)
+            # members whose digests the signed manifests vouch for, read a row group at a time
+            nd = _rows_differing(a_members.get(m) if x else None, b_members.get(m) if y else None)
             rows_changed += nd
             bytes_changed += abs((y.size if y else 0) - (x.size if x else 0))
             parts.append(f"{tname} {nd} rows")
@@ -89,22 +85,87 @@ def _bundle_keys(name: str, line_id: str) -> tuple[str | None, str | None]:
     return (d or None), (t or None)
 
 
+def _pieces(x, skip: set = frozenset()):
+    """A table's pieces: the table itself, or a Parquet member's row groups one at a time (but those in ``skip``)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    if isinstance(x, pa.Table):
+        yield x
+        return
+    f = pq.ParquetFile(pa.BufferReader(x))
+    for i in range(f.num_row_groups):
+        if i not in skip:
+            yield f.read_row_group(i)
+
+
+def _group_digests(data: bytes) -> list[bytes]:
+    """Each row group of a Parquet member by the digest of its bytes (its column chunks, as written) and the file's
+    schema: two row groups with the same digest hold the same rows."""
+    import hashlib
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    md = pq.ParquetFile(pa.BufferReader(data)).metadata
+    schema = repr([(c.path, c.physical_type, str(c.logical_type), c.max_definition_level, c.max_repetition_level)
+                   for c in md.schema]).encode()
+    out = []
+    for i in range(md.num_row_groups):
+        rg, h = md.row_group(i), hashlib.sha256(schema)
+        for j in range(rg.num_columns):
+            c = rg.column(j)
+            start = c.dictionary_page_offset if c.has_dictionary_page and c.dictionary_page_offset else \
+                c.data_page_offset
+            h.update(memoryview(data)[start:start + c.total_compressed_size])
+        out.append(h.digest())
+    return out
+
+
+def _same_groups(a: bytes, b: bytes) -> tuple[set, set]:
+    """The row groups of ``a`` and of ``b`` that the other has byte for byte (as multisets): their rows cancel out."""
+    da, db = _group_digests(a), _group_digests(b)
+    left: dict[bytes, list[int]] = {}
+    for j, d in enumerate(db):
+        left.setdefault(d, []).append(j)
+    sa, sb = set(), set()
+    for i, d in enumerate(da):
+        if left.get(d):
+            sa.add(i)
+            sb.add(left[d].pop())
+    return sa, sb
+
+
 def _rows_differing(a, b) -> int:
-    """Rows in one table and not the other (as multisets of whole rows)."""
-    if a is None or b is None:
-        return (a.num_rows if a is not None else 0) + (b.num_rows if b is not None else 0)
+    """Rows in one table and not the other (as multisets of whole rows); each a table, a Parquet member's bytes (read
+    a row group at a time: a bundle's table (d) on a network has millions of rows), or None."""
     import numpy as np
     import pandas as pd
+    import pyarrow as pa
+    import pyarrow.parquet as pq
 
-    try:  # one 64-bit hash per row, counted as sorted arrays (a table (d) of a network has millions of rows)
-        ha = pd.util.hash_pandas_object(a.to_pandas(), index=False).to_numpy()
-        hb = pd.util.hash_pandas_object(b.to_pandas(), index=False).to_numpy()
+    def rows(x) -> int:
+        return 0 if x is None else x.num_rows if isinstance(x, pa.Table) else pq.read_metadata(pa.BufferReader(x)).num_rows
+
+    if a is None or b is None:
+        return rows(a) + rows(b)
+
+    def hashes(x, skip) -> np.ndarray:  # one 64-bit hash per row, a row's alone (the same in any piece)
+        got = [pd.util.hash_pandas_object(p.to_pandas(), index=False).to_numpy() for p in _pieces(x, skip)]
+        return np.concatenate(got) if got else np.zeros(0, dtype=np.uint64)
+
+    # two members of bundles built from datasets that an edit touched in places: most row groups (a dataset file
+    # each) are the same bytes in both, and only the others' rows are compared
+    skip = _same_groups(a, b) if not isinstance(a, pa.Table) and not isinstance(b, pa.Table) else (set(), set())
+    try:  # counted as sorted arrays
+        ha, hb = hashes(a, skip[0]), hashes(b, skip[1])
     except TypeError:  # list columns cannot be hashed by pandas
         from collections import Counter
 
         from planner.report.changes import _canon
 
-        ca, cb = (Counter(tuple(_canon(v) for v in r.values()) for r in t.to_pylist()) for t in (a, b))
+        whole = [x if isinstance(x, pa.Table) else pq.read_table(pa.BufferReader(x)) for x in (a, b)]
+        ca, cb = (Counter(tuple(_canon(v) for v in r.values()) for r in t.to_pylist()) for t in whole)
         return sum(((ca - cb) + (cb - ca)).values())
     va, na = np.unique(ha, return_counts=True)
     vb, nb = np.unique(hb, return_counts=True)
