@@ -400,9 +400,9 @@ def _robustness_unit(line_id: str, stage: str, part: str, days: int):
 
 def robustness_page(root: str, keys: list, stage: Path, line_id: str, name: str, summary: dict, nav: str) -> None:
     """Worker: write a line's robustness page (:mod:`planner.pages.robustness`) from its sections' shares stored in
-    the work cache at ``root`` (``keys``: :func:`robustness_units`) and its stations' figures (the ``robustness_stations`` dataset in the
-    staged run, a few rows per station). The whole line's rows are never read together (at a hundred times the
-    sample, 35,600 trains' rows: 1.6 GB of a worker's memory)."""
+    the work cache at ``root`` (``keys``: :func:`robustness_units`) and its stations' figures (the
+    ``robustness_stations`` dataset in the staged run, a few rows per station). The whole line's rows are never
+    read together (at a hundred times the sample, 35,600 trains' rows: 1.6 GB of a worker's memory)."""
     from planner.io.atomic import write_bytes_atomic
     from planner.job.units import Stored
     from planner.pages.robustness import render_shares
