@@ -144,7 +144,7 @@ class RunSummary:
     robustness: dict = field(default_factory=dict, repr=False, compare=False)
     """Each line's summary of the day as it runs (:func:`planner.job.robustness.day_as_it_runs`), for its page."""
     robustness_shares: dict = field(default_factory=dict, repr=False, compare=False)
-    """Each line's robustness page's shares being made, the cache and their keys (:func:`planner.job.views.start_robustness`)."""
+    """Each line's robustness page shares being made, cache root, keys (:func:`planner.job.views.start_robustness`)."""
     previous: Any = field(default=None, repr=False, compare=False)
     """The previous run's dataset files that this run may reuse (:func:`planner.job.made.previous`)."""
     made: dict = field(default_factory=dict, repr=False, compare=False)

@@ -91,10 +91,6 @@ def _destinations(tr: pd.DataFrame) -> pd.DataFrame:
     return arr.sort_values(["train_id", "seq"], kind="stable").groupby("train_id", sort=True).tail(1)
 
 
-def _float(x) -> float:
-    return float(x)
-
-
 @dataclass
 class RobustnessShare:
     """What the robustness page needs of a section's trains (module doc). Plain data: the nightly job stores it in
@@ -159,7 +155,7 @@ def share(trains, stations, activities, events, days: int) -> RobustnessShare:
     out = RobustnessShare(names=names, trains_rows=len(tr), activities=len(acts), events=len(ev))
     if len(tr):
         arr = tr[tr["event"] == "arrival"]
-        out.arrivals = [len(arr), *(_float(arr[c].sum()) for c in ("within_60s", "within_180s", "within_300s",
+        out.arrivals = [len(arr), *(float(arr[c].sum()) for c in ("within_60s", "within_180s", "within_300s",
                                                                     "mean_delay_s", "knock_on_s"))]
     _ends(out, ev if len(ev) else tr)
     if len(ev):
@@ -186,7 +182,7 @@ def _ends(out: RobustnessShare, ev: pd.DataFrame) -> None:
 
 def _predicted(out: RobustnessShare, ev: pd.DataFrame, names: dict) -> None:
     w = ev.loc[ev["delay_s"].astype(float).idxmax()]  # the first in the dataset's order
-    out.worst = [_float(w["delay_s"]), str(w["train_id"]), str(w["station_id"])]
+    out.worst = [float(w["delay_s"]), str(w["train_id"]), str(w["station_id"])]
     ev = _ordered(ev.assign(cause=_text(ev["cause"]), station_id=_text(ev["station_id"]),
                             train_id=_text(ev["train_id"])))
     ev = ev.assign(grows=ev["delay_s"] - ev.groupby("train_id", sort=False)["delay_s"].shift(1).fillna(0.0))
@@ -207,8 +203,8 @@ def _predicted(out: RobustnessShare, ev: pd.DataFrame, names: dict) -> None:
     if len(grow):
         for (sid, kind, cause), g in grow.groupby(["station_id", "event", "cause"], sort=True):
             once = g.sort_values(["scheduled_s", "train_id"], kind="stable").drop_duplicates("train_id")
-            out.causes.append([sid, kind, cause, once["train_id"].tolist(), [_float(x) for x in once["scheduled_s"]],
-                               _float(g["delay_s"].max()), _float(g["grows"].max())])
+            out.causes.append([sid, kind, cause, once["train_id"].tolist(), [float(x) for x in once["scheduled_s"]],
+                               float(g["delay_s"].max()), float(g["grows"].max())])
         out.growing = int(grow["train_id"].nunique())
         has = set(grow["train_id"])
         for t in [t for t in rank if t in has][:TOP_LATE]:
@@ -220,9 +216,9 @@ def _predicted(out: RobustnessShare, ev: pd.DataFrame, names: dict) -> None:
                      _e(c["event"][i]), clock(c["scheduled_s"][i]), clock(c["predicted_s"][i]),
                      fixed(c["delay_s"][i], 1), fixed(c["grows"][i], 1), fixed(c["knock_on_s"][i], 1),
                      _e(c["cause"][i])] for i in keep]
-            out.grow_top.append([_float(late[t]), t, len(mine) - len(keep), rows])
+            out.grow_top.append([float(late[t]), t, len(mine) - len(keep), rows])
     for t in rank[:TOP_LATE]:
-        out.late_top.append([_float(late[t]), t, late_train_html(t, c, block[t])])
+        out.late_top.append([float(late[t]), t, late_train_html(t, c, block[t])])
 
 
 def _spread(out: RobustnessShare, acts: pd.DataFrame, tr: pd.DataFrame, names: dict) -> None:
@@ -235,7 +231,7 @@ def _spread(out: RobustnessShare, acts: pd.DataFrame, tr: pd.DataFrame, names: d
             cells = [_e(r.activity), f"<b>{_e(r.from_train)}</b> → <b>{_e(r.to_train)}</b>", _e(r.where),
                      _e(f"{names.get(r.from_station, r.from_station)} → {names.get(r.to_station, r.to_station)}"),
                      fixed(r.slack_s, 1), fixed(r.transmitted_s, 1), _pc(r.binding_share, 0), fixed(r.absorbed_s, 1)]
-            out.spread_top.append([_float(r.transmitted_s), str(r.from_train), str(r.to_train), str(r.where), cells])
+            out.spread_top.append([float(r.transmitted_s), str(r.from_train), str(r.to_train), str(r.where), cells])
     if len(tr):
         dst = _destinations(tr)
         out.knock = len(dst)
@@ -245,7 +241,7 @@ def _spread(out: RobustnessShare, acts: pd.DataFrame, tr: pd.DataFrame, names: d
             cells = [f"<b>{_e(r.train_id)}</b>", _e(r.train_type), _e(r.direction), _e(r.station_name),
                      clock(r.scheduled_s), fixed(r.mean_delay_s, 1), fixed(r.knock_on_s, 1),
                      _pc(r.knock_on_s / r.mean_delay_s if r.mean_delay_s > 0 else 0.0, 0), fixed(prim[r.train_id], 1)]
-            out.knock_top.append([_float(r.knock_on_s), str(r.train_id), cells])
+            out.knock_top.append([float(r.knock_on_s), str(r.train_id), cells])
 
 
 def _q(x, limit: float) -> str:
@@ -311,7 +307,7 @@ def _distribution(tr: pd.DataFrame) -> list:
                  _e(f"{col['station_name'][o]} → {col['station_name'][d]}"), sched[o], arrive, *figures]
         # the summary's first grid cell is its ::before marker
         summ = "".join(f"<span class=r>{c}</span>" if i > 4 else f"<span>{c}</span>" for i, c in enumerate(cells))
-        out.append([str(col["train_type"][o]), str(col["direction"][o]), _float(col["scheduled_s"][o]), str(ids[o]),
+        out.append([str(col["train_type"][o]), str(col["direction"][o]), float(col["scheduled_s"][o]), str(ids[o]),
                     f"<details><summary>{summ}</summary>{_TABLE_HEAD}<tbody>{''.join(rows[o:e])}</tbody></table>"
                     "</details>"])
     return out
@@ -332,7 +328,7 @@ def _margins(out: RobustnessShare, acts: pd.DataFrame, tr: pd.DataFrame, ev: pd.
                                           absorbed=("absorbed_s", "mean"), passed=("transmitted_s", "mean"),
                                           binding=("binding_share", "mean")).reset_index()
     out.legs = [[str(r.direction), str(r.train_type), str(r.from_station), str(r.to_station), int(r.n),
-                 _float(r.slack), _float(r.absorbed), _float(r.passed), _float(r.binding)] for r in g.itertuples()]
+                 float(r.slack), float(r.absorbed), float(r.passed), float(r.binding)] for r in g.itertuples()]
 
 
 def line_order(directions) -> dict[str, int]:

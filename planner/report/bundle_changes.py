@@ -145,7 +145,9 @@ def _rows_differing(a, b) -> int:
     import pyarrow.parquet as pq
 
     def rows(x) -> int:
-        return 0 if x is None else x.num_rows if isinstance(x, pa.Table) else pq.read_metadata(pa.BufferReader(x)).num_rows
+        if x is None:
+            return 0
+        return x.num_rows if isinstance(x, pa.Table) else pq.read_metadata(pa.BufferReader(x)).num_rows
 
     if a is None or b is None:
         return rows(a) + rows(b)
