@@ -249,6 +249,28 @@ def test_nice_ticks(lo, hi, target, ticks):
     assert dec == {0.2: 1, 0.25: 2, 0.5: 1}.get(round(ticks[1] - ticks[0], 6), 0)
 
 
+def test_a_points_list_writes_each_value_as_num_does():
+    """The points list is made without a call per point; each value must still read as :func:`num` writes it:
+    whole numbers without ``.0``, one decimal otherwise, never ``-0``, and values past 1e15 (where ``repr`` would
+    switch to an exponent) too."""
+    from planner.pages.svg_plot import _pairs, num
+
+    rng = np.random.default_rng(7)
+    x = np.r_[np.arange(-3000, 3000) / 10 + 0.01, rng.normal(0, 1e4, 20000), rng.normal(0, 1e9, 2000),
+              -0.04, 0.04, -0.05, 0.05, 0.15, 0.25, -0.25, 2.5, -2.5, 1e14 + 0.05, 0.0, -0.0]
+    y = rng.normal(0, 300, x.size)
+    by_num = lambda px, py: " ".join(f"{num(a)},{num(b)}" for a, b in zip(px, py))  # noqa: E731
+    got = _pairs(x, y)
+    rx, ry = np.round(x, 1) + 0.0, np.round(y, 1) + 0.0
+    keep = np.r_[True, (rx[1:] != rx[:-1]) | (ry[1:] != ry[:-1])]
+    assert got == by_num(rx[keep].tolist(), ry[keep].tolist())
+    assert "-0," not in got and not re.search(r"\.0(,| |$)", got)
+    big = np.array([3e15, -7.25e17, 12.0])
+    assert _pairs(big, np.array([1.0, 2.0, 3.0])) == by_num(big.tolist(), [1.0, 2.0, 3.0])
+    assert "e+" not in _pairs(big, np.array([1.0, 2.0, 3.0]))
+    assert _pairs(np.array([]), np.array([])) == ""
+
+
 def test_mid_steps_change_halfway_between_points():
     from planner.pages.svg_plot import Figure
 

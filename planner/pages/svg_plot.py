@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import html
 import math
+import re
 
 import numpy as np
 
@@ -50,14 +51,29 @@ def num(v: float) -> str:
     return str(int(r)) if r == int(r) else f"{r:.1f}"
 
 
+_WHOLE = re.compile(r"\.0(?=[, ]|$)")
+"""The ``.0`` of a whole number in a points list (every value there has one decimal at most)."""
+
+
 def _pairs(px: np.ndarray, py: np.ndarray) -> str:
-    """``x,y x,y …`` of points in user units, a point that rounds onto the one before dropped."""
+    """``x,y x,y …`` of points in user units, a point that rounds onto the one before dropped: :func:`num` of each.
+
+    A value rounded to 0.1 is the double nearest a count of tenths, and the shortest string that reads back as
+    that double (``repr``) is that count's decimal: :func:`num`'s ``.1f``, with ``.0`` where :func:`num` writes a
+    whole number, so the ``.0`` are cut from the joined list. The list is made without a Python call per point
+    (a chart has thousands). ``repr`` writes an exponent from 1e16, far outside any page: past 1e15 each value
+    is written by :func:`num` itself."""
     px, py = np.round(np.asarray(px, float), 1) + 0.0, np.round(np.asarray(py, float), 1) + 0.0
     if len(px) > 2:
         keep = np.ones(len(px), bool)
         keep[1:] = (px[1:] != px[:-1]) | (py[1:] != py[:-1])
         px, py = px[keep], py[keep]
-    return " ".join(f"{num(a)},{num(b)}" for a, b in zip(px.tolist(), py.tolist()))
+    if len(px) and max(np.abs(px).max(), np.abs(py).max()) >= 1e15:
+        return " ".join(f"{num(a)},{num(b)}" for a, b in zip(px.tolist(), py.tolist()))
+    xy = np.empty(2 * len(px))
+    xy[0::2], xy[1::2] = px, py
+    each = iter(map(repr, xy.tolist()))
+    return _WHOLE.sub("", " ".join(map(",".join, zip(each, each))))
 
 
 def nice_ticks(lo: float, hi: float, target: int = 6) -> tuple[list[float], int]:
