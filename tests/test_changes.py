@@ -177,3 +177,39 @@ def parquet(table) -> bytes:
     buf = io.BytesIO()
     pq.write_table(table, buf, row_group_size=4)
     return buf.getvalue()
+
+
+def test_records_are_the_rows_as_to_dict_gives_them_with_nan_as_none():
+    """``_records`` is made a column at a time; each row must still be what ``to_dict("records")`` gives, made plain
+    (numpy scalars as Python numbers, arrays as lists) with NaN as None: the same values *and* types, whatever the
+    column's dtype (numpy numbers and truth values, pandas' nullable ones, strings with a missing value, lists,
+    times)."""
+    import math
+
+    import numpy as np
+
+    from planner.report.changes import _plain, _records
+
+    df = pd.DataFrame({
+        "f": [1.5, float("nan"), -0.0],
+        "i": np.array([1, 2, 3], np.int32),
+        "u": np.array([7, 8, 9], np.uint64),
+        "b": [True, False, True],
+        "ni": pd.array([1, None, 3], dtype="Int64"),
+        "nb": pd.array([True, None, False], dtype="boolean"),
+        "s": pd.array(["a", None, "c"], dtype="string"),
+        "o": ["x", None, float("nan")],
+        "lst": [np.array([1.0, 2.0]), np.array([]), None],
+        "t": pd.to_datetime(["2026-12-01", None, "2026-12-03"]),
+        "ot": pd.Series([np.datetime64("2026-12-01"), np.timedelta64(5, "s"), np.float64(2.5)], dtype=object),
+    })
+    expected = [{k: (None if isinstance(v, float) and math.isnan(v) else _plain(v)) for k, v in r.items()}
+                for r in df.to_dict("records")]
+    got = _records(df)
+    assert [list(r) for r in got] == [list(r) for r in expected]
+    for g, e in zip(got, expected):
+        for k in e:
+            assert type(g[k]) is type(e[k]), k
+            assert g[k] is e[k] or g[k] == e[k] or (pd.isna(g[k]) and pd.isna(e[k])), k
+    assert got[1]["f"] is None and got[0]["i"] == 1 and type(got[0]["i"]) is int and got[0]["lst"] == [1.0, 2.0]
+    assert _records(df.iloc[:0]) == [] and _records(pd.DataFrame(index=range(2))) == [{}, {}]
