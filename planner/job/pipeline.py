@@ -26,11 +26,11 @@ stops' last units; every unit's result is stored in the cache by the worker that
 made it, and the tables and stopping patterns never come to this process: it
 keeps their flags, a worker writes their datasets from the cache (the tables then
 read back for the margins), and each closed-loop unit reads its leg's tables
-there; the train graph's trajectories and the bundles start on the workers when
-the closed loop ends, while the writer thread writes the closed loop and the margins
-take its rows from memory; the legs' speed–distance charts start as soon as the
-margins are computed; the overview's check of the bundles starts on a worker as
-soon as the last line's bundles are written, and the train graph page is written
+there; the train graph's trajectories and the bundles (a unit per direction × train
+type, each verified for the overview by the worker that built it, once written) start
+on the workers when the closed loop ends, while the writer thread writes the closed
+loop and the margins take its rows from memory; the legs' speed–distance charts start
+as soon as the margins are computed, and the train graph page is written
 on a worker while the main process writes the tables page and the margin report
 (whose few charts it draws itself); the chart pages are written last, each as
 its chart arrives. This process is the night's serial path (one interpreter
@@ -154,9 +154,9 @@ class RunSummary:
     graph_pages: list = field(default_factory=list, repr=False, compare=False)
     """Each line's train graph page, being written on a worker (:func:`planner.job.views.graph_written`; taken by
     :func:`planner.job.views.run_views`)."""
-    bundles_verified: Any = field(default=None, repr=False, compare=False)
-    """The overview's rows of the run's bundles, being verified on a worker once the last line's bundles are
-    written (a :class:`planner.io.parallel.Background` of :func:`planner.pages.overview.bundle_rows`)."""
+    bundle_rows: list = field(default_factory=list, repr=False, compare=False)
+    """(file name, the overview's row) of each bundle of the run, verified on the worker that built it
+    (:func:`planner.job.steps.build_bundles`)."""
 
 
 def _renewal_due(last_manifest: dict, now_s: int) -> bool:
@@ -312,10 +312,9 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             try:
                 # a writer thread: a step's datasets are written while the workers compute the next
                 with ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner-write") as writes:
-                    for i, (line, bday, off) in enumerate(zip(lines, bundle_days, lifted)):
-                        last = i == len(lines) - 1  # then every bundle of the run is written in it
+                    for line, bday, off in zip(lines, bundle_days, lifted):
                         _run_line(job, line, stage, runner, summary, key, key_path, writes, bday, off,
-                                  {"operating_day": day} if last else None)
+                                  {"operating_day": day})
                 summary.computed, summary.reused = runner.computed, runner.reused
                 if cache.rejected:  # once per run, with the count
                     summary.warnings.append(cache.rejected_note())
@@ -350,9 +349,9 @@ def _on_writer(writes: ThreadPoolExecutor, fn: Callable, *args):
 def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
               writes: ThreadPoolExecutor, bday=None, lifted=None, verify: dict | None = None) -> None:
     """One line's units; ``lifted``: the restrictions lifted per train (:func:`planner.job.day.lifted_restrictions`),
-    for the per-train units (margins, conflicts, train graph). ``verify``, for the run's last line: what of the
-    manifest the overview's verification of the bundles reads (the operating day); the run's bundles are
-    verified on a worker from when this line's are written (:attr:`RunSummary.bundles_verified`)."""
+    for the per-train units (margins, conflicts, train graph). ``verify``: what of the manifest the overview's
+    verification of the bundles reads (the operating day); each bundle is verified on the worker that built it,
+    once written (:attr:`RunSummary.bundle_rows`)."""
     from planner.stopping.sweep import adhesion_levels
     from planner.line.units import KMH, KMH_S
 
@@ -498,7 +497,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     summary.made.update(made)
     count_rows(summary, stops_files)
     summary.pending.remove(stops_written)
-    bundles = start_bundles(job, line, stage, runner, summary, key_path, bday)
+    bundles = start_bundles(job, line, stage, runner, summary, key, key_path, bday, verify)
     give_back()  # the pages of what was let go (planner.io.memory)
 
     conflicts = None
@@ -523,13 +522,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     summary.pending.append(charts)
     margins_written = _on_writer(writes, write_margins, report, stage)
     give_back()
-    bundles_step(stage, runner, summary, key, bundles)
-    if verify is not None:  # every bundle of the run is written: the overview's check of them, on a worker
-        from planner.pages.overview import bundle_rows
-
-        summary.bundles_verified = background(bundle_rows, (stage, verify), name=job.parallel.backend,
-                                              n_jobs=job.parallel.n_jobs)
-        summary.pending.append(summary.bundles_verified)
+    bundles_step(runner, summary, bundles)
     from planner.job.verdicts import record_verdicts
 
     record_verdicts(line.line_id, summary, *flagged, report)

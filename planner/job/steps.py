@@ -96,17 +96,27 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
 
 
 def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None,
-                  reuse=None) -> tuple[list, dict]:
-    """Every bundle of the line for the operating day ``day`` (:func:`planner.job.day.bundle_day`; runs on a
-    worker: module level, the key read from its file there); ``reuse``: a
-    :class:`planner.job.bundle_reuse.BundleReuse`, the steps' tables of a bundle whose datasets did not change
-    taken from the previous run's. Returns (the bundles, each one's inputs key for the manifest)."""
+                  reuse=None, directions: list[str] | None = None, verify: dict | None = None) -> tuple[list, dict, list]:
+    """The line's bundles of ``directions`` × ``types`` for the operating day ``day``
+    (:func:`planner.job.day.bundle_day`; runs on a worker: module level, the key read from its file there);
+    ``reuse``: a :class:`planner.job.bundle_reuse.BundleReuse`, the steps' tables of a bundle whose datasets did not
+    change taken from the previous run's; ``verify``: the run's operating day (``{"operating_day": …}``), at whose
+    start each bundle, once written, is read back and verified as a vehicle would for the overview
+    (:func:`planner.pages.overview.bundle_row`, with the public key written beside the bundles before). Returns
+    (the bundles, each one's inputs key for the manifest, the overview's row of each)."""
     from planner.bundle.container import build_line
 
     give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
     infos = then_give_back(build_line, line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
-                           train_types=types, day=day, reused=reuse)  # and the pages of the line's tables after it
-    return infos, dict(reuse.keys) if reuse is not None else {}
+                           directions=directions, train_types=types, day=day,
+                           reused=reuse)  # and the pages of the line's tables after it
+    rows = []
+    if verify is not None:
+        from planner.pages.overview import bundle_row
+
+        at_s = (verify.get("operating_day") or {}).get("start_utc_s")
+        rows = [then_give_back(bundle_row, Path(i.path), out / "signing_key.pub.pem", at_s) for i in infos]
+    return infos, dict(reuse.keys) if reuse is not None else {}, rows
 
 
 def write_staged(deferred: bool, fn, *args):
@@ -277,37 +287,45 @@ def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, 
     return b
 
 
-def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key_path: Path,
-                   bday=None):
-    """Start the line's bundles on a worker; the step's time runs from here to when they are written."""
+def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
+                  bday=None, verify: dict | None = None) -> list:
+    """Start the line's bundles on the workers, one direction × train type each (they are built side by side and
+    each is verified where it was built, ``verify``: :func:`build_bundles`); the public key that verifies them is
+    written first. The step's time runs from here to when they are written."""
+    from cryptography.hazmat.primitives import serialization
     from planner.io.parallel import background
     from planner.job.bundle_reuse import BundleReuse
+    from planner.line.model import DIRECTIONS
 
-    runner.progress.start("bundles", 2 * len(line_types(job, line)))
+    types = line_types(job, line)
+    runner.progress.start("bundles", len(DIRECTIONS) * len(types))
+    out = stage / "bundles"
+    pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
+    write_bytes_atomic(out / "signing_key.pub.pem", pem)
     prev = summary.previous
     mine = f"line={line.line_id}"  # the line's files (the tables' and stops' are in the record by now)
     reuse = BundleReuse(stage, line.line_id, {rel: sha for files in summary.made.values() for rel, sha in files
                                               if rel.split("/")[1] == mine},
                         key_path, prev.run_dir if prev is not None else None, prev.bundles if prev is not None else {})
-    b = background(build_bundles, (line, stage / "bundles", key_path, summary.release, stage, line_types(job, line),
-                                   bday, reuse), name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
-    summary.pending.append(b)
-    return b
+    started = [background(build_bundles, (line, out, key_path, summary.release, stage, [t], bday, reuse, [d], verify),
+                          name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+               for d in DIRECTIONS for t in types]
+    summary.pending.extend(started)
+    return started
 
 
-def bundles_step(stage: Path, runner: Runner, summary: RunSummary, key, bundles) -> None:
-    """Signed bundles for every direction × train type (:func:`start_bundles`), and the public key that
-    verifies them."""
-    from cryptography.hazmat.primitives import serialization
-
-    out = stage / "bundles"
-    infos, keys = bundles.result()
-    summary.bundle_inputs.update(keys)
-    runner.progress.advance("bundles", len(infos))
+def bundles_step(runner: Runner, summary: RunSummary, bundles: list) -> None:
+    """Signed bundles for every direction × train type (:func:`start_bundles`), each with its overview row when
+    verified (:attr:`RunSummary.bundle_rows`)."""
+    for b in bundles:
+        infos, keys, rows = b.result()
+        summary.pending.remove(b)
+        summary.bundle_inputs.update(keys)
+        names = [Path(i.path).name for i in infos]
+        summary.bundle_rows += list(zip(names, rows))
+        summary.bundles += names
+        runner.progress.advance("bundles", len(infos))
     runner.progress.finish("bundles")
-    pem = key.public_key().public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
-    write_bytes_atomic(out / "signing_key.pub.pem", pem)
-    summary.bundles += [Path(i.path).name for i in infos]
 
 
 def conflicts_unit(line, params, lifted=None, job=None, stream=()):

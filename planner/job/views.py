@@ -422,22 +422,13 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     from planner.io.atomic import write_bytes_atomic
     from planner.report.changes import CATEGORIES
     from planner.pages.changes import changes_html
-    from planner.pages.overview import bundle_rows, write_overview
+    from planner.pages.overview import write_overview
     from planner.job.publish import canonical_json, latest_run
     from planner.pages.margin_report import stop_markers, write_html
     from planner.pages.margin_charts import chart_sections
 
     manifest_path = stage / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-    # the overview's bundles verified (signature, digests, tables: a few tenths of a second) on a worker
-    # while this process writes the pages, started once the last line's bundles were written
-    verified = summary.bundles_verified
-    if verified is None:
-        from planner.io.parallel import background
-
-        verified = background(bundle_rows, (stage, {"operating_day": manifest.get("operating_day")}),
-                              name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
-        summary.pending.append(verified)
     base = latest_run(root)
     rows: dict[str, int] = {}
     counts: dict[str, dict[str, int]] = {}
@@ -489,8 +480,8 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     for page in robustness:  # and the robustness pages
         page.result()
         summary.pending.remove(page)
-    with prog.step("overview"):  # its bundles verified meanwhile
-        brows = verified.result()
+    with prog.step("overview"):  # its bundles verified where they were built, in the order of their file names
+        brows = [row for _, row in sorted(summary.bundle_rows)]
     summary.rows.update(rows)
     manifest["rows"] = dict(sorted({**manifest.get("rows", {}), **rows}.items()))
     manifest["changes"] = {"base_run": base, "lines": counts,

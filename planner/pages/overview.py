@@ -75,30 +75,35 @@ def _table(head: Sequence[str], rows: Sequence[Sequence[str]], num: Sequence[int
 def _bundles(run_dir: Path, at_s: int | None = None) -> list[list[str]]:
     """Each bundle verified as a vehicle would, at ``at_s`` (the start of the run's operating day: bundles
     for a day are loaded for that day, so a run for a later day must not read as refused; None: now)."""
+    folder = run_dir / "bundles"
+    pub = folder / "signing_key.pub.pem"
+    return [bundle_row(b, pub, at_s) for b in (sorted(folder.glob("*.pdb")) if folder.is_dir() else [])]
+
+
+def bundle_row(b: Path, pub: Path, at_s: int | None = None) -> list[str]:
+    """The bundles section's row of the bundle file ``b``: verified as a vehicle would, at ``at_s``, with the
+    public key ``pub`` (:func:`_bundles`; the nightly job verifies each bundle on the worker that built it,
+    once it is written)."""
     from planner.bundle.verify import verify_bundle
     from planner.errors import PlannerError
     from planner.io.memory import give_back
 
-    folder = run_dir / "bundles"
-    pub = folder / "signing_key.pub.pem"
-    out = []
-    for b in sorted(folder.glob("*.pdb")) if folder.is_dir() else []:
-        give_back()  # what verifying the one before left free: on the 10x line 85-210 MB a bundle, which added up
-        try:
-            # a development-signed bundle verifies in full (signature, hashes, schema); it says so instead of
-            # failing: vehicles refuse it, and `planner bundle verify` without --allow-dev does too
-            info = verify_bundle(b, pub, allow_dev=True, at=at_s)
-            status = ("<span class='ok'>verified</span>" if info.key_kind == "production" else
-                      "<span class='dev'>verified, development key</span>: not for service (vehicles refuse it)")
-            status += "" if info.complete else f" (partial: {_e(info.incomplete_text())})"
-            tables = ", ".join(f"{f.name.removesuffix('.parquet')} {f.rows}" for f in info.files)
-            out.append([f"<code>{_e(b.name)}</code>", status, f"{info.size_bytes:,}", f"<code>{info.sha256[:16]}</code>",
-                        f"{_e(info.line_id)} {_e(info.direction)} {_e(info.train_type)}", _e(tables)])
-        except PlannerError as e:  # named by the bundle's file name, not this machine's paths
-            why = str(e).replace(str(b), b.name)
-            out.append([f"<code>{_e(b.name)}</code>", f"<span class='bad'>FAILED</span>: {_e(why)}", f"{b.stat().st_size:,}",
-                        f"<code>{_sha(b)[:16]}</code>", "", ""])
-    return out
+    b = Path(b)
+    give_back()  # what verifying the one before left free: on the 10x line 85-210 MB a bundle, which added up
+    try:
+        # a development-signed bundle verifies in full (signature, hashes, schema); it says so instead of
+        # failing: vehicles refuse it, and `planner bundle verify` without --allow-dev does too
+        info = verify_bundle(b, pub, allow_dev=True, at=at_s)
+        status = ("<span class='ok'>verified</span>" if info.key_kind == "production" else
+                  "<span class='dev'>verified, development key</span>: not for service (vehicles refuse it)")
+        status += "" if info.complete else f" (partial: {_e(info.incomplete_text())})"
+        tables = ", ".join(f"{f.name.removesuffix('.parquet')} {f.rows}" for f in info.files)
+        return [f"<code>{_e(b.name)}</code>", status, f"{info.size_bytes:,}", f"<code>{info.sha256[:16]}</code>",
+                f"{_e(info.line_id)} {_e(info.direction)} {_e(info.train_type)}", _e(tables)]
+    except PlannerError as e:  # named by the bundle's file name, not this machine's paths
+        why = str(e).replace(str(b), b.name)
+        return [f"<code>{_e(b.name)}</code>", f"<span class='bad'>FAILED</span>: {_e(why)}", f"{b.stat().st_size:,}",
+                f"<code>{_sha(b)[:16]}</code>", "", ""]
 
 
 def _inputs(run_dir: Path, manifest: dict[str, Any]) -> list[str]:
@@ -192,8 +197,8 @@ def _day_as_it_runs(rob: dict) -> list[str]:
 def render_overview(run_dir: str | Path, manifest: dict[str, Any], *, notes: Sequence[str] = (),
                     bundles: list[list[str]] | None = None) -> str:
     """The overview page of a run folder as HTML (module doc for the sections); ``bundles``: the bundles
-    section's rows when verified beforehand (:func:`bundle_rows`; the nightly job does it while the charts
-    are drawn)."""
+    section's rows when verified beforehand (:func:`bundle_rows`; the nightly job verifies each bundle where it
+    was built, :func:`bundle_row`)."""
     from planner.report.catalog import datasets
 
     run_dir = Path(run_dir)
