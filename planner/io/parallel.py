@@ -444,6 +444,54 @@ def map_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
     return list(iter_tasks(fn, tasks, n_jobs, progress))
 
 
+BATCH = 64
+"""Short calls sent to a worker as one task (:func:`batched`): a task costs the sender and the worker a fixed part
+(sending it, taking its result back) that a call of a few tenths of a millisecond does not pay for."""
+
+
+def _each(fn: Callable, arglist: list) -> list:
+    """Worker: ``fn(*args)`` of each call of a batch (:func:`batched`), in order."""
+    return [fn(*args) for args in arglist]
+
+
+def batched(calls: list[tuple[Callable, tuple]], short: list[bool], size: int = BATCH) -> tuple[list, list]:
+    """``calls`` (function, arguments) for a pool's ``imap(_call, …)``, with each run of up to ``size`` consecutive
+    short ones of one function made one call of :func:`_each`; and the count of results of each (None: a call's
+    own result, not a list). :func:`unbatched` gives the results a call at a time again."""
+    out, sizes, run = [], [], []
+
+    def flush():
+        if run:
+            out.append((_each, (run[0][0], [args for _, args in run])))
+            sizes.append(len(run))
+            run.clear()
+
+    for call, is_short in zip(calls, short):
+        if not is_short or (run and run[0][0] is not call[0]):
+            flush()
+        if is_short:
+            run.append(call)
+            if len(run) == size:
+                flush()
+        else:
+            out.append(call)
+            sizes.append(None)
+    flush()
+    return out, sizes
+
+
+def unbatched(results: Iterator, sizes: list) -> Iterator:
+    """The results of :func:`batched`'s calls a call at a time, in order; closing it closes ``results``."""
+    try:
+        for n, res in zip(sizes, results):
+            if n is None:
+                yield res
+            else:
+                yield from res
+    finally:
+        results.close()
+
+
 def iter_tasks(fn: Callable, tasks: Sequence[tuple], n_jobs: int = -1,
                progress: Callable[[int, int], None] | None = None) -> Iterator:
     """:func:`map_tasks`'s results one at a time, in task order, each as soon as it and those before it are in:

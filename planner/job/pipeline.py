@@ -26,8 +26,8 @@ stops' last units; every unit's result is stored in the cache by the worker that
 made it, and the tables and stopping patterns never come to this process: it
 keeps their flags, a worker writes their datasets from the cache (the tables then
 read back for the margins), and each closed-loop unit reads its leg's tables
-there; the train graph's trajectories and the bundles (a unit per direction × train
-type, each verified for the overview by the worker that built it, once written) start
+there; the train graph's trajectories and the bundles (one after another on one worker,
+each verified for the overview there once written, taken at the line's end) start
 on the workers when the closed loop ends, while the writer thread writes the closed
 loop and the margins take its rows from memory; the legs' speed–distance charts start
 as soon as the margins are computed, and the train graph page is written
@@ -497,7 +497,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     summary.made.update(made)
     count_rows(summary, stops_files)
     summary.pending.remove(stops_written)
-    bundles = start_bundles(job, line, stage, runner, summary, key, key_path, bday, verify)
+    bundles = start_bundles(job, line, stage, runner, summary, key, key_path, bday, verify)  # taken last
     give_back()  # the pages of what was let go (planner.io.memory)
 
     conflicts = None
@@ -513,7 +513,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     report = margins_step(job, line, stage, runner, summary, unit_keys, conflicts, given, lifted, loop_facts)
     del given, loop_facts  # the tables' references and what the margins read of the closed loop
     # the legs' speed–distance charts start on the workers now (their pages are written last), while the margins'
-    # datasets are written on the writer thread and this process finishes the line's bundles
+    # datasets are written on the writer thread and this process writes the line's pages
     from planner.job.day import window
     from planner.report.margin_datasets import write_margins
 
@@ -522,7 +522,6 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     summary.pending.append(charts)
     margins_written = _on_writer(writes, write_margins, report, stage)
     give_back()
-    bundles_step(runner, summary, bundles)
     from planner.job.verdicts import record_verdicts
 
     record_verdicts(line.line_id, summary, *flagged, report)
@@ -534,6 +533,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     shares = runner.start("graph", p_units)  # made while the tables are, then put together (views.graph_written)
     summary.pending.append(shares)
     line_views(job, line, stage, runner, summary, (shares, [u.key for u in p_units]), charts, bday, tt_parts)
+    bundles_step(runner, summary, bundles)
 
 
 def conflicts_status(job: Job, line: Line) -> str:

@@ -289,9 +289,10 @@ def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, 
 
 def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
                   bday=None, verify: dict | None = None) -> list:
-    """Start the line's bundles on the workers, one direction × train type each (they are built side by side and
-    each is verified where it was built, ``verify``: :func:`build_bundles`); the public key that verifies them is
-    written first. The step's time runs from here to when they are written."""
+    """Start the line's bundles on a worker, one after another, each verified there once written (``verify``:
+    :func:`build_bundles`), the public key that verifies them written first: one worker, so that the other goes on
+    with the units this process waits for (the bundles are taken last, :func:`bundles_step`). The step's time
+    runs from here to when they are written."""
     from cryptography.hazmat.primitives import serialization
     from planner.io.parallel import background
     from planner.job.bundle_reuse import BundleReuse
@@ -307,9 +308,8 @@ def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     reuse = BundleReuse(stage, line.line_id, {rel: sha for files in summary.made.values() for rel, sha in files
                                               if rel.split("/")[1] == mine},
                         key_path, prev.run_dir if prev is not None else None, prev.bundles if prev is not None else {})
-    started = [background(build_bundles, (line, out, key_path, summary.release, stage, [t], bday, reuse, [d], verify),
-                          name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
-               for d in DIRECTIONS for t in types]
+    started = [background(build_bundles, (line, out, key_path, summary.release, stage, types, bday, reuse, None, verify),
+                          name=job.parallel.backend, n_jobs=job.parallel.n_jobs)]
     summary.pending.extend(started)
     return started
 
