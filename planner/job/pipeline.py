@@ -32,8 +32,8 @@ on the workers when the closed loop ends, while the writer thread writes the clo
 loop and the margins take its rows from memory; the legs' speed–distance charts start
 as soon as the margins are computed, and the train graph page is written
 on a worker while the main process writes the tables page and the margin report
-(whose few charts it draws itself); the chart pages are written last, each as
-its chart arrives. This process is the night's serial path (one interpreter
+(whose few charts it draws itself); the chart pages are written on the workers
+while the line's bundles are finished. This process is the night's serial path (one interpreter
 lock beside two busy workers), so it leaves to a worker or the writer thread
 what it can.
 A step's time in the summary is the sum of its intervals, so the steps add up
@@ -533,6 +533,8 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     shares = runner.start("graph", p_units)  # made while the tables are, then put together (views.graph_written)
     summary.pending.append(shares)
     line_views(job, line, stage, runner, summary, (shares, [u.key for u in p_units]), charts, bday, tt_parts)
+    for pages in summary.chart_pages[-1:]:  # the line's chart pages written while its bundles are finished
+        pages.start()
     bundles_step(runner, summary, bundles)
 
 

@@ -354,6 +354,7 @@ class ChartPages:
         self.legs = legs  # the legs planned (report.train_timetable.planned_legs), for the tables' units
         self.stored = stored  # (cache root, the charts' keys): the SVGs are in the cache, not here
         self.backend = backend  # where the pages are written from the cache: the job's (name, n_jobs)
+        self.writing: list | None = None  # the pages being written on the workers (start)
 
     def _write(self, _g: int, i: int, svg: str) -> None:
         from planner.pages.speed_chart import chart_page, write_chart
@@ -365,15 +366,11 @@ class ChartPages:
         write_chart(p, chart_page(win, run, calls, trains, svg, kw["back"], nav=kw["nav"], run_id=kw["run_id"],
                                   day=kw["day"], run_date=kw["run_date"]))
 
-    def finish(self) -> None:
-        """Write every page, waiting for the charts still being drawn: with the SVGs in the cache (``stored``), on
-        the workers, half of the pages each (what a page holds never comes to the job process)."""
-        if isinstance(self.started, list):
-            for i, svg in enumerate(self.started):
-                self._write(0, i, svg)
-            return
-        if self.stored is None:
-            self.started.results(each=self._write)
+    def start(self) -> None:
+        """With the SVGs in the cache (``stored``): wait for the charts still being drawn and start writing the pages
+        on the workers, half of the pages each (what a page holds never comes to the job process); :meth:`finish`
+        waits for them. The job starts them while it waits for the line's bundles."""
+        if self.stored is None or isinstance(self.started, list) or self.writing is not None:
             return
         from planner.io.parallel import background
 
@@ -381,8 +378,20 @@ class ChartPages:
         root, keys = self.stored
         name, n_jobs = self.backend
         n = 2 if len(self.pages) > 1 else 1
-        parts = [background(write_chart_pages, (self.pages[i::n], root, keys[i::n], self.page), name=name,
-                            n_jobs=n_jobs) for i in range(n)]
+        self.writing = [background(write_chart_pages, (self.pages[i::n], root, keys[i::n], self.page), name=name,
+                                   n_jobs=n_jobs) for i in range(n)]
+
+    def finish(self) -> None:
+        """Write every page, waiting for the charts still being drawn (:meth:`start`, unless started)."""
+        if isinstance(self.started, list):
+            for i, svg in enumerate(self.started):
+                self._write(0, i, svg)
+            return
+        if self.stored is None:
+            self.started.results(each=self._write)
+            return
+        self.start()
+        parts, self.writing = self.writing, []
         failed = []
         for b in parts:  # both waited for, so that neither writes into a run that is being given up
             try:
@@ -393,9 +402,11 @@ class ChartPages:
             raise failed[0]
 
     def discard(self) -> None:
-        """The run failed: wait for the charts being drawn, write nothing."""
+        """The run failed: wait for the charts being drawn, and for the pages being written, write nothing more."""
         if not isinstance(self.started, list):
             self.started.discard()
+        for b in self.writing or ():
+            b.discard()
 
 
 def _chart_key(line, run, ds_m: float, rest, bad=None) -> str:

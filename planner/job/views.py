@@ -470,8 +470,8 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                 write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
                            datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
             prog.advance("changes")
-    # the speed–distance charts, drawn while the pages above were written: their pages are written here while
-    # a worker may still write a train graph page (the last long unit of a large line)
+    # the speed–distance charts' pages, being written on the workers since the line waited for its bundles (written
+    # here if they were not started: charts kept in this process)
     for pages in summary.chart_pages:
         pages.finish()
     with prog.step("graph"):  # each line's train graph page, written on a worker meanwhile
