@@ -96,8 +96,8 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
 
 
 def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None,
-                  reuse=None, directions: list[str] | None = None, verify: dict | None = None) -> tuple[list, dict, list]:
-    """The line's bundles of ``directions`` × ``types`` for the operating day ``day``
+                  reuse=None, verify: dict | None = None) -> tuple[list, dict, list]:
+    """Every bundle of the line for the operating day ``day``
     (:func:`planner.job.day.bundle_day`; runs on a worker: module level, the key read from its file there);
     ``reuse``: a :class:`planner.job.bundle_reuse.BundleReuse`, the steps' tables of a bundle whose datasets did not
     change taken from the previous run's; ``verify``: the run's operating day (``{"operating_day": …}``), at whose
@@ -108,8 +108,7 @@ def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, t
 
     give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
     infos = then_give_back(build_line, line, out, key_path, release=release, tables_dir=stage, stops_dir=stage,
-                           directions=directions, train_types=types, day=day,
-                           reused=reuse)  # and the pages of the line's tables after it
+                           train_types=types, day=day, reused=reuse)  # and the pages of the line's tables after it
     rows = []
     if verify is not None:
         from planner.pages.overview import bundle_row
@@ -288,7 +287,7 @@ def start_written(job: Job, stage: Path, summary: RunSummary, cache, step: str, 
 
 
 def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSummary, key, key_path: Path,
-                  bday=None, verify: dict | None = None) -> list:
+                  bday=None, verify: dict | None = None):
     """Start the line's bundles on a worker, one after another, each verified there once written (``verify``:
     :func:`build_bundles`), the public key that verifies them written first: one worker, so that the other goes on
     with the units this process waits for (the bundles are taken last, :func:`bundles_step`). The step's time
@@ -308,23 +307,22 @@ def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     reuse = BundleReuse(stage, line.line_id, {rel: sha for files in summary.made.values() for rel, sha in files
                                               if rel.split("/")[1] == mine},
                         key_path, prev.run_dir if prev is not None else None, prev.bundles if prev is not None else {})
-    started = [background(build_bundles, (line, out, key_path, summary.release, stage, types, bday, reuse, None, verify),
-                          name=job.parallel.backend, n_jobs=job.parallel.n_jobs)]
-    summary.pending.extend(started)
-    return started
+    b = background(build_bundles, (line, out, key_path, summary.release, stage, types, bday, reuse, verify),
+                   name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
+    summary.pending.append(b)
+    return b
 
 
-def bundles_step(runner: Runner, summary: RunSummary, bundles: list) -> None:
+def bundles_step(runner: Runner, summary: RunSummary, bundles) -> None:
     """Signed bundles for every direction × train type (:func:`start_bundles`), each with its overview row when
     verified (:attr:`RunSummary.bundle_rows`)."""
-    for b in bundles:
-        infos, keys, rows = b.result()
-        summary.pending.remove(b)
-        summary.bundle_inputs.update(keys)
-        names = [Path(i.path).name for i in infos]
-        summary.bundle_rows += list(zip(names, rows))
-        summary.bundles += names
-        runner.progress.advance("bundles", len(infos))
+    infos, keys, rows = bundles.result()
+    summary.pending.remove(bundles)
+    summary.bundle_inputs.update(keys)
+    names = [Path(i.path).name for i in infos]
+    summary.bundle_rows += list(zip(names, rows))
+    summary.bundles += names
+    runner.progress.advance("bundles", len(infos))
     runner.progress.finish("bundles")
 
 
