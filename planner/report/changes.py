@@ -266,7 +266,7 @@ def _records(df) -> list[dict[str, Any]]:
     """Each row as a dict of plain Python values (:func:`_plain`), NaN as None, as ``df.to_dict("records")`` gives
     them. Made a column at a time: a numpy column of numbers or truth values is one ``tolist`` (Python numbers, as
     ``to_dict`` boxes them), so only the other columns take a call per value (a 100x line's margins are 7,400 rows
-    of some 40 columns)."""
+    of 59 columns). ``tolist`` gives the values iterating the column would, made at once."""
     cols = []
     for name in df.columns:
         col = df[name]
@@ -275,8 +275,7 @@ def _records(df) -> list[dict[str, Any]]:
             cols.append([None if v != v else v for v in vals] if col.dtype.kind == "f" else vals)
         else:  # to_dict boxes the values of object and extension columns: NA as None, numpy times as pandas'
             boxed = col.dtype == object or not isinstance(col.dtype, np.dtype)
-            cols.append([v if type(v) is str else _cell(v, boxed) for v in col.tolist()])  # tolist: the values
-            # iteration gives, made at once
+            cols.append([v if type(v) is str else _cell(v, boxed) for v in col.tolist()])
     names = list(df.columns)
     return [dict(zip(names, row)) for row in zip(*cols)] if names else [{} for _ in range(len(df))]
 
