@@ -35,7 +35,9 @@ from planner.tables.closed_loop import Scenario, closed_loop_batch  # noqa: E402
 from planner.tables.ratios import leg_ratio_grid  # noqa: E402
 
 
-def _tables(line, job):
+def tables_step(line, job):
+    """The nightly job's tables step on ``line`` in this one process: every leg, direction and train type, with
+    ``job``'s [tables] settings (also :func:`bench_scaling.machine_cpu_s`'s work)."""
     tp = job.tables
     tasks = [(t.train_type, d, a.station_id, b.station_id) for t in line.train_types for d in DIRECTIONS
              for a, b in line.interstations(d)]
@@ -83,11 +85,11 @@ def main() -> None:
     args = ap.parse_args()
     line = planner.load_line(ROOT / "lines" / "sample")
     job = load_job(ROOT / "jobs" / "nightly.toml")
-    _tables(line, job)  # warm up: imports, kernels loaded
+    tables_step(line, job)  # warm up: imports, kernels loaded
     cpu = {"tables": {False: [], True: []}, "closed loop": {False: [], True: []}}
     for i in range(args.pairs):
         for on in ((False, True) if i % 2 == 0 else (True, False)):
-            c, tabs = _timed(on, _tables, line, job)
+            c, tabs = _timed(on, tables_step, line, job)
             cpu["tables"][on].append(c)
             files = _parquet(tabs)
             c, loops = _timed(on, _closed_loop, line, job, tabs)

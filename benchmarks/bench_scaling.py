@@ -27,6 +27,10 @@ lines, outputs and logs. ``--verify-edit`` also runs the edited line cold in a f
 compares the datasets with the edit night's. ``--dask`` also runs the big line's cold night on a Dask cluster started here as a
 user starts one (``dask scheduler``; ``dask worker ADDRESS --nworkers 2 --nthreads 1``) and prints its wall
 and CPU against joblib's, and whether the published datasets are the same (issue 48: within 15 %).
+
+Before the nights and after them it prints the machine's speed at the night's heaviest kind of work (the sample's
+tables step in one process, :func:`machine_cpu_s`), and at the end each night's CPU in units of that figure: on a
+shared machine CPU seconds move from day to day, and notes compare runs through it.
 """
 from __future__ import annotations
 
@@ -265,6 +269,34 @@ def dask_against_joblib(work: Path, big: Path, joblib_run: dict, workers: int = 
     return not bad
 
 
+def machine_cpu_s(repeats: int = 3) -> list[float]:
+    """The machine's speed at the night's heaviest kind of work, printed before and after the nights: the CPU
+    seconds of the sample's tables step in this one process (:func:`bench_reuse.tables_step`, the nightly job's
+    settings), ``repeats`` times after a warm-up. The work is the same on every machine and day, so two runs'
+    figures compare through it: on a shared machine the same night's CPU has varied by 1.4x from one day to the
+    next, and this figure from 4.9 to 7.4 s within an hour (hence before and after)."""
+    import planner
+    from bench_reuse import tables_step
+    from planner.job.config import load_job
+
+    line, job = planner.load_line(ROOT / "lines" / "sample"), load_job(ROOT / "jobs" / "nightly.toml")
+    tables_step(line, job)  # warm up: imports, kernels loaded
+    out = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        tables_step(line, job)
+        out.append(time.process_time() - c0)
+    return out
+
+
+def _show_machine(when: str) -> float:
+    runs = machine_cpu_s()
+    mid = sorted(runs)[len(runs) // 2]
+    print(f"  machine, {when}: the sample's tables in one process take {mid:.2f} s of CPU (median of "
+          f"{', '.join(f'{x:.2f}' for x in runs)} s)", flush=True)
+    return mid
+
+
 def _show(name: str, r: dict) -> None:
     status = "ok" if r["rc"] == 0 else f"FAILED (exit {r['rc']}): {r['log'][-600:]}"
     print(f"  {name:22s} wall {r['wall_s']:7.1f} s   CPU {r['cpu_s']:7.1f} s (main {r['main_cpu_s']:.1f}, workers "
@@ -297,6 +329,7 @@ def main(argv: list[str] | None = None) -> int:
         n_trains = sum(1 for _ in __import__("pyarrow.parquet", fromlist=["x"]).read_table(
             big / "timetable.parquet", columns=["train_id"]).column(0).unique())
         print(f"  built {big.name} ({n_trains} trains) in {time.perf_counter() - t0:.1f} s", flush=True)
+        machine = [_show_machine("before")]
         results = {}
         if not args.no_sample:
             results["sample"] = run_job(job_folder(work / "job-sample", ROOT / "lines" / "sample"), "cold")
@@ -327,6 +360,12 @@ def main(argv: list[str] | None = None) -> int:
                       "files the same (run id and date aside; `changes`, the difference from the run before, left "
                       "out)" + (f", differ: {', '.join(bad[:5])}" if bad else ""), flush=True)
                 ok = r2["rc"] == 0 and not bad
+        machine.append(_show_machine("after"))
+        if ok:  # the nights' CPU in the machine's own unit, comparable across days (machine_cpu_s)
+            unit = sum(machine) / 2
+            print("bench_scaling: CPU in units of the machine figure (the mean of before and after, "
+                  f"{unit:.2f} s): " + ", ".join(f"{k} {r['cpu_s'] / unit:.1f}" for k, r in results.items()
+                                                 if r["rc"] == 0), flush=True)
         if "sample" in results and ok and results["sample"]["rc"] == 0:
             s, b = results["sample"], results["cold"]
             tr, cr = b["wall_s"] / s["wall_s"], b["cpu_s"] / s["cpu_s"]
