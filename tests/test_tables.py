@@ -118,6 +118,30 @@ def test_consistency_prefix_plus_remaining_equals_table_a(hilly):
                                        err_msg=f"{t.train_type} {t.origin}->{t.destination} {p.eval_point_id}")
 
 
+def test_table_b_rows_are_the_runs_restarted_from_the_state_at_each_point(hilly):
+    """Table (b) comes from one batch of runs that change their ratio at X (tables.build, step 2). The same
+    rows by another road: a separate run for each point X and ratio after, started from the constant-ratio
+    run's whole state at X (RunState: speed², phase, coasting flag), no ratio change and no run of another
+    point beside it. Equal to the bit: a ratio change at X and a start from the state there step alike,
+    and the runs that meet across points are stepped once without changing a bit."""
+    ln, results = hilly
+    for t in results:
+        track = make_track(ln, t.train_type, t.origin, t.destination, nodes_m=[p.s_m for p in t.points])
+        train = ln.train_type(t.train_type)
+        s_pts = [p.s_m for p in t.points]
+        full = simulate(track, train, t.ratios, snapshots_m=s_pts[1:])
+        n_r = t.ratios.size
+        for k in range(1, len(s_pts)):
+            snap = full.snapshots[s_pts[k]]
+            for i in range(n_r):
+                fields = (getattr(snap, f.name) for f in dataclasses.fields(snap))
+                start = type(snap)(*(None if x is None else np.repeat(x[i:i + 1], n_r) for x in fields))
+                again = simulate(track, train, t.ratios, start=start)
+                np.testing.assert_array_equal(
+                    np.asarray(again.time_s) - snap.t_s[i], t.remaining_s[k, i],
+                    err_msg=f"{t.train_type} {t.origin}->{t.destination} point {k} ratio before {t.ratios[i]}")
+
+
 def test_running_time_grows_as_ratio_falls(hilly):
     _, results = hilly
     for t in results:

@@ -18,16 +18,21 @@ How it is computed (per interstation, direction and train type)
    snapshot of the state at every evaluation point: the totals are table (a),
    the snapshots are the states at X after running at each r_before (speed,
    time, and whether powering, holding or braking).
-2. For each evaluation point X after departure, one batch of n_r² runs that
-   start from those snapshots — each r_before state repeated once per
-   r_after — with ratio r_after from X: table (b) at X is their arrival time
-   minus the time at X. At the departure itself the state does not depend on
-   r_before (standing at s = 0), so every row of table (b) there is table (a).
+2. One batch of n_r² runs for each evaluation point X after departure, all in
+   one simulation from departure: the run (X, r_before, r_after) holds
+   r_before up to X and r_after from X on (a ratio change at X, as the
+   vehicle makes it). Up to X it is the constant-ratio run at r_before, to
+   the bit, so its arrival time minus that run's time at X is table (b) at X.
+   At the departure itself the state does not depend on r_before (standing
+   at s = 0), so every row of table (b) there is table (a).
 
-Work: n_r full runs plus n_x · n_r² suffix runs, each batch lock-stepped on
-the same distance grid (evaluation points are grid nodes, and a snapshot holds
-the integrator's whole state, speed² and coasting flag included, so a suffix run
-goes on as the run switched at X would, to the bit). Interstations × directions
+Work: the batch is lock-stepped on one distance grid (evaluation points are
+grid nodes), and runs in the same state are stepped once
+(:mod:`planner.physics.reuse`): before X a switched run is its constant-ratio
+run, and after X the runs with the same r_after meet within a few hundred
+metres (on its target, or on the braking curve), those switched at different
+points too. So the batch steps about n_r runs over the leg plus each switch's
+transient, not n_x · n_r² runs over the rest of the leg. Interstations × directions
 × train types are spread over processes with joblib; each task gets the (small,
 picklable) window of the Line it can see and names, and the
 results are assembled in the fixed task order, so the output does not depend
@@ -190,7 +195,8 @@ def _snapshot(snapshots: dict, s_m: float):
 
 
 def _table_b(track, train, r: np.ndarray, s_pts: list[float], full: "_Half", kw: dict):
-    """Table (b) of one interstation from the constant-ratio runs ``full`` (module doc, step 2).
+    """Table (b) of one interstation: one batch of the switched runs, with the constant-ratio runs ``full``
+    (module doc, step 2).
 
     Returns
     -------
@@ -199,31 +205,33 @@ def _table_b(track, train, r: np.ndarray, s_pts: list[float], full: "_Half", kw:
     remaining_s : ndarray (n_x, n_r, n_r)
         Remaining time from point k, ratio before i, ratio after j.
     """
-    from planner.physics.run_curve import RunState, simulate
+    from planner.physics.run_curve import simulate
 
     n_r, n_x = len(r), len(s_pts)
     elapsed = np.zeros((n_r, n_x))
     speed = np.zeros((n_r, n_x))
     remaining = np.empty((n_x, n_r, n_r))
     remaining[0] = full.time_s[None, :]  # at departure every row is table (a)
-    # For every point X_k after departure, one batch from X_k: for each distinct state the
-    # constant-ratio runs reach there (runs still identical at X_k, e.g. all still powering
-    # just after departure, reach it in the same state and so have equal rows), a run at every
-    # ratio after. Each starts from the exact state of the prefix's snapshot at X_k (speed²,
-    # coasting flag and all, RunState), so it goes on as the run switched at X_k would, and
-    # the batch covers only L - s(X_k).
     for k in range(1, n_x):
         snap = _snapshot(full.snapshots, s_pts[k])
-        t_x = np.asarray(snap.t_s, float)
-        elapsed[:, k] = t_x
+        elapsed[:, k] = snap.t_s
         speed[:, k] = snap.v_ms
-        key = np.column_stack([t_x, np.asarray(snap.v_ms, float), np.asarray(snap.phase, float),
-                               np.asarray(snap.w_ms2, float), np.asarray(snap.coasting, float)])
-        _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
-        b_idx = np.repeat(first, n_r)
-        start = RunState(*(np.asarray(getattr(snap, f.name))[b_idx] for f in dataclasses.fields(RunState)))
-        res = simulate(track, train, r[np.tile(np.arange(n_r), len(first))], start=start, **kw)
-        remaining[k] = (np.asarray(res.time_s, float) - t_x[b_idx]).reshape(len(first), n_r)[inv.reshape(-1)]
+    if n_x == 1:
+        return elapsed, speed, remaining
+    # run (k, i, j), k = 1 … n_x − 1, in that order: ratio r_i from departure, r_j from X_k on (a ratio change
+    # there). Up to X_k it is the constant-ratio run i, to the bit, so its arrival time less run i's time at X_k
+    # is the remaining time; the runs that meet (the same ratio after, on the same target or braking curve)
+    # are stepped once from there, across points too (planner.physics.reuse)
+    kk = np.repeat(np.arange(1, n_x), n_r * n_r)
+    after = np.tile(np.arange(n_r), n_r * (n_x - 1))
+    before = r[np.tile(np.repeat(np.arange(n_r), n_r), n_x - 1)]
+    ratio, changes = before, []
+    for k in range(1, n_x):
+        ratio = ratio.copy()
+        ratio[kk == k] = r[after[kk == k]]
+        changes.append((s_pts[k], ratio))
+    res = simulate(track, train, before, changes=changes, **kw)
+    remaining[1:] = np.asarray(res.time_s, float).reshape(n_x - 1, n_r, n_r) - elapsed.T[1:, :, None]
     return elapsed, speed, remaining
 
 
