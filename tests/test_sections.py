@@ -79,6 +79,30 @@ def test_a_connection_joins_two_sections(joined):
     assert len(secs) == 1
 
 
+def test_the_sections_are_kept_over_a_speed_limit_edit_and_made_again_when_the_trains_change(joined, tmp_path):
+    """The job keeps the line's sections in its work cache (planner.job.steps.line_sections_kept): a speed limit
+    lowered (each day's restrictions, the usual edit) finds them; a train taken out, or a connection added, makes
+    them again. Every answer is the sections planned afresh for the line as it is then."""
+    import dataclasses
+
+    from planner.job.cache import Cache
+    from planner.job.steps import line_sections_kept
+
+    cache = Cache(tmp_path / "cache")
+    assert line_sections_kept(joined, [], cache) == _sections(joined) and (cache.hits, cache.misses) == (0, 1)
+    lim = joined.speed_limits[0]
+    slower = dataclasses.replace(joined, speed_limits=(dataclasses.replace(lim, limit_ms=lim.limit_ms * 0.5),)
+                                 + joined.speed_limits[1:])
+    assert line_sections_kept(slower, [], cache) == _sections(slower) and cache.hits == 1
+    fewer = dataclasses.replace(joined, trains=joined.trains[1:])
+    got = line_sections_kept(fewer, [], cache)
+    assert cache.misses == 2 and got == _sections(fewer) and got != _sections(joined)
+    a = next(t.train_id for t in joined.trains if t.train_id.endswith("-k00"))
+    b = next(t.train_id for t in joined.trains if t.train_id.endswith("-k01"))
+    joined_up = line_sections_kept(joined, [(a, b, "X", 60.0)], cache)
+    assert cache.misses == 3 and len(joined_up) == 1
+
+
 def test_each_section_checks_as_the_whole_line(joined):
     whole = check_timetable(joined)
     rep = conflict_report(whole)

@@ -418,7 +418,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # meanwhile (5 s at 100x), the line's sections (trains sharing no track with others'): the units of its conflicts,
     # its day as it runs and its train graph are per section, each keyed by its stretch
     try:
-        sections = line_section_inputs(job, line, lifted)
+        sections = line_section_inputs(job, line, lifted, runner.cache)
         if checks_conflicts:
             side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections, summary.previous)))
     except BaseException:
