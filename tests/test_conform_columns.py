@@ -11,7 +11,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pytest
 
-from planner.line.conform import _floats, _nulls
+from planner.line.conform import _floats, _nulls, _to_numpy
 
 CASES = [
     pa.chunked_array([[1.0, None, 3.0], [None, 5.0]]),
@@ -45,3 +45,21 @@ def test_reading_a_line_does_not_import_pandas():
     root = Path(__file__).resolve().parents[1]
     out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]
+
+
+@pytest.mark.parametrize("col", [
+    pa.chunked_array([pa.array(["stn-a", "stn-b", None, "stn-a"])]),
+    pa.chunked_array([pa.array(["stn-x", None, "stn-y", "stn-x"]).slice(1, 3), pa.array([None, "stn-z", "stn-y"])]),
+    pa.chunked_array([pa.array([None, None], type=pa.string())]),
+    pa.chunked_array([], type=pa.string()),
+    pa.chunked_array([pa.array(["train-q", "train-r", "train-q"], type=pa.large_string())]),
+])
+def test_a_text_column_reads_as_its_values_with_one_string_per_distinct_value(col):
+    """What Arrow's to_pylist gives, nulls as None, offsets and chunks read right; and each distinct value one
+    Python string, which every row that holds it shares (the line's objects keep them for the whole run)."""
+    got = _to_numpy(col)
+    assert got.dtype == object and got.tolist() == col.to_pylist()
+    first: dict = {}
+    for v in got:
+        if v is not None:
+            assert first.setdefault(v, v) is v

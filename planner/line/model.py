@@ -170,7 +170,7 @@ class TrainType:
         return self.mass_kg(load) * (1.0 + self.rotating_mass_factor)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Call:
     """One call of a timetabled train at a station (times in s after midnight, NaN if none)."""
 
