@@ -281,8 +281,10 @@ def margin_totals(rows, train_legs, key_extra: Sequence[str] = ()):
     # values in the same order as pandas' per-group Series.sum (NaN skipped as zeros), so the same bits
     f = {c: legs[c].to_numpy(float) for c in (*TOTAL_SUM_COLS, "departure_s")}
     n = {c: legs[c].to_numpy(int) for c in ("short", *(f"n_{f}" for f in COUNTED))}
-    ids, dirs, types = (legs[c].to_numpy(object) for c in ("train_id", "direction", "train_type"))
-    origins, destinations = legs["origin"].to_numpy(object), legs["destination"].to_numpy(object)
+    # the trains as codes (the rows as text would be a Python string a row: 30 MB a column on a 100x line, at the
+    # job process's peak); the text columns read at the rows that start or end a train only
+    codes, names = pd.factorize(legs["train_id"])
+    names = np.asarray(names, dtype=object)
 
     def agg(at: np.ndarray) -> dict:
         """The figures of the groups whose rows are ``at``: one group's positions (1-D), or several groups of as
@@ -317,10 +319,15 @@ def margin_totals(rows, train_legs, key_extra: Sequence[str] = ()):
 
     # the trains' level, a column at a time, the trains with as many legs as each other together: a train's legs
     # are one block of rows in ``legs`` (sorted by train id, as groupby sorts its keys)
-    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]]) if len(ids) else np.zeros(0, dtype=np.int64)
-    sizes = np.diff(np.r_[starts, len(ids)])
-    each = {"level": ["train"] * len(starts), "train_id": ids[starts], "direction": dirs[starts],
-            "train_type": types[starts], "origin": origins[starts], "destination": destinations[starts + sizes - 1],
+    starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]]) if len(codes) else np.zeros(0, dtype=np.int64)
+    sizes = np.diff(np.r_[starts, len(codes)])
+
+    def at_rows(c: str, at: np.ndarray) -> np.ndarray:
+        return legs[c].iloc[at].to_numpy(object)
+
+    each = {"level": ["train"] * len(starts), "train_id": names[codes[starts]],
+            "direction": at_rows("direction", starts), "train_type": at_rows("train_type", starts),
+            "origin": at_rows("origin", starts), "destination": at_rows("destination", starts + sizes - 1),
             "n_trains": np.ones(len(starts), dtype=np.int64)}
     got: dict[str, np.ndarray] = {}
     for size in np.unique(sizes):
@@ -333,10 +340,10 @@ def margin_totals(rows, train_legs, key_extra: Sequence[str] = ()):
     recs = []
     for (d, t), at in groups(["direction", "train_type"]):
         recs.append({"level": "type", "train_id": None, "direction": d, "train_type": t, "origin": None,
-                     "destination": None, "n_trains": len(set(ids[at]))} | agg(at))
+                     "destination": None, "n_trains": len(np.unique(codes[at]))} | agg(at))
     for d, at in groups("direction"):
         recs.append({"level": "line", "train_id": None, "direction": d, "train_type": ALL_TYPES,
-                     "origin": None, "destination": None, "n_trains": len(set(ids[at]))} | agg(at))
+                     "origin": None, "destination": None, "n_trains": len(np.unique(codes[at]))} | agg(at))
     for r in recs:
         for c in TOTALS_COLUMNS:
             columns[c].append(r[c])
