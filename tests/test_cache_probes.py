@@ -40,6 +40,8 @@ KINDS = {"tables": 4, "stops": 4, "closed_loop": 4, "conflicts": 1, "margins": 1
 BESIDE = {"tables_kept": 4, "stops_kept": 4, "closed_loop_kept": 4, "conflicts_kept": 1}
 # what the margins read of each part of the closed loop's datasets (a direction each), made with its files
 FACTS = {"closed_loop_facts": 2}
+# what the job keeps of its own work, not a unit: the line's sections (planner.job.steps.line_sections_kept)
+KEPT = {"sections": 1}
 
 
 def _job(project: Path, output_root: str) -> Path:
@@ -137,7 +139,7 @@ def clean(tmp_path_factory):
 
 
 def _entries(root: Path) -> dict[str, list[Path]]:
-    return {k: sorted((root / ".cache" / k).rglob(f"*{SUFFIX}")) for k in KINDS}
+    return {k: sorted((root / ".cache" / k).rglob(f"*{SUFFIX}")) for k in (*KINDS, *KEPT)}
 
 
 def _fresh_root(clean, name: str) -> tuple[Path, Path]:
@@ -181,9 +183,9 @@ def _damage(probe: str, e: dict[str, list[Path]], marker: Path) -> int:
     if probe == "truncated_or_empty":
         for p in (e["tables"][2], e["margins"][0], e["conflicts"][0]):
             p.write_bytes(p.read_bytes()[: p.stat().st_size // 2])
-        for p in (e["stops"][1], e["closed_loop"][3], e["tables"][0]):
+        for p in (e["stops"][1], e["closed_loop"][3], e["tables"][0], e["sections"][0]):
             p.write_bytes(b"")
-        return 6
+        return 7
     if probe == "planted_pickle":  # in an entry's place, and as a stray file in the old layout
         evil = pickle.dumps(_Evil(marker))
         for p in (e["tables"][0], e["margins"][0]):
@@ -216,9 +218,11 @@ def test_a_damaged_cache_never_reaches_a_published_file(clean, capsys, probe, tm
     assert len(warnings) == 1 and warnings[0].startswith(f"warning: {n_bad} cache entr"), err
     assert not marker.exists()
     rep = Cache(root / ".cache").verify()  # the rejected entries were replaced by good ones
-    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) + sum(FACTS.values()) and not rep.bad
+    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) + sum(FACTS.values()) + sum(KEPT.values()) \
+        and not rep.bad
     manifest = json.loads((root / "latest" / "manifest.json").read_text())
-    assert sum(manifest["units_computed"].values()) == n_bad
+    kept = {"bit_flips": 1, "truncated_or_empty": 1}.get(probe, 0)  # the sections made again: not a unit
+    assert sum(manifest["units_computed"].values()) == n_bad - kept
 
 
 def test_what_is_kept_beside_a_result_is_made_again_from_it_when_damaged(clean, capsys):
@@ -238,7 +242,8 @@ def test_what_is_kept_beside_a_result_is_made_again_from_it_when_damaged(clean, 
     manifest = json.loads((root / "latest" / "manifest.json").read_text())
     assert sum(manifest["units_computed"].values()) == 0
     rep = Cache(root / ".cache").verify()
-    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) + sum(FACTS.values()) and not rep.bad
+    assert rep.good == sum(KINDS.values()) + sum(BESIDE.values()) + sum(FACTS.values()) + sum(KEPT.values()) \
+        and not rep.bad
 
 
 # --- the output root fails ---------------------------------------------------------------------
