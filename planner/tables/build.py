@@ -222,13 +222,12 @@ def _table_b(track, train, r: np.ndarray, s_pts: list[float], full: "_Half", kw:
     # there). Up to X_k it is the constant-ratio run i, to the bit, so its arrival time less run i's time at X_k
     # is the remaining time; the runs that meet (the same ratio after, on the same target or braking curve)
     # are stepped once from there, across points too (planner.physics.reuse)
-    kk = np.repeat(np.arange(1, n_x), n_r * n_r)
-    after = np.tile(np.arange(n_r), n_r * (n_x - 1))
+    block = n_r * n_r  # the runs of point k are the k-th block
     before = r[np.tile(np.repeat(np.arange(n_r), n_r), n_x - 1)]
     ratio, changes = before, []
     for k in range(1, n_x):
         ratio = ratio.copy()
-        ratio[kk == k] = r[after[kk == k]]
+        ratio[(k - 1) * block:k * block] = np.tile(r, n_r)
         changes.append((s_pts[k], ratio))
     res = simulate(track, train, before, changes=changes, **kw)
     remaining[1:] = np.asarray(res.time_s, float).reshape(n_x - 1, n_r, n_r) - elapsed.T[1:, :, None]
