@@ -93,13 +93,39 @@ def test_a_missing_previous_file_means_the_group_is_written(tmp_path, missing):
 
 
 def test_the_bundles_record_is_read_strictly():
-    """The previous run's bundle inputs keys: a name that is not a bundle file's, or a key that is not a digest,
-    drops the whole record (no bundle takes anything from the previous run)."""
+    """The previous run's bundle inputs keys (bundle → steps' table → key): a name that is not a bundle file's, a
+    table that is not a steps' table, or a key that is not a digest drops the whole record (no bundle takes
+    anything from the previous run)."""
     from planner.job.bundle_reuse import recorded
 
-    good = {"sample_down_E10.pdb": "a" * 64, "sample_up_E10.pdb": "b" * 64}
+    good = {"sample_down_E10.pdb": {"table_d": "a" * 64, "stop_samples": "c" * 64},
+            "sample_up_E10.pdb": {"eval_points": "b" * 64}}
     assert recorded({"bundle_inputs": good}) == good
-    for bad in ({"../sample_down_E10.pdb": "a" * 64}, {"sample_down_E10.pdb": "A" * 64},
-                {"sample_sideways_E10.pdb": "a" * 64}, {"sample_down_E10.pdb": 7}, ["sample_down_E10.pdb"]):
+    for bad in ({"../sample_down_E10.pdb": {"table_d": "a" * 64}}, {"sample_down_E10.pdb": {"table_d": "A" * 64}},
+                {"sample_sideways_E10.pdb": {"table_d": "a" * 64}}, {"sample_down_E10.pdb": {"table_d": 7}},
+                {"sample_down_E10.pdb": {"restrictions": "a" * 64}}, {"sample_down_E10.pdb": {"../x": "a" * 64}},
+                {"sample_down_E10.pdb": "a" * 64}, ["sample_down_E10.pdb"]):
         assert recorded({"bundle_inputs": bad}) == {}
     assert recorded({}) == {}
+
+
+def test_a_bundle_takes_a_table_only_with_the_tables_it_is_checked_against():
+    """Of the steps' tables whose inputs did not change, one checked against another (table (b)'s ratios against
+    (a)'s, (d)'s evaluation points against eval_points) is taken from the previous bundle only when the other is
+    taken too, or is decoded by the build anyway (eval_points): otherwise the check between the taken bytes and the
+    ones encoded anew would be left out."""
+    from planner.job.bundle_reuse import taken
+
+    stops = {"stop_summary", "stop_samples"}
+    # the everyday edit: a leg's tables (a) to (c) changed; (d) and the evaluation points did not
+    assert taken({"eval_points", "table_d"} | stops) == {"eval_points", "table_d"} | stops
+    # (d) without its evaluation points: encoded again, so that the check runs on both
+    assert taken({"table_d"} | stops) == stops
+    # (b) and (c) are checked against (a): neither is taken without it, and (a) not without both
+    assert taken({"eval_points", "table_b", "table_c", "table_d"}) == {"eval_points", "table_d"}
+    assert taken({"eval_points", "table_a", "table_b", "table_d"}) == {"eval_points", "table_d"}
+    assert taken({"eval_points", "table_a", "table_b", "table_c"}) == {"eval_points", "table_a", "table_b",
+                                                                         "table_c"}
+    # eval_points is decoded by every build: taken whatever else changed, its checks run again
+    assert taken({"eval_points"}) == {"eval_points"}
+    assert taken(set()) == set()

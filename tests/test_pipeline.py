@@ -357,7 +357,8 @@ def _codec(parquet: bytes) -> str:
 def test_an_edit_signs_the_bundles_it_did_not_touch_with_their_previous_tables(project):
     """A bundle whose datasets an edit did not touch takes its steps' tables from the previous run's bundle, as
     they are there (only its line's own tables are made again, and its manifest signed anew); a bundle the edit
-    touched is built from the datasets, and so is one whose previous bundle no longer verifies."""
+    touched encodes the tables it touched from the datasets and takes the others (its evaluation points), and a bundle
+    whose previous bundle no longer verifies is built from the datasets."""
     import json
 
     from planner.bundle.archive import read_members
@@ -369,6 +370,7 @@ def test_an_edit_signs_the_bundles_it_did_not_touch_with_their_previous_tables(p
     names = ("tiny_down_EMU6.pdb", "tiny_up_EMU6.pdb", "tiny_down_EMU10.pdb")
     before = {n: read_members(first / "bundles" / n)[0] for n in names}
     other = {n: _resigned_with_other_bytes(first / "bundles" / n, key, "table_c.parquet") for n in names[:2]}
+    points = _resigned_with_other_bytes(first / "bundles" / names[1], key, "eval_points.parquet")
     (first / "bundles" / names[2]).write_bytes(b"not a bundle any more")
     _edit_restriction(project, 65.0)  # the up runs C->B alone
     second = project / "out" / _run(job).run_id
@@ -381,10 +383,14 @@ def test_an_edit_signs_the_bundles_it_did_not_touch_with_their_previous_tables(p
     assert after[names[0]]["manifest.json"] != before[names[0]]["manifest.json"]  # signed anew
     assert _codec(after[names[0]]["table_c.parquet"]) == "SNAPPY"
     assert _codec(after[names[1]]["table_c.parquet"]) == "ZSTD"  # the edit's: encoded from the datasets
+    assert after[names[1]]["eval_points.parquet"] == points  # the edit did not touch them: taken as they were
+    assert after[names[1]]["table_a.parquet"] != before[names[1]]["table_a.parquet"]  # the edit's rows
     assert after[names[2]]["table_c.parquet"] == before[names[2]]["table_c.parquet"]  # built again, the same
     keys = [json.loads((run / "manifest.json").read_text())["bundle_inputs"] for run in (first, second)]
     assert len(keys[0]) == 4 and sorted(keys[0]) == sorted(keys[1])
     assert {n for n in keys[0] if keys[0][n] == keys[1][n]} == {"tiny_down_EMU6.pdb", "tiny_down_EMU10.pdb"}
+    edited = keys[0][names[1]], keys[1][names[1]]  # per table: the ones the edit touched have new keys
+    assert {t for t in edited[0] if edited[0][t] == edited[1][t]} == {"eval_points"}
 
 
 def _check_changes_name_the_restriction(project: Path, old_line, new_line) -> None:

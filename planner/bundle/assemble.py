@@ -273,14 +273,15 @@ def read_partition(root: str | os.PathLike, dataset: str, line_id: str, directio
 
 def assemble(line: Line, direction: str, train_type: str, *, tables_dir=None,
              stops_dir=None, validity: Mapping[str, tuple[int, int]] | None = None,
-             streamed: Collection[str] = ()) -> dict[str, pa.Table | Partition]:
+             streamed: Collection[str] = (), given: Collection[str] = ()) -> dict[str, pa.Table | Partition]:
     """Every table of one bundle that exists: the line's own tables plus the datasets found.
 
     ``tables_dir`` is the output folder of ``planner tables`` (``eval_points``,
     ``table_a``, ``table_b``), ``stops_dir`` that of the stopping step
     (``stop_summary``, ``stop_samples``). Tables not found are left out; the
     builder records them as missing in the manifest. The datasets named in ``streamed`` are given as their
-    :class:`Partition`, to be read a file at a time (:func:`planner.bundle.container.bundle_bytes`).
+    :class:`Partition`, to be read a file at a time (:func:`planner.bundle.container.bundle_bytes`); those named in
+    ``given`` are not read (the build has their bytes already).
     """
     tables = line_tables(line, direction, train_type, validity)
     for key, root in (("tables", tables_dir), ("stops", stops_dir)):
@@ -288,7 +289,7 @@ def assemble(line: Line, direction: str, train_type: str, *, tables_dir=None,
             continue
         if not Path(root).is_dir():
             raise BundleError(f"--{key} {root} is not a folder; give the output folder of that step")
-        for name in TABLE_SOURCES[key]:
+        for name in (n for n in TABLE_SOURCES[key] if n not in given):
             t = (partition if name in streamed else read_partition)(root, name, line.line_id, direction, train_type)
             if t is not None:
                 tables[name] = t

@@ -287,10 +287,10 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: 
     restrictions among its speed limits): the manifest names it, and each DB-fed pattern of a temporary
     restriction carries its window.
 
-    ``reused(direction, train_type)``: the steps' tables of that bundle as the member bytes of a bundle signed
+    ``reused(direction, train_type)``: some of that bundle's steps' tables as the member bytes of a bundle signed
     before from the same datasets' files with the same code (the nightly job's previous run,
-    :mod:`planner.job.bundle_reuse`), or None: then they are read from ``tables_dir`` and ``stops_dir`` and
-    encoded. Only the line's own tables are made again and the manifest signed anew (its release and line
+    :mod:`planner.job.bundle_reuse`), or None; the others are read from ``tables_dir`` and ``stops_dir`` and
+    encoded. The line's own tables are always made again and the manifest signed anew (its release and line
     digest are this build's).
 
     The key is loaded once; every bundle gets the same ``release``; each is
@@ -309,9 +309,9 @@ def build_line(line: Line, out_dir: str | os.PathLike, private_key, *, release: 
     for d in dirs:
         for t in types:
             given = reused(d, t) if reused is not None else None
-            tables = assemble(line, d, t, tables_dir=tables_dir if given is None else None,
-                              stops_dir=stops_dir if given is None else None,
-                              validity=day.validity() if day is not None else None, streamed=STREAMED)
+            tables = assemble(line, d, t, tables_dir=tables_dir, stops_dir=stops_dir,
+                              validity=day.validity() if day is not None else None, streamed=STREAMED,
+                              given=given or ())
             if given is not None:
                 tables.update(_read_given(given))
             info = build_bundle(tables, line_id=line.line_id, direction=d, train_type=t, out_dir=out_dir,

@@ -281,6 +281,13 @@ def _check_core(tables: Mapping[str, pa.Table], sg: int, where: str) -> None:
         raise fail(where, "max_profile segments are not contiguous in running order")
 
 
+CROSS_CHECKED = (("table_a", "table_b"), ("table_a", "table_c"), ("eval_points", "table_b"),
+                 ("eval_points", "table_d"))
+"""The pairs of steps' tables :func:`_check_step_tables` checks against each other (the ratios of (b) and (c) are
+(a)'s, the evaluation points of (b) and (d) are in ``eval_points``): a nightly build that takes one of a pair from
+the previous bundle takes the other too, or decodes it (:func:`planner.job.bundle_reuse.taken`)."""
+
+
 def _check_step_tables(tables: Mapping[str, pa.Table], where: str) -> None:
     """The tables and stopping steps' tables: ratios and evaluation points they share, beacon points."""
     ta, tb, ep = tables.get("table_a"), tables.get("table_b"), tables.get("eval_points")
