@@ -24,7 +24,8 @@ ratio <= 2. Copies: ``--copies N`` or ``$PLANNER_BENCH_COPIES`` (default 10, wha
 ``make bench`` runs); the network-sized night is ``PLANNER_BENCH_COPIES=100`` (opt-in:
 about ten times as long). ``--no-sample`` skips the sample's run, ``--keep DIR`` keeps
 lines, outputs and logs. ``--verify-edit`` also runs the edited line cold in a fresh output root and
-compares the datasets with the edit night's. ``--dask`` also runs the big line's cold night on a Dask cluster started here as a
+compares the datasets and the bundles' members with the edit night's. ``--dask`` also runs the big line's cold
+night on a Dask cluster started here as a
 user starts one (``dask scheduler``; ``dask worker ADDRESS --nworkers 2 --nthreads 1``) and prints its wall
 and CPU against joblib's, and whether the published datasets are the same (issue 48: within 15 %).
 
@@ -243,6 +244,19 @@ def same_datasets(a: Path, b: Path, ignore: tuple[str, ...] = ()) -> tuple[int, 
     return len(fa), bad
 
 
+def same_bundles(a: Path, b: Path) -> tuple[int, list[str]]:
+    """How many bundle members two published runs have, the manifest and its signature aside (each run signs its
+    own release), and those whose bytes differ or that only one has: the tables a vehicle loads."""
+    from planner.bundle.archive import read_members
+
+    def members(run: Path) -> dict[str, bytes]:
+        return {f"{p.name}/{m}": data for p in sorted((run / "bundles").glob("*.pdb"))
+                for m, data in read_members(p)[0].items() if m not in ("manifest.json", "manifest.sig")}
+
+    ma, mb = members(a), members(b)
+    return len(ma), sorted(set(ma) ^ set(mb)) + [m for m in sorted(set(ma) & set(mb)) if ma[m] != mb[m]]
+
+
 def dask_against_joblib(work: Path, big: Path, joblib_run: dict, workers: int = 2) -> bool:
     """The cold night of ``big`` on a local Dask cluster (``workers`` workers, one thread each) against the
     joblib run ``joblib_run`` of the same line: wall, CPU (the job's process tree and the cluster's), and
@@ -316,8 +330,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-sample", action="store_true", help="skip the sample's run (no ratios)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the lines, outputs and logs in this folder")
     ap.add_argument("--verify-edit", action="store_true",
-                    help="also a cold night of the edited line in a fresh output root: the edit night's datasets must "
-                         "be the same (run id and date aside)")
+                    help="also a cold night of the edited line in a fresh output root: the edit night's datasets and "
+                         "bundle members must be the same (run id and date aside)")
     ap.add_argument("--dask", action="store_true",
                     help="also the big line's cold night on a local Dask cluster (dask scheduler, dask worker "
                          "--nworkers 2 --nthreads 1), against joblib: wall, CPU and the same datasets")
@@ -359,7 +373,11 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"bench_scaling: edit night vs a cold night of the edited line: {n - len(bad)} of {n} dataset "
                       "files the same (run id and date aside; `changes`, the difference from the run before, left "
                       "out)" + (f", differ: {', '.join(bad[:5])}" if bad else ""), flush=True)
-                ok = r2["rc"] == 0 and not bad
+                nb, bad_b = same_bundles(base / "outputs" / "latest", fresh / "outputs" / "latest")
+                print(f"bench_scaling: edit night vs a cold night of the edited line: {nb - len(bad_b)} of {nb} bundle "
+                      "members the same (each run's signed manifest aside)"
+                      + (f", differ: {', '.join(bad_b[:5])}" if bad_b else ""), flush=True)
+                ok = r2["rc"] == 0 and not bad and not bad_b
         machine.append(_show_machine("after"))
         if ok:  # the nights' CPU in the machine's own unit, comparable across days (machine_cpu_s)
             unit = sum(machine) / 2
