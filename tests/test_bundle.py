@@ -319,6 +319,18 @@ def test_table_c_ratio_missing_from_table_a_fails(keys, tmp_path, line):
         verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
 
 
+def test_table_d_point_missing_from_eval_points_fails(keys, tmp_path, line):
+    """Verify reads table (d) a row group at a time with its text dictionary-encoded: an evaluation point that
+    eval_points lacks, in its last row alone, is still named."""
+    def edit(t):
+        td = t["table_d"]
+        ids = td["eval_point_id"].to_pylist()
+        ids[-1] = "dep+999"
+        t["table_d"] = td.set_column(td.schema.get_field_index("eval_point_id"), "eval_point_id", pa.array(ids))
+    with pytest.raises(BundleError, match=r"table_d evaluation point 'dep\+999' for .* is not in eval_points"):
+        verify_bundle(forged_with(keys, tmp_path, line, edit), keys[1])
+
+
 def test_foreign_train_type_rows_fail(keys, tmp_path, line):
     def edit(t):
         t["table_a"] = synthetic_tables(line, "down", "E6")["table_a"]
