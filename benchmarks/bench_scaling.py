@@ -246,15 +246,20 @@ def same_datasets(a: Path, b: Path, ignore: tuple[str, ...] = ()) -> tuple[int, 
 
 def same_bundles(a: Path, b: Path) -> tuple[int, list[str]]:
     """How many bundle members two published runs have, the manifest and its signature aside (each run signs its
-    own release), and those whose bytes differ or that only one has: the tables a vehicle loads."""
+    own release), and those whose bytes differ or that only one has: the tables a vehicle loads. A bundle of each
+    run is held at a time."""
     from planner.bundle.archive import read_members
 
-    def members(run: Path) -> dict[str, bytes]:
-        return {f"{p.name}/{m}": data for p in sorted((run / "bundles").glob("*.pdb"))
-                for m, data in read_members(p)[0].items() if m not in ("manifest.json", "manifest.sig")}
+    def members(bundle: Path) -> dict[str, bytes]:
+        got = read_members(bundle)[0] if bundle.is_file() else {}
+        return {f"{bundle.name}/{m}": data for m, data in got.items() if m not in ("manifest.json", "manifest.sig")}
 
-    ma, mb = members(a), members(b)
-    return len(ma), sorted(set(ma) ^ set(mb)) + [m for m in sorted(set(ma) & set(mb)) if ma[m] != mb[m]]
+    n, bad = 0, []
+    for name in sorted({p.name for run in (a, b) for p in (run / "bundles").glob("*.pdb")}):
+        ma, mb = members(a / "bundles" / name), members(b / "bundles" / name)
+        n += len(ma)
+        bad += sorted(set(ma) ^ set(mb)) + [m for m in sorted(set(ma) & set(mb)) if ma[m] != mb[m]]
+    return n, bad
 
 
 def dask_against_joblib(work: Path, big: Path, joblib_run: dict, workers: int = 2) -> bool:
