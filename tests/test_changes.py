@@ -213,3 +213,40 @@ def test_records_are_the_rows_as_to_dict_gives_them_with_nan_as_none():
             assert g[k] is e[k] or g[k] == e[k] or (pd.isna(g[k]) and pd.isna(e[k])), k
     assert got[1]["f"] is None and got[0]["i"] == 1 and type(got[0]["i"]) is int and got[0]["lst"] == [1.0, 2.0]
     assert _records(df.iloc[:0]) == [] and _records(pd.DataFrame(index=range(2))) == [{}, {}]
+
+
+def test_rows_made_elsewhere_are_renumbered_after_this_comparisons():
+    """The night compares a line's bundles on another worker than its legs: their rows join the line's after its
+    own, numbered on from them and named by its base run; a row that names other changes cannot move."""
+    import pytest
+
+    legs = LineChanges("tiny", "r1", "r2")
+    cause = legs.add("line_table", "speed_limits", "speed_limits row changed")
+    legs.add("leg", "A→B", "leg A→B slower", caused_by=[cause])
+    bundles = LineChanges("tiny", "r0001", "r2")  # named by its folder there
+    bundles.add("bundle", "tiny_down_EMU10.pdb", "bundle tiny_down_EMU10.pdb: 1 table changed")
+    bundles.add("bundle", "tiny_up_EMU10.pdb", "bundle tiny_up_EMU10.pdb: 1 table changed")
+    legs.extend(bundles.rows)
+    assert [r["change_id"] for r in legs.rows] == [0, 1, 2, 3]
+    assert [r["subject"] for r in legs.rows[2:]] == ["tiny_down_EMU10.pdb", "tiny_up_EMU10.pdb"]
+    assert {r["base_run"] for r in legs.rows} == {"r1"} and legs.rows[1]["caused_by"] == [0]
+    assert [r["change_id"] for r in bundles.rows] == [0, 1]  # the other comparison's rows are left as they were
+    with pytest.raises(ValueError, match="names other changes"):
+        LineChanges("tiny", "r1", "r2").extend(legs.rows[1:2])
+
+
+def test_two_files_are_compared_a_chunk_at_a_time(tmp_path):
+    from planner.report.bundle_changes import _same_bytes
+
+    data = bytes(range(256)) * 40  # 10,240 bytes: ten chunks of 1,024 and a bit
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.write_bytes(data)
+    b.write_bytes(data)
+    assert _same_bytes(a, b, chunk=1024)
+    for at in (0, 1023, 1024, 5000, len(data) - 1):  # one byte differs: first, either side of a chunk's end, last
+        b.write_bytes(data[:at] + bytes([data[at] ^ 1]) + data[at + 1:])
+        assert not _same_bytes(a, b, chunk=1024), at
+    b.write_bytes(data + b"\0")  # one byte longer
+    assert not _same_bytes(a, b, chunk=1024) and not _same_bytes(b, a, chunk=1024)
+    b.write_bytes(b"")
+    assert not _same_bytes(a, b) and _same_bytes(b, tmp_path / "b")

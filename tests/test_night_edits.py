@@ -159,3 +159,42 @@ def test_two_runs_of_identical_inputs_differ_in_nothing(project):
     assert all(p.read_bytes() != q.read_bytes() for p, q in zip(old, new))  # re-issued: other bytes ...
     (ch,) = compare_runs(project / "out" / before, s.run_dir)
     assert ch.rows == [] and len(changes_of(s.run_dir)) == 0  # ... and no change
+
+
+def test_the_night_lists_what_planner_diff_finds(project):
+    """The night compares a line's margins, conflicts and inputs as soon as its margins are written, and its
+    bundles where they were built, then puts the two together: the same rows, numbered the same, as comparing the
+    two published runs in one go (``planner diff``)."""
+    from planner.report.changes import compare_runs
+
+    t = default_tables()
+    t["timetable"].loc[t["timetable"].train_id == "101", ["arrival_s", "departure_s"]] += 60.0
+    t["speed_limits"].loc[0, "limit_kmh"] -= 10.0  # a limit lowered: the legs and the bundles move too
+    write_tiny(project / "lines" / "tiny", {"timetable": t["timetable"], "speed_limits": t["speed_limits"]})
+    before = latest_run(project / "out")
+    s = run(project)
+    (ch,) = compare_runs(project / "out" / before, s.run_dir)
+    assert {"line_table", "leg", "bundle"} <= {r["category"] for r in ch.rows}
+    night = changes_of(s.run_dir).drop(columns=["line", "run_id", "run_date"], errors="ignore")
+    diff = ch.table().drop_columns(["line"]).to_pandas()
+    assert list(night.change_id) == list(range(len(diff)))
+    for col in ("category", "subject", "field", "before", "after", "detail", "base_run"):
+        assert list(night[col]) == list(diff[col]), col
+    assert [list(c) for c in night.caused_by] == [list(c) for c in diff.caused_by]
+
+
+def test_a_broken_bundle_comparison_still_publishes_and_says_so(project, monkeypatch):
+    """The bundles are compared on the worker that built them: a failure there fails the comparison, not the run."""
+    import planner.report.bundle_changes as bundle_changes
+
+    def broken(*a, **k):
+        raise RuntimeError("bundle comparison exploded on purpose")
+
+    monkeypatch.setattr(bundle_changes, "bundle_changes", broken)
+    write_tiny(project / "lines" / "tiny", {"gradients": default_tables()["gradients"].iloc[:2]})
+    s = run(project)
+    assert latest_run(project / "out") == s.run_id
+    m = json.loads((s.run_dir / "manifest.json").read_text())
+    assert m["changes"]["status"] == "failed" and "exploded on purpose" in m["changes"]["error"]
+    assert not (s.run_dir / "changes").exists()
+    assert m["bundles"] == sorted(p.name for p in (s.run_dir / "bundles").glob("*.pdb")) and m["bundles"]

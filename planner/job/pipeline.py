@@ -42,7 +42,6 @@ to more than the run's wall time.
 from __future__ import annotations
 
 import dataclasses
-import importlib.metadata
 import os
 import shutil
 from contextlib import ExitStack
@@ -51,8 +50,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from planner import __version__
-from planner.io.atomic import deferred_fsync, in_this_context, write_bytes_atomic
+from planner.io.atomic import deferred_fsync, in_this_context
 from planner.io.parquet import place_in_run
 from planner.io.memory import give_back, then_give_back
 from planner.errors import JobError, PlannerError
@@ -72,7 +70,6 @@ from planner.job.units import (
     _stops_unit,
     _tables_unit,
     code_digest,
-    kernel_backends,
     interstation_digest,
     interstation_inputs,
     stops_key,
@@ -97,15 +94,16 @@ from planner.job.steps import (
     write_staged,
 )
 from planner.job.publish import (
-    canonical_json,
     clean_stale_staging,
     digest,
     job_lock,
     latest_run,
+    manifest_head,
     next_run_id,
     output_root_errors,
     publish,
     staging_dir,
+    write_manifest,
 )
 
 STEPS = ("validate", "tables", "stops", "closed_loop", "margins", "bundles", "conflicts", "graph", "changes",
@@ -157,6 +155,17 @@ class RunSummary:
     bundle_rows: list = field(default_factory=list, repr=False, compare=False)
     """(file name, the overview's row) of each bundle of the run, verified on the worker that built it
     (:func:`planner.job.steps.build_bundles`)."""
+    head: dict = field(default_factory=dict, repr=False, compare=False)
+    """The manifest's fields known when the run starts (:func:`manifest_head`): what a line's comparison with the
+    previous run reads of this run's manifest, before it is written."""
+    base: str | None = None
+    """The run this one is compared with: the latest published when it started (the output root is locked)."""
+    base_dir: Path | None = None
+    """Its folder."""
+    comparing: dict = field(default_factory=dict, repr=False, compare=False)
+    """Each line's comparison with :attr:`base`, being made on a worker (:func:`planner.job.views.start_compare`)."""
+    bundle_changes: dict = field(default_factory=dict, repr=False, compare=False)
+    """Each line's bundles compared with :attr:`base`'s, where they were built: (the rows, a failure or "")."""
 
 
 def _renewal_due(last_manifest: dict, now_s: int) -> bool:
@@ -304,6 +313,9 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             run_id = next_run_id(root, inputs)
             stage = staging_dir(root, run_id)
             summary = RunSummary(run_id, None, False, notes=notes, run_date=run_date, warnings=[over] if over else [])
+            summary.head = manifest_head(job, lines, run_id, inputs, run_date, day)
+            summary.base = latest_run(root)  # the output root is locked: still the latest when the run publishes
+            summary.base_dir = root / summary.base if summary.base is not None else None
             runner = Runner(job, cache, prog)
             summary.release = release
             from planner.job.made import previous
@@ -318,7 +330,7 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
                 summary.computed, summary.reused = runner.computed, runner.reused
                 if cache.rejected:  # once per run, with the count
                     summary.warnings.append(cache.rejected_note())
-                _write_manifest(job, lines, stage, run_id, inputs, prog.timings, summary, run_date, day)
+                write_manifest(stage, prog.timings, summary)
                 from planner.job.views import run_views  # changes since the last run, overview page
 
                 run_views(job, lines, stage, root, prog, summary)  # takes the speed charts drawn meanwhile
@@ -527,6 +539,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     record_verdicts(line.line_id, summary, *flagged, report)
 
     count_rows(summary, margins_written.result())  # the train graph page reads the margin totals
+    from planner.job.views import copy_inputs, start_compare
+
+    copy_inputs(line, stage)  # the run's copy of the line database, which the comparison reads
+    start_compare(job, line, stage, summary)  # with the previous run, on a worker: its margins are written
     graph.results()  # every section's trajectories stored: the page's units read them (views.page_units)
     summary.pending.remove(graph)
     del graph, g_units
@@ -535,61 +551,7 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     line_views(job, line, stage, runner, summary, (shares, [u.key for u in p_units]), charts, bday, tt_parts)
     for pages in summary.chart_pages[-1:]:  # the line's chart pages written while its bundles are finished
         pages.start()
-    bundles_step(runner, summary, bundles)
-
-
-def conflicts_status(job: Job, line: Line) -> str:
-    """Whether the run checks the line's conflicts: ``checked``, ``no track network`` or ``disabled`` (the manifest's)."""
-    if not job.conflicts.enabled:
-        return "disabled"
-    return "checked" if line.network is not None else "no track network"
-
-
-def _release_record(release) -> dict | None:
-    from planner.bundle.manifest import format_time
-
-    if release is None:
-        return None
-    return {"version": release.version, "built_at": format_time(release.built_at_s),
-            "expires": format_time(release.expires_s),
-            "key_kind": "development" if release.development else "production"}
-
-
-def _write_manifest(job: Job, lines, stage: Path, run_id: str, inputs: str, timings, summary: RunSummary,
-                    run_date: str = "", day: dict | None = None) -> None:
-    import platform
-
-    import numpy
-    import pyarrow
-
-    manifest = {
-        "run_id": run_id,
-        "run_date": run_date,
-        "operating_day": day,
-        "job": job.job.name,
-        "inputs_digest": inputs,
-        "code_digest": code_digest(),
-        "software": {"planner": __version__, "python": platform.python_version(),
-                     "numpy": numpy.__version__, "pyarrow": pyarrow.__version__,
-                     "numba": importlib.metadata.version("numba"), "kernels": kernel_backends()},
-        "lines": [{"line_id": ln.line_id, "path": Path(p).as_posix(), "source_digest": ln.source_digest,
-                   "conflicts": conflicts_status(job, ln)}
-                  for ln, p in zip(lines, job.job.lines)],
-        "parameters": job.parameters(),
-        "timings_s": dict(timings),
-        "units_computed": dict(summary.computed),
-        "units_reused": dict(summary.reused),
-        "rows": dict(sorted(summary.rows.items())),
-        "flags": dict(sorted(summary.flags.items())),
-        "bundles": sorted(summary.bundles),
-        "bundles_release": _release_record(summary.release),
-        "made": dict(sorted(summary.made.items())),
-        "bundle_inputs": dict(sorted(summary.bundle_inputs.items())),
-    }
-    write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
-    from planner.report.catalog import readme
-
-    write_bytes_atomic(stage / "README.md", readme().encode())
+    bundles_step(runner, summary, line.line_id, bundles)
 
 
 __all__ = ["STEPS", "RunSummary", "code_digest", "interstation_inputs", "run_job"]

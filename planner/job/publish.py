@@ -204,3 +204,78 @@ def publish(root: Path, staging: Path, run_id: str, keep: int) -> Path:
         if old != run_id:
             shutil.rmtree(root / old, ignore_errors=True)
     return final
+
+
+# ---------------------------------------------------------------------------
+# The run's manifest
+# ---------------------------------------------------------------------------
+
+
+def conflicts_status(job, line) -> str:
+    """Whether the run checks the line's conflicts: ``checked``, ``no track network`` or ``disabled`` (the manifest's)."""
+    if not job.conflicts.enabled:
+        return "disabled"
+    return "checked" if line.network is not None else "no track network"
+
+
+def _release_record(release) -> dict | None:
+    from planner.bundle.manifest import format_time
+
+    if release is None:
+        return None
+    return {"version": release.version, "built_at": format_time(release.built_at_s),
+            "expires": format_time(release.expires_s),
+            "key_kind": "development" if release.development else "production"}
+
+
+def manifest_head(job, lines, run_id: str, inputs: str, run_date: str = "", day: dict | None = None) -> dict:
+    """The manifest's fields that are known when the run starts: the run, its day, inputs, code and parameters."""
+    import importlib.metadata
+    import platform
+
+    import numpy
+    import pyarrow
+
+    from planner import __version__
+    from planner.job.units import code_digest, kernel_backends
+
+    return {
+        "run_id": run_id,
+        "run_date": run_date,
+        "operating_day": day,
+        "job": job.job.name,
+        "inputs_digest": inputs,
+        "code_digest": code_digest(),
+        "software": {"planner": __version__, "python": platform.python_version(),
+                     "numpy": numpy.__version__, "pyarrow": pyarrow.__version__,
+                     "numba": importlib.metadata.version("numba"), "kernels": kernel_backends()},
+        "lines": [{"line_id": ln.line_id, "path": Path(p).as_posix(), "source_digest": ln.source_digest,
+                   "conflicts": conflicts_status(job, ln)}
+                  for ln, p in zip(lines, job.job.lines)],
+        "parameters": job.parameters(),
+    }
+
+
+def write_manifest(stage: Path, timings, summary) -> None:
+    """The staged run's ``manifest.json`` (:func:`manifest_head` and what the run made: ``summary``, a
+    :class:`planner.job.pipeline.RunSummary`) and its ``README.md``."""
+    from planner.io.atomic import write_bytes_atomic
+
+    manifest = {
+        **summary.head,
+        "timings_s": dict(timings),
+        "units_computed": dict(summary.computed),
+        "units_reused": dict(summary.reused),
+        "rows": dict(sorted(summary.rows.items())),
+        "flags": dict(sorted(summary.flags.items())),
+        "bundles": sorted(summary.bundles),
+        "bundles_release": _release_record(summary.release),
+        "made": dict(sorted(summary.made.items())),
+        "bundle_inputs": dict(sorted(summary.bundle_inputs.items())),
+    }
+    write_bytes_atomic(stage / "manifest.json", canonical_json(manifest) + b"\n")
+    from planner.report.catalog import readme
+
+    write_bytes_atomic(stage / "README.md", readme().encode())
+
+

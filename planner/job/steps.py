@@ -96,14 +96,17 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
 
 
 def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None,
-                  reuse=None, verify: dict | None = None) -> tuple[list, dict, list]:
+                  reuse=None, verify: dict | None = None, compare: tuple | None = None) -> tuple[list, dict, list, tuple]:
     """Every bundle of the line for the operating day ``day``
     (:func:`planner.job.day.bundle_day`; runs on a worker: module level, the key read from its file there);
     ``reuse``: a :class:`planner.job.bundle_reuse.BundleReuse`, the steps' tables of a bundle whose datasets did not
     change taken from the previous run's; ``verify``: the run's operating day (``{"operating_day": …}``), at whose
     start each bundle, once written, is read back and verified as a vehicle would for the overview
-    (:func:`planner.pages.overview.bundle_row`, with the public key written beside the bundles before). Returns
-    (the bundles, each one's inputs key for the manifest, the overview's row of each)."""
+    (:func:`planner.pages.overview.bundle_row`, with the public key written beside the bundles before);
+    ``compare``: the previous run's folder and id and this run's id, whose bundles the line's are then compared with
+    (:func:`planner.job.views.compare_bundles`: the bundles' bytes are read where they were written, while the job
+    process writes the line's pages). Returns (the bundles, each one's inputs key for the manifest, the overview's
+    row of each, the comparison's rows and failure)."""
     from planner.bundle.container import build_line
 
     give_back()  # what a unit before it on this worker freed (a line's conflicts, once its result was sent)
@@ -115,7 +118,13 @@ def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, t
 
         at_s = (verify.get("operating_day") or {}).get("start_utc_s")
         rows = [then_give_back(bundle_row, Path(i.path), out / "signing_key.pub.pem", at_s) for i in infos]
-    return infos, dict(reuse.keys) if reuse is not None else {}, rows
+    changes: tuple = ([], "")
+    if compare is not None:
+        from planner.job.views import compare_bundles
+
+        base_dir, base_run, run_id = compare
+        changes = then_give_back(compare_bundles, line.line_id, Path(base_dir), base_run, Path(stage), run_id)
+    return infos, dict(reuse.keys) if reuse is not None else {}, rows, changes
 
 
 def write_staged(deferred: bool, fn, *args):
@@ -307,17 +316,19 @@ def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     reuse = BundleReuse(stage, line.line_id, {rel: sha for files in summary.made.values() for rel, sha in files
                                               if rel.split("/")[1] == mine},
                         key_path, prev.run_dir if prev is not None else None, prev.bundles if prev is not None else {})
-    b = background(build_bundles, (line, out, key_path, summary.release, stage, types, bday, reuse, verify),
+    compare = (str(summary.base_dir), summary.base, summary.run_id) if summary.base is not None else None
+    b = background(build_bundles, (line, out, key_path, summary.release, stage, types, bday, reuse, verify, compare),
                    name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)
     return b
 
 
-def bundles_step(runner: Runner, summary: RunSummary, bundles) -> None:
+def bundles_step(runner: Runner, summary: RunSummary, line_id: str, bundles) -> None:
     """Signed bundles for every direction × train type (:func:`start_bundles`), each with its overview row when
     verified (:attr:`RunSummary.bundle_rows`)."""
-    infos, keys, rows = bundles.result()
+    infos, keys, rows, changes = bundles.result()
     summary.pending.remove(bundles)
+    summary.bundle_changes[line_id] = changes
     summary.bundle_inputs.update(keys)
     names = [Path(i.path).name for i in infos]
     summary.bundle_rows += list(zip(names, rows))

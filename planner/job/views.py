@@ -88,7 +88,7 @@ def graph_units(job, sections) -> list:
 
 
 def line_views(job, line, stage: Path, runner, summary, shares, charts=None, bday=None, parts=None) -> None:
-    """Inputs copy, running-time tables and train graph page of one line (module doc); ``shares``: the train
+    """Running-time tables and train graph page of one line (module doc); ``shares``: the train
     graph page's units, started (:meth:`planner.job.units.Runner.start` of :func:`page_units`), and their keys;
     ``bday``: its operating day (:func:`planner.job.day.bundle_day`, None without a daily feed); ``charts``: the
     line's speed–distance charts if started already (:func:`planner.job.train_views.start_charts`); ``parts``: its
@@ -98,7 +98,6 @@ def line_views(job, line, stage: Path, runner, summary, shares, charts=None, bda
     from planner.io.parallel import background
     from planner.job.train_views import train_views
 
-    copy_inputs(line, stage)
     check = bool(job.conflicts.enabled)
     from planner.job.day import restriction_blocks, window
 
@@ -247,47 +246,75 @@ def _comparison_failed(base: str, e: BaseException, summary) -> str:
     return what
 
 
-def _start_compare(job, base: str | None, root: Path, stage: Path, lines, summary):
-    """Start comparing each line with the previous published run on a worker (the two runs' margins, conflicts and
-    changed bundle tables are read there, not in the job process); None when there is no previous run. Taken by
-    :func:`_compared`."""
+def start_compare(job, line, stage: Path, summary) -> None:
+    """Start comparing the line's margins, conflicts and inputs with the previous published run (``summary.base``)
+    on a worker, as soon as its margins are written: read there, not in this process, and done long before the
+    changes step takes it (:func:`_changes`). Its bundles are compared where they are built
+    (:func:`compare_bundles`). Nothing when there is no previous run."""
     from planner.io.parallel import background
 
-    if base is None:
-        return None
-    b = background(compare_lines, (root / base, stage, [ln.line_id for ln in lines]),
+    if summary.base is None:
+        return
+    b = background(compare_line, (summary.base_dir, stage, summary.head, line.line_id),
                    name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)
-    return b
+    summary.comparing[line.line_id] = b
 
 
-def _compared(started, base: str | None, summary) -> tuple[dict, str]:
-    """Each line's changes against the previous published run (:func:`_start_compare`), and the failure (empty
-    when none).
-
-    Whatever goes wrong in the comparison (a damaged old run, a bug in the comparison itself) is
-    reported in one line and marks the comparison as failed: the run's own outputs are complete,
-    so it still publishes (the changes step can never block a night).
-    """
-    if started is None:
-        return {}, ""
-    found, what = started.result()
-    summary.pending.remove(started)
-    if what:
-        summary.warnings.append(f"changes: comparing with run {base} failed ({what}); "
-                                "this run is published without its list of changes")
-    return found, what
-
-
-def compare_lines(base_dir: Path, stage: Path, line_ids: list[str]) -> tuple[dict, str]:
-    """Worker: each line's changes against the run ``base_dir`` (:func:`planner.report.changes.compare_runs`), and
-    what went wrong in one line (empty when nothing did)."""
+def compare_line(base_dir: Path, stage: Path, head: dict, line_id: str):
+    """Worker: the line's changes against the run ``base_dir`` but its bundles'
+    (:func:`planner.report.changes.compare_runs`; ``head``: this run's manifest as far as it is known), and what went
+    wrong in one line (empty when nothing did)."""
     from planner.report.changes import compare_runs
 
     try:
-        return {c.line_id: c for c in compare_runs(base_dir, stage, lines=line_ids)}, ""
-    except Exception as e:  # noqa: BLE001 - see _compared
-        return {}, _failure_text(e)
+        return compare_runs(base_dir, stage, lines=[line_id], new_manifest=head, bundles=False)[0], ""
+    except Exception as e:  # noqa: BLE001 - see _changes
+        return None, _failure_text(e)
+
+
+def compare_bundles(line_id: str, base_dir: Path, base_run: str, stage: Path, run_id: str) -> tuple[list, str]:
+    """Worker: the rows of the line's bundles that changed against the run ``base_dir``'s
+    (:func:`planner.report.bundle_changes.bundle_changes`), and what went wrong in one line (empty when nothing
+    did). Made where the bundles were built, once each is verified."""
+    from planner.report.bundle_changes import bundle_changes
+    from planner.report.changes import LineChanges
+
+    ch = LineChanges(line_id, base_run, run_id)
+    try:
+        bundle_changes(ch, base_dir, stage)
+    except Exception as e:  # noqa: BLE001 - see _changes
+        return [], _failure_text(e)
+    return ch.rows, ""
+
+
+def _changes(lines, summary) -> tuple[dict, str]:
+    """Each line's changes against the previous published run (:func:`start_compare`, :func:`compare_bundles`),
+    and the first failure (empty when none).
+
+    Whatever goes wrong in the comparison (a damaged old run, a bug in the comparison itself) is
+    reported in one line and marks the comparison as failed: the run's own outputs are complete,
+    so it still publishes (the changes step can never block a night). No line lists changes then.
+    """
+    if summary.base is None:
+        return {}, ""
+    found, failures = {}, []
+    for line in lines:
+        started = summary.comparing.pop(line.line_id, None)
+        if started is None:  # the run failed before: not reached
+            continue
+        ch, what = started.result()
+        summary.pending.remove(started)
+        rows, b_what = summary.bundle_changes.get(line.line_id, ([], ""))
+        failures += [w for w in (what, b_what) if w]
+        if ch is not None:
+            ch.extend(rows)
+            found[line.line_id] = ch
+    if failures:
+        summary.warnings.append(f"changes: comparing with run {summary.base} failed ({failures[0]}); "
+                                "this run is published without its list of changes")
+        return {}, failures[0]
+    return found, ""
 
 
 def _write_line_changes(ch, stage: Path) -> int:
@@ -423,22 +450,21 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     from planner.report.changes import CATEGORIES
     from planner.pages.changes import changes_html
     from planner.pages.overview import write_overview
-    from planner.job.publish import canonical_json, latest_run
+    from planner.job.publish import canonical_json
     from planner.pages.margin_report import stop_markers, write_html
     from planner.pages.margin_charts import chart_sections
 
     manifest_path = stage / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-    base = latest_run(root)
+    base = summary.base
     rows: dict[str, int] = {}
     counts: dict[str, dict[str, int]] = {}
     with prog.step("changes", len(lines)):
-        comparing = _start_compare(job, base, root, stage, lines, summary)
-        # meanwhile the robustness pages start on the workers too, and this process writes the restrictions pages
-        # (their findings go into the manifest): neither needs the comparison
+        # the robustness pages start on the workers, and this process writes the restrictions pages (their findings go
+        # into the manifest), while the comparison (started with the margins) ends
         robustness = _robustness_pages(job, lines, stage, manifest, summary)
         _restrictions_pages(job, lines, stage, manifest, summary)
-        found, failure = _compared(comparing, base, summary)
+        found, failure = _changes(lines, summary)
         for line in lines:
             ch = found.get(line.line_id)
             if ch is not None:

@@ -122,6 +122,15 @@ class LineChanges:
         })
         return cid
 
+    def extend(self, rows: Iterable[dict[str, Any]]) -> None:
+        """Append rows another comparison of the same line made (the bundles', on the worker that built them): each
+        renumbered after this one's and named by this one's base run. Only rows that name no other change
+        (``caused_by`` empty, as the bundles' rows are) can move between comparisons."""
+        for r in rows:
+            if r["caused_by"]:
+                raise ValueError(f"change {r['change_id']} names other changes: it cannot be renumbered")
+            self.rows.append({**r, "base_run": self.base_run, "change_id": len(self.rows)})
+
     def of(self, *categories: str) -> list[dict[str, Any]]:
         return [r for r in self.rows if r["category"] in categories]
 
@@ -473,7 +482,8 @@ def _conflict_changes(ch: LineChanges, old, new) -> None:
 
 
 def compare_runs(old_dir: str | Path, new_dir: str | Path, *, threshold_s: float = THRESHOLD_S,
-                 lines: Iterable[str] | None = None) -> list[LineChanges]:
+                 lines: Iterable[str] | None = None, new_manifest: dict | None = None,
+                 bundles: bool = True) -> list[LineChanges]:
     """Compare two published runs, line by line (module doc for what is compared).
 
     Parameters
@@ -486,13 +496,20 @@ def compare_runs(old_dir: str | Path, new_dir: str | Path, *, threshold_s: float
         more than this are listed [s].
     lines : iterable of str, optional
         Line ids to compare (default: every line of the newer run).
+    new_manifest : dict, optional
+        The newer run's manifest, or the part of it that the comparison reads (:func:`planner.job.pipeline.
+        manifest_head`: the nightly job compares a line before its run's manifest is written); default: read
+        from ``new_dir``.
+    bundles : bool
+        Compare the bundles too (:func:`planner.report.bundle_changes.bundle_changes`); the nightly job compares
+        them on the worker that built them and adds their rows (:meth:`LineChanges.extend`).
     """
     if not (isinstance(threshold_s, (int, float)) and threshold_s >= 0):
         raise InputError(f"--threshold-s must be a number ≥ 0, found {threshold_s!r}")
     from planner.report.input_changes import day_input_changes, input_changes
 
     old_dir, new_dir = Path(old_dir), Path(new_dir)
-    om, nm = read_manifest(old_dir), read_manifest(new_dir)
+    om, nm = read_manifest(old_dir), new_manifest if new_manifest is not None else read_manifest(new_dir)
     ids = list(lines) if lines is not None else [x["line_id"] for x in nm.get("lines", [])]
     out = []
     for lid in ids:
@@ -504,7 +521,8 @@ def compare_runs(old_dir: str | Path, new_dir: str | Path, *, threshold_s: float
                      reach, threshold_s, geometry)
         _conflict_changes(ch, read_line_dataset(old_dir, "conflicts", lid),
                           read_line_dataset(new_dir, "conflicts", lid))
-        bundle_changes(ch, old_dir, new_dir)
+        if bundles:
+            bundle_changes(ch, old_dir, new_dir)
         out.append(ch)
     return out
 
