@@ -181,6 +181,13 @@ def test_the_night_lists_what_planner_diff_finds(project):
     for col in ("category", "subject", "field", "before", "after", "detail", "base_run"):
         assert list(night[col]) == list(diff[col]), col
     assert [list(c) for c in night.caused_by] == [list(c) for c in diff.caused_by]
+    # the margin report page, drawn before the comparison was in, shows it at its top, where the first run's note was
+    from planner.job.views import CHANGES_HERE
+
+    page = (s.run_dir / "report" / "tiny_margins.html").read_text()
+    first = (project / "out" / before / "report" / "tiny_margins.html").read_text()
+    assert CHANGES_HERE not in page and "nothing to compare with" in first and "nothing to compare with" not in page
+    assert page.index("tiny_down_EMU10.pdb") < page.index("<svg")
 
 
 def test_a_broken_bundle_comparison_still_publishes_and_says_so(project, monkeypatch):

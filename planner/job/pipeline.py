@@ -162,6 +162,8 @@ class RunSummary:
     """The run this one is compared with: the latest published when it started (the output root is locked)."""
     base_dir: Path | None = None
     """Its folder."""
+    margin_pages: dict = field(default_factory=dict, repr=False, compare=False)
+    """Each line's margin report page but its changes (:func:`planner.job.views.margin_page`)."""
     comparing: dict = field(default_factory=dict, repr=False, compare=False)
     """Each line's comparison with :attr:`base`, being made on a worker (:func:`planner.job.views.start_compare`)."""
     bundle_changes: dict = field(default_factory=dict, repr=False, compare=False)
@@ -551,6 +553,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     line_views(job, line, stage, runner, summary, (shares, [u.key for u in p_units]), charts, bday, tt_parts)
     for pages in summary.chart_pages[-1:]:  # the line's chart pages written while its bundles are finished
         pages.start()
+    from planner.job.views import margin_page
+
+    margin_page(line, stage, summary)  # the margin report page drawn while the line waits for its bundles
     bundles_step(runner, summary, line.line_id, bundles)
 
 

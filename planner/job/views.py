@@ -444,6 +444,36 @@ def robustness_page(root: str, keys: list, stage: Path, line_id: str, name: str,
     give_back()
 
 
+CHANGES_HERE = "<!-- planner: the changes since the previous run -->"
+"""Where the margin report page, drawn before the comparison is in (:func:`margin_page`), gets its changes section
+(an HTML comment: no text of the page's data can be one, as it is escaped)."""
+
+
+def margin_page_path(line, stage: Path) -> Path:
+    return stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html"
+
+
+def margin_page(line, stage: Path, summary) -> None:
+    """Draw the line's margin report page (its charts are most of its time) while the line waits for its bundles,
+    all but its changes section (:data:`CHANGES_HERE`), which :func:`run_views` puts in once the comparison is in."""
+    from planner.job.train_views import timetable_href
+    from planner.pages.margin_charts import chart_sections
+    from planner.pages.margin_report import page_text, stop_markers
+    from planner.pages.run_head import nav_html
+
+    rep = summary.reports.get(line.line_id)
+    if rep is None:
+        return
+    head = summary.head
+    tables = "../" + timetable_href(line.line_id)
+    nav = nav_html([("overview", "../index.html"), ("train graph", f"../graph/{line.line_id}_graph.html"),
+                    ("running-time tables per train", tables)],
+                   head.get("run_id"), head.get("operating_day"), head.get("run_date"))
+    summary.margin_pages[line.line_id] = page_text(
+        rep, line, margin_page_path(line, stage), datasets_root=stage, top=CHANGES_HERE,
+        charts=chart_sections(rep, stop_markers(line)), nav=nav, trains_href=tables)
+
+
 def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     """Changes since the previous run, report sections, manifest additions and the overview page (module doc)."""
     from planner.io.atomic import write_bytes_atomic
@@ -451,8 +481,6 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
     from planner.pages.changes import changes_html
     from planner.pages.overview import write_overview
     from planner.job.publish import canonical_json
-    from planner.pages.margin_report import stop_markers, write_html
-    from planner.pages.margin_charts import chart_sections
 
     manifest_path = stage / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
@@ -482,19 +510,10 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                 note = f"Comparing with run {base} failed, so this run lists no changes: {failure}"
             else:
                 note = f"Line {line.line_id} could not be compared with run {base}."
-            from planner.job.train_views import timetable_href
-            from planner.pages.run_head import nav_html
-
-            tables = "../" + timetable_href(line.line_id)
-            nav = nav_html([("overview", "../index.html"), ("train graph", f"../graph/{line.line_id}_graph.html"),
-                            ("running-time tables per train", tables)],
-                           manifest.get("run_id"), manifest.get("operating_day"), manifest.get("run_date"))
-            top = changes_html(ch, first_run_note=note)
-            rep = summary.reports.get(line.line_id)
-            if rep is not None:
-                charts = chart_sections(rep, stop_markers(line))
-                write_html(rep, line, stage / "report" / f"{check_path_id(line.line_id, 'line id')}_margins.html",
-                           datasets_root=stage, top=top, charts=charts, nav=nav, trains_href=tables)
+            page = summary.margin_pages.pop(line.line_id, None)  # drawn while the line waited for its bundles
+            if page is not None:
+                write_bytes_atomic(margin_page_path(line, stage),
+                                   page.replace(CHANGES_HERE, changes_html(ch, first_run_note=note), 1).encode("utf-8"))
             prog.advance("changes")
     # the speed–distance charts' pages, being written on the workers since the line waited for its bundles (written
     # here if they were not started: charts kept in this process)

@@ -579,12 +579,17 @@ def write_html(report, line, path: str | Path, datasets_root: str | Path | None 
     the page links to it by a relative path. ``top``, ``charts`` and ``kw`` (``nav``, ``trains_href``) as in
     :func:`render_html`.
     """
-    import os
-
     from planner.io.atomic import write_bytes_atomic
 
     path = Path(path)
-    href = "." if datasets_root is None else Path(os.path.relpath(Path(datasets_root), path.parent)).as_posix()
-    write_bytes_atomic(path, render_html(report, stop_markers(line), datasets_href=href, top=top,
-                                         charts=charts, **kw).encode("utf-8"))
+    write_bytes_atomic(path, page_text(report, line, path, datasets_root, top, charts, **kw).encode("utf-8"))
     return path
+
+
+def page_text(report, line, path: str | Path, datasets_root: str | Path | None = None, top: str = "",
+              charts: list[str] | None = None, **kw) -> str:
+    """The page :func:`write_html` writes to ``path``, as text."""
+    import os
+
+    href = "." if datasets_root is None else Path(os.path.relpath(Path(datasets_root), Path(path).parent)).as_posix()
+    return render_html(report, stop_markers(line), datasets_href=href, top=top, charts=charts, **kw)

@@ -23,15 +23,23 @@ MANIFEST_CONTENT = (("line_digest", "line database digest"), ("software_version"
 expiry) change at every build, so two bundles that differ only there hold the same content."""
 
 
-def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
+def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path, directions=None) -> None:
+    """Add the rows of the line's bundles (``directions``: of these only) that changed from ``old_dir`` to
+    ``new_dir``."""
+    import re
+
     from planner.bundle.verify import Expect, read_signed
     from planner.errors import PlannerError
+    from planner.line.model import DIRECTIONS
 
     whenever = Expect(allow_dev=True, check_time=False)
 
     ob, nb = Path(old_dir) / "bundles", Path(new_dir) / "bundles"
-    pref = f"{ch.line_id}_"
-    names = sorted({p.name for d in (ob, nb) if d.is_dir() for p in d.glob(f"{pref}*.pdb")})
+    # the line's own: <line>_<direction>_<type>.pdb (line "a" is not given line "a_b"'s bundles)
+    ways = "|".join(directions or DIRECTIONS)
+    mine = re.compile(rf"{re.escape(ch.line_id)}_({ways})_[A-Za-z0-9][A-Za-z0-9._-]*\.pdb")
+    names = sorted({p.name for d in (ob, nb) if d.is_dir() for p in d.glob(f"{ch.line_id}_*.pdb")
+                    if mine.fullmatch(p.name)})
     for name in names:
         po, pn = ob / name, nb / name
         if not po.is_file() or not pn.is_file():
