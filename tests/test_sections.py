@@ -349,3 +349,33 @@ def test_the_tables_page_and_dataset_put_together_from_sections_are_the_whole_li
         ends = [(f"{r['leg_origin']}→{r['station_id']}", r["chart"]) for r in whole
                 if r["train_id"] == t and r["chart"] and r["leg_flag"]]
         assert legs.get(t, []) == ends
+
+
+def test_sections_conflicts_are_numbered_by_their_earliest_row_across_sections():
+    """The numbering's definition, on sections whose conflicts span several rows (a conflict's earliest row places
+    it: by the earlier of its two trains' window openings, then the pair, then the section and its number there),
+    with ties in time and pair across sections."""
+    rng = np.random.default_rng(7)
+    parts = []
+    for k in range(5):
+        n = int(rng.integers(1, 30))
+        ids = rng.integers(1, 8, n)
+        parts.append(pd.DataFrame({
+            "conflict_id": ids, "a_start_s": rng.choice([0.0, 30.0, 60.0, 90.0], n),
+            "b_start_s": rng.choice([10.0, 30.0, 120.0], n), "train_a": rng.choice(["101", "103", "99"], n),
+            "train_b": rng.choice(["102", "104"], n), "from_m": rng.choice([0.0, 500.0, 900.0], n),
+            "resource_kind": rng.choice(["block", "route"], n), "resource_id": rng.choice(["x", "y", "z"], n),
+            "row": [f"{k}/{i}" for i in range(n)]}))
+    # the definition, one conflict at a time
+    place = {}
+    for k, c in enumerate(parts):
+        for r in c.itertuples():
+            key = (min(r.a_start_s, r.b_start_s), r.train_a, r.train_b)
+            place[(k, r.conflict_id)] = min(place.get((k, r.conflict_id), key), key)
+    number = {kc: n for n, kc in enumerate(sorted(place, key=lambda kc: (*place[kc], *kc)), start=1)}
+    got = renumbered([c.copy() for c in parts])
+    want = {r: number[(k, cid)] for k, c in enumerate(parts) for r, cid in zip(c["row"], c["conflict_id"])}
+    assert dict(zip(got["row"], got["conflict_id"])) == want and len(got) == sum(map(len, parts))
+    assert got["conflict_id"].dtype == np.int64 and sorted(set(got["conflict_id"])) == list(range(1, len(place) + 1))
+    keys = list(zip(got["conflict_id"], got["from_m"], got["resource_kind"], got["resource_id"]))
+    assert keys == sorted(keys)  # the rows in the order of their conflict, then place and resource

@@ -426,18 +426,29 @@ def renumbered(parts) -> pd.DataFrame:
         return pd.DataFrame(columns=["line"] + [f.name for f in CONFLICTS_SCHEMA])
     if len(parts) == 1:
         return parts[0]
-    keys = []
-    for k, c in enumerate(parts):
-        t0 = np.minimum(c["a_start_s"].to_numpy(float), c["b_start_s"].to_numpy(float))
-        f = pd.DataFrame({"t0": t0, "a": c["train_a"].to_numpy(), "b": c["train_b"].to_numpy(),
-                          "part": k, "cid": c["conflict_id"].to_numpy()})
-        keys.append(f.sort_values(["t0", "a", "b", "cid"], kind="stable").drop_duplicates(["part", "cid"]))
-    first = pd.concat(keys, ignore_index=True).sort_values(["t0", "a", "b", "part", "cid"], kind="stable")
-    number = {(int(p), int(c)): n for n, (p, c) in enumerate(zip(first["part"], first["cid"]), start=1)}
-    out = []
-    for k, c in enumerate(parts):
+    # every row of every part at once (a sort per section was 2.5 s of the job process on the 100x line): a conflict
+    # of a part is placed by its earliest row in the order (t0, a, b), the conflicts in the order (t0, a, b, part, cid)
+    sizes = [len(c) for c in parts]
+    part = np.repeat(np.arange(len(parts)), sizes)
+    cid = np.concatenate([c["conflict_id"].to_numpy(np.int64) for c in parts])
+    rows = pd.DataFrame({
+        "t0": np.concatenate([np.minimum(c["a_start_s"].to_numpy(float), c["b_start_s"].to_numpy(float))
+                              for c in parts]),
+        "a": np.concatenate([c["train_a"].to_numpy() for c in parts]),
+        "b": np.concatenate([c["train_b"].to_numpy() for c in parts]),
+        "part": part, "cid": cid})
+    first = rows.sort_values(["t0", "a", "b", "part", "cid"], kind="stable").drop_duplicates(["part", "cid"])
+    low = int(cid.min())
+    span = int(cid.max()) - low + 1
+    placed = first["part"].to_numpy(np.int64) * span + (first["cid"].to_numpy(np.int64) - low)  # in their order
+    order = np.argsort(placed, kind="stable")
+    at = np.searchsorted(placed[order], part.astype(np.int64) * span + (cid - low))  # each row's conflict
+    number = order[at] + 1
+    out, start = [], 0
+    for c, n in zip(parts, sizes):
         c = c.copy()
-        c["conflict_id"] = np.array([number[(k, int(x))] for x in c["conflict_id"]], dtype=np.int64)
+        c["conflict_id"] = number[start:start + n].astype(np.int64)
         out.append(c)
+        start += n
     return pd.concat(out, ignore_index=True).sort_values(
         ["conflict_id", "from_m", "resource_kind", "resource_id"], kind="stable").reset_index(drop=True)

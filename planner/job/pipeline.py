@@ -435,6 +435,9 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
         sections = line_section_inputs(job, line, lifted, runner.cache)
         if checks_conflicts:
             side.insert(0, ("conflicts", conflicts_units(job, line, stage, sections, summary.previous)))
+        from planner.report.margin_legs import looked_up_by_leg
+
+        by_leg = looked_up_by_leg(line, types, lifted)  # the closed loop's times per leg, meanwhile too
     except BaseException:
         pass1.discard()  # the units started are let finish (and cached) before the run fails
         raise
@@ -479,12 +482,10 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     # them (the errors at the timetable's times, the worst per leg): the runs never come to this process
     from planner.io.parallel import background
     from planner.io.atomic import deferring
-    from planner.report.margin_legs import looked_up_by_leg
     from planner.report.margins import margin_options
 
     loop_groups = partition_keys(line.line_id, tasks, c_units)
     leg_of = {u.key: (k[1], k[0], k[2], k[3]) for k, u in zip(tasks, c_units)}  # (direction, type, from, to)
-    by_leg = looked_up_by_leg(line, types, lifted)
     loop_times = [{leg_of[k]: by_leg[leg_of[k]] for k in keys if leg_of[k] in by_leg} for _, _, keys in loop_groups]
     loops_written = background(write_staged, (deferring(), closed_loop_written, root, line.line_id, loop_groups,
                                                stage, margin_options(job, line)["rule"], loop_times,
@@ -551,11 +552,11 @@ def _run_line(job: Job, line: Line, stage: Path, runner: Runner, summary: RunSum
     shares = runner.start("graph", p_units)  # made while the tables are, then put together (views.graph_written)
     summary.pending.append(shares)
     line_views(job, line, stage, runner, summary, (shares, [u.key for u in p_units]), charts, bday, tt_parts)
-    for pages in summary.chart_pages[-1:]:  # the line's chart pages written while its bundles are finished
-        pages.start()
     from planner.job.views import margin_page
 
-    margin_page(line, stage, summary)  # the margin report page drawn while the line waits for its bundles
+    margin_page(line, stage, summary)  # the margin report page, drawn while the workers finish the charts' drawing
+    for pages in summary.chart_pages[-1:]:  # the line's chart pages written while its bundles are finished
+        pages.start()
     bundles_step(runner, summary, line.line_id, bundles)
 
 

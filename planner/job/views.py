@@ -454,7 +454,7 @@ def margin_page_path(line, stage: Path) -> Path:
 
 
 def margin_page(line, stage: Path, summary) -> None:
-    """Draw the line's margin report page (its charts are most of its time) while the line waits for its bundles,
+    """Draw the line's margin report page (its charts are most of its time) while the workers draw its legs' charts,
     all but its changes section (:data:`CHANGES_HERE`), which :func:`run_views` puts in once the comparison is in."""
     from planner.job.train_views import timetable_href
     from planner.pages.margin_charts import chart_sections
@@ -510,7 +510,7 @@ def run_views(job, lines, stage: Path, root: Path, prog, summary) -> None:
                 note = f"Comparing with run {base} failed, so this run lists no changes: {failure}"
             else:
                 note = f"Line {line.line_id} could not be compared with run {base}."
-            page = summary.margin_pages.pop(line.line_id, None)  # drawn while the line waited for its bundles
+            page = summary.margin_pages.pop(line.line_id, None)  # drawn while the workers drew its charts
             if page is not None:
                 write_bytes_atomic(margin_page_path(line, stage),
                                    page.replace(CHANGES_HERE, changes_html(ch, first_run_note=note), 1).encode("utf-8"))
