@@ -96,7 +96,8 @@ def margins_step(job: Job, line: Line, stage: Path, runner: Runner, summary: Run
 
 
 def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, types: list[str], day=None,
-                  reuse=None, verify: dict | None = None, compare: tuple | None = None) -> tuple[list, dict, list, tuple]:
+                  reuse=None, verify: dict | None = None, compare: tuple | None = None
+                  ) -> tuple[list, dict, list, tuple]:
     """Every bundle of the line for the operating day ``day``
     (:func:`planner.job.day.bundle_day`; runs on a worker: module level, the key read from its file there);
     ``reuse``: a :class:`planner.job.bundle_reuse.BundleReuse`, the steps' tables of a bundle whose datasets did not

@@ -23,9 +23,8 @@ MANIFEST_CONTENT = (("line_digest", "line database digest"), ("software_version"
 expiry) change at every build, so two bundles that differ only there hold the same content."""
 
 
-def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path, directions=None) -> None:
-    """Add the rows of the line's bundles (``directions``: of these only) that changed from ``old_dir`` to
-    ``new_dir``."""
+def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path) -> None:
+    """Add the rows of the line's bundles that changed from ``old_dir`` to ``new_dir``."""
     import re
 
     from planner.bundle.verify import Expect, read_signed
@@ -36,8 +35,7 @@ def bundle_changes(ch: LineChanges, old_dir: Path, new_dir: Path, directions=Non
 
     ob, nb = Path(old_dir) / "bundles", Path(new_dir) / "bundles"
     # the line's own: <line>_<direction>_<type>.pdb (line "a" is not given line "a_b"'s bundles)
-    ways = "|".join(directions or DIRECTIONS)
-    mine = re.compile(rf"{re.escape(ch.line_id)}_({ways})_[A-Za-z0-9][A-Za-z0-9._-]*\.pdb")
+    mine = re.compile(rf"{re.escape(ch.line_id)}_({'|'.join(DIRECTIONS)})_[A-Za-z0-9][A-Za-z0-9._-]*\.pdb")
     names = sorted({p.name for d in (ob, nb) if d.is_dir() for p in d.glob(f"{ch.line_id}_*.pdb")
                     if mine.fullmatch(p.name)})
     for name in names:
