@@ -158,16 +158,20 @@ class RunSummary:
     head: dict = field(default_factory=dict, repr=False, compare=False)
     """The manifest's fields known when the run starts (:func:`manifest_head`): what a line's comparison with the
     previous run reads of this run's manifest, before it is written."""
-    base: str | None = None
-    """The run this one is compared with: the latest published when it started (the output root is locked)."""
     base_dir: Path | None = None
-    """Its folder."""
+    """The folder of the run this one is compared with: the latest published when it started (the output root is
+    locked)."""
     margin_pages: dict = field(default_factory=dict, repr=False, compare=False)
     """Each line's margin report page but its changes (:func:`planner.job.views.margin_page`)."""
     comparing: dict = field(default_factory=dict, repr=False, compare=False)
     """Each line's comparison with :attr:`base`, being made on a worker (:func:`planner.job.views.start_compare`)."""
     bundle_changes: dict = field(default_factory=dict, repr=False, compare=False)
     """Each line's bundles compared with :attr:`base`'s, where they were built: (the rows, a failure or "")."""
+
+    @property
+    def base(self) -> str | None:
+        """The id of the run this one is compared with (:attr:`base_dir`), or None."""
+        return self.base_dir.name if self.base_dir is not None else None
 
 
 def _renewal_due(last_manifest: dict, now_s: int) -> bool:
@@ -316,8 +320,8 @@ def _run_job(job: Job, root: Path, show_progress: bool, use_cache: bool) -> RunS
             stage = staging_dir(root, run_id)
             summary = RunSummary(run_id, None, False, notes=notes, run_date=run_date, warnings=[over] if over else [])
             summary.head = manifest_head(job, lines, run_id, inputs, run_date, day)
-            summary.base = latest_run(root)  # the output root is locked: still the latest when the run publishes
-            summary.base_dir = root / summary.base if summary.base is not None else None
+            latest = latest_run(root)  # the output root is locked: still the latest when the run publishes
+            summary.base_dir = root / latest if latest is not None else None
             runner = Runner(job, cache, prog)
             summary.release = release
             from planner.job.made import previous

@@ -277,5 +277,3 @@ def write_manifest(stage: Path, timings, summary) -> None:
     from planner.report.catalog import readme
 
     write_bytes_atomic(stage / "README.md", readme().encode())
-
-

@@ -104,7 +104,7 @@ def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, t
     change taken from the previous run's; ``verify``: the run's operating day (``{"operating_day": …}``), at whose
     start each bundle, once written, is read back and verified as a vehicle would for the overview
     (:func:`planner.pages.overview.bundle_row`, with the public key written beside the bundles before);
-    ``compare``: the previous run's folder and id and this run's id, whose bundles the line's are then compared with
+    ``compare``: the previous run's folder and this run's id, whose bundles the line's are then compared with
     (:func:`planner.job.views.compare_bundles`: the bundles' bytes are read where they were written, while the job
     process writes the line's pages). Returns (the bundles, each one's inputs key for the manifest, the overview's
     row of each, the comparison's rows and failure)."""
@@ -123,8 +123,8 @@ def build_bundles(line: Line, out: Path, key_path: Path, release, stage: Path, t
     if compare is not None:
         from planner.job.views import compare_bundles
 
-        base_dir, base_run, run_id = compare
-        changes = then_give_back(compare_bundles, line.line_id, Path(base_dir), base_run, Path(stage), run_id)
+        base_dir, run_id = compare
+        changes = then_give_back(compare_bundles, line.line_id, Path(base_dir), Path(stage), run_id)
     return infos, dict(reuse.keys) if reuse is not None else {}, rows, changes
 
 
@@ -317,7 +317,7 @@ def start_bundles(job: Job, line: Line, stage: Path, runner: Runner, summary: Ru
     reuse = BundleReuse(stage, line.line_id, {rel: sha for files in summary.made.values() for rel, sha in files
                                               if rel.split("/")[1] == mine},
                         key_path, prev.run_dir if prev is not None else None, prev.bundles if prev is not None else {})
-    compare = (str(summary.base_dir), summary.base, summary.run_id) if summary.base is not None else None
+    compare = (str(summary.base_dir), summary.run_id) if summary.base_dir is not None else None
     b = background(build_bundles, (line, out, key_path, summary.release, stage, types, bday, reuse, verify, compare),
                    name=job.parallel.backend, n_jobs=job.parallel.n_jobs)
     summary.pending.append(b)

@@ -273,14 +273,14 @@ def compare_line(base_dir: Path, stage: Path, head: dict, line_id: str):
         return None, _failure_text(e)
 
 
-def compare_bundles(line_id: str, base_dir: Path, base_run: str, stage: Path, run_id: str) -> tuple[list, str]:
+def compare_bundles(line_id: str, base_dir: Path, stage: Path, run_id: str) -> tuple[list, str]:
     """Worker: the rows of the line's bundles that changed against the run ``base_dir``'s
     (:func:`planner.report.bundle_changes.bundle_changes`), and what went wrong in one line (empty when nothing
     did). Made where the bundles were built, once each is verified."""
     from planner.report.bundle_changes import bundle_changes
     from planner.report.changes import LineChanges
 
-    ch = LineChanges(line_id, base_run, run_id)
+    ch = LineChanges(line_id, base_dir.name, run_id)
     try:
         bundle_changes(ch, base_dir, stage)
     except Exception as e:  # noqa: BLE001 - see _changes
