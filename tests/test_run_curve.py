@@ -249,6 +249,53 @@ def test_halving_the_step_changes_no_running_time(train_type):
     assert worst < TOL_S
 
 
+def _crawl_times(line, ratios, steps):
+    """Running times of the sawtooth type ``S`` over ``line`` at ``ratios``, one row per step length."""
+    tt = line.train_type("S")
+    return np.array([simulate(make_track(line, "S", "S0", "S1", settings=SimSettings(ds)), tt, ratios).time_s
+                     for ds in steps])
+
+
+def test_a_sawtooth_crawl_meets_its_target_inside_a_step():
+    """A target of 4 km/h on level track (ratio 0.04 of 100 km/h, no limit below 40 km/h, so 1 m steps): from
+    the band's edge at half the target, powering reaches the target within one 1 m step. The step must end
+    coasting from where the target was met; taking the whole rest of the step as powered to the target put
+    every cycle's end on a grid node, and the time was off by 1.7 s after 1.4 km (the converged time is that of
+    1/16 m steps)."""
+    tt = rich_line().train_type("S")
+    line = testing.line(length_m=1500, max_speed_kmh=100, train_types=[tt])
+    t = np.array([simulate(make_track(line, "S", "S0", "S1", settings=SimSettings(ds), nodes_m=[1400.0]), tt,
+                           np.array([0.04, 0.06]), snapshots_m=[1400.0]).snapshots[1400.0].t_s
+                  for ds in (1.0, 1.0 / 16)])  # the time at 1400 m, before the stop's braking
+    assert np.all(np.abs(t[0] - t[1]) < TOL_S), t[0] - t[1]
+
+
+@pytest.mark.parametrize("gradient", [0.0, -1.0, 2.0])
+def test_halving_the_step_in_a_slow_restriction_changes_no_running_time(gradient):
+    """A 20 km/h restriction 1 km long at the lowest ratios: targets of 4-6 km/h, where a sawtooth vehicle cycles
+    between its band and its target every few metres and coasts so slowly on a gentle fall that the speed it
+    enters the fall at decides most of the time. Slow gaps get steps ∝ v² (``track._grid``); with 1 m steps the
+    sample line's case was 12 s off."""
+    line = testing.line(length_m=4000, max_speed_kmh=100, train_types=[rich_line().train_type("S")],
+                        gradients=[(1500, 2600, gradient)] if gradient else [], limits=[(1500, 2500, 20)])
+    t = _crawl_times(line, np.array([0.2, 0.25, 0.3]), (1.0, 0.5, 1.0 / 8))
+    assert np.all(np.abs(t[0] - t[1]) < TOL_S), t[0] - t[1]
+    assert np.all(np.abs(t[0] - t[2]) < TOL_S), t[0] - t[2]
+
+
+def test_slow_gaps_get_steps_shortened_with_the_square_of_their_maximum():
+    from planner.physics.track import SLOW_FINEST, SLOW_MS, _grid
+
+    breaks = np.array([0.0, 100.0, 200.0, 300.0, 400.0])
+    vmax = np.array([30.0, SLOW_MS / 2, SLOW_MS / 8, SLOW_MS])
+    s = _grid(breaks, 2.0, vmax)
+    steps = [np.diff(s[(s >= a) & (s <= b)]) for a, b in zip(breaks[:-1], breaks[1:])]
+    assert np.allclose(steps[0], 2.0) and np.allclose(steps[3], 2.0)  # at or above SLOW_MS: ds_m
+    assert np.allclose(steps[1], 2.0 / 4)  # half of SLOW_MS: a quarter of ds_m
+    assert np.allclose(steps[2], 2.0 * SLOW_FINEST)  # an eighth: 1/64 asked, the finest allowed
+    assert np.array_equal(_grid(breaks, 2.0), np.linspace(0.0, 400.0, 201))  # no maxima: ds_m everywhere
+
+
 # --- stop, batch, continuation ---------------------------------------------------------
 
 def test_final_stop_at_the_marker():

@@ -34,7 +34,7 @@ def test_a_crawl_the_coarse_step_stalls_on_is_run_at_the_tables_step(sample_line
 
 
 def test_a_leg_no_ratio_gets_over_flags_its_trains_and_checks_the_others_as_without_them(sample_line):
-    stuck = _with_turnout(sample_line, 6.0)  # 1 km/h on board (the 5 km/h speed margin): E6 stalls at every ratio
+    stuck = _with_turnout(sample_line, 5.2)  # 0.2 km/h on board (the 5 km/h margin): E6 stalls at every ratio
     check = check_timetable(stuck)
     over = {t.train_id for t in sample_line.trains if ("E6", "MNT", "SKM") in interstation_keys([t])}
     assert set(check.unrouted) == over and len(over) == 42

@@ -203,6 +203,34 @@ def _band_edge(k, trk, ratio, capv, band):
 
 
 @njit(**_JIT)
+def _power_back(w, v, wend, lb, c1, ds, ag, amax, p, tab, j):
+    """A sawtooth run's step that coasts below its band's lower edge ``lb``: it coasts to the edge, powers the
+    rest of the step, and when it meets its target ``c1`` (speed²) on the way (a crawl: a few km/h gained within a
+    step) it coasts from there on. ``p``: the run's column of ``par``. Returns w₁, v₁, Δt, Δwork, the traction
+    piece's index and whether it arrives coasting."""
+    lb2 = lb * lb
+    xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
+    sub = ds - xb
+    ef, j = _interp(lb, tab, j)
+    aa, cbl = _accel(lb, ag, 1.0, amax, p[P_RAM], p[P_RBM], p[P_RCM], p[P_TFI], ef)
+    vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
+    ef, j = _interp(vq, tab, j)
+    ab, cq = _accel(vq, ag, 1.0, amax, p[P_RAM], p[P_RBM], p[P_RCM], p[P_TFI], ef)
+    wp = lb2 + (aa + ab) * sub
+    if wp > c1 and c1 > lb2:  # meets its target after xh of the powered part, coasts the rest
+        xh = sub * (c1 - lb2) / (wp - lb2)
+        vh = math.sqrt(c1)
+        w1 = _mn(c1 + 2.0 * cq * (sub - xh), c1)
+        v1 = math.sqrt(w1)
+        dt = 2.0 * (xb / (v + lb) + xh / (lb + vh) + (sub - xh) / (vh + v1))
+        return w1, v1, dt, _mx(0.5 * (c1 - lb2) - xh * 0.5 * (cbl + cq), 0.0), j, True
+    w1 = _mn(wp, c1)
+    v1 = math.sqrt(w1)
+    dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
+    return w1, v1, dt, _mx(0.5 * (w1 - lb2) - sub * 0.5 * (cbl + cq), 0.0), j, False
+
+
+@njit(**_JIT)
 def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec, rec_p, record, inc, slot):
     """Every run on its own from node k_from to k_to, with the batch-wide ``use_over`` switch fixed.
     Returns whether any run ended still above its ceiling (having been above it and not met it on
@@ -284,20 +312,9 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
                         w1, v1 = wco, vco
                     band_x = co and not cross and wend < lb * lb
                     if band_x:  # below the band's lower edge: coast to it, power the rest of the step
-                        co = False
-                        lb2 = lb * lb
-                        xb = ds * _mn(_mx((w - lb2) / (w - wend), 0.0), 1.0)
-                        sub = ds - xb
-                        ram, rbm, rcm, tfi = par[P_RAM, i], par[P_RBM, i], par[P_RCM, i], par[P_TFI, i]
-                        ef, j = _interp(lb, tab, j)
-                        aa, cbl = _accel(lb, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
-                        vq = math.sqrt(_mx(lb2 + 2.0 * aa * sub, 0.0))
-                        ef, j = _interp(vq, tab, j)
-                        ab, cq = _accel(vq, trk[T_AG, k + 1], 1.0, amax, ram, rbm, rcm, tfi, ef)
-                        w1 = _mn(lb2 + (aa + ab) * sub, c1)
-                        v1 = math.sqrt(w1)
-                        dt = 2.0 * (xb / (v + lb) + sub / (lb + v1))
-                        dwork = _mx(0.5 * (w1 - lb2) - sub * 0.5 * (cbl + cq), 0.0)
+                        w1, v1, dt, dwork, j, co = _power_back(w, v, wend, lb, c1, ds, trk[T_AG, k + 1], amax,
+                                                               par[:, i], tab, j)
+                        band_x = not co  # met its target within the step: arrives coasting
                     co = co or hit
                 ph = _phase(coasting_step, over, cross, c0, c1, w1, st1, band_x, sawtooth)
                 if record:
