@@ -31,7 +31,8 @@ class SimSettings:
     ----------
     ds_m : float
         Largest distance step [m]; breakpoints are always grid nodes, and the
-        gaps between them are divided evenly into steps of at most ``ds_m``.
+        gaps between them are divided evenly into steps of at most ``ds_m``
+        (shorter where the on-board maximum is below 40 km/h: :func:`_grid`).
     """
 
     ds_m: float = 1.0
@@ -133,7 +134,7 @@ def _grid(breaks: np.ndarray, ds_m: float, vmax_ms: np.ndarray | None = None) ->
     km/h). A step of length Δs at acceleration a changes the speed by about a Δs / v, a part a Δs / v² of itself,
     so at a crawl one step of power or coasting changes the speed by a large part of itself and a sawtooth
     vehicle's cycle between its band and its target is a few steps long (the sample line's 20 km/h restriction
-    at the lowest ratio: 12 s off a remaining time of 400 s with 1 m steps, 0.04 s with these).
+    at the lowest ratio: 12 s off a remaining time of 400 s with 1 m steps, 0.01 s with these).
     Steps ∝ v² keep that part what it is at :data:`SLOW_MS`."""
     gaps = np.diff(breaks)
     steps = np.full(gaps.shape, float(ds_m))
