@@ -293,7 +293,7 @@ def test_slow_gaps_get_steps_shortened_with_the_square_of_their_maximum():
     assert np.allclose(steps[0], 2.0) and np.allclose(steps[3], 2.0)  # at or above SLOW_MS: ds_m
     assert np.allclose(steps[1], 2.0 / 4)  # half of SLOW_MS: a quarter of ds_m
     assert np.allclose(steps[2], 2.0 * SLOW_FINEST)  # an eighth: 1/64 asked, the finest allowed
-    assert np.array_equal(_grid(breaks, 2.0), np.linspace(0.0, 400.0, 201))  # no maxima: ds_m everywhere
+    assert np.array_equal(_grid(breaks, 2.0, np.full(4, SLOW_MS)), np.linspace(0.0, 400.0, 201))  # ds_m everywhere
 
 
 # --- stop, batch, continuation ---------------------------------------------------------

@@ -125,7 +125,7 @@ SLOW_FINEST = 1.0 / 16.0
 """The shortest step of a slow gap, as a part of ``ds_m`` (reached at a quarter of :data:`SLOW_MS`)."""
 
 
-def _grid(breaks: np.ndarray, ds_m: float, vmax_ms: np.ndarray | None = None) -> np.ndarray:
+def _grid(breaks: np.ndarray, ds_m: float, vmax_ms: np.ndarray) -> np.ndarray:
     """Breakpoints (sorted, unique, 0 … L) with every gap divided evenly into steps ≤ ds_m; in a gap whose
     on-board maximum ``vmax_ms`` (one per gap) is below :data:`SLOW_MS`, into steps ≤ ds_m × (vmax / SLOW_MS)²,
     and no shorter than ds_m × :data:`SLOW_FINEST`.
@@ -137,9 +137,7 @@ def _grid(breaks: np.ndarray, ds_m: float, vmax_ms: np.ndarray | None = None) ->
     at the lowest ratio: 12 s off a remaining time of 400 s with 1 m steps, 0.01 s with these).
     Steps ∝ v² keep that part what it is at :data:`SLOW_MS`."""
     gaps = np.diff(breaks)
-    steps = np.full(gaps.shape, float(ds_m))
-    if vmax_ms is not None:
-        steps = ds_m * np.clip((np.asarray(vmax_ms) / SLOW_MS) ** 2, SLOW_FINEST, 1.0)
+    steps = ds_m * np.clip((np.asarray(vmax_ms) / SLOW_MS) ** 2, SLOW_FINEST, 1.0)
     nsub = np.maximum(np.ceil(gaps / steps - 1e-9).astype(int), 1)
     pieces = [np.linspace(a, b, k, endpoint=False) for a, b, k in zip(breaks[:-1], breaks[1:], nsub)]
     return np.concatenate(pieces + [breaks[-1:]])
