@@ -12,7 +12,8 @@ Prints:
 3. the bit-identity battery: 4 interstations per direction of the sample line for every train type,
    6 runs each with a ratio change, a snapshot and a continuation from it, recorded; the SHA-256
    of every array against ``kernel_battery.json``, the digests of the numpy integrator the kernel
-   replaced (computed on the sample line as committed with it).
+   replaced (computed on the sample line as committed with it; the file's ``about`` records the arrays
+   recomputed on purpose since, when a physics fix moved them).
 
 Run: ``python benchmarks/bench_kernel.py`` (from the repository root). Needs gcc for the C loop
 (skipped with a note if there is none).

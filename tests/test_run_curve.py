@@ -283,6 +283,25 @@ def test_halving_the_step_in_a_slow_restriction_changes_no_running_time(gradient
     assert np.all(np.abs(t[0] - t[2]) < TOL_S), t[0] - t[2]
 
 
+def test_braking_onto_a_lowered_target_ends_where_the_limit_rises():
+    """A 40 km/h limit whose tail clears at 920 m (limit to 800 m, train 120 m), the ratio lowered from 0.9 to
+    0.5 at 900 m: the run brakes from 36 km/h onto 20 km/h, and at 920 m, at 25.5 km/h, the target becomes
+    50 km/h. The braking ends at 920 m. The step leaving that node took the ceiling as rising across it from
+    the node's value (the lower neighbour's) and braked through 0.77 of it: 0.084 km/h slower 1 m on, 0.012 s
+    later at the end than with 1/16 m steps (a sawtooth vehicle that then coasts keeps that: 0.46 s on the
+    sample line). With the step starting from the interval's ceiling, the steps agree to second order."""
+    tt = rich_line().train_type("S")
+    line = testing.line(length_m=3000, max_speed_kmh=100, train_types=[tt], limits=[(500, 800, 40)])
+    got = []
+    for ds in (1.0, 1.0 / 16):
+        tr = make_track(line, "S", "S0", "S1", settings=SimSettings(ds), nodes_m=[900.0, 921.0])
+        r = simulate(tr, tt, np.array([0.9]), changes=[(900.0, np.array([0.5]))], snapshots_m=[921.0])
+        got.append((r.snapshots[921.0].v_ms[0] / KMH, r.time_s[0]))
+    assert 25.0 < got[1][0] < 27.0  # between the two targets: neither braking nor capped
+    assert abs(got[0][0] - got[1][0]) < 1e-3, got
+    assert abs(got[0][1] - got[1][1]) < 1e-3, got
+
+
 def test_slow_gaps_get_steps_shortened_with_the_square_of_their_maximum():
     from planner.physics.track import SLOW_FINEST, SLOW_MS, _grid
 

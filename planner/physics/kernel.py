@@ -196,6 +196,17 @@ def _ceiling2(k, i, trk, seg, e, r2, cap2, st2):
 
 
 @njit(**_JIT)
+def _start2(k, i, trk, seg, e, r2, cap2, st2):
+    """Run ``i``'s ceiling² at the start of the step from node k: :func:`_ceiling2`, except where a limit rises at
+    node k (a restriction's tail clears there): the node's value is the lower neighbour's, the one the step
+    arriving at k ends on, and the step leaving it starts from the interval's (the node S_C0 holds)."""
+    vi2 = trk[T_VINT, k] * trk[T_VINT, k]
+    if vi2 <= trk[T_VN2, k]:
+        return _ceiling2(k, i, trk, seg, e, r2, cap2, st2)
+    return _mn(_mn(_mn(r2 * vi2, cap2), e[seg[k], i] + trk[T_AHEAD, k]), st2)
+
+
+@njit(**_JIT)
 def _band_edge(k, trk, ratio, capv, band):
     """A sawtooth run's coasting-band lower edge on the step from node k [m/s]."""
     tgt = _mn(ratio * trk[T_VINT, k], capv)
@@ -327,6 +338,8 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
                 if k + 2 == trk.shape[1]:
                     st[S_WLAST, i] = w  # entering the last step, onto the marker
                 t = t + dt
+                if trk[T_VINT, k + 1] * trk[T_VINT, k + 1] > trk[T_VN2, k + 1]:  # a limit rises at k + 1
+                    c1 = _start2(k + 1, i, trk, seg, e, par[P_R2, i], par[P_CAP2, i], st1)
                 st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[X_J, i] = w1, v1, c1, t, j
                 st[S_WORK, i] += dwork
                 if not math.isfinite(t) and k < st[S_BAD, i]:
@@ -357,7 +370,7 @@ def set_targets(k, trk, seg, bounds, par, st, e):
         for j in range(nb - 3, -1, -1):
             kb = bounds[j + 1]
             e[j, i] = _mn(_mn(r2 * trk[T_VN2, kb], cap2), e[j + 1, i] + trk[T_AHEAD, kb])
-        st[S_C0, i] = _ceiling2(k, i, trk, seg, e, r2, cap2, trk[T_STOP2, k])
+        st[S_C0, i] = _start2(k, i, trk, seg, e, r2, cap2, trk[T_STOP2, k])
 
 
 @njit(**_JIT)
@@ -396,7 +409,7 @@ def _over_until(k_from, k_to, trk, seg, par, st, lane, e, cst):
             k += 1
             if wend < c1 or (sawtooth and co and wend < lb * lb):
                 break  # meets the ceiling, or below the band: at or below the ceiling from node k
-            w, c0 = _mn(wend, st1), c1
+            w, c0 = _mn(wend, st1), _start2(k, i, trk, seg, e, r2, cap2, st1)
         if k > k_end:
             k_end = k
     return k_end
