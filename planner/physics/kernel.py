@@ -338,8 +338,6 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
                 if k + 2 == trk.shape[1]:
                     st[S_WLAST, i] = w  # entering the last step, onto the marker
                 t = t + dt
-                if trk[T_VINT, k + 1] * trk[T_VINT, k + 1] > trk[T_VN2, k + 1]:  # a limit rises at k + 1
-                    c1 = _start2(k + 1, i, trk, seg, e, par[P_R2, i], par[P_CAP2, i], st1)
                 st[S_W, i], st[S_V, i], st[S_C0, i], st[S_T, i], st[X_J, i] = w1, v1, c1, t, j
                 st[S_WORK, i] += dwork
                 if not math.isfinite(t) and k < st[S_BAD, i]:
@@ -347,6 +345,10 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
                 lane[L_PHASE, i], lane[L_COAST, i] = ph, 1 if co else 0
                 if k + 1 == k_to:
                     still_over = still_over or (over and not cross)
+            if trk[T_VINT, k + 1] * trk[T_VINT, k + 1] > trk[T_VN2, k + 1]:  # a limit rises at k + 1: the next step
+                # starts from the interval's ceiling, not the node's
+                for i in range(a, b):
+                    st[S_C0, i] = _start2(k + 1, i, trk, seg, e, par[P_R2, i], par[P_CAP2, i], st1)
     first_bad = k_to
     for i in range(n):
         bad_at = st[S_BAD, i]
