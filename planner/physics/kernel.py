@@ -196,13 +196,14 @@ def _ceiling2(k, i, trk, seg, e, r2, cap2, st2):
 
 
 @njit(**_JIT)
-def _start2(k, i, trk, seg, e, r2, cap2, st2):
-    """Run ``i``'s ceiling² at the start of the step from node k: :func:`_ceiling2`, except where a limit rises at
-    node k (a restriction's tail clears there): the node's value is the lower neighbour's, the one the step
-    arriving at k ends on, and the step leaving it starts from the interval's (the node S_C0 holds)."""
+def _start2(k, i, trk, seg, e, r2, cap2, st2, c):
+    """Run ``i``'s ceiling² at the start of the step from node k, given its ceiling² ``c`` at the node
+    (:func:`_ceiling2`, with the same ``st2``): ``c``, except where a limit rises at node k (a restriction's tail
+    clears there): the node's value is the lower neighbour's, the one the step arriving at k ends on, and the step
+    leaving it starts from the interval's (the node S_C0 holds)."""
     vi2 = trk[T_VINT, k] * trk[T_VINT, k]
     if vi2 <= trk[T_VN2, k]:
-        return _ceiling2(k, i, trk, seg, e, r2, cap2, st2)
+        return c
     return _mn(_mn(_mn(r2 * vi2, cap2), e[seg[k], i] + trk[T_AHEAD, k]), st2)
 
 
@@ -348,7 +349,7 @@ def _sweep(k_from, k_to, k0, use_over, trk, seg, par, st, lane, e, cst, tab, rec
             if trk[T_VINT, k + 1] * trk[T_VINT, k + 1] > trk[T_VN2, k + 1]:  # a limit rises at k + 1: the next step
                 # starts from the interval's ceiling, not the node's
                 for i in range(a, b):
-                    st[S_C0, i] = _start2(k + 1, i, trk, seg, e, par[P_R2, i], par[P_CAP2, i], st1)
+                    st[S_C0, i] = _start2(k + 1, i, trk, seg, e, par[P_R2, i], par[P_CAP2, i], st1, st[S_C0, i])
     first_bad = k_to
     for i in range(n):
         bad_at = st[S_BAD, i]
@@ -372,7 +373,8 @@ def set_targets(k, trk, seg, bounds, par, st, e):
         for j in range(nb - 3, -1, -1):
             kb = bounds[j + 1]
             e[j, i] = _mn(_mn(r2 * trk[T_VN2, kb], cap2), e[j + 1, i] + trk[T_AHEAD, kb])
-        st[S_C0, i] = _start2(k, i, trk, seg, e, r2, cap2, trk[T_STOP2, k])
+        st[S_C0, i] = _start2(k, i, trk, seg, e, r2, cap2, trk[T_STOP2, k],
+                              _ceiling2(k, i, trk, seg, e, r2, cap2, trk[T_STOP2, k]))
 
 
 @njit(**_JIT)
@@ -411,7 +413,7 @@ def _over_until(k_from, k_to, trk, seg, par, st, lane, e, cst):
             k += 1
             if wend < c1 or (sawtooth and co and wend < lb * lb):
                 break  # meets the ceiling, or below the band: at or below the ceiling from node k
-            w, c0 = _mn(wend, st1), _start2(k, i, trk, seg, e, r2, cap2, st1)
+            w, c0 = _mn(wend, st1), _start2(k, i, trk, seg, e, r2, cap2, st1, c1)
         if k > k_end:
             k_end = k
     return k_end
