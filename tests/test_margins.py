@@ -362,6 +362,20 @@ def test_timetable_leg_without_arrival_is_an_input_error():
         timetable_legs(closed_form_line((bad,)))
 
 
+def test_timetable_legs_are_made_once_per_line_object_and_each_caller_gets_its_own_list():
+    # the nightly job asks for the same line's legs in several steps: they are kept per line object, so an edited
+    # line (another object) must get its own, and a caller's changes to its list must not reach the next caller
+    line = closed_form_line()
+    first = timetable_legs(line)
+    assert [lg.train_id for lg in first] == [t.train_id for t in TRAINS for _ in range(len(t.stop_calls()) - 1)]
+    first.clear()
+    again = timetable_legs(line)
+    assert again and again is not first and again == timetable_legs(closed_form_line())
+    fewer = dataclasses.replace(line, trains=TRAINS[:1])
+    assert {lg.train_id for lg in timetable_legs(fewer)} == {TRAINS[0].train_id}
+    assert len(timetable_legs(line)) == len(again) > len(timetable_legs(fewer))
+
+
 # --- datasets ---------------------------------------------------------------------------
 
 def test_datasets_schema_partitions_and_determinism(report, tmp_path):
