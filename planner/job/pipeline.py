@@ -31,8 +31,9 @@ each verified for the overview there once written, taken at the line's end) star
 on the workers when the closed loop ends, while the writer thread writes the closed
 loop and the margins take its rows from memory; the legs' speed–distance charts start
 as soon as the margins are computed, and the train graph page is written
-on a worker while the main process writes the tables page and the margin report
-(whose few charts it draws itself); the chart pages are written on the workers
+on a worker while the main process writes the tables page, and the writer thread draws
+the margin report page (while this process mostly waits on the workers for the tables'
+pages and the charts); the chart pages are written on the workers
 while the line's bundles are finished. This process is the night's serial path (one interpreter
 lock beside two busy workers), so it leaves to a worker or the writer thread
 what it can.
