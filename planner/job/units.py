@@ -17,7 +17,6 @@ import os
 import signal
 import time
 import warnings
-import weakref
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -28,7 +27,7 @@ from planner.errors import PlannerError
 from planner.io.compiled import COMPILERS  # their versions are part of the code digest
 from planner.job.cache import Cache
 from planner.job.config import Job
-from planner.line.model import Line
+from planner.line.model import Line, per_line
 
 
 # --- digests of exactly what a unit depends on -----------------------------------
@@ -101,22 +100,14 @@ def interstation_inputs(line: Line, train_type: str, origin: str, destination: s
     }
 
 
-_SEEN: "weakref.WeakKeyDictionary[Line, dict]" = weakref.WeakKeyDictionary()
-
-
+@per_line
 def interstation_digest(line: Line, train_type: str, origin: str, destination: str) -> str:
-    """The digest of :func:`interstation_inputs`, made once per line object and interstation: the tables', stops',
-    margins' and charts' keys each digest the same slice of the line (a :class:`~planner.line.model.Line` is
-    immutable; an edited line is another object), and making it again for each was 4 s of the job process on
-    the 100x line."""
+    """The digest of :func:`interstation_inputs`, made once per line object and interstation
+    (:func:`~planner.line.model.per_line`): the tables', stops', margins' and charts' keys each digest the same
+    slice of the line, and making it again for each was 4 s of the job process on the 100x line."""
     from planner.job.publish import digest
 
-    by = _SEEN.setdefault(line, {})
-    k = (train_type, origin, destination)
-    got = by.get(k)
-    if got is None:
-        got = by[k] = digest(interstation_inputs(line, train_type, origin, destination))
-    return got
+    return digest(interstation_inputs(line, train_type, origin, destination))
 
 
 def stops_key(job: Job, line: Line, train_type: str, origin: str, destination: str) -> str:

@@ -14,6 +14,7 @@ decreasing chainage. ``sign(direction)`` is +1 for down, -1 for up.
 """
 from __future__ import annotations
 
+import functools
 import weakref
 from dataclasses import dataclass, field, replace
 from typing import Literal
@@ -394,15 +395,27 @@ class _Index:
         return hit
 
 
-_INDEXES: "weakref.WeakKeyDictionary[Line, _Index]" = weakref.WeakKeyDictionary()
-"""Each line's :class:`_Index`, beside it rather than in it: a line pickled to a worker or digested carries none."""
+def per_line(fn):
+    """``fn(line, *args)`` made once per line object and arguments, then given again: for what several steps of a
+    run ask of the same line (a :class:`Line` is immutable; an edited line is another object, with its own). Kept
+    beside the line, not in it (a line pickled to a worker or digested carries none), as long as the line lives.
+    What ``fn`` gives is shared by every caller: a tuple, a string, or an object nobody changes."""
+    made: "weakref.WeakKeyDictionary[Line, dict]" = weakref.WeakKeyDictionary()
+
+    @functools.wraps(fn)
+    def once(line, *args):
+        by = made.setdefault(line, {})
+        got = by.get(args)
+        if got is None:
+            got = by[args] = fn(line, *args)
+        return got
+    return once
 
 
+@per_line
 def _index(line: "Line") -> _Index:
-    ix = _INDEXES.get(line)
-    if ix is None:
-        ix = _INDEXES[line] = _Index(line)
-    return ix
+    """Each line's :class:`_Index`."""
+    return _Index(line)
 
 
 def _lookup(items, attr: str, text: str, what: str, line_id: str):

@@ -10,14 +10,13 @@ closed-loop driver do the work; nothing here reads or writes files.
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 
 from planner.errors import InputError, StallError
-from planner.line.model import Line, sign
+from planner.line.model import Line, per_line, sign
 from planner.line.units import KMH, KMH_S, kmh
 from planner.report.margin_rule import MarginRule
 from planner.stopping.approach import DEFAULT_APPROACH_M, approach_start, brake_cap_ms2, train_adhesion_ms2
@@ -184,22 +183,17 @@ def train_adhesion_kmh_s(train, adhesion_kmh_s) -> np.ndarray:
     return np.asarray([round(a / KMH_S, 9) for a in levels], dtype=float)
 
 
+@per_line
 def passed_stations(line: Line, origin: str, destination: str) -> tuple[str, ...]:
-    """Stations strictly between two stops, in running order (made once per line object and pair of stops: the
-    margin report asks for each of its rows, 0.6 s of the job process on a line of 1,100 stations)."""
-    by = _PASSED.setdefault(line, {})
-    got = by.get((origin, destination))
-    if got is None:
-        d = line.direction_between(origin, destination)
-        a, b = line.station(origin).position_m, line.station(destination).position_m
-        lo, hi = min(a, b), max(a, b)
-        st = [s for s in line.stations if lo < s.position_m < hi]
-        st.sort(key=lambda s: sign(d) * s.position_m)
-        got = by[(origin, destination)] = tuple(s.station_id for s in st)
-    return got
-
-
-_PASSED: "weakref.WeakKeyDictionary[Line, dict]" = weakref.WeakKeyDictionary()
+    """Stations strictly between two stops, in running order (made once per line object and pair of stops,
+    :func:`~planner.line.model.per_line`: the margin report asks for each of its rows, 0.6 s of the job process on
+    a line of 1,100 stations)."""
+    d = line.direction_between(origin, destination)
+    a, b = line.station(origin).position_m, line.station(destination).position_m
+    lo, hi = min(a, b), max(a, b)
+    st = [s for s in line.stations if lo < s.position_m < hi]
+    st.sort(key=lambda s: sign(d) * s.position_m)
+    return tuple(s.station_id for s in st)
 
 
 def leg_result(line: Line, train_type: str, origin: str, destination: str, scheduled: Sequence[float], *,

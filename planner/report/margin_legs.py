@@ -13,13 +13,12 @@ are all whole-day, is computed on the day's line as before.
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 from planner.errors import InputError
 from planner.line.operating_day import TEMPORARY_KIND, without_temporary
-from planner.line.model import DIRECTIONS, Line
+from planner.line.model import DIRECTIONS, Line, per_line
 
 Lifted = Mapping[tuple[str, int], tuple[str, ...]]
 """``(train_id, leg_seq)`` → ids of the day's temporary restrictions lifted while the train runs that leg."""
@@ -44,19 +43,19 @@ class TrainLeg:
         return self.arrival_s - self.departure_s
 
 
-def timetable_legs(line: Line) -> list[TrainLeg]:
+@per_line
+def timetable_legs(line: Line) -> tuple[TrainLeg, ...]:
     """Every stop-to-stop run of the timetable (passes are run through; first and last call are stops).
 
-    Made once per line object (a new list each call).
+    Made once per line object (:func:`~planner.line.model.per_line`): the nightly job asks for the same line's legs
+    in several steps (its closed loop's look-ups, the margins, the lifted restrictions), 1.3 s of the job process
+    each on the 100x line.
 
     Raises
     ------
     InputError
         A leg without a departure or arrival time, or not later than its departure.
     """
-    got = _LEGS.get(line)
-    if got is not None:
-        return list(got)
     out = []
     for tr in line.trains:
         calls = tr.stop_calls()
@@ -69,14 +68,7 @@ def timetable_legs(line: Line) -> list[TrainLeg]:
                     f"({a.station_id}->{b.station_id}): needs a departure and a later arrival "
                     f"(found departure_s={a.departure_s}, arrival_s={b.arrival_s})")
             out.append(leg)
-    _LEGS[line] = tuple(out)
-    return out
-
-
-_LEGS: "weakref.WeakKeyDictionary[Line, tuple[TrainLeg, ...]]" = weakref.WeakKeyDictionary()
-"""The legs of each line object (:func:`timetable_legs`; a :class:`Line` is immutable, an edited line is another
-object): the nightly job asks for the same line's legs in several steps (its closed loop's look-ups, the margins,
-the lifted restrictions), 1.3 s of the job process each on the 100x line."""
+    return tuple(out)
 
 
 def lifted_of(leg: TrainLeg, lifted: Lifted | None) -> tuple[str, ...]:
