@@ -404,7 +404,9 @@ def per_line(fn):
 
     @functools.wraps(fn)
     def once(line, *args):
-        by = made.setdefault(line, {})
+        by = made.get(line)  # not setdefault: it makes a dict and a weak reference with a callback every call
+        if by is None:
+            by = made[line] = {}
         got = by.get(args)
         if got is None:
             got = by[args] = fn(line, *args)
