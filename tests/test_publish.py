@@ -67,6 +67,22 @@ def test_cache_counts_hits_and_misses(tmp_path):
     assert (c.hits, c.misses) == (1, 1)
 
 
+def test_an_atomic_write_makes_its_folders_and_a_file_in_the_way_fails_it_leaving_nothing(tmp_path):
+    """The folder is made only when it is missing (the write tries the file first); a file where a folder
+    must be is an error, and the write leaves no temporary file behind."""
+    import planner.io.atomic as atomic
+
+    atomic.write_bytes_atomic(tmp_path / "a" / "b" / "c.bin", b"deep")
+    assert (tmp_path / "a" / "b" / "c.bin").read_bytes() == b"deep"
+    atomic.write_bytes_atomic(tmp_path / "a" / "b" / "c.bin", b"again")  # the folder is there now
+    assert (tmp_path / "a" / "b" / "c.bin").read_bytes() == b"again"
+    (tmp_path / "f").write_bytes(b"a file")
+    with pytest.raises(OSError):
+        atomic.write_bytes_atomic(tmp_path / "f" / "x.bin", b"x")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "f"]
+    assert sorted(p.name for p in (tmp_path / "a" / "b").iterdir()) == ["c.bin"]
+
+
 def test_staged_files_are_flushed_once_by_publish_before_the_rename(tmp_path, monkeypatch):
     """Inside deferred_fsync an atomic write does not flush; publish flushes every staged file, then renames."""
     import planner.io.atomic as atomic

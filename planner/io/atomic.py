@@ -124,10 +124,13 @@ def atomic_path(path: str | os.PathLike, *, mode: int = 0o644, fsync: bool | Non
     it): writers that infer a format from the name must be told it (``savefig(format="png")``).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     if fsync is None:
         fsync = not deferring()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:  # the folder is there (most writes): no mkdir, whose failing call costs more than the file's own creation
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except (FileNotFoundError, NotADirectoryError):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     try:
         yield Path(tmp)
