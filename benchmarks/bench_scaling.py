@@ -29,6 +29,13 @@ night on a Dask cluster started here as a
 user starts one (``dask scheduler``; ``dask worker ADDRESS --nworkers 2 --nthreads 1``) and prints its wall
 and CPU against joblib's, and whether the published datasets are the same (issue 48: within 15 %).
 
+Each night also prints what its process tree read from and wrote to the disk (not the page cache: the rusage
+block counts). An edit night reads back every entry it reuses and every file of the previous run it links, to
+check their digests: on a machine that has dropped them from memory since the cold night (a host reclaiming idle
+page cache) that is gigabytes from the disk. ``--page-cache dropped`` drops the page cache before the edit night
+(root only), so that the figure does not depend on what the machine kept; ``both`` then runs a second edit with
+the first one's reads still in memory.
+
 Before the nights and after them it prints the machine's speed at the night's heaviest kind of work (the sample's
 tables step in one process, :func:`machine_cpu_s`), and at the end each night's CPU in units of that figure: on a
 shared machine CPU seconds move from day to day, and notes compare runs through it.
@@ -142,6 +149,9 @@ def run_job(base: Path, label: str, also: tuple[int, ...] = ()) -> dict:
            "maxrss_mb": ru.ru_maxrss / 1024, "tree_peak_mb": sampler.peak_sum / 2**20,
            "main_peak_mb": sampler.peak_main / 2**20, "worker_peak_mb": sampler.peak_worker / 2**20,
            "main_cpu_s": sampler.cpu.get(p.pid, 0.0),
+           # from the storage device, not the page cache (512-byte blocks): what a night reads back of earlier ones
+           "read_mb": (ru.ru_inblock - ru0.ru_inblock) * 512 / 2**20,
+           "written_mb": (ru.ru_oublock - ru0.ru_oublock) * 512 / 2**20,
            "log": (base / f"{label}.log").read_text()[-3000:], "timings": {}}
     out["worker_cpu_s"] = max(0.0, out["cpu_s"] - out["main_cpu_s"])
     runs = sorted(d for d in (base / "outputs").glob("r0*") if (d / "manifest.json").is_file())
@@ -321,12 +331,26 @@ def _show(name: str, r: dict) -> None:
     print(f"  {name:22s} wall {r['wall_s']:7.1f} s   CPU {r['cpu_s']:7.1f} s (main {r['main_cpu_s']:.1f}, workers "
           f"{r['worker_cpu_s']:.1f})   peak: tree {r['tree_peak_mb']:7.0f} MB, main {r['main_peak_mb']:.0f} MB, "
           f"a worker {r['worker_peak_mb']:.0f} MB   {status}", flush=True)
+    print(f"      disk (not the page cache): read {r['read_mb']:.0f} MB, written {r['written_mb']:.0f} MB", flush=True)
     if r["cpu_s"] > 0:  # the job process's share bounds what any number of workers can gain (Amdahl)
         f = r["main_cpu_s"] / r["cpu_s"]
         print(f"      serial fraction (job-process CPU / all CPU) {f:.1%}: no cluster makes this night more than "
               f"{1 / f if f > 0 else float('inf'):.1f}x faster", flush=True)
     if r["timings"]:
         print("      steps [s wall]: " + ", ".join(f"{k} {v:.1f}" for k, v in r["timings"].items()), flush=True)
+
+
+def drop_page_cache() -> str | None:
+    """Write the dirty pages out and drop the clean ones (Linux, root only): every byte the next night reads of the
+    earlier nights (the cache's entries, the previous run's files it checks and links) then comes from the disk.
+    None when done, else why not."""
+    try:
+        os.sync()
+        with open("/proc/sys/vm/drop_caches", "w") as f:
+            f.write("1")
+    except OSError as e:
+        return f"cannot drop the page cache ({e.strerror or e}; it needs root on Linux)"
+    return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -340,6 +364,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dask", action="store_true",
                     help="also the big line's cold night on a local Dask cluster (dask scheduler, dask worker "
                          "--nworkers 2 --nthreads 1), against joblib: wall, CPU and the same datasets")
+    ap.add_argument("--page-cache", choices=("as-left", "dropped", "both"), default="as-left",
+                    help="the edit night with the page cache as the nights before left it (default), after dropping "
+                         "it (every entry the night reads back comes from the disk: root only), or both: dropped, "
+                         "then a second edit with the first's reads still in memory. A machine that reclaims idle "
+                         "page cache (e.g. a DAMON pageout scheme) is somewhere between the two")
     args = ap.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="bench_scaling.")) if args.keep is None else args.keep
     try:
@@ -361,14 +390,28 @@ def main(argv: list[str] | None = None) -> int:
             ok = dask_against_joblib(work, big, r)
         if ok:
             what = edit_restriction(big, args.copies)
+            why = drop_page_cache() if args.page_cache != "as-left" else None
+            if why:
+                print(f"bench_scaling: {why}", flush=True)
+                return 1
             results["edit"] = r = run_job(base, "edit")
-            _show(f"{big.name}, one edit", r)
+            cache = "" if args.page_cache == "as-left" else ", page cache dropped"
+            _show(f"{big.name}, one edit{cache}", r)
             print(f"      (edit: {what})")
             ok = r["rc"] == 0
             if ok:
                 c = results["cold"]
                 print(f"      edit night against the cold night: CPU {r['cpu_s'] / c['cpu_s']:.0%} (target <= 10 %), "
                       f"wall {r['wall_s'] / c['wall_s']:.0%}", flush=True)
+            if ok and args.page_cache == "both":  # the same again, the first edit's reads still in memory
+                what2 = edit_restriction(big, args.copies)
+                results["edit, warm"] = r2 = run_job(base, "edit2")
+                _show(f"{big.name}, a second edit, page cache warm", r2)
+                print(f"      (edit: {what2})")
+                ok = r2["rc"] == 0
+                if ok:
+                    print(f"      against the cold night: CPU {r2['cpu_s'] / c['cpu_s']:.0%}, "
+                          f"wall {r2['wall_s'] / c['wall_s']:.0%}", flush=True)
             if ok and args.verify_edit:  # what the edit night published is what a cold night of the edited line does
                 fresh = job_folder(work / f"job-{big.name}-edited-cold", big)
                 r2 = run_job(fresh, "cold")
