@@ -49,6 +49,30 @@ def test_same_table_same_bytes(tmp_path):
     assert not list((tmp_path / "a").rglob("*.tmp"))
 
 
+def test_a_table_made_from_a_frame_is_the_same_bytes_as_from_arrays_whatever_the_pandas_version(tmp_path):
+    """pandas records its own version in a table made from a frame: a file written from one would be other bytes
+    after a pandas update (a fresh install got 3.1.2 where the team's had 3.1.1, and five datasets differed).
+    The writer leaves that record out, and keeps the planner's own metadata."""
+    import pandas as pd
+
+    from planner.io.parquet import write_parquet_atomic
+
+    frame = pd.DataFrame({"ratio": [1.0, 0.9], "running_time_s": [100.0, 111.5]})
+    made = pa.Table.from_pandas(frame, preserve_index=False)
+    assert b"pandas" in made.schema.metadata  # what pandas adds, here as in the planner's writers
+    other = made.replace_schema_metadata({**made.schema.metadata, b"pandas": made.schema.metadata[b"pandas"]
+                                          .replace(pd.__version__.encode(), b"0.0.0-other")})
+    plain = pa.table({"ratio": [1.0, 0.9], "running_time_s": [100.0, 111.5]})
+    for name, t in (("frame", made), ("other", other), ("plain", plain)):
+        write_parquet_atomic(t, tmp_path / f"{name}.parquet")
+    read = lambda n: (tmp_path / f"{n}.parquet").read_bytes()  # noqa: E731
+    assert read("frame") == read("other") == read("plain")
+    assert b"pandas" not in (pq.read_metadata(tmp_path / "frame.parquet").metadata or {})
+    kept = pa.table({"x": [1]}).replace_schema_metadata({b"planner": b"mine", b"pandas": b"{}"})
+    write_parquet_atomic(kept, tmp_path / "kept.parquet")
+    assert pq.read_schema(tmp_path / "kept.parquet").metadata == {b"planner": b"mine"}
+
+
 def test_partitions_keep_row_order_and_name_folders_by_the_values_text(tmp_path):
     """Grouped in Arrow, not per row in Python: rows keep their order inside a partition, a folder is
     named by str() of its value (ints included), and a missing value is a 'None' folder."""
