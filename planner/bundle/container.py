@@ -59,6 +59,7 @@ from planner.bundle.manifest import (CORE_TABLES, BundleDay, EXPECTED_TABLES, FO
 from planner.errors import BundleError
 from planner.io.atomic import write_bytes_atomic
 from planner.io.memory import give_back
+from planner.io.parquet import without_pandas_metadata
 from planner.line.model import DIRECTIONS, Line
 
 _TABLE_NAME = re.compile(r"[a-z][a-z0-9_]{0,63}")
@@ -77,17 +78,10 @@ stop summary (both small)."""
 
 
 # --- writing -----------------------------------------------------------------
-def _plain(table: pa.Table) -> pa.Table:
-    """``table`` without pandas metadata."""
-    meta = dict(table.schema.metadata or {})
-    meta.pop(b"pandas", None)
-    return table.replace_schema_metadata(meta or None)
-
-
 def parquet_bytes(table: pa.Table) -> bytes:
     """Deterministic Parquet bytes of ``table`` (fixed writer settings, no pandas metadata)."""
     buf = io.BytesIO()
-    pq.write_table(_plain(table), buf, **_PARQUET_OPTIONS)
+    pq.write_table(without_pandas_metadata(table), buf, **_PARQUET_OPTIONS)
     return buf.getvalue()
 
 
@@ -100,7 +94,7 @@ def streamed_bytes(name: str, part: Partition, target: tuple[str, str, str]) -> 
     writer: list[pq.ParquetWriter] = []
 
     def write(piece: pa.Table) -> None:
-        piece = _plain(piece)
+        piece = without_pandas_metadata(piece)
         if not writer:
             writer.append(pq.ParquetWriter(buf, piece.schema, **_PARQUET_OPTIONS))
         writer[0].write_table(piece)

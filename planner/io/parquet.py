@@ -68,17 +68,23 @@ def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
     return pa.Table.from_arrays(cols, schema=schema)
 
 
+def without_pandas_metadata(table: pa.Table) -> pa.Table:
+    """``table`` without the record pandas adds to a table made from a frame (it names pandas' version: the same rows
+    would be other bytes after a pandas update); its other metadata kept."""
+    meta = table.schema.metadata
+    if not meta or b"pandas" not in meta:
+        return table
+    return table.replace_schema_metadata({k: v for k, v in meta.items() if k != b"pandas"} or None)
+
+
 def write_parquet_atomic(table: pa.Table, path: Path) -> None:
     """Write ``table`` to ``path`` deterministically; the final name appears only when complete. The bytes depend
     on the table alone: no run's id or date is in a file (a run's are folders, :func:`place_in_run`), nor the
     record pandas adds to a table made from a frame (it names pandas' version, so the same rows would be other
     bytes after a pandas update)."""
-    meta = table.schema.metadata
-    if meta and b"pandas" in meta:
-        table = table.replace_schema_metadata({k: v for k, v in meta.items() if k != b"pandas"} or None)
     with atomic_path(path) as tmp:
         pq.write_table(
-            table,
+            without_pandas_metadata(table),
             tmp,
             compression="zstd",
             use_dictionary=True,
