@@ -240,9 +240,11 @@ def legs(line, margins, window=None) -> Iterator[tuple[tuple, dict]]:
                       row["scheduled_running_time_s"], row_lifted(line, row, window)), row
 
 
-def leg_window(line, key: tuple):
-    """The window :func:`record_leg` runs leg ``key`` on: its line (:func:`leg_line`) between its two stops."""
-    return leg_line(line, key).window(key[2], key[3], key[1])
+def leg_window(line, key: tuple, window=None):
+    """The window :func:`record_leg` runs leg ``key`` on: its line (:func:`leg_line`) between its two stops;
+    ``window``: as :func:`row_lifted`'s, used where the leg runs on ``line`` itself (no restriction lifted)."""
+    on = leg_line(line, key)
+    return (window if window is not None and on is line else on.window)(key[2], key[3], key[1])
 
 
 def leg_runs(line, margins, ds_m: float = 1.0) -> dict[tuple, LegRun]:
@@ -281,7 +283,7 @@ def planned_legs(line, margins) -> dict[tuple, tuple[Leg, object]]:
     window = functools.cache(line.window)
     for key, row in legs(line, margins, window):
         try:
-            win = window(key[2], key[3], key[1]) if leg_line(line, key) is line else leg_window(line, key)
+            win = leg_window(line, key, window)
             out[key] = (Leg(key, float(row["ratio_on_time"]), row, leg_span(win, key)), win)
         except PlannerError:
             continue
