@@ -74,6 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--coarse", type=float, default=4.0, help="the coarser grid's step [km/h] (default 4)")
     a = ap.parse_args(argv)
     fine_kmh = build.APPROACH_SPEED_STEP_MS / KMH
+    if a.coarse <= fine_kmh or abs(a.coarse / fine_kmh - round(a.coarse / fine_kmh)) > 1e-9:
+        ap.error(f"--coarse must be a multiple of the grid's {fine_kmh:g} km/h above it (4, 6, 8 ...)")
     job = load_job(ROOT / "jobs" / "nightly.toml")
     line = planner.load_line(ROOT / "lines" / "sample")
     tables_step(line, job)  # warm: imports, compiled kernels
