@@ -9,9 +9,10 @@ point does (the adaptive mode then uses table (c) there), and measures what that
 arrival error.
 
 Every night runs in one process (``[parallel] n_jobs = 1``), so its CPU is the night's computing without
-the pool's overhead. Each round runs the shipped job first and every variant after it, and the shipped job
-once more at the end; the spread of the shipped nights is this machine's noise, and a variant's figure is
-its median over the rounds. The sample (the default) has the daily feed's restrictions and the fixed costs
+the pool's overhead, and the disk is synced before each, so that no night pays for the last one's writes.
+Each round runs the shipped job first and every variant after it, each round in another order, and the
+shipped job once more at the end; the spread of the shipped nights is this machine's noise, and a
+variant's figure is its median over the rounds. The sample (the default) has the daily feed's restrictions and the fixed costs
 of a small line (the conflict check and the Monte-Carlo days weigh more than on a big one); ``--copies 10``
 runs the line ``bench_scaling.py`` builds (ten samples end to end, no daily feed), whose shares are those
 of the 100x line (the night grows linearly), at about 100 s a night.
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import resource
 import shutil
@@ -78,22 +80,27 @@ def _project(base: Path, copies: int) -> Path:
     return base
 
 
-def _night(proj: Path, name: str, edits, prelude: str) -> tuple[float, Path]:
-    """One cold night of the edited job in a fresh output root: its CPU [s] and its run folder."""
+def _night(proj: Path, name: str, edits, prelude: str, keep: bool = False) -> tuple[float, Path | None]:
+    """One cold night of the edited job in a fresh output root: its CPU [s] and, with ``keep``, its run folder
+    (else the outputs are deleted). The disk is synced first, so no night pays for the last one's writes."""
     text = (proj / "jobs" / "nightly.toml").read_text()
     for pattern, repl in [ONE_PROCESS, *edits, (r'(?m)^output_root = "outputs"', f'output_root = "out-{name}"')]:
         text = _edit(text, pattern, repl)
     job = proj / "jobs" / f"{name}.toml"
     job.write_text(text)
     code = prelude + "import sys\nfrom planner.cli import main\nsys.argv = ['planner', *sys.argv[1:]]\nmain()\n"
+    os.sync()
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = subprocess.run([sys.executable, "-c", code, "run", str(job.relative_to(proj)), "--no-progress"],
                        cwd=proj, capture_output=True, text=True)
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         raise SystemExit(f"bench_content: the night '{name}' failed:\n{r.stdout}{r.stderr}")
-    runs = sorted((proj / f"out-{name}").glob("r0*"))
-    return (ru.ru_utime + ru.ru_stime) - (ru0.ru_utime + ru0.ru_stime), runs[-1]
+    cpu = (ru.ru_utime + ru.ru_stime) - (ru0.ru_utime + ru0.ru_stime)
+    if not keep:
+        shutil.rmtree(proj / f"out-{name}")
+        return cpu, None
+    return cpu, sorted((proj / f"out-{name}").glob("r0*"))[-1]
 
 
 def _rows(run: Path, dataset: str) -> int:
@@ -127,13 +134,14 @@ def main() -> None:
         raise SystemExit("bench_content: --copies and --rounds must be at least 1")
     with tempfile.TemporaryDirectory() as tmp:
         proj = _project(Path(tmp), args.copies)
-        shipped: list[tuple[float, Path]] = []
+        shipped: list[tuple[float, Path | None]] = []
         cpu: dict[str, list[float]] = {name: [] for name, *_ in VARIANTS}
-        runs: dict[str, Path] = {}
-        for k in range(args.rounds):
-            shipped.append(_night(proj, f"shipped{k}", [], ""))
-            for i, (name, edits, prelude, _) in enumerate(VARIANTS):
-                c, runs[name] = _night(proj, f"r{k}v{i}", edits, prelude)
+        runs: dict[str, Path | None] = {}
+        for k in range(args.rounds):  # each round takes the variants in another order (no one always goes first)
+            shipped.append(_night(proj, f"shipped{k}", [], "", keep=k == 0))
+            for i in [*range(k, len(VARIANTS)), *range(k % len(VARIANTS))]:
+                name, edits, prelude, _ = VARIANTS[i]
+                c, runs[name] = _night(proj, f"r{k}v{i}", edits, prelude, keep=k == args.rounds - 1)
                 cpu[name].append(c)
         shipped.append(_night(proj, "shipped-last", [], ""))
         if _rows(shipped[0][1], "table_d") == 0:
