@@ -20,7 +20,6 @@ of the 100x line (the night grows linearly), at about 100 s a night.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import resource
@@ -33,7 +32,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import bench_nightly  # noqa: E402
+import bench_scaling  # noqa: E402
+import big_line  # noqa: E402
 
 NO_TABLE_D = ("import planner.tables.build as b\n"
               "from planner.errors import InfeasibleError\n"
@@ -66,25 +69,19 @@ def _edit(text: str, pattern: str, repl: str) -> str:
 
 
 def _project(base: Path, copies: int) -> Path:
-    """The sample's project (line, daily feed, jobs) in ``base``; with ``copies`` > 1, its job on the big line."""
-    for part in ("lines/sample", "feeds/sample", "jobs"):
-        shutil.copytree(ROOT / part, base / part)
+    """The sample's project in ``base`` (:func:`bench_nightly._project`); with ``copies`` > 1, its job on the big line
+    instead (:func:`bench_scaling.job_folder`: no daily feed, whose trains and stations are the sample's)."""
+    proj = bench_nightly._project(base)
     if copies > 1:
-        sys.path.insert(0, str(Path(__file__).resolve().parent))
-        import big_line
-
-        line = big_line.build(copies, base / "lines")
-        job = base / "jobs" / "nightly.toml"
-        text = _edit(job.read_text(), r"(?m)^lines = .*$", f"lines = [{json.dumps(str(line))}]")
-        job.write_text(_edit(text, r"(?m)^feeds = .*$", "feeds = []"))  # the feed names the sample's trains
-    return base
+        bench_scaling.job_folder(proj, big_line.build(copies, base / "lines"))
+    return proj
 
 
 def _night(proj: Path, name: str, edits, prelude: str, keep: bool = False) -> tuple[float, Path | None]:
     """One cold night of the edited job in a fresh output root: its CPU [s] and, with ``keep``, its run folder
     (else the outputs are deleted). The disk is synced first, so no night pays for the last one's writes."""
     text = (proj / "jobs" / "nightly.toml").read_text()
-    for pattern, repl in [ONE_PROCESS, *edits, (r'(?m)^output_root = "outputs"', f'output_root = "out-{name}"')]:
+    for pattern, repl in [ONE_PROCESS, *edits, (r"(?m)^output_root = .*$", f'output_root = "out-{name}"')]:
         text = _edit(text, pattern, repl)
     job = proj / "jobs" / f"{name}.toml"
     job.write_text(text)
@@ -133,7 +130,7 @@ def main() -> None:
     if args.copies < 1 or args.rounds < 1:
         raise SystemExit("bench_content: --copies and --rounds must be at least 1")
     with tempfile.TemporaryDirectory() as tmp:
-        proj = _project(Path(tmp), args.copies)
+        proj = _project(Path(tmp) / "project", args.copies)
         shipped: list[tuple[float, Path | None]] = []
         cpu: dict[str, list[float]] = {name: [] for name, *_ in VARIANTS}
         runs: dict[str, Path | None] = {}
