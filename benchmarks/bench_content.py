@@ -12,10 +12,11 @@ Every night runs in one process (``[parallel] n_jobs = 1``), so its CPU is the n
 the pool's overhead, and the disk is synced before each, so that no night pays for the last one's writes.
 Each round runs the shipped job first and every variant after it, each round in another order, and the
 shipped job once more at the end; the spread of the shipped nights is this machine's noise, and a
-variant's figure is its median over the rounds. The sample (the default) has the daily feed's restrictions and the fixed costs
-of a small line (the conflict check and the Monte-Carlo days weigh more than on a big one); ``--copies 10``
-runs the line ``bench_scaling.py`` builds (ten samples end to end, no daily feed), whose shares are those
-of the 100x line (the night grows linearly), at about 100 s a night.
+variant's figure is its median over the rounds. The sample (the default) has the daily feed's
+restrictions and the fixed costs of a small line (the conflict check and the Monte-Carlo days weigh
+more than on a big one); ``--copies 10`` runs the line ``bench_scaling.py`` builds (ten samples end to
+end, no daily feed), whose shares are those of the 100x line (the night grows linearly), at about 100 s
+a night.
 """
 from __future__ import annotations
 
